@@ -1,0 +1,294 @@
+"""Frequency-response data: validation, windows and file loaders (layer L1).
+
+:class:`FrequencyData` is the one container every fitter takes. It is frozen and its arrays
+are read-only, so a window or a result can share them safely.
+"""
+
+import csv
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .errors import DataError
+
+__all__ = ["FrequencyData", "load_csv", "load_npz", "load", "save_csv"]
+
+
+def _first_bad(mask):
+    return int(np.flatnonzero(mask)[0])
+
+
+@dataclass(frozen=True)
+class FrequencyData:
+    """Samples ``response[i] = G(j*omega[i])`` of a frequency response.
+
+    Parameters
+    ----------
+    omega : array_like of float, shape (M,)
+        Angular frequencies in rad/s: finite, > 0 and strictly increasing.
+    response : array_like of complex, shape (M,)
+        Complex frequency response at ``omega``: finite and nonzero.
+    name : str, optional
+        A label used in reports and plots.
+    weights : array_like of float, shape (M,), optional
+        Nonnegative weights of the squared relative residuals (default: all 1).
+
+    Raises
+    ------
+    DataError
+        Naming the offending index and value and the fix, for any violation above.
+
+    Notes
+    -----
+    Use :meth:`sorted` to sort and de-duplicate raw data before construction.
+    """
+
+    omega: np.ndarray
+    response: np.ndarray
+    name: str = None
+    weights: np.ndarray = field(default=None)
+
+    def __post_init__(self):
+        omega = _as_float_vector(self.omega, "omega")
+        response = _as_complex_vector(self.response, "response")
+        if omega.size == 0:
+            raise DataError("omega is empty: give at least a few frequency points")
+        if response.size != omega.size:
+            raise DataError(
+                f"omega and response must have equal lengths: len(omega)={omega.size}, "
+                f"len(response)={response.size}; pass one response value per frequency")
+        bad = ~np.isfinite(omega)
+        if bad.any():
+            i = _first_bad(bad)
+            raise DataError(f"omega must be finite: omega[{i}]={omega[i]}; remove that point")
+        bad = omega <= 0
+        if bad.any():
+            i = _first_bad(bad)
+            raise DataError(
+                f"omega must be > 0 (rad/s): omega[{i}]={omega[i]}; drop the zero/negative "
+                "frequencies (the DC value is not used, an integrator is a model option)")
+        d = np.diff(omega)
+        bad = d <= 0
+        if bad.any():
+            i = _first_bad(bad) + 1
+            what = "duplicated" if d[i - 1] == 0 else "strictly increasing"
+            raise DataError(
+                f"omega must be strictly increasing ({what} value): omega[{i}]={omega[i]!r} "
+                f"<= omega[{i - 1}]={omega[i - 1]!r}; use FrequencyData.sorted(omega, response)")
+        bad = ~np.isfinite(response)
+        if bad.any():
+            i = _first_bad(bad)
+            raise DataError(
+                f"response must be finite: response[{i}]={response[i]} at omega={omega[i]}; "
+                "remove or re-measure that point")
+        bad = response == 0
+        if bad.any():
+            i = _first_bad(bad)
+            raise DataError(
+                f"response must be nonzero (the relative error divides by it): response[{i}]=0 "
+                f"at omega={omega[i]}; remove that point")
+        weights = self.weights
+        if weights is not None:
+            weights = _as_float_vector(weights, "weights")
+            if weights.size != omega.size:
+                raise DataError(
+                    f"weights must have one value per frequency: len(weights)={weights.size}, "
+                    f"len(omega)={omega.size}")
+            bad = ~np.isfinite(weights) | (weights < 0)
+            if bad.any():
+                i = _first_bad(bad)
+                raise DataError(f"weights must be finite and >= 0: weights[{i}]={weights[i]}")
+            if not np.any(weights > 0):
+                raise DataError("weights are all zero: at least one point must count")
+            weights.setflags(write=False)
+        omega.setflags(write=False)
+        response.setflags(write=False)
+        object.__setattr__(self, "omega", omega)
+        object.__setattr__(self, "response", response)
+        object.__setattr__(self, "weights", weights)
+        if self.name is not None and not isinstance(self.name, str):
+            raise DataError(f"name must be a string or None, got {type(self.name).__name__}")
+
+    def __len__(self):
+        return self.omega.size
+
+    @property
+    def n_points(self):
+        """Number of frequency points M."""
+        return self.omega.size
+
+    def window(self, n_points):
+        """The first ``n_points`` samples (lowest frequencies) as a new FrequencyData."""
+        n = int(n_points)
+        if not 1 <= n <= self.n_points:
+            raise DataError(f"window length must be in 1..{self.n_points}, got {n_points}")
+        w = None if self.weights is None else self.weights[:n]
+        return FrequencyData(self.omega[:n], self.response[:n], self.name, w)
+
+    def with_weights(self, weights):
+        """A copy with other weights (``None`` for uniform)."""
+        return FrequencyData(self.omega, self.response, self.name, weights)
+
+    @classmethod
+    def sorted(cls, omega, response, name=None, weights=None):
+        """Build from unsorted data: sort by omega and drop exact duplicate frequencies.
+
+        Duplicates keep their first occurrence in the input order.
+        """
+        omega = _as_float_vector(omega, "omega")
+        response = _as_complex_vector(response, "response")
+        if omega.size != response.size:
+            raise DataError(
+                f"omega and response must have equal lengths: len(omega)={omega.size}, "
+                f"len(response)={response.size}")
+        order = np.argsort(omega, kind="stable")
+        keep = np.ones(order.size, bool)
+        keep[1:] = np.diff(omega[order]) != 0
+        idx = order[keep]
+        w = None if weights is None else _as_float_vector(weights, "weights")[idx]
+        return cls(omega[idx], response[idx], name, w)
+
+
+def _as_float_vector(x, name):
+    try:
+        arr = np.array(x, dtype=float, copy=True)
+    except (TypeError, ValueError) as exc:
+        if np.iscomplexobj(np.asarray(x)):
+            raise DataError(f"{name} must be real, got complex values") from None
+        raise DataError(f"{name} must be an array of numbers: {exc}") from None
+    if np.iscomplexobj(np.asarray(x)):
+        raise DataError(f"{name} must be real, got complex values")
+    if arr.ndim != 1:
+        arr = arr.reshape(-1) if arr.ndim == 0 or max(arr.shape) == arr.size else arr
+    if arr.ndim != 1:
+        raise DataError(f"{name} must be one-dimensional, got shape {np.shape(x)}")
+    return arr
+
+
+def _as_complex_vector(x, name):
+    try:
+        arr = np.array(x, dtype=complex, copy=True)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"{name} must be an array of complex numbers: {exc}") from None
+    if arr.ndim != 1:
+        arr = arr.reshape(-1) if arr.ndim == 0 or max(arr.shape) == arr.size else arr
+    if arr.ndim != 1:
+        raise DataError(f"{name} must be one-dimensional, got shape {np.shape(x)}")
+    return arr
+
+
+# --------------------------------------------------------------------------- loaders
+
+_RI_HEADERS = ({"omega", "real", "imag"},)
+_MP_HEADERS = ({"omega", "magnitude_db", "phase_deg"},)
+
+
+def _check_file(path):
+    path = os.fspath(path)
+    if not os.path.exists(path):
+        raise DataError(f"data file not found: {path!r}; check the path")
+    if os.path.isdir(path):
+        raise DataError(f"{path!r} is a directory, not a data file; name the file inside it")
+    if not os.access(path, os.R_OK):
+        raise DataError(f"data file {path!r} is not readable; check its permissions")
+    return path
+
+
+def load_csv(path, name=None):
+    """Read frequency-response data from a CSV file with a header row.
+
+    Two layouts are recognised by the header (case-insensitive, surrounding spaces ignored):
+
+    - ``omega, real, imag`` — rad/s, real and imaginary parts;
+    - ``omega, magnitude_db, phase_deg`` — rad/s, 20*log10|G| in dB, phase in degrees.
+
+    Lines starting with ``#`` are comments. Returns a validated :class:`FrequencyData`
+    named after the file unless ``name`` is given.
+
+    Raises
+    ------
+    DataError
+        Missing file, directory, bad header, wrong column count, non-numeric cells, or
+        any data violation of :class:`FrequencyData`.
+    """
+    path = _check_file(path)
+    try:
+        with open(path, newline="", encoding="utf-8") as fh:
+            rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
+    except UnicodeDecodeError:
+        raise DataError(f"{path!r} is not a text CSV file (not UTF-8)") from None
+    except OSError as exc:
+        raise DataError(f"cannot read {path!r}: {exc.strerror}") from None
+    if not rows:
+        raise DataError(f"{path!r} is empty: expected a header 'omega,real,imag' and data rows")
+    header = [h.strip().lower() for h in rows[0]]
+    if header == ["omega", "real", "imag"]:
+        layout = "ri"
+    elif header == ["omega", "magnitude_db", "phase_deg"]:
+        layout = "mp"
+    else:
+        raise DataError(
+            f"{path!r}: unrecognised header {','.join(rows[0])!r}; the first line must be "
+            "'omega,real,imag' or 'omega,magnitude_db,phase_deg'")
+    body = rows[1:]
+    if not body:
+        raise DataError(f"{path!r} has a header but no data rows")
+    values = np.empty((len(body), 3))
+    for k, row in enumerate(body):
+        line = k + 2
+        if len(row) != 3:
+            raise DataError(
+                f"{path!r} line {line}: expected 3 columns ({','.join(header)}), got {len(row)}")
+        for j, cell in enumerate(row):
+            try:
+                values[k, j] = float(cell)
+            except ValueError:
+                raise DataError(
+                    f"{path!r} line {line}, column {header[j]!r}: {cell.strip()!r} is not a "
+                    "number") from None
+    omega = values[:, 0]
+    if layout == "ri":
+        response = values[:, 1] + 1j * values[:, 2]
+    else:
+        response = 10.0 ** (values[:, 1] / 20.0) * np.exp(1j * np.deg2rad(values[:, 2]))
+    name = name if name is not None else os.path.splitext(os.path.basename(path))[0]
+    return FrequencyData(omega, response, name)
+
+
+def load_npz(path, name=None):
+    """Read data from a NumPy ``.npz`` file with arrays ``omega`` (rad/s) and ``response``
+    (complex), and optionally ``weights``. Same checks as :class:`FrequencyData`."""
+    path = _check_file(path)
+    try:
+        with np.load(path, allow_pickle=False) as npz:
+            missing = {"omega", "response"} - set(npz.files)
+            if missing:
+                raise DataError(
+                    f"{path!r} lacks array(s) {sorted(missing)}; save with "
+                    "np.savez(path, omega=omega, response=response)")
+            omega, response = npz["omega"], npz["response"]
+            weights = npz["weights"] if "weights" in npz.files else None
+    except DataError:
+        raise
+    except (OSError, ValueError) as exc:
+        raise DataError(f"cannot read {path!r} as .npz: {exc}") from None
+    name = name if name is not None else os.path.splitext(os.path.basename(path))[0]
+    return FrequencyData(omega, response, name, weights)
+
+
+def load(path, name=None):
+    """Load ``.npz`` or CSV data, chosen by the file's extension (anything else is CSV)."""
+    if os.fspath(path).lower().endswith(".npz"):
+        return load_npz(path, name)
+    return load_csv(path, name)
+
+
+def save_csv(data, path):
+    """Write data as ``omega,real,imag`` CSV (atomic: temporary file then rename)."""
+    from ._io import atomic_write_text
+
+    lines = ["omega,real,imag"]
+    lines += [f"{w!r},{z.real!r},{z.imag!r}" for w, z in zip(data.omega.tolist(),
+                                                            data.response.tolist())]
+    atomic_write_text(path, "\n".join(lines) + "\n")

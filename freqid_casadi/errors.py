@@ -1,0 +1,32 @@
+"""Exception hierarchy of freqid_casadi (layer L0).
+
+Every error the package raises on bad input derives from :class:`FreqidError` and from a
+builtin (``ValueError`` or ``RuntimeError``), after python-control's ``exception.py``, so a
+caller may catch either. Messages name the argument, the offending value and the fix.
+"""
+
+__all__ = ["FreqidError", "DataError", "StructureError", "OptionError", "SolverError"]
+
+
+class FreqidError(Exception):
+    """Base class of every error raised by freqid_casadi."""
+
+
+class DataError(FreqidError, ValueError):
+    """Frequency-response data (or a data file) is malformed.
+
+    Raised for non-finite, unsorted, duplicated or non-positive frequencies, zero or
+    non-finite responses, length mismatches, unreadable files and bad CSV headers.
+    """
+
+
+class StructureError(FreqidError, ValueError):
+    """A model structure or parameter vector is invalid (e.g. ``n_sections < 1``)."""
+
+
+class OptionError(FreqidError, ValueError):
+    """An option has an invalid value (unknown method, negative tol, existing output...)."""
+
+
+class SolverError(FreqidError, RuntimeError):
+    """A solver could not be run at all (not raised for mere non-convergence)."""

@@ -1,0 +1,370 @@
+"""Model structure, parameter vector and the fitted model G_N (layer L1).
+
+The model (SPEC §1)::
+
+    G_N(s) = exp(-h s) * K * [1/s if integrator] * P_N(s)
+    P_N(s) = prod_k (a_k s^2 + 2 zn_k wn_k s + wn_k^2) / (b_k s^2 + 2 zd_k wd_k s + wd_k^2)
+
+or, with the first-order basis (thesis §2.6), ``P_N(s) = prod_k (a1_k s + a0_k)/(b1_k s + b0_k)``.
+
+The parameter vector is the thesis's ``beta = [h, K, theta_1, ..., theta_N]`` (eq. 6 of the
+paper) with ``theta_k = [a, zeta_num, omega_num, b, zeta_den, omega_den]`` (second order)
+or ``[a1, a0, b1, b0]`` (first order). ``beta >= 0`` element-wise puts every pole and zero
+of P_N in the closed left half plane.
+"""
+
+import json
+from dataclasses import dataclass
+
+import numpy as np
+
+from . import _cplx
+from ._io import atomic_write_text
+from .errors import DataError, StructureError
+
+__all__ = ["Structure", "RationalDelayModel", "section_response", "BASES", "FORMAT_VERSION"]
+
+BASES = ("second-order", "first-order")
+FORMAT_VERSION = 1
+
+_SECOND_NAMES = ("a", "zeta_num", "omega_num", "b", "zeta_den", "omega_den")
+_FIRST_NAMES = ("a1", "a0", "b1", "b0")
+
+
+@dataclass(frozen=True)
+class Structure:
+    """The shape of a model: how many sections, which basis, integrator and delay.
+
+    Parameters
+    ----------
+    n_sections : int
+        Number of sections N >= 0 (second-order: order 2N of P_N; first-order: N).
+    integrator : bool
+        Whether G_N has the factor K0/s.
+    delay : bool
+        Whether the delay h is a free parameter (else h = 0).
+    basis : {"second-order", "first-order"}
+    """
+
+    n_sections: int
+    integrator: bool = False
+    delay: bool = True
+    basis: str = "second-order"
+
+    def __post_init__(self):
+        n = self.n_sections
+        if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
+            raise StructureError(f"n_sections must be an integer, got {n!r}")
+        if n < 0:
+            raise StructureError(f"n_sections must be >= 0, got {n}")
+        object.__setattr__(self, "n_sections", int(n))
+        if self.basis not in BASES:
+            raise StructureError(
+                f"unknown basis {self.basis!r}; choose one of {', '.join(BASES)}")
+        object.__setattr__(self, "integrator", bool(self.integrator))
+        object.__setattr__(self, "delay", bool(self.delay))
+
+    @property
+    def section_size(self):
+        """Parameters per section: 6 (second-order) or 4 (first-order)."""
+        return 6 if self.basis == "second-order" else 4
+
+    @property
+    def section_names(self):
+        return _SECOND_NAMES if self.basis == "second-order" else _FIRST_NAMES
+
+    @property
+    def n_params(self):
+        """Length of beta: 2 + section_size * n_sections."""
+        return 2 + self.section_size * self.n_sections
+
+    @property
+    def order(self):
+        """Order of the rational part including the integrator (2N+1 with integrator...)."""
+        per = 2 if self.basis == "second-order" else 1
+        return per * self.n_sections + int(self.integrator)
+
+    def with_sections(self, n_sections):
+        """The same structure with another number of sections."""
+        return Structure(n_sections, self.integrator, self.delay, self.basis)
+
+    def param_names(self):
+        """Names of the entries of beta, e.g. ``["delay", "gain", "a[1]", ...]``."""
+        names = ["delay", "gain"]
+        for k in range(1, self.n_sections + 1):
+            names += [f"{p}[{k}]" for p in self.section_names]
+        return names
+
+
+def section_response(basis, omega, theta):
+    """Value of the sections at s = j*omega as (re, im) pairs of numerator and denominator.
+
+    Works on numpy arrays and on CasADi SX/MX (STYLE.md §1.2).
+
+    Parameters
+    ----------
+    basis : str
+        "second-order" or "first-order".
+    omega : float, ndarray or CasADi expression
+        Frequency in rad/s.
+    theta : sequence
+        The section's parameters in the order of :attr:`Structure.section_names`.
+
+    Returns
+    -------
+    num, den : (re, im) pairs
+    """
+    if basis == "second-order":
+        a, zn, wn, b, zd, wd = theta
+        w2 = omega * omega
+        num = (wn * wn - a * w2, 2 * zn * wn * omega)
+        den = (wd * wd - b * w2, 2 * zd * wd * omega)
+    else:
+        a1, a0, b1, b0 = theta
+        num = (a0 + 0 * omega, a1 * omega)
+        den = (b0 + 0 * omega, b1 * omega)
+    return num, den
+
+
+def _quad_roots(c2, c1, c0):
+    """Roots of c2 s^2 + c1 s + c0 (c2 may be 0); returns a list of complex."""
+    if c2 == 0:
+        return [complex(-c0 / c1)] if c1 != 0 else []
+    return list(np.roots([c2, c1, c0]).astype(complex))
+
+
+@dataclass(frozen=True, eq=False)
+class RationalDelayModel:
+    """A fitted model ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` (SPEC §1).
+
+    Parameters
+    ----------
+    structure : Structure
+    beta : ndarray of float, shape (structure.n_params,)
+        ``[h (s), K (gain), theta_1, ..., theta_N]``; must be finite and >= 0.
+
+    Notes
+    -----
+    Frozen: ``beta`` is stored read-only. Two models are equal when their structures and
+    beta are identical bit for bit.
+    """
+
+    structure: Structure
+    beta: np.ndarray
+
+    def __post_init__(self):
+        if not isinstance(self.structure, Structure):
+            raise StructureError("structure must be a Structure")
+        beta = np.array(self.beta, dtype=float, copy=True).reshape(-1)
+        if beta.size != self.structure.n_params:
+            raise StructureError(
+                f"beta has {beta.size} entries, the structure needs {self.structure.n_params} "
+                f"(2 + {self.structure.section_size} x {self.structure.n_sections})")
+        if not np.all(np.isfinite(beta)):
+            i = int(np.flatnonzero(~np.isfinite(beta))[0])
+            raise StructureError(f"beta must be finite: beta[{i}]={beta[i]}")
+        if np.any(beta < 0):
+            i = int(np.flatnonzero(beta < 0)[0])
+            raise StructureError(
+                f"beta must be >= 0 (poles and zeros in the left half plane): "
+                f"beta[{i}] ({self.structure.param_names()[i]}) = {beta[i]}")
+        if not self.structure.delay and beta[0] != 0:
+            raise StructureError(f"the structure has no delay but beta[0] = {beta[0]}")
+        beta.setflags(write=False)
+        object.__setattr__(self, "beta", beta)
+
+    def __eq__(self, other):
+        return (isinstance(other, RationalDelayModel) and self.structure == other.structure
+                and np.array_equal(self.beta, other.beta))
+
+    __hash__ = None
+
+    # ------------------------------------------------------------------ parameters
+    @property
+    def delay(self):
+        """Delay h in seconds."""
+        return float(self.beta[0])
+
+    @property
+    def gain(self):
+        """Gain K (K0 with an integrator)."""
+        return float(self.beta[1])
+
+    @property
+    def n_sections(self):
+        return self.structure.n_sections
+
+    @property
+    def integrator(self):
+        return self.structure.integrator
+
+    @property
+    def order(self):
+        """Order of the rational part, integrator included."""
+        return self.structure.order
+
+    def sections(self):
+        """Section parameters, shape (N, section_size), in thesis order."""
+        return self.beta[2:].reshape(self.n_sections, self.structure.section_size)
+
+    # ------------------------------------------------------------------ evaluation
+    def rational_response(self, omega):
+        """K [1/(j omega)] P_N(j omega), without the delay; complex ndarray like omega."""
+        omega = np.asarray(omega, dtype=float)
+        z = (self.gain + 0 * omega, 0 * omega)
+        if self.integrator:
+            z = _cplx.div(z, (0 * omega, omega))
+        for theta in self.sections():
+            num, den = section_response(self.structure.basis, omega, theta)
+            z = _cplx.mul(z, _cplx.div(num, den))
+        return _cplx.to_complex(z)
+
+    def frequency_response(self, omega):
+        """G_N(j omega) including delay and integrator.
+
+        Parameters
+        ----------
+        omega : array_like of float, shape (M,)
+            Frequencies in rad/s.
+
+        Returns
+        -------
+        ndarray of complex, shape (M,)
+        """
+        omega = np.asarray(omega, dtype=float)
+        return np.exp(-1j * omega * self.delay) * self.rational_response(omega)
+
+    def relative_error(self, data):
+        """|(Phi - G_N)/G_N| at the data points, shape (M,)."""
+        return np.abs(data.response / self.frequency_response(data.omega) - 1.0)
+
+    # ------------------------------------------------------------------ poles / zeros
+    def _factor_roots(self, which):
+        roots = []
+        for theta in self.sections():
+            if self.structure.basis == "second-order":
+                a, zn, wn, b, zd, wd = theta
+                c = (a, 2 * zn * wn, wn * wn) if which == "num" else (b, 2 * zd * wd, wd * wd)
+                roots += _quad_roots(*c)
+            else:
+                a1, a0, b1, b0 = theta
+                c = (a1, a0) if which == "num" else (b1, b0)
+                if c[0] != 0:
+                    roots.append(complex(-c[1] / c[0]))
+        return roots
+
+    def poles(self):
+        """Poles of the rational part (the integrator's pole at 0 included), complex (n,)."""
+        p = self._factor_roots("den")
+        if self.integrator:
+            p = [0j] + p
+        return np.array(p, dtype=complex)
+
+    def zeros(self):
+        """Finite zeros of the rational part, complex ndarray."""
+        return np.array(self._factor_roots("num"), dtype=complex)
+
+    def is_stable(self):
+        """True if every pole of P_N has a negative real part (the integrator's pole at 0,
+        if the structure has one, is not counted)."""
+        p = np.array(self._factor_roots("den"), dtype=complex)
+        return bool(np.all(p.real < 0))
+
+    def is_minimum_phase(self):
+        """True if every finite zero of P_N has a negative real part."""
+        z = self.zeros()
+        return bool(np.all(z.real < 0))
+
+    # ------------------------------------------------------------------ export
+    def to_control(self, pade_order=None):
+        """The rational part as a python-control ``StateSpace`` (series of sections).
+
+        Parameters
+        ----------
+        pade_order : int, optional
+            If given, the delay is included as a Padé approximation of that order;
+            otherwise it is left out of the system and stored as the attribute ``delay`` (s).
+
+        Returns
+        -------
+        control.StateSpace
+            With attribute ``delay`` (s); sections are realised one by one and connected in
+            series, which is better conditioned than expanding one polynomial.
+        """
+        import control as ct
+
+        sys = ct.ss([], [], [], [[self.gain]])
+        if self.integrator:
+            sys = ct.series(sys, ct.ss(ct.tf([1.0], [1.0, 0.0])))
+        for theta in self.sections():
+            if self.structure.basis == "second-order":
+                a, zn, wn, b, zd, wd = theta
+                num, den = [a, 2 * zn * wn, wn * wn], [b, 2 * zd * wd, wd * wd]
+            else:
+                a1, a0, b1, b0 = theta
+                num, den = [a1, a0], [b1, b0]
+            num, den = np.trim_zeros(num, "f"), np.trim_zeros(den, "f")
+            if len(num) > len(den):
+                raise StructureError("section is improper (numerator degree > denominator's); "
+                                     "cannot export to a state-space model")
+            sys = ct.series(sys, ct.ss(ct.tf(num, den)))
+        if pade_order is not None:
+            if self.delay > 0:
+                pn, pd = ct.pade(self.delay, int(pade_order))
+                sys = ct.series(sys, ct.ss(ct.tf(pn, pd)))
+            sys.delay = 0.0
+        else:
+            sys.delay = self.delay
+        return sys
+
+    # ------------------------------------------------------------------ JSON
+    def to_dict(self):
+        s = self.structure
+        return {
+            "format": "freqid_casadi.RationalDelayModel",
+            "version": FORMAT_VERSION,
+            "structure": {"n_sections": s.n_sections, "integrator": s.integrator,
+                          "delay": s.delay, "basis": s.basis},
+            "param_names": s.param_names(),
+            "beta": [float(v) for v in self.beta],
+        }
+
+    def to_json(self):
+        """JSON text; floats are written with repr so the round trip is bit-identical."""
+        return json.dumps(self.to_dict(), indent=1)
+
+    @classmethod
+    def from_dict(cls, d):
+        try:
+            if d.get("format") != "freqid_casadi.RationalDelayModel":
+                raise DataError("not a freqid_casadi model (missing 'format')")
+            st = Structure(**d["structure"])
+            return cls(st, np.array(d["beta"], dtype=float))
+        except (KeyError, TypeError, AttributeError) as exc:
+            raise DataError(f"malformed model JSON: {exc}") from None
+
+    @classmethod
+    def from_json(cls, text):
+        try:
+            d = json.loads(text)
+        except json.JSONDecodeError as exc:
+            raise DataError(f"model file is not valid JSON: {exc}") from None
+        return cls.from_dict(d)
+
+    def save(self, path):
+        """Write the model as JSON (atomically)."""
+        atomic_write_text(path, self.to_json() + "\n")
+
+    @classmethod
+    def load(cls, path):
+        """Read a model written by :meth:`save`."""
+        try:
+            with open(path, encoding="utf-8") as fh:
+                return cls.from_json(fh.read())
+        except OSError as exc:
+            raise DataError(f"cannot read model file {path!r}: {exc.strerror}") from None
+
+    def __repr__(self):
+        s = self.structure
+        return (f"RationalDelayModel(n_sections={s.n_sections}, basis={s.basis!r}, "
+                f"integrator={s.integrator}, delay={self.delay:.6g}, gain={self.gain:.6g})")
