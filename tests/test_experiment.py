@@ -1,0 +1,351 @@
+"""Tests of freqid_casadi.experiment: time series -> frequency data (SPEC §7)."""
+
+import numpy as np
+import pytest
+from scipy import signal
+
+from freqid_casadi.data import FrequencyData
+from freqid_casadi.errors import DataError, OptionError
+from freqid_casadi.experiment import (
+    FrfEstimate,
+    frf_from_periodic,
+    frf_stepped_sine,
+    load_daisy,
+    load_records_csv,
+    robot_arm,
+)
+
+PERIOD = 256
+ODD_BINS = np.arange(1, 100, 2)  # odd bins up to ~0.39 of the Nyquist band
+# A stable 4th-order resonant filter (poles at radius 0.9 and 0.8).
+B, A = signal.zpk2tf([-1, -1, 0.5, 0.5],
+                     [0.9 * np.exp(0.4j), 0.9 * np.exp(-0.4j),
+                      0.8 * np.exp(1.2j), 0.8 * np.exp(-1.2j)], 0.05)
+B, A = np.real(B), np.real(A)
+
+
+def multisine(period=PERIOD, bins=ODD_BINS, seed=0):
+    """One period of an odd-bin multisine with random phases (fixed seed), RMS ~ 1."""
+    rng = np.random.default_rng(seed)
+    spec = np.zeros(period // 2 + 1, complex)
+    spec[bins] = np.exp(2j * np.pi * rng.random(bins.size))
+    u = np.fft.irfft(spec, period)
+    return u / np.std(u)
+
+
+def simulate(n_periods, seed=0):
+    u = np.tile(multisine(seed=seed), n_periods)
+    return u, signal.lfilter(B, A, u)
+
+
+def true_response(bins, period=PERIOD):
+    _, h = signal.freqz(B, A, worN=2 * np.pi * np.asarray(bins) / period)
+    return h
+
+
+# --------------------------------------------------------------------------- periodic
+
+def test_multisine_recovers_filter_response():
+    u, y = simulate(6)
+    est = frf_from_periodic(u, y, PERIOD, skip_periods=2)
+    assert isinstance(est, FrfEstimate)
+    assert isinstance(est.data, FrequencyData)
+    np.testing.assert_array_equal(est.bins, ODD_BINS)  # detected from the input spectrum
+    assert est.n_periods == 4 and est.period == PERIOD and est.fs is None
+    np.testing.assert_allclose(est.data.omega, 2 * np.pi * ODD_BINS / PERIOD, rtol=1e-15)
+    rel = np.abs(est.data.response / true_response(ODD_BINS) - 1)
+    assert rel.max() <= 1e-10, rel.max()
+    assert np.all(np.isfinite(est.variance)) and est.variance.shape == ODD_BINS.shape
+    np.testing.assert_allclose(est.coherence, 1.0, atol=1e-10)
+    assert est.data.weights is not None
+    assert np.isclose(est.data.weights.mean(), 1.0)
+
+
+def test_fs_scales_omega_to_rad_per_s():
+    u, y = simulate(3)
+    est = frf_from_periodic(u, y, PERIOD, fs=1000.0, skip_periods=1)
+    np.testing.assert_allclose(est.data.omega, 2 * np.pi * ODD_BINS / PERIOD * 1000.0)
+    assert est.fs == 1000.0
+
+
+def test_single_period_has_no_variance():
+    u, y = simulate(3)
+    est = frf_from_periodic(u[-PERIOD:], y[-PERIOD:], PERIOD)
+    assert est.n_periods == 1
+    assert est.variance is None and est.coherence is None and est.data.weights is None
+    rel = np.abs(est.data.response / true_response(ODD_BINS) - 1)
+    assert rel.max() <= 1e-10
+
+
+def test_given_bins_are_used():
+    u, y = simulate(3)
+    est = frf_from_periodic(u, y, PERIOD, skip_periods=1, bins=[7, 3, 51])
+    np.testing.assert_array_equal(est.bins, [3, 7, 51])
+    np.testing.assert_allclose(est.data.response, true_response([3, 7, 51]), rtol=1e-10)
+
+
+def test_allow_partial_drops_trailing_samples():
+    u, y = simulate(4)
+    u, y = u[:-100], y[:-100]
+    with pytest.raises(DataError, match=r"156 samples are left over"):
+        frf_from_periodic(u, y, PERIOD)
+    est = frf_from_periodic(u, y, PERIOD, skip_periods=1, allow_partial=True)
+    assert est.n_periods == 2
+    np.testing.assert_allclose(est.data.response, true_response(ODD_BINS), rtol=1e-10)
+
+
+def test_variance_matches_theory_with_output_noise():
+    n_periods, sigma = 8, 0.05
+    u, y = simulate(n_periods + 1)
+    rng = np.random.default_rng(1)
+    U = np.fft.fft(u[:PERIOD])[ODD_BINS]
+    true_var = PERIOD * sigma**2 / (n_periods * np.abs(U) ** 2)  # Var(G_hat), unscaled DFT
+    ratios, errors = [], []
+    for _ in range(20):
+        noisy = y + sigma * rng.standard_normal(y.size)
+        est = frf_from_periodic(u, noisy, PERIOD, skip_periods=1)
+        ratios.append(np.mean(est.variance / true_var))
+        errors.append(np.abs(est.data.response - true_response(ODD_BINS)) ** 2 / true_var)
+        assert np.all((est.coherence > 0) & (est.coherence <= 1))
+    ratio = np.mean(ratios)
+    assert 0.5 <= ratio <= 2.0, ratio
+    assert 0.8 <= ratios[0] <= 1.25, ratios[0]     # 50 bins x 7 dof: ~5% spread
+    # the formula itself: the actual squared error has the predicted mean
+    assert 0.8 <= np.mean(errors) <= 1.25, np.mean(errors)
+
+
+# --------------------------------------------------------------------------- stepped sine
+
+def test_stepped_sine_recovers_filter_response():
+    fs, n = 100.0, 1500
+    freqs = np.array([0.37, 1.0, 3.3, 7.77, 12.5, 21.0, 33.3, 47.1])  # Hz, below fs/2
+    t = np.arange(n) / fs
+    records = []
+    for k, f in enumerate(freqs):
+        u = 0.7 * np.sin(2 * np.pi * f * t + 0.3 * k) + 0.1  # with an offset
+        records.append((u, signal.lfilter(B, A, u)))
+    order = np.arange(len(freqs))[::-1]            # unsorted input is sorted
+    est = frf_stepped_sine([records[i] for i in order], fs=fs, frequencies=freqs[order],
+                           n_skip=400)
+    np.testing.assert_allclose(est.data.omega, 2 * np.pi * freqs)
+    _, h = signal.freqz(B, A, worN=2 * np.pi * freqs / fs)
+    rel = np.abs(est.data.response / h - 1)
+    assert rel.max() <= 1e-8, rel.max()
+    assert est.bins is None and est.variance is None and est.fs == fs
+
+
+def test_stepped_sine_errors():
+    fs = 100.0
+    t = np.arange(300) / fs
+    u = np.sin(2 * np.pi * 5.0 * t)
+    with pytest.raises(DataError, match="equal lengths"):
+        frf_stepped_sine([(u, u[:-1])], fs=fs, frequencies=[5.0])
+    with pytest.raises(DataError, match="fewer than one cycle"):
+        frf_stepped_sine([(u, u)], fs=fs, frequencies=[5.0], n_skip=290)
+    with pytest.raises(DataError, match="not a sine at 7"):
+        frf_stepped_sine([(u, u)], fs=fs, frequencies=[7.0])
+    with pytest.raises(DataError, match=r"must be in \(0, fs/2\)"):
+        frf_stepped_sine([(u, u)], fs=fs, frequencies=[60.0])
+    with pytest.raises(DataError, match="repeated"):
+        frf_stepped_sine([(u, u), (u, u)], fs=fs, frequencies=[5.0, 5.0])
+    with pytest.raises(DataError, match="one frequency per record"):
+        frf_stepped_sine([(u, u)], fs=fs, frequencies=[5.0, 6.0])
+    with pytest.raises(DataError, match="must be finite"):
+        frf_stepped_sine([(u, np.where(t > 1, np.nan, u))], fs=fs, frequencies=[5.0])
+    with pytest.raises(DataError, match="no component"):
+        frf_stepped_sine([(np.zeros(300), u)], fs=fs, frequencies=[5.0])
+    with pytest.raises(OptionError, match="fs must be"):
+        frf_stepped_sine([(u, u)], fs=-1.0, frequencies=[5.0])
+
+
+# --------------------------------------------------------------------------- bad input
+
+@pytest.fixture
+def record():
+    return simulate(3)
+
+
+def test_unequal_lengths(record):
+    u, y = record
+    with pytest.raises(DataError, match=r"equal lengths: len\(u\)=768, len\(y\)=767"):
+        frf_from_periodic(u, y[:-1], PERIOD)
+
+
+def test_too_short(record):
+    u, y = record
+    with pytest.raises(DataError, match="too short: 100 samples < one period of 256"):
+        frf_from_periodic(u[:100], y[:100], PERIOD)
+
+
+def test_not_a_multiple_of_period(record):
+    u, y = record
+    with pytest.raises(DataError, match=r"not a multiple of period 200: 168 samples are left "
+                                        r"over.*trim.*allow_partial=True"):
+        frf_from_periodic(u, y, 200)
+
+
+def test_skip_leaves_nothing(record):
+    u, y = record
+    with pytest.raises(DataError, match="skip_periods=3 leaves no period"):
+        frf_from_periodic(u, y, PERIOD, skip_periods=3)
+
+
+def test_not_periodic(record):
+    u, y = record
+    with pytest.raises(DataError, match="input is not periodic with period 128.*check --period"):
+        frf_from_periodic(u, y, 128)
+    rng = np.random.default_rng(3)
+    noise = rng.standard_normal(u.size)
+    with pytest.raises(DataError, match="not periodic with period 256"):
+        frf_from_periodic(noise, y, PERIOD)
+
+
+@pytest.mark.parametrize("value", [0.0, 2.5])
+def test_no_excitation(record, value):
+    _, y = record
+    with pytest.raises(DataError, match="constant.*no excitation"):
+        frf_from_periodic(np.full(y.size, value), y, PERIOD)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf, -np.inf])
+def test_non_finite_samples(record, bad):
+    u, y = record
+    y = y.copy()
+    y[300] = bad
+    with pytest.raises(DataError, match=r"y must be finite: y\[300\]"):
+        frf_from_periodic(u, y, PERIOD)
+    with pytest.raises(DataError, match=r"u must be finite: u\[300\]"):
+        frf_from_periodic(y, u, PERIOD)
+
+
+@pytest.mark.parametrize("period, message", [(256.5, "integer"), (0, ">= 2"), (-4, ">= 2"),
+                                             ("256", "integer"), (True, "integer")])
+def test_bad_period(record, period, message):
+    u, y = record
+    with pytest.raises(DataError, match=f"period must be.*{message}"):
+        frf_from_periodic(u, y, period)
+
+
+def test_integral_float_period_is_accepted(record):
+    u, y = record
+    assert frf_from_periodic(u, y, 256.0, skip_periods=1).period == 256
+
+
+@pytest.mark.parametrize("bins, message", [([0, 3], "out of range"), ([129], "out of range"),
+                                           ([3, 3], "duplicates"), ([2.5], "integer"),
+                                           ([2], "not excited")])
+def test_bad_bins(record, bins, message):
+    u, y = record
+    with pytest.raises(DataError, match=message):
+        frf_from_periodic(u, y, PERIOD, bins=bins)
+
+
+@pytest.mark.parametrize("kwargs, message", [({"fs": 0.0}, "fs must be"),
+                                             ({"skip_periods": -1}, "skip_periods"),
+                                             ({"threshold": 0.0}, "threshold"),
+                                             ({"periodic_rtol": -1}, "periodic_rtol")])
+def test_bad_options(record, kwargs, message):
+    u, y = record
+    with pytest.raises(OptionError, match=message):
+        frf_from_periodic(u, y, PERIOD, **kwargs)
+
+
+def test_mimo_and_complex_rejected(record):
+    u, y = record
+    with pytest.raises(DataError, match="one-dimensional"):
+        frf_from_periodic(np.stack([u, u]), y, PERIOD)
+    with pytest.raises(DataError, match="complex"):
+        frf_from_periodic(u + 1j, y, PERIOD)
+
+
+def test_result_is_frozen(record):
+    u, y = record
+    est = frf_from_periodic(u, y, PERIOD, skip_periods=1)
+    with pytest.raises(AttributeError):
+        est.period = 3
+    with pytest.raises(ValueError):
+        est.bins[0] = 5
+
+
+# --------------------------------------------------------------------------- loaders
+
+def test_load_records_csv_roundtrip(tmp_path):
+    path = tmp_path / "rec.csv"
+    path.write_text("# a comment\nU , Y\n1.5,2\n-3,4e-3\n")
+    u, y = load_records_csv(path)
+    np.testing.assert_array_equal(u, [1.5, -3.0])
+    np.testing.assert_array_equal(y, [2.0, 4e-3])
+
+
+@pytest.mark.parametrize("text, message", [
+    ("", "is empty"),
+    ("a,b\n1,2\n", "unrecognised header"),
+    ("u,y\n", "no data rows"),
+    ("u,y\n1,2,3\n", "line 2: expected 2 columns"),
+    ("u,y\n1,2\nx,2\n", "line 3, column 'u': 'x' is not a number"),
+    ("u,y\n1,nan\n", "line 2, column 'y': 'nan' is not finite"),
+])
+def test_load_records_csv_errors(tmp_path, text, message):
+    path = tmp_path / "bad.csv"
+    path.write_text(text)
+    with pytest.raises(DataError, match=message):
+        load_records_csv(path)
+
+
+def test_load_missing_file(tmp_path):
+    with pytest.raises(DataError, match="not found"):
+        load_records_csv(tmp_path / "nope.csv")
+    with pytest.raises(DataError, match="directory"):
+        load_daisy(tmp_path)
+
+
+def test_load_daisy(tmp_path):
+    path = tmp_path / "x.dat"
+    path.write_text("  1.0e-01\t 2.0\n\n  3 4\n")
+    u, y = load_daisy(path)
+    np.testing.assert_array_equal(u, [0.1, 3.0])
+    np.testing.assert_array_equal(y, [2.0, 4.0])
+    path.write_text("1 2\n3 4 5\n")
+    with pytest.raises(DataError, match="line 2: 3 columns, expected 2"):
+        load_daisy(path)
+    path.write_text("1\n")
+    with pytest.raises(DataError, match="1 column"):
+        load_daisy(path)
+    path.write_text("1 zz\n")
+    with pytest.raises(DataError, match="'zz' is not a number"):
+        load_daisy(path)
+
+
+# --------------------------------------------------------------------------- robot arm
+
+def test_robot_arm():
+    est = robot_arm()
+    assert est.period == 1024 and est.n_periods == 1     # one period: no shorter one repeats
+    np.testing.assert_array_equal(est.bins, np.arange(1, 202, 2))  # odd bins, band edge 201
+    assert est.fs is None and est.variance is None
+    np.testing.assert_allclose(est.data.omega, 2 * np.pi * est.bins / 1024)
+    assert np.all(np.isfinite(est.data.response)) and np.all(est.data.response != 0)
+    mag = np.abs(est.data.response)
+    peaks = est.bins[1:-1][(mag[1:-1] > mag[:-2]) & (mag[1:-1] > mag[2:])]
+    assert {59, 129} <= set(peaks.tolist())               # the arm's two resonances
+
+
+def test_robot_arm_is_not_periodic_over_half_the_record():
+    u, y = robot_arm_record()
+    with pytest.raises(DataError, match="not periodic with period 512"):
+        frf_from_periodic(u, y, 512)
+    # anti-periodic instead: only odd bins are excited
+    assert np.linalg.norm(u[:512] + u[512:]) < 0.1 * np.linalg.norm(u)
+
+
+def robot_arm_record():
+    from freqid_casadi.experiment import _find_robot_arm
+    return load_daisy(_find_robot_arm())
+
+
+def test_robot_arm_env_and_missing(tmp_path, monkeypatch):
+    monkeypatch.setenv("FREQID_SHARED", str(tmp_path))
+    with pytest.raises(DataError, match="FREQID_SHARED"):
+        robot_arm()
+    monkeypatch.delenv("FREQID_SHARED")  # the default search walks up to shared/data
+    assert robot_arm().period == 1024
