@@ -1,0 +1,276 @@
+"""The ``freqid`` command line (layer L6).
+
+Commands::
+
+    freqid example {A,B,C,fractional} [--sections N] [--method M] [--out DIR] [--force]
+    freqid fit FILE --sections N [--integrator] [--no-delay] [--basis B] [--method M]
+                    [--tol X] --out DIR [--force]
+
+Each command parses its arguments, calls the API (:func:`freqid_casadi.fit.fit`), writes a
+report folder (:func:`freqid_casadi.report.write_fit_report`) and prints a short summary.
+Progress (one line per stage) goes to stderr when stderr is a terminal, or with
+``--progress``; ``--quiet`` silences it.
+
+Errors: a :class:`~freqid_casadi.errors.FreqidError`, an ``OSError`` while writing, or a
+usage error prints one line ``error: <message>`` to stderr and returns 2;
+KeyboardInterrupt prints ``error: interrupted`` and returns 130. No traceback is shown for
+either, and no partial report is left behind.
+
+New commands add one ``_add_<name>`` parser function and one ``_cmd_<name>`` function and
+register them in :data:`COMMANDS`.
+"""
+
+import argparse
+import math
+import shlex
+import sys
+
+from . import systems
+from .data import load
+from .errors import FreqidError
+from .fit import METHODS, fit
+from .model import BASES
+from .report import check_out_dir, write_fit_report
+
+__all__ = ["main", "build_parser", "EXAMPLES", "FRACTIONAL_SECTIONS", "PROG"]
+
+PROG = "freqid"
+
+#: Number of first-order sections for the 1/sqrt(s) example. The thesis (§4.2, figs
+#: 4.20-4.21) does not state the order of its 1/sqrt(s) model in the text; 10 is our choice:
+#: one real pole/zero pair per decade of the 1e-5..1e5 rad/s grid.
+FRACTIONAL_SECTIONS = 10
+
+#: The built-in examples at the thesis's orders, with its published numbers (Table 4.1,
+#: thesis §4.1; SPEC §5). ``thesis["order"]`` is the order of P_N.
+EXAMPLES = {
+    "A": dict(data=systems.G_A, n_sections=17, integrator=True, delay=True,
+              basis="second-order",
+              thesis=dict(order=34, max_rel_error=0.2549, delay=0.0106, source="thesis")),
+    "B": dict(data=systems.G_B, n_sections=9, integrator=False, delay=True,
+              basis="second-order",
+              thesis=dict(order=18, max_rel_error=0.0027, delay=0.011, source="thesis")),
+    "C": dict(data=systems.G_C, n_sections=27, integrator=True, delay=True,
+              basis="second-order",
+              thesis=dict(order=54, max_rel_error=5.9884, delay=0.0261, source="thesis")),
+    "fractional": dict(data=systems.sqrt_inverse, n_sections=FRACTIONAL_SECTIONS,
+                       integrator=False, delay=False, basis="first-order", thesis=None),
+}
+
+
+class _UsageError(Exception):
+    """A command-line usage error (reported as one ``error:`` line, exit code 2)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse parser whose errors are one ``error: ...`` line, not usage + message."""
+
+    def error(self, message):
+        raise _UsageError(f"{message} (see '{self.prog} --help')")
+
+
+# ----------------------------------------------------------------------------- arg types
+
+
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"must be a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer (>= 1), got {value}")
+    return value
+
+
+def _positive_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
+    return value
+
+
+# ----------------------------------------------------------------------------- parser
+
+
+def _common(p, *, out_required):
+    p.add_argument("--method", choices=METHODS, default="ipopt",
+                   help="stage solver: IPOPT with bounds (default) or the thesis's "
+                        "log-barrier Levenberg-Marquardt")
+    if out_required:
+        p.add_argument("--out", required=True, metavar="DIR",
+                       help="report folder to create (must not exist unless --force)")
+    else:
+        p.add_argument("--out", metavar="DIR",
+                       help="report folder to create (default: ./freqid_example_<X>)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing report folder (after the new one is complete)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--progress", dest="progress", action="store_true", default=None,
+                   help="print one line per stage to stderr (default when stderr is a "
+                        "terminal)")
+    g.add_argument("--quiet", dest="progress", action="store_false",
+                   help="no progress output")
+
+
+def _add_example(sub):
+    p = sub.add_parser("example", help="fit a built-in example at the thesis's order",
+                       description="Fit one of the thesis's examples (A, B, C: beams and "
+                                   "rod, thesis ch. 4; fractional: 1/sqrt(s), §4.2) and "
+                                   "write a report folder.")
+    p.add_argument("name", choices=tuple(EXAMPLES), metavar="{" + ",".join(EXAMPLES) + "}",
+                   help="which example")
+    p.add_argument("--sections", type=_positive_int, metavar="N",
+                   help="number of sections (default: the thesis's order; A 17, B 9, C 27, "
+                        f"fractional {FRACTIONAL_SECTIONS} first-order)")
+    _common(p, out_required=False)
+    return p
+
+
+def _add_fit(sub):
+    p = sub.add_parser("fit", help="fit a model to frequency-response data from a file",
+                       description="Fit G_N(s) = exp(-hs) K [1/s] P_N(s) to data read from "
+                                   "a CSV (omega,real,imag or omega,magnitude_db,phase_deg) "
+                                   "or .npz file and write a report folder.")
+    p.add_argument("file", metavar="FILE", help="data file (.csv or .npz)")
+    p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
+                   help="number of sections N >= 1")
+    p.add_argument("--integrator", action="store_true", help="include the factor K0/s")
+    p.add_argument("--no-delay", dest="delay", action="store_false",
+                   help="fix the delay h at 0")
+    p.add_argument("--basis", choices=BASES, default="second-order",
+                   help="section type (default second-order)")
+    p.add_argument("--tol", type=_positive_float, metavar="X",
+                   help="stop adding sections once the max relative error is below X")
+    _common(p, out_required=True)
+    return p
+
+
+#: name -> (add parser, run command)
+COMMANDS = {}
+
+
+def build_parser():
+    """The argparse parser of the ``freqid`` command (one subparser per command)."""
+    parser = _Parser(prog=PROG, description="Stable, minimum-phase low-order models with "
+                                            "delay from frequency-response data.")
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True,
+                                parser_class=_Parser)
+    for name, (add, _) in COMMANDS.items():
+        add(sub).set_defaults(_run=name)
+    return parser
+
+
+# ----------------------------------------------------------------------------- commands
+
+
+def _progress(args):
+    return sys.stderr.isatty() if args.progress is None else bool(args.progress)
+
+
+def _text_table(rows, headers):
+    rows = [[str(c) for c in r] for r in rows]
+    widths = [max(len(h), *(len(r[j]) for r in rows)) for j, h in enumerate(headers)]
+    fmt = "  ".join(f"{{:<{w}}}" for w in widths)
+    lines = [fmt.format(*headers), fmt.format(*("-" * w for w in widths))]
+    lines += [fmt.format(*r) for r in rows]
+    return "\n".join(line.rstrip() for line in lines)
+
+
+def _g(x, digits=4):
+    return "-" if x is None else f"{x:.{digits}g}"
+
+
+def _cmd_example(args, command):
+    ex = EXAMPLES[args.name]
+    out = args.out or f"freqid_example_{args.name}"
+    check_out_dir(out, args.force)                   # before the (long) fit
+    n_sections = args.sections or ex["n_sections"]
+    data = ex["data"]()
+    result = fit(data, n_sections=n_sections, integrator=ex["integrator"], delay=ex["delay"],
+                 basis=ex["basis"], method=args.method, progress=_progress(args))
+    path = write_fit_report(result, out, command=command, force=args.force,
+                            title=f"Example {args.name}: {data.name}", thesis=ex["thesis"])
+    t = ex["thesis"] or {}
+    per = 2 if ex["basis"] == "second-order" else 1
+    row = (args.name, per * n_sections, _g(result.max_rel_error), _g(result.rms_rel_error),
+           _g(result.model.delay), f"{result.wall_time:.1f}",
+           t.get("order", "-"), _g(t.get("max_rel_error")), _g(t.get("delay")))
+    print(_text_table([row], ("example", "order", "max rel. err", "RMS rel. err",
+                              "delay (s)", "time (s)", "thesis order", "thesis max",
+                              "thesis delay")))
+    if not result.success:
+        print("warning: the final stage did not converge (see summary.md)")
+    print(f"report: {path}")
+    return 0
+
+
+def _cmd_fit(args, command):
+    data = load(args.file)                           # DataError on bad files
+    check_out_dir(args.out, args.force)              # before the (long) fit
+    result = fit(data, n_sections=args.sections, integrator=args.integrator,
+                 delay=args.delay, basis=args.basis, method=args.method, tol=args.tol,
+                 progress=_progress(args))
+    path = write_fit_report(result, args.out, command=command, force=args.force)
+    print(result.summary())
+    print(f"report: {path}")
+    return 0
+
+
+COMMANDS["example"] = (_add_example, _cmd_example)
+COMMANDS["fit"] = (_add_fit, _cmd_fit)
+
+
+# ----------------------------------------------------------------------------- main
+
+
+def _error(message):
+    sys.stderr.write(f"error: {' '.join(str(message).split())}\n")
+    sys.stderr.flush()
+
+
+def _os_message(exc):
+    what = exc.strerror or str(exc)
+    return f"{what}: {exc.filename!r}" if exc.filename else what
+
+
+def main(argv=None):
+    """Run the ``freqid`` command line.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments without the program name (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        0 on success, 2 on a usage, data or option error, 130 when interrupted.
+    """
+    argv = list(sys.argv[1:] if argv is None else argv)
+    command = " ".join([PROG] + [shlex.quote(a) for a in argv])
+    try:
+        try:
+            args = build_parser().parse_args(argv)
+        except SystemExit as exc:                    # --help, --version
+            return exc.code if isinstance(exc.code, int) else 0
+        return COMMANDS[args._run][1](args, command)
+    except _UsageError as exc:
+        _error(exc)
+        return 2
+    except FreqidError as exc:
+        _error(exc)
+        return 2
+    except OSError as exc:
+        _error(_os_message(exc))
+        return 2
+    except KeyboardInterrupt:
+        _error("interrupted")
+        return 130
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

@@ -1,0 +1,274 @@
+"""Tests of the freqid command line: one-line errors with exit 2, reports, progress."""
+
+import json
+import os
+import subprocess
+import sys
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from freqid_casadi import cli, report  # noqa: E402
+from freqid_casadi.data import FrequencyData, save_csv  # noqa: E402
+from freqid_casadi.fit import fit  # noqa: E402
+from freqid_casadi.model import RationalDelayModel, Structure  # noqa: E402
+
+# a known model: 2 sections, integrator, delay 0.01 s; 60 points from 0.1 to 100 rad/s
+_BETA = [0.01, 4.0, 1, 0.05, 3.0, 1, 0.02, 2.0, 1, 0.03, 30.0, 1, 0.01, 20.0]
+_OMEGA = np.logspace(-1, 2, 60)
+
+
+def _plant():
+    model = RationalDelayModel(Structure(2, integrator=True), np.array(_BETA))
+    return model, FrequencyData(_OMEGA, model.frequency_response(_OMEGA), "plant")
+
+
+@pytest.fixture
+def workdir(tmp_path, monkeypatch):
+    """A cwd holding plant.csv (the known model's response)."""
+    monkeypatch.chdir(tmp_path)
+    save_csv(_plant()[1], "plant.csv")
+    return tmp_path
+
+
+@pytest.fixture(scope="module")
+def cached_result():
+    return fit(_plant()[1], n_sections=2, integrator=True)
+
+
+@pytest.fixture
+def fake_fit(monkeypatch, cached_result):
+    """Replace the fit by the cached result and record the call's arguments."""
+    calls = []
+
+    def fake(data, **kwargs):
+        calls.append((data, kwargs))
+        return cached_result
+
+    monkeypatch.setattr(cli, "fit", fake)
+    return calls
+
+
+@pytest.fixture
+def fast_figures(monkeypatch):
+    def write(result, folder, summary):
+        for name in ("bode.png", "rel_error.png", "pole_zero.png", "stages.png"):
+            with open(os.path.join(folder, name), "wb") as fh:
+                fh.write(b"\x89PNG placeholder")
+
+    monkeypatch.setattr(report, "_write_figures", write)
+
+
+def run(capsys, *argv):
+    code = cli.main(list(argv))
+    out, err = capsys.readouterr()
+    return code, out, err
+
+
+def _assert_one_error_line(err, match):
+    lines = err.splitlines()
+    assert len(lines) == 1, err
+    assert lines[0].startswith("error: "), err
+    assert match in lines[0], err
+    assert "Traceback" not in err
+
+
+# ----------------------------------------------------------------------------- bad input
+
+
+def _bad_header(p):
+    p.write_text("freq,re,im\n1,2,3\n")
+
+
+def _bad_cell(p):
+    p.write_text("omega,real,imag\n1,2,3\n2,x,4\n")
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["fit", "missing.csv", "--sections", "2", "--out", "rep"], "not found"),
+    (["fit", "adir", "--sections", "2", "--out", "rep"], "is a directory"),
+    (["fit", "header.csv", "--sections", "2", "--out", "rep"], "unrecognised header"),
+    (["fit", "cell.csv", "--sections", "2", "--out", "rep"], "'x' is not a number"),
+    (["fit", "plant.csv", "--sections", "0", "--out", "rep"], "--sections"),
+    (["fit", "plant.csv", "--sections", "-3", "--out", "rep"], "positive integer"),
+    (["fit", "plant.csv", "--sections", "two", "--out", "rep"], "positive integer"),
+    (["fit", "plant.csv", "--sections", "2", "--method", "newton", "--out", "rep"],
+     "invalid choice: 'newton'"),
+    (["fit", "plant.csv", "--sections", "2", "--basis", "third-order", "--out", "rep"],
+     "invalid choice: 'third-order'"),
+    (["fit", "plant.csv", "--sections", "2", "--tol", "-1", "--out", "rep"], "--tol"),
+    (["fit", "plant.csv", "--sections", "2", "--tol", "nan", "--out", "rep"], "--tol"),
+    (["fit", "plant.csv", "--sections", "2"], "--out"),
+    (["fit", "plant.csv", "--sections", "40", "--out", "rep"], "sections"),
+    (["fit", "plant.csv", "--sections", "2", "--out", "nodir/rep"], "does not exist"),
+    (["example", "D"], "invalid choice: 'D'"),
+    (["example", "A", "--sections", "0"], "positive integer"),
+    (["frobnicate"], "invalid choice"),
+    ([], "required"),
+    (["fit", "plant.csv", "--sections", "2", "--out", "rep", "--quiet", "--progress"],
+     "not allowed"),
+])
+def test_bad_input_is_one_error_line_and_exit_2(workdir, capsys, argv, match):
+    (workdir / "adir").mkdir()
+    _bad_header(workdir / "header.csv")
+    _bad_cell(workdir / "cell.csv")
+    before = sorted(os.listdir(workdir))
+    code, out, err = run(capsys, *argv)
+    assert code == 2
+    _assert_one_error_line(err, match)
+    assert out == ""
+    assert sorted(os.listdir(workdir)) == before        # no report, no temporary folder
+
+
+def test_existing_out_is_refused_before_fitting(workdir, capsys, fake_fit):
+    (workdir / "rep").mkdir()
+    (workdir / "rep" / "keep.txt").write_text("old")
+    code, out, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--out", "rep")
+    assert code == 2
+    _assert_one_error_line(err, "output folder 'rep' exists; pass --force")
+    assert fake_fit == []                                 # no fit was wasted
+    assert os.listdir(workdir / "rep") == ["keep.txt"]
+    code, out, err = run(capsys, "example", "B", "--out", "rep")
+    assert code == 2 and fake_fit == []
+    _assert_one_error_line(err, "exists")
+
+
+def test_force_replaces(workdir, capsys, fake_fit, fast_figures):
+    (workdir / "rep").mkdir()
+    (workdir / "rep" / "keep.txt").write_text("old")
+    code, out, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--integrator",
+                         "--out", "rep", "--force")
+    assert code == 0, err
+    assert sorted(os.listdir(workdir / "rep")) == sorted(report.REPORT_FILES)
+    assert sorted(os.listdir(workdir)) == ["plant.csv", "rep"]
+
+
+# ----------------------------------------------------------------------------- success
+
+
+def test_fit_writes_a_report(workdir, capsys):
+    argv = ["fit", "plant.csv", "--sections", "2", "--integrator", "--out", "rep"]
+    code, out, err = run(capsys, *argv)
+    assert code == 0, err
+    assert err == ""                                     # stderr is not a terminal
+    rep = workdir / "rep"
+    assert sorted(os.listdir(rep)) == sorted(report.REPORT_FILES)
+    for name in report.REPORT_FILES:
+        assert (rep / name).stat().st_size > 0
+    md = (rep / "summary.md").read_text(encoding="utf-8")
+    assert md.splitlines()[0] == "<!-- generated by: freqid " + " ".join(argv) + " -->"
+    summary = json.loads((rep / "summary.json").read_text(encoding="utf-8"))
+    assert summary["command"] == "freqid " + " ".join(argv)
+    # the known model is recovered
+    assert summary["max_rel_error"] < 1e-6
+    assert abs(summary["delay"] - 0.01) < 1e-8
+    assert summary["structure"] == {"n_sections": 2, "basis": "second-order",
+                                    "integrator": True, "delay": True,
+                                    "order_rational_part": 4, "order": 5}
+    # the numbers of the Markdown are those of the JSON
+    for key in ("max_rel_error", "rms_rel_error", "wall_time"):
+        assert f"{summary[key]:.4g}" in md
+    assert f"{summary['delay']:.6g} s" in md
+    assert "plant: 2 sections (order 5)" in out
+    assert out.strip().splitlines()[-1] == f"report: {rep}"
+
+
+def test_progress_flags(workdir, capsys, fake_fit, fast_figures):
+    assert run(capsys, "fit", "plant.csv", "--sections", "2", "--out", "r1")[0] == 0
+    assert run(capsys, "fit", "plant.csv", "--sections", "2", "--out", "r2",
+               "--progress")[0] == 0
+    assert run(capsys, "fit", "plant.csv", "--sections", "2", "--out", "r3",
+               "--quiet")[0] == 0
+    assert [kw["progress"] for _, kw in fake_fit] == [False, True, False]
+
+
+def test_fit_options_are_passed(workdir, capsys, fake_fit, fast_figures):
+    code, _, err = run(capsys, "fit", "plant.csv", "--sections", "3", "--no-delay",
+                       "--basis", "first-order", "--method", "barrier-lm", "--tol", "1e-3",
+                       "--out", "rep")
+    assert code == 0, err
+    data, kw = fake_fit[0]
+    assert data.name == "plant" and data.n_points == _OMEGA.size
+    assert kw == dict(n_sections=3, integrator=False, delay=False, basis="first-order",
+                      method="barrier-lm", tol=1e-3, progress=False)
+
+
+@pytest.mark.parametrize("name, n_sections, integrator, delay, basis", [
+    ("A", 17, True, True, "second-order"),
+    ("B", 9, False, True, "second-order"),
+    ("C", 27, True, True, "second-order"),
+    ("fractional", cli.FRACTIONAL_SECTIONS, False, False, "first-order"),
+])
+def test_example_settings(workdir, capsys, fake_fit, fast_figures, name, n_sections,
+                          integrator, delay, basis):
+    code, out, err = run(capsys, "example", name)
+    assert code == 0, err
+    data, kw = fake_fit[0]
+    assert (kw["n_sections"], kw["integrator"], kw["delay"], kw["basis"]) == \
+        (n_sections, integrator, delay, basis)
+    assert data.n_points == 500
+    folder = workdir / f"freqid_example_{name}"
+    assert sorted(os.listdir(folder)) == sorted(report.REPORT_FILES)
+    md = (folder / "summary.md").read_text(encoding="utf-8")
+    assert md.startswith(f"<!-- generated by: freqid example {name} -->\n")
+    assert out.splitlines()[0].split()[:2] == ["example", "order"]
+    assert out.strip().splitlines()[-1] == f"report: {folder}"
+
+
+def test_example_prints_the_thesis_numbers(workdir, capsys, fake_fit, fast_figures):
+    code, out, _ = run(capsys, "example", "A", "--sections", "2", "--out", "exA")
+    assert code == 0
+    assert fake_fit[0][1]["n_sections"] == 2
+    row = out.splitlines()[2].split()
+    assert row[:2] == ["A", "4"]
+    assert row[-3:] == ["34", "0.2549", "0.0106"]
+    md = (workdir / "exA" / "summary.md").read_text(encoding="utf-8")
+    assert "## Thesis vs ours" in md and "0.2549" in md
+
+
+# ----------------------------------------------------------------------------- interrupts
+
+
+def _interrupt(*args, **kwargs):
+    raise KeyboardInterrupt
+
+
+def test_interrupted_fit(workdir, capsys, monkeypatch):
+    monkeypatch.setattr(cli, "fit", _interrupt)
+    code, out, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--out", "rep")
+    assert code == 130
+    assert err == "error: interrupted\n"
+    assert sorted(os.listdir(workdir)) == ["plant.csv"]
+
+
+def test_interrupted_report(workdir, capsys, fake_fit, monkeypatch):
+    monkeypatch.setattr(report, "_write_rel_error_csv", _interrupt)
+    code, out, err = run(capsys, "example", "A", "--out", "rep")
+    assert code == 130 and err == "error: interrupted\n"
+    assert sorted(os.listdir(workdir)) == ["plant.csv"]
+
+
+def test_os_error_while_writing(workdir, capsys, fake_fit, monkeypatch):
+    def fail(*args, **kwargs):
+        raise OSError(28, "No space left on device", "rel_error.csv")
+
+    monkeypatch.setattr(report, "_write_rel_error_csv", fail)
+    code, out, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--out", "rep")
+    assert code == 2
+    _assert_one_error_line(err, "No space left on device")
+    assert sorted(os.listdir(workdir)) == ["plant.csv"]
+
+
+# ----------------------------------------------------------------------------- entry point
+
+
+def test_python_m_help():
+    proc = subprocess.run([sys.executable, "-m", "freqid_casadi", "--help"],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    assert proc.stdout.startswith("usage: freqid")
+    assert "example" in proc.stdout and "fit" in proc.stdout
