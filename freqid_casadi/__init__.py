@@ -1,1 +1,28 @@
-"""freqid_casadi: stable, minimum-phase low-order models with delay from frequency data."""
+"""freqid_casadi: stable, minimum-phase low-order models with delay from frequency data.
+
+Fits ``G_N(s) = exp(-h s) K [1/s] prod_k (a s^2 + 2 zn wn s + wn^2)/(b s^2 + 2 zd wd s + wd^2)``
+to frequency-response samples by minimising the relative error, every stage a CasADi NLP
+with true bounds ``beta >= 0`` solved by IPOPT (see ``SPEC.md``).
+
+Quick start::
+
+    import freqid_casadi as fc
+    data = fc.systems.G_A()                      # free-free beam, 500 points
+    res = fc.fit(data, n_sections=17, integrator=True)
+    res.max_rel_error, res.model.delay, res.model.to_control()
+
+Importing this package does not import matplotlib (plots are in ``freqid_casadi.plots``).
+"""
+
+from . import systems
+from .data import FrequencyData, load, load_csv, load_npz, save_csv
+from .errors import DataError, FreqidError, OptionError, SolverError, StructureError
+from .fit import FitResult, StageRecord, fit
+from .model import RationalDelayModel, Structure
+
+__all__ = [
+    "fit", "FitResult", "StageRecord", "FrequencyData", "RationalDelayModel", "Structure",
+    "load", "load_csv", "load_npz", "save_csv", "systems",
+    "FreqidError", "DataError", "StructureError", "OptionError", "SolverError",
+]
+__version__ = "0.1.0"

@@ -1,0 +1,251 @@
+"""One stage NLP solved by IPOPT through CasADi (layer L3; the only ``nlpsol`` user).
+
+The stage problem is ``min_z  sum(r(z)^2)  s.t.  lb <= z <= ub`` with the bounds passed to
+IPOPT as simple bounds (``lbx``/``ubx``), never as penalties (SPEC §3, first variant).
+"""
+
+import time
+
+import numpy as np
+
+from ..errors import OptionError
+from .common import (StageResult, Status, SUCCESS_STATUSES, TERMINATION_MESSAGES,
+                     find_active_constraints)
+
+__all__ = ["HESSIANS", "solve_least_squares", "ipopt_status"]
+
+HESSIANS = ("exact", "exact-clip", "gauss-newton", "limited-memory")
+
+_IPOPT_STATUS = {
+    "Solve_Succeeded": Status.CONVERGED,
+    "Solved_To_Acceptable_Level": Status.ACCEPTABLE,
+    "Maximum_Iterations_Exceeded": Status.MAX_ITER,
+    "Maximum_CpuTime_Exceeded": Status.MAX_ITER,
+    "Maximum_WallTime_Exceeded": Status.MAX_ITER,
+    "Search_Direction_Becomes_Too_Small": Status.SMALL_STEP,
+    "Feasible_Point_Found": Status.ACCEPTABLE,
+    "Invalid_Number_Detected": Status.ERROR,
+    "NonIpopt_Exception_Thrown": Status.ERROR,
+}
+
+
+def ipopt_status(return_status):
+    """Map IPOPT's ``return_status`` string to a :class:`Status`."""
+    return _IPOPT_STATUS.get(return_status, Status.FAILED)
+
+
+def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
+                        max_iter=3000, tol=1e-12, warm_start=True, ipopt_options=None,
+                        verbose=False):
+    """Minimise ``||r(z)||^2`` subject to ``lb <= z <= ub`` with IPOPT.
+
+    Parameters
+    ----------
+    funcs : objective.StageFunctions
+        The stage's residual ``r_fun`` (CasADi; the NLP objective is
+        ``sumsqr(r_fun(z))``) and the numpy assembly of its gradient ``2 J^T r`` and
+        Hessian, passed to IPOPT as ``grad_f``/``hess_lag`` Functions
+        (:class:`casadi.Callback`): the dense products are done by BLAS, the one
+        operation the CasADi VM is slow at.
+    x0 : ndarray of float, shape (n,)
+        Start; clipped into ``[lb, ub]``.
+    lb, ub : ndarray of float, shape (n,)
+        Simple bounds (``ub`` may be inf).
+    lam_x0 : ndarray of float, shape (n,), optional
+        Bound multipliers to warm-start with (CasADi convention).
+    hessian : {"exact", "gauss-newton", "limited-memory"}
+        "exact" is the true Hessian assembled from the model's product structure
+        (:class:`~freqid_casadi.objective.StageFunctions`); "gauss-newton" drops the
+        second-order residual term (undamped, it jumps to phase-wrapped delays).
+    max_iter : int
+    tol : float
+        IPOPT's ``tol`` (scaled NLP error).
+    warm_start : bool
+        Use IPOPT's warm-start initialisation with tiny bound pushes, so that lightly damped
+        parameters (zeta ~ 1e-4) near their bound are not pushed away at every stage.
+    ipopt_options : dict, optional
+        Extra IPOPT options (without the ``ipopt.`` prefix); they override the defaults.
+    verbose : bool
+        Let IPOPT print its iteration log.
+
+    Returns
+    -------
+    StageResult
+        ``x`` is projected onto the bounds exactly (IPOPT's bound relaxation can leave
+        e.g. a damping at -1e-9, a right-half-plane root), and ``cost`` is evaluated there.
+    """
+    import casadi as ca
+
+    if hessian not in HESSIANS:
+        raise OptionError(f"unknown hessian {hessian!r}; choose one of {', '.join(HESSIANS)}")
+    t0 = time.perf_counter()
+    n = funcs.param.n_vars
+    lb = np.asarray(lb, float)
+    ub = np.asarray(ub, float)
+    x0 = np.clip(np.asarray(x0, float), lb, ub)
+    z = ca.MX.sym("z", n)
+    f = ca.sumsqr(funcs.r_fun(z))
+    nlp = {"x": z, "f": f}
+    opts = {
+        "print_time": False,
+        "error_on_fail": False,
+        "ipopt": {
+            "print_level": 5 if verbose else 0,
+            "sb": "yes",
+            "max_iter": int(max_iter),
+            "tol": float(tol),
+            "acceptable_tol": 1e-8,
+            "acceptable_iter": 30,
+            "bound_relax_factor": 0.0,
+            "honor_original_bounds": "yes",
+            "bound_push": 1e-9,
+            "bound_frac": 1e-9,
+        },
+    }
+    keep = [_GradF(funcs)]          # the callbacks must outlive the solver
+    opts["grad_f"] = keep[0]
+    if hessian == "limited-memory":
+        opts["ipopt"]["hessian_approximation"] = "limited-memory"
+    else:
+        keep.append(_Hess(funcs, hessian))
+        opts["hess_lag"] = keep[1]
+    use_warm = warm_start and lam_x0 is not None
+    if use_warm:
+        opts["ipopt"].update({
+            "warm_start_init_point": "yes",
+            "warm_start_bound_push": 1e-9,
+            "warm_start_bound_frac": 1e-9,
+            "warm_start_slack_bound_push": 1e-9,
+            "warm_start_slack_bound_frac": 1e-9,
+            "warm_start_mult_bound_push": 1e-9,
+            "mu_init": 1e-6,
+        })
+    # scale the objective to about 1 at the start: IPOPT's tolerances and its Hessian
+    # regularisation (inertia correction) are absolute, and the cost of a good fit is tiny
+    cost0 = funcs.cost(x0)
+    if np.isfinite(cost0) and cost0 > 0:
+        opts["ipopt"]["obj_scaling_factor"] = 1.0 / cost0
+        opts["ipopt"]["nlp_scaling_method"] = "none"
+    if ipopt_options:
+        opts["ipopt"].update(ipopt_options)
+    solver = ca.nlpsol("stage", "ipopt", nlp, opts)
+    args = {"x0": x0, "lbx": lb, "ubx": ub}
+    if use_warm:
+        args["lam_x0"] = np.asarray(lam_x0, float)
+    try:
+        sol = solver(**args)
+        stats = solver.stats()
+        return_status = str(stats.get("return_status", "unknown"))
+        x = np.clip(np.array(sol["x"], float).reshape(-1), lb, ub)
+        lam_x = np.array(sol["lam_x"], float).reshape(-1)
+    except RuntimeError as exc:  # evaluation errors raised inside CasADi
+        stats = {}
+        return_status = f"exception: {exc}"
+        x, lam_x = x0, np.zeros(n)
+    del keep
+    cost = funcs.cost(x)
+    status = ipopt_status(return_status) if np.isfinite(cost) else Status.ERROR
+    if not np.all(np.isfinite(x)):
+        status, x = Status.ERROR, x0
+    nit = int(stats.get("iter_count", 0))
+    counts = stats.get("n_call_nlp_f", 0) or 0
+    return StageResult(
+        x=x, cost=cost, status=status,
+        message=f"{TERMINATION_MESSAGES[status]} (IPOPT: {return_status})",
+        success=status in SUCCESS_STATUSES, nit=nit, nfev=int(counts),
+        wall_time=time.perf_counter() - t0,
+        active_mask=find_active_constraints(x, lb, ub, rtol=1e-8),
+        lam_x=lam_x, solver_status=return_status,
+        extra={"t_solver": float(stats.get("t_wall_total", np.nan) or np.nan)})
+
+
+def _make_callbacks():
+    import casadi as ca
+
+    class GradF(ca.Callback):
+        """``nlp_grad_f``: (x, p) -> (f, grad f) with grad f = 2 J^T r."""
+
+        def __init__(self, funcs):
+            ca.Callback.__init__(self)
+            self.funcs = funcs
+            self.n = funcs.param.n_vars
+            self.construct("nlp_grad_f", {})
+
+        def get_n_in(self):
+            return 2
+
+        def get_n_out(self):
+            return 2
+
+        def get_name_in(self, i):
+            return ("x", "p")[i]
+
+        def get_name_out(self, i):
+            return ("f", "grad_f")[i]
+
+        def get_sparsity_in(self, i):
+            return ca.Sparsity.dense(self.n, 1) if i == 0 else ca.Sparsity.dense(0, 1)
+
+        def get_sparsity_out(self, i):
+            return ca.Sparsity.dense(1, 1) if i == 0 else ca.Sparsity.dense(self.n, 1)
+
+        def eval(self, arg):
+            cost, grad = self.funcs.gradient(arg[0].full().reshape(-1))
+            return [cost, grad]
+
+    class Hess(ca.Callback):
+        """``nlp_hess_l``: (x, p, lam_f, lam_g) -> triu(lam_f * Hessian of the cost)."""
+
+        def __init__(self, funcs, kind):
+            ca.Callback.__init__(self)
+            self.funcs = funcs
+            self.exact = kind != "gauss-newton"
+            self.clip = kind == "exact-clip"
+            n = self.n = funcs.param.n_vars
+            self.sp = ca.Sparsity.upper(n)
+            rows, cols = np.triu_indices(n)
+            order = np.lexsort((rows, cols))                 # column-major nonzero order
+            self.rows, self.cols = rows[order], cols[order]
+            self.construct("nlp_hess_l", {})
+
+        def get_n_in(self):
+            return 4
+
+        def get_n_out(self):
+            return 1
+
+        def get_name_in(self, i):
+            return ("x", "p", "lam_f", "lam_g")[i]
+
+        def get_name_out(self, i):
+            return "hess_gamma_x_x"
+
+        def get_sparsity_in(self, i):
+            return [ca.Sparsity.dense(self.n, 1), ca.Sparsity.dense(0, 1),
+                    ca.Sparsity.dense(1, 1), ca.Sparsity.dense(0, 1)][i]
+
+        def get_sparsity_out(self, i):
+            return self.sp
+
+        def eval(self, arg):
+            h = self.funcs.hessian(arg[0].full().reshape(-1), exact=self.exact, clip=self.clip)
+            return [ca.DM(self.sp, float(arg[2]) * h[self.rows, self.cols])]
+
+    return GradF, Hess
+
+
+_CALLBACKS = []
+
+
+def _callback_classes():
+    if not _CALLBACKS:
+        _CALLBACKS.extend(_make_callbacks())
+    return _CALLBACKS
+
+
+def _GradF(funcs):
+    return _callback_classes()[0](funcs)
+
+
+def _Hess(funcs, kind):
+    return _callback_classes()[1](funcs, kind)
