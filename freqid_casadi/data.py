@@ -61,12 +61,12 @@ class FrequencyData:
         bad = ~np.isfinite(omega)
         if bad.any():
             i = _first_bad(bad)
-            raise DataError(f"omega must be finite: omega[{i}]={omega[i]}; remove that point")
+            raise DataError(f"omega must be finite: omega[{i}]={float(omega[i])}; remove that point")
         bad = omega <= 0
         if bad.any():
             i = _first_bad(bad)
             raise DataError(
-                f"omega must be > 0 (rad/s): omega[{i}]={omega[i]}; drop the zero/negative "
+                f"omega must be > 0 (rad/s): omega[{i}]={float(omega[i])}; drop the zero/negative "
                 "frequencies (the DC value is not used, an integrator is a model option)")
         d = np.diff(omega)
         bad = d <= 0
@@ -74,20 +74,21 @@ class FrequencyData:
             i = _first_bad(bad) + 1
             what = "duplicated" if d[i - 1] == 0 else "strictly increasing"
             raise DataError(
-                f"omega must be strictly increasing ({what} value): omega[{i}]={omega[i]!r} "
-                f"<= omega[{i - 1}]={omega[i - 1]!r}; use FrequencyData.sorted(omega, response)")
+                f"omega must be strictly increasing ({what} value): omega[{i}]="
+                f"{float(omega[i])!r} <= omega[{i - 1}]={float(omega[i - 1])!r}; use "
+                "FrequencyData.sorted(omega, response)")
         bad = ~np.isfinite(response)
         if bad.any():
             i = _first_bad(bad)
             raise DataError(
-                f"response must be finite: response[{i}]={response[i]} at omega={omega[i]}; "
+                f"response must be finite: response[{i}]={response[i]} at omega={float(omega[i])}; "
                 "remove or re-measure that point")
         bad = response == 0
         if bad.any():
             i = _first_bad(bad)
             raise DataError(
                 f"response must be nonzero (the relative error divides by it): response[{i}]=0 "
-                f"at omega={omega[i]}; remove that point")
+                f"at omega={float(omega[i])}; remove that point")
         weights = self.weights
         if weights is not None:
             weights = _as_float_vector(weights, "weights")
@@ -98,7 +99,7 @@ class FrequencyData:
             bad = ~np.isfinite(weights) | (weights < 0)
             if bad.any():
                 i = _first_bad(bad)
-                raise DataError(f"weights must be finite and >= 0: weights[{i}]={weights[i]}")
+                raise DataError(f"weights must be finite and >= 0: weights[{i}]={float(weights[i])}")
             if not np.any(weights > 0):
                 raise DataError("weights are all zero: at least one point must count")
             weights.setflags(write=False)
@@ -152,13 +153,16 @@ class FrequencyData:
 
 def _as_float_vector(x, name):
     try:
+        is_complex = np.iscomplexobj(np.asarray(x))
+    except (TypeError, ValueError):
+        is_complex = False
+    if is_complex:
+        raise DataError(f"{name} must be real, got complex values; pass the magnitude or "
+                        "real part, or the complex data as 'response'")
+    try:
         arr = np.array(x, dtype=float, copy=True)
     except (TypeError, ValueError) as exc:
-        if np.iscomplexobj(np.asarray(x)):
-            raise DataError(f"{name} must be real, got complex values") from None
         raise DataError(f"{name} must be an array of numbers: {exc}") from None
-    if np.iscomplexobj(np.asarray(x)):
-        raise DataError(f"{name} must be real, got complex values")
     if arr.ndim != 1:
         arr = arr.reshape(-1) if arr.ndim == 0 or max(arr.shape) == arr.size else arr
     if arr.ndim != 1:
@@ -215,28 +219,28 @@ def load_csv(path, name=None):
     path = _check_file(path)
     try:
         with open(path, newline="", encoding="utf-8") as fh:
-            rows = [r for r in csv.reader(fh) if r and not r[0].lstrip().startswith("#")]
+            rows = [(k + 1, r) for k, r in enumerate(csv.reader(fh))
+                    if r and "".join(r).strip() and not r[0].lstrip().startswith("#")]
     except UnicodeDecodeError:
         raise DataError(f"{path!r} is not a text CSV file (not UTF-8)") from None
     except OSError as exc:
         raise DataError(f"cannot read {path!r}: {exc.strerror}") from None
     if not rows:
         raise DataError(f"{path!r} is empty: expected a header 'omega,real,imag' and data rows")
-    header = [h.strip().lower() for h in rows[0]]
+    header = [h.strip().lower() for h in rows[0][1]]
     if header == ["omega", "real", "imag"]:
         layout = "ri"
     elif header == ["omega", "magnitude_db", "phase_deg"]:
         layout = "mp"
     else:
         raise DataError(
-            f"{path!r}: unrecognised header {','.join(rows[0])!r}; the first line must be "
+            f"{path!r}: unrecognised header {','.join(rows[0][1])!r}; the first line must be "
             "'omega,real,imag' or 'omega,magnitude_db,phase_deg'")
     body = rows[1:]
     if not body:
         raise DataError(f"{path!r} has a header but no data rows")
     values = np.empty((len(body), 3))
-    for k, row in enumerate(body):
-        line = k + 2
+    for k, (line, row) in enumerate(body):
         if len(row) != 3:
             raise DataError(
                 f"{path!r} line {line}: expected 3 columns ({','.join(header)}), got {len(row)}")
@@ -249,7 +253,8 @@ def load_csv(path, name=None):
                     "number") from None
     omega = values[:, 0]
     if layout == "ri":
-        response = values[:, 1] + 1j * values[:, 2]
+        response = np.empty(len(body), complex)
+        response.real, response.imag = values[:, 1], values[:, 2]
     else:
         response = 10.0 ** (values[:, 1] / 20.0) * np.exp(1j * np.deg2rad(values[:, 2]))
     name = name if name is not None else os.path.splitext(os.path.basename(path))[0]
@@ -261,7 +266,11 @@ def load_npz(path, name=None):
     (complex), and optionally ``weights``. Same checks as :class:`FrequencyData`."""
     path = _check_file(path)
     try:
-        with np.load(path, allow_pickle=False) as npz:
+        loaded = np.load(path, allow_pickle=False)
+        if not isinstance(loaded, np.lib.npyio.NpzFile):
+            raise DataError(f"{path!r} holds a single array (.npy), not an .npz archive; save "
+                            "with np.savez(path, omega=omega, response=response)")
+        with loaded as npz:
             missing = {"omega", "response"} - set(npz.files)
             if missing:
                 raise DataError(

@@ -162,7 +162,8 @@ class RationalDelayModel:
                 f"(2 + {self.structure.section_size} x {self.structure.n_sections})")
         if not np.all(np.isfinite(beta)):
             i = int(np.flatnonzero(~np.isfinite(beta))[0])
-            raise StructureError(f"beta must be finite: beta[{i}]={beta[i]}")
+            raise StructureError(f"beta must be finite: beta[{i}] "
+                                 f"({self.structure.param_names()[i]}) = {beta[i]}")
         if np.any(beta < 0):
             i = int(np.flatnonzero(beta < 0)[0])
             raise StructureError(
@@ -340,7 +341,9 @@ class RationalDelayModel:
                 raise DataError("not a freqid_casadi model (missing 'format')")
             st = Structure(**d["structure"])
             return cls(st, np.array(d["beta"], dtype=float))
-        except (KeyError, TypeError, AttributeError) as exc:
+        except (KeyError, TypeError, AttributeError, ValueError) as exc:
+            if isinstance(exc, StructureError):
+                raise
             raise DataError(f"malformed model JSON: {exc}") from None
 
     @classmethod
@@ -363,6 +366,8 @@ class RationalDelayModel:
                 return cls.from_json(fh.read())
         except OSError as exc:
             raise DataError(f"cannot read model file {path!r}: {exc.strerror}") from None
+        except UnicodeDecodeError:
+            raise DataError(f"model file {path!r} is not UTF-8 JSON text") from None
 
     def __repr__(self):
         s = self.structure

@@ -1,0 +1,307 @@
+"""Tests of freqid_casadi.model: Structure, RationalDelayModel, export and JSON."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from freqid_casadi.errors import DataError, FreqidError, StructureError
+from freqid_casadi.model import RationalDelayModel, Structure
+
+OMEGA = np.logspace(-2, 3, 201)                         # rad/s
+
+# two second-order sections with an integrator: [h, K, (a, zn, wn, b, zd, wd) x 2]
+BETA2 = [0.01, 3.0, 1.0, 0.1, 2.0, 0.5, 0.2, 5.0, 0.3, 0.05, 10.0, 1.0, 0.02, 20.0]
+
+
+def _close(actual, expected, rtol):
+    actual, expected = np.asarray(actual), np.asarray(expected)
+    rel = np.abs(actual - expected) / np.abs(expected)
+    assert np.max(rel) <= rtol, f"max relative difference {np.max(rel):.3g} > {rtol:g}"
+
+
+def _same_roots(actual, expected, tol):
+    """Equal as multisets of complex numbers (greedy nearest matching)."""
+    actual, expected = list(np.asarray(actual, complex)), list(np.asarray(expected, complex))
+    assert len(actual) == len(expected), (actual, expected)
+    for r in expected:
+        k = int(np.argmin([abs(a - r) for a in actual]))
+        assert abs(actual[k] - r) <= tol * max(1.0, abs(r)), (actual, expected)
+        actual.pop(k)
+
+
+# ------------------------------------------------------------------ Structure
+@pytest.mark.parametrize("n", [-1, -10, 1.5, 2.0, "3", None, True, False])
+def test_structure_bad_n_sections(n):
+    with pytest.raises(StructureError, match=r"n_sections must be"):
+        Structure(n)
+
+
+@pytest.mark.parametrize("basis", ["third-order", "Second-Order", "", None])
+def test_structure_unknown_basis(basis):
+    with pytest.raises(StructureError, match=r"unknown basis .*second-order, first-order"):
+        Structure(2, basis=basis)
+
+
+def test_structure_sizes_and_names():
+    s = Structure(np.int64(2), integrator=1, delay=1)
+    assert type(s.n_sections) is int and s.integrator is True and s.delay is True
+    assert s.n_params == 14 and s.order == 5 and s.section_size == 6
+    assert s.param_names()[:4] == ["delay", "gain", "a[1]", "zeta_num[1]"]
+    assert s.param_names()[-1] == "omega_den[2]"
+    f = Structure(3, basis="first-order")
+    assert f.n_params == 14 and f.order == 3 and f.param_names()[2:6] == [
+        "a1[1]", "a0[1]", "b1[1]", "b0[1]"]
+    assert Structure(0).n_params == 2
+    assert s.with_sections(4) == Structure(4, True, True)
+    assert issubclass(StructureError, ValueError) and issubclass(StructureError, FreqidError)
+
+
+# ------------------------------------------------------------------ beta validation
+def test_beta_length_mismatch():
+    with pytest.raises(StructureError, match=r"beta has 7 entries, the structure needs 8"):
+        RationalDelayModel(Structure(1), np.ones(7))
+
+
+def test_beta_negative_names_parameter():
+    beta = np.ones(8)
+    beta[3] = -0.5
+    pattern = r"beta must be >= 0.*beta\[3\] \(zeta_num\[1\]\) = -0\.5"
+    with pytest.raises(StructureError, match=pattern):
+        RationalDelayModel(Structure(1), beta)
+
+
+@pytest.mark.parametrize("bad", [np.nan, np.inf])
+def test_beta_non_finite_names_index(bad):
+    beta = np.ones(8)
+    beta[3] = bad
+    with pytest.raises(StructureError, match=rf"beta must be finite: beta\[3\] \(zeta_num\[1\]\) = {bad}"):
+        RationalDelayModel(Structure(1), beta)
+
+
+def test_beta_nan_names_parameter():
+    beta = np.ones(8)
+    beta[3] = np.nan
+    with pytest.raises(StructureError, match=r"zeta_num\[1\]"):
+        RationalDelayModel(Structure(1), beta)
+
+
+def test_beta_without_delay_must_have_zero_delay():
+    with pytest.raises(StructureError, match=r"no delay but beta\[0\] = 0\.1"):
+        RationalDelayModel(Structure(1, delay=False), [0.1] + [1.0] * 7)
+    assert RationalDelayModel(Structure(1, delay=False), [0.0] + [1.0] * 7).delay == 0.0
+
+
+def test_structure_must_be_structure():
+    with pytest.raises(StructureError, match="structure must be a Structure"):
+        RationalDelayModel((1, False), np.ones(8))
+
+
+def test_beta_is_copied_read_only_and_equality():
+    beta = np.array(BETA2)
+    m = RationalDelayModel(Structure(2, integrator=True), beta)
+    beta[1] = 100.0
+    assert m.gain == 3.0 and not m.beta.flags.writeable
+    with pytest.raises(ValueError):
+        m.beta[0] = 1.0
+    assert m == RationalDelayModel(Structure(2, integrator=True), BETA2)
+    assert m != RationalDelayModel(Structure(2, integrator=False), BETA2)
+    assert m.sections().shape == (2, 6) and m.delay == 0.01 and m.order == 5
+
+
+# ------------------------------------------------------------------ frequency response
+def test_frequency_response_second_order_formula():
+    h, k, a, zn, wn, b, zd, wd = 0.02, 2.5, 0.7, 0.15, 3.0, 1.3, 0.05, 7.0
+    m = RationalDelayModel(Structure(1, integrator=True), [h, k, a, zn, wn, b, zd, wd])
+    s = 1j * OMEGA
+    expected = (np.exp(-1j * OMEGA * h) * k / s * (a * s ** 2 + 2 * zn * wn * s + wn ** 2)
+                / (b * s ** 2 + 2 * zd * wd * s + wd ** 2))
+    _close(m.frequency_response(OMEGA), expected, 1e-14)
+    _close(m.rational_response(OMEGA), expected * np.exp(1j * OMEGA * h), 1e-14)
+
+
+@pytest.mark.parametrize("integrator", [False, True])
+def test_frequency_response_first_order_formula(integrator):
+    h, k, a1, a0, b1, b0 = 0.005, 0.8, 0.2, 1.5, 0.9, 0.3
+    m = RationalDelayModel(Structure(1, integrator, basis="first-order"), [h, k, a1, a0, b1, b0])
+    s = 1j * OMEGA
+    expected = np.exp(-s * h) * k * (a1 * s + a0) / (b1 * s + b0)
+    if integrator:
+        expected = expected / s
+    _close(m.frequency_response(OMEGA), expected, 1e-14)
+
+
+def test_relative_error():
+    from freqid_casadi.data import FrequencyData
+
+    m = RationalDelayModel(Structure(2, integrator=True), BETA2)
+    g = m.frequency_response(OMEGA)
+    data = FrequencyData(OMEGA, g * (1 + 0.01j))
+    np.testing.assert_allclose(m.relative_error(data), 0.01, rtol=1e-12)
+
+
+# ------------------------------------------------------------------ poles and zeros
+def _expanded(beta, integrator):
+    num, den = np.array([1.0]), np.array([1.0])
+    for a, zn, wn, b, zd, wd in np.reshape(beta[2:], (-1, 6)):
+        num = np.polymul(num, [a, 2 * zn * wn, wn ** 2])
+        den = np.polymul(den, [b, 2 * zd * wd, wd ** 2])
+    if integrator:
+        den = np.polymul(den, [1.0, 0.0])
+    return num, den
+
+
+@pytest.mark.parametrize("integrator", [False, True])
+def test_poles_zeros_match_expanded_polynomials(integrator):
+    m = RationalDelayModel(Structure(2, integrator=integrator), BETA2)
+    num, den = _expanded(BETA2, integrator)
+    _same_roots(m.poles(), np.roots(den), 1e-9)
+    _same_roots(m.zeros(), np.roots(num), 1e-9)
+    assert (0j in list(m.poles())) == integrator
+    assert m.poles().size == m.order
+    assert m.is_stable() and m.is_minimum_phase()        # beta > 0; integrator not counted
+
+
+def test_first_order_poles_zeros():
+    m = RationalDelayModel(Structure(2, True, basis="first-order"),
+                           [0, 1, 0.5, 2.0, 0.25, 1.0, 0.0, 3.0, 2.0, 1.0])
+    _same_roots(m.poles(), [0, -4.0, -0.5], 1e-15)
+    _same_roots(m.zeros(), [-4.0], 1e-15)                # a1 = 0: zero at infinity, dropped
+
+
+def test_zero_a_gives_one_real_zero():
+    # a = 0: numerator 2 zn wn s + wn^2 = 2 s + 4, one zero at -wn / (2 zn) = -2
+    m = RationalDelayModel(Structure(1), [0.0, 1.0, 0.0, 0.5, 2.0, 1.0, 0.3, 5.0])
+    z = m.zeros()
+    assert z.shape == (1,) and z[0] == -2.0
+    assert m.poles().size == 2 and m.is_minimum_phase()
+
+
+def test_damping_zero_is_not_stable_nor_minimum_phase():
+    beta = np.array([0.0, 1.0, 1.0, 0.3, 2.0, 1.0, 0.4, 3.0])
+    assert RationalDelayModel(Structure(1), beta).is_stable()
+    undamped_den = beta.copy()
+    undamped_den[6] = 0.0                                 # zeta_den = 0: poles at +-3j
+    m = RationalDelayModel(Structure(1), undamped_den)
+    _same_roots(m.poles(), [3j, -3j], 1e-15)
+    assert not m.is_stable() and m.is_minimum_phase()
+    undamped_num = beta.copy()
+    undamped_num[3] = 0.0                                 # zeta_num = 0: zeros at +-2j
+    m = RationalDelayModel(Structure(1), undamped_num)
+    _same_roots(m.zeros(), [2j, -2j], 1e-15)
+    assert m.is_stable() and not m.is_minimum_phase()
+
+
+# ------------------------------------------------------------------ python-control export
+@pytest.mark.parametrize("structure, beta", [
+    (Structure(2, integrator=True), BETA2),
+    (Structure(2, integrator=False), BETA2),
+    (Structure(2, basis="first-order"), [0.003, 2.0, 0.5, 2.0, 0.8, 1.0, 0.1, 3.0, 2.0, 1.0]),
+])
+def test_to_control_matches_frequency_response(structure, beta):
+    m = RationalDelayModel(structure, beta)
+    sys = m.to_control()
+    g = np.array([complex(sys(1j * w)) for w in OMEGA])
+    _close(g * np.exp(-1j * OMEGA * m.delay), m.frequency_response(OMEGA), 1e-10)
+    assert sys.delay == m.delay
+    assert sys.nstates == m.order
+
+
+def test_to_control_pade_includes_delay():
+    m = RationalDelayModel(Structure(2, integrator=True), BETA2)
+    sys = m.to_control(pade_order=3)
+    assert sys.delay == 0.0 and sys.nstates == m.order + 3
+    low = np.logspace(-2, 1, 31)                          # w h <= 0.1
+    g = np.array([complex(sys(1j * w)) for w in low])
+    _close(g, m.frequency_response(low), 1e-8)
+    np.testing.assert_allclose(np.angle(g / m.rational_response(low)), -low * m.delay,
+                               atol=1e-9)
+    no_delay = RationalDelayModel(Structure(1), [0.0, 1.0, 1.0, 0.3, 2.0, 1.0, 0.4, 3.0])
+    assert no_delay.to_control(pade_order=3).nstates == 2
+
+
+def test_to_control_improper_section():
+    m = RationalDelayModel(Structure(1), [0.0, 1.0, 1.0, 0.3, 2.0, 0.0, 0.4, 3.0])   # b = 0
+    with pytest.raises(StructureError, match=r"improper"):
+        m.to_control()
+
+
+# ------------------------------------------------------------------ JSON
+AWKWARD = [1 / 3, 0.1, 1e-300, 1e300, math.pi, 2 ** 0.5, 0.0, 7.000000000000001e-05,
+           12345.678901234567, 2.2250738585072014e-308, 1.7976931348623157e308, 1 / 7, 5.0,
+           math.e]
+
+
+@pytest.mark.parametrize("structure, beta", [
+    (Structure(2, integrator=True), AWKWARD),
+    (Structure(3, basis="first-order"), AWKWARD),
+    (Structure(0, delay=False), [0.0, 1 / 3]),
+])
+def test_json_round_trip_bit_identical(tmp_path, structure, beta):
+    m = RationalDelayModel(structure, beta)
+    path = tmp_path / "model.json"
+    m.save(path)
+    back = RationalDelayModel.load(path)
+    assert back == m and back.structure == m.structure
+    assert np.array_equal(back.beta, m.beta) and back.beta.tobytes() == m.beta.tobytes()
+    text = m.to_json()
+    again = RationalDelayModel.from_json(text)
+    assert again == m and again.beta.tobytes() == m.beta.tobytes()
+    d = json.loads(text)
+    assert d["format"] == "freqid_casadi.RationalDelayModel"
+    assert d["param_names"] == structure.param_names()
+    assert not any(p.name.startswith(".tmp-") for p in tmp_path.iterdir())
+
+
+@pytest.mark.parametrize("text, pattern", [
+    pytest.param("{not json", r"not valid JSON", id="invalid-json"),
+    pytest.param("", r"not valid JSON", id="empty"),
+    pytest.param("[1, 2]", r"malformed model JSON", id="list"),
+    pytest.param("null", r"malformed model JSON", id="null"),
+    pytest.param('{"beta": [0, 1]}', r"not a freqid_casadi model", id="no-format"),
+    pytest.param('{"format": "other"}', r"not a freqid_casadi model", id="wrong-format"),
+    pytest.param('{"format": "freqid_casadi.RationalDelayModel", "beta": [0, 1]}',
+                 r"malformed model JSON: 'structure'", id="no-structure"),
+    pytest.param('{"format": "freqid_casadi.RationalDelayModel", '
+                 '"structure": {"n_sections": 0}}', r"malformed model JSON: 'beta'",
+                 id="no-beta"),
+    pytest.param('{"format": "freqid_casadi.RationalDelayModel", '
+                 '"structure": {"n_sections": 0, "colour": 1}, "beta": [0, 1]}',
+                 r"malformed model JSON", id="unknown-structure-key"),
+])
+def test_load_malformed_file(tmp_path, text, pattern):
+    path = tmp_path / "bad.json"
+    path.write_text(text)
+    with pytest.raises(DataError, match=pattern):
+        RationalDelayModel.load(path)
+
+
+def test_load_missing_file_and_directory(tmp_path):
+    with pytest.raises(DataError, match=r"cannot read model file .*missing\.json"):
+        RationalDelayModel.load(tmp_path / "missing.json")
+    with pytest.raises(DataError, match=r"cannot read model file"):
+        RationalDelayModel.load(tmp_path)
+
+
+def test_load_invalid_structure_is_freqid_error(tmp_path):
+    path = tmp_path / "neg.json"
+    path.write_text('{"format": "freqid_casadi.RationalDelayModel", '
+                    '"structure": {"n_sections": 0}, "beta": [0, -1]}')
+    with pytest.raises(FreqidError, match=r"beta\[1\] \(gain\) = -1"):
+        RationalDelayModel.load(path)
+
+
+def test_load_non_numeric_beta(tmp_path):
+    path = tmp_path / "str.json"
+    path.write_text('{"format": "freqid_casadi.RationalDelayModel", '
+                    '"structure": {"n_sections": 0}, "beta": ["a", "b"]}')
+    with pytest.raises(DataError):
+        RationalDelayModel.load(path)
+
+
+def test_load_binary_file(tmp_path):
+    path = tmp_path / "bin.json"
+    path.write_bytes(b"\xff\xfe\x00garbage")
+    with pytest.raises(DataError):
+        RationalDelayModel.load(path)
