@@ -27,8 +27,8 @@ import sys
 
 from . import systems
 from .data import load
-from .errors import FreqidError
-from .fit import METHODS, fit
+from .errors import FreqidError, OptionError
+from .fit import METHODS, OBJECTIVES, STARTS, fit
 from .model import BASES
 from .report import check_out_dir, write_fit_report
 
@@ -100,6 +100,13 @@ def _common(p, *, out_required):
     p.add_argument("--method", choices=METHODS, default="ipopt",
                    help="stage solver: IPOPT with bounds (default) or the thesis's "
                         "log-barrier Levenberg-Marquardt")
+    p.add_argument("--start", choices=STARTS, default="sequential",
+                   help="sequential: the thesis's main loop (default); rational: vector "
+                        "fitting of all sections then one IPOPT polish; best: both, the "
+                        "lower max error wins")
+    p.add_argument("--objective", choices=OBJECTIVES, default="least-squares",
+                   help="minimax adds a polish of the max relative error (kept only if "
+                        "it lowers it)")
     if out_required:
         p.add_argument("--out", required=True, metavar="DIR",
                        help="report folder to create (must not exist unless --force)")
@@ -149,6 +156,55 @@ def _add_fit(sub):
     return p
 
 
+def _example_list(text):
+    names = [n.strip() for n in text.split(",") if n.strip()]
+    unknown = [n for n in names if n not in EXAMPLES]
+    if not names or unknown:
+        raise argparse.ArgumentTypeError(
+            f"must be a comma-separated list of {', '.join(EXAMPLES)}, got {text!r}")
+    return list(dict.fromkeys(names))
+
+
+def _add_ablation(sub):
+    p = sub.add_parser("ablation", help="IPOPT vs the thesis's barrier-LM, and IPOPT's "
+                                        "options one at a time",
+                       description="Fit the built-in examples at the thesis's orders with "
+                                   "IPOPT and the barrier-LM, and with IPOPT's options "
+                                   "changed one at a time; write report.md, ablation.json "
+                                   "and figures. Long: about 15-30 minutes for all examples.")
+    p.add_argument("--examples", type=_example_list, metavar="LIST",
+                   help=f"comma-separated examples (default: all, {','.join(EXAMPLES)}; "
+                        "with --quick: A,fractional)")
+    p.add_argument("--quick", action="store_true",
+                   help="small problems (300 points, 3 sections) and 3 variants: a smoke "
+                        "test of the report, under a minute")
+    p.add_argument("--out", default="results/ablation", metavar="DIR",
+                   help="report folder to create (default results/ablation)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing report folder (after the new one is complete)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
+    # the command recorded in report.md when another entry point (scripts/ablation.py)
+    # runs this command
+    p.add_argument("--report-command", help=argparse.SUPPRESS)
+    return p
+
+
+def _cmd_ablation(args, command):
+    from . import ablation
+
+    check_out_dir(args.out, args.force)              # before the (long) study
+    names = args.examples or (list(ablation.QUICK["examples"]) if args.quick
+                              else list(EXAMPLES))
+    path, summary = ablation.write_ablation_report(
+        {n: EXAMPLES[n] for n in names}, args.out, command=args.report_command or command,
+        quick=args.quick, force=args.force, progress=not args.quiet)
+    for line in summary["conclusions"]:
+        print(f"- {line}")
+    print(f"total time {summary['total_wall_time']:.1f} s")
+    print(f"report: {path}")
+    return 0
+
+
 #: name -> (add parser, run command)
 COMMANDS = {}
 
@@ -191,7 +247,8 @@ def _cmd_example(args, command):
     n_sections = args.sections or ex["n_sections"]
     data = ex["data"]()
     result = fit(data, n_sections=n_sections, integrator=ex["integrator"], delay=ex["delay"],
-                 basis=ex["basis"], method=args.method, progress=_progress(args))
+                 basis=ex["basis"], method=args.method, progress=_progress(args),
+                 start=args.start, objective=args.objective)
     path = write_fit_report(result, out, command=command, force=args.force,
                             title=f"Example {args.name}: {data.name}", thesis=ex["thesis"])
     t = ex["thesis"] or {}
@@ -203,7 +260,8 @@ def _cmd_example(args, command):
                               "delay (s)", "time (s)", "thesis order", "thesis max",
                               "thesis delay")))
     if not result.success:
-        print("warning: the final stage did not converge (see summary.md)")
+        print(f"warning: the final stage stopped at {result.stages[-1].solver_status} "
+              "(see summary.md); the model is feasible and the errors above are measured")
     print(f"report: {path}")
     return 0
 
@@ -213,15 +271,104 @@ def _cmd_fit(args, command):
     check_out_dir(args.out, args.force)              # before the (long) fit
     result = fit(data, n_sections=args.sections, integrator=args.integrator,
                  delay=args.delay, basis=args.basis, method=args.method, tol=args.tol,
-                 progress=_progress(args))
+                 progress=_progress(args), start=args.start, objective=args.objective)
     path = write_fit_report(result, args.out, command=command, force=args.force)
     print(result.summary())
     print(f"report: {path}")
     return 0
 
 
+def _add_sweep(sub):
+    p = sub.add_parser("sweep", help="fit every order of a range; find the smallest that "
+                                     "meets a target",
+                       description="Fit the data at each order of P_N and write a table "
+                                   "(sweep.md, sweep.csv, sweep.json) and a figure of "
+                                   "order vs max relative error, delay and time.")
+    p.add_argument("file", metavar="FILE",
+                   help="data file (.csv or .npz), or example:A (B, C) for a built-in "
+                        "example (then the error on a 10x denser grid is reported too)")
+    p.add_argument("--orders", required=True, metavar="START:STOP:STEP",
+                   help="orders of P_N, e.g. 4:40:2 (stop included) or 10,20,34")
+    p.add_argument("--target", type=_positive_float, metavar="X",
+                   help="name the smallest order whose max relative error is <= X")
+    p.add_argument("--integrator", action="store_true", help="include the factor K0/s")
+    p.add_argument("--no-delay", dest="delay", action="store_false",
+                   help="fix the delay h at 0")
+    p.add_argument("--basis", choices=BASES, default="second-order")
+    p.add_argument("--method", choices=METHODS, default="ipopt")
+    p.add_argument("--start", choices=STARTS, default="best")
+    p.add_argument("--out", required=True, metavar="DIR")
+    p.add_argument("--force", action="store_true")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    return p
+
+
+def _cmd_sweep(args, command):
+    from .sweep import parse_orders, sweep
+    from .report import write_sweep_report
+
+    orders = parse_orders(args.orders)
+    truth = None
+    integrator = args.integrator
+    if args.file.startswith("example:"):
+        name = args.file.split(":", 1)[1]
+        if name not in ("A", "B", "C"):
+            raise OptionError(f"unknown example {name!r} in {args.file!r}; use example:A, "
+                              "example:B or example:C")
+        make = {"A": systems.G_A, "B": systems.G_B, "C": systems.G_C}[name]
+        data = make()
+        truth = lambda w: make(w).response  # noqa: E731
+        integrator = integrator or EXAMPLES[name]["integrator"]
+    else:
+        data = load(args.file)
+    check_out_dir(args.out, args.force)
+
+    def report(row):
+        if not args.quiet:
+            sys.stderr.write(f"order {row.order}: max rel. error {row.max_rel_error:.3e}, "
+                             f"delay {row.delay:.6g} s, {row.wall_time:.1f} s\n")
+
+    result = sweep(data, orders, target=args.target, truth=truth, progress=report,
+                   integrator=integrator, delay=args.delay, basis=args.basis,
+                   method=args.method, start=args.start)
+    path = write_sweep_report(result, args.out, command=command, force=args.force)
+    rows = [(r.order, _g(r.max_rel_error), _g(r.rms_rel_error), _g(r.max_rel_error_dense),
+             _g(r.delay, 6), f"{r.wall_time:.1f}") for r in result.rows]
+    print(_text_table(rows, ("order", "max rel. err", "RMS", "max (10x grid)", "delay (s)",
+                             "time (s)")))
+    if args.target is not None:
+        print(f"smallest order with max rel. error <= {args.target:g}: "
+              f"{result.best_order if result.best_order is not None else 'none'}")
+    print(f"report: {path}")
+    return 0
+
+
 COMMANDS["example"] = (_add_example, _cmd_example)
 COMMANDS["fit"] = (_add_fit, _cmd_fit)
+COMMANDS["ablation"] = (_add_ablation, _cmd_ablation)
+COMMANDS["sweep"] = (_add_sweep, _cmd_sweep)
+
+
+def _plugin(module_name):
+    """(add, run) of a command whose parser and runner live in another module, which is
+    imported only when that command runs or the parser is built."""
+    import importlib
+
+    def add(sub):
+        mod = importlib.import_module(f"{__package__}.{module_name}")
+        before = set(sub.choices)
+        mod.add_cli(sub)
+        (name,) = set(sub.choices) - before
+        return sub.choices[name]
+
+    def run(args, command):
+        mod = importlib.import_module(f"{__package__}.{module_name}")
+        return mod.run_cli(args, command)
+
+    return add, run
+
+
+COMMANDS["frf"] = _plugin("cli_frf")
 
 
 # ----------------------------------------------------------------------------- main

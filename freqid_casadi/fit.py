@@ -21,12 +21,14 @@ from .objective import GAUGES, Parametrization, rel_error_stats, stage_functions
 from .solvers.common import Status
 from .solvers.ipopt import HESSIANS, solve_least_squares
 
-__all__ = ["fit", "FitResult", "StageRecord", "METHODS", "INITS", "WARM_STARTS",
-           "default_delay_max"]
+__all__ = ["fit", "FitResult", "StageRecord", "METHODS", "INITS", "WARM_STARTS", "STARTS",
+           "OBJECTIVES", "default_delay_max"]
 
 METHODS = ("ipopt", "barrier-lm")
 INITS = ("peak", "identity")
 WARM_STARTS = ("primal-dual", "primal", "none")
+STARTS = ("sequential", "rational", "best")
+OBJECTIVES = ("least-squares", "minimax")
 
 
 @dataclass(frozen=True)
@@ -105,6 +107,10 @@ class FitResult:
     method : str
     options : dict
         The options the fit ran with (for reports).
+    start : str
+        Which start produced the model ("sequential" or "rational").
+    objective : str
+        "least-squares", or "minimax" if the epigraph polish ran.
     """
 
     model: RationalDelayModel
@@ -117,6 +123,8 @@ class FitResult:
     wall_time: float
     method: str
     options: dict = field(default_factory=dict)
+    start: str = "sequential"
+    objective: str = "least-squares"
 
     @property
     def delay(self):
@@ -196,7 +204,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         gauge="dc", init="peak", scale_l=1.0, hessian="exact",
         warm_start="primal-dual", scaled=True, delay_max=None, bound_delay=True,
         final_stage=True, max_iter=100, final_max_iter=500, ipopt_options=None,
-        lm_options=None):
+        lm_options=None, start="sequential", objective="least-squares"):
     """Fit ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` to frequency-response data.
 
     Parameters
@@ -252,6 +260,15 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         Iteration limit of the final all-data stage, whose status is ``success``.
     ipopt_options, lm_options : dict, optional
         Extra options for the stage solver.
+    start : {"sequential", "rational", "best"}
+        "sequential" is the thesis's main loop; "rational" fits all sections at once by
+        vector fitting with the delay refined from the right-half-plane zeros
+        (:mod:`freqid_casadi.start`), then polishes everything by one IPOPT stage on all
+        data; "best" runs both (the rational start begins at the sequential delay) and
+        keeps the lower max relative error (``FitResult.start`` says which won).
+    objective : {"least-squares", "minimax"}
+        "minimax" adds an epigraph polish ``min t s.t. |r_i|^2 <= t``, kept only if it
+        lowers the max relative error (and the start is below 1).
 
     Returns
     -------
@@ -269,7 +286,8 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
                     hessian=hessian, warm_start=warm_start, scaled=scaled,
                     delay_max=delay_max, bound_delay=bound_delay, final_stage=final_stage,
                     max_iter=max_iter, final_max_iter=final_max_iter,
-                    ipopt_options=ipopt_options, lm_options=lm_options)
+                    ipopt_options=ipopt_options, lm_options=lm_options, start=start,
+                    objective=objective)
 
 
 def _single_threaded_blas():
@@ -282,27 +300,83 @@ def _single_threaded_blas():
 
 def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, method, tol,
          progress, weights, gauge, init, scale_l, hessian, warm_start, scaled, delay_max,
-         bound_delay, final_stage, max_iter, final_max_iter, ipopt_options, lm_options):
+         bound_delay, final_stage, max_iter, final_max_iter, ipopt_options, lm_options,
+         start, objective):
     t_start = time.perf_counter()
     data = _validate(data_or_omega, response, n_sections, method, basis, tol, gauge, init,
                      hessian, warm_start, delay_max, integrator, scale_l)
+    if start not in STARTS:
+        raise OptionError(f"unknown start {start!r}; choose one of {', '.join(STARTS)}")
+    if objective not in OBJECTIVES:
+        raise OptionError(f"unknown objective {objective!r}; choose one of "
+                          f"{', '.join(OBJECTIVES)}")
     if weights is not None:
         data = data.with_weights(weights)
-    omega, phi = data.omega, data.response
-    m = data.n_points
-    dmax = float(delay_max) if delay_max is not None else default_delay_max(omega)
-    callback = _progress_callback(progress)
-
-    gain0 = abs(phi[0]) * (omega[0] if integrator else 1.0)
-    param = Parametrization(Structure(0, integrator, delay, basis), gauge, (), gain0, dmax,
-                            scaled)
+    dmax = float(delay_max) if delay_max is not None else default_delay_max(data.omega)
+    ctx = _Context(
+        data=data, callback=_progress_callback(progress),
+        solve=_StageSolver(method, hessian, max_iter, ipopt_options, lm_options,
+                           warm_start != "none", bound_delay),
+        structure=Structure(int(n_sections), integrator, delay, basis), gauge=gauge,
+        scaled=scaled, delay_max=dmax, final_max_iter=final_max_iter)
     options = dict(n_sections=int(n_sections), integrator=bool(integrator), delay=bool(delay),
                    basis=basis, method=method, tol=tol, gauge=gauge, init=init,
                    scale_l=scale_l, hessian=hessian, warm_start=warm_start, scaled=scaled,
                    delay_max=dmax, bound_delay=bound_delay, final_stage=final_stage,
-                   max_iter=max_iter, final_max_iter=final_max_iter)
-    solve = _StageSolver(method, hessian, max_iter, ipopt_options, lm_options,
-                         warm_start != "none", bound_delay)
+                   max_iter=max_iter, final_max_iter=final_max_iter, start=start,
+                   objective=objective)
+    runs = {}
+    if start in ("sequential", "best"):
+        runs["sequential"] = _sequential(ctx, tol, init, scale_l, warm_start, final_stage)
+    if start in ("rational", "best"):
+        # the delay update of the rational start only sees a delay that is too small (it
+        # shows as right-half-plane zeros), so it always starts from h = 0
+        try:
+            runs["rational"] = _rational(ctx, 0.0)
+        except OptionError:
+            if start == "rational":
+                raise
+    errors = {k: float(np.max(p.to_model(z).relative_error(data)))
+              for k, (p, z, _, _) in runs.items()}
+    won = min(errors, key=lambda k: (errors[k], k != "sequential"))
+    param, z, lam, records = runs[won]
+    options["start_max_rel_errors"] = errors
+    options["start_used"] = won
+    if objective == "minimax":
+        z, rec = _minimax(ctx, param, z)
+        records.append(rec)
+    model = param.to_model(z)
+    rel = model.relative_error(data)
+    mx, rms = rel_error_stats(rel)
+    final = [r for r in records if r.kept != "minimax-rejected" and r.solver_status
+             != "vector-fitting"] or records
+    return FitResult(model=model, stages=tuple(records), data=data, rel_error=rel,
+                     max_rel_error=mx, rms_rel_error=rms,
+                     success=bool(final[-1].success), wall_time=time.perf_counter() - t_start,
+                     method=method, options=options, start=won, objective=objective)
+
+
+@dataclass(frozen=True)
+class _Context:
+    data: FrequencyData
+    callback: object
+    solve: object
+    structure: Structure
+    gauge: str
+    scaled: bool
+    delay_max: float
+    final_max_iter: int
+
+
+def _sequential(ctx, tol, init, scale_l, warm_start, final_stage):
+    """The thesis's main loop (SPEC §2). Returns (param, z, lam, records)."""
+    data, solve, callback = ctx.data, ctx.solve, ctx.callback
+    omega, phi = data.omega, data.response
+    m = data.n_points
+    st = ctx.structure
+    gain0 = abs(phi[0]) * (omega[0] if st.integrator else 1.0)
+    param = Parametrization(st.with_sections(0), ctx.gauge, (), gain0, ctx.delay_max,
+                            ctx.scaled)
 
     # ---- stage 0: gain and delay on a growing low-frequency window (thesis: 1..5 points)
     z = np.zeros(param.n_vars)
@@ -323,7 +397,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     init_z = z.copy()
 
     # ---- stages 1..N: one section per stage at the largest error
-    for n in range(1, int(n_sections) + 1):
+    for n in range(1, st.n_sections + 1):
         err = np.abs(_ratio(param, z, omega, phi) - 1.0)
         if tol is not None and np.max(err) < tol:
             break
@@ -351,20 +425,69 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     if final_stage and window < m or records[-1].status == Status.MAX_ITER:
         t0 = time.perf_counter()
         res = solve(param, data, z, lam if warm_start == "primal-dual" else None,
-                    max_iter=final_max_iter)
+                    max_iter=ctx.final_max_iter)
         z, lam, kept = _keep_better(param, data, z, lam, res)
         records.append(_record(param.structure.n_sections + 1, param, z, data, m, math.nan,
                                res, res.nit, res.nfev, time.perf_counter() - t0, kept))
         callback(records[-1])
+    return param, z, lam, records
 
-    model = param.to_model(z)
-    rel = model.relative_error(data)
-    mx, rms = rel_error_stats(rel)
-    last = records[-1]
-    return FitResult(model=model, stages=tuple(records), data=data, rel_error=rel,
-                     max_rel_error=mx, rms_rel_error=rms,
-                     success=bool(last.success), wall_time=time.perf_counter() - t_start,
-                     method=method, options=options)
+
+def _rational(ctx, delay0):
+    """Global start (:mod:`freqid_casadi.start`) polished by one stage on all data."""
+    from .solvers.common import StageResult, find_active_constraints
+    from .start import rational_start
+
+    data, st = ctx.data, ctx.structure
+    t0 = time.perf_counter()
+    rs = rational_start(data, st, delay_max=ctx.delay_max, delay0=delay0)
+    beta = np.array(rs.model.beta)
+    secs = rs.model.sections()
+    col = 5 if st.basis == "second-order" else 3
+    refs = [float(w) if np.isfinite(w) and w > 0 else float(data.omega[0]) for w in secs[:, col]]
+    gain_ref = beta[1] if beta[1] > 0 else 1.0
+    param = Parametrization(st, ctx.gauge, tuple(refs), gain_ref, ctx.delay_max, ctx.scaled)
+    z0 = param.from_beta(beta)
+    lb, ub = param.bounds()
+    z0 = np.clip(z0, lb, ub)
+    n_trials = int(rs.delays.size)
+    res0 = StageResult(x=z0, cost=np.nan, status=Status.CONVERGED,
+                       message="rational start", success=True, nit=n_trials,
+                       nfev=n_trials, wall_time=time.perf_counter() - t0,
+                       active_mask=find_active_constraints(z0, lb, ub),
+                       lam_x=np.zeros_like(z0), solver_status="vector-fitting")
+    records = [_record(0, param, z0, data, data.n_points, math.nan, res0, n_trials, n_trials,
+                       time.perf_counter() - t0, "start")]
+    ctx.callback(records[-1])
+    t0 = time.perf_counter()
+    res = ctx.solve(param, data, z0, None, max_iter=ctx.final_max_iter)
+    z, lam, kept = _keep_better(param, data, z0, np.zeros_like(z0), res)
+    records.append(_record(st.n_sections + 1, param, z, data, data.n_points, math.nan, res,
+                           res.nit, res.nfev, time.perf_counter() - t0, kept))
+    ctx.callback(records[-1])
+    return param, z, lam, records
+
+
+def _minimax(ctx, param, z):
+    """Epigraph polish of the max relative error; kept only if it lowers the max error and
+    the start is below 1 (an infinite-gain model has relative error exactly 1 everywhere,
+    the trap of a minimax stage started above 1)."""
+    from .solvers.ipopt import solve_minimax
+
+    data = ctx.data
+    funcs = stage_functions(param, data.omega, data.response, data.weights)
+    lb, ub = param.bounds()
+    before = float(np.max(param.to_model(z).relative_error(data)))
+    t0 = time.perf_counter()
+    res = solve_minimax(funcs, z, lb, ub, max_iter=ctx.final_max_iter)
+    after = float(np.max(param.to_model(res.x).relative_error(data)))
+    ok = before < 1.0 and np.isfinite(after) and after < before
+    z_new = res.x if ok else z
+    rec = _record(param.structure.n_sections + 2, param, z_new, data, data.n_points,
+                  math.nan, res, res.nit, res.nfev, time.perf_counter() - t0,
+                  "minimax" if ok else "minimax-rejected")
+    ctx.callback(rec)
+    return z_new, rec
 
 
 def _cold_start(init_z, param, z):
@@ -453,7 +576,9 @@ def _progress_callback(progress):
 
     def write(rec):
         where = "" if math.isnan(rec.omega_c) else f" at {rec.omega_c:.4g} rad/s"
-        label = "final" if rec.stage > rec.n_sections else f"stage {rec.stage:2d}"
+        label = ("rational start" if rec.solver_status == "vector-fitting" else
+                 rec.kept if rec.kept.startswith("minimax") else
+                 "final" if rec.stage > rec.n_sections else f"stage {rec.stage:2d}")
         sys.stderr.write(
             f"{label}: {rec.n_sections:2d} sections{where}, window {rec.window}, "
             f"max rel. error {rec.max_rel_error:.3e} (window {rec.max_rel_error_window:.3e}), "

@@ -26,7 +26,7 @@ from .errors import FreqidError, OptionError
 from .model import RationalDelayModel
 
 __all__ = ["bode", "relative_error", "pole_zero", "stage_errors", "save_figure",
-           "MatplotlibMissingError", "DPI"]
+           "MatplotlibMissingError", "DPI", "sweep"]
 
 #: Resolution (dots per inch) of the PNG files written by :func:`save_figure`.
 DPI = 150
@@ -448,3 +448,41 @@ def _file_mode(directory=False):
     mask = os.umask(0o022)
     os.umask(mask)
     return (0o777 if directory else 0o666) & ~mask
+
+
+def sweep(result):
+    """Figure of an order sweep: max (and dense-grid) relative error, delay and time
+    against the order of P_N.
+
+    Parameters
+    ----------
+    result : freqid_casadi.sweep.SweepResult
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+    """
+    plt = _pyplot()
+    orders = [r.order for r in result.rows]
+    fig, axes = plt.subplots(3, 1, figsize=(7, 7.5), sharex=True)
+    ax = axes[0]
+    ax.semilogy(orders, [r.max_rel_error for r in result.rows], "o-", label="max, data points")
+    dense = [r.max_rel_error_dense for r in result.rows]
+    if any(np.isfinite(dense)):
+        ax.semilogy(orders, dense, "s--", label="max, 10x denser grid")
+    ax.semilogy(orders, [r.rms_rel_error for r in result.rows], "^:", label="RMS")
+    if result.target is not None:
+        ax.axhline(result.target, color="k", ls=":", label=f"target {result.target:g}")
+    ax.set_ylabel("relative error")
+    ax.legend(fontsize=8)
+    ax.grid(True, which="both", alpha=0.3)
+    axes[1].plot(orders, [r.delay for r in result.rows], "o-")
+    axes[1].set_ylabel("delay h (s)")
+    axes[1].grid(True, alpha=0.3)
+    axes[2].plot(orders, [r.wall_time for r in result.rows], "o-")
+    axes[2].set_ylabel("time (s)")
+    axes[2].set_xlabel("order of $P_N$")
+    axes[2].grid(True, alpha=0.3)
+    fig.suptitle(f"order sweep: {result.data_name or 'data'}")
+    fig.tight_layout()
+    return fig

@@ -31,7 +31,7 @@ import numpy as np
 from ._io import atomic_write_text
 from .errors import OptionError
 
-__all__ = ["write_fit_report", "fit_summary", "render_fit_summary", "markdown_table",
+__all__ = ["write_fit_report", "write_sweep_report", "fit_summary", "render_fit_summary", "markdown_table",
            "generated_by_line", "check_out_dir", "REPORT_FILES", "REPORT_FORMAT",
            "REPORT_VERSION"]
 
@@ -455,3 +455,57 @@ def _move_into_place(tmp, path, out_dir, force):
         os.rename(old, path)
         raise
     shutil.rmtree(old, ignore_errors=True)
+
+
+def write_sweep_report(result, out_dir, *, command, force=False):
+    """Write a sweep's folder: sweep.md (first line: the command), sweep.csv, sweep.json
+    and sweep.png (order vs max relative error, delay and time), atomically.
+
+    Parameters
+    ----------
+    result : freqid_casadi.sweep.SweepResult
+    out_dir : str
+    command : str
+    force : bool
+
+    Returns
+    -------
+    str
+        The absolute path of the folder.
+    """
+    path = check_out_dir(out_dir, force)
+    d = _clean(result.as_dict())
+    d["command"] = command
+    headers = ["order", "sections", "max rel. error", "RMS rel. error",
+               "max rel. error (10x grid)", "delay (s)", "time (s)", "start", "converged"]
+    rows = [[r["order"], r["n_sections"], _num(r["max_rel_error"]), _num(r["rms_rel_error"]),
+             _num(r["max_rel_error_dense"]), _num(r["delay"], 6), _num(r["wall_time_s"]
+             if "wall_time_s" in r else r["wall_time"]), r["start"],
+             "yes" if r["success"] else "no"] for r in d["rows"]]
+    target = d["target"]
+    verdict = ("" if target is None else
+               f"Smallest order with max relative error <= {target:g}: "
+               f"{d['best_order'] if d['best_order'] is not None else 'none of those tried'}.")
+    md = "\n".join([generated_by_line(command), f"# Order sweep: {d['data'] or 'data'}", "",
+                     markdown_table(rows, headers), "", verdict, ""])
+    parent, base = os.path.split(path)
+    tmp = tempfile.mkdtemp(prefix=f".{base}.tmp-", dir=parent)
+    try:
+        atomic_write_text(os.path.join(tmp, "sweep.md"), md)
+        atomic_write_text(os.path.join(tmp, "sweep.json"),
+                          json.dumps(d, indent=1, allow_nan=False) + "\n")
+        atomic_write_text(os.path.join(tmp, "sweep.csv"), _csv_text(
+            ["order", "n_sections", "max_rel_error", "rms_rel_error", "max_rel_error_dense",
+             "delay", "wall_time", "start", "success"],
+            [[r["order"], r["n_sections"], r["max_rel_error"], r["rms_rel_error"],
+              r["max_rel_error_dense"], r["delay"], r["wall_time"], r["start"],
+              r["success"]] for r in d["rows"]]))
+        from .plots import save_figure, sweep as sweep_figure
+
+        save_figure(sweep_figure(result), os.path.join(tmp, "sweep.png"))
+        _set_modes(tmp)
+        _move_into_place(tmp, path, out_dir, force)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return path

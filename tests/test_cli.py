@@ -194,7 +194,8 @@ def test_fit_options_are_passed(workdir, capsys, fake_fit, fast_figures):
     data, kw = fake_fit[0]
     assert data.name == "plant" and data.n_points == _OMEGA.size
     assert kw == dict(n_sections=3, integrator=False, delay=False, basis="first-order",
-                      method="barrier-lm", tol=1e-3, progress=False)
+                      method="barrier-lm", tol=1e-3, progress=False, start="sequential",
+                      objective="least-squares")
 
 
 @pytest.mark.parametrize("name, n_sections, integrator, delay, basis", [

@@ -1,0 +1,139 @@
+"""Fit every order of a range and find the smallest that meets a target (layer L4).
+
+:func:`sweep` runs :func:`freqid_casadi.fit.fit` once per order and tabulates the max and
+RMS relative error, the delay and the time; with a ``truth`` callable (an analytic system)
+it also gives the max relative error on a denser grid than the fitted one, the honest
+error between the samples.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .data import FrequencyData
+from .errors import OptionError
+from .fit import fit
+
+__all__ = ["SweepRow", "SweepResult", "sweep", "parse_orders"]
+
+
+@dataclass(frozen=True)
+class SweepRow:
+    """One order of a sweep.
+
+    Attributes
+    ----------
+    order : int
+        Order of P_N (2N for second-order sections, N for first-order).
+    n_sections : int
+    max_rel_error, rms_rel_error : float
+        Over the data points.
+    max_rel_error_dense : float
+        Over a grid ``dense_factor`` times denser (nan without ``truth``).
+    delay : float
+        Seconds.
+    wall_time : float
+        Seconds.
+    success : bool
+    start : str
+    """
+
+    order: int
+    n_sections: int
+    max_rel_error: float
+    rms_rel_error: float
+    max_rel_error_dense: float
+    delay: float
+    wall_time: float
+    success: bool
+    start: str
+
+
+@dataclass(frozen=True)
+class SweepResult:
+    """All orders of a sweep; ``best_order`` is the smallest meeting ``target`` (or None)."""
+
+    rows: tuple
+    target: float
+    best_order: int
+    data_name: str
+
+    def as_dict(self):
+        return {"data": self.data_name, "target": self.target, "best_order": self.best_order,
+                "rows": [dict(r.__dict__) for r in self.rows]}
+
+
+def parse_orders(spec):
+    """Parse "4:40:2" (start:stop:step, stop included), "4,8,12" or "10" into a list."""
+    try:
+        if ":" in spec:
+            parts = [int(p) for p in spec.split(":")]
+            if len(parts) == 2:
+                parts.append(1)
+            start, stop, step = parts
+            if step <= 0 or start <= 0 or stop < start:
+                raise ValueError
+            return list(range(start, stop + 1, step))
+        orders = [int(p) for p in spec.split(",")]
+        if any(o <= 0 for o in orders):
+            raise ValueError
+        return orders
+    except ValueError:
+        raise OptionError(f"bad orders {spec!r}: use start:stop:step with positive integers "
+                          "(e.g. 4:40:2), or a comma-separated list") from None
+
+
+def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=None,
+          **fit_options):
+    """Fit ``data`` at each order in ``orders``.
+
+    Parameters
+    ----------
+    data : FrequencyData
+    orders : iterable of int
+        Orders of P_N; with the second-order basis each must be even (N = order/2).
+    target : float, optional
+        Max relative error to meet; ``best_order`` is the smallest order meeting it.
+    truth : callable, optional
+        ``omega (rad/s) -> complex response`` of the true system, to evaluate the error on
+        a log grid ``dense_factor`` times denser than the data.
+    progress : callable, optional
+        Called with each :class:`SweepRow` as it is done.
+    **fit_options
+        Passed to :func:`~freqid_casadi.fit.fit` (``integrator``, ``start``, ...).
+
+    Returns
+    -------
+    SweepResult
+    """
+    if not isinstance(data, FrequencyData):
+        raise OptionError("sweep takes a FrequencyData")
+    if target is not None and not (np.isfinite(target) and target > 0):
+        raise OptionError(f"target must be a number > 0, got {target!r}")
+    basis = fit_options.get("basis", "second-order")
+    per = 2 if basis == "second-order" else 1
+    orders = [int(o) for o in orders]
+    for o in orders:
+        if o % per:
+            raise OptionError(f"order {o} is odd: second-order sections give even orders; "
+                              "use even orders or basis='first-order'")
+    dense = None
+    if truth is not None:
+        dense = np.logspace(np.log10(data.omega[0]), np.log10(data.omega[-1]),
+                            dense_factor * data.n_points)
+        g_dense = truth(dense)
+    rows = []
+    for o in orders:
+        res = fit(data, n_sections=o // per, **fit_options)
+        dense_err = (float(np.max(np.abs(g_dense / res.model.frequency_response(dense) - 1)))
+                     if dense is not None else float("nan"))
+        row = SweepRow(order=o, n_sections=o // per, max_rel_error=res.max_rel_error,
+                       rms_rel_error=res.rms_rel_error, max_rel_error_dense=dense_err,
+                       delay=res.model.delay, wall_time=res.wall_time, success=res.success,
+                       start=res.start)
+        rows.append(row)
+        if progress is not None:
+            progress(row)
+    meeting = [r.order for r in rows if target is not None and r.max_rel_error <= target]
+    return SweepResult(rows=tuple(rows), target=target,
+                       best_order=min(meeting) if meeting else None, data_name=data.name)

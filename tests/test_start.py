@@ -1,0 +1,169 @@
+"""Beyond the sequential loop: the rational start, start="best", the minimax polish, sweeps.
+
+The slow rows check the issue's targets on the thesis's examples (max relative error over
+the 500 points, and the delay).
+"""
+
+import numpy as np
+import pytest
+
+import freqid_casadi as fc
+from freqid_casadi.errors import OptionError
+from freqid_casadi.start import rational_start, sections_from_roots
+from freqid_casadi.sweep import parse_orders, sweep
+
+BETA = [0.02, 3.0, 1.0, 0.03, 5.0, 1.0, 0.05, 8.0, 1.0, 0.02, 40.0, 1.0, 0.01, 25.0]
+
+
+def _two_section(n_points=200):
+    model = fc.RationalDelayModel(fc.Structure(2, True, True), BETA)
+    w = np.logspace(-1, 2.5, n_points)
+    return model, fc.FrequencyData(w, model.frequency_response(w), "two-section")
+
+
+def test_rational_start_alone_recovers_a_rational_model():
+    beta = np.r_[0.0, BETA[1:]]
+    model = fc.RationalDelayModel(fc.Structure(2, True, False), beta)
+    w = np.logspace(-1, 2.5, 200)
+    data = fc.FrequencyData(w, model.frequency_response(w))
+    rs = rational_start(data, model.structure, delay_max=0.1)
+    assert rs.max_rel_error < 1e-9
+    assert rs.delay == 0.0
+    assert rs.model.is_stable() and rs.model.is_minimum_phase()
+
+
+def test_rational_start_delay_updates_on_example_a_prefix():
+    """The delay is found from the right-half-plane zeros' group delay, from below."""
+    data = fc.systems.G_A()
+    rs = rational_start(data, fc.Structure(12, True, True), delay_max=0.13)
+    assert rs.delays[0] == 0.0
+    assert abs(rs.delay - 0.01) < 2e-4
+    assert rs.max_rel_error < 0.1
+    assert rs.model.is_stable() and rs.model.is_minimum_phase()
+
+
+def test_sections_from_roots_reproduces_the_roots():
+    poles = np.array([-1 + 5j, -1 - 5j, -2.0, -30.0])
+    zeros = np.array([-0.5 + 3j, -0.5 - 3j, -7.0])
+    theta, _ = sections_from_roots(poles, zeros, 2)
+    model = fc.RationalDelayModel(fc.Structure(2, False, False), np.r_[0.0, 1.0, theta.ravel()])
+    np.testing.assert_allclose(np.sort_complex(model.poles()), np.sort_complex(poles),
+                               rtol=1e-12)
+    np.testing.assert_allclose(np.sort_complex(model.zeros()), np.sort_complex(zeros),
+                               rtol=1e-12)
+
+
+def test_start_best_is_never_worse_than_sequential():
+    _, data = _two_section(120)
+    seq = fc.fit(data, n_sections=2, integrator=True, start="sequential")
+    best = fc.fit(data, n_sections=2, integrator=True, start="best")
+    assert best.max_rel_error <= seq.max_rel_error
+    assert best.start in ("sequential", "rational")
+    assert set(best.options["start_max_rel_errors"]) == {"sequential", "rational"}
+
+
+def test_start_best_on_example_a_prefix():
+    data = fc.systems.G_A()
+    seq = fc.fit(data, n_sections=4, integrator=True)
+    best = fc.fit(data, n_sections=4, integrator=True, start="best")
+    assert best.max_rel_error <= seq.max_rel_error
+    assert best.model.is_stable() and best.model.is_minimum_phase()
+
+
+def test_minimax_is_kept_only_if_it_lowers_the_max_error():
+    model, data = _two_section(100)
+    noisy = fc.FrequencyData(data.omega, data.response * (1 + 0.01 * np.sin(7 * np.log(
+        data.omega))), "rippled")
+    ls = fc.fit(noisy, n_sections=2, integrator=True)
+    mm = fc.fit(noisy, n_sections=2, integrator=True, objective="minimax")
+    assert mm.max_rel_error <= ls.max_rel_error
+    assert mm.stages[-1].kept in ("minimax", "minimax-rejected")
+    assert mm.objective == "minimax"
+
+
+def test_minimax_trap_above_one_is_rejected():
+    """Started from a model with max relative error >= 1, the polish is not kept (an
+    infinite-gain model has relative error exactly 1 everywhere)."""
+    w = np.logspace(-1, 2, 80)
+    data = fc.FrequencyData(w, np.exp(1j * 3 * w) * (1 + 1j * w) ** 3, "hard")
+    res = fc.fit(data, n_sections=1, delay=False, objective="minimax")
+    if res.stages[-2].max_rel_error >= 1.0:
+        assert res.stages[-1].kept == "minimax-rejected"
+
+
+@pytest.mark.parametrize("spec, expected", [("4:10:2", [4, 6, 8, 10]), ("8,2", [8, 2]),
+                                            ("6", [6]), ("3:5", [3, 4, 5])])
+def test_parse_orders(spec, expected):
+    assert parse_orders(spec) == expected
+
+
+@pytest.mark.parametrize("spec", ["", "a:b", "10:4:2", "4:10:0", "-2", "0,4"])
+def test_parse_orders_rejects(spec):
+    with pytest.raises(OptionError, match="bad orders"):
+        parse_orders(spec)
+
+
+def test_sweep_names_smallest_order_and_dense_error():
+    model, data = _two_section(100)
+    res = sweep(data, [2, 4], target=1e-6, truth=model.frequency_response, integrator=True,
+                start="sequential")
+    assert [r.order for r in res.rows] == [2, 4]
+    assert res.best_order == 4
+    assert res.rows[1].max_rel_error_dense < 1e-6
+    with pytest.raises(OptionError, match="odd"):
+        sweep(data, [3], integrator=True)
+
+
+# ------------------------------------------------------------------ the issue's targets
+_CACHE = {}
+
+
+def _fit(name, n, start):
+    key = (name, n, start)
+    if key not in _CACHE:
+        make = {"A": fc.systems.G_A, "B": fc.systems.G_B, "C": fc.systems.G_C}[name]
+        _CACHE[key] = fc.fit(make(), n_sections=n, integrator=name != "B", start=start)
+    return _CACHE[key]
+
+
+@pytest.mark.slow
+def test_example_a_17_sections_rational_start():
+    res = _fit("A", 17, "rational")
+    print(f"\nA, 17 sections, rational start: {res.max_rel_error:.3g}, delay "
+          f"{res.model.delay:.8f}")
+    assert res.max_rel_error <= 1e-8
+    assert abs(res.model.delay - 0.01) <= 1e-5
+    assert res.model.is_stable() and res.model.is_minimum_phase()
+    dense = np.logspace(-2, 3, 5000)
+    err = np.max(np.abs(fc.systems.G_A(dense).response / res.model.frequency_response(dense)
+                        - 1))
+    assert err <= 1e-7                   # honest error between the samples (10x grid)
+
+
+@pytest.mark.slow
+def test_example_a_10_sections_rational_start():
+    assert _fit("A", 10, "rational").max_rel_error <= 1e-4
+
+
+@pytest.mark.slow
+def test_example_c_27_sections_rational_start():
+    res = _fit("C", 27, "rational")
+    print(f"\nC, 27 sections, rational start: {res.max_rel_error:.3g}, delay "
+          f"{res.model.delay:.6f}")
+    assert res.max_rel_error <= 2e-3
+    assert abs(res.model.delay - 0.02625) <= 5e-4
+    assert res.model.is_stable() and res.model.is_minimum_phase()
+
+
+@pytest.mark.slow
+def test_example_b_reaches_thesis_value_at_16_sections():
+    """The thesis's 0.0027 (reported at order 18) is reached at order 32 (16 sections)."""
+    res = _fit("B", 16, "sequential")
+    assert res.max_rel_error <= 0.0027
+
+
+@pytest.mark.slow
+@pytest.mark.xfail(strict=True, reason="measured 0.331 (best of the sequential 0.331 and "
+                   "rational 0.353 starts) > 0.25 at 9 sections on G_B")
+def test_example_b_9_sections_best_start():
+    assert _fit("B", 9, "best").max_rel_error <= 0.25
