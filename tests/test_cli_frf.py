@@ -1,0 +1,108 @@
+"""Tests of the ``freqid frf`` command (freqid_casadi.cli_frf): a synthetic multisine
+through a known discrete-time filter, the sidecar, and bad input as FreqidError."""
+
+import argparse
+import csv
+
+import numpy as np
+import pytest
+
+from freqid_casadi import cli_frf
+from freqid_casadi.data import load_csv
+from freqid_casadi.errors import DataError, FreqidError, OptionError
+
+PERIOD = 256
+BINS = np.arange(1, 40, 2)
+
+
+def _multisine(n_periods, noise=0.0, seed=0):
+    """Odd-bin multisine through y[n] = 0.5 y[n-1] + u[n] (steady state), H = 1/(1-0.5 z^-1)."""
+    rng = np.random.default_rng(seed)
+    spec = np.zeros(PERIOD // 2 + 1, complex)
+    spec[BINS] = np.exp(2j * np.pi * rng.random(BINS.size))
+    u1 = np.fft.irfft(spec, PERIOD)
+    z = np.exp(2j * np.pi * np.arange(PERIOD // 2 + 1) / PERIOD)
+    y1 = np.fft.irfft(spec / (1 - 0.5 / z), PERIOD)
+    u = np.tile(u1, n_periods)
+    y = np.tile(y1, n_periods) + noise * rng.standard_normal(PERIOD * n_periods)
+    return u, y
+
+
+def _write(path, u, y):
+    with open(path, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(["u", "y"])
+        w.writerows(zip(u.tolist(), y.tolist()))
+
+
+def _args(records, out, **kw):
+    ns = dict(records=str(records), period=PERIOD, fs=None, skip_periods=0, out=str(out),
+              force=False)
+    ns.update(kw)
+    return argparse.Namespace(**ns)
+
+
+def test_frf_recovers_the_filter_and_writes_the_sidecar(tmp_path):
+    u, y = _multisine(4, noise=1e-4)
+    _write(tmp_path / "rec.csv", u, y)
+    out = tmp_path / "frf.csv"
+    assert cli_frf.run_cli(_args(tmp_path / "rec.csv", out), "freqid frf") == 0
+    data = load_csv(out)
+    np.testing.assert_allclose(data.omega, 2 * np.pi * BINS / PERIOD, rtol=1e-12)
+    exact = 1 / (1 - 0.5 * np.exp(-1j * data.omega))
+    assert np.max(np.abs(data.response / exact - 1)) < 1e-2
+    with open(cli_frf.stats_path(out)) as fh:
+        rows = list(csv.DictReader(fh))
+    assert len(rows) == BINS.size
+    assert [int(r["bin"]) for r in rows] == BINS.tolist()
+    assert all(0.99 < float(r["coherence"]) <= 1.0 for r in rows)
+    assert all(float(r["variance"]) > 0 for r in rows)
+
+
+def test_frf_with_fs_and_one_period_has_no_sidecar(tmp_path):
+    u, y = _multisine(1)
+    _write(tmp_path / "rec.csv", u, y)
+    out = tmp_path / "frf.csv"
+    cli_frf.run_cli(_args(tmp_path / "rec.csv", out, fs=1000.0), "freqid frf")
+    data = load_csv(out)
+    np.testing.assert_allclose(data.omega, 2 * np.pi * BINS / PERIOD * 1000.0, rtol=1e-12)
+    assert not (tmp_path / "frf.stats.csv").exists()
+
+
+def test_parser_and_existing_output(tmp_path):
+    parser = argparse.ArgumentParser()
+    sub = parser.add_subparsers(dest="command")
+    cli_frf.add_cli(sub)
+    u, y = _multisine(2)
+    _write(tmp_path / "rec.csv", u, y)
+    out = tmp_path / "frf.csv"
+    args = parser.parse_args(["frf", str(tmp_path / "rec.csv"), "--period", str(PERIOD),
+                              "--out", str(out)])
+    assert cli_frf.run_cli(args, "freqid frf") == 0
+    with pytest.raises(OptionError, match="exists; pass --force"):
+        cli_frf.run_cli(args, "freqid frf")
+    args.force = True
+    assert cli_frf.run_cli(args, "freqid frf") == 0
+
+
+@pytest.mark.parametrize("content, period, match", [
+    ("u,y\n1,2\n3,4\n5,6\n", 2, "not a multiple of period"),
+    ("a,b\n1,2\n", 2, "unrecognised header"),
+    ("u,y\n1,x\n2,3\n", 2, "is not a number"),
+    ("u,y\n1,1\n1,1\n1,1\n1,1\n", 2, "constant"),
+])
+def test_bad_records_raise_freqid_error(tmp_path, content, period, match):
+    (tmp_path / "rec.csv").write_text(content)
+    with pytest.raises(DataError, match=match):
+        cli_frf.run_cli(_args(tmp_path / "rec.csv", tmp_path / "frf.csv", period=period),
+                        "freqid frf")
+    assert not (tmp_path / "frf.csv").exists()
+
+
+def test_missing_file_and_folder_are_freqid_errors(tmp_path):
+    with pytest.raises(FreqidError):
+        cli_frf.run_cli(_args(tmp_path / "nope.csv", tmp_path / "frf.csv"), "freqid frf")
+    u, y = _multisine(2)
+    _write(tmp_path / "rec.csv", u, y)
+    with pytest.raises(OptionError, match="does not exist"):
+        cli_frf.run_cli(_args(tmp_path / "rec.csv", tmp_path / "no" / "frf.csv"), "x")
