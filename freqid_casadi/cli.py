@@ -369,6 +369,7 @@ def _plugin(module_name):
 
 
 COMMANDS["frf"] = _plugin("cli_frf")
+COMMANDS["reproduce"] = _plugin("reproduce")
 
 
 # ----------------------------------------------------------------------------- main
