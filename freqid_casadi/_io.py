@@ -15,6 +15,7 @@ def atomic_write_bytes(path, payload):
     try:
         with os.fdopen(fd, "wb") as fh:
             fh.write(payload)
+        os.chmod(tmp, 0o666 & ~_umask())        # mkstemp makes 0600; use the usual mode
         os.replace(tmp, path)
     except BaseException:
         try:
@@ -27,3 +28,9 @@ def atomic_write_bytes(path, payload):
 def atomic_write_text(path, text):
     """Write ``text`` (UTF-8) to ``path`` atomically."""
     atomic_write_bytes(path, text.encode("utf-8"))
+
+
+def _umask():
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask

@@ -6,6 +6,7 @@ are read-only, so a window or a result can share them safely.
 
 import csv
 import os
+import zipfile
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -280,8 +281,9 @@ def load_npz(path, name=None):
             weights = npz["weights"] if "weights" in npz.files else None
     except DataError:
         raise
-    except (OSError, ValueError) as exc:
-        raise DataError(f"cannot read {path!r} as .npz: {exc}") from None
+    except (OSError, ValueError, zipfile.BadZipFile) as exc:
+        raise DataError(f"cannot read {path!r} as .npz ({exc}); save it with "
+                        "np.savez(path, omega=omega, response=response)") from None
     name = name if name is not None else os.path.splitext(os.path.basename(path))[0]
     return FrequencyData(omega, response, name, weights)
 

@@ -1,0 +1,229 @@
+"""The ``freqid batch`` command: fit every data file of a folder (layer L6).
+
+::
+
+    freqid batch DIR --out DIR --sections N [--jobs N] [--scheduler ADDRESS]
+                 [--integrator] [--no-delay] [--basis B] [--method M] [--tol X] [--force]
+
+Every ``.csv`` and ``.npz`` file directly inside ``DIR`` is fitted with the same options by
+:func:`freqid_casadi.batch.fit_many`. The output folder holds::
+
+    summary.md      first line: the command; one table row per file
+    summary.csv     file, name, status, order, max/RMS relative error, delay, ..., error
+    models/<name>.json   the model of every file that was fitted
+
+It is built in a temporary sibling folder and renamed into place when complete (nothing is
+left behind on an error or Ctrl-C); an existing ``--out`` is refused before any fit unless
+``--force``. Exit code 0 if every file was fitted and converged, 1 if a file failed or did
+not converge (the summary says which), 2 on a usage, option or folder error.
+
+Registered by ``cli.py`` as ``COMMANDS["batch"] = (add_cli, run_cli)``.
+"""
+
+import argparse
+import math
+import os
+import shutil
+import tempfile
+
+from ._io import atomic_write_text
+from .batch import fit_many
+from .errors import DataError
+from .fit import METHODS
+from .model import BASES
+from .report import _move_into_place, _num, check_out_dir, generated_by_line, markdown_table
+
+__all__ = ["add_cli", "run_cli", "write_batch_report", "data_files", "BATCH_FILES"]
+
+#: Files of a batch output folder (besides models/).
+BATCH_FILES = ("summary.csv", "summary.md")
+
+_SUFFIXES = (".csv", ".npz")
+
+_COLUMNS = ("file", "name", "status", "n_sections", "order", "max_rel_error",
+            "rms_rel_error", "delay", "nit", "wall_time", "error")
+
+
+def _positive_int(text):
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"must be a positive integer (>= 1), got {value}")
+    return value
+
+
+def _positive_float(text):
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}") from None
+    if not (math.isfinite(value) and value > 0):
+        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
+    return value
+
+
+def add_cli(subparsers):
+    """Add the ``batch`` subcommand to ``subparsers``; returns its parser."""
+    p = subparsers.add_parser(
+        "batch", help="fit every .csv/.npz file of a folder",
+        description="Fit G_N(s) = exp(-hs) K [1/s] P_N(s) to every .csv and .npz file in a "
+                    "folder with the same options, in parallel processes (--jobs) or on a "
+                    "Dask cluster (--scheduler), and write per-file models and a summary.")
+    p.add_argument("folder", metavar="DIR", help="folder of data files (.csv, .npz)")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output folder to create (must not exist unless --force)")
+    p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
+                   help="number of sections N >= 1")
+    p.add_argument("--jobs", type=_positive_int, default=1, metavar="N",
+                   help="local worker processes (default 1)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="Dask scheduler address (e.g. tcp://127.0.0.1:8786); needs "
+                        "pip install freqid_casadi[dask]")
+    p.add_argument("--integrator", action="store_true", help="include the factor K0/s")
+    p.add_argument("--no-delay", dest="delay", action="store_false",
+                   help="fix the delay h at 0")
+    p.add_argument("--basis", choices=BASES, default="second-order",
+                   help="section type (default second-order)")
+    p.add_argument("--method", choices=METHODS, default="ipopt",
+                   help="stage solver (default ipopt)")
+    p.add_argument("--tol", type=_positive_float, metavar="X",
+                   help="stop adding sections once the max relative error is below X")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing output folder (after the new one is complete)")
+    return p
+
+
+def data_files(folder):
+    """Sorted paths of the ``.csv``/``.npz`` files directly inside ``folder``.
+
+    Raises
+    ------
+    DataError
+        If ``folder`` is missing, not a folder, unreadable or holds no data file.
+    """
+    folder = os.fspath(folder)
+    if not os.path.exists(folder):
+        raise DataError(f"data folder not found: {folder!r}; check the path")
+    if not os.path.isdir(folder):
+        raise DataError(f"{folder!r} is a file, not a folder; use 'freqid fit' for one file")
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError as exc:
+        raise DataError(f"cannot list {folder!r}: {exc.strerror}") from None
+    paths = [os.path.join(folder, n) for n in names
+             if n.lower().endswith(_SUFFIXES) and os.path.isfile(os.path.join(folder, n))]
+    if not paths:
+        raise DataError(f"no .csv or .npz files in {folder!r}")
+    return paths
+
+
+def _unique_names(paths):
+    """Model file names: the stem, or the whole file name where two stems collide."""
+    stems = [os.path.splitext(os.path.basename(p))[0] for p in paths]
+    return [s if stems.count(s) == 1 else os.path.basename(p) for s, p in zip(stems, paths)]
+
+
+def _row(item, file_name):
+    r = item.result
+    if r is None:
+        return dict(file=file_name, name=item.name, status=item.status, n_sections=None,
+                    order=None, max_rel_error=None, rms_rel_error=None, delay=None, nit=None,
+                    wall_time=None, error=item.error)
+    return dict(file=file_name, name=item.name, status=item.status,
+                n_sections=r.model.n_sections, order=r.model.order,
+                max_rel_error=r.max_rel_error, rms_rel_error=r.rms_rel_error,
+                delay=r.model.delay, nit=r.nit, wall_time=r.wall_time, error=None)
+
+
+def _csv_cell(v):
+    if v is None:
+        return ""
+    if isinstance(v, float):
+        return repr(v) if math.isfinite(v) else ""
+    text = str(v)
+    if any(c in text for c in ',"\n'):
+        text = '"' + text.replace('"', '""') + '"'
+    return text
+
+
+def write_batch_report(items, files, out_dir, *, command, force=False):
+    """Write the batch output folder (see the module docstring); returns its absolute path.
+
+    Parameters
+    ----------
+    items : list of BatchItem
+    files : list of str
+        The data file of each item (same order).
+    out_dir : str or os.PathLike
+    command : str
+        Named on the first line of summary.md.
+    force : bool
+        Replace an existing ``out_dir`` once the new folder is complete.
+    """
+    path = check_out_dir(out_dir, force)
+    parent, base = os.path.split(path)
+    tmp = tempfile.mkdtemp(prefix=f".{base}.tmp-", dir=parent)
+    try:
+        models = os.path.join(tmp, "models")
+        os.mkdir(models)
+        rows = []
+        for item, model_name, f in zip(items, _unique_names(files), files):
+            if item.result is not None:
+                item.result.model.save(os.path.join(models, f"{model_name}.json"))
+            rows.append(_row(item, os.path.basename(f)))
+        lines = [",".join(_COLUMNS)]
+        lines += [",".join(_csv_cell(r[c]) for c in _COLUMNS) for r in rows]
+        atomic_write_text(os.path.join(tmp, "summary.csv"), "\n".join(lines) + "\n")
+        atomic_write_text(os.path.join(tmp, "summary.md"), _markdown(rows, command))
+        _set_modes(tmp)
+        _move_into_place(tmp, path, out_dir, force)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    return path
+
+
+def _set_modes(folder):
+    """Umask permissions for the finished tree (temporary files are 0600, folders 0700)."""
+    from .plots import _file_mode
+
+    for root, dirs, names in os.walk(folder):
+        for d in dirs:
+            os.chmod(os.path.join(root, d), _file_mode(directory=True))
+        for n in names:
+            os.chmod(os.path.join(root, n), _file_mode())
+    os.chmod(folder, _file_mode(directory=True))
+
+
+def _markdown(rows, command):
+    n_ok = sum(r["status"] == "converged" for r in rows)
+    n_fail = sum(r["status"] == "failed" for r in rows)
+    table = markdown_table(
+        [(r["file"], r["status"], r["order"], _num(r["max_rel_error"]),
+          _num(r["rms_rel_error"]), _num(r["delay"]), r["nit"],
+          _num(r["wall_time"], 3), r["error"]) for r in rows],
+        ("file", "status", "order", "max rel. error", "RMS rel. error", "delay (s)",
+         "iterations", "time (s)", "error"), align="llrrrrrrl")
+    return "\n".join([
+        generated_by_line(command), "", "# Batch fit", "",
+        f"{len(rows)} files: {n_ok} converged, {len(rows) - n_ok - n_fail} not converged, "
+        f"{n_fail} failed.", "", table, ""])
+
+
+def run_cli(args, command):
+    """Run ``freqid batch`` from parsed ``args``; returns the exit code (0, or 1 if a file
+    failed or did not converge). FreqidError/OSError propagate to ``cli.main`` (exit 2)."""
+    files = data_files(args.folder)
+    check_out_dir(args.out, args.force)              # before the (long) fits
+    items = fit_many(files, jobs=args.jobs, scheduler=args.scheduler,
+                     n_sections=args.sections, integrator=args.integrator,
+                     delay=args.delay, basis=args.basis, method=args.method, tol=args.tol)
+    path = write_batch_report(items, files, args.out, command=command, force=args.force)
+    n_ok = sum(i.status == "converged" for i in items)
+    for item, f in zip(items, files):
+        what = item.result.summary() if item.result is not None else item.error
+        print(f"{os.path.basename(f)}: {item.status}: {what}")
+    print(f"{n_ok}/{len(items)} converged; report: {path}")
+    return 0 if n_ok == len(items) else 1
