@@ -203,7 +203,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         basis="second-order", method="ipopt", tol=None, progress=False, weights=None,
         gauge="dc", init="peak", scale_l=1.0, hessian="exact",
         warm_start="primal-dual", scaled=True, delay_max=None, bound_delay=True,
-        final_stage=True, max_iter=100, final_max_iter=500, ipopt_options=None,
+        final_stage=True, max_iter=100, final_max_iter=200, ipopt_options=None,
         lm_options=None, start="sequential", objective="least-squares"):
     """Fit ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` to frequency-response data.
 
@@ -293,6 +293,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
 def _single_threaded_blas():
     """BLAS limited to one thread: the stage matrices are small (n x 2M), and OpenBLAS
     threads oversubscribe the cores when several fits run at once (12x slower measured)."""
+    import scipy.linalg  # noqa: F401  (load scipy's BLAS now: limits apply to loaded ones)
     from threadpoolctl import threadpool_limits
 
     return threadpool_limits(limits=1, user_api="blas")

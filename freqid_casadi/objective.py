@@ -455,11 +455,13 @@ class StageFunctions:
             self._trigger()
             # a (2, K) output in column-major order is K interleaved (re, im) pairs; the
             # mapped (2, n) blocks come side by side, so (2, n*M) -> complex (M, n)
+            # views, not copies (memory at large M): the buffers change only at the next
+            # new point, when every quantity derived from them is recomputed too
             r, sq, ld, ln, t2 = (o.view(complex) for o in self._outs)
-            self._r, self._sq = r.copy(), sq.copy()
-            self._ld = ld.reshape(m, n).copy()
-            self._ln = ln.reshape(m, n).copy()
-            self._t2 = t2.reshape(m, self.n_t2).copy() if self.n_t2 else None
+            self._r, self._sq = r, sq
+            self._ld = ld.reshape(m, n)
+            self._ln = ln.reshape(m, n)
+            self._t2 = t2.reshape(m, self.n_t2) if self.n_t2 else None
             self._jc = self._sq[:, None] * (self._ld - self._ln)    # complex J (M, n)
             self._z = z
             self._key = key

@@ -126,7 +126,15 @@ def _start_at(vector_fitting, data, structure, base, h, n_poles, n_iter, floor):
     s = 1j * omega
     vf = vector_fitting(FrequencyData(omega, base * np.exp(s * h)), n_poles, n_iter=n_iter,
                         enforce_stable_poles=True)
-    poles, zeros = vf.poles(), vf.zeros()
+    poles = vf.poles()
+    d = float(np.squeeze(vf.D))
+    scale = float(np.max(np.abs(base)))
+    if abs(d) > 1e-10 * scale:
+        # zeros of C (sI - A)^-1 B + D: eig(A - B C / D), exact for a biproper SISO fit and
+        # much faster than the general pencil (SLICOT AB08ND)
+        zeros = np.linalg.eigvals(np.asarray(vf.A) - np.outer(vf.B, vf.C) / d)
+    else:
+        zeros = vf.zeros()
     zeros = zeros[np.isfinite(zeros)]
     rhp = zeros[zeros.real > 0]
     # each RHP zero z contributes the all-pass (s - z)/(s + conj z), whose group delay at
