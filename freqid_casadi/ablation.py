@@ -36,9 +36,7 @@ import json
 import math
 import os
 import platform
-import shutil
 import sys
-import tempfile
 import time
 from dataclasses import dataclass, field
 
@@ -830,17 +828,10 @@ def write_ablation_report(examples, out_dir, *, command, quick=False, force=Fals
     path = report.check_out_dir(out_dir, force)
     summary, fits = run_ablation(examples, quick=quick, progress=progress)
     summary = dict(command=" ".join(str(command).split()), **summary)
-    parent, base = os.path.split(path)
-    tmp = tempfile.mkdtemp(prefix=f".{base}.tmp-", dir=parent)
-    try:
+    with report.report_folder(out_dir, force) as (tmp, _):
         figures = _figures(summary, fits, tmp)
         summary["files"] = list(ABLATION_FILES) + figures
         atomic_write_text(os.path.join(tmp, "ablation.json"),
                           json.dumps(summary, indent=1, allow_nan=False) + "\n")
         atomic_write_text(os.path.join(tmp, "report.md"), render_ablation(summary))
-        report._set_modes(tmp)
-        report._move_into_place(tmp, path, out_dir, force)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return path, summary

@@ -17,7 +17,7 @@ import os
 from dataclasses import dataclass
 
 from .data import FrequencyData, load
-from .errors import DataError, FreqidError, OptionError, StructureError
+from .errors import DataError, OptionError, StructureError
 from .fit import FitResult, fit
 from .model import BASES
 

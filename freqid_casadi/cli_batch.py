@@ -23,15 +23,13 @@ Registered by ``cli.py`` as ``COMMANDS["batch"] = (add_cli, run_cli)``.
 import argparse
 import math
 import os
-import shutil
-import tempfile
 
 from ._io import atomic_write_text
 from .batch import fit_many
 from .errors import DataError
 from .fit import METHODS
 from .model import BASES
-from .report import _move_into_place, _num, check_out_dir, generated_by_line, markdown_table
+from .report import _num, check_out_dir, generated_by_line, markdown_table, report_folder
 
 __all__ = ["add_cli", "run_cli", "write_batch_report", "data_files", "BATCH_FILES"]
 
@@ -163,9 +161,7 @@ def write_batch_report(items, files, out_dir, *, command, force=False):
         Replace an existing ``out_dir`` once the new folder is complete.
     """
     path = check_out_dir(out_dir, force)
-    parent, base = os.path.split(path)
-    tmp = tempfile.mkdtemp(prefix=f".{base}.tmp-", dir=parent)
-    try:
+    with report_folder(out_dir, force) as (tmp, _):
         models = os.path.join(tmp, "models")
         os.mkdir(models)
         rows = []
@@ -177,24 +173,7 @@ def write_batch_report(items, files, out_dir, *, command, force=False):
         lines += [",".join(_csv_cell(r[c]) for c in _COLUMNS) for r in rows]
         atomic_write_text(os.path.join(tmp, "summary.csv"), "\n".join(lines) + "\n")
         atomic_write_text(os.path.join(tmp, "summary.md"), _markdown(rows, command))
-        _set_modes(tmp)
-        _move_into_place(tmp, path, out_dir, force)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return path
-
-
-def _set_modes(folder):
-    """Umask permissions for the finished tree (temporary files are 0600, folders 0700)."""
-    from .plots import _file_mode
-
-    for root, dirs, names in os.walk(folder):
-        for d in dirs:
-            os.chmod(os.path.join(root, d), _file_mode(directory=True))
-        for n in names:
-            os.chmod(os.path.join(root, n), _file_mode())
-    os.chmod(folder, _file_mode(directory=True))
 
 
 def _markdown(rows, command):

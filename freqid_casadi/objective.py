@@ -487,7 +487,7 @@ class StageFunctions:
         h = 2.0 * (jc.real.T @ jc.real + jc.imag.T @ jc.imag)
         if not exact:
             return h
-        m, n = self.n_points, self.param.n_vars
+        m = self.n_points
         c = np.conj(self._r) * self._sq                             # (M,)
         lg = self._ld - self._ln
         h2 = lg.T @ (c[:, None] * lg)                                # sum c L L^T

@@ -27,9 +27,7 @@ import logging
 import math
 import os
 import shlex
-import shutil
 import sys
-import tempfile
 import time
 from dataclasses import dataclass
 
@@ -40,7 +38,7 @@ from ._io import atomic_write_text
 from .errors import FreqidError, OptionError
 from .fit import fit
 from .model import RationalDelayModel, Structure
-from .report import (_clean, _move_into_place, _set_modes, check_out_dir, generated_by_line,
+from .report import (_clean, check_out_dir, generated_by_line, report_folder,
                      markdown_table)
 
 __all__ = ["reproduce", "add_cli", "run_cli", "main", "table_cell", "EXAMPLE_NAMES",
@@ -796,9 +794,7 @@ def reproduce(out_dir, *, command, force=False, quick=False, examples=None):
                               "time_cap_B_C": cfg.lm_time_cap},
                "examples": {}, "fractional": None, "moheimani": None}
     all_curves = {}
-    parent, base = os.path.split(path)
-    tmp = tempfile.mkdtemp(prefix=f".{base}.tmp-", dir=parent)
-    try:
+    with report_folder(out_dir, force) as (tmp, _):
         figures = []
 
         def save(fig, name):
@@ -849,11 +845,6 @@ def reproduce(out_dir, *, command, force=False, quick=False, examples=None):
         atomic_write_text(os.path.join(tmp, "report.json"),
                           json.dumps(summary, indent=1, allow_nan=False) + "\n")
         atomic_write_text(os.path.join(tmp, "report.md"), _render(summary))
-        _set_modes(tmp)
-        _move_into_place(tmp, path, out_dir, force)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     log.info("report written to %s in %.0f s", path, summary["wall_time"])
     return summary
 

@@ -17,7 +17,7 @@ import numpy as np
 
 from .data import FrequencyData
 from .errors import OptionError
-from .model import RationalDelayModel, Structure
+from .model import RationalDelayModel
 
 __all__ = ["RationalStart", "rational_start", "sections_from_roots"]
 

@@ -21,9 +21,7 @@ import argparse
 import json
 import os
 import shlex
-import shutil
 import sys
-import tempfile
 
 import numpy as np
 
@@ -31,7 +29,7 @@ from freqid_casadi import plots, systems
 from freqid_casadi._io import atomic_write_text
 from freqid_casadi.data import FrequencyData
 from freqid_casadi.fit import fit
-from freqid_casadi.report import (_clean, _move_into_place, _set_modes, check_out_dir,
+from freqid_casadi.report import (_clean, check_out_dir, report_folder,
                                   generated_by_line, markdown_table)
 from freqid_casadi.validation import check_resolution, dense_grid, prune_sections
 
@@ -198,7 +196,7 @@ def _markdown(command, s):
 
 
 def run(n_sections, out, command, force=False):
-    out_path = check_out_dir(out, force)
+    check_out_dir(out, force)                     # early: before the long study
     clean, data = noisy_data(NOISE)
     dense = dense_grid(clean.omega, DENSE)
     noise = data.response / clean.response - 1
@@ -240,19 +238,12 @@ def run(n_sections, out, command, force=False):
         "weighted_study": {"sigma_range": list(SIGMA_RANGE), "seed": 1, **effect},
         "uniform": uni, "weighted": wtd, "weights_effect": text,
     })
-    parent, base = os.path.split(out_path)
-    tmp = tempfile.mkdtemp(prefix=f".{base}.tmp-", dir=parent)
-    try:
+    with report_folder(out, force) as (tmp, _):
         _figure_clean(tmp, clean, dense, before, after)
         _figure_weights(tmp, clean, dense, sigma, ua, wa)
         atomic_write_text(os.path.join(tmp, "report.json"),
                           json.dumps(summary, indent=1, allow_nan=False) + "\n")
         atomic_write_text(os.path.join(tmp, "report.md"), _markdown(command, summary))
-        _set_modes(tmp)
-        _move_into_place(tmp, out_path, out, force)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return summary
 
 

@@ -19,9 +19,7 @@ import argparse
 import json
 import os
 import shlex
-import shutil
 import sys
-import tempfile
 
 import dataclasses
 
@@ -30,7 +28,7 @@ import numpy as np
 from freqid_casadi import experiment, plots
 from freqid_casadi.data import FrequencyData, save_csv
 from freqid_casadi.fit import fit
-from freqid_casadi.report import (_clean, _move_into_place, _set_modes, check_out_dir,
+from freqid_casadi.report import (_clean, check_out_dir, report_folder,
                                   generated_by_line, markdown_table)
 from freqid_casadi.uncertainty import fit_uncertainty_weight
 from freqid_casadi.validation import prune_sections
@@ -237,7 +235,7 @@ def _roots_text(roots):
 
 def run(orders, out, command, force=False, path=None, delays=(False, True)):
     """Do everything and write the folder ``out``; return the summary dict."""
-    out_path = check_out_dir(out, force)
+    check_out_dir(out, force)                     # early: before the long study
     est, data = arm_data(path)
     rows, results = scan(data, orders, delays)
     pick, best = choose(rows)
@@ -282,19 +280,12 @@ def run(orders, out, command, force=False, path=None, delays=(False, True)):
                    "zeros": [[z.real, z.imag] for z in weight.zeros()]},
     }
     summary = _clean(summary)
-    parent, base = os.path.split(out_path)
-    tmp = tempfile.mkdtemp(prefix=f".{base}.tmp-", dir=parent)
-    try:
+    with report_folder(out, force) as (tmp, _):
         save_csv(est.data, os.path.join(tmp, "frf.csv"))
         _figures(tmp, data, results, rows, pick, weight)
         atomic_write_text(os.path.join(tmp, "report.json"),
                           json.dumps(summary, indent=1, allow_nan=False) + "\n")
         atomic_write_text(os.path.join(tmp, "report.md"), _markdown(command, summary))
-        _set_modes(tmp)
-        _move_into_place(tmp, out_path, out, force)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
     return summary
 
 
