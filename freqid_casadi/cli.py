@@ -22,12 +22,13 @@ register them in :data:`COMMANDS`.
 
 import argparse
 import math
+import warnings
 import shlex
 import sys
 
 from . import systems
 from .data import load
-from .errors import FreqidError, OptionError
+from .errors import FreqidError, OptionError, ResolutionWarning
 from .fit import METHODS, OBJECTIVES, STARTS, fit
 from .model import BASES
 from .report import check_out_dir, write_fit_report
@@ -246,9 +247,11 @@ def _cmd_example(args, command):
     check_out_dir(out, args.force)                   # before the (long) fit
     n_sections = args.sections or ex["n_sections"]
     data = ex["data"]()
-    result = fit(data, n_sections=n_sections, integrator=ex["integrator"], delay=ex["delay"],
-                 basis=ex["basis"], method=args.method, progress=_progress(args),
-                 start=args.start, objective=args.objective)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ResolutionWarning)   # reported below, one line
+        result = fit(data, n_sections=n_sections, integrator=ex["integrator"],
+                     delay=ex["delay"], basis=ex["basis"], method=args.method,
+                     progress=_progress(args), start=args.start, objective=args.objective)
     path = write_fit_report(result, out, command=command, force=args.force,
                             title=f"Example {args.name}: {data.name}", thesis=ex["thesis"])
     t = ex["thesis"] or {}
@@ -259,6 +262,7 @@ def _cmd_example(args, command):
     print(_text_table([row], ("example", "order", "max rel. err", "RMS rel. err",
                               "delay (s)", "time (s)", "thesis order", "thesis max",
                               "thesis delay")))
+    _resolution_warning(result)
     if not result.success:
         print(f"warning: the final stage stopped at {result.stages[-1].solver_status} "
               "(see summary.md); the model is feasible and the errors above are measured")
@@ -266,12 +270,24 @@ def _cmd_example(args, command):
     return 0
 
 
+def _resolution_warning(result):
+    check = getattr(result, "resolution", None)
+    if check is not None and not check.ok:
+        print(f"warning: {len(check.flags)} near-cancelling pole/zero pair(s) and "
+              f"{len(check.unresolved)} unresolved pole(s)/zero(s) are narrower than the "
+              "frequency spacing (not determined by the data); fit fewer sections or prune "
+              "them with freqid_casadi.validation.prune_sections")
+
+
 def _cmd_fit(args, command):
     data = load(args.file)                           # DataError on bad files
     check_out_dir(args.out, args.force)              # before the (long) fit
-    result = fit(data, n_sections=args.sections, integrator=args.integrator,
-                 delay=args.delay, basis=args.basis, method=args.method, tol=args.tol,
-                 progress=_progress(args), start=args.start, objective=args.objective)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", ResolutionWarning)   # reported below, one line
+        result = fit(data, n_sections=args.sections, integrator=args.integrator,
+                     delay=args.delay, basis=args.basis, method=args.method, tol=args.tol,
+                     progress=_progress(args), start=args.start, objective=args.objective)
+    _resolution_warning(result)
     path = write_fit_report(result, args.out, command=command, force=args.force)
     print(result.summary())
     print(f"report: {path}")

@@ -5,7 +5,8 @@ builtin (``ValueError`` or ``RuntimeError``), after python-control's ``exception
 caller may catch either. Messages name the argument, the offending value and the fix.
 """
 
-__all__ = ["FreqidError", "DataError", "StructureError", "OptionError", "SolverError"]
+__all__ = ["FreqidError", "DataError", "StructureError", "OptionError", "SolverError",
+           "ResolutionWarning"]
 
 
 class FreqidError(Exception):
@@ -30,3 +31,9 @@ class OptionError(FreqidError, ValueError):
 
 class SolverError(FreqidError, RuntimeError):
     """A solver could not be run at all (not raised for mere non-convergence)."""
+
+
+class ResolutionWarning(UserWarning):
+    """A fitted model has poles/zeros narrower than the data's frequency spacing (features
+    between the samples that the data does not determine); see
+    :func:`freqid_casadi.validation.check_resolution`."""

@@ -10,12 +10,13 @@ one NLP (see :mod:`freqid_casadi.solvers`).
 import math
 import sys
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from .data import FrequencyData
-from .errors import DataError, OptionError, StructureError
+from .errors import DataError, OptionError, ResolutionWarning, StructureError
 from .model import BASES, RationalDelayModel, Structure
 from .objective import GAUGES, Parametrization, rel_error_stats, stage_functions
 from .solvers.common import Status
@@ -111,6 +112,10 @@ class FitResult:
         Which start produced the model ("sequential" or "rational").
     objective : str
         "least-squares", or "minimax" if the epigraph polish ran.
+    resolution : freqid_casadi.validation.ResolutionCheck or None
+        The model checked against the data's frequency spacing (None for the first-order
+        basis, whose real roots are never narrow); when ``resolution.ok`` is False,
+        :func:`fit` also issued a :class:`~freqid_casadi.errors.ResolutionWarning`.
     """
 
     model: RationalDelayModel
@@ -125,6 +130,7 @@ class FitResult:
     options: dict = field(default_factory=dict)
     start: str = "sequential"
     objective: str = "least-squares"
+    resolution: object = None
 
     @property
     def delay(self):
@@ -351,10 +357,24 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     mx, rms = rel_error_stats(rel)
     final = [r for r in records if r.kept != "minimax-rejected" and r.solver_status
              != "vector-fitting"] or records
+    from .validation import check_resolution   # lazy: validation builds on fit
+
+    # first-order sections have real roots, never narrow: nothing to check
+    check = (check_resolution(model, data.omega)
+             if model.structure.basis == "second-order" and model.n_sections else None)
+    if check is not None and not check.ok:
+        warnings.warn(
+            f"the model has {len(check.flags)} near-cancelling pole/zero pair(s) and "
+            f"{len(check.unresolved)} pole(s)/zero(s) narrower than the frequency spacing: "
+            "features between the samples that the data does not determine (typical of "
+            "noisy data); inspect FitResult.resolution, remove them with "
+            "freqid_casadi.validation.prune_sections, or fit fewer sections",
+            ResolutionWarning, stacklevel=3)
     return FitResult(model=model, stages=tuple(records), data=data, rel_error=rel,
                      max_rel_error=mx, rms_rel_error=rms,
                      success=bool(final[-1].success), wall_time=time.perf_counter() - t_start,
-                     method=method, options=options, start=won, objective=objective)
+                     method=method, options=options, start=won, objective=objective,
+                     resolution=check)
 
 
 @dataclass(frozen=True)

@@ -204,3 +204,24 @@ def test_bad_data_through_fit():
     _, data = two_section_data(n_points=30)
     with pytest.raises(DataError, match="either a FrequencyData"):
         fc.fit(data, np.ones(30), n_sections=1)
+
+
+@pytest.mark.slow
+def test_noisy_fit_is_not_returned_silently():
+    """2 % complex noise on example A at the thesis's order: near-cancelling pairs narrower
+    than the frequency spacing are reported (FitResult.resolution and a warning)."""
+    from freqid_casadi.errors import ResolutionWarning
+
+    rng = np.random.default_rng(0)
+    data = fc.systems.G_A()
+    noise = 0.02 * (rng.standard_normal(500) + 1j * rng.standard_normal(500)) / np.sqrt(2)
+    noisy = fc.FrequencyData(data.omega, data.response * (1 + noise), "noisy A")
+    with pytest.warns(ResolutionWarning, match="narrower than the frequency spacing"):
+        res = fc.fit(noisy, n_sections=17, integrator=True)
+    assert not res.resolution.ok and len(res.resolution.flags) >= 1
+
+
+def test_clean_fit_passes_the_resolution_check():
+    _, data = two_section_data(n_points=100)
+    res = fc.fit(data, n_sections=2, integrator=True)
+    assert res.resolution.ok
