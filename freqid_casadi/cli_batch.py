@@ -20,12 +20,12 @@ not converge (the summary says which), 2 on a usage, option or folder error.
 Registered by ``cli.py`` as ``COMMANDS["batch"] = (add_cli, run_cli)``.
 """
 
-import argparse
 import math
 import os
 
 from ._io import atomic_write_text
 from .batch import fit_many
+from .cli import _positive_float, _positive_int   # the CLI's own validators
 from .errors import DataError
 from .fit import METHODS
 from .model import BASES
@@ -40,26 +40,6 @@ _SUFFIXES = (".csv", ".npz")
 
 _COLUMNS = ("file", "name", "status", "n_sections", "order", "max_rel_error",
             "rms_rel_error", "delay", "nit", "wall_time", "error")
-
-
-def _positive_int(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer (>= 1), got {value}")
-    return value
-
-
-def _positive_float(text):
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
-    return value
 
 
 def add_cli(subparsers):

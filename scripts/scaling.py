@@ -78,24 +78,11 @@ def _solver(method, funcs, param, z0, n_iter):
 
         res = solve_least_squares(funcs, z0, lb, ub, max_iter=n_iter)
     else:
-        from freqid_casadi.solvers.barrier_lm import barrier_lm
+        from freqid_casadi.fit import _solve_barrier_lm
 
-        free = lb < ub
-        xf = z0.copy()
-
-        def full(v):
-            xf[free] = v
-            return xf
-
-        def fun(v):
-            return funcs.residual(full(v))
-
-        def jac(v):
-            return funcs.residual_jacobian(full(v))[1][:, free]
-
-        v0 = np.maximum(z0[free], lb[free] + 1e-6 * np.maximum(1.0, np.abs(z0[free])))
-        # one barrier step (t = 1), n_iter LM trial steps
-        res = barrier_lm(fun, jac, v0, lb=lb[free], t0=1.0, t_max=1.0, max_inner=n_iter)
+        # the fit's barrier-LM stage: one barrier step (t = 1), n_iter LM trial steps
+        res = _solve_barrier_lm(funcs, z0, lb, ub,
+                                {"t0": 1.0, "t_max": 1.0, "max_inner": n_iter})
     return time.perf_counter() - t0, int(res.nit)
 
 
