@@ -396,46 +396,107 @@ class StageFunctions:
 
     ``cost(z) = ||r(z)||^2`` with ``r`` the stacked weighted residual ``[Re; Im]`` (2M,).
 
+    Two evaluation paths, both exact and built from the one formula of
+    :meth:`Parametrization.residual_pair` / :func:`_section_pairs`:
+
+    - ``r_fun`` — the residual as a CasADi MX expression *vectorised over the points*
+      (each operation is one C loop over M values), which is the NLP's objective;
+    - the derivative pieces ``q``, ``L = dlog q/dz`` (and per-section ``dlog num``,
+      ``dlog den``), from which ``J``, the gradient and the exact Hessian are assembled with
+      dense BLAS products (:meth:`gradient`, :meth:`hessian`). In the "dc" gauge every
+      section factor is *affine* in its variables, so its derivative along variable ``i``
+      is the formula evaluated at the unit vector ``e_i`` minus its value at 0 — exact,
+      computed once per stage, and the pieces are evaluated by numpy over
+      (sections x points) arrays. The "b1"/"raw" gauges (polynomial in the variables) use
+      CasADi's AD of the per-point section formula, mapped over the points
+      (:func:`_point_functions`).
+
     Attributes
     ----------
     param : Parametrization
     n_points : int
     r_fun : casadi.Function
         ``z (n,) -> r (2M,)``, symbolic (the NLP's objective is ``sumsqr(r_fun(z))``).
-    d_fun : casadi.Function
-        ``z -> (r, sq, Ld, Ln, T2)`` mapped over points (see :func:`_point_functions`).
+    derivatives : {"affine", "casadi-map"}
+        Which derivative path is used (see above).
     """
 
-    def __init__(self, param, omega, response, weights=None, parallel=False):
+    def __init__(self, param, omega, response, weights=None, parallel=False,
+                 derivatives=None):
         import casadi as ca
 
         self.param = param
         omega = np.asarray(omega, float)
         resp = np.asarray(response, complex)
         m = omega.size
-        self.n_points = m
-        sw = np.ones(m) if weights is None else np.sqrt(np.asarray(weights, float))
-        r_point, d_point = _point_functions(param)
-        mode = ("thread", 2) if parallel else ("serial",)
-        data = [omega.reshape(1, -1), resp.real.reshape(1, -1), resp.imag.reshape(1, -1),
-                sw.reshape(1, -1)]
         n = param.n_vars
+        self.n_points = m
+        self._omega = omega
+        self._sw = np.ones(m) if weights is None else np.sqrt(np.asarray(weights, float))
+        # the NLP's objective: one MX expression over all points (vectorised C loops)
         z = ca.MX.sym("z", n)
-        zz = ca.repmat(z, 1, m)
-        r2 = r_point.map(m, *mode)(zz, *data)                       # (2, M)
-        self.r_fun = ca.Function("residual", [z], [ca.vec(ca.transpose(r2))], ["z"], ["r"])
-        outs = d_point.map(m, *mode)(zz, *data)
-        self.d_fun = ca.Function("derivatives", [z], [ca.densify(o) for o in outs], ["z"],
-                                 ["r", "sq", "Ld", "Ln", "T2"])
-        self.n_t2 = int(d_point.size2_out(4))
+        row = lambda a: ca.DM(np.asarray(a, float).reshape(1, -1))  # noqa: E731
+        re, im = param.residual_pair(z, row(omega), (row(resp.real), row(resp.imag)),
+                                     row(self._sw))
+        self.r_fun = ca.Function("residual", [z], [ca.vertcat(ca.transpose(re),
+                                                              ca.transpose(im))],
+                                 ["z"], ["r"])
+        if derivatives is None:
+            derivatives = "affine" if param.gauge == "dc" else "casadi-map"
+        if derivatives not in ("affine", "casadi-map"):
+            raise OptionError(f"unknown derivatives {derivatives!r}; choose 'affine' or "
+                              "'casadi-map'")
+        if derivatives == "affine" and param.gauge != "dc":
+            raise OptionError("derivatives='affine' needs the 'dc' gauge (its sections are "
+                              "affine in the variables); use 'casadi-map'")
+        self.derivatives = derivatives
         self._key = None
-        # zero-copy evaluation: CasADi writes straight into these numpy buffers
-        self._zbuf = np.zeros(n)
-        self._outs = [np.zeros(2 * c) for c in (m, m, n * m, n * m, self.n_t2 * m)]
-        self._buf, self._trigger = self.d_fun.buffer()
-        self._buf.set_arg(0, memoryview(self._zbuf))
-        for i, out in enumerate(self._outs):
-            self._buf.set_res(i, memoryview(out))
+        nsec, ns = param.structure.n_sections, param.section_size
+        h_ref, k_ref, wr = param._refs()
+        self._q0 = self._sw * resp * (1j * omega if param.structure.integrator else 1.0)
+        self._dlog_delay = 1j * omega * h_ref
+        if derivatives == "affine":
+            self._x = omega[None, :] / np.asarray(wr, float).reshape(-1, 1)   # (nsec, M)
+            second = param.structure.basis == "second-order"
+
+            def pair(v):
+                num, den = _section_pairs("dc", second, v, self._x)
+                return (_cplx.to_complex(np.broadcast_arrays(*num)),
+                        _cplx.to_complex(np.broadcast_arrays(*den)))
+
+            zero = [np.zeros((nsec, 1))] * ns
+            n0, d0 = pair(zero)
+            steps = [pair([np.ones((nsec, 1)) if j == i else zero[j] for j in range(ns)])
+                     for i in range(ns)]
+            # an affine factor is f(v) = f(0) + sum_i v_i (f(e_i) - f(0)) exactly
+            dnum = [s_[0] - n0 for s_ in steps]
+            dden = [s_[1] - d0 for s_ in steps]
+            self._idx_num = [i for i in range(ns) if np.any(dnum[i] != 0)]
+            self._idx_den = [i for i in range(ns) if np.any(dden[i] != 0)]
+            if nsec and sorted(self._idx_num + self._idx_den) != list(range(ns)):
+                raise StructureError("internal: each dc-gauge variable must enter exactly "
+                                     "one of a section's numerator and denominator")
+            self._n0, self._d0 = n0, d0
+            self._dnum_nz = np.array([dnum[i] for i in self._idx_num])     # (kn, nsec, M)
+            self._dden_nz = np.array([dden[i] for i in self._idx_den])     # (kd, nsec, M)
+            self._lg = np.empty((n, m), complex)
+        else:
+            r_point, d_point = _point_functions(param)
+            mode = ("thread", 2) if parallel else ("serial",)
+            data = [omega.reshape(1, -1), resp.real.reshape(1, -1), resp.imag.reshape(1, -1),
+                    self._sw.reshape(1, -1)]
+            zz = ca.repmat(z, 1, m)
+            outs = d_point.map(m, *mode)(zz, *data)
+            self.d_fun = ca.Function("derivatives", [z], [ca.densify(o) for o in outs],
+                                     ["z"], ["r", "sq", "Ld", "Ln", "T2"])
+            self.n_t2 = int(d_point.size2_out(4))
+            # zero-copy evaluation: CasADi writes straight into these numpy buffers
+            self._zbuf = np.zeros(n)
+            self._outs = [np.zeros(2 * c) for c in (m, m, n * m, n * m, self.n_t2 * m)]
+            self._buf, self._trigger = self.d_fun.buffer()
+            self._buf.set_arg(0, memoryview(self._zbuf))
+            for i, out in enumerate(self._outs):
+                self._buf.set_res(i, memoryview(out))
 
     # ------------------------------------------------------------------ evaluation
     def residual(self, z):
@@ -447,72 +508,132 @@ class StageFunctions:
         return float(r @ r)
 
     def _eval(self, z):
+        """Derivative pieces at ``z`` (cached on the bytes of ``z``):
+
+        ``_r`` (M,) complex residual, ``_sq`` (M,) = sqrt_w q, ``_L`` (n, M) = dlog q/dz,
+        ``_blk``: per-section ``(indices, dlog factor/dv (len(indices), nsec, M), sign)``
+        for the numerators (+1) and denominators (-1), and
+        ``_t2`` (M, nsec ns^2) second-derivative terms or None.
+        """
         z = np.asarray(z, float).reshape(-1)
         key = z.tobytes()
-        if key != self._key:
-            m, n = self.n_points, self.param.n_vars
-            self._zbuf[:] = z
-            self._trigger()
-            # a (2, K) output in column-major order is K interleaved (re, im) pairs; the
-            # mapped (2, n) blocks come side by side, so (2, n*M) -> complex (M, n)
-            # views, not copies (memory at large M): the buffers change only at the next
-            # new point, when every quantity derived from them is recomputed too
-            r, sq, ld, ln, t2 = (o.view(complex) for o in self._outs)
-            self._r, self._sq = r, sq
-            self._ld = ld.reshape(m, n)
-            self._ln = ln.reshape(m, n)
-            self._t2 = t2.reshape(m, self.n_t2) if self.n_t2 else None
-            self._jc = self._sq[:, None] * (self._ld - self._ln)    # complex J (M, n)
-            self._z = z
-            self._key = key
+        if key == self._key:
+            return self
+        if self.derivatives == "affine":
+            self._eval_affine(z)
+        else:
+            self._eval_casadi(z)
+        self._z = z
+        self._key = key
         return self
+
+    def _eval_affine(self, z):
+        param = self.param
+        m = self.n_points
+        nsec, ns = param.structure.n_sections, param.section_size
+        h_ref, k_ref, _ = param._refs()
+        q = self._q0 * np.exp(self._dlog_delay * z[0]) / (k_ref * z[1])
+        lg = self._lg
+        lg[0] = self._dlog_delay
+        lg[1] = -1.0 / z[1]
+        self._blk = []
+        if nsec:
+            v = z[2:].reshape(nsec, ns)
+            vn = v[:, self._idx_num].T[:, :, None]                          # (kn, nsec, 1)
+            vd = v[:, self._idx_den].T[:, :, None]
+            inum = 1.0 / (self._n0 + np.sum(vn * self._dnum_nz, axis=0))    # (nsec, M)
+            iden = 1.0 / (self._d0 + np.sum(vd * self._dden_nz, axis=0))
+            q = q * np.prod(inum / iden, axis=0)
+            sln = self._dnum_nz * inum                                      # (kn, nsec, M)
+            sld = self._dden_nz * iden
+            sec = lg[2:].reshape(nsec, ns, m)
+            sec[:, self._idx_num] = -sln.transpose(1, 0, 2)
+            sec[:, self._idx_den] = sld.transpose(1, 0, 2)
+            self._blk = [(self._idx_num, sln, 1.0), (self._idx_den, sld, -1.0)]
+        self._sq = q
+        self._r = q - self._sw
+        self._L, self._t2 = lg, None
+
+    def _eval_casadi(self, z):
+        param = self.param
+        m, n = self.n_points, param.n_vars
+        nsec, ns = param.structure.n_sections, param.section_size
+        self._zbuf[:] = z
+        self._trigger()
+        # a (2, K) output in column-major order is K interleaved (re, im) pairs; the
+        # mapped (2, n) blocks come side by side, so (2, n*M) -> complex (M, n)
+        r, sq, ld, ln, t2 = (o.view(complex) for o in self._outs)
+        self._r, self._sq = r.copy(), sq.copy()
+        ld, ln = ld.reshape(m, n), ln.reshape(m, n)
+        self._L = np.ascontiguousarray((ld - ln).T)
+        sln = np.ascontiguousarray(ln[:, 2:].reshape(m, nsec, ns).transpose(2, 1, 0))
+        sld = np.ascontiguousarray(ld[:, 2:].reshape(m, nsec, ns).transpose(2, 1, 0))
+        full = list(range(ns))
+        self._blk = [] if not nsec else [(full, sln, 1.0), (full, sld, -1.0)]
+        self._t2 = t2.reshape(m, self.n_t2).copy() if self.n_t2 else None
 
     def residual_jacobian(self, z):
         """``(r (2M,), J (2M, n))`` with ``J = dr/dz`` stacked ``[Re; Im]``."""
         self._eval(z)
+        jc = self._L.T * self._sq[:, None]                           # complex J (M, n)
         return (np.concatenate([self._r.real, self._r.imag]),
-                np.vstack([self._jc.real, self._jc.imag]))
+                np.vstack([jc.real, jc.imag]))
 
     def gradient(self, z):
-        """``(cost, grad)`` with ``grad = 2 J^T r`` (n,)."""
+        """``(cost, grad)`` with ``grad = 2 J^T r = 2 Re(L c)``, ``c = conj(r) sqrt_w q``."""
         self._eval(z)
-        r, jc = self._r, self._jc
-        return float(np.vdot(r, r).real), 2.0 * (jc.real.T @ r.real + jc.imag.T @ r.imag)
+        r = self._r
+        cc = self._sq.conj() * r                                     # conj(c)
+        # Re(L c) = Lr cr - Li ci: one product over the interleaved (re, im) views
+        grad = 2.0 * (self._L.view(float) @ cc.view(float))
+        return float(np.vdot(r, r).real), grad
 
     def hessian(self, z, exact=True, clip=False):
-        """Hessian of the cost, (n, n): ``2 J^T J`` (Gauss-Newton) plus, if ``exact``,
-        ``2 Re sum_i c_i (L_i L_i^T + Lambda_i)`` with ``c_i = conj(r_i) sqrt_w_i q_i``."""
+        """Hessian of the cost, (n, n).
+
+        ``2 Re(J^H J)`` (Gauss-Newton) plus, if ``exact``,
+        ``2 Re sum_i c_i (L_i L_i^T + d2 log q_i)`` with ``c_i = conj(r_i) sqrt_w_i q_i``.
+        The first two terms are one real product over the interleaved (re, im) parts:
+        ``Re sum_i (a_i conj(L_i) + c_i L_i) L_i^T = [Lr Li] [Yr Yi]^T`` with
+        ``Y = a L + conj(c L)``, ``a = |sqrt_w q|^2``; ``d2 log q`` is block diagonal
+        (per section ``Ln Ln^T - Ld Ld^T + T2``, and ``1/z_K^2`` for the gain).
+        """
         self._eval(z)
-        jc = self._jc
-        h = 2.0 * (jc.real.T @ jc.real + jc.imag.T @ jc.imag)
+        lg = self._L
+        a = self._sq.real ** 2 + self._sq.imag ** 2                   # |sqrt_w q|^2
         if not exact:
-            return h
-        m = self.n_points
-        c = np.conj(self._r) * self._sq                             # (M,)
-        lg = self._ld - self._ln
-        h2 = lg.T @ (c[:, None] * lg)                                # sum c L L^T
-        ns, nsec = self.param.section_size, self.param.structure.n_sections
-        if nsec:
-            lnr = self._ln[:, 2:].reshape(m, nsec, ns)
-            ldr = self._ld[:, 2:].reshape(m, nsec, ns)
-            # per-section blocks sum_i c_i (ln ln^T - ld ld^T): batched matmul over sections
-            lnt, ldt = np.transpose(lnr, (1, 2, 0)), np.transpose(ldr, (1, 2, 0))
-            blocks = (np.matmul(lnt * c, np.transpose(lnr, (1, 0, 2)))
-                      - np.matmul(ldt * c, np.transpose(ldr, (1, 0, 2))))
-            if self._t2 is not None:
-                blocks = blocks + np.einsum("m,mk->k", c, self._t2).reshape(nsec, ns, ns)
-            for k in range(nsec):
-                sl = slice(2 + ns * k, 2 + ns * (k + 1))
-                h2[sl, sl] += blocks[k]
-        h2[1, 1] += np.sum(c) / self._z[1] ** 2
-        h = h + 2.0 * h2.real
+            y = lg * a
+        else:
+            c = np.conj(self._r) * self._sq
+            y = lg * a
+            y += np.conj(lg * c)
+        h = lg.view(float) @ y.view(float).T
+        h = (h + h.T) / 2.0
+        if exact:
+            nsec, ns = self.param.structure.n_sections, self.param.section_size
+            if nsec:
+                # per-section blocks sum_i c_i (ln ln^T - ld ld^T), over the variables each
+                # factor depends on: (k, k, nsec) products contracted with c
+                blocks = np.zeros((nsec, ns, ns))
+                for idx, s_, sign in self._blk:
+                    pk = (s_[:, None] * s_[None, :]) @ c                  # (k, k, nsec)
+                    blocks[:, np.ix_(idx, idx)[0], np.ix_(idx, idx)[1]] += (
+                        sign * pk.real.transpose(2, 0, 1))
+                if self._t2 is not None:
+                    blocks = blocks + (c @ self._t2).real.reshape(nsec, ns, ns)
+                diag = np.arange(nsec)
+                hv = h[2:, 2:].reshape(nsec, ns, nsec, ns)        # a view: h is C-ordered
+                hv[diag, :, diag, :] += blocks
+            h[1, 1] += np.sum(c).real / self._z[1] ** 2
+        h = 2.0 * h
         if clip:
             # modified Newton: clip negative curvature to zero (eigen-clip)
             lam, vec = np.linalg.eigh(h)
             h = (vec * np.maximum(lam, 0.0)) @ vec.T
+            h = (h + h.T) / 2.0
         return h
 
 
-def stage_functions(param, omega, response, weights=None, parallel=False):
+def stage_functions(param, omega, response, weights=None, parallel=False, derivatives=None):
     """Build the :class:`StageFunctions` of one stage (once per stage)."""
-    return StageFunctions(param, omega, response, weights, parallel)
+    return StageFunctions(param, omega, response, weights, parallel, derivatives)

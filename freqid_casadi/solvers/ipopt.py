@@ -189,6 +189,19 @@ def _make_callbacks():
         def get_sparsity_out(self, i):
             return ca.Sparsity.dense(1, 1) if i == 0 else ca.Sparsity.dense(self.n, 1)
 
+        def has_eval_buffer(self):
+            return True
+
+        def eval_buffer(self, arg, res):
+            # copy-free: read x from and write (f, grad) into CasADi's own buffers
+            x = np.frombuffer(arg[0], dtype=np.float64)
+            cost, grad = self.funcs.gradient(x.copy())
+            if res[0] is not None:              # an output not asked for is None
+                np.frombuffer(res[0], dtype=np.float64)[0] = cost
+            if res[1] is not None:
+                np.frombuffer(res[1], dtype=np.float64)[:] = grad
+            return 0
+
         def eval(self, arg):
             cost, grad = self.funcs.gradient(arg[0].full().reshape(-1))
             return [cost, grad]
@@ -206,6 +219,7 @@ def _make_callbacks():
             rows, cols = np.triu_indices(n)
             order = np.lexsort((rows, cols))                 # column-major nonzero order
             self.rows, self.cols = rows[order], cols[order]
+            self.flat = self.rows * n + self.cols
             self.construct("nlp_hess_l", {})
 
         def get_n_in(self):
@@ -226,6 +240,19 @@ def _make_callbacks():
 
         def get_sparsity_out(self, i):
             return self.sp
+
+        def has_eval_buffer(self):
+            return True
+
+        def eval_buffer(self, arg, res):
+            x = np.frombuffer(arg[0], dtype=np.float64).copy()
+            lam_f = float(np.frombuffer(arg[2], dtype=np.float64)[0])
+            if res[0] is None:
+                return 0
+            h = self.funcs.hessian(x, exact=self.exact, clip=self.clip)
+            np.multiply(h.ravel().take(self.flat), lam_f,
+                        out=np.frombuffer(res[0], dtype=np.float64))
+            return 0
 
         def eval(self, arg):
             h = self.funcs.hessian(arg[0].full().reshape(-1), exact=self.exact, clip=self.clip)
