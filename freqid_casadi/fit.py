@@ -30,6 +30,7 @@ INITS = ("peak", "identity")
 WARM_STARTS = ("primal-dual", "primal", "none")
 STARTS = ("sequential", "rational", "best")
 OBJECTIVES = ("least-squares", "minimax")
+DERIVATIVES = (None, "affine", "casadi-map")
 
 
 @dataclass(frozen=True)
@@ -62,6 +63,11 @@ class StageRecord:
         Delay estimate (s) after the stage.
     n_active : int
         Variables at their bounds.
+    timing : dict
+        IPOPT stages only, seconds summed over the stage's solves: ``t_build`` (NLP
+        construction), ``t_solve`` (the solve), ``t_f``, ``t_grad_f``, ``t_hess_l`` (time in
+        the objective, gradient and Hessian evaluations); ``t_solve`` minus the three is
+        IPOPT's own work. Empty for other solvers.
     """
 
     stage: int
@@ -81,10 +87,12 @@ class StageRecord:
     kept: str
     delay: float
     n_active: int
+    timing: dict = field(default_factory=dict)
 
     def as_dict(self):
         d = dict(self.__dict__)
         d["status"] = self.status.name
+        d["timing"] = dict(self.timing)
         return d
 
 
@@ -210,7 +218,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         gauge="dc", init="peak", scale_l=1.0, hessian="exact",
         warm_start="primal-dual", scaled=True, delay_max=None, bound_delay=True,
         final_stage=True, max_iter=100, final_max_iter=200, ipopt_options=None,
-        lm_options=None, start="sequential", objective="least-squares"):
+        lm_options=None, start="sequential", objective="least-squares", derivatives=None):
     """Fit ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` to frequency-response data.
 
     Parameters
@@ -275,6 +283,11 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
     objective : {"least-squares", "minimax"}
         "minimax" adds an epigraph polish ``min t s.t. |r_i|^2 <= t``, kept only if it
         lowers the max relative error (and the start is below 1).
+    derivatives : {None, "affine", "casadi-map"}
+        How the stage derivatives are evaluated (both exact, same results to rounding):
+        None picks "affine" (numpy over points x sections; "dc" gauge only) or
+        "casadi-map" (CasADi AD of the per-point formula mapped over the points; any
+        gauge, about 3x slower), see :class:`~freqid_casadi.objective.StageFunctions`.
 
     Returns
     -------
@@ -293,7 +306,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
                     delay_max=delay_max, bound_delay=bound_delay, final_stage=final_stage,
                     max_iter=max_iter, final_max_iter=final_max_iter,
                     ipopt_options=ipopt_options, lm_options=lm_options, start=start,
-                    objective=objective)
+                    objective=objective, derivatives=derivatives)
 
 
 def _single_threaded_blas():
@@ -308,7 +321,7 @@ def _single_threaded_blas():
 def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, method, tol,
          progress, weights, gauge, init, scale_l, hessian, warm_start, scaled, delay_max,
          bound_delay, final_stage, max_iter, final_max_iter, ipopt_options, lm_options,
-         start, objective):
+         start, objective, derivatives):
     t_start = time.perf_counter()
     data = _validate(data_or_omega, response, n_sections, method, basis, tol, gauge, init,
                      hessian, warm_start, delay_max, integrator, scale_l)
@@ -317,13 +330,19 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     if objective not in OBJECTIVES:
         raise OptionError(f"unknown objective {objective!r}; choose one of "
                           f"{', '.join(OBJECTIVES)}")
+    if derivatives not in DERIVATIVES:
+        raise OptionError(f"unknown derivatives {derivatives!r}; choose None, 'affine' or "
+                          "'casadi-map'")
+    if derivatives == "affine" and gauge != "dc":
+        raise OptionError(f"derivatives='affine' needs gauge='dc' (got {gauge!r}); use "
+                          "derivatives='casadi-map' or None")
     if weights is not None:
         data = data.with_weights(weights)
     dmax = float(delay_max) if delay_max is not None else default_delay_max(data.omega)
     ctx = _Context(
         data=data, callback=_progress_callback(progress),
         solve=_StageSolver(method, hessian, max_iter, ipopt_options, lm_options,
-                           warm_start != "none", bound_delay),
+                           warm_start != "none", bound_delay, derivatives),
         structure=Structure(int(n_sections), integrator, delay, basis), gauge=gauge,
         scaled=scaled, delay_max=dmax, final_max_iter=final_max_iter)
     options = dict(n_sections=int(n_sections), integrator=bool(integrator), delay=bool(delay),
@@ -331,7 +350,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                    scale_l=scale_l, hessian=hessian, warm_start=warm_start, scaled=scaled,
                    delay_max=dmax, bound_delay=bound_delay, final_stage=final_stage,
                    max_iter=max_iter, final_max_iter=final_max_iter, start=start,
-                   objective=objective)
+                   objective=objective, derivatives=derivatives)
     runs = {}
     if start in ("sequential", "best"):
         runs["sequential"] = _sequential(ctx, tol, init, scale_l, warm_start, final_stage)
@@ -407,12 +426,14 @@ def _sequential(ctx, tol, init, scale_l, warm_start, final_stage):
     l0 = min(5, m)
     t0 = time.perf_counter()
     nit = nfev = 0
+    solves = []
     for length in range(1, l0 + 1):
         res = solve(param, data.window(length), z, lam)
+        solves.append(res)
         nit, nfev = nit + res.nit, nfev + res.nfev
         z, lam = _keep_better(param, data.window(length), z, lam, res)[:2]
     records.append(_record(0, param, z, data, l0, math.nan, res, nit, nfev,
-                           time.perf_counter() - t0, "solution"))
+                           time.perf_counter() - t0, "solution", _timing(solves)))
     callback(records[-1])
     window = l0
     init_z = z.copy()
@@ -575,7 +596,20 @@ def _keep_better(param, wdata, z_start, lam_start, res, previous=None):
     return np.asarray(x, float).copy(), np.asarray(lam, float).copy(), name
 
 
-def _record(stage, param, z, data, window, omega_c, res, nit, nfev, wall, kept):
+_TIMING_KEYS = ("t_build", "t_solve", "t_f", "t_grad_f", "t_hess_l")
+
+
+def _timing(results):
+    """Sum of the solver timings (``StageResult.extra``) of one stage's solves."""
+    out = {}
+    for res in results:
+        for k in _TIMING_KEYS:
+            if k in (res.extra or {}):
+                out[k] = out.get(k, 0.0) + float(res.extra[k])
+    return out
+
+
+def _record(stage, param, z, data, window, omega_c, res, nit, nfev, wall, kept, timing=None):
     model_ratio = _ratio(param, z, data.omega, data.response)
     err = np.abs(model_ratio - 1.0)
     mx, rms = rel_error_stats(err)
@@ -586,7 +620,8 @@ def _record(stage, param, z, data, window, omega_c, res, nit, nfev, wall, kept):
                        nit=int(nit), nfev=int(nfev), wall_time=float(wall), status=res.status,
                        solver_status=res.solver_status, success=bool(res.success), kept=kept,
                        delay=float(param.to_beta(z)[0]),
-                       n_active=int(np.count_nonzero(res.active_mask)))
+                       n_active=int(np.count_nonzero(res.active_mask)),
+                       timing=_timing([res]) if timing is None else timing)
 
 
 def _progress_callback(progress):
@@ -612,7 +647,9 @@ def _progress_callback(progress):
 class _StageSolver:
     """Builds the stage's CasADi functions once and calls the chosen solver."""
 
-    def __init__(self, method, hessian, max_iter, ipopt_options, lm_options, warm, bound_delay):
+    def __init__(self, method, hessian, max_iter, ipopt_options, lm_options, warm, bound_delay,
+                 derivatives=None):
+        self.derivatives = derivatives
         self.method = method
         self.hessian = hessian
         self.max_iter = max_iter
@@ -622,7 +659,8 @@ class _StageSolver:
         self.bound_delay = bound_delay
 
     def __call__(self, param, wdata, x0, lam0, max_iter=None):
-        funcs = stage_functions(param, wdata.omega, wdata.response, wdata.weights)
+        funcs = stage_functions(param, wdata.omega, wdata.response, wdata.weights,
+                                derivatives=self.derivatives)
         lb, ub = param.bounds()
         if not self.bound_delay and param.structure.delay:
             ub[0] = np.inf

@@ -93,6 +93,21 @@ def test_both_methods_reach_the_same_optimum():
     assert abs(a.model.delay - b.model.delay) < 1e-8
 
 
+def test_derivative_paths_give_the_same_fit():
+    """The numpy path of the dc gauge and CasADi's mapped AD: the same stages, the same
+    model to rounding (both exact)."""
+    _, data = two_section_data(n_points=120)
+    a = fc.fit(data, n_sections=2, integrator=True)
+    b = fc.fit(data, n_sections=2, integrator=True, derivatives="casadi-map")
+    assert a.options["derivatives"] is None and b.options["derivatives"] == "casadi-map"
+    assert len(a.stages) == len(b.stages)
+    assert all(abs(sa.nit - sb.nit) <= 3 for sa, sb in zip(a.stages, b.stages))
+    w = np.logspace(-1, 2.5, 500)
+    ga, gb = a.model.frequency_response(w), b.model.frequency_response(w)
+    assert np.max(np.abs(ga / gb - 1)) < 1e-9
+    assert a.max_rel_error < 1e-6 and b.max_rel_error < 1e-6
+
+
 def test_recovery_without_integrator_and_delay():
     beta = [0.0, 2.0, 1.0, 0.1, 3.0, 1.0, 0.2, 2.0]
     model = fc.RationalDelayModel(fc.Structure(1, False, False), beta)
@@ -186,6 +201,8 @@ def test_returned_beta_is_exactly_feasible_for_light_damping():
     ({"n_sections": 1, "tol": float("nan")}, OptionError, "tol must be"),
     ({"n_sections": 1, "delay_max": 0.0}, OptionError, "delay_max must be"),
     ({"n_sections": 40}, DataError, "too few data points"),
+    ({"n_sections": 1, "derivatives": "fd"}, OptionError, "unknown derivatives 'fd'"),
+    ({"n_sections": 1, "gauge": "b1", "derivatives": "affine"}, OptionError, "needs gauge='dc'"),
 ])
 def test_bad_options_raise_typed_errors(kwargs, exc, match):
     _, data = two_section_data(n_points=60)

@@ -129,17 +129,21 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
     if ipopt_options:
         opts["ipopt"].update(ipopt_options)
     solver = ca.nlpsol("stage", "ipopt", nlp, opts)
+    t_build = time.perf_counter() - t0
     args = {"x0": x0, "lbx": lb, "ubx": ub}
     if use_warm:
         args["lam_x0"] = np.asarray(lam_x0, float)
+    t_solve = time.perf_counter()
     try:
         sol = solver(**args)
+        t_solve = time.perf_counter() - t_solve
         stats = solver.stats()
         return_status = str(stats.get("return_status", "unknown"))
         x = np.clip(np.array(sol["x"], float).reshape(-1), lb, ub)
         lam_x = np.array(sol["lam_x"], float).reshape(-1)
     except RuntimeError as exc:  # evaluation errors raised inside CasADi
         stats = {}
+        t_solve = time.perf_counter() - t_solve
         return_status = f"exception: {exc}"
         x, lam_x = x0, np.zeros(n)
     del keep
@@ -156,7 +160,9 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
         wall_time=time.perf_counter() - t0,
         active_mask=find_active_constraints(x, lb, ub, rtol=1e-8),
         lam_x=lam_x, solver_status=return_status,
-        extra={"t_solver": float(stats.get("t_wall_total", np.nan) or np.nan)})
+        extra={"t_build": t_build, "t_solve": t_solve,
+               **{f"t_{k}": float(stats.get(f"t_wall_nlp_{k}", 0.0) or 0.0)
+                  for k in ("f", "grad_f", "hess_l")}})
 
 
 def _make_callbacks():
