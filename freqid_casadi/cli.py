@@ -84,6 +84,20 @@ def _positive_int(text):
     return value
 
 
+def _min_damping(text):
+    if text == "auto":
+        return "auto"
+    try:
+        value = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(
+            f"must be 'auto' or a damping ratio in [0, 1), got {text!r}") from None
+    if not (math.isfinite(value) and 0 <= value < 1):
+        raise argparse.ArgumentTypeError(
+            f"must be 'auto' or a damping ratio in [0, 1), got {text!r}")
+    return value
+
+
 def _positive_float(text):
     try:
         value = float(text)
@@ -153,6 +167,10 @@ def _add_fit(sub):
                    help="section type (default second-order)")
     p.add_argument("--tol", type=_positive_float, metavar="X",
                    help="stop adding sections once the max relative error is below X")
+    p.add_argument("--min-damping", type=_min_damping, metavar="auto|ZETA",
+                   help="floor on the damping ratio of every pole and zero; 'auto' ties it "
+                        "to the frequency spacing (for noisy data: no pole/zero pair "
+                        "narrower than the spacing)")
     _common(p, out_required=True)
     return p
 
@@ -275,8 +293,8 @@ def _resolution_warning(result):
     if check is not None and not check.ok:
         print(f"warning: {len(check.flags)} near-cancelling pole/zero pair(s) and "
               f"{len(check.unresolved)} unresolved pole(s)/zero(s) are narrower than the "
-              "frequency spacing (not determined by the data); fit fewer sections or prune "
-              "them with freqid_casadi.validation.prune_sections")
+              "frequency spacing (not determined by the data); refit with --min-damping auto, "
+              "fit fewer sections, or prune them with freqid_casadi.validation.prune_sections")
 
 
 def _cmd_fit(args, command):
@@ -286,7 +304,8 @@ def _cmd_fit(args, command):
         warnings.simplefilter("ignore", ResolutionWarning)   # reported below, one line
         result = fit(data, n_sections=args.sections, integrator=args.integrator,
                      delay=args.delay, basis=args.basis, method=args.method, tol=args.tol,
-                     progress=_progress(args), start=args.start, objective=args.objective)
+                     progress=_progress(args), start=args.start, objective=args.objective,
+                     min_damping=args.min_damping)
     _resolution_warning(result)
     path = write_fit_report(result, args.out, command=command, force=args.force)
     print(result.summary())

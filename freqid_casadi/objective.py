@@ -193,6 +193,49 @@ class Parametrization:
             re, im = re * sqrt_weights, im * sqrt_weights
         return re, im
 
+    # ---------------------------------------------------------------- damping floor
+    def damping_pairs(self):
+        """Indices ``(i2, i1)`` of each quadratic's ``(c2, c1)`` variables (dc gauge,
+        second-order basis): two per section, numerator then denominator."""
+        if self.gauge != "dc" or self.structure.basis != "second-order":
+            raise OptionError("a damping floor needs the 'dc' gauge and the second-order "
+                              f"basis (got gauge {self.gauge!r}, basis "
+                              f"{self.structure.basis!r})")
+        ns = self.section_size
+        return [(2 + ns * k + j, 2 + ns * k + j + 1) for k in range(self.structure.n_sections)
+                for j in (0, 2)]
+
+    def damping_constraints(self, zeta_min):
+        """``g(z) >= 0`` for a damping ratio ``>= zeta_min`` of every pole and zero.
+
+        In the dc gauge a quadratic is ``1 + c1 (s/wr) + c2 (s/wr)^2`` with
+        ``c2 = (wr/w0)^2`` and ``c1 = 2 zeta0 wr/w0``, so ``zeta0 >= zeta_min`` with
+        ``c1 >= 0`` is ``c1^2 - 4 zeta_min^2 c2 >= 0`` (a zero at infinity, ``c2 = 0``, is
+        always admissible). Returns a function of an (n,) CasADi/numpy vector giving the
+        (2N,) constraint values.
+        """
+        pairs = self.damping_pairs()
+        k4 = 4.0 * float(zeta_min) ** 2
+
+        def g(z):
+            vals = [z[i1] * z[i1] - k4 * z[i2] for i2, i1 in pairs]
+            if isinstance(z, np.ndarray):
+                return np.array(vals, float)
+            import casadi as ca
+
+            return ca.vertcat(*vals)
+
+        return g
+
+    def project_damping(self, z, zeta_min):
+        """``z`` with each ``c1`` raised (never lowered) to satisfy the damping floor."""
+        z = np.array(z, float)
+        for i2, i1 in self.damping_pairs():
+            floor = 2.0 * float(zeta_min) * np.sqrt(max(z[i2], 0.0))
+            if z[i1] < floor:
+                z[i1] = floor * (1.0 + 1e-9)
+        return z
+
     # ---------------------------------------------------------------- conversions
     def to_beta(self, z):
         """Thesis parameters ``beta`` (numpy, >= 0) of the variables ``z``."""

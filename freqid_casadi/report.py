@@ -224,9 +224,17 @@ def fit_summary(result, *, command, title=None, thesis=None):
         "stages": [_stage_dict(s) for s in result.stages],
         "thesis": _thesis_dict(thesis),
         "options": _clean(dict(getattr(result, "options", {}) or {})),
+        "resolution": _resolution_dict(getattr(result, "resolution", None)),
         "files": list(REPORT_FILES),
     }
     return _clean(summary)
+
+
+def _resolution_dict(check):
+    if check is None:
+        return None
+    return {"ok": bool(check.ok), "n_flagged_pairs": len(check.flags),
+            "n_unresolved": len(check.unresolved)}
 
 
 def _min_damping(roots):
@@ -294,6 +302,17 @@ def render_fit_summary(summary):
         ("P_N stable", stable),
         ("P_N minimum phase", minph),
     ]
+    floor = (s.get("options") or {}).get("min_damping")
+    if floor is not None:
+        rows.append(("damping floor", f"zeta >= {_num(floor)} on every pole and zero "
+                                      "(min_damping, imposed in every stage NLP)"))
+    res = s.get("resolution")
+    if res is not None:
+        rows.append(("resolution check", "passed: no pole or zero narrower than the spacing"
+                     if res["ok"] else
+                     f"FAILED: {res['n_flagged_pairs']} near-cancelling pair(s), "
+                     f"{res['n_unresolved']} unresolved pole(s)/zero(s) narrower than the "
+                     "frequency spacing (try min_damping='auto')"))
     lines += [markdown_table(rows, ("quantity", "value")), ""]
 
     if s.get("thesis"):

@@ -195,7 +195,23 @@ def test_fit_options_are_passed(workdir, capsys, fake_fit, fast_figures):
     assert data.name == "plant" and data.n_points == _OMEGA.size
     assert kw == dict(n_sections=3, integrator=False, delay=False, basis="first-order",
                       method="barrier-lm", tol=1e-3, progress=False, start="sequential",
-                      objective="least-squares")
+                      objective="least-squares", min_damping=None)
+
+
+def test_fit_min_damping_option(workdir, capsys, fake_fit, fast_figures):
+    code, _, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--min-damping", "auto",
+                       "--out", "rep")
+    assert code == 0, err
+    assert fake_fit[0][1]["min_damping"] == "auto"
+    code, _, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--min-damping", "0.02",
+                       "--out", "rep2")
+    assert code == 0, err
+    assert fake_fit[1][1]["min_damping"] == 0.02
+    for bad in ("-1", "1.5", "lots", "nan"):
+        code, out, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--min-damping",
+                             bad, "--out", "rep3")
+        assert code == 2 and err.startswith("error:") and "--min-damping" in err
+        assert "Traceback" not in err
 
 
 @pytest.mark.parametrize("name, n_sections, integrator, delay, basis", [

@@ -225,3 +225,28 @@ def test_affine_derivatives_need_the_dc_gauge():
     with pytest.raises(OptionError, match="unknown derivatives"):
         StageFunctions(_param("dc", "second-order", False), OMEGA, np.ones(OMEGA.size),
                        derivatives="fd")
+
+
+def test_damping_constraints_and_projection():
+    """c1^2 - 4 zeta_min^2 c2 >= 0 <=> zeta >= zeta_min for 1 + c1 x + c2 x^2; projection
+    only raises c1, and a zero at infinity (c2 = 0) is admissible."""
+    param = _param("dc", "second-order", False)
+    z = np.array([0.3, 1.0] + [1.0, 0.001, 4.0, 0.5] + [0.0, 0.0, 0.25, 0.005]
+                 + [2.0, 3.0, 1.0, 0.02])
+    zeta_min = 0.01
+    g = param.damping_constraints(zeta_min)
+    zs = param.project_damping(z, zeta_min)
+    beta = param.to_beta(zs)
+    s = RationalDelayModel(param.structure, beta).sections()
+    finite = s[:, 0] > 0                                    # the zero at infinity has a = 0
+    assert np.all(s[finite, 1] / np.sqrt(s[finite, 0]) >= zeta_min * (1 - 1e-12))
+    assert np.all(s[:, 4] / np.sqrt(s[:, 3]) >= zeta_min * (1 - 1e-12))
+    assert np.all(g(zs) >= 0) and np.any(g(z) < 0)
+    assert np.all(zs >= z) and np.count_nonzero(zs != z) == 2       # two raised c1's
+    zsym = ca.SX.sym("z", param.n_vars)
+    gf = ca.Function("g", [zsym], [g(zsym)])
+    np.testing.assert_allclose(gf(z).full().ravel(), g(z), rtol=1e-15)
+    with pytest.raises(OptionError, match="dc"):
+        _param("b1", "second-order", False).damping_constraints(0.01)
+    with pytest.raises(OptionError, match="second-order"):
+        _param("dc", "first-order", False).damping_constraints(0.01)

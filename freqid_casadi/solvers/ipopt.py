@@ -36,7 +36,7 @@ def ipopt_status(return_status):
 
 def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
                         max_iter=3000, tol=1e-12, warm_start=True, ipopt_options=None,
-                        verbose=False):
+                        verbose=False, constraints=None):
     """Minimise ``||r(z)||^2`` subject to ``lb <= z <= ub`` with IPOPT.
 
     Parameters
@@ -67,6 +67,11 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
         Extra IPOPT options (without the ``ipopt.`` prefix); they override the defaults.
     verbose : bool
         Let IPOPT print its iteration log.
+    constraints : callable, optional
+        ``g(z) >= 0``: maps a CasADi (n,) vector to the constraint vector (e.g.
+        :meth:`~freqid_casadi.objective.Parametrization.damping_constraints`). Its Jacobian
+        and its part of the Lagrangian's Hessian come from CasADi's AD; ``x0`` should be
+        feasible (IPOPT then keeps it so).
 
     Returns
     -------
@@ -86,6 +91,13 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
     z = ca.MX.sym("z", n)
     f = ca.sumsqr(funcs.r_fun(z))
     nlp = {"x": z, "f": f}
+    hess_g = None
+    if constraints is not None:
+        g = constraints(z)
+        nlp["g"] = g
+        lam_g = ca.MX.sym("lam_g", g.numel())
+        hess_g = ca.Function("hess_g", [z, lam_g],
+                             [ca.densify(ca.hessian(ca.dot(lam_g, g), z)[0])])
     opts = {
         "print_time": False,
         "error_on_fail": False,
@@ -107,7 +119,7 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
     if hessian == "limited-memory":
         opts["ipopt"]["hessian_approximation"] = "limited-memory"
     else:
-        keep.append(_Hess(funcs, hessian))
+        keep.append(_Hess(funcs, hessian, hess_g))
         opts["hess_lag"] = keep[1]
     use_warm = warm_start and lam_x0 is not None
     if use_warm:
@@ -131,6 +143,8 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
     solver = ca.nlpsol("stage", "ipopt", nlp, opts)
     t_build = time.perf_counter() - t0
     args = {"x0": x0, "lbx": lb, "ubx": ub}
+    if constraints is not None:
+        args.update(lbg=0.0, ubg=np.inf)
     if use_warm:
         args["lam_x0"] = np.asarray(lam_x0, float)
     t_solve = time.perf_counter()
@@ -215,9 +229,11 @@ def _make_callbacks():
     class Hess(ca.Callback):
         """``nlp_hess_l``: (x, p, lam_f, lam_g) -> triu(lam_f * Hessian of the cost)."""
 
-        def __init__(self, funcs, kind):
+        def __init__(self, funcs, kind, hess_g=None):
             ca.Callback.__init__(self)
             self.funcs = funcs
+            self.hess_g = hess_g
+            self.ng = 0 if hess_g is None else hess_g.numel_in(1)
             self.exact = kind != "gauss-newton"
             self.clip = kind == "exact-clip"
             n = self.n = funcs.param.n_vars
@@ -242,7 +258,7 @@ def _make_callbacks():
 
         def get_sparsity_in(self, i):
             return [ca.Sparsity.dense(self.n, 1), ca.Sparsity.dense(0, 1),
-                    ca.Sparsity.dense(1, 1), ca.Sparsity.dense(0, 1)][i]
+                    ca.Sparsity.dense(1, 1), ca.Sparsity.dense(self.ng, 1)][i]
 
         def get_sparsity_out(self, i):
             return self.sp
@@ -255,14 +271,20 @@ def _make_callbacks():
             lam_f = float(np.frombuffer(arg[2], dtype=np.float64)[0])
             if res[0] is None:
                 return 0
-            h = self.funcs.hessian(x, exact=self.exact, clip=self.clip)
-            np.multiply(h.ravel().take(self.flat), lam_f,
-                        out=np.frombuffer(res[0], dtype=np.float64))
+            h = lam_f * self.funcs.hessian(x, exact=self.exact, clip=self.clip)
+            if self.ng:
+                lam_g = (np.zeros(self.ng) if arg[3] is None
+                         else np.frombuffer(arg[3], dtype=np.float64))
+                h = h + self.hess_g(x, lam_g).full()
+            np.copyto(np.frombuffer(res[0], dtype=np.float64), h.ravel().take(self.flat))
             return 0
 
         def eval(self, arg):
-            h = self.funcs.hessian(arg[0].full().reshape(-1), exact=self.exact, clip=self.clip)
-            return [ca.DM(self.sp, float(arg[2]) * h[self.rows, self.cols])]
+            x = arg[0].full().reshape(-1)
+            h = float(arg[2]) * self.funcs.hessian(x, exact=self.exact, clip=self.clip)
+            if self.ng:
+                h = h + self.hess_g(x, arg[3]).full()
+            return [ca.DM(self.sp, h[self.rows, self.cols])]
 
     return GradF, Hess
 
@@ -280,8 +302,8 @@ def _GradF(funcs):
     return _callback_classes()[0](funcs)
 
 
-def _Hess(funcs, kind):
-    return _callback_classes()[1](funcs, kind)
+def _Hess(funcs, kind, hess_g=None):
+    return _callback_classes()[1](funcs, kind, hess_g)
 
 
 def solve_minimax(funcs, x0, lb, ub, *, max_iter=300, tol=1e-10, verbose=False):
