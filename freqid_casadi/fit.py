@@ -335,8 +335,10 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         data; "best" runs both (the rational start begins at the sequential delay) and
         keeps the lower max relative error (``FitResult.start`` says which won).
     objective : {"least-squares", "minimax"}
-        "minimax" adds an epigraph polish ``min t s.t. |r_i|^2 <= t``, kept only if it
-        lowers the max relative error (and the start is below 1).
+        "minimax" adds a polish of the max relative error: a continuation in p of the
+        p-norm of the residuals (p = 4 ... 1024, :data:`PNORM_SCHEDULE`), each stage an
+        IPOPT NLP with true bounds; kept only if it lowers the max relative error (and the
+        start is below 1).
     derivatives : {None, "affine", "casadi-map"}
         How the stage derivatives are evaluated (both exact, same results to rounding):
         None picks "affine" (numpy over points x sections; "dc" gauge only) or
@@ -579,23 +581,48 @@ def _rational(ctx, delay0):
     return param, z, lam, records
 
 
+PNORM_SCHEDULE = (4, 8, 16, 32, 64, 128, 256, 512, 1024)
+
+
 def _minimax(ctx, param, z):
-    """Epigraph polish of the max relative error; kept only if it lowers the max error and
-    the start is below 1 (an infinite-gain model has relative error exactly 1 everywhere,
-    the trap of a minimax stage started above 1)."""
-    from .solvers.ipopt import solve_minimax
+    """Polish of the max relative error by a continuation in p of the p-norm of the
+    residuals (:func:`~freqid_casadi.solvers.ipopt.solve_pnorm`, p = 4 ... 1024, each an
+    IPOPT NLP with true bounds started from the last), keeping the point with the lowest
+    max error. Kept only if it lowers the max error and the start is below 1 (an
+    infinite-gain model has relative error exactly 1 everywhere, the trap of a minimax
+    stage started above 1)."""
+    from .solvers.ipopt import solve_pnorm
 
     data = ctx.data
     funcs = stage_functions(param, data.omega, data.response, data.weights)
     lb, ub = param.bounds()
-    before = float(np.max(param.to_model(z).relative_error(data)))
+    cons = None
+    if ctx.zeta_min is not None and param.structure.n_sections:
+        cons = param.damping_constraints(ctx.zeta_min)
+
+    def max_err(x):
+        return float(np.max(param.to_model(x).relative_error(data)))
+
+    before = max_err(z)
     t0 = time.perf_counter()
-    res = solve_minimax(funcs, z, lb, ub, max_iter=ctx.final_max_iter)
-    after = float(np.max(param.to_model(res.x).relative_error(data)))
-    ok = before < 1.0 and np.isfinite(after) and after < before
-    z_new = res.x if ok else z
+    best_x, best_e, best_p = z, before, None
+    x, nit, nfev, res = z, 0, 0, None
+    for p in PNORM_SCHEDULE:
+        res = solve_pnorm(funcs, x, lb, ub, p, max_iter=ctx.final_max_iter, constraints=cons)
+        nit, nfev = nit + res.nit, nfev + res.nfev
+        if res.status == Status.ERROR:
+            break
+        x = res.x if cons is None else param.project_damping(res.x, ctx.zeta_min)
+        e = max_err(x)
+        if np.isfinite(e) and e < best_e:
+            best_x, best_e, best_p = x, e, p
+    ok = before < 1.0 and best_p is not None and best_e < before
+    z_new = best_x if ok else z
+    res = dataclasses.replace(res, solver_status=f"p-norm to p={PNORM_SCHEDULE[-1]}"
+                              + (f", best at p={best_p}" if best_p else "")
+                              + f" (last: {res.solver_status})")
     rec = _record(param.structure.n_sections + 2, param, z_new, data, data.n_points,
-                  math.nan, res, res.nit, res.nfev, time.perf_counter() - t0,
+                  math.nan, res, nit, nfev, time.perf_counter() - t0,
                   "minimax" if ok else "minimax-rejected")
     ctx.callback(rec)
     return z_new, rec

@@ -81,6 +81,24 @@ def test_minimax_is_kept_only_if_it_lowers_the_max_error():
     assert mm.objective == "minimax"
 
 
+def test_pnorm_continuation_lowers_the_max_error():
+    """A two-section fit of data from a three-section model: the polish trades RMS for a
+    lower max error."""
+    beta = [0.0, 2.0, 1.0, 0.05, 2.0, 1.0, 0.08, 3.0, 1.0, 0.03, 9.0, 1.0, 0.05, 7.0,
+            1.0, 0.3, 30.0, 1.0, 0.4, 40.0]
+    true = fc.RationalDelayModel(fc.Structure(3, False, True), beta)
+    w = np.logspace(0, 2, 150)
+    data = fc.FrequencyData(w, true.frequency_response(w), "three modes")
+    ls = fc.fit(data, n_sections=2, delay=False)
+    mm = fc.fit(data, n_sections=2, delay=False, objective="minimax")
+    assert mm.stages[-1].kept == "minimax"
+    assert "p-norm" in mm.stages[-1].solver_status
+    assert ls.max_rel_error < 1.0                    # measured 0.740 -> 0.665
+    assert mm.max_rel_error < 0.95 * ls.max_rel_error
+    assert mm.rms_rel_error >= ls.rms_rel_error * (1 - 1e-9)
+    assert np.all(mm.model.beta >= 0)
+
+
 def test_minimax_trap_above_one_is_rejected():
     """Started from a model with max relative error >= 1, the polish is not kept (an
     infinite-gain model has relative error exactly 1 everywhere)."""
@@ -163,7 +181,15 @@ def test_example_b_reaches_thesis_value_at_16_sections():
 
 
 @pytest.mark.slow
-@pytest.mark.xfail(strict=True, reason="measured 0.331 (best of the sequential 0.331 and "
-                   "rational 0.353 starts) > 0.25 at 9 sections on G_B")
-def test_example_b_9_sections_best_start():
-    assert _fit("B", 9, "best").max_rel_error <= 0.25
+def test_example_b_9_sections_minimax():
+    """<= 0.25 at 9 sections (order 18) on G_B: least squares stops at 0.331 (the best of
+    the sequential and rational starts), the p-norm continuation polish equalises the
+    error peaks (measured 0.248)."""
+    ls = _fit("B", 9, "best")
+    res = fc.fit(fc.systems.G_B(), n_sections=9, objective="minimax", start="best")
+    print(f"\nB, 9 sections: least squares {ls.max_rel_error:.4g}, minimax "
+          f"{res.max_rel_error:.4g}")
+    assert ls.max_rel_error > 0.25                     # the polish is what gets there
+    assert res.max_rel_error <= 0.25
+    assert res.stages[-1].kept == "minimax"
+    assert res.model.is_stable() and res.model.is_minimum_phase()
