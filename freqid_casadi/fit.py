@@ -120,7 +120,7 @@ class FitResult:
     start : str
         Which start produced the model ("sequential" or "rational").
     objective : str
-        "least-squares", or "minimax" if the epigraph polish ran.
+        "least-squares", or "minimax" if the max-error polish (p-norm continuation) ran.
     resolution : freqid_casadi.validation.ResolutionCheck or None
         The model checked against the data's frequency spacing (None for the first-order
         basis, whose real roots are never narrow); when ``resolution.ok`` is False,

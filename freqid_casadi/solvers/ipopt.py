@@ -12,7 +12,7 @@ from ..errors import OptionError
 from .common import (StageResult, Status, SUCCESS_STATUSES, TERMINATION_MESSAGES,
                      find_active_constraints)
 
-__all__ = ["HESSIANS", "solve_least_squares", "solve_minimax", "solve_pnorm", "ipopt_status"]
+__all__ = ["HESSIANS", "solve_least_squares", "solve_pnorm", "ipopt_status"]
 
 HESSIANS = ("exact", "exact-clip", "gauss-newton", "limited-memory")
 
@@ -304,58 +304,6 @@ def _GradF(funcs):
 
 def _Hess(funcs, kind, hess_g=None):
     return _callback_classes()[1](funcs, kind, hess_g)
-
-
-def solve_minimax(funcs, x0, lb, ub, *, max_iter=300, tol=1e-10, verbose=False):
-    """Minimise the largest squared relative residual (epigraph form) with IPOPT.
-
-    ``min_{z, t} t  s.t.  |r_i(z)|^2 <= t  (i = 1..M),  lb <= z <= ub``, with ``t`` scaled by
-    its start value; derivatives by CasADi's AD of the symbolic residual, a limited-memory
-    Hessian.
-
-    Returns
-    -------
-    StageResult
-        ``x`` (without t) projected on the bounds; ``cost`` is the max |r_i|^2 there.
-    """
-    import casadi as ca
-
-    t_start = time.perf_counter()
-    n = funcs.param.n_vars
-    m = funcs.n_points
-    lb = np.asarray(lb, float)
-    ub = np.asarray(ub, float)
-    x0 = np.clip(np.asarray(x0, float), lb, ub)
-    r0 = funcs.residual(x0)
-    t_ref = float(np.max(r0[:m] ** 2 + r0[m:] ** 2))
-    if not (np.isfinite(t_ref) and t_ref > 0):
-        t_ref = 1.0
-    z = ca.MX.sym("z", n)
-    t = ca.MX.sym("t")
-    r = funcs.r_fun(z)
-    g = t * t_ref - (r[:m] ** 2 + r[m:] ** 2)          # >= 0
-    nlp = {"x": ca.vertcat(z, t), "f": t, "g": g / t_ref}
-    opts = {"print_time": False, "error_on_fail": False,
-            "ipopt": {"print_level": 5 if verbose else 0, "sb": "yes",
-                      "max_iter": int(max_iter), "tol": float(tol),
-                      "hessian_approximation": "limited-memory",
-                      "bound_relax_factor": 0.0, "bound_push": 1e-9, "bound_frac": 1e-9}}
-    solver = ca.nlpsol("minimax", "ipopt", nlp, opts)
-    sol = solver(x0=np.r_[x0, 1.0], lbx=np.r_[lb, 0.0], ubx=np.r_[ub, np.inf], lbg=0.0,
-                 ubg=np.inf)
-    stats = solver.stats()
-    return_status = str(stats.get("return_status", "unknown"))
-    x = np.clip(np.array(sol["x"], float).reshape(-1)[:n], lb, ub)
-    r = funcs.residual(x)
-    cost = float(np.max(r[:m] ** 2 + r[m:] ** 2))
-    status = ipopt_status(return_status) if np.isfinite(cost) else Status.ERROR
-    return StageResult(
-        x=x, cost=cost, status=status,
-        message=f"{TERMINATION_MESSAGES[status]} (IPOPT: {return_status})",
-        success=status in SUCCESS_STATUSES, nit=int(stats.get("iter_count", 0)),
-        nfev=int(stats.get("n_call_nlp_f", 0) or 0), wall_time=time.perf_counter() - t_start,
-        active_mask=find_active_constraints(x, lb, ub, rtol=1e-8),
-        lam_x=np.array(sol["lam_x"], float).reshape(-1)[:n], solver_status=return_status)
 
 
 def solve_pnorm(funcs, x0, lb, ub, p, *, max_iter=300, tol=1e-10, constraints=None,
