@@ -522,6 +522,11 @@ class StageFunctions:
             self._n0, self._d0 = n0, d0
             self._dnum_nz = np.array([dnum[i] for i in self._idx_num])     # (kn, nsec, M)
             self._dden_nz = np.array([dden[i] for i in self._idx_den])     # (kd, nsec, M)
+            # the same, (nsec, k, M), the numerator's negated: dlog q = dlog den - dlog num
+            if nsec:
+                self._neg_dnum_t = -np.ascontiguousarray(self._dnum_nz.transpose(1, 0, 2))
+                self._dden_t = np.ascontiguousarray(self._dden_nz.transpose(1, 0, 2))
+            self._sl_num, self._sl_den = _as_slice(self._idx_num), _as_slice(self._idx_den)
             self._lg = np.empty((n, m), complex)
         else:
             r_point, d_point = _point_functions(param)
@@ -554,7 +559,8 @@ class StageFunctions:
         """Derivative pieces at ``z`` (cached on the bytes of ``z``):
 
         ``_r`` (M,) complex residual, ``_sq`` (M,) = sqrt_w q, ``_L`` (n, M) = dlog q/dz,
-        ``_blk``: per-section ``(indices, dlog factor/dv (len(indices), nsec, M), sign)``
+        ``_blk``: per-section ``(indices, dlog factor/dv (nsec, len(indices), M), sign)``
+        (the numerator's entries may be negated: only their products are used)
         for the numerators (+1) and denominators (-1), and
         ``_t2`` (M, nsec ns^2) second-derivative terms or None.
         """
@@ -587,12 +593,12 @@ class StageFunctions:
             inum = 1.0 / (self._n0 + np.sum(vn * self._dnum_nz, axis=0))    # (nsec, M)
             iden = 1.0 / (self._d0 + np.sum(vd * self._dden_nz, axis=0))
             q = q * np.prod(inum / iden, axis=0)
-            sln = self._dnum_nz * inum                                      # (kn, nsec, M)
-            sld = self._dden_nz * iden
+            # dlog q/dv straight into L's rows: -dnum/num and +dden/den, (nsec, k, M) views
             sec = lg[2:].reshape(nsec, ns, m)
-            sec[:, self._idx_num] = -sln.transpose(1, 0, 2)
-            sec[:, self._idx_den] = sld.transpose(1, 0, 2)
-            self._blk = [(self._idx_num, sln, 1.0), (self._idx_den, sld, -1.0)]
+            ln = _product_into(self._neg_dnum_t, inum[:, None, :], sec, self._sl_num)
+            ld = _product_into(self._dden_t, iden[:, None, :], sec, self._sl_den)
+            # the blocks need products of two log-derivatives: the sign of -dnum cancels
+            self._blk = [(self._idx_num, ln, 1.0), (self._idx_den, ld, -1.0)]
         self._sq = q
         self._r = q - self._sw
         self._L, self._t2 = lg, None
@@ -609,8 +615,8 @@ class StageFunctions:
         self._r, self._sq = r.copy(), sq.copy()
         ld, ln = ld.reshape(m, n), ln.reshape(m, n)
         self._L = np.ascontiguousarray((ld - ln).T)
-        sln = np.ascontiguousarray(ln[:, 2:].reshape(m, nsec, ns).transpose(2, 1, 0))
-        sld = np.ascontiguousarray(ld[:, 2:].reshape(m, nsec, ns).transpose(2, 1, 0))
+        sln = np.ascontiguousarray(ln[:, 2:].reshape(m, nsec, ns).transpose(1, 2, 0))
+        sld = np.ascontiguousarray(ld[:, 2:].reshape(m, nsec, ns).transpose(1, 2, 0))
         full = list(range(ns))
         self._blk = [] if not nsec else [(full, sln, 1.0), (full, sld, -1.0)]
         self._t2 = t2.reshape(m, self.n_t2).copy() if self.n_t2 else None
@@ -656,12 +662,11 @@ class StageFunctions:
             nsec, ns = self.param.structure.n_sections, self.param.section_size
             if nsec:
                 # per-section blocks sum_i c_i (ln ln^T - ld ld^T), over the variables each
-                # factor depends on: (k, k, nsec) products contracted with c
+                # factor depends on: (nsec, k, k) products contracted with c
                 blocks = np.zeros((nsec, ns, ns))
                 for idx, s_, sign in self._blk:
-                    pk = (s_[:, None] * s_[None, :]) @ c                  # (k, k, nsec)
-                    blocks[:, np.ix_(idx, idx)[0], np.ix_(idx, idx)[1]] += (
-                        sign * pk.real.transpose(2, 0, 1))
+                    pk = (s_[:, :, None] * s_[:, None, :]) @ c            # (nsec, k, k)
+                    blocks[:, np.ix_(idx, idx)[0], np.ix_(idx, idx)[1]] += sign * pk.real
                 if self._t2 is not None:
                     blocks = blocks + (c @ self._t2).real.reshape(nsec, ns, ns)
                 diag = np.arange(nsec)
@@ -675,6 +680,25 @@ class StageFunctions:
             h = (vec * np.maximum(lam, 0.0)) @ vec.T
             h = (h + h.T) / 2.0
         return h
+
+
+def _as_slice(idx):
+    """A slice for a run of consecutive indices (a view when indexing), else the list."""
+    if idx and list(idx) == list(range(idx[0], idx[-1] + 1)):
+        return slice(idx[0], idx[-1] + 1)
+    return list(idx)
+
+
+def _product_into(a, b, sec, sl):
+    """``a * b`` written into ``sec[:, sl]``; returns the written block (a view if ``sl`` is
+    a slice)."""
+    if isinstance(sl, slice):
+        out = sec[:, sl]
+        np.multiply(a, b, out=out)
+        return out
+    out = a * b
+    sec[:, sl] = out
+    return out
 
 
 def stage_functions(param, omega, response, weights=None, parallel=False, derivatives=None):

