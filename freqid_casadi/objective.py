@@ -44,7 +44,7 @@ from .errors import OptionError, StructureError
 from .model import RationalDelayModel, Structure
 
 __all__ = ["GAUGES", "Parametrization", "relative_residual", "rel_error_stats",
-           "stage_functions", "StageFunctions"]
+           "stage_functions", "StageFunctions", "PNormFunctions"]
 
 GAUGES = ("dc", "b1", "raw")
 
@@ -637,8 +637,9 @@ class StageFunctions:
         grad = 2.0 * (self._L.view(float) @ cc.view(float))
         return float(np.vdot(r, r).real), grad
 
-    def hessian(self, z, exact=True, clip=False):
-        """Hessian of the cost, (n, n).
+    def hessian(self, z, exact=True, clip=False, point_weights=None):
+        """Hessian of the cost, (n, n); with ``point_weights`` (M,) the Hessian of
+        ``sum_i point_weights_i |r_i|^2`` instead.
 
         ``2 Re(J^H J)`` (Gauss-Newton) plus, if ``exact``,
         ``2 Re sum_i c_i (L_i L_i^T + d2 log q_i)`` with ``c_i = conj(r_i) sqrt_w_i q_i``.
@@ -650,10 +651,12 @@ class StageFunctions:
         self._eval(z)
         lg = self._L
         a = self._sq.real ** 2 + self._sq.imag ** 2                   # |sqrt_w q|^2
+        c = np.conj(self._r) * self._sq
+        if point_weights is not None:
+            a, c = a * point_weights, c * point_weights
         if not exact:
             y = lg * a
         else:
-            c = np.conj(self._r) * self._sq
             y = lg * a
             y += np.conj(lg * c)
         h = lg.view(float) @ y.view(float).T
@@ -676,6 +679,68 @@ class StageFunctions:
         h = 2.0 * h
         if clip:
             # modified Newton: clip negative curvature to zero (eigen-clip)
+            lam, vec = np.linalg.eigh(h)
+            h = (vec * np.maximum(lam, 0.0)) @ vec.T
+            h = (h + h.T) / 2.0
+        return h
+
+
+class PNormFunctions:
+    """The p-norm stand-in for the largest squared relative residual,
+    ``F(z) = (1/p) log sum_i (e_i/s)^(p/2)`` with ``e_i = |r_i|^2``, and its exact gradient
+    and Hessian from a stage's :class:`StageFunctions` (same interface: ``param``,
+    ``gradient``, ``hessian``).
+
+    With softmax weights ``w_i = (e_i/s)^(p/2) / sum_j (e_j/s)^(p/2)`` and ``u_i = w_i/e_i``:
+    ``grad F = 1/2 sum_i u_i grad e_i`` and
+    ``hess F = 1/2 sum_i u_i hess e_i + 1/2 (p/2 - 1) sum_i (u_i/e_i) grad e_i grad e_i^T
+    - p grad F grad F^T``, where ``sum_i u_i hess e_i`` is the stage Hessian with point
+    weights ``u`` and ``grad e_i = 2 Re(c_i L_i)``: about the cost of one least-squares
+    Hessian, instead of AD through the log-sum-exp.
+
+    Parameters
+    ----------
+    funcs : StageFunctions
+    p : float >= 2
+    s : float > 0
+        Scale of ``e`` (the largest ``e_i`` at the start), so the terms are O(1).
+    """
+
+    def __init__(self, funcs, p, s):
+        self.funcs = funcs
+        self.param = funcs.param
+        self.n_points = funcs.n_points
+        self.p = float(p)
+        self.s = float(s)
+
+    def _parts(self, z):
+        f = self.funcs
+        f._eval(z)
+        e = np.maximum(f._r.real ** 2 + f._r.imag ** 2, 1e-300)
+        le = np.log(e)
+        t = 0.5 * self.p * (le - np.log(self.s))
+        lse = float(np.max(t) + np.log(np.sum(np.exp(t - np.max(t)))))
+        lw = t - lse                                                 # log softmax weights
+        u = np.exp(lw - le)                                          # w_i / e_i
+        c = np.conj(f._r) * f._sq
+        ge = 2.0 * (f._L.real * c.real - f._L.imag * c.imag)         # grad e_i, (n, M)
+        grad = 0.5 * (ge @ u)
+        return lse / self.p, grad, u, np.exp(lw - 2.0 * le), ge
+
+    def gradient(self, z):
+        """``(F, grad F)``."""
+        value, grad, *_ = self._parts(z)
+        return value, grad
+
+    def hessian(self, z, exact=True, clip=False):
+        """Exact Hessian of ``F`` (n, n); ``exact=False`` drops the residuals' second
+        derivatives inside ``hess e_i`` (Gauss-Newton-like)."""
+        _, grad, u, beta, ge = self._parts(z)
+        h = 0.5 * self.funcs.hessian(z, exact=exact, point_weights=u)
+        h += 0.5 * (0.5 * self.p - 1.0) * ((ge * beta) @ ge.T)
+        h -= self.p * np.outer(grad, grad)
+        h = (h + h.T) / 2.0
+        if clip:
             lam, vec = np.linalg.eigh(h)
             h = (vec * np.maximum(lam, 0.0)) @ vec.T
             h = (h + h.T) / 2.0

@@ -314,8 +314,10 @@ def solve_pnorm(funcs, x0, lb, ub, p, *, max_iter=300, tol=1e-10, constraints=No
 
     As p grows it tends to ``log max_i |r_i|`` (minus ``log sqrt(s)``); a continuation in p,
     each stage started from the last, walks down to the minimax point while every stage
-    stays a smooth NLP with true bounds. Exact derivatives: CasADi's AD of the residual,
-    which is one MX expression vectorised over the points.
+    stays a smooth NLP with true bounds. The objective is the log-sum-exp of the vectorised
+    MX residual; its exact gradient and Hessian come from the stage's structured
+    derivatives (:class:`~freqid_casadi.objective.PNormFunctions`) through the same
+    callbacks as :func:`solve_least_squares`.
 
     Parameters
     ----------
@@ -344,16 +346,26 @@ def solve_pnorm(funcs, x0, lb, ub, p, *, max_iter=300, tol=1e-10, constraints=No
     s = float(np.max(r0[:m] ** 2 + r0[m:] ** 2))
     if not (np.isfinite(s) and s > 0):
         s = 1.0
+    from ..objective import PNormFunctions
+
     z = ca.MX.sym("z", n)
     r = funcs.r_fun(z)
     e2 = (r[:m] ** 2 + r[m:] ** 2) / s
     # log-sum-exp of (p/2) log e2: no overflow at trial points far from x0 (p up to 1e3)
     nlp = {"x": z, "f": ca.logsumexp(0.5 * float(p) * ca.log(e2 + 1e-300)) / float(p)}
     args = {"x0": x0, "lbx": lb, "ubx": ub}
+    hess_g = None
     if constraints is not None:
-        nlp["g"] = constraints(z)
+        g = constraints(z)
+        nlp["g"] = g
+        lam_g = ca.MX.sym("lam_g", g.numel())
+        hess_g = ca.Function("hess_g", [z, lam_g],
+                             [ca.densify(ca.hessian(ca.dot(lam_g, g), z)[0])])
         args.update(lbg=0.0, ubg=np.inf)
+    pn = PNormFunctions(funcs, p, s)
+    keep = [_GradF(pn), _Hess(pn, "exact", hess_g)]     # must outlive the solver
     opts = {"print_time": False, "error_on_fail": False, "show_eval_warnings": False,
+            "grad_f": keep[0], "hess_lag": keep[1],
             "ipopt": {"print_level": 5 if verbose else 0, "sb": "yes",
                       "max_iter": int(max_iter), "tol": float(tol),
                       "bound_relax_factor": 0.0, "honor_original_bounds": "yes",
@@ -367,6 +379,7 @@ def solve_pnorm(funcs, x0, lb, ub, p, *, max_iter=300, tol=1e-10, constraints=No
         lam_x = np.array(sol["lam_x"], float).reshape(-1)
     except RuntimeError as exc:
         stats, return_status, x, lam_x = {}, f"exception: {exc}", x0, np.zeros(n)
+    del keep
     rr = funcs.residual(x)
     cost = float(np.max(rr[:m] ** 2 + rr[m:] ** 2))
     status = ipopt_status(return_status) if np.isfinite(cost) else Status.ERROR
