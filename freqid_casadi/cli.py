@@ -31,7 +31,7 @@ from .data import load
 from .errors import FreqidError, OptionError, ResolutionWarning
 from .fit import METHODS, OBJECTIVES, STARTS, fit
 from .model import BASES
-from .report import check_out_dir, write_fit_report
+from .report import check_out_dir, dense_error, write_fit_report
 
 __all__ = ["main", "build_parser", "EXAMPLES", "FRACTIONAL_SECTIONS", "PROG"]
 
@@ -270,16 +270,20 @@ def _cmd_example(args, command):
         result = fit(data, n_sections=n_sections, integrator=ex["integrator"],
                      delay=ex["delay"], basis=ex["basis"], method=args.method,
                      progress=_progress(args), start=args.start, objective=args.objective)
+    truth = lambda w: ex["data"](omega=w).response  # noqa: E731
     path = write_fit_report(result, out, command=command, force=args.force,
-                            title=f"Example {args.name}: {data.name}", thesis=ex["thesis"])
+                            title=f"Example {args.name}: {data.name}", thesis=ex["thesis"],
+                            truth=truth)
+    dense = dense_error(result.model, data.omega, truth)
     t = ex["thesis"] or {}
     per = 2 if ex["basis"] == "second-order" else 1
-    row = (args.name, per * n_sections, _g(result.max_rel_error), _g(result.rms_rel_error),
+    row = (args.name, per * n_sections, _g(result.max_rel_error),
+           _g(dense["max_rel_error"]), _g(result.rms_rel_error),
            _g(result.model.delay), f"{result.wall_time:.1f}",
            t.get("order", "-"), _g(t.get("max_rel_error")), _g(t.get("delay")))
-    print(_text_table([row], ("example", "order", "max rel. err", "RMS rel. err",
-                              "delay (s)", "time (s)", "thesis order", "thesis max",
-                              "thesis delay")))
+    print(_text_table([row], ("example", "order", "max rel. err", "10x grid",
+                              "RMS rel. err", "delay (s)", "time (s)", "thesis order",
+                              "thesis max", "thesis delay")))
     _resolution_warning(result)
     if not result.success:
         print(f"warning: the final stage stopped at {result.stages[-1].solver_status} "

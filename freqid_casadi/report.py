@@ -165,7 +165,7 @@ def check_out_dir(out_dir, force=False):
 # ----------------------------------------------------------------------------- summary
 
 
-def fit_summary(result, *, command, title=None, thesis=None):
+def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_factor=10):
     """Everything a fit report states, as a JSON-safe dict (the content of summary.json).
 
     Parameters
@@ -178,6 +178,11 @@ def fit_summary(result, *, command, title=None, thesis=None):
     thesis : dict, optional
         Published numbers to compare with, keys among ``order`` (order of P_N),
         ``max_rel_error``, ``rms_rel_error``, ``delay`` (s) and ``source`` (str).
+    truth : callable, optional
+        ``truth(omega) -> complex ndarray``: the true system (analytic benchmarks). The
+        report then also gives the relative error on a log grid ``dense_factor`` times
+        denser than the data (the honest error between the samples).
+    dense_factor : int
 
     Returns
     -------
@@ -225,9 +230,26 @@ def fit_summary(result, *, command, title=None, thesis=None):
         "thesis": _thesis_dict(thesis),
         "options": _clean(dict(getattr(result, "options", {}) or {})),
         "resolution": _resolution_dict(getattr(result, "resolution", None)),
+        "dense": dense_error(model, data.omega, truth, dense_factor),
         "files": list(REPORT_FILES),
     }
     return _clean(summary)
+
+
+def dense_error(model, omega, truth, factor=10):
+    """Relative error against the true system on a log grid ``factor`` times denser than
+    ``omega``: dict with ``factor``, ``n_points``, ``max_rel_error``,
+    ``omega_at_max_rel_error`` (rad/s), ``rms_rel_error``; None without ``truth``."""
+    if truth is None:
+        return None
+    from .validation import dense_grid   # lazy: validation builds on fit
+
+    grid = dense_grid(omega, factor)
+    err = np.abs(np.asarray(truth(grid)) / model.frequency_response(grid) - 1.0)
+    i = int(np.argmax(err))
+    return {"factor": int(factor), "n_points": int(grid.size),
+            "max_rel_error": float(err[i]), "omega_at_max_rel_error": float(grid[i]),
+            "rms_rel_error": float(np.sqrt(np.mean(err ** 2)))}
 
 
 def _resolution_dict(check):
@@ -294,6 +316,14 @@ def render_fit_summary(summary):
         ("max relative error", f"{_num(s['max_rel_error'])} at "
                                f"{_num(s['omega_at_max_rel_error'])} rad/s"),
         ("RMS relative error", _num(s["rms_rel_error"])),
+    ]
+    dn = s.get("dense")
+    if dn:
+        rows.append((f"max relative error between the samples ({dn['factor']}x denser grid, "
+                     "true system)", f"{_num(dn['max_rel_error'])} at "
+                                     f"{_num(dn['omega_at_max_rel_error'])} rad/s (RMS "
+                                     f"{_num(dn['rms_rel_error'])})"))
+    rows += [
         ("delay h", f"{_num(s['delay'], 6)} s"),
         ("gain", _num(s["gain"], 6)),
         ("wall time", f"{_num(s['wall_time'])} s"),
@@ -424,7 +454,8 @@ def report_folder(out_dir, force=False):
         raise
 
 
-def write_fit_report(result, out_dir, *, command, force=False, title=None, thesis=None):
+def write_fit_report(result, out_dir, *, command, force=False, title=None, thesis=None,
+                     truth=None):
     """Write the report folder of a fit (see the module docstring for its files).
 
     Parameters
@@ -440,6 +471,8 @@ def write_fit_report(result, out_dir, *, command, force=False, title=None, thesi
         Title of summary.md.
     thesis : dict, optional
         Published numbers for a "thesis vs ours" table (see :func:`fit_summary`).
+    truth : callable, optional
+        The true system, for the error on a 10x denser grid (see :func:`fit_summary`).
 
     Returns
     -------
@@ -455,7 +488,7 @@ def write_fit_report(result, out_dir, *, command, force=False, title=None, thesi
         If writing fails; nothing is left behind.
     """
     path = check_out_dir(out_dir, force)
-    summary = fit_summary(result, command=command, title=title, thesis=thesis)
+    summary = fit_summary(result, command=command, title=title, thesis=thesis, truth=truth)
     with report_folder(out_dir, force) as (tmp, _):
         result.model.save(os.path.join(tmp, "model.json"))
         _write_rel_error_csv(result, os.path.join(tmp, "rel_error.csv"))

@@ -178,6 +178,26 @@ def test_report_without_thesis(result, tmp_path, fast_figures):
         report.fit_summary(result, command="x", thesis={"maxerr": 1})
 
 
+def test_dense_grid_error_with_the_true_system(result):
+    """With the true system, the report gives the error on a 10x denser grid (measured
+    there, not interpolated); the model of an exact fit is right between the samples."""
+    true = RationalDelayModel(Structure(2, integrator=True), np.array(_BETA))
+    s = report.fit_summary(result, command="x", truth=true.frequency_response)
+    dn = s["dense"]
+    assert dn["factor"] == 10 and dn["n_points"] == 600
+    grid = np.logspace(-1, 2, 600)
+    err = np.abs(true.frequency_response(grid) / result.model.frequency_response(grid) - 1)
+    assert dn["max_rel_error"] == pytest.approx(np.max(err), rel=1e-12)
+    assert dn["max_rel_error"] < 1e-6
+    md = report.render_fit_summary(s)
+    assert "between the samples (10x denser grid" in md
+    # a wrong "truth" shows up
+    bad = report.fit_summary(result, command="x",
+                             truth=lambda w: 1.1 * true.frequency_response(w))
+    assert bad["dense"]["max_rel_error"] == pytest.approx(0.1, rel=1e-5)
+    assert report.fit_summary(result, command="x")["dense"] is None
+
+
 # ----------------------------------------------------------------------------- atomicity
 
 
