@@ -58,8 +58,11 @@ class StageRecord:
     solver_status : str
     success : bool
     kept : str
-        Which point the stage kept: "solution", "start" (solution worse than its start)
-        or "previous" (both worse than the previous model with an identity section).
+        Which point the stage kept: "solution", "start" (solution worse than its start),
+        "previous" (both worse than the previous model with an identity section) or
+        "identity-retry" (the peak-initialised stage ended worse than the infinite-gain
+        model on its window, max relative error >= 1, and a second solve from the
+        thesis's identity section did better).
     delay : float
         Delay estimate (s) after the stage.
     n_active : int
@@ -518,6 +521,7 @@ def _sequential(ctx, tol, init, scale_l, warm_start, final_stage):
         new_sec = _new_section(new_param, init, scale_l, omega, phi, err, idx, z, param)
         ident = new_param.new_section(omega_c, 0.5, omega_c, 0.5, omega_c)
         prev_ext = np.concatenate([z, ident])
+        z_prev = z
         z_start = np.concatenate([z if warm_start != "none" else _cold_start(init_z, param, z),
                                   new_sec])
         lam_start = np.concatenate([lam, np.zeros(new_sec.size)])
@@ -528,7 +532,19 @@ def _sequential(ctx, tol, init, scale_l, warm_start, final_stage):
         t0 = time.perf_counter()
         res = solve(param, wdata, z_start, lam_start if warm_start == "primal-dual" else None)
         z, lam, kept = _keep_better(param, wdata, z_start, lam_start, res, prev_ext)
-        records.append(_record(n, param, z, data, window, omega_c, res, res.nit, res.nfev,
+        nit, nfev = res.nit, res.nfev
+        if init == "peak" and _max_window_error(param, wdata, z) >= 1.0:
+            # worse than the infinite-gain model (relative error 1) on the window: a local
+            # minimum of the peak placement; retry from the thesis's identity section
+            z_id = np.concatenate([z_prev, ident])
+            if ctx.zeta_min is not None:
+                z_id = param.project_damping(z_id, ctx.zeta_min)
+            res_id = solve(param, wdata, z_id,
+                           lam_start if warm_start == "primal-dual" else None)
+            nit, nfev = nit + res_id.nit, nfev + res_id.nfev
+            if _cost(param, wdata, res_id.x) < _cost(param, wdata, z):
+                res, z, lam, kept = res_id, res_id.x.copy(), res_id.lam_x.copy(), "identity-retry"
+        records.append(_record(n, param, z, data, window, omega_c, res, nit, nfev,
                                time.perf_counter() - t0, kept))
         callback(records[-1])
 
@@ -668,6 +684,10 @@ def _new_section(param, init, scale_l, omega, phi, err, idx, z, old_param):
     else:
         zn, zd = zeta0, min(zeta0 / max(rho, 1e-12), 2.0)
     return param.new_section(omega_c, zn, omega_c, zd, omega_c)
+
+
+def _max_window_error(param, data, z):
+    return float(np.max(np.abs(_ratio(param, z, data.omega, data.response) - 1.0)))
 
 
 def _cost(param, data, z):

@@ -126,16 +126,28 @@ def test_fit_random_small_problems(beta, integrator, method):
     assert np.array_equal(back.beta, beta_fit)
 
 
-@pytest.mark.xfail(strict=True, reason="found by test_fit_random_small_problems: the default "
-                   "init='peak' converges to a local minimum (max rel. error 1.02, delay "
-                   "0.057 s, zeta_den 2e-13) on data of an exact one-section model; "
-                   "init='identity' recovers it (2.5e-13)")
 def test_fit_recovers_an_exact_one_section_model():
+    """Found by test_fit_random_small_problems: the default init='peak' alone converges to a
+    local minimum here (max rel. error 1.02, delay 0.057 s, zeta_den 2e-13); a stage that
+    ends worse than the infinite-gain model on its window now retries from the thesis's
+    identity section and keeps the better point."""
+    beta = [0.0, 1.0, 1.0, 1.0, 2.0, 1.0, 1.0, 1.0]
+    model = fc.RationalDelayModel(fc.Structure(1, False, True), beta)
+    res = fc.fit(fc.FrequencyData(OMEGA, model.frequency_response(OMEGA)), n_sections=1)
+    assert res.max_rel_error < 1e-6, res.summary()
+    assert [r.kept for r in res.stages][1] == "identity-retry"
+    assert res.model.is_stable() and res.model.is_minimum_phase()
+
+
+@pytest.mark.xfail(strict=True, reason="the final stage of this exact fit stops at IPOPT's "
+                   "iteration limit (measured: max rel. error 2.6e-11 after 200 iterations): "
+                   "the true section has double real roots (zeta = 1), where the section's "
+                   "parametrization is singular and convergence is only linear")
+def test_exact_one_section_fit_converges():
     beta = [0.0, 1.0, 1.0, 1.0, 2.0, 1.0, 1.0, 1.0]
     model = fc.RationalDelayModel(fc.Structure(1, False, True), beta)
     res = fc.fit(fc.FrequencyData(OMEGA, model.frequency_response(OMEGA)), n_sections=1)
     assert res.success
-    assert res.max_rel_error < 1e-6, res.summary()
 
 
 @pytest.mark.parametrize("n_points", [1, 2, 9])
