@@ -91,13 +91,7 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
     z = ca.MX.sym("z", n)
     f = ca.sumsqr(funcs.r_fun(z))
     nlp = {"x": z, "f": f}
-    hess_g = None
-    if constraints is not None:
-        g = constraints(z)
-        nlp["g"] = g
-        lam_g = ca.MX.sym("lam_g", g.numel())
-        hess_g = ca.Function("hess_g", [z, lam_g],
-                             [ca.densify(ca.hessian(ca.dot(lam_g, g), z)[0])])
+    hess_g = _add_constraints(nlp, z, constraints)
     opts = {
         "print_time": False,
         "error_on_fail": False,
@@ -177,6 +171,20 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
         extra={"t_build": t_build, "t_solve": t_solve,
                **{f"t_{k}": float(stats.get(f"t_wall_nlp_{k}", 0.0) or 0.0)
                   for k in ("f", "grad_f", "hess_l")}})
+
+
+def _add_constraints(nlp, z, constraints):
+    """Put ``g = constraints(z)`` (>= 0) into ``nlp``; return the Function
+    ``(z, lam_g) -> Hessian of lam_g . g`` (CasADi AD) for the Lagrangian's Hessian, or None
+    without constraints."""
+    if constraints is None:
+        return None
+    import casadi as ca
+
+    g = constraints(z)
+    nlp["g"] = g
+    lam_g = ca.MX.sym("lam_g", g.numel())
+    return ca.Function("hess_g", [z, lam_g], [ca.densify(ca.hessian(ca.dot(lam_g, g), z)[0])])
 
 
 def _make_callbacks():
@@ -354,13 +362,8 @@ def solve_pnorm(funcs, x0, lb, ub, p, *, max_iter=300, tol=1e-10, constraints=No
     # log-sum-exp of (p/2) log e2: no overflow at trial points far from x0 (p up to 1e3)
     nlp = {"x": z, "f": ca.logsumexp(0.5 * float(p) * ca.log(e2 + 1e-300)) / float(p)}
     args = {"x0": x0, "lbx": lb, "ubx": ub}
-    hess_g = None
+    hess_g = _add_constraints(nlp, z, constraints)
     if constraints is not None:
-        g = constraints(z)
-        nlp["g"] = g
-        lam_g = ca.MX.sym("lam_g", g.numel())
-        hess_g = ca.Function("hess_g", [z, lam_g],
-                             [ca.densify(ca.hessian(ca.dot(lam_g, g), z)[0])])
         args.update(lbg=0.0, ubg=np.inf)
     pn = PNormFunctions(funcs, p, s)
     keep = [_GradF(pn), _Hess(pn, "exact", hess_g)]     # must outlive the solver
