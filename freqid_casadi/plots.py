@@ -208,7 +208,7 @@ def bode(result_or_data, models=None, *, labels=None, title=None, figsize=None,
 
 
 def relative_error(results, *, labels=None, title=None, figsize=None, annotate_max=True,
-                   reference=None, reference_label=None):
+                   reference=None, reference_label=None, truth=None, dense_factor=10):
     """Relative error ``|(G - G_N)/G_N|`` against frequency on log-log axes.
 
     Parameters
@@ -225,6 +225,11 @@ def relative_error(results, *, labels=None, title=None, figsize=None, annotate_m
         A published maximum (e.g. the thesis's) drawn as a dotted black line.
     reference_label : str, optional
         Label of ``reference`` (default "reference").
+    truth : callable, optional
+        ``truth(omega) -> complex``, the true system: each curve also gets its error on a
+        log grid ``dense_factor`` times denser than its data (thin line), the error
+        between the samples.
+    dense_factor : int
 
     Returns
     -------
@@ -240,6 +245,13 @@ def relative_error(results, *, labels=None, title=None, figsize=None, annotate_m
         rel = np.asarray(res.rel_error, float)
         omega = res.data.omega
         color = f"C{k}"
+        if truth is not None:
+            grid = np.logspace(math.log10(omega[0]), math.log10(omega[-1]),
+                               int(dense_factor) * omega.size)
+            dense = np.abs(np.asarray(truth(grid)) / res.model.frequency_response(grid) - 1)
+            ax.loglog(grid, dense, "-", color=color, lw=0.6, alpha=0.45,
+                      label=f"{lab}, between the samples ({int(dense_factor)}x grid, max "
+                            f"{np.max(dense):.3g})")
         ax.loglog(omega, rel, "-", color=color, lw=1.1, label=lab)
         if annotate_max and rel.size:
             i = int(np.argmax(rel))

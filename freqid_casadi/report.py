@@ -414,13 +414,14 @@ def _write_stages_csv(summary, path):
     atomic_write_text(path, _csv_text(header, rows))
 
 
-def _write_figures(result, folder, summary):
+def _write_figures(result, folder, summary, truth=None):
     from . import plots
 
     t = summary.get("thesis") or {}
     plots.save_figure(plots.bode(result), os.path.join(folder, "bode.png"))
     plots.save_figure(plots.relative_error(result, reference=t.get("max_rel_error"),
-                                           reference_label=t.get("source") or "thesis"),
+                                           reference_label=t.get("source") or "thesis",
+                                           truth=truth),
                       os.path.join(folder, "rel_error.png"))
     plots.save_figure(plots.pole_zero(result.model, zoom="auto"),
                       os.path.join(folder, "pole_zero.png"))
@@ -493,7 +494,7 @@ def write_fit_report(result, out_dir, *, command, force=False, title=None, thesi
         result.model.save(os.path.join(tmp, "model.json"))
         _write_rel_error_csv(result, os.path.join(tmp, "rel_error.csv"))
         _write_stages_csv(summary, os.path.join(tmp, "stages.csv"))
-        _write_figures(result, tmp, summary)
+        _write_figures(result, tmp, summary, truth)
         atomic_write_text(os.path.join(tmp, "summary.json"),
                           json.dumps(summary, indent=1, allow_nan=False) + "\n")
         atomic_write_text(os.path.join(tmp, "summary.md"), render_fit_summary(summary))

@@ -55,7 +55,7 @@ def fake_fit(monkeypatch, cached_result):
 
 @pytest.fixture
 def fast_figures(monkeypatch):
-    def write(result, folder, summary):
+    def write(result, folder, summary, truth=None):
         for name in ("bode.png", "rel_error.png", "pole_zero.png", "stages.png"):
             with open(os.path.join(folder, name), "wb") as fh:
                 fh.write(b"\x89PNG placeholder")

@@ -100,6 +100,20 @@ def test_relative_error_several_results(result):
         plots.relative_error([result, result], labels=["one"])
 
 
+def test_relative_error_between_the_samples(result, true_model):
+    """With the true system, a thin curve on a 10x denser grid: its data are the errors
+    there, and the legend states their max."""
+    fig = plots.relative_error(result, truth=true_model.frequency_response)
+    ax = fig.axes[0]
+    dense = [ln for ln in ax.get_lines() if "between the samples" in ln.get_label()]
+    assert len(dense) == 1
+    w, e = dense[0].get_data()
+    assert w.size == 10 * result.data.n_points
+    expected = np.abs(true_model.frequency_response(w) / result.model.frequency_response(w) - 1)
+    np.testing.assert_allclose(e, expected, rtol=1e-12, atol=0)
+    assert f"max {np.max(expected):.3g}" in dense[0].get_label()
+
+
 def test_pole_zero(result, true_model):
     fig = plots.pole_zero(result.model)
     assert len(fig.axes) == 1

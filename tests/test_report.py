@@ -79,7 +79,7 @@ def _tree(path):
 def fast_figures(monkeypatch):
     """Replace the (slow) figure rendering by placeholder files: for tests of the folder
     logic, not of the figures."""
-    def write(result, folder, summary):
+    def write(result, folder, summary, truth=None):
         for name in ("bode.png", "rel_error.png", "pole_zero.png", "stages.png"):
             with open(os.path.join(folder, name), "wb") as fh:
                 fh.write(b"\x89PNG placeholder")
