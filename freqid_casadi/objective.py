@@ -365,9 +365,7 @@ def _dc_to_thesis(c2, c1, wr):
 
 
 def _point_functions(param):
-    """Per-point SX Functions of one stage (inputs z, omega, phi_re, phi_im, sqrt_w).
-
-    ``residual_point`` -> r (2,): the weighted residual (re, im).
+    """Per-point SX Function of one stage (inputs z, omega, phi_re, phi_im, sqrt_w).
 
     ``derivative_point`` -> r (2,), sq (2,), Ld (2, n), Ln (2, n), T2 (2, N ns^2):
     the pieces of the exact derivatives, using the product structure of the model. With
@@ -393,8 +391,6 @@ def _point_functions(param):
     sw = ca.SX.sym("sqrt_w")
     inputs = [z, w, phi[0], phi[1], sw]
     names = ["z", "omega", "phi_re", "phi_im", "sqrt_w"]
-    re, im = param.residual_pair(z, w, phi, sw)
-    r_point = ca.Function("residual_point", inputs, [ca.vertcat(re, im)], names, ["r"])
 
     h_ref, k_ref, wr = param._refs()
     q = _cplx.mul(phi, (ca.cos(w * h_ref * z[0]), ca.sin(w * h_ref * z[0])))
@@ -429,9 +425,8 @@ def _point_functions(param):
     outs = [ca.vertcat(sq[0] - sw, sq[1]), ca.vertcat(*sq),
             ca.vertcat(row(ld, 0), row(ld, 1)), ca.vertcat(row(ln, 0), row(ln, 1)),
             ca.vertcat(row(t2, 0), row(t2, 1)) if t2 else ca.SX(2, 0)]
-    d_point = ca.Function("derivative_point", inputs, outs, names,
-                          ["r", "sq", "Ld", "Ln", "T2"])
-    return r_point, d_point
+    return ca.Function("derivative_point", inputs, outs, names,
+                       ["r", "sq", "Ld", "Ln", "T2"])
 
 
 class StageFunctions:
@@ -464,8 +459,7 @@ class StageFunctions:
         Which derivative path is used (see above).
     """
 
-    def __init__(self, param, omega, response, weights=None, parallel=False,
-                 derivatives=None):
+    def __init__(self, param, omega, response, weights=None, derivatives=None):
         import casadi as ca
 
         self.param = param
@@ -474,7 +468,6 @@ class StageFunctions:
         m = omega.size
         n = param.n_vars
         self.n_points = m
-        self._omega = omega
         self._sw = np.ones(m) if weights is None else np.sqrt(np.asarray(weights, float))
         # the NLP's objective: one MX expression over all points (vectorised C loops)
         z = ca.MX.sym("z", n)
@@ -499,11 +492,11 @@ class StageFunctions:
         self._q0 = self._sw * resp * (1j * omega if param.structure.integrator else 1.0)
         self._dlog_delay = 1j * omega * h_ref
         if derivatives == "affine":
-            self._x = omega[None, :] / np.asarray(wr, float).reshape(-1, 1)   # (nsec, M)
+            x = omega[None, :] / np.asarray(wr, float).reshape(-1, 1)         # (nsec, M)
             second = param.structure.basis == "second-order"
 
             def pair(v):
-                num, den = _section_pairs("dc", second, v, self._x)
+                num, den = _section_pairs("dc", second, v, x)
                 return (_cplx.to_complex(np.broadcast_arrays(*num)),
                         _cplx.to_complex(np.broadcast_arrays(*den)))
 
@@ -520,21 +513,18 @@ class StageFunctions:
                 raise StructureError("internal: each dc-gauge variable must enter exactly "
                                      "one of a section's numerator and denominator")
             self._n0, self._d0 = n0, d0
-            self._dnum_nz = np.array([dnum[i] for i in self._idx_num])     # (kn, nsec, M)
-            self._dden_nz = np.array([dden[i] for i in self._idx_den])     # (kd, nsec, M)
-            # the same, (nsec, k, M), the numerator's negated: dlog q = dlog den - dlog num
             if nsec:
-                self._neg_dnum_t = -np.ascontiguousarray(self._dnum_nz.transpose(1, 0, 2))
-                self._dden_t = np.ascontiguousarray(self._dden_nz.transpose(1, 0, 2))
+                # (nsec, k, M), the numerator's negated: dlog q = dlog den - dlog num
+                self._neg_dnum_t = -np.stack([dnum[i] for i in self._idx_num], axis=1)
+                self._dden_t = np.stack([dden[i] for i in self._idx_den], axis=1)
             self._sl_num, self._sl_den = _as_slice(self._idx_num), _as_slice(self._idx_den)
             self._lg = np.empty((n, m), complex)
         else:
-            r_point, d_point = _point_functions(param)
-            mode = ("thread", 2) if parallel else ("serial",)
+            d_point = _point_functions(param)
             data = [omega.reshape(1, -1), resp.real.reshape(1, -1), resp.imag.reshape(1, -1),
                     self._sw.reshape(1, -1)]
             zz = ca.repmat(z, 1, m)
-            outs = d_point.map(m, *mode)(zz, *data)
+            outs = d_point.map(m, "serial")(zz, *data)
             self.d_fun = ca.Function("derivatives", [z], [ca.densify(o) for o in outs],
                                      ["z"], ["r", "sq", "Ld", "Ln", "T2"])
             self.n_t2 = int(d_point.size2_out(4))
@@ -588,10 +578,10 @@ class StageFunctions:
         self._blk = []
         if nsec:
             v = z[2:].reshape(nsec, ns)
-            vn = v[:, self._idx_num].T[:, :, None]                          # (kn, nsec, 1)
-            vd = v[:, self._idx_den].T[:, :, None]
-            inum = 1.0 / (self._n0 + np.sum(vn * self._dnum_nz, axis=0))    # (nsec, M)
-            iden = 1.0 / (self._d0 + np.sum(vd * self._dden_nz, axis=0))
+            vn = v[:, self._idx_num, None]                                  # (nsec, kn, 1)
+            vd = v[:, self._idx_den, None]
+            inum = 1.0 / (self._n0 - np.sum(vn * self._neg_dnum_t, axis=1))  # (nsec, M)
+            iden = 1.0 / (self._d0 + np.sum(vd * self._dden_t, axis=1))
             q = q * np.prod(inum / iden, axis=0)
             # dlog q/dv straight into L's rows: -dnum/num and +dden/den, (nsec, k, M) views
             sec = lg[2:].reshape(nsec, ns, m)
@@ -712,8 +702,17 @@ class PNormFunctions:
         self.n_points = funcs.n_points
         self.p = float(p)
         self.s = float(s)
+        self._key, self._cached = None, None
 
     def _parts(self, z):
+        """(F, grad F, u, u/e, grad e) at ``z``, cached: IPOPT asks for the gradient and
+        the Hessian at the same point."""
+        key = np.asarray(z, float).tobytes()
+        if key != self._key:
+            self._cached, self._key = self._compute(z), key
+        return self._cached
+
+    def _compute(self, z):
         f = self.funcs
         f._eval(z)
         e = np.maximum(f._r.real ** 2 + f._r.imag ** 2, 1e-300)
@@ -766,6 +765,6 @@ def _product_into(a, b, sec, sl):
     return out
 
 
-def stage_functions(param, omega, response, weights=None, parallel=False, derivatives=None):
+def stage_functions(param, omega, response, weights=None, derivatives=None):
     """Build the :class:`StageFunctions` of one stage (once per stage)."""
-    return StageFunctions(param, omega, response, weights, parallel, derivatives)
+    return StageFunctions(param, omega, response, weights, derivatives)

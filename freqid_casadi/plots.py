@@ -246,8 +246,9 @@ def relative_error(results, *, labels=None, title=None, figsize=None, annotate_m
         omega = res.data.omega
         color = f"C{k}"
         if truth is not None:
-            grid = np.logspace(math.log10(omega[0]), math.log10(omega[-1]),
-                               int(dense_factor) * omega.size)
+            from .validation import dense_grid
+
+            grid = dense_grid(omega, dense_factor)
             dense = np.abs(np.asarray(truth(grid)) / res.model.frequency_response(grid) - 1)
             ax.loglog(grid, dense, "-", color=color, lw=0.6, alpha=0.45,
                       label=f"{lab}, between the samples ({int(dense_factor)}x grid, max "

@@ -119,8 +119,9 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
                               "use even orders or basis='first-order'")
     dense = None
     if truth is not None:
-        dense = np.logspace(np.log10(data.omega[0]), np.log10(data.omega[-1]),
-                            dense_factor * data.n_points)
+        from .validation import dense_grid   # lazy: validation builds on fit
+
+        dense = dense_grid(data.omega, dense_factor)
         g_dense = truth(dense)
     rows = []
     for o in orders:

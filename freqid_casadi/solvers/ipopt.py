@@ -4,6 +4,7 @@ The stage problem is ``min_z  sum(r(z)^2)  s.t.  lb <= z <= ub`` with the bounds
 IPOPT as simple bounds (``lbx``/``ubx``), never as penalties (SPEC §3, first variant).
 """
 
+import dataclasses
 import time
 
 import numpy as np
@@ -92,22 +93,8 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
     f = ca.sumsqr(funcs.r_fun(z))
     nlp = {"x": z, "f": f}
     hess_g = _add_constraints(nlp, z, constraints)
-    opts = {
-        "print_time": False,
-        "error_on_fail": False,
-        "ipopt": {
-            "print_level": 5 if verbose else 0,
-            "sb": "yes",
-            "max_iter": int(max_iter),
-            "tol": float(tol),
-            "acceptable_tol": 1e-8,
-            "acceptable_iter": 30,
-            "bound_relax_factor": 0.0,
-            "honor_original_bounds": "yes",
-            "bound_push": 1e-9,
-            "bound_frac": 1e-9,
-        },
-    }
+    opts = _base_options(max_iter, tol, verbose)
+    opts["ipopt"].update({"acceptable_tol": 1e-8, "acceptable_iter": 30})
     keep = [_GradF(funcs)]          # the callbacks must outlive the solver
     opts["grad_f"] = keep[0]
     if hessian == "limited-memory":
@@ -136,41 +123,59 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
         opts["ipopt"].update(ipopt_options)
     solver = ca.nlpsol("stage", "ipopt", nlp, opts)
     t_build = time.perf_counter() - t0
+    res, stats, t_solve = _solve(solver, keep, x0, lb, ub, constraints is not None,
+                                 lam_x0 if use_warm else None, funcs.cost, t0)
+    return dataclasses.replace(res, extra={
+        "t_build": t_build, "t_solve": t_solve,
+        **{f"t_{k}": float(stats.get(f"t_wall_nlp_{k}", 0.0) or 0.0)
+           for k in ("f", "grad_f", "hess_l")}})
+
+
+def _base_options(max_iter, tol, verbose):
+    """nlpsol options shared by the stage solvers: true bounds (no relaxation, IPOPT's
+    pushes off the bounds tiny, so lightly damped parameters stay near 0)."""
+    return {"print_time": False, "error_on_fail": False,
+            "ipopt": {"print_level": 5 if verbose else 0, "sb": "yes",
+                      "max_iter": int(max_iter), "tol": float(tol),
+                      "bound_relax_factor": 0.0, "honor_original_bounds": "yes",
+                      "bound_push": 1e-9, "bound_frac": 1e-9}}
+
+
+def _solve(solver, keep, x0, lb, ub, constrained, lam_x0, cost_of, t0):
+    """Run ``solver`` from ``x0``; return ``(StageResult, stats, t_solve)``.
+
+    ``x`` is projected onto the bounds; ``cost_of(x)`` gives the result's cost; an
+    evaluation error inside CasADi or a non-finite point gives ``Status.ERROR`` at ``x0``.
+    ``keep`` (the callbacks) is released after the solve.
+    """
     args = {"x0": x0, "lbx": lb, "ubx": ub}
-    if constraints is not None:
+    if constrained:
         args.update(lbg=0.0, ubg=np.inf)
-    if use_warm:
+    if lam_x0 is not None:
         args["lam_x0"] = np.asarray(lam_x0, float)
     t_solve = time.perf_counter()
     try:
         sol = solver(**args)
-        t_solve = time.perf_counter() - t_solve
         stats = solver.stats()
         return_status = str(stats.get("return_status", "unknown"))
         x = np.clip(np.array(sol["x"], float).reshape(-1), lb, ub)
         lam_x = np.array(sol["lam_x"], float).reshape(-1)
     except RuntimeError as exc:  # evaluation errors raised inside CasADi
-        stats = {}
-        t_solve = time.perf_counter() - t_solve
-        return_status = f"exception: {exc}"
-        x, lam_x = x0, np.zeros(n)
-    del keep
-    cost = funcs.cost(x)
+        stats, return_status, x, lam_x = {}, f"exception: {exc}", x0, np.zeros(x0.size)
+    t_solve = time.perf_counter() - t_solve
+    del keep[:]
+    cost = cost_of(x)
     status = ipopt_status(return_status) if np.isfinite(cost) else Status.ERROR
     if not np.all(np.isfinite(x)):
         status, x = Status.ERROR, x0
-    nit = int(stats.get("iter_count", 0))
-    counts = stats.get("n_call_nlp_f", 0) or 0
-    return StageResult(
+    res = StageResult(
         x=x, cost=cost, status=status,
         message=f"{TERMINATION_MESSAGES[status]} (IPOPT: {return_status})",
-        success=status in SUCCESS_STATUSES, nit=nit, nfev=int(counts),
-        wall_time=time.perf_counter() - t0,
+        success=status in SUCCESS_STATUSES, nit=int(stats.get("iter_count", 0)),
+        nfev=int(stats.get("n_call_nlp_f", 0) or 0), wall_time=time.perf_counter() - t0,
         active_mask=find_active_constraints(x, lb, ub, rtol=1e-8),
-        lam_x=lam_x, solver_status=return_status,
-        extra={"t_build": t_build, "t_solve": t_solve,
-               **{f"t_{k}": float(stats.get(f"t_wall_nlp_{k}", 0.0) or 0.0)
-                  for k in ("f", "grad_f", "hess_l")}})
+        lam_x=lam_x, solver_status=return_status)
+    return res, stats, t_solve
 
 
 def _add_constraints(nlp, z, constraints):
@@ -230,10 +235,6 @@ def _make_callbacks():
                 np.frombuffer(res[1], dtype=np.float64)[:] = grad
             return 0
 
-        def eval(self, arg):
-            cost, grad = self.funcs.gradient(arg[0].full().reshape(-1))
-            return [cost, grad]
-
     class Hess(ca.Callback):
         """``nlp_hess_l``: (x, p, lam_f, lam_g) -> triu(lam_f * Hessian of the cost)."""
 
@@ -248,8 +249,7 @@ def _make_callbacks():
             self.sp = ca.Sparsity.upper(n)
             rows, cols = np.triu_indices(n)
             order = np.lexsort((rows, cols))                 # column-major nonzero order
-            self.rows, self.cols = rows[order], cols[order]
-            self.flat = self.rows * n + self.cols
+            self.flat = rows[order] * n + cols[order]        # into the row-major Hessian
             self.construct("nlp_hess_l", {})
 
         def get_n_in(self):
@@ -286,13 +286,6 @@ def _make_callbacks():
                 h = h + self.hess_g(x, lam_g).full()
             np.copyto(np.frombuffer(res[0], dtype=np.float64), h.ravel().take(self.flat))
             return 0
-
-        def eval(self, arg):
-            x = arg[0].full().reshape(-1)
-            h = float(arg[2]) * self.funcs.hessian(x, exact=self.exact, clip=self.clip)
-            if self.ng:
-                h = h + self.hess_g(x, arg[3]).full()
-            return [ca.DM(self.sp, h[self.rows, self.cols])]
 
     return GradF, Hess
 
@@ -361,37 +354,18 @@ def solve_pnorm(funcs, x0, lb, ub, p, *, max_iter=300, tol=1e-10, constraints=No
     e2 = (r[:m] ** 2 + r[m:] ** 2) / s
     # log-sum-exp of (p/2) log e2: no overflow at trial points far from x0 (p up to 1e3)
     nlp = {"x": z, "f": ca.logsumexp(0.5 * float(p) * ca.log(e2 + 1e-300)) / float(p)}
-    args = {"x0": x0, "lbx": lb, "ubx": ub}
     hess_g = _add_constraints(nlp, z, constraints)
-    if constraints is not None:
-        args.update(lbg=0.0, ubg=np.inf)
     pn = PNormFunctions(funcs, p, s)
     keep = [_GradF(pn), _Hess(pn, "exact", hess_g)]     # must outlive the solver
-    opts = {"print_time": False, "error_on_fail": False, "show_eval_warnings": False,
-            "grad_f": keep[0], "hess_lag": keep[1],
-            "ipopt": {"print_level": 5 if verbose else 0, "sb": "yes",
-                      "max_iter": int(max_iter), "tol": float(tol),
-                      "bound_relax_factor": 0.0, "honor_original_bounds": "yes",
-                      "bound_push": 1e-9, "bound_frac": 1e-9, "mu_init": 1e-6}}
+    opts = _base_options(max_iter, tol, verbose)
+    opts.update({"show_eval_warnings": False, "grad_f": keep[0], "hess_lag": keep[1]})
+    opts["ipopt"]["mu_init"] = 1e-6
     solver = ca.nlpsol("pnorm", "ipopt", nlp, opts)
-    try:
-        sol = solver(**args)
-        stats = solver.stats()
-        return_status = str(stats.get("return_status", "unknown"))
-        x = np.clip(np.array(sol["x"], float).reshape(-1), lb, ub)
-        lam_x = np.array(sol["lam_x"], float).reshape(-1)
-    except RuntimeError as exc:
-        stats, return_status, x, lam_x = {}, f"exception: {exc}", x0, np.zeros(n)
-    del keep
-    rr = funcs.residual(x)
-    cost = float(np.max(rr[:m] ** 2 + rr[m:] ** 2))
-    status = ipopt_status(return_status) if np.isfinite(cost) else Status.ERROR
-    if not np.all(np.isfinite(x)):
-        status, x = Status.ERROR, x0
-    return StageResult(
-        x=x, cost=cost, status=status,
-        message=f"{TERMINATION_MESSAGES[status]} (IPOPT: {return_status})",
-        success=status in SUCCESS_STATUSES, nit=int(stats.get("iter_count", 0)),
-        nfev=int(stats.get("n_call_nlp_f", 0) or 0), wall_time=time.perf_counter() - t_start,
-        active_mask=find_active_constraints(x, lb, ub, rtol=1e-8), lam_x=lam_x,
-        solver_status=return_status, extra={"p": float(p)})
+
+    def max_abs2(x):
+        rr = funcs.residual(x)
+        return float(np.max(rr[:m] ** 2 + rr[m:] ** 2))
+
+    res, _, _ = _solve(solver, keep, x0, lb, ub, constraints is not None, None, max_abs2,
+                       t_start)
+    return dataclasses.replace(res, extra={"p": float(p)})
