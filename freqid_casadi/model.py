@@ -22,9 +22,11 @@ from . import _cplx
 from ._io import atomic_write_text
 from .errors import DataError, StructureError
 
-__all__ = ["Structure", "RationalDelayModel", "section_response", "BASES", "FORMAT_VERSION"]
+__all__ = ["Structure", "RationalDelayModel", "section_response", "BASES", "ZEROS",
+           "FORMAT_VERSION"]
 
 BASES = ("second-order", "first-order")
+ZEROS = ("minimum-phase", "free")
 FORMAT_VERSION = 1
 
 _SECOND_NAMES = ("a", "zeta_num", "omega_num", "b", "zeta_den", "omega_den")
@@ -44,12 +46,22 @@ class Structure:
     delay : bool
         Whether the delay h is a free parameter (else h = 0).
     basis : {"second-order", "first-order"}
+    zeros : {"minimum-phase", "free"}
+        "minimum-phase" (the thesis's class): every parameter of beta is >= 0, so the
+        zeros are in the closed left half plane. "free": the numerator parameters of each
+        section (``a``, ``zeta_num``; ``a1``, ``a0`` in the first-order basis) may be
+        negative, so zeros may lie anywhere; the poles stay in the closed left half plane.
+    gain_sign : {1, -1}
+        Sign of the gain: ``G_N = gain_sign * beta[1] * ...``; ``beta[1] >= 0`` is its
+        magnitude (a sign-inverted system, phase near +-180 deg at low frequency).
     """
 
     n_sections: int
     integrator: bool = False
     delay: bool = True
     basis: str = "second-order"
+    zeros: str = "minimum-phase"
+    gain_sign: int = 1
 
     def __post_init__(self):
         n = self.n_sections
@@ -63,6 +75,12 @@ class Structure:
                 f"unknown basis {self.basis!r}; choose one of {', '.join(BASES)}")
         object.__setattr__(self, "integrator", bool(self.integrator))
         object.__setattr__(self, "delay", bool(self.delay))
+        if self.zeros not in ZEROS:
+            raise StructureError(
+                f"unknown zeros {self.zeros!r}; choose one of {', '.join(ZEROS)}")
+        if isinstance(self.gain_sign, bool) or self.gain_sign not in (1, -1):
+            raise StructureError(f"gain_sign must be 1 or -1, got {self.gain_sign!r}")
+        object.__setattr__(self, "gain_sign", int(self.gain_sign))
 
     @property
     def section_size(self):
@@ -86,7 +104,17 @@ class Structure:
 
     def with_sections(self, n_sections):
         """The same structure with another number of sections."""
-        return Structure(n_sections, self.integrator, self.delay, self.basis)
+        return Structure(n_sections, self.integrator, self.delay, self.basis, self.zeros,
+                         self.gain_sign)
+
+    def free_mask(self):
+        """Boolean mask of beta's entries that may be negative (numerator parameters
+        ``a``, ``zeta_num`` / ``a1``, ``a0`` with ``zeros="free"``), shape (n_params,)."""
+        mask = np.zeros(self.n_params, bool)
+        if self.zeros == "free":
+            for k in range(self.n_sections):        # (a, zeta_num) or (a1, a0): the first two
+                mask[2 + self.section_size * k: 4 + self.section_size * k] = True
+        return mask
 
     def param_names(self):
         """Names of the entries of beta, e.g. ``["delay", "gain", "a[1]", ...]``."""
@@ -133,6 +161,16 @@ def _quad_roots(c2, c1, c0):
     return list(np.roots([c2, c1, c0]).astype(complex))
 
 
+def _structure_dict(s):
+    d = {"n_sections": s.n_sections, "integrator": s.integrator, "delay": s.delay,
+         "basis": s.basis}
+    if s.zeros != "minimum-phase":           # written only when not the default, so the
+        d["zeros"] = s.zeros                 # files of minimum-phase models are unchanged
+    if s.gain_sign != 1:
+        d["gain_sign"] = s.gain_sign
+    return d
+
+
 @dataclass(frozen=True, eq=False)
 class RationalDelayModel:
     """A fitted model ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` (SPEC §1).
@@ -164,8 +202,9 @@ class RationalDelayModel:
             i = int(np.flatnonzero(~np.isfinite(beta))[0])
             raise StructureError(f"beta must be finite: beta[{i}] "
                                  f"({self.structure.param_names()[i]}) = {beta[i]}")
-        if np.any(beta < 0):
-            i = int(np.flatnonzero(beta < 0)[0])
+        negative = (beta < 0) & ~self.structure.free_mask()
+        if np.any(negative):
+            i = int(np.flatnonzero(negative)[0])
             raise StructureError(
                 f"beta must be >= 0 (poles and zeros in the left half plane): "
                 f"beta[{i}] ({self.structure.param_names()[i]}) = {beta[i]}")
@@ -188,8 +227,8 @@ class RationalDelayModel:
 
     @property
     def gain(self):
-        """Gain K (K0 with an integrator)."""
-        return float(self.beta[1])
+        """Gain K (K0 with an integrator), signed: ``structure.gain_sign * beta[1]``."""
+        return float(self.structure.gain_sign * self.beta[1])
 
     @property
     def n_sections(self):
@@ -324,8 +363,7 @@ class RationalDelayModel:
         return {
             "format": "freqid_casadi.RationalDelayModel",
             "version": FORMAT_VERSION,
-            "structure": {"n_sections": s.n_sections, "integrator": s.integrator,
-                          "delay": s.delay, "basis": s.basis},
+            "structure": _structure_dict(s),
             "param_names": s.param_names(),
             "beta": [float(v) for v in self.beta],
         }
