@@ -1,0 +1,130 @@
+"""Diagnostics of data outside the model class (freqid_casadi.diagnostics)."""
+
+import math
+
+import numpy as np
+import pytest
+
+from freqid_casadi import diagnostics as dg
+from freqid_casadi.data import FrequencyData
+from freqid_casadi.model import RationalDelayModel, Structure
+
+OMEGA = np.logspace(-1, 2, 300)
+S = 1j * OMEGA
+
+
+def plant(s=S, delay=0.01):
+    """A 2-section, minimum-phase plant with delay (two modes, one antiresonance pair)."""
+    return (2 * (s ** 2 + 0.2 * s + 25) / ((s ** 2 + 0.1 * s + 4) * (s ** 2 + 0.5 * s + 100))
+            * np.exp(-delay * s))
+
+
+def true_model(delay=0.01, gain_sign=1, zeros="minimum-phase"):
+    """The same plant as a RationalDelayModel (thesis parameters)."""
+    st = Structure(2, delay=True, zeros=zeros, gain_sign=gain_sign)
+    # 2 (s^2+0.2s+25) / ((s^2+0.1s+4)(s^2+0.5s+100)) = K * (s^2+0.2s+25)/(s^2+0.1s+4) * 1/(s^2+0.5s+100)
+    beta = [delay, 2.0, 1.0, 0.2 / 10, 5.0, 1.0, 0.1 / 4, 2.0,
+            0.0, 0.0, 1.0, 1.0, 0.5 / 20, 10.0]
+    return RationalDelayModel(st, beta)
+
+
+def test_true_model_matches_plant():
+    assert np.allclose(true_model().frequency_response(OMEGA), plant(), rtol=1e-12)
+
+
+@pytest.mark.parametrize("integrator", [False, True])
+def test_low_frequency_phase_of_a_sign_inverted_plant(integrator):
+    g = -plant() / S if integrator else -plant()
+    phase = dg.low_frequency_phase(FrequencyData(OMEGA, g), integrator)
+    assert abs(abs(phase) - math.pi) < 0.01
+
+
+def test_check_gain_sign_auto_detects_negative_gain():
+    sign, diags = dg.check_gain_sign(FrequencyData(OMEGA, -plant()), False, "auto")
+    assert sign == -1
+    assert [d.code for d in diags] == ["negative-gain"]
+    assert diags[0].severity == "info"
+    assert abs(abs(diags[0].values["low_frequency_phase_deg"]) - 180) < 1
+
+
+def test_check_gain_sign_positive_data_is_silent():
+    assert dg.check_gain_sign(FrequencyData(OMEGA, plant()), False, "auto") == (1, ())
+
+
+def test_check_gain_sign_forced_positive_on_inverted_data_warns():
+    sign, diags = dg.check_gain_sign(FrequencyData(OMEGA, -plant()), False, "positive")
+    assert sign == 1 and diags[0].severity == "warning"
+    assert "gain_sign='auto'" in diags[0].message
+
+
+def test_signed_gain_in_the_model():
+    m = true_model(gain_sign=-1)
+    assert m.gain == -2.0 and m.beta[1] == 2.0
+    assert np.allclose(m.frequency_response(OMEGA), -plant(), rtol=1e-12)
+    back = RationalDelayModel.from_json(m.to_json())
+    assert back == m and back.structure.gain_sign == -1
+
+
+def test_free_zeros_allow_a_right_half_plane_pair():
+    beta = np.array(true_model().beta)
+    beta[3] = -beta[3]                     # zeta_num[1] < 0: zeros at 0.1 +- 5j
+    with pytest.raises(Exception, match="beta must be >= 0"):
+        RationalDelayModel(Structure(2), beta)
+    m = RationalDelayModel(Structure(2, zeros="free"), beta)
+    assert not m.is_minimum_phase() and m.is_stable()
+    assert np.allclose(sorted(m.zeros()[m.zeros().real > 0].imag), [-4.999, 4.999], atol=1e-3)
+
+
+def test_check_trivial_threshold():
+    assert dg.check_trivial(1.2, 0.98)[0].code == "no-better-than-trivial"
+    assert dg.check_trivial(1.2, 0.98)[0].severity == "error"
+    assert dg.check_trivial(0.3, 0.05) == ()
+    assert dg.check_trivial(np.nan, np.nan)[0].code == "no-better-than-trivial"
+
+
+def test_check_delay_at_bound_and_resolved():
+    data = FrequencyData(OMEGA, plant())
+    dmax = math.pi / float(np.max(np.diff(OMEGA)))
+    at = RationalDelayModel(Structure(2), np.r_[dmax, true_model().beta[1:]])
+    diags = dg.check_delay(at, data, dmax)
+    assert diags[0].code == "delay-undetermined" and "upper bound" in diags[0].message
+    assert dg.check_delay(true_model(), data, dmax, 1e-12) == ()
+
+
+def test_check_delay_below_the_residual_phase_scatter():
+    rng = np.random.default_rng(0)
+    noisy = plant(delay=0.0) * (1 + 0.1 * (rng.standard_normal(OMEGA.size)
+                                           + 1j * rng.standard_normal(OMEGA.size)))
+    tiny = RationalDelayModel(Structure(2), np.r_[1e-5, true_model().beta[1:]])
+    diags = dg.check_delay(tiny, FrequencyData(OMEGA, noisy), 1.0)
+    assert diags and diags[0].code == "delay-undetermined"
+    assert diags[0].values["phase_at_omega_max_rad"] < diags[0].values["residual_phase_rms_rad"]
+
+
+def test_check_minimum_phase_sees_an_in_band_rhp_pair():
+    allpass = (S ** 2 - 1.6 * S + 64) / (S ** 2 + 1.6 * S + 64)   # zeros 0.8 +- 7.96j
+    data = FrequencyData(OMEGA, plant() * allpass)
+    # the best minimum-phase model of order 6 has the data's magnitude (the plant and an
+    # identity section where the all-pass sits) but misses the all-pass's phase
+    mp = RationalDelayModel(Structure(3), np.r_[true_model().beta, 1, 0.1, 8, 1, 0.1, 8])
+    assert np.allclose(np.abs(mp.frequency_response(OMEGA)), np.abs(data.response))
+    rel = np.abs(data.response / mp.frequency_response(OMEGA) - 1)
+    diags = dg.check_minimum_phase(mp, data, rel.max(), np.sqrt(np.mean(rel ** 2)))
+    assert [d.code for d in diags] == ["non-minimum-phase"]
+    z = np.array(diags[0].values["rhp_zeros"])
+    assert np.any(np.hypot(z[:, 0] - 0.8, np.abs(z[:, 1]) - 7.96) < 0.05)
+    assert diags[0].values["free_zeros_rms_rel_error"] < 0.01
+
+
+def test_check_minimum_phase_silent_on_a_good_fit():
+    data = FrequencyData(OMEGA, plant())
+    assert dg.check_minimum_phase(true_model(), data, 1e-12, 1e-13) == ()
+
+
+def test_rhp_zeros_note():
+    beta = np.array(true_model().beta)
+    beta[3] = -beta[3]
+    m = RationalDelayModel(Structure(2, zeros="free"), beta)
+    (d,) = dg.rhp_zeros_note(m)
+    assert d.code == "non-minimum-phase" and d.values["n_rhp_zeros"] == 2
+    assert dg.rhp_zeros_note(true_model()) == ()
