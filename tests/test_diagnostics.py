@@ -128,3 +128,15 @@ def test_rhp_zeros_note():
     (d,) = dg.rhp_zeros_note(m)
     assert d.code == "non-minimum-phase" and d.values["n_rhp_zeros"] == 2
     assert dg.rhp_zeros_note(true_model()) == ()
+
+
+def test_skrf_vector_fitting_peer_recovers_a_rational_system():
+    pytest.importorskip("skrf")
+    from freqid_casadi.baselines import skrf_vector_fitting
+
+    w = np.logspace(-1, 2, 200)
+    s = 1j * w
+    data = FrequencyData(w, (s + 3) / ((s ** 2 + 0.2 * s + 4) * (s + 10)))
+    m = skrf_vector_fitting(data, 3)
+    assert np.max(m.relative_error(data)) < 1e-9
+    assert np.allclose(sorted(np.abs(m.poles())), [2, 2, 10], rtol=1e-7)

@@ -11,7 +11,8 @@ Every method is a function returning a :class:`StateSpaceModel`, which has the i
   continued fraction and Carlson & Halijak's regular Newton process;
 - :func:`balanced_truncation`, :func:`hankel_singular_values` — SLICOT via slycot;
 - :func:`moheimani_kopt`, :func:`feedthrough_from_data` — Moheimani's feedthrough;
-- :func:`aaa`, :func:`vector_fitting` — unconstrained peers; :func:`count_rhp`.
+- :func:`aaa`, :func:`vector_fitting` — unconstrained peers; :func:`count_rhp`;
+- :func:`skrf_vector_fitting` — scikit-rf's vector fitting (the ``[peers]`` extra).
 
 python-control is imported inside the functions that need it, so importing this package
 does not load matplotlib.
@@ -24,6 +25,7 @@ from .fourier import fourier, fourier_impulse_response, interpolate_response
 from .fractional import (continued_fraction_sqrt, newton_sqrt, newton_sqrt_polynomials,
                          thiele_coefficients)
 from .peers import aaa, vector_fitting
+from .skrf_peer import skrf_vector_fitting
 from .subspace import default_bilinear_T, subspace
 
 __all__ = [
@@ -33,5 +35,5 @@ __all__ = [
     "balanced_truncation", "hankel_singular_values", "balanced_truncation_error_bound",
     "moheimani_kopt", "feedthrough_from_data", "modal_model",
     "continued_fraction_sqrt", "newton_sqrt", "newton_sqrt_polynomials", "thiele_coefficients",
-    "aaa", "vector_fitting",
+    "aaa", "vector_fitting", "skrf_vector_fitting",
 ]
