@@ -120,7 +120,7 @@ LAYERS = {
     "data": 1, "experiment": 1, "model": 1, "systems": 1, "options": 1, "metrics": 1,
     "objective": 2, "resolution": 2,
     "solvers": 3,
-    "stages": 4, "start": 4, "baselines": 4, "uncertainty": 4, "mainloop": 4,
+    "stages": 4, "start": 4, "baselines": 4, "uncertainty": 4, "_weight": 4, "mainloop": 4,
     "fit": 5, "validation": 5, "sweep": 5, "batch": 5,
     "report": 5, "plots": 5, "ablation": 5, "reproduce": 5,
     "cli": 6, "__main__": 6, "cli_frf": 6, "cli_batch": 6,
