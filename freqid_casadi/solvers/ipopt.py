@@ -121,7 +121,7 @@ def solve_stage(problem, x0, *, lam_x0=None, hessian="exact", max_iter=3000, tol
     if problem.casadi_residual is not None:
         f = ca.sumsqr(problem.casadi_residual(z))
     else:
-        keep.append(_Cost(n, problem.eval_cost))
+        keep.append(_Cost(n, problem.eval_cost, keep[0]))
         f = keep[-1](z)
     nlp = {"x": z, "f": f}
     hess_g = _add_constraints(nlp, z, problem.constraints)
@@ -365,9 +365,10 @@ def _make_callbacks():
     class Cost(ca.Callback):
         """``f``: x -> cost(x), for a problem without a CasADi residual."""
 
-        def __init__(self, n, cost):
+        def __init__(self, n, cost, grad_cb):
             ca.Callback.__init__(self)
             self.cost = cost
+            self.grad_cb = grad_cb
             self.n = n
             self.construct("nlp_f_callback", {})
 
@@ -385,6 +386,16 @@ def _make_callbacks():
 
         def eval(self, arg):
             return [float(self.cost(np.array(arg[0], float).reshape(-1)))]
+
+        def has_jacobian(self):
+            return True
+
+        def get_jacobian(self, name, inames, onames, opts):
+            # d cost/dx from the problem's gradient (a GradF of the same problem)
+            x = ca.MX.sym(inames[0], self.n)
+            out = ca.MX.sym(inames[1], 1)
+            grad = self.grad_cb(x, ca.MX(0, 1))[1]
+            return ca.Function(name, [x, out], [grad.T], inames, onames, opts)
 
     return GradF, Hess, Cost
 
@@ -406,8 +417,8 @@ def _Hess(n, hessian, kind, hess_g=None):
     return _callback_classes()[1](n, hessian, kind, hess_g)
 
 
-def _Cost(n, cost):
-    return _callback_classes()[2](n, cost)
+def _Cost(n, cost, grad_cb):
+    return _callback_classes()[2](n, cost, grad_cb)
 
 
 def solve_pnorm(funcs, x0, lb, ub, p, *, max_iter=300, tol=1e-10, constraints=None,
