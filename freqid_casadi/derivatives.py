@@ -102,6 +102,18 @@ class StageFunctions:
       CasADi's AD of the per-point section formula, mapped over the points
       (:func:`_point_functions`).
 
+    Parameters
+    ----------
+    param : Parametrization
+    omega : ndarray of float, shape (M,)
+        The stage's frequencies, rad/s.
+    response : ndarray of complex, shape (M,)
+        The data ``Phi`` at ``omega``.
+    weights : ndarray of float, shape (M,), optional
+        Weights of the squared relative residuals.
+    derivatives : {None, "affine", "casadi-map"}
+        None picks "affine" for the dc gauge, else "casadi-map".
+
     Attributes
     ----------
     param : Parametrization
@@ -408,5 +420,16 @@ def _product_into(a, b, sec, sl):
 
 
 def stage_functions(param, omega, response, weights=None, derivatives=None):
-    """Build the :class:`StageFunctions` of one stage (once per stage)."""
+    """Build the :class:`StageFunctions` of one stage (once per stage).
+
+    Parameters
+    ----------
+    param : Parametrization
+    omega, response, weights, derivatives
+        As :class:`StageFunctions`.
+
+    Returns
+    -------
+    StageFunctions
+    """
     return StageFunctions(param, omega, response, weights, derivatives)

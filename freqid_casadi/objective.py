@@ -51,12 +51,33 @@ __all__ = ["GAUGES", "Parametrization", "relative_residual", "rel_error_stats",
 
 
 def relative_residual(model, omega, response):
-    """Complex relative residual ``Phi/G_N - 1`` of a model at the data, shape (M,)."""
+    """Complex relative residual ``Phi/G_N - 1`` of a model at the data.
+
+    Parameters
+    ----------
+    model : RationalDelayModel
+    omega : ndarray of float, shape (M,)
+        rad/s.
+    response : ndarray of complex, shape (M,)
+
+    Returns
+    -------
+    ndarray of complex, shape (M,)
+    """
     return np.asarray(response) / model.frequency_response(omega) - 1.0
 
 
 def rel_error_stats(rel_error):
-    """(max, rms) of an array of |relative error| values (:func:`~freqid_casadi.metrics.error_stats`)."""
+    """(max, rms) of |relative error| values (:func:`~freqid_casadi.metrics.error_stats`).
+
+    Parameters
+    ----------
+    rel_error : array_like of float, shape (M,)
+
+    Returns
+    -------
+    (float, float)
+    """
     stats = error_stats(rel_error)
     return stats.max, stats.rms
 

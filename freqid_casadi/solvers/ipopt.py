@@ -35,7 +35,17 @@ _IPOPT_STATUS = {
 
 
 def ipopt_status(return_status):
-    """Map IPOPT's ``return_status`` string to a :class:`Status`."""
+    """Map IPOPT's ``return_status`` string to a :class:`Status`.
+
+    Parameters
+    ----------
+    return_status : str
+        IPOPT's status word (e.g. ``"Solve_Succeeded"``); unknown words give FAILED.
+
+    Returns
+    -------
+    Status
+    """
     return _IPOPT_STATUS.get(return_status, Status.FAILED)
 
 
