@@ -57,6 +57,32 @@ class LoopContext:
     zeta_min: object = None
 
 
+def _gain_delay_stage(ctx):
+    """Stage 0: the gain and the delay on a growing low-frequency window (thesis: 1..5
+    points). Returns (param, z, lam, record)."""
+    data, st = ctx.data, ctx.structure
+    omega, phi = data.omega, data.response
+    gain0 = abs(phi[0]) * (omega[0] if st.integrator else 1.0)
+    param = Parametrization(st.with_sections(0), ctx.loop.gauge, (), gain0, ctx.delay_max,
+                            ctx.loop.scaled)
+    z = np.zeros(param.n_vars)
+    z[1] = gain0 / param._refs()[1]
+    lam = np.zeros(param.n_vars)
+    l0 = min(5, data.n_points)
+    t0 = time.perf_counter()
+    nit = nfev = 0
+    solves = []
+    for length in range(1, l0 + 1):
+        res = ctx.solve(param, data.window(length), z, lam)
+        solves.append(res)
+        nit, nfev = nit + res.nit, nfev + res.nfev
+        z, lam = keep_better(param, data.window(length), z, lam, res)[:2]
+    record = stage_record(0, param, z, data, l0, math.nan, res, nit, nfev,
+                          time.perf_counter() - t0, Kept.SOLUTION, StageKind.GAIN_DELAY,
+                          solver_timing(solves))
+    return param, z, lam, record
+
+
 def sequential(ctx, tol):
     """The thesis's main loop (SPEC §2).
 
@@ -79,28 +105,10 @@ def sequential(ctx, tol):
     omega, phi = data.omega, data.response
     m = data.n_points
     st = ctx.structure
-    gain0 = abs(phi[0]) * (omega[0] if st.integrator else 1.0)
-    param = Parametrization(st.with_sections(0), ctx.loop.gauge, (), gain0, ctx.delay_max,
-                            ctx.loop.scaled)
-
-    # ---- stage 0: gain and delay on a growing low-frequency window (thesis: 1..5 points)
-    z = np.zeros(param.n_vars)
-    z[1] = gain0 / param._refs()[1]
-    lam = np.zeros(param.n_vars)
-    records = []
-    l0 = min(5, m)
-    t0 = time.perf_counter()
-    nit = nfev = 0
-    solves = []
-    for length in range(1, l0 + 1):
-        res = solve(param, data.window(length), z, lam)
-        solves.append(res)
-        nit, nfev = nit + res.nit, nfev + res.nfev
-        z, lam = keep_better(param, data.window(length), z, lam, res)[:2]
-    records.append(stage_record(0, param, z, data, l0, math.nan, res, nit, nfev,
-                                time.perf_counter() - t0, Kept.SOLUTION, StageKind.GAIN_DELAY,
-                                solver_timing(solves)))
-    callback(records[-1])
+    param, z, lam, record = _gain_delay_stage(ctx)
+    records = [record]
+    callback(record)
+    l0 = record.window
     window = l0
     init_z = z.copy()
 
