@@ -15,14 +15,16 @@ Importing this package does not import matplotlib (plots are in ``freqid_casadi.
 """
 
 from . import systems
-from .data import FrequencyData, load, load_csv, load_npz, save_csv
+from .data import FrequencyData
 from .errors import DataError, FreqidError, OptionError, SolverError, StructureError
 from .fit import FitResult, StageRecord, fit
+from .loaders import DataWarning, load, load_csv, load_mat, load_npz, load_text, load_uff, save_csv
 from .model import RationalDelayModel, Structure
 
 __all__ = [
     "fit", "FitResult", "StageRecord", "FrequencyData", "RationalDelayModel", "Structure",
-    "load", "load_csv", "load_npz", "save_csv", "systems",
+    "load", "load_csv", "load_npz", "load_text", "load_mat", "load_uff", "save_csv",
+    "DataWarning", "systems",
     "FreqidError", "DataError", "StructureError", "OptionError", "SolverError",
 ]
 __version__ = "0.1.0"

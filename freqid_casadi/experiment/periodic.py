@@ -1,6 +1,4 @@
-"""From time-domain experiments to frequency-response data (layer L1, SPEC §7, thesis §2.4).
-
-Two excitations are supported:
+"""FRFs from periodic and stepped-sine experiments (layer L1, SPEC §7, thesis §2.4).
 
 - **periodic** (multisine, periodic sweep): :func:`frf_from_periodic` cuts the records into
   whole periods, takes the DFT of each (thesis eq. 2.16 ff., ``X[k] = sum_n x[n]
@@ -9,166 +7,19 @@ Two excitations are supported:
   coherence.
 - **stepped sine**: :func:`frf_stepped_sine` takes one record per frequency and projects
   input and output on the sine at that frequency (``G = Y / U``, thesis §2.4).
-
-Both return a frozen :class:`FrfEstimate` whose ``data`` is a :class:`FrequencyData` ready
-for the fitters. :func:`robot_arm` loads the DaISy flexible-robot-arm data set 96-009
-(B. De Moor et al., DaISy: Database for the Identification of Systems, data set 96-009).
 """
 
-import csv
 import math
 import numbers
-import os
-from dataclasses import dataclass
 
 import numpy as np
 
-from .data import FrequencyData, _check_file
-from .errors import DataError, OptionError
+from ..data import FrequencyData
+from ..errors import DataError, OptionError
+from ._common import (_REL_VAR_FLOOR, FrfEstimate, _as_count, _as_fraction, _as_fs, _as_pair,
+                      _rms)
 
-__all__ = [
-    "FrfEstimate",
-    "frf_from_periodic",
-    "frf_stepped_sine",
-    "load_records_csv",
-    "load_daisy",
-    "robot_arm",
-    "ROBOT_ARM_FILE",
-    "SHARED_ENV",
-]
-
-#: Environment variable naming the shared directory that holds ``data/robot_arm.dat``.
-SHARED_ENV = "FREQID_SHARED"
-#: File name of the DaISy 96-009 data set inside ``shared/data``.
-ROBOT_ARM_FILE = "robot_arm.dat"
-
-# Relative variance floor (machine precision squared): a noise-free period average has a
-# spread of ~eps*|G|, and the weights 1/var must stay finite.
-_REL_VAR_FLOOR = np.finfo(float).eps ** 2
-
-
-@dataclass(frozen=True)
-class FrfEstimate:
-    """A nonparametric frequency-response estimate from time-domain records.
-
-    Attributes
-    ----------
-    data : FrequencyData
-        ``omega`` in rad/s (rad/sample, i.e. normalised frequency, when ``fs`` is None),
-        ``response`` the estimate ``G(j*omega)``, and ``weights`` ``|G|^2 / variance``
-        (inverse variance of the relative estimate) normalised to mean 1 when at least two
-        periods were averaged, else None.
-    bins : ndarray of int, shape (M,) or None
-        DFT bin indices ``k`` of the excited frequencies, ``omega = 2*pi*k/period * fs``
-        (periodic excitation); None for a stepped sine.
-    variance : ndarray of float, shape (M,) or None
-        Estimated variance ``E|G_hat - G|^2`` of the complex estimate (variance of the mean
-        over periods); None when there was only one period or for a stepped sine.
-    coherence : ndarray of float, shape (M,) or None
-        Magnitude-squared coherence ``|sum_p Y_p conj(U_p)|^2 / (sum_p |U_p|^2 sum_p
-        |Y_p|^2)`` in [0, 1]; None with one period or for a stepped sine.
-    n_periods : int or None
-        Number of periods averaged (after the skipped transient periods); None for a
-        stepped sine.
-    period : int or None
-        Samples per period; None for a stepped sine.
-    fs : float or None
-        Sampling frequency in Hz; None means normalised frequency (rad/sample).
-    """
-
-    data: FrequencyData
-    bins: np.ndarray = None
-    variance: np.ndarray = None
-    coherence: np.ndarray = None
-    n_periods: int = None
-    period: int = None
-    fs: float = None
-
-    def __post_init__(self):
-        for name in ("bins", "variance", "coherence"):
-            value = getattr(self, name)
-            if value is not None:
-                value = np.array(value, copy=True)
-                value.setflags(write=False)
-                object.__setattr__(self, name, value)
-
-
-# --------------------------------------------------------------------------- validation
-
-def _as_signal(x, name):
-    """A 1-D float copy of a time series; (N, 1) and (1, N) are flattened."""
-    if isinstance(x, (str, bytes)):
-        raise DataError(f"{name} must be an array of samples, got a {type(x).__name__}")
-    raw = np.asarray(x)
-    if np.iscomplexobj(raw):
-        raise DataError(f"{name} must be a real time series, got complex values")
-    try:
-        arr = np.array(raw, dtype=float, copy=True)
-    except (TypeError, ValueError) as exc:
-        raise DataError(f"{name} must be an array of numbers: {exc}") from None
-    if arr.ndim == 2 and 1 in arr.shape:
-        arr = arr.reshape(-1)
-    if arr.ndim != 1:
-        raise DataError(
-            f"{name} must be one-dimensional (one channel), got shape {raw.shape}; pass one "
-            "input and one output column (single-input single-output)")
-    if arr.size == 0:
-        raise DataError(f"{name} is empty: give the measured samples")
-    bad = ~np.isfinite(arr)
-    if bad.any():
-        i = int(np.flatnonzero(bad)[0])
-        raise DataError(
-            f"{name} must be finite: {name}[{i}]={arr[i]} ({int(bad.sum())} non-finite "
-            "sample(s)); repair or cut out the bad part of the record")
-    return arr
-
-
-def _as_pair(u, y, label=""):
-    u = _as_signal(u, f"u{label}")
-    y = _as_signal(y, f"y{label}")
-    if u.size != y.size:
-        raise DataError(
-            f"input and output records must have equal lengths: len(u{label})={u.size}, "
-            f"len(y{label})={y.size}; trim both to the common sampled span")
-    return u, y
-
-
-def _as_count(value, name, minimum, error=DataError):
-    """An integer >= minimum; integral floats (e.g. 1024.0) are accepted."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Real):
-        raise error(f"{name} must be an integer, got {value!r}")
-    if isinstance(value, numbers.Integral):
-        n = int(value)
-    else:
-        if not math.isfinite(value) or value != math.floor(value):
-            raise error(f"{name} must be an integer number of samples, got {value!r}")
-        n = int(value)
-    if n < minimum:
-        raise error(f"{name} must be >= {minimum}, got {value!r}")
-    return n
-
-
-def _as_fs(fs, required):
-    if fs is None:
-        if required:
-            raise OptionError("fs (sampling frequency, Hz) is required for a stepped sine")
-        return None
-    if isinstance(fs, bool) or not isinstance(fs, numbers.Real) or not math.isfinite(fs) \
-            or fs <= 0:
-        raise OptionError(f"fs must be a finite sampling frequency > 0 in Hz, got {fs!r}")
-    return float(fs)
-
-
-def _as_fraction(value, name, low_open=0.0, high=1.0):
-    if isinstance(value, bool) or not isinstance(value, numbers.Real) \
-            or not (low_open < value <= high):
-        raise OptionError(f"{name} must be a number in ({low_open:g}, {high:g}], got {value!r}")
-    return float(value)
-
-
-def _rms(x):
-    return float(np.sqrt(np.mean(np.abs(x) ** 2)))
-
+__all__ = ["frf_from_periodic", "frf_stepped_sine"]
 
 # --------------------------------------------------------------------------- periodic
 
@@ -289,12 +140,7 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
     else:
         bins = _as_bins(bins, n_half)
     U_b, Y_b = U[:, bins], Y[:, bins]
-    zero = U_b == 0
-    if zero.any():
-        p, j = (int(i[0]) for i in np.nonzero(zero))
-        raise DataError(
-            f"input has no power at bin {bins[j]} in period #{skip_periods + p + 1}: that bin is "
-            "not excited; remove it from bins")
+    _check_excited(U, bins, skip_periods)
     H = Y_b / U_b
     G = H.mean(axis=0)
     zero = G == 0
@@ -314,7 +160,27 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
         weights = weights / weights.mean()
     omega = 2.0 * np.pi * bins / period * (1.0 if fs is None else fs)
     data = FrequencyData(omega, G, name, weights)
-    return FrfEstimate(data, bins, variance, coherence, n_periods, period, fs)
+    return FrfEstimate(data, bins, variance, coherence, n_periods, period, fs,
+                       estimator="periodic")
+
+
+#: Input power at a bin, relative to the strongest nonzero bin, below which the bin counts
+#: as not excited (round-off of an unexcited bin is ~1e-30; a real excitation is far above).
+_UNEXCITED = 1e-12
+
+
+def _check_excited(U, bins, skip_periods):
+    """DataError at a bin with no input power in some period (or round-off only)."""
+    power = np.abs(U) ** 2
+    top = power[:, 1:].max(axis=1, keepdims=True) if power.shape[1] > 1 else power
+    low = power[:, bins] <= _UNEXCITED * top
+    if low.any():
+        p, j = (int(i[0]) for i in np.nonzero(low))
+        rel = float(power[p, bins[j]] / top[p, 0]) if top[p, 0] > 0 else 0.0
+        raise DataError(
+            f"input has no power at bin {bins[j]} in period #{skip_periods + p + 1} (|U|^2 is "
+            f"{rel:.3g} of the strongest bin, below {_UNEXCITED:g}): that bin is not "
+            "excited; remove it from bins")
 
 
 def _as_bins(bins, n_half):
@@ -459,7 +325,7 @@ def frf_stepped_sine(records, *, fs, frequencies, n_skip=0, sine_rtol=0.5, name=
             f"estimated response is exactly zero for records[{i}] ({freqs[i]} Hz): the output "
             "has no component at that frequency; check the output channel")
     data = FrequencyData(2.0 * np.pi * freqs[order], response[order], name)
-    return FrfEstimate(data, None, None, None, None, None, fs)
+    return FrfEstimate(data, None, None, None, None, None, fs, estimator="stepped-sine")
 
 
 def _sine_ratio(u, y, f, fs, n_skip, i, sine_rtol):
@@ -494,201 +360,3 @@ def _sine_ratio(u, y, f, fs, n_skip, i, sine_rtol):
             f"is left after removing that sine; tolerance {100 * sine_rtol:.3g}%); check "
             "frequencies (in Hz) and fs")
     return Y / U
-
-
-# --------------------------------------------------------------------------- loaders
-
-def _read_lines(path):
-    path = _check_file(path)
-    try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            return path, fh.read().splitlines()
-    except UnicodeDecodeError:
-        raise DataError(f"{path!r} is not a text file (not UTF-8)") from None
-    except OSError as exc:
-        raise DataError(f"cannot read {path!r}: {exc.strerror}") from None
-
-
-def _parse_cell(path, line, column, cell):
-    try:
-        value = float(cell)
-    except ValueError:
-        raise DataError(
-            f"{path!r} line {line}, column {column!r}: {cell.strip()!r} is not a number") \
-            from None
-    if not math.isfinite(value):
-        raise DataError(
-            f"{path!r} line {line}, column {column!r}: {cell.strip()!r} is not finite; "
-            "repair or cut out the bad samples")
-    return value
-
-
-def load_records_csv(path):
-    """Read an input/output record from a CSV file with the header ``u,y``.
-
-    Lines starting with ``#`` are comments; the header is case-insensitive.
-
-    Returns
-    -------
-    u, y : ndarray of float, shape (N,)
-        Input and output samples.
-
-    Raises
-    ------
-    DataError
-        Missing file, directory, not UTF-8, bad header, wrong column count, non-numeric or
-        non-finite cells, no data rows.
-    """
-    path, lines = _read_lines(path)
-    rows = [r for r in csv.reader(lines) if r and not r[0].lstrip().startswith("#")]
-    if not rows:
-        raise DataError(f"{path!r} is empty: expected a header 'u,y' and data rows")
-    header = [h.strip().lower() for h in rows[0]]
-    if header != ["u", "y"]:
-        raise DataError(
-            f"{path!r}: unrecognised header {','.join(rows[0])!r}; the first line must be "
-            "'u,y' (input, output)")
-    if len(rows) < 2:
-        raise DataError(f"{path!r} has a header but no data rows")
-    values = np.empty((len(rows) - 1, 2))
-    for k, row in enumerate(rows[1:]):
-        line = k + 2
-        if len(row) != 2:
-            raise DataError(f"{path!r} line {line}: expected 2 columns (u,y), got {len(row)}")
-        for j, cell in enumerate(row):
-            values[k, j] = _parse_cell(path, line, header[j], cell)
-    return values[:, 0].copy(), values[:, 1].copy()
-
-
-def load_daisy(path, columns=(0, 1)):
-    """Read a DaISy-style whitespace-separated data file (one sample per line).
-
-    Parameters
-    ----------
-    path : str or path-like
-        The ``.dat`` file; blank lines and lines starting with ``#`` or ``%`` are skipped.
-    columns : (int, int), default (0, 1)
-        Zero-based columns of the input and the output.
-
-    Returns
-    -------
-    u, y : ndarray of float, shape (N,)
-
-    Raises
-    ------
-    DataError
-        Missing or unreadable file, no data, ragged rows, too few columns, non-numeric or
-        non-finite values.
-    """
-    try:
-        cu, cy = (_index(c) for c in columns)
-    except (TypeError, ValueError):
-        raise OptionError(f"columns must be two column indices, got {columns!r}") from None
-    if cu < 0 or cy < 0:
-        raise OptionError(f"columns must be >= 0, got {columns!r}")
-    path, lines = _read_lines(path)
-    data, width = [], None
-    for k, text in enumerate(lines):
-        cells = text.split()
-        if not cells or cells[0].startswith(("#", "%")):
-            continue
-        line = k + 1
-        if width is None:
-            width = len(cells)
-            if width <= max(cu, cy):
-                raise DataError(
-                    f"{path!r} line {line}: {width} column(s), but columns={tuple(columns)} "
-                    "needs the input and output columns; check the file or columns")
-        elif len(cells) != width:
-            raise DataError(
-                f"{path!r} line {line}: {len(cells)} columns, expected {width} as on the first "
-                "data line")
-        data.append([_parse_cell(path, line, f"column {j}", c) for j, c in enumerate(cells)])
-    if not data:
-        raise DataError(f"{path!r} holds no data lines: expected columns input output")
-    values = np.array(data)
-    return values[:, cu].copy(), values[:, cy].copy()
-
-
-def _index(value):
-    """operator.index that rejects bools."""
-    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
-        raise TypeError(value)
-    return int(value)
-
-
-# --------------------------------------------------------------------------- robot arm
-
-def _find_robot_arm():
-    env = os.environ.get(SHARED_ENV)
-    if env:
-        candidates = [os.path.join(env, "data", ROBOT_ARM_FILE), os.path.join(env, ROBOT_ARM_FILE)]
-        for c in candidates:
-            if os.path.isfile(c):
-                return c
-        raise DataError(
-            f"{SHARED_ENV}={env!r} holds neither data/{ROBOT_ARM_FILE} nor {ROBOT_ARM_FILE}; "
-            f"set {SHARED_ENV} to the shared directory (the one containing data/) or pass "
-            "path=")
-    tried = []
-    for start in (os.getcwd(), os.path.dirname(os.path.abspath(__file__))):
-        folder = os.path.abspath(start)
-        while True:
-            c = os.path.join(folder, "shared", "data", ROBOT_ARM_FILE)
-            if os.path.isfile(c):
-                return c
-            tried.append(c)
-            parent = os.path.dirname(folder)
-            if parent == folder:
-                break
-            folder = parent
-    raise DataError(
-        f"cannot find shared/data/{ROBOT_ARM_FILE} above the working directory or the "
-        f"package (first tried {tried[0]!r}); set the environment variable {SHARED_ENV} to "
-        "the shared directory or pass path= to robot_arm()")
-
-
-def robot_arm(path=None):
-    """Frequency response of the DaISy flexible robot arm (data set 96-009).
-
-    Input: measured reaction torque (column 1); output: arm acceleration (column 2); 1024
-    samples of a periodic excitation on the odd DFT bins. The sampling time is not given,
-    so ``omega`` is normalised (rad/sample).
-
-    Parameters
-    ----------
-    path : str or path-like, optional
-        The ``robot_arm.dat`` file. Default: ``$FREQID_SHARED/data/robot_arm.dat``, else
-        ``shared/data/robot_arm.dat`` in the first ancestor of the working directory or of
-        this package that has one.
-
-    Returns
-    -------
-    FrfEstimate
-        One period of 1024 samples (``n_periods = 1``, so ``variance``, ``coherence`` and
-        the weights are None) at the odd bins ``1, 3, ..., K``.
-
-    Raises
-    ------
-    DataError
-        The file cannot be found or read, or is malformed.
-
-    Notes
-    -----
-    The period is taken from the data: the shortest divisor of the record length over which
-    the input repeats (within 20% RMS). No shorter period than 1024 does: the input is
-    *anti*-periodic over 512 samples (``u[n + 512] ~ -u[n]``, 6% RMS residual), the
-    signature of an odd-bin excitation. The band ``K`` is the highest odd bin whose input
-    power is within 20 dB of the maximum (K = 201); every odd bin below it is kept,
-    including the dip of the measured torque near bins 57-61 at the arm's first resonance,
-    where the FRF stays smooth. The even bins carry only noise and distortion (< -22 dB).
-    Cite: B. De Moor et al., DaISy: Database for the Identification of Systems, 96-009.
-    """
-    path = _find_robot_arm() if path is None else path
-    u, y = load_daisy(path)
-    period = _detect_period(u, 0.2)
-    probe = frf_from_periodic(u, y, period)
-    top = int(probe.bins.max())
-    bins = np.arange(1, top + 1, 2) if np.all(probe.bins % 2 == 1) else probe.bins
-    return frf_from_periodic(u, y, period, bins=bins,
-                             name="robot_arm (DaISy 96-009)")
