@@ -265,11 +265,13 @@ def _default_columns(path, cells):
 
 
 def _resolve_units(path, cols, freq_unit, header):
+    """Columns with the frequency unit filled in from ``freq_unit``; ``header`` is the
+    header's text (None for a headerless file or a matrix)."""
     freq = next(c for c in cols if c.role == "freq")
     if freq.unit is None:
         if freq_unit is None:
-            what = (f"its header names the frequency {freq.label!r} without a unit" if header
-                    else "it has no header line")
+            what = (f"unrecognised header {header!r}: column {freq.label!r} has no unit"
+                    if header else "it has no header line")
             raise DataError(
                 f"{path!r}: the frequency unit is unknown ({what}): pass freq_unit='Hz' or "
                 "freq_unit='rad/s' (command line --freq-unit hz|rad/s), or name the column "
@@ -299,7 +301,7 @@ def _parse_cell(table_path, line, col, cell):
         hint = " (only ASCII decimal numbers such as 1.5e-3 are read)"
     what = "a complex number like 1+2j" if col.role == "complex" else "a number"
     raise DataError(f"{table_path!r} line {line}, column {col.label!r}: {_shown(cell)} is not "
-                    f"{what}{hint}; fix or remove that line")
+                    f"{what}{hint}")
 
 
 def read_table(path, payload, columns, freq_unit, max_rows):
@@ -318,7 +320,8 @@ def read_table(path, payload, columns, freq_unit, max_rows):
         rows = rows[1:]
         if not rows:
             raise DataError(f"{path!r} has a header but no data rows")
-    cols = _resolve_units(path, cols, freq_unit, header)
+    cols = _resolve_units(path, cols, freq_unit,
+                          ",".join(_clean(c) for c in first) if header else None)
     labels = ",".join(c.label for c in cols)
     values = {c.role: [] for c in cols if c.role != "skip"}
     for line, text in rows:
@@ -460,7 +463,7 @@ def mat_table(path, arrays, columns, freq_unit):
                 col = mat[:, j]
                 values[c.role] = col if c.role == "complex" else np.real(col)
         n = mat.shape[0]
-    cols = _resolve_units(path, cols, freq_unit, header=bool(named))
+    cols = _resolve_units(path, cols, freq_unit, ",".join(named) if named else None)
     for k, arr in values.items():
         values[k] = np.asarray(arr, complex if k == "complex" else float)
     table = Table(path, cols, values, np.arange(1, n + 1), where="row")
