@@ -24,6 +24,9 @@ _DETRENDS = ("constant", "linear", False)
 
 def _check_options(n, fs, estimator, nperseg, noverlap, window, detrend, min_coherence):
     fs = _as_fs(fs, required=True)
+    if not np.isfinite(np.pi * fs):
+        raise OptionError(f"fs={fs!r} Hz is too large: omega up to pi*fs rad/s overflows; give "
+                          "the sampling frequency in Hz")
     if estimator not in ESTIMATORS:
         raise OptionError(f"unknown estimator {estimator!r}; choose one of "
                           f"{', '.join(ESTIMATORS)} (h1: noise on the output, h2: on the input)")
@@ -143,7 +146,8 @@ def frf_from_records(u, y, *, fs, estimator="h1", nperseg=None, noverlap=None,
     if min_coherence is not None:
         keep &= coh >= min_coherence
     if not keep.any():
-        best = float(np.nanmax(np.where(bins > 0, coh, np.nan))) if f.size > 1 else 0.0
+        ok = (bins > 0) & np.isfinite(coh)
+        best = float(coh[ok].max()) if ok.any() else 0.0
         raise DataError(
             f"no frequency has coherence >= {min_coherence} (highest {best:.3g}): the output "
             "does not follow the input; check the channels, lower --min-coherence or use "
