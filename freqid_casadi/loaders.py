@@ -1,13 +1,8 @@
 """File readers for frequency-response data (layer L1).
 
-:func:`load` picks the reader by the file's extension:
-
-========================  ==================================================================
-``.npz``                  :func:`load_npz`: arrays ``omega`` (rad/s), ``response``, ``weights``
-``.mat``                  :func:`load_mat`: MATLAB v4-v7.2 numeric arrays (scipy.io)
-``.uff``, ``.unv``        :func:`load_uff`: universal file records 58/58b (pyuff, extra ``[uff]``)
-anything else             :func:`load_text`: delimited text (CSV, semicolons, tabs, spaces)
-========================  ==================================================================
+:func:`load` picks the reader by the file's extension: ``.npz`` :func:`load_npz`, ``.mat``
+:func:`load_mat` (scipy.io), ``.uff``/``.unv`` :func:`load_uff` (UFF 58/58b via pyuff, extra
+``[uff]``), anything else :func:`load_text` (CSV, semicolons, tabs or spaces).
 
 Every reader returns a validated :class:`~freqid_casadi.data.FrequencyData` with ``omega``
 in rad/s (``load_uff`` returns a tuple, one per record). Rows at zero frequency are dropped
@@ -29,6 +24,7 @@ import zipfile
 
 import numpy as np
 
+from ._uff import load_uff
 from ._table import mat_table, parse_columns, parse_freq_unit, read_table, table_response
 from .data import FrequencyData
 from .errors import DataError
@@ -72,12 +68,10 @@ def _check_file(path):
 
 
 def _kind_of(mode):
-    for test, what in ((stat.S_ISFIFO, "a FIFO (named pipe)"), (stat.S_ISCHR, "a character "
-                       "device"), (stat.S_ISBLK, "a block device"), (stat.S_ISSOCK, "a socket"),
-                       (stat.S_ISDIR, "a directory")):
-        if test(mode):
-            return what
-    return "not a regular file"
+    kinds = {stat.S_IFIFO: "a FIFO (named pipe)", stat.S_IFCHR: "a character device",
+             stat.S_IFBLK: "a block device", stat.S_IFSOCK: "a socket",
+             stat.S_IFDIR: "a directory"}
+    return kinds.get(stat.S_IFMT(mode), "not a regular file")
 
 
 def read_regular_file(path, what="data file"):
@@ -431,72 +425,6 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None):
     table = mat_table(path, {k: mat[k] for k in numeric}, columns, freq_unit)
     omega, response = table_response(table)
     return _finish(path, omega, response, name)
-
-
-# --------------------------------------------------------------------------- uff
-
-def load_uff(path, *, freq_unit=None):
-    """Read every frequency-response record (universal file dataset 58/58b) of a UFF file.
-
-    Parameters
-    ----------
-    path : str or path-like
-    freq_unit : {"Hz", "rad/s"}, optional
-        Unit of the abscissa. Default: from the record's abscissa unit label when it names
-        rad/s, else Hz (the unit dataset 58 uses for frequency).
-
-    Returns
-    -------
-    tuple of FrequencyData
-        One per dataset-58 record whose abscissa is a frequency, in file order, named
-        ``"<stem>:<k>"`` or after the record's first ID line.
-
-    Raises
-    ------
-    DataError
-        pyuff missing (install the extra ``freqid_casadi[uff]``), a file pyuff cannot read,
-        no dataset-58 records, a record over time or with bad values.
-    """
-    freq_unit = parse_freq_unit(freq_unit)
-    path, _ = read_regular_file(path)
-    try:
-        import pyuff
-    except ImportError:
-        raise DataError("reading UFF files needs pyuff: pip install 'freqid_casadi[uff]' "
-                        "(or pip install pyuff)") from None
-    try:
-        uff = pyuff.UFF(path)
-        which = [i for i, t in enumerate(uff.get_set_types()) if int(t) == 58]
-        sets = [uff.read_sets(i) for i in which]
-    except Exception as exc:            # pyuff raises bare Exception
-        raise DataError(f"cannot read {path!r} as a universal file ({exc}); check that it "
-                        "is UFF ASCII/binary with dataset 58 records") from None
-    if not sets:
-        raise DataError(f"{path!r} holds no dataset-58 (function) records; export the FRFs "
-                        "as UFF 58")
-    return tuple(_uff_record(path, k, s, freq_unit) for k, s in enumerate(sets))
-
-
-def _uff_record(path, k, dset, freq_unit):
-    where = f"{path!r} record {k}"
-    kind = int(dset.get("abscissa_spec_data_type", 18) or 0)
-    if kind not in (0, 18):
-        raise DataError(f"{where}: abscissa type {kind} is not frequency (18); export a "
-                        "frequency response (FRF), not a time record")
-    try:
-        x = np.asarray(dset["x"], float)
-        z = np.asarray(dset["data"])
-    except (KeyError, TypeError, ValueError) as exc:
-        raise DataError(f"{where}: no abscissa/ordinate data ({exc})") from None
-    label = str(dset.get("abscissa_axis_units_lab", "") or "").lower()
-    unit = freq_unit or ("rad/s" if "rad" in label else "hz")
-    omega = x if unit == "rad/s" else 2 * np.pi * x
-    ident = str(dset.get("id1", "") or "").strip()
-    name = ident if ident and ident.upper() != "NONE" else f"{_stem(path)}:{k}"
-    try:
-        return _finish(path, omega, z, name)
-    except DataError as exc:
-        raise DataError(f"{where}: {exc}") from None
 
 
 # --------------------------------------------------------------------------- writer

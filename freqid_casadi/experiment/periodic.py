@@ -116,15 +116,7 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
             "input u is constant over the periods kept after skip_periods: there is no "
             "excitation there; lower skip_periods")
     if n_periods >= 2:
-        scale = _rms(u_used - u_used.mean())
-        jumps = np.sqrt(np.mean(np.diff(u_used, axis=0) ** 2, axis=1)) / scale
-        worst = int(np.argmax(jumps))
-        if jumps[worst] > periodic_rtol:
-            raise DataError(
-                f"input is not periodic with period {period}: period #{skip_periods + worst + 2}"
-                f" differs from period #{skip_periods + worst + 1} by {100 * jumps[worst]:.3g}% "
-                f"RMS (tolerance {100 * periodic_rtol:.3g}%); check --period (the samples per "
-                "period of the excitation) or raise periodic_rtol for a noisy input")
+        _check_periodic(u_used, period, skip_periods, periodic_rtol)
     n_half = period // 2
     U = np.fft.fft(u_used, axis=1)[:, :n_half + 1]
     Y = np.fft.fft(y_used, axis=1)[:, :n_half + 1]
@@ -162,6 +154,19 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
     data = FrequencyData(omega, G, name, weights)
     return FrfEstimate(data, bins, variance, coherence, n_periods, period, fs,
                        estimator="periodic")
+
+
+def _check_periodic(u_used, period, skip_periods, periodic_rtol):
+    """DataError when consecutive periods (rows of ``u_used``) differ by > periodic_rtol."""
+    scale = _rms(u_used - u_used.mean())
+    jumps = np.sqrt(np.mean(np.diff(u_used, axis=0) ** 2, axis=1)) / scale
+    worst = int(np.argmax(jumps))
+    if jumps[worst] > periodic_rtol:
+        raise DataError(
+            f"input is not periodic with period {period}: period #{skip_periods + worst + 2}"
+            f" differs from period #{skip_periods + worst + 1} by {100 * jumps[worst]:.3g}% "
+            f"RMS (tolerance {100 * periodic_rtol:.3g}%); check --period (the samples per "
+            "period of the excitation) or raise periodic_rtol for a noisy input")
 
 
 #: Input power at a bin, relative to the strongest nonzero bin, below which the bin counts
