@@ -137,6 +137,9 @@ def _as_fs(fs, required):
     if isinstance(fs, bool) or not isinstance(fs, numbers.Real) or not math.isfinite(fs) \
             or fs <= 0:
         raise OptionError(f"fs must be a finite sampling frequency > 0 in Hz, got {fs!r}")
+    if not math.isfinite(math.pi * fs):
+        raise OptionError(f"fs={fs!r} Hz is too large: omega up to pi*fs rad/s overflows; give "
+                          "the sampling frequency in Hz")
     return float(fs)
 
 
@@ -147,7 +150,33 @@ def _as_fraction(value, name, low_open=0.0, high=1.0):
     return float(value)
 
 
+def _pow2_scale(x):
+    """A power of two near max|x| (1.0 for all zeros): dividing by it is exact."""
+    top = float(np.max(np.abs(x))) if np.size(x) else 0.0
+    return 1.0 if top == 0 else math.ldexp(1.0, math.frexp(top)[1])
+
+
+def _normalised(u, y):
+    """``u / s_u``, ``y / s_y`` (powers of two near their max) and the gain ``s_y / s_u``
+    that turns a ratio Y/U of the scaled records into that of the originals: the spectra
+    never overflow or underflow, whatever the units of the records.
+
+    Raises
+    ------
+    DataError
+        The gain itself is outside the floating-point range.
+    """
+    su, sy = _pow2_scale(u), _pow2_scale(y)
+    ku, ky = math.frexp(su)[1], math.frexp(sy)[1]
+    if abs(ky - ku) > 1000:
+        raise DataError(f"output and input differ by a factor 2^{ky - ku}: the response is "
+                        "outside the floating-point range; rescale the records (same units)")
+    return u / su, y / sy, math.ldexp(1.0, ky - ku)
+
+
 def _rms(x):
-    return float(np.sqrt(np.mean(np.abs(x) ** 2)))
+    """Root mean square, safe from overflow and underflow of the squares."""
+    s = _pow2_scale(x)
+    return s * float(np.sqrt(np.mean(np.abs(x / s) ** 2)))
 
 

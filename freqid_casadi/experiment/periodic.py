@@ -17,7 +17,7 @@ import numpy as np
 from ..data import FrequencyData
 from ..errors import DataError, OptionError
 from ._common import (_REL_VAR_FLOOR, FrfEstimate, _as_count, _as_fraction, _as_fs, _as_pair,
-                      _rms)
+                      _normalised, _rms)
 
 __all__ = ["frf_from_periodic", "frf_stepped_sine"]
 
@@ -115,6 +115,7 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
         raise DataError(
             "input u is constant over the periods kept after skip_periods: there is no "
             "excitation there; lower skip_periods")
+    u_used, y_used, gain = _normalised(u_used, y_used)
     if n_periods >= 2:
         _check_periodic(u_used, period, skip_periods, periodic_rtol)
     n_half = period // 2
@@ -133,7 +134,7 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
         bins = _as_bins(bins, n_half)
     U_b, Y_b = U[:, bins], Y[:, bins]
     _check_excited(U, bins, skip_periods)
-    H = Y_b / U_b
+    H = Y_b / U_b                        # of the scaled records; times gain below
     G = H.mean(axis=0)
     zero = G == 0
     if zero.any():
@@ -150,10 +151,23 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
         rel = np.maximum(variance / np.abs(G) ** 2, _REL_VAR_FLOOR)
         weights = 1.0 / rel
         weights = weights / weights.mean()
+    G, variance = _unscale(G, variance, gain)
     omega = 2.0 * np.pi * bins / period * (1.0 if fs is None else fs)
     data = FrequencyData(omega, G, name, weights)
     return FrfEstimate(data, bins, variance, coherence, n_periods, period, fs,
                        estimator="periodic")
+
+
+def _unscale(G, variance, gain):
+    """The estimate and its variance in the records' units (G * gain, variance * gain^2)."""
+    with np.errstate(over="ignore"):
+        G = G * gain
+        variance = None if variance is None else variance * np.float64(gain) ** 2
+    if not np.all(np.isfinite(G)) or (variance is not None
+                                      and not np.all(np.isfinite(variance))):
+        raise DataError("the estimated response (or its variance) overflows: output and input "
+                        "differ by too many orders of magnitude; rescale the records")
+    return G, variance
 
 
 def _check_periodic(u_used, period, skip_periods, periodic_rtol):
@@ -347,7 +361,9 @@ def _sine_ratio(u, y, f, fs, n_skip, i, sine_rtol):
     idx = np.arange(n_skip, n_skip + length)
     phase = 2.0 * np.pi * f / fs * idx
     basis = np.column_stack([np.cos(phase), np.sin(phase), np.ones(length)])
-    coef, *_ = np.linalg.lstsq(basis, np.column_stack([u[idx], y[idx]]), rcond=None)
+    u, y, gain = _normalised(u[idx], y[idx])
+    idx = np.arange(length)
+    coef, *_ = np.linalg.lstsq(basis, np.column_stack([u, y]), rcond=None)
     ua, ub = coef[0, 0], coef[1, 0]
     ya, yb = coef[0, 1], coef[1, 1]
     U = ua - 1j * ub   # x = a cos + b sin = Re((a - j b) exp(j phase))
@@ -364,4 +380,4 @@ def _sine_ratio(u, y, f, fs, n_skip, i, sine_rtol):
             f"records[{i}]: the input is not a sine at {f:g} Hz ({100 * resid:.3g}% of its RMS "
             f"is left after removing that sine; tolerance {100 * sine_rtol:.3g}%); check "
             "frequencies (in Hz) and fs")
-    return Y / U
+    return Y / U * gain

@@ -13,7 +13,7 @@ import numpy as np
 
 from ..data import FrequencyData
 from ..errors import DataError, OptionError
-from ._common import _REL_VAR_FLOOR, FrfEstimate, _as_count, _as_fs, _as_pair
+from ._common import _REL_VAR_FLOOR, FrfEstimate, _as_count, _as_fs, _as_pair, _normalised
 
 __all__ = ["frf_from_records", "ESTIMATORS"]
 
@@ -24,9 +24,6 @@ _DETRENDS = ("constant", "linear", False)
 
 def _check_options(n, fs, estimator, nperseg, noverlap, window, detrend, min_coherence):
     fs = _as_fs(fs, required=True)
-    if not np.isfinite(np.pi * fs):
-        raise OptionError(f"fs={fs!r} Hz is too large: omega up to pi*fs rad/s overflows; give "
-                          "the sampling frequency in Hz")
     if estimator not in ESTIMATORS:
         raise OptionError(f"unknown estimator {estimator!r}; choose one of "
                           f"{', '.join(ESTIMATORS)} (h1: noise on the output, h2: on the input)")
@@ -135,6 +132,7 @@ def frf_from_records(u, y, *, fs, estimator="h1", nperseg=None, noverlap=None,
     if np.ptp(u) == 0:
         raise DataError(f"input u is constant (every sample = {u[0]!r}): there is no "
                         "excitation; check that the input channel was recorded")
+    u, y, gain = _normalised(u, y)       # spectra of the scaled records; H times gain
     f, s_uu, s_yy, s_uy = _spectra(u, y, fs, win, nperseg, noverlap, detrend)
     n_avg = 1 + (u.size - nperseg) // (nperseg - noverlap)
     bins = np.arange(f.size)
@@ -154,7 +152,12 @@ def frf_from_records(u, y, *, fs, estimator="h1", nperseg=None, noverlap=None,
             "longer segments")
     h, coh, omega, bins = h[keep], coh[keep], omega[keep], bins[keep]
     rel = np.maximum((1 - coh) / (n_avg * np.maximum(coh, 1e-300)), _REL_VAR_FLOOR)
-    variance = rel * np.abs(h) ** 2
+    with np.errstate(over="ignore"):
+        h = h * gain
+        variance = rel * np.abs(h) ** 2
+    if not (np.all(np.isfinite(h)) and np.all(np.isfinite(variance))):
+        raise DataError("the estimated response (or its variance) overflows: output and input "
+                        "differ by too many orders of magnitude; rescale the records")
     weights = 1.0 / rel
     weights = weights / weights.mean()
     data = FrequencyData(omega, h, name, weights)
