@@ -18,12 +18,14 @@ from . import systems
 from .data import FrequencyData
 from .errors import DataError, FreqidError, OptionError, SolverError, StructureError
 from .fit import FitResult, StageRecord, fit
-from .loaders import DataWarning, load, load_csv, load_mat, load_npz, load_text, load_uff, save_csv
+from .loaders import (DataWarning, load, load_csv, load_mat, load_npz, load_text,
+                      load_touchstone, load_uff, save_csv)
 from .model import RationalDelayModel, Structure
 
 __all__ = [
     "fit", "FitResult", "StageRecord", "FrequencyData", "RationalDelayModel", "Structure",
-    "load", "load_csv", "load_npz", "load_text", "load_mat", "load_uff", "save_csv",
+    "load", "load_csv", "load_npz", "load_text", "load_mat", "load_uff",
+    "load_touchstone", "save_csv",
     "DataWarning", "systems",
     "FreqidError", "DataError", "StructureError", "OptionError", "SolverError",
 ]

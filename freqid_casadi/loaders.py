@@ -2,7 +2,8 @@
 
 :func:`load` picks the reader by the file's extension: ``.npz`` :func:`load_npz`, ``.mat``
 :func:`load_mat` (scipy.io), ``.uff``/``.unv`` :func:`load_uff` (UFF 58/58b via pyuff, extra
-``[uff]``), anything else :func:`load_text` (CSV, semicolons, tabs or spaces).
+``[uff]``), ``.s1p``/``.s2p`` :func:`load_touchstone`, anything else :func:`load_text` (CSV,
+semicolons, tabs or spaces).
 
 Every reader returns a validated :class:`~freqid_casadi.data.FrequencyData` with ``omega``
 in rad/s (``load_uff`` returns a tuple, one per record). Rows at zero frequency are dropped
@@ -24,12 +25,14 @@ import zipfile
 
 import numpy as np
 
+from ._touchstone import load_touchstone
 from ._uff import load_uff
 from ._table import mat_table, parse_columns, parse_freq_unit, read_table, table_response
 from .data import FrequencyData
-from .errors import DataError
+from .errors import DataError, OptionError
 
-__all__ = ["load", "load_text", "load_csv", "load_npz", "load_mat", "load_uff", "save_csv",
+__all__ = ["load", "load_text", "load_csv", "load_npz", "load_mat", "load_uff",
+           "load_touchstone", "save_csv",
            "read_regular_file", "DataWarning", "MAX_FILE_BYTES", "MAX_ROWS", "MAX_ELEMENTS"]
 
 #: Largest file any reader accepts, in bytes.
@@ -147,7 +150,7 @@ def _finish(path, omega, response, name, weights=None, lines=None):
 
 # --------------------------------------------------------------------------- dispatch
 
-def load(path, name=None, *, freq_unit=None, columns=None, record=None):
+def load(path, name=None, *, freq_unit=None, columns=None, record=None, parameter=None):
     """Load frequency-response data from a file, the reader chosen by its extension.
 
     Parameters
@@ -165,6 +168,8 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None):
         ``("freq_hz", "mag_db", "phase_deg")``; see :func:`load_text`.
     record : int, optional
         For a UFF file with several function records: which one (0-based).
+    parameter : str, optional
+        For a Touchstone ``.s1p``/``.s2p`` file: which parameter (default S11), e.g. "S21".
 
     Returns
     -------
@@ -189,6 +194,11 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None):
     lower = os.fspath(path).lower() if isinstance(path, (str, os.PathLike)) else ""
     if lower.endswith(".npz"):
         return load_npz(path, name, freq_unit=freq_unit)
+    if lower.endswith((".s1p", ".s2p")):
+        if freq_unit is not None or cols is not None:
+            raise OptionError("freq_unit and columns do not apply to Touchstone files (the "
+                              "option line gives the units); drop them")
+        return load_touchstone(path, name, parameter=parameter)
     if lower.endswith(".mat"):
         return load_mat(path, name, freq_unit=freq_unit, columns=cols)
     if lower.endswith(_UFF_EXT):

@@ -366,3 +366,56 @@ def test_cli_columns_option_is_validated_by_argparse(capsys):
     code = cli.main(["fit", "x.csv", "--sections", "1", "--out", "r", "--columns", "f,bad"])
     err = capsys.readouterr().err
     assert code == 2 and "--columns" in err and "unknown column name 'bad'" in err
+
+
+# ------------------------------------------------------------------ Touchstone
+
+S1P = """! hand-written 1-port, MHz, dB/angle
+# MHz S DB R 50
+0 0 0
+1.5 -6.020599913279624 90
+3.0 20 -45
+"""
+
+
+def test_touchstone_s1p_hand_written(tmp_path):
+    path = _write(tmp_path, S1P, "res.s1p")
+    with pytest.warns(DataWarning, match=r"dropped 1 row\(s\) at zero frequency \(lines 3\)"):
+        data = load(path)
+    np.testing.assert_allclose(data.omega, 2 * np.pi * np.array([1.5e6, 3e6]), rtol=1e-15)
+    np.testing.assert_allclose(data.response, [0.5j, 10 * np.exp(-0.25j * np.pi)], rtol=1e-12)
+    with pytest.raises(OptionError, match="do not apply to Touchstone"):
+        load(path, freq_unit="Hz")
+    with pytest.raises(OptionError, match=r"parameter='S21' is not in this 1-port S-parameter "
+                       r"file; choose one of S11"):
+        load(path, parameter="S21")
+
+
+@pytest.mark.parametrize("fmt", ["ri", "ma", "db"])
+def test_touchstone_s2p_written_by_scikit_rf(tmp_path, fmt):
+    skrf = pytest.importorskip("skrf")
+    f = np.array([1.0, 2.0, 5.0]) * 1e9
+    s = np.zeros((3, 2, 2), complex)
+    s[:, 0, 0], s[:, 1, 0] = 0.1 + 0.2j, RESP[:3]
+    s[:, 0, 1], s[:, 1, 1] = 0.05j, -0.3 + 0.1j
+    net = skrf.Network(frequency=skrf.Frequency.from_f(f, unit="Hz"), s=s, name="dut")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        net.write_touchstone(str(tmp_path / "dut"), form=fmt)
+    path = tmp_path / "dut.s2p"
+    np.testing.assert_allclose(load(path, parameter="S21").response, RESP[:3], rtol=1e-6)
+    np.testing.assert_allclose(load(path, parameter="s12").response, 0.05j, rtol=1e-6)
+    np.testing.assert_allclose(load(path).response, 0.1 + 0.2j, rtol=1e-6)      # S11
+    np.testing.assert_allclose(load(path).omega, 2 * np.pi * f, rtol=1e-9)
+
+
+def test_touchstone_bad_rows(tmp_path):
+    with pytest.raises(DataError, match=r"line 3: expected 9 numbers for a 2-port row, got 3"):
+        load(_write(tmp_path, "# Hz S RI R 50\n! c\n1 2 3\n", "x.s2p"))
+    with pytest.raises(DataError, match=r"line 2: '1_0' is not a number"):
+        load(_write(tmp_path, "# Hz S RI R 50\n1 1_0 3\n", "x.s1p"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(DataError, match=r"line 2: the frequency or S11 is outside the "
+                           "floating-point range"):
+            load(_write(tmp_path, "# Hz S DB R 50\n1 7000 90\n", "y.s1p"))
