@@ -7,6 +7,7 @@ instead of Python warning text.
 """
 
 import argparse
+import contextlib
 import sys
 import warnings
 
@@ -14,7 +15,7 @@ from .loaders import DataWarning, load
 from .errors import OptionError
 from ._table import parse_columns
 
-__all__ = ["add_data_options", "load_data", "load_options"]
+__all__ = ["add_data_options", "load_data", "load_options", "notes_to_stderr"]
 
 
 def _columns(text):
@@ -46,6 +47,21 @@ def load_options(args):
                 columns=getattr(args, "columns", None))
 
 
+@contextlib.contextmanager
+def notes_to_stderr():
+    """Within the block, :class:`~freqid_casadi.loaders.DataWarning` s are printed as
+    ``note: ...`` lines on stderr after the block succeeds (none if it raises); other
+    warnings are passed on unchanged."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", DataWarning)
+        yield
+    for w in caught:
+        if issubclass(w.category, DataWarning):
+            sys.stderr.write(f"note: {' '.join(str(w.message).split())}\n")
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
 def load_data(args, path):
     """Load ``path`` with the options in ``args``; reader notes go to stderr as ``note:``.
 
@@ -58,12 +74,6 @@ def load_data(args, path):
     DataError, OptionError
         As :func:`freqid_casadi.loaders.load`; no note is printed before an error.
     """
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", DataWarning)
+    with notes_to_stderr():
         data = load(path, **load_options(args))
-    for w in caught:
-        if issubclass(w.category, DataWarning):
-            sys.stderr.write(f"note: {' '.join(str(w.message).split())}\n")
-        else:
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return data

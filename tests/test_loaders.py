@@ -3,6 +3,7 @@ every bad file is a DataError naming the file, the line or column, and the fix."
 
 import io
 import os
+import re
 import sys
 import warnings
 import zipfile
@@ -419,3 +420,19 @@ def test_touchstone_bad_rows(tmp_path):
         with pytest.raises(DataError, match=r"line 2: the frequency or S11 is outside the "
                            "floating-point range"):
             load(_write(tmp_path, "# Hz S DB R 50\n1 7000 90\n", "y.s1p"))
+
+
+def test_cli_batch_passes_freq_unit_and_prints_notes(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "in").mkdir()
+    w = np.logspace(-1, 2, 20)
+    g = 2.0 * np.exp(-0.01j * w) / (1 + 1j * w / 3.0)
+    _write(tmp_path / "in", _rows(np.r_[0.0, w / (2 * np.pi)], np.r_[2.0, g.real],
+                                  np.r_[0.0, g.imag]), "hz.csv")
+    code = cli.main(["batch", "in", "--out", "rep", "--sections", "1", "--freq-unit", "hz"])
+    out, err = capsys.readouterr()
+    assert code in (0, 1), out + err                  # 1: IPOPT's status, not the data
+    assert err.startswith("note: ") and "hz.csv': dropped 1 row(s) at zero frequency" in err
+    assert "Warning" not in err
+    error = float(re.search(r"hz\.csv: .*max rel\. error ([-+.e0-9]+)", out).group(1))
+    assert error < 1e-6                               # Hz read as Hz: the model fits
