@@ -16,7 +16,8 @@ import inspect
 import os
 from dataclasses import dataclass
 
-from .data import FrequencyData, load
+from .data import FrequencyData
+from .loaders import load
 from .errors import DataError, OptionError, StructureError
 from .fit import FitResult, fit
 from .model import BASES
@@ -96,11 +97,11 @@ def _name_of(k, item):
                     f"{type(item).__name__}")
 
 
-def _fit_one(name, item, options):
+def _fit_one(name, item, options, load_options=None):
     """Worker: load (if a path) and fit one dataset; never raises a FreqidError."""
     source = None if isinstance(item, FrequencyData) else os.fspath(item)
     try:
-        data = item if source is None else load(source, name)
+        data = item if source is None else load(source, name, **(load_options or {}))
         result = fit(data, **options)
     except (OptionError, StructureError):
         raise                                   # the same for every dataset: not per item
@@ -111,7 +112,7 @@ def _fit_one(name, item, options):
     return BatchItem(name, result, None, status, source)
 
 
-def fit_many(datasets, *, jobs=1, scheduler=None, **options):
+def fit_many(datasets, *, jobs=1, scheduler=None, load_options=None, **options):
     """Fit every dataset with the same options, in parallel processes or on a cluster.
 
     Parameters
@@ -125,6 +126,9 @@ def fit_many(datasets, *, jobs=1, scheduler=None, **options):
     scheduler : str or distributed.Client, optional
         Address of a Dask distributed scheduler (e.g. ``"tcp://127.0.0.1:8786"``) or a
         connected ``Client``; the fits then run on its workers.
+    load_options : dict, optional
+        Keywords of :func:`freqid_casadi.loaders.load` for the file paths (``freq_unit``,
+        ``columns``).
     **options
         Keyword arguments of :func:`freqid_casadi.fit.fit` (``n_sections`` is required).
 
@@ -157,13 +161,13 @@ def fit_many(datasets, *, jobs=1, scheduler=None, **options):
     if not items:
         return []
     if scheduler is not None:
-        return _run_dask(scheduler, names, items, options)
+        return _run_dask(scheduler, names, items, options, load_options)
     if jobs == 1 or len(items) == 1:
-        return [_fit_one(n, item, options) for n, item in zip(names, items)]
-    return _run_joblib(jobs, names, items, options)
+        return [_fit_one(n, item, options, load_options) for n, item in zip(names, items)]
+    return _run_joblib(jobs, names, items, options, load_options)
 
 
-def _run_joblib(jobs, names, items, options):
+def _run_joblib(jobs, names, items, options, load_options=None):
     try:
         from joblib import Parallel, delayed
     except ImportError:
@@ -173,10 +177,10 @@ def _run_joblib(jobs, names, items, options):
 
     with parallel_config(backend="loky", inner_max_num_threads=1):
         return list(Parallel(n_jobs=min(jobs, len(items)))(
-            delayed(_fit_one)(n, item, options) for n, item in zip(names, items)))
+            delayed(_fit_one)(n, item, options, load_options) for n, item in zip(names, items)))
 
 
-def _run_dask(scheduler, names, items, options):
+def _run_dask(scheduler, names, items, options, load_options=None):
     try:
         from distributed import Client
     except ImportError:
@@ -192,7 +196,8 @@ def _run_dask(scheduler, names, items, options):
         raise OptionError(f"cannot connect to the Dask scheduler {scheduler!r}: {exc}; check "
                           "the address (e.g. tcp://127.0.0.1:8786)") from None
     try:
-        futures = client.map(_fit_one, names, items, options=options, pure=False)
+        futures = client.map(_fit_one, names, items, options=options,
+                             load_options=load_options, pure=False)
         return client.gather(futures)
     finally:
         if own:
