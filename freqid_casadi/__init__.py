@@ -15,14 +15,20 @@ Importing this package does not import matplotlib (plots are in ``freqid_casadi.
 """
 
 from . import systems
-from .data import FrequencyData, load, load_csv, load_npz, save_csv
+from .data import FrequencyData
 from .errors import DataError, FreqidError, OptionError, SolverError, StructureError
 from .fit import FitResult, StageRecord, fit
+from .loaders import (DataWarning, load, load_csv, load_mat, load_npz, load_text,
+                      load_touchstone, load_uff, save_csv)
 from .model import RationalDelayModel, Structure
+from .options import BarrierLMOptions, FitOptions, IpoptOptions, LoopOptions
 
 __all__ = [
-    "fit", "FitResult", "StageRecord", "FrequencyData", "RationalDelayModel", "Structure",
-    "load", "load_csv", "load_npz", "save_csv", "systems",
+    "fit", "FitResult", "StageRecord", "IpoptOptions", "BarrierLMOptions", "LoopOptions",
+    "FitOptions", "FrequencyData", "RationalDelayModel", "Structure",
+    "load", "load_csv", "load_npz", "load_text", "load_mat", "load_uff",
+    "load_touchstone", "save_csv",
+    "DataWarning", "systems",
     "FreqidError", "DataError", "StructureError", "OptionError", "SolverError",
 ]
 __version__ = "0.1.0"

@@ -16,10 +16,12 @@ import inspect
 import os
 from dataclasses import dataclass
 
-from .data import FrequencyData, load
+from .data import FrequencyData
+from .loaders import load
 from .errors import DataError, OptionError, StructureError
 from .fit import FitResult, fit
 from .model import BASES
+from .options import LEGACY_KEYWORDS, LoopOptions, legacy_message, solver_options
 
 __all__ = ["fit_many", "BatchItem", "BATCH_STATUSES"]
 
@@ -63,6 +65,9 @@ class BatchItem:
 
 
 def _check_options(options):
+    for name in options:
+        if name in LEGACY_KEYWORDS:
+            raise TypeError(legacy_message("fit_many", name, options[name]))
     unknown = sorted(set(options) - _FIT_OPTIONS)
     if unknown:
         raise OptionError(f"unknown fit option(s) {', '.join(map(repr, unknown))}; "
@@ -72,6 +77,9 @@ def _check_options(options):
     if options.get("basis", "second-order") not in BASES:
         raise OptionError(f"unknown basis {options['basis']!r}; choose one of "
                           f"{', '.join(BASES)}")
+    solver_options(options.get("method", "ipopt"))       # OptionError on a bad method
+    if not isinstance(options.get("loop", LoopOptions()), LoopOptions):
+        raise OptionError(f"loop must be a LoopOptions, got {type(options['loop']).__name__}")
 
 
 def _check_jobs(jobs):
@@ -89,11 +97,11 @@ def _name_of(k, item):
                     f"{type(item).__name__}")
 
 
-def _fit_one(name, item, options):
+def _fit_one(name, item, options, load_options=None):
     """Worker: load (if a path) and fit one dataset; never raises a FreqidError."""
     source = None if isinstance(item, FrequencyData) else os.fspath(item)
     try:
-        data = item if source is None else load(source, name)
+        data = item if source is None else load(source, name, **(load_options or {}))
         result = fit(data, **options)
     except (OptionError, StructureError):
         raise                                   # the same for every dataset: not per item
@@ -104,7 +112,7 @@ def _fit_one(name, item, options):
     return BatchItem(name, result, None, status, source)
 
 
-def fit_many(datasets, *, jobs=1, scheduler=None, **options):
+def fit_many(datasets, *, jobs=1, scheduler=None, load_options=None, **options):
     """Fit every dataset with the same options, in parallel processes or on a cluster.
 
     Parameters
@@ -118,6 +126,9 @@ def fit_many(datasets, *, jobs=1, scheduler=None, **options):
     scheduler : str or distributed.Client, optional
         Address of a Dask distributed scheduler (e.g. ``"tcp://127.0.0.1:8786"``) or a
         connected ``Client``; the fits then run on its workers.
+    load_options : dict, optional
+        Keywords of :func:`freqid_casadi.loaders.load` for the file paths (``freq_unit``,
+        ``columns``).
     **options
         Keyword arguments of :func:`freqid_casadi.fit.fit` (``n_sections`` is required).
 
@@ -128,6 +139,8 @@ def fit_many(datasets, *, jobs=1, scheduler=None, **options):
 
     Raises
     ------
+    TypeError
+        A keyword fit() no longer takes (the message names its option object).
     OptionError
         Unknown or invalid options, bad ``jobs``, or ``scheduler`` given but Dask is not
         installed.
@@ -148,13 +161,13 @@ def fit_many(datasets, *, jobs=1, scheduler=None, **options):
     if not items:
         return []
     if scheduler is not None:
-        return _run_dask(scheduler, names, items, options)
+        return _run_dask(scheduler, names, items, options, load_options)
     if jobs == 1 or len(items) == 1:
-        return [_fit_one(n, item, options) for n, item in zip(names, items)]
-    return _run_joblib(jobs, names, items, options)
+        return [_fit_one(n, item, options, load_options) for n, item in zip(names, items)]
+    return _run_joblib(jobs, names, items, options, load_options)
 
 
-def _run_joblib(jobs, names, items, options):
+def _run_joblib(jobs, names, items, options, load_options=None):
     try:
         from joblib import Parallel, delayed
     except ImportError:
@@ -164,10 +177,10 @@ def _run_joblib(jobs, names, items, options):
 
     with parallel_config(backend="loky", inner_max_num_threads=1):
         return list(Parallel(n_jobs=min(jobs, len(items)))(
-            delayed(_fit_one)(n, item, options) for n, item in zip(names, items)))
+            delayed(_fit_one)(n, item, options, load_options) for n, item in zip(names, items)))
 
 
-def _run_dask(scheduler, names, items, options):
+def _run_dask(scheduler, names, items, options, load_options=None):
     try:
         from distributed import Client
     except ImportError:
@@ -183,7 +196,8 @@ def _run_dask(scheduler, names, items, options):
         raise OptionError(f"cannot connect to the Dask scheduler {scheduler!r}: {exc}; check "
                           "the address (e.g. tcp://127.0.0.1:8786)") from None
     try:
-        futures = client.map(_fit_one, names, items, options=options, pure=False)
+        futures = client.map(_fit_one, names, items, options=options,
+                             load_options=load_options, pure=False)
         return client.gather(futures)
     finally:
         if own:

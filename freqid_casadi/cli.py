@@ -27,7 +27,7 @@ import shlex
 import sys
 
 from . import systems
-from .data import load
+from .cli_common import add_data_options, load_data
 from .errors import FreqidError, OptionError, ResolutionWarning
 from .fit import METHODS, OBJECTIVES, STARTS, fit
 from .model import BASES
@@ -158,6 +158,7 @@ def _add_fit(sub):
                                    "a CSV (omega,real,imag or omega,magnitude_db,phase_deg) "
                                    "or .npz file and write a report folder.")
     p.add_argument("file", metavar="FILE", help="data file (.csv or .npz)")
+    add_data_options(p)
     p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
                    help="number of sections N >= 1")
     p.add_argument("--integrator", action="store_true", help="include the factor K0/s")
@@ -302,7 +303,7 @@ def _resolution_warning(result):
 
 
 def _cmd_fit(args, command):
-    data = load(args.file)                           # DataError on bad files
+    data = load_data(args, args.file)                # DataError on bad files
     check_out_dir(args.out, args.force)              # before the (long) fit
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ResolutionWarning)   # reported below, one line
@@ -326,6 +327,7 @@ def _add_sweep(sub):
     p.add_argument("file", metavar="FILE",
                    help="data file (.csv or .npz), or example:A (B, C) for a built-in "
                         "example (then the error on a 10x denser grid is reported too)")
+    add_data_options(p)
     p.add_argument("--orders", required=True, metavar="START:STOP:STEP",
                    help="orders of P_N, e.g. 4:40:2 (stop included) or 10,20,34")
     p.add_argument("--target", type=_positive_float, metavar="X",
@@ -359,7 +361,7 @@ def _cmd_sweep(args, command):
         truth = lambda w: make(w).response  # noqa: E731
         integrator = integrator or EXAMPLES[name]["integrator"]
     else:
-        data = load(args.file)
+        data = load_data(args, args.file)
     check_out_dir(args.out, args.force)
 
     def report(row):

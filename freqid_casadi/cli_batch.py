@@ -23,6 +23,7 @@ Registered by ``cli.py`` as ``COMMANDS["batch"] = (add_cli, run_cli)``.
 import math
 import os
 
+from .cli_common import add_data_options, load_options, notes_to_stderr
 from ._io import atomic_write_text
 from .batch import fit_many
 from .cli import _positive_float, _positive_int   # the CLI's own validators
@@ -50,6 +51,7 @@ def add_cli(subparsers):
                     "folder with the same options, in parallel processes (--jobs) or on a "
                     "Dask cluster (--scheduler), and write per-file models and a summary.")
     p.add_argument("folder", metavar="DIR", help="folder of data files (.csv, .npz)")
+    add_data_options(p)
     p.add_argument("--out", required=True, metavar="DIR",
                    help="output folder to create (must not exist unless --force)")
     p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
@@ -176,9 +178,11 @@ def run_cli(args, command):
     failed or did not converge). FreqidError/OSError propagate to ``cli.main`` (exit 2)."""
     files = data_files(args.folder)
     check_out_dir(args.out, args.force)              # before the (long) fits
-    items = fit_many(files, jobs=args.jobs, scheduler=args.scheduler,
-                     n_sections=args.sections, integrator=args.integrator,
-                     delay=args.delay, basis=args.basis, method=args.method, tol=args.tol)
+    with notes_to_stderr():                          # zero-frequency rows dropped, ...
+        items = fit_many(files, jobs=args.jobs, scheduler=args.scheduler,
+                         load_options=load_options(args),
+                         n_sections=args.sections, integrator=args.integrator,
+                         delay=args.delay, basis=args.basis, method=args.method, tol=args.tol)
     path = write_batch_report(items, files, args.out, command=command, force=args.force)
     n_ok = sum(i.status == "converged" for i in items)
     for item, f in zip(items, files):

@@ -1,19 +1,17 @@
-"""Frequency-response data: validation, windows and file loaders (layer L1).
+"""Frequency-response data: validation and windows (layer L1; file readers in loaders.py).
 
 :class:`FrequencyData` is the one container every fitter takes. It is frozen and its arrays
 are read-only, so a window or a result can share them safely.
 """
 
-import csv
-import os
-import zipfile
+import math
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import DataError
+from .errors import DataError, OptionError
 
-__all__ = ["FrequencyData", "load_csv", "load_npz", "load", "save_csv"]
+__all__ = ["FrequencyData", "dense_grid", "frequency_grid"]
 
 
 def _first_bad(mask):
@@ -183,123 +181,54 @@ def _as_complex_vector(x, name):
     return arr
 
 
-# --------------------------------------------------------------------------- loaders
+# --------------------------------------------------------------------------- grids
+def frequency_grid(omega):
+    """The frequencies of ``omega`` (FrequencyData or array) as a checked float array.
 
-_RI_HEADERS = ({"omega", "real", "imag"},)
-_MP_HEADERS = ({"omega", "magnitude_db", "phase_deg"},)
+    Parameters
+    ----------
+    omega : FrequencyData or array_like of float, shape (M,)
 
-
-def _check_file(path):
-    path = os.fspath(path)
-    if not os.path.exists(path):
-        raise DataError(f"data file not found: {path!r}; check the path")
-    if os.path.isdir(path):
-        raise DataError(f"{path!r} is a directory, not a data file; name the file inside it")
-    if not os.access(path, os.R_OK):
-        raise DataError(f"data file {path!r} is not readable; check its permissions")
-    return path
-
-
-def load_csv(path, name=None):
-    """Read frequency-response data from a CSV file with a header row.
-
-    Two layouts are recognised by the header (case-insensitive, surrounding spaces ignored):
-
-    - ``omega, real, imag`` — rad/s, real and imaginary parts;
-    - ``omega, magnitude_db, phase_deg`` — rad/s, 20*log10|G| in dB, phase in degrees.
-
-    Lines starting with ``#`` are comments. Returns a validated :class:`FrequencyData`
-    named after the file unless ``name`` is given.
+    Returns
+    -------
+    ndarray of float, shape (M,)
 
     Raises
     ------
     DataError
-        Missing file, directory, bad header, wrong column count, non-numeric cells, or
-        any data violation of :class:`FrequencyData`.
+        Fewer than 2 values, a value not finite or <= 0, or not strictly increasing.
     """
-    path = _check_file(path)
-    try:
-        with open(path, newline="", encoding="utf-8") as fh:
-            rows = [(k + 1, r) for k, r in enumerate(csv.reader(fh))
-                    if r and "".join(r).strip() and not r[0].lstrip().startswith("#")]
-    except UnicodeDecodeError:
-        raise DataError(f"{path!r} is not a text CSV file (not UTF-8)") from None
-    except OSError as exc:
-        raise DataError(f"cannot read {path!r}: {exc.strerror}") from None
-    if not rows:
-        raise DataError(f"{path!r} is empty: expected a header 'omega,real,imag' and data rows")
-    header = [h.strip().lower() for h in rows[0][1]]
-    if header == ["omega", "real", "imag"]:
-        layout = "ri"
-    elif header == ["omega", "magnitude_db", "phase_deg"]:
-        layout = "mp"
-    else:
-        raise DataError(
-            f"{path!r}: unrecognised header {','.join(rows[0][1])!r}; the first line must be "
-            "'omega,real,imag' or 'omega,magnitude_db,phase_deg'")
-    body = rows[1:]
-    if not body:
-        raise DataError(f"{path!r} has a header but no data rows")
-    values = np.empty((len(body), 3))
-    for k, (line, row) in enumerate(body):
-        if len(row) != 3:
-            raise DataError(
-                f"{path!r} line {line}: expected 3 columns ({','.join(header)}), got {len(row)}")
-        for j, cell in enumerate(row):
-            try:
-                values[k, j] = float(cell)
-            except ValueError:
-                raise DataError(
-                    f"{path!r} line {line}, column {header[j]!r}: {cell.strip()!r} is not a "
-                    "number") from None
-    omega = values[:, 0]
-    if layout == "ri":
-        response = np.empty(len(body), complex)
-        response.real, response.imag = values[:, 1], values[:, 2]
-    else:
-        response = 10.0 ** (values[:, 1] / 20.0) * np.exp(1j * np.deg2rad(values[:, 2]))
-    name = name if name is not None else os.path.splitext(os.path.basename(path))[0]
-    return FrequencyData(omega, response, name)
+    if isinstance(omega, FrequencyData):
+        return omega.omega
+    w = np.asarray(omega, float).reshape(-1)
+    if w.size < 2 or not np.all(np.isfinite(w)) or np.any(w <= 0) or np.any(np.diff(w) <= 0):
+        raise DataError("omega must hold >= 2 finite frequencies > 0 (rad/s), strictly "
+                        "increasing; use FrequencyData.sorted()")
+    return w
 
 
-def load_npz(path, name=None):
-    """Read data from a NumPy ``.npz`` file with arrays ``omega`` (rad/s) and ``response``
-    (complex), and optionally ``weights``. Same checks as :class:`FrequencyData`."""
-    path = _check_file(path)
-    try:
-        loaded = np.load(path, allow_pickle=False)
-        if not isinstance(loaded, np.lib.npyio.NpzFile):
-            raise DataError(f"{path!r} holds a single array (.npy), not an .npz archive; save "
-                            "with np.savez(path, omega=omega, response=response)")
-        with loaded as npz:
-            missing = {"omega", "response"} - set(npz.files)
-            if missing:
-                raise DataError(
-                    f"{path!r} lacks array(s) {sorted(missing)}; save with "
-                    "np.savez(path, omega=omega, response=response)")
-            omega, response = npz["omega"], npz["response"]
-            weights = npz["weights"] if "weights" in npz.files else None
-    except DataError:
-        raise
-    except (OSError, ValueError, zipfile.BadZipFile) as exc:
-        raise DataError(f"cannot read {path!r} as .npz ({exc}); save it with "
-                        "np.savez(path, omega=omega, response=response)") from None
-    name = name if name is not None else os.path.splitext(os.path.basename(path))[0]
-    return FrequencyData(omega, response, name, weights)
+def dense_grid(omega, factor=10):
+    """A log-spaced grid with ``factor`` x as many points over the range of ``omega``.
 
+    Parameters
+    ----------
+    omega : FrequencyData or array_like of float, shape (M,)
+        rad/s, >= 2 finite values > 0, strictly increasing.
+    factor : int
+        >= 1.
 
-def load(path, name=None):
-    """Load ``.npz`` or CSV data, chosen by the file's extension (anything else is CSV)."""
-    if os.fspath(path).lower().endswith(".npz"):
-        return load_npz(path, name)
-    return load_csv(path, name)
+    Returns
+    -------
+    ndarray of float, shape (factor * M,)
 
-
-def save_csv(data, path):
-    """Write data as ``omega,real,imag`` CSV (atomic: temporary file then rename)."""
-    from ._io import atomic_write_text
-
-    lines = ["omega,real,imag"]
-    lines += [f"{w!r},{z.real!r},{z.imag!r}" for w, z in zip(data.omega.tolist(),
-                                                            data.response.tolist())]
-    atomic_write_text(path, "\n".join(lines) + "\n")
+    Raises
+    ------
+    DataError
+        Bad ``omega``.
+    OptionError
+        Bad ``factor``.
+    """
+    w = frequency_grid(omega)
+    if isinstance(factor, bool) or not isinstance(factor, (int, np.integer)) or factor < 1:
+        raise OptionError(f"factor must be an integer >= 1, got {factor!r}")
+    return np.logspace(math.log10(w[0]), math.log10(w[-1]), int(factor) * w.size)

@@ -153,6 +153,17 @@ def check_trivial(max_rel_error, rms_rel_error, threshold=TRIVIAL_RMS):
 
     The infinite-gain model has ``Phi/G_N - 1 = -1`` at every point (RMS exactly 1); a
     model near it explains nothing, whatever the optimiser's status.
+
+    Parameters
+    ----------
+    max_rel_error, rms_rel_error : float
+        The fit's errors (a NaN counts as trivial).
+    threshold : float
+        Default :data:`TRIVIAL_RMS`.
+
+    Returns
+    -------
+    tuple of Diagnostic
     """
     if not (rms_rel_error >= threshold) and math.isfinite(rms_rel_error):
         return ()
@@ -185,6 +196,7 @@ def check_delay(model, data, delay_max, rms_rel_error=None, *, at_bound=0.98, po
     at_bound : float
         Fraction of ``delay_max`` from which the delay counts as at its bound.
     poor_rms : float
+        RMS relative error from which a fit counts as poor.
 
     Returns
     -------
@@ -268,6 +280,8 @@ def check_minimum_phase(model, data, max_rel_error, rms_rel_error, *, ratio=0.5,
     max_rel_error, rms_rel_error : float
         The fit's errors on ``data``.
     ratio, floor : float
+        The free-zeros fit must reach ``ratio`` times the fit's RMS, and the fit's RMS must
+        be at least ``floor``, for the record.
 
     Returns
     -------
@@ -297,7 +311,16 @@ def check_minimum_phase(model, data, max_rel_error, rms_rel_error, *, ratio=0.5,
 
 def rhp_zeros_note(model):
     """``non-minimum-phase`` "info" record for a model fitted with ``zeros="free"`` that
-    has right-half-plane zeros (empty if it has none)."""
+    has right-half-plane zeros (empty if it has none).
+
+    Parameters
+    ----------
+    model : RationalDelayModel
+
+    Returns
+    -------
+    tuple of Diagnostic
+    """
     z = model.zeros()
     rhp = z[z.real > 0]
     if rhp.size == 0:

@@ -10,9 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .data import FrequencyData
+from .data import FrequencyData, dense_grid
 from .errors import OptionError
 from .fit import fit
+from .metrics import relative_error
 
 __all__ = ["SweepRow", "SweepResult", "sweep", "parse_orders"]
 
@@ -51,7 +52,17 @@ class SweepRow:
 
 @dataclass(frozen=True)
 class SweepResult:
-    """All orders of a sweep; ``best_order`` is the smallest meeting ``target`` (or None)."""
+    """All orders of a sweep.
+
+    Attributes
+    ----------
+    rows : tuple of SweepRow
+    target : float or None
+        The max relative error aimed at.
+    best_order : int or None
+        The smallest order meeting ``target``.
+    data_name : str
+    """
 
     rows: tuple
     target: float
@@ -64,7 +75,21 @@ class SweepResult:
 
 
 def parse_orders(spec):
-    """Parse "4:40:2" (start:stop:step, stop included), "4,8,12" or "10" into a list."""
+    """Parse "4:40:2" (start:stop:step, stop included), "4,8,12" or "10" into a list.
+
+    Parameters
+    ----------
+    spec : str
+
+    Returns
+    -------
+    list of int
+
+    Raises
+    ------
+    OptionError
+        A malformed ``spec``.
+    """
     try:
         if ":" in spec:
             parts = [int(p) for p in spec.split(":")]
@@ -97,6 +122,8 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
     truth : callable, optional
         ``omega (rad/s) -> complex response`` of the true system, to evaluate the error on
         a log grid ``dense_factor`` times denser than the data.
+    dense_factor : int
+        Points of the dense grid per data point (:func:`~freqid_casadi.data.dense_grid`).
     progress : callable, optional
         Called with each :class:`SweepRow` as it is done.
     **fit_options
@@ -119,14 +146,12 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
                               "use even orders or basis='first-order'")
     dense = None
     if truth is not None:
-        from .validation import dense_grid   # lazy: validation builds on fit
-
         dense = dense_grid(data.omega, dense_factor)
         g_dense = truth(dense)
     rows = []
     for o in orders:
         res = fit(data, n_sections=o // per, **fit_options)
-        dense_err = (float(np.max(np.abs(g_dense / res.model.frequency_response(dense) - 1)))
+        dense_err = (relative_error(res.model, dense, g_dense).max
                      if dense is not None else float("nan"))
         row = SweepRow(order=o, n_sections=o // per, max_rel_error=res.max_rel_error,
                        rms_rel_error=res.rms_rel_error, max_rel_error_dense=dense_err,

@@ -26,7 +26,8 @@ import dataclasses
 import numpy as np
 
 from freqid_casadi import experiment, plots
-from freqid_casadi.data import FrequencyData, save_csv
+from freqid_casadi.data import FrequencyData
+from freqid_casadi.loaders import save_csv
 from freqid_casadi.fit import fit
 from freqid_casadi.report import (_clean, check_out_dir, report_folder,
                                   generated_by_line, markdown_table)

@@ -13,7 +13,8 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 from freqid_casadi import cli, report  # noqa: E402
-from freqid_casadi.data import FrequencyData, save_csv  # noqa: E402
+from freqid_casadi.data import FrequencyData  # noqa: E402
+from freqid_casadi.loaders import save_csv  # noqa: E402
 from freqid_casadi.fit import fit  # noqa: E402
 from freqid_casadi.model import RationalDelayModel, Structure  # noqa: E402
 

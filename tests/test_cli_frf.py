@@ -3,12 +3,16 @@ through a known discrete-time filter, the sidecar, and bad input as FreqidError.
 
 import argparse
 import csv
+import os
+import re
+import shutil
 
 import numpy as np
 import pytest
+from scipy import signal
 
-from freqid_casadi import cli_frf
-from freqid_casadi.data import load_csv
+from freqid_casadi import cli, cli_frf
+from freqid_casadi.loaders import load_csv
 from freqid_casadi.errors import DataError, FreqidError, OptionError
 
 PERIOD = 256
@@ -106,3 +110,84 @@ def test_missing_file_and_folder_are_freqid_errors(tmp_path):
     _write(tmp_path / "rec.csv", u, y)
     with pytest.raises(OptionError, match="does not exist"):
         cli_frf.run_cli(_args(tmp_path / "rec.csv", tmp_path / "no" / "frf.csv"), "x")
+
+
+# ----------------------------------------------------------------------------- Welch H1/H2
+
+def _filter_records(n=2 ** 14, seed=0):
+    rng = np.random.default_rng(seed)
+    u = rng.standard_normal(n)
+    return u, signal.lfilter([1.0], [1.0, -0.5], u) + 0.01 * rng.standard_normal(n)
+
+
+def test_frf_h1_from_a_random_test_through_the_command_line(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    u, y = _filter_records()
+    _write(tmp_path / "rec.csv", u, y)
+    code = cli.main(["frf", "rec.csv", "--estimator", "h1", "--fs", "100", "--nperseg", "256",
+                     "--min-coherence", "0.99", "--out", "frf.csv"])
+    out, err = capsys.readouterr()
+    assert code == 0 and err == "", err
+    assert out.startswith("128 frequencies, 0.3906 to 50 Hz (H1, 127 segments of 256 samples)")
+    data = load_csv("frf.csv")
+    np.testing.assert_allclose(data.omega, 2 * np.pi * np.arange(1, 129) * 100 / 256)
+    exact = 1 / (1 - 0.5 * np.exp(-1j * data.omega / 100))
+    assert np.max(np.abs(data.response / exact - 1)) < 0.01
+    with open(cli_frf.stats_path("frf.csv")) as fh:
+        rows = list(csv.DictReader(fh))
+    assert [int(r["bin"]) for r in rows] == list(range(1, 129))
+    assert all(0.99 <= float(r["coherence"]) <= 1 for r in rows)
+
+
+@pytest.fixture()
+def actuator_copy(tmp_path):
+    from freqid_casadi.experiment import ACTUATOR_FILE, dataset_path
+    path = tmp_path / "0A.txt.xz"
+    shutil.copyfile(dataset_path(ACTUATOR_FILE), path)
+    return path
+
+
+def test_frf_of_the_actuator_daq_export(actuator_copy, tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    code = cli.main(["frf", "0A.txt.xz", "--estimator", "h1", "--nperseg", "8192",
+                     "--input", "CHANNEL2", "--output", "CHANNEL0", "--min-coherence", "0.95",
+                     "--out", "frf.csv"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert out.startswith("170 frequencies, 0.1221 to 20.75 Hz (H1, 14 segments of 8192 "
+                          "samples); coherence min 0.959")
+    data = load_csv("frf.csv")
+    assert abs(data.response[3]) == pytest.approx(0.999, abs=0.01)     # 0.49 Hz
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--estimator", "h1"], r"--input is required for a DAQ export: choose one of CHANNEL0, "
+                            r"CHANNEL1, CHANNEL2"),
+    (["--input", "CH9", "--output", "CHANNEL0"], r"--input 'CH9' is not a channel"),
+    (["--input", "CHANNEL2", "--output", "CHANNEL0", "--fs", "500"],
+     r"--fs 500 contradicts the file's sampling rate 1000 Hz"),
+    (["--input", "CHANNEL2", "--output", "CHANNEL0", "--period", "100", "--estimator", "h2"],
+     r"--period is for a periodic excitation, not --estimator h2"),
+    (["--estimator", "periodic"], r"--estimator periodic needs --period N"),
+    (["--input", "CHANNEL2", "--output", "CHANNEL0", "--min-coherence", "1.5"],
+     r"--min-coherence: must be a number in \[0, 1\)"),
+])
+def test_frf_option_errors(actuator_copy, tmp_path, monkeypatch, capsys, argv, match):
+    monkeypatch.chdir(tmp_path)
+    code = cli.main(["frf", "0A.txt.xz", "--out", "frf.csv", *argv])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1 and re.search(match, err), err
+    assert sorted(os.listdir(tmp_path)) == ["0A.txt.xz"]
+
+
+def test_frf_refuses_to_write_onto_its_records(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    u, y = _filter_records(1024)
+    _write(tmp_path / "rec.csv", u, y)
+    before = (tmp_path / "rec.csv").read_bytes()
+    code = cli.main(["frf", "rec.csv", "--fs", "100", "--out", "rec.csv", "--force"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--out 'rec.csv' is the records file itself" in err
+    assert (tmp_path / "rec.csv").read_bytes() == before
+    code = cli.main(["frf", "rec.csv", "--estimator", "h2", "--out", "frf.csv"])
+    assert code == 2 and "--estimator h2 needs --fs HZ" in capsys.readouterr().err

@@ -1,5 +1,8 @@
 """Tests of freqid_casadi.experiment: time series -> frequency data (SPEC §7)."""
 
+import os
+import warnings
+
 import numpy as np
 import pytest
 from scipy import signal
@@ -8,9 +11,13 @@ from freqid_casadi.data import FrequencyData
 from freqid_casadi.errors import DataError, OptionError
 from freqid_casadi.experiment import (
     FrfEstimate,
+    actuator_records,
+    dataset_path,
     frf_from_periodic,
+    frf_from_records,
     frf_stepped_sine,
     load_daisy,
+    load_daq_records,
     load_records_csv,
     robot_arm,
 )
@@ -347,5 +354,225 @@ def test_robot_arm_env_and_missing(tmp_path, monkeypatch):
     monkeypatch.setenv("FREQID_SHARED", str(tmp_path))
     with pytest.raises(DataError, match="FREQID_SHARED"):
         robot_arm()
-    monkeypatch.delenv("FREQID_SHARED")  # the default search walks up to shared/data
+    monkeypatch.delenv("FREQID_SHARED")
+    monkeypatch.chdir(tmp_path)          # no ../shared: the copy shipped in the package
     assert robot_arm().period == 1024
+    assert dataset_path("robot_arm.dat").endswith(os.path.join("datasets", "robot_arm.dat"))
+    with pytest.raises(DataError, match="data set 'nope.dat' is missing from the installed"):
+        dataset_path("nope.dat")
+
+
+def test_unexcited_bin_is_a_data_error_not_a_huge_gain():
+    u1 = multisine()
+    u = np.tile(u1, 3)
+    y = signal.lfilter(B, A, u)
+    with pytest.raises(DataError, match=r"input has no power at bin 2 in period #1 \(\|U\|\^2 is "
+                       r".* of the strongest bin, below 1e-12\): that bin is not excited"):
+        frf_from_periodic(u, y, PERIOD, bins=[1, 2, 3])
+
+
+# --------------------------------------------------------------------------- Welch H1/H2
+FS = 1000.0
+# 2nd-order resonant low-pass at 50 Hz, damping 0.1 (bilinear transform of the analog one)
+B2, A2 = signal.bilinear([(2 * np.pi * 50) ** 2],
+                         [1, 2 * 0.1 * 2 * np.pi * 50, (2 * np.pi * 50) ** 2], FS)
+
+
+def _truth(omega):
+    return signal.freqz(B2, A2, worN=omega / FS)[1]
+
+
+def _excitation(kind, n, rng):
+    if kind == "noise":
+        return rng.standard_normal(n)
+    t = np.arange(n) / FS
+    return signal.chirp(t, 1.0, t[-1], 200.0, method="logarithmic")
+
+
+@pytest.mark.parametrize("kind", ["noise", "chirp"])
+def test_h1_recovers_a_known_system(kind):
+    rng = np.random.default_rng(1)
+    u = _excitation(kind, 2 ** 15, rng)
+    y = signal.lfilter(B2, A2, u) + 0.02 * rng.standard_normal(u.size)
+    est = frf_from_records(u, y, fs=FS, nperseg=1024, name=kind)
+    d = est.data
+    assert isinstance(est, FrfEstimate) and est.estimator == "h1" and d.name == kind
+    assert est.nperseg == 1024 and est.n_averages == 63 and d.omega[0] > 0   # no DC bin
+    np.testing.assert_allclose(d.omega, 2 * np.pi * est.bins * FS / 1024)
+    band = (est.coherence > 0.99) & (d.omega < 2 * np.pi * 150)
+    assert band.sum() > 50
+    err = np.abs(d.response[band] / _truth(d.omega[band]) - 1)
+    # A chirp is not stationary: the transient carried from one segment into the next biases
+    # H1 near the lightly damped resonance (measured 0.069 at 49.8 Hz with coherence 0.991);
+    # random noise gives only the random error.
+    assert err.max() < {"noise": 0.03, "chirp": 0.08}[kind], err.max()
+    assert np.median(err) < {"noise": 0.01, "chirp": 0.01}[kind], np.median(err)
+    assert np.isclose(d.weights.mean(), 1.0)
+    assert np.corrcoef(d.weights, est.coherence)[0, 1] > 0     # weights grow with coherence
+
+
+def test_h1_h2_bias_under_output_and_input_noise():
+    rng = np.random.default_rng(2)
+    u = rng.standard_normal(2 ** 15)
+    y = signal.lfilter(B2, A2, u)
+    band = slice(5, 60)                                 # 5..60 bins of 1024: 5-60 Hz
+    y_noisy = y + 0.3 * rng.standard_normal(u.size)     # noise on the output
+    u_noisy = u + 0.3 * rng.standard_normal(u.size)     # noise on the input
+    ratio = {}
+    for label, (uu, yy) in {"out": (u, y_noisy), "in": (u_noisy, y)}.items():
+        for est_name in ("h1", "h2"):
+            e = frf_from_records(uu, yy, fs=FS, nperseg=1024, estimator=est_name)
+            h = _truth(e.data.omega)[band]
+            r = np.abs(e.data.response[band] / h)
+            if (label, est_name) == ("out", "h2"):
+                r = r / (1 + 0.09 / np.abs(h) ** 2)     # theory: |H2| = |H| (1 + s^2/|H|^2)
+            ratio[label, est_name] = float(np.median(r))
+    # Bendat & Piersol §9.2: H1 is unbiased by output noise, H2 by input noise; the other
+    # one is biased by the factor 1/gamma^2 (H2 up) or gamma^2 (H1 down). Noise variance
+    # s^2 = 0.09 against a unit-variance white input.
+    assert ratio["out", "h1"] == pytest.approx(1, abs=0.02)
+    assert ratio["out", "h2"] == pytest.approx(1, abs=0.02)       # biased as theory says
+    assert ratio["in", "h2"] == pytest.approx(1, abs=0.02)
+    assert ratio["in", "h1"] == pytest.approx(1 / 1.09, abs=0.02)   # |H1| = |H| / (1 + s^2)
+
+
+def test_variance_matches_the_spread_over_repeated_experiments():
+    rng = np.random.default_rng(3)
+    rel, pred = [], []
+    for _ in range(30):
+        u = rng.standard_normal(8192)
+        y = signal.lfilter(B2, A2, u) + 0.5 * rng.standard_normal(u.size)
+        e = frf_from_records(u, y, fs=FS, nperseg=512)
+        h = _truth(e.data.omega)
+        rel.append(np.abs(e.data.response - h) ** 2 / np.abs(h) ** 2)
+        pred.append(e.variance / np.abs(e.data.response) ** 2)
+    band = slice(2, 60)
+    measured = np.mean(np.array(rel)[:, band])
+    predicted = np.mean(np.array(pred)[:, band])
+    assert 0.7 < measured / predicted < 1.6, (measured, predicted)
+
+
+def test_min_coherence_selects_the_band():
+    rng = np.random.default_rng(4)
+    u = rng.standard_normal(2 ** 14)
+    y = signal.lfilter(B2, A2, u) + 0.05 * rng.standard_normal(u.size)
+    full = frf_from_records(u, y, fs=FS, nperseg=512)
+    sel = frf_from_records(u, y, fs=FS, nperseg=512, min_coherence=0.9)
+    assert np.all(sel.coherence >= 0.9) and 0 < sel.data.n_points < full.data.n_points
+    np.testing.assert_array_equal(sel.data.omega, full.data.omega[full.coherence >= 0.9])
+    with pytest.raises(DataError, match=r"no frequency has coherence >= 0\.9 \(highest"):
+        frf_from_records(u, rng.standard_normal(u.size), fs=FS, nperseg=512, min_coherence=0.9)
+
+
+@pytest.mark.parametrize("kw, exc, match", [
+    ({"estimator": "h3"}, OptionError, r"unknown estimator 'h3'; choose one of h1, h2"),
+    ({"nperseg": 10 ** 6}, OptionError, r"nperseg=1000000 is longer than the records"),
+    ({"nperseg": 4}, OptionError, r"nperseg must be >= 8"),
+    ({"nperseg": 64, "noverlap": 64}, OptionError, r"noverlap=64 must be < nperseg=64"),
+    ({"min_coherence": 1.5}, OptionError, r"min_coherence must be a number in \[0, 1\)"),
+    ({"window": "nosuch"}, OptionError, r"window='nosuch' is not a scipy.signal window"),
+    ({"detrend": "cubic"}, OptionError, r"detrend must be 'constant', 'linear' or False"),
+    ({"fs": None}, OptionError, r"fs \(sampling frequency, Hz\) is required"),
+    ({"fs": 1e308}, OptionError, r"fs=1e\+308 Hz is too large: omega up to pi\*fs rad/s "
+                                 "overflows"),
+])
+def test_welch_options(kw, exc, match):
+    rng = np.random.default_rng(5)
+    u = rng.standard_normal(4096)
+    y = signal.lfilter(B2, A2, u)
+    args = {"fs": FS, "nperseg": 256, **kw}
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(exc, match=match):
+            frf_from_records(u, y, **args)
+
+
+def test_welch_bad_records_without_warnings():
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(DataError, match="input u is constant"):
+            frf_from_records(np.ones(1024), np.arange(1024.0), fs=FS)
+        big = np.random.default_rng(6).standard_normal(2048) * 1e300
+        assert np.allclose(frf_from_records(big, big, fs=FS, nperseg=256).data.response, 1)
+
+
+# --------------------------------------------------------------------------- DAQ records
+
+@pytest.fixture(scope="module")
+def actuator():
+    return actuator_records()
+
+
+def test_actuator_records(actuator):
+    assert actuator.fs == 1000.0 and actuator.n_samples == 61500
+    assert list(actuator.channels) == ["CHANNEL0", "CHANNEL1", "CHANNEL2"]
+    assert actuator.events == ((0, "DAQ Start"), (61499, "DAQ Pause, DAQ Stop"))
+    assert actuator.channels["CHANNEL0"][:2].tolist() == [-0.0209, -0.0221]
+    assert actuator.channels["CHANNEL2"][-1] == -0.0204
+
+
+def test_actuator_h1_end_to_end(actuator):
+    """Raw records -> H1: coherence > 0.95 over 0.12-19.5 Hz, |H| ~ 1 at low frequency and a
+    phase lag that grows with frequency (a lag plus a delay of a few ms)."""
+    u = 10 * actuator.channels["CHANNEL2"]          # commanded displacement, mm
+    y = 10 * actuator.channels["CHANNEL0"]          # measured displacement, mm
+    est = frf_from_records(u, y, fs=actuator.fs, nperseg=8192, name="actuator")
+    f = est.data.omega / (2 * np.pi)
+    band = (f >= 0.12) & (f <= 19.5)
+    assert band.sum() == 159 and est.n_averages == 14
+    assert est.coherence[band].min() > 0.95
+    h = est.data.response[band]
+    assert 0.98 < abs(h[3]) < 1.01                   # 0.49 Hz
+    phase = np.unwrap(np.angle(h))
+    assert np.degrees(phase[-1]) == pytest.approx(-98.7, abs=2)          # 19.04 Hz
+    assert np.all(np.diff(phase[::8]) < 0)           # lag grows with frequency
+    assert abs(h[-1]) == pytest.approx(0.353, abs=0.01)
+
+
+@pytest.mark.parametrize("text, match", [
+    ("Version: 2\n", r"line 1: expected 'Header Size: N'"),
+    ("Header Size: 3\nSampling Rate: 1000\nA, B, C\n", r"line 3: expected 'Sample Number"),
+    ("Header Size: 3\nSampling Rate: x\nN, T, CHANNEL0\n1, t, 1\n2, t, 2\n",
+     r"no valid 'Sampling Rate: HZ'"),
+    ("Header Size: 3\nSampling Rate: 10\nN, T, CHANNEL0\n1, t, 1\n2, t, 1_0\n",
+     r"line 5, column 'CHANNEL0': '1_0' is not a number"),
+    ("Header Size: 4\nSampling Rate: 10\nSample Count: 3\nN, T, CHANNEL0\n1, t, 1\n2, t, 2\n",
+     r"Sample Count: 3, the file holds 2 samples"),
+    ("Header Size: 3\nSampling Rate: 10\nN, T, CHANNEL0, CHANNEL1\n1, t, 1\n",
+     r"line 4: expected sample number, time stamp and 2 channels, got 3 fields"),
+])
+def test_daq_errors(tmp_path, text, match):
+    path = tmp_path / "daq.txt"
+    path.write_text(text)
+    with pytest.raises(DataError, match=match):
+        load_daq_records(path)
+
+
+def test_records_readers_refuse_devices_and_bom_is_fine(tmp_path):
+    with pytest.raises(DataError, match="character device, not a regular file"):
+        load_records_csv("/dev/zero")
+    path = tmp_path / "r.csv"
+    path.write_bytes("\ufeffu,y\n1,2\n3,4\n".encode())
+    u, y = load_records_csv(path)
+    assert u.tolist() == [1.0, 3.0] and y.tolist() == [2.0, 4.0]
+
+
+@pytest.mark.parametrize("scale, rtol", [(1e-300, 1e-9), (1e300, 1e-9),
+                                         (1e-320, 0.02)])   # subnormal: the data keep ~8 bits
+def test_estimators_are_scale_free_and_quiet(scale, rtol):
+    """Records in any units (1e-320 to 1e300) give the same FRF, with no RuntimeWarning:
+    the spectra are taken of records scaled by powers of two."""
+    rng = np.random.default_rng(7)
+    u = np.tile(rng.standard_normal(64), 4)
+    y = 3 * u + 1e-3 * rng.standard_normal(u.size)
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        for f in (lambda a, b: frf_from_periodic(a, b, 64),
+                  lambda a, b: frf_from_records(a, b, fs=10.0, nperseg=64)):
+            ref, scaled = f(u, y), f(u * scale, y * scale)
+            np.testing.assert_allclose(scaled.data.response, ref.data.response, rtol=rtol)
+            if rtol < 1e-3:
+                np.testing.assert_allclose(scaled.variance, ref.variance, rtol=1e-6)
+        with pytest.raises(DataError, match=r"differ by a factor 2\^1995: the response is "
+                           r"outside the floating-point range"):
+            frf_from_records(u * 1e-300, y * 1e300, fs=10.0)

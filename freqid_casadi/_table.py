@@ -1,0 +1,498 @@
+"""Column names, units and the text-table parser behind :mod:`freqid_casadi.loaders` (L1).
+
+A column is named by a role (frequency, real, imaginary, magnitude, phase, complex, skip)
+and a unit. The same vocabulary reads a header line, the ``columns=`` option and the
+variable names of a ``.mat`` file. Numbers are ASCII decimal literals only: Python's
+``float`` would also take ``1_0`` and non-ASCII digits, which a data file never means.
+"""
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from .errors import DataError, OptionError
+
+__all__ = ["Column", "Table", "parse_columns", "parse_freq_unit", "read_table",
+           "table_response", "mat_table", "COLUMN_HELP"]
+
+_F = r"(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?"
+_NUM = re.compile(rf"[+-]?(?:{_F}|inf|infinity|nan)", re.ASCII | re.IGNORECASE)
+_CPLX = re.compile(rf"[+-]?{_F}(?:[+-](?:{_F})?j)?|[+-]?(?:{_F})?j", re.ASCII)
+_UNIT_RE = re.compile(r"^(.*?)[\s_]*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
+
+_UNITS = {"": None, "hz": "hz", "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad/s",
+          "rad/sec": "rad/s", "radians/s": "rad/s", "db": "db", "deg": "deg",
+          "degree": "deg", "degrees": "deg", "°": "deg", "rad": "rad", "radian": "rad",
+          "radians": "rad", "lin": "lin", "linear": "lin"}
+_SUFFIXES = ("_rad_s", "_rads", "_hz", "_db", "_degrees", "_deg", "_radians", "_rad")
+_FREQ = {"omega": "rad/s", "w": "rad/s", "f": None, "freq": None, "frequency": None,
+         "hz": "hz"}
+_RE = {"re", "real"}
+_IM = {"im", "imag", "imaginary"}
+_MAG = {"mag", "magnitude", "abs", "amplitude", "amp", "gain", "modulus"}
+_PHASE = {"phase", "phi", "arg", "angle", "ph"}
+_COMPLEX = {"complex", "response", "h", "g", "frf", "z"}
+_SKIP = {"skip", "_", "-", "ignore"}
+_LAYOUTS = ({"freq", "re", "im"}, {"freq", "mag", "phase"}, {"freq", "complex"})
+
+#: How to name columns, quoted in error messages.
+COLUMN_HELP = ("name each column: omega or w (rad/s), freq_hz or 'f [Hz]' (Hz), f/freq (unit "
+               "from freq_unit); re, im; mag or mag_db with phase_deg or phase_rad; complex "
+               "(literals like 1+2j); skip")
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column: ``role`` in freq/re/im/mag/phase/complex/skip, its ``unit`` (freq:
+    'hz'/'rad/s'/None, mag: 'lin'/'db', phase: 'deg'/'rad'/None) and its ``label``."""
+
+    role: str
+    unit: str = None
+    label: str = ""
+
+
+@dataclass
+class Table:
+    """Parsed columns: ``values[role]`` (float, or complex for 'complex'), ``rows`` the file
+    line (or matrix row) of each sample, ``where`` 'line' or 'row'."""
+
+    path: str
+    columns: tuple
+    values: dict
+    rows: np.ndarray
+    where: str = "line"
+
+    @property
+    def lines(self):
+        """File line of every row (None for a matrix)."""
+        return self.rows if self.where == "line" else None
+
+    def label(self, role):
+        return next(c.label for c in self.columns if c.role == role)
+
+    def unit(self, role):
+        return next(c.unit for c in self.columns if c.role == role)
+
+    def at(self, i):
+        return f"{self.path!r} {self.where} {int(self.rows[i])}"
+
+
+def recognise(label):
+    """The :class:`Column` a header cell or a name stands for, or None if unknown."""
+    s = label.strip().strip("\"'").strip().lower()
+    unit = ""
+    m = _UNIT_RE.match(s)
+    if m:
+        s, unit = m.group(1).strip(), m.group(2).strip()
+    s = re.sub(r"[\s\-.]+", "_", s).strip("_")
+    if not unit:
+        for suffix in _SUFFIXES:
+            if s.endswith(suffix) and len(s) > len(suffix):
+                s, unit = s[:-len(suffix)].rstrip("_"), suffix[1:]
+                break
+    unit = unit.replace(" ", "").replace("_", "/") if "/" in unit or unit == "rad_s" \
+        else unit.replace(" ", "")
+    if unit not in _UNITS:
+        return None
+    unit = _UNITS[unit]
+    name = label.strip()
+    if s in _FREQ and unit in (None, "hz", "rad/s"):
+        return Column("freq", unit or _FREQ[s], name)
+    if s in _SKIP and unit is None:
+        return Column("skip", None, name)
+    if s in _RE | _IM | _COMPLEX and unit is None:
+        return Column("re" if s in _RE else "im" if s in _IM else "complex", None, name)
+    if s == "db" and unit is None or s in _MAG and unit in (None, "db", "lin"):
+        return Column("mag", "db" if s == "db" or unit == "db" else "lin", name)
+    if s in _PHASE and unit in (None, "deg", "rad"):
+        return Column("phase", unit, name)
+    return None
+
+
+def _layout_problem(cols):
+    roles = [c.role for c in cols if c.role != "skip"]
+    if len(set(roles)) != len(roles):
+        dup = next(r for r in roles if roles.count(r) > 1)
+        return f"two columns are {dup!r}"
+    if set(roles) not in _LAYOUTS:
+        return ("the columns must be one frequency and real+imaginary, magnitude+phase or "
+                f"one complex column, got {', '.join(roles) or 'none'}")
+    return None
+
+
+def parse_freq_unit(value):
+    """'hz', 'rad/s' or None from a user's ``freq_unit`` (case-insensitive)."""
+    if value is None:
+        return None
+    text = value.strip().lower().replace(" ", "") if isinstance(value, str) else None
+    unit = {"hz": "hz", "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad/s",
+            "rad/sec": "rad/s"}.get(text)
+    if unit is None:
+        raise OptionError(f"freq_unit must be 'Hz' or 'rad/s', got {value!r}; "
+                          "pass freq_unit='Hz' (or --freq-unit hz) for frequencies in Hz")
+    return unit
+
+
+def parse_columns(columns):
+    """A tuple of :class:`Column` from ``columns=`` (a string or a sequence), or None."""
+    if columns is None:
+        return None
+    if isinstance(columns, tuple) and all(isinstance(c, Column) for c in columns):
+        return columns
+    if isinstance(columns, str):
+        sep = "," if "," in columns else ";" if ";" in columns else None
+        tokens = [t for t in (columns.split(sep) if sep else columns.split())]
+    else:
+        try:
+            tokens = list(columns)
+        except TypeError:
+            raise OptionError(f"columns must be a string like 'f,re,im' or a sequence of "
+                              f"names, got {columns!r}") from None
+    cols = []
+    for tok in tokens:
+        col = recognise(tok) if isinstance(tok, str) else None
+        if col is None:
+            raise OptionError(f"columns: unknown column name {tok!r}; {COLUMN_HELP}")
+        cols.append(col)
+    problem = _layout_problem(cols)
+    if problem:
+        raise OptionError(f"columns={columns!r}: {problem}; e.g. columns='f,re,im' or "
+                          "('freq_hz', 'mag_db', 'phase_deg')")
+    return tuple(cols)
+
+
+# --------------------------------------------------------------------------- text
+
+def _decode(path, payload):
+    if b"\x00" in payload:
+        raise DataError(f"{path!r} is not a text CSV file (not UTF-8): it holds NUL bytes "
+                        "(binary data); export the data as UTF-8 text")
+    try:
+        text = payload.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = payload[:exc.start].count(b"\n") + 1
+        raise DataError(
+            f"{path!r} is not a text CSV file (not UTF-8): byte 0x{payload[exc.start]:02x} "
+            f"on line {line} is not UTF-8; save the file as UTF-8 text") from None
+    return text[1:] if text.startswith("\ufeff") else text
+
+
+def _separator(first):
+    return next((sep for sep in (";", "\t", ",") if sep in first), None)
+
+
+def _splitter(sep):
+    if sep is None:
+        return _split_space
+    return lambda line: [c.strip() for c in line.split(sep)]
+
+
+def _fast_values(rows, cols, sep):
+    """All cells as floats, shape (rows, columns), when every row is plain numbers (one regex
+    per row, C-speed conversion); None otherwise (the slow path then names the bad cell)."""
+    if any(c.role in ("complex", "skip") for c in cols):
+        return None
+    num = r"[ \t]*[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?[ \t]*"
+    gap = r"[ \t]+" if sep is None else re.escape(sep)
+    row = re.compile(rf"{num}(?:{gap}{num}){{{len(cols) - 1}}}", re.ASCII)
+    if not all(row.fullmatch(text) for _, text in rows):
+        return None
+    joined = "\n".join(text for _, text in rows)
+    cells = (joined if sep is None else joined.replace(sep, " ")).split()
+    return np.array(cells, dtype=float).reshape(len(rows), len(cols))
+
+
+def _split_space(line):
+    out = []
+    for tok in line.split():
+        if out and tok[:1] in "[(" and not _is_value(tok):
+            out[-1] = f"{out[-1]} {tok}"
+        else:
+            out.append(tok)
+    return out
+
+
+def _clean(cell):
+    cell = cell.strip()
+    if len(cell) >= 2 and cell[0] == cell[-1] and cell[0] in "\"'":
+        cell = cell[1:-1].strip()
+    return cell
+
+
+def _complex_text(cell):
+    s = cell.replace(" ", "")
+    if s.startswith("(") and s.endswith(")"):
+        s = s[1:-1]
+    return s[:-1] + "j" if s.endswith("i") else s
+
+
+def _is_value(cell):
+    cell = _clean(cell)
+    return bool(_NUM.fullmatch(cell) or _CPLX.fullmatch(_complex_text(cell)))
+
+
+def _shown(cell):
+    return repr(cell if len(cell) <= 40 else cell[:37] + "...")
+
+
+def _content(path, text, max_rows):
+    rows = []
+    for k, line in enumerate(text.split("\n")):
+        line = line.rstrip()
+        if line.strip() and not line.lstrip().startswith(("#", "%", "!")):
+            rows.append((k + 1, line))
+            if len(rows) > max_rows + 1:
+                raise DataError(
+                    f"{path!r} has more than {max_rows} data rows (limit "
+                    "freqid_casadi.loaders.MAX_ROWS); thin the data or raise that limit")
+    if not rows:
+        raise DataError(f"{path!r} is empty: expected a header such as 'omega,real,imag' "
+                        "and data rows")
+    return rows
+
+
+def _header_columns(path, cells):
+    cols = [recognise(_clean(c)) for c in cells]
+    problem = None
+    if any(c is None for c in cols):
+        bad = cells[[c is None for c in cols].index(True)]
+        problem = f"column {_clean(bad)!r} is not a known name"
+    else:
+        problem = _layout_problem(cols)
+    if problem:
+        raise DataError(
+            f"{path!r}: unrecognised header {','.join(_clean(c) for c in cells)!r} "
+            f"({problem}); the first line must be 'omega,real,imag' or "
+            "'omega,magnitude_db,phase_deg' (rad/s), or another layout such as "
+            "'freq_hz,mag_db,phase_deg'; or pass columns=... (command line --columns) to "
+            f"{COLUMN_HELP}")
+    return tuple(cols)
+
+
+def _default_columns(path, cells):
+    if len(cells) == 3:
+        return (Column("freq", None, "frequency"), Column("re", None, "real"),
+                Column("im", None, "imag"))
+    if len(cells) == 2 and not _NUM.fullmatch(_clean(cells[1])):
+        return Column("freq", None, "frequency"), Column("complex", None, "response")
+    raise DataError(
+        f"{path!r} has no header and {len(cells)} columns: cannot tell what they are; pass "
+        "columns=... (command line --columns), e.g. columns='f,mag_db,phase_deg', to "
+        f"{COLUMN_HELP}; or add a header line")
+
+
+def _resolve_units(path, cols, freq_unit, header):
+    """Columns with the frequency unit filled in from ``freq_unit``; ``header`` is the
+    header's text (None for a headerless file or a matrix)."""
+    freq = next(c for c in cols if c.role == "freq")
+    if freq.unit is None:
+        if freq_unit is None:
+            what = (f"unrecognised header {header!r}: column {freq.label!r} has no unit"
+                    if header else "it has no header line")
+            raise DataError(
+                f"{path!r}: the frequency unit is unknown ({what}): pass freq_unit='Hz' or "
+                "freq_unit='rad/s' (command line --freq-unit hz|rad/s), or name the column "
+                "'omega' (rad/s) or 'freq_hz' / 'f [Hz]' (Hz) in a header")
+        freq_unit_col = Column("freq", freq_unit, freq.label)
+        cols = tuple(freq_unit_col if c is freq else c for c in cols)
+    elif freq_unit is not None and freq_unit != freq.unit:
+        raise DataError(f"{path!r}: freq_unit={freq_unit!r} contradicts column {freq.label!r} "
+                        f"({freq.unit}); drop freq_unit or fix the header")
+    phase = [c for c in cols if c.role == "phase"]
+    if phase and phase[0].unit is None:
+        raise DataError(f"{path!r}: phase column {phase[0].label!r} does not give its unit; "
+                        "name it phase_deg or phase_rad (or 'phase [deg]'), or pass columns=")
+    return cols
+
+
+def _parse_cell(table_path, line, col, cell):
+    cell = _clean(cell)
+    if col.role == "complex":
+        text = _complex_text(cell)
+        if _CPLX.fullmatch(text):
+            return complex(text)
+    elif _NUM.fullmatch(cell):
+        return float(cell)
+    hint = ""
+    if "_" in cell or any(ord(ch) > 127 for ch in cell):
+        hint = " (only ASCII decimal numbers such as 1.5e-3 are read)"
+    what = "a complex number like 1+2j" if col.role == "complex" else "a number"
+    raise DataError(f"{table_path!r} line {line}, column {col.label!r}: {_shown(cell)} is not "
+                    f"{what}{hint}")
+
+
+def read_table(path, payload, columns, freq_unit, max_rows):
+    """Parse delimited UTF-8 text into a :class:`Table` (see ``loaders.load_text``)."""
+    rows = _content(path, _decode(path, payload), max_rows)
+    sep = _separator(rows[0][1])
+    split = _splitter(sep)
+    first = split(rows[0][1])
+    header = not all(_is_value(c) for c in first)
+    if columns is not None:
+        cols = columns
+    elif header:
+        cols = _header_columns(path, first)
+    else:
+        cols = _default_columns(path, first)
+    if header:
+        rows = rows[1:]
+        if not rows:
+            raise DataError(f"{path!r} has a header but no data rows")
+    cols = _resolve_units(path, cols, freq_unit,
+                          ",".join(_clean(c) for c in first) if header else None)
+    fast = _fast_values(rows, cols, sep)
+    if fast is not None:
+        values = {c.role: fast[:, j] for j, c in enumerate(cols)}
+    else:
+        values = _slow_values(path, rows, cols, split)
+    table = Table(path, cols, values, np.array([r[0] for r in rows]))
+    _check_finite(table)
+    return table
+
+
+def _slow_values(path, rows, cols, split):
+    labels = ",".join(c.label for c in cols)
+    values = {c.role: [] for c in cols if c.role != "skip"}
+    for line, text in rows:
+        cells = split(text)
+        if len(cells) != len(cols):
+            raise DataError(f"{path!r} line {line}: expected {len(cols)} columns ({labels}), "
+                            f"got {len(cells)}")
+        for col, cell in zip(cols, cells):
+            if col.role != "skip":
+                values[col.role].append(_parse_cell(path, line, col, cell))
+    return {k: np.array(v, complex if k == "complex" else float) for k, v in values.items()}
+
+
+def _check_finite(table):
+    for col in table.columns:
+        if col.role == "skip":
+            continue
+        bad = ~np.isfinite(table.values[col.role])
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            what = "omega" if col.role == "freq" else "response"
+            raise DataError(
+                f"{table.at(i)}, column {col.label!r}: {table.values[col.role][i].item()!r} is not "
+                f"finite: {what} must be finite; remove or re-measure that point")
+
+
+# --------------------------------------------------------------------------- response
+
+def table_response(table):
+    """``omega`` (rad/s) and the complex response of a :class:`Table`, with checks that
+    name the line: negative or unsorted frequencies, dB overflow, zero responses."""
+    f = table.values["freq"]
+    neg = f < 0
+    if neg.any():
+        i = int(np.flatnonzero(neg)[0])
+        raise DataError(f"{table.at(i)}, column {table.label('freq')!r}: frequency {float(f[i])!r} "
+                        "is negative; give frequencies >= 0 (omega must be > 0)")
+    with np.errstate(over="ignore"):
+        omega = 2 * np.pi * f if table.unit("freq") == "hz" else f
+    if not np.all(np.isfinite(omega)):
+        i = int(np.flatnonzero(~np.isfinite(omega))[0])
+        raise DataError(f"{table.at(i)}: frequency {float(f[i])!r} Hz overflows in rad/s; check "
+                        "the frequency unit")
+    pos = np.flatnonzero(omega > 0)
+    step = np.diff(omega[pos])
+    if np.any(step <= 0):
+        j = int(np.flatnonzero(step <= 0)[0])
+        i, p = pos[j + 1], pos[j]
+        what = "duplicated" if step[j] == 0 else "unsorted"
+        raise DataError(
+            f"{table.at(i)}: omega must be strictly increasing ({what} rows): {float(f[i])!r} "
+            f"after {float(f[p])!r} on {table.where} {int(table.rows[p])}; sort the file by "
+            "frequency and drop duplicates (FrequencyData.sorted does both)")
+    response = _response(table)
+    zero = response == 0
+    if zero.any():
+        i = int(np.flatnonzero(zero)[0])
+        raise DataError(
+            f"{table.at(i)}: response must be nonzero (the relative error divides by it): "
+            f"response[{i}]=0 at omega={float(omega[i])!r}; remove that point")
+    return omega, response
+
+
+def _response(table):
+    v = table.values
+    if "complex" in v:
+        return v["complex"]
+    if "re" in v:
+        response = np.empty(v["re"].size, complex)       # keeps signed zeros (not re + 1j*im)
+        response.real, response.imag = v["re"], v["im"]
+        return response
+    mag = v["mag"]
+    if table.unit("mag") == "db":
+        with np.errstate(over="ignore", under="ignore"):
+            mag = 10.0 ** (mag / 20.0)
+        bad = ~np.isfinite(mag) | (mag == 0)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise DataError(
+                f"{table.at(i)}, column {table.label('mag')!r}: {float(v['mag'][i])!r} dB is "
+                "outside the range of floating point (|G| = 10^(dB/20) is "
+                f"{'infinite' if mag[i] else 'zero'}); check that the column is in dB")
+    elif np.any(mag < 0):
+        i = int(np.flatnonzero(mag < 0)[0])
+        raise DataError(f"{table.at(i)}, column {table.label('mag')!r}: magnitude "
+                        f"{float(mag[i])!r} is negative; give |G| >= 0 (a sign belongs in the "
+                        "phase)")
+    phase = v["phase"] if table.unit("phase") == "rad" else np.deg2rad(v["phase"])
+    with np.errstate(over="ignore", invalid="ignore"):
+        response = mag * np.exp(1j * phase)
+    bad = ~np.isfinite(response)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise DataError(f"{table.at(i)}: magnitude {float(mag[i])!r} with phase "
+                        f"{float(v['phase'][i])!r} gives a non-finite response; check the columns")
+    return response
+
+
+# --------------------------------------------------------------------------- .mat
+
+def mat_table(path, arrays, columns, freq_unit):
+    """A :class:`Table` from the numeric variables of a ``.mat`` file (see
+    ``loaders.load_mat``)."""
+    named = {}
+    if columns is None:
+        for key, arr in arrays.items():
+            col = recognise(key)
+            if col is not None and col.role != "skip":
+                named[key] = Column(col.role, col.unit, key)
+    cols = tuple(named.values())
+    if named and _layout_problem(cols) is None:
+        vecs = [np.asarray(arrays[k]).reshape(-1) if 1 in np.shape(arrays[k]) or
+                np.ndim(arrays[k]) <= 1 else None for k in named]
+        if any(v is None for v in vecs) or len({v.size for v in vecs}) != 1:
+            raise DataError(f"{path!r}: variables {', '.join(named)} must be vectors of equal "
+                            "length")
+        values = dict(zip((c.role for c in cols), vecs))
+        n = vecs[0].size
+    else:
+        if len(arrays) != 1 or np.ndim(next(iter(arrays.values()))) != 2:
+            raise DataError(
+                f"{path!r}: cannot tell the variables apart (found {', '.join(arrays)}); "
+                "name them omega (rad/s) or freq_hz (Hz) and response (complex), or save "
+                "one N x k matrix and pass columns=...")
+        mat = np.asarray(next(iter(arrays.values())))
+        if mat.shape[0] < mat.shape[1]:
+            mat = mat.T
+        first = [str(x) for x in mat[0]]
+        cols = columns if columns is not None else _default_columns(path, first)
+        if len(cols) != mat.shape[1]:
+            raise DataError(f"{path!r}: the matrix has {mat.shape[1]} columns, columns= "
+                            f"names {len(cols)}")
+        values = {}
+        for j, c in enumerate(cols):
+            if c.role != "skip":
+                col = mat[:, j]
+                values[c.role] = col if c.role == "complex" else np.real(col)
+        n = mat.shape[0]
+    cols = _resolve_units(path, cols, freq_unit, ",".join(named) if named else None)
+    for k, arr in values.items():
+        values[k] = np.asarray(arr, complex if k == "complex" else float)
+    table = Table(path, cols, values, np.arange(1, n + 1), where="row")
+    _check_finite(table)
+    return table

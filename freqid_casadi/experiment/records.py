@@ -1,0 +1,385 @@
+"""Time-record files and the shipped measured data sets (layer L1).
+
+Readers: :func:`load_records_csv` (``u,y`` CSV), :func:`load_daisy` (DaISy whitespace
+columns) and :func:`load_daq_records` (a data-acquisition export: header lines, then sample
+number, time stamp, channels, events; ``.xz`` accepted). They share the bounded, regular-file
+reading of :mod:`freqid_casadi.loaders` and read ASCII decimal numbers only.
+
+Data sets shipped in ``freqid_casadi/datasets`` (see :func:`dataset_path`):
+
+- ``robot_arm.dat``: DaISy 96-009 flexible robot arm (B. De Moor et al., DaISy: Database
+  for the Identification of Systems), read by :func:`robot_arm`;
+- ``actuator/0A.txt.xz``: raw records of a servo-hydraulic actuator chirp test (MIT, see
+  ``actuator/SOURCE.md``), read by :func:`actuator_records`.
+"""
+
+import lzma
+import numbers
+import os
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .._table import _NUM, _decode, _shown
+from ..errors import DataError, OptionError
+from ..loaders import MAX_FILE_BYTES, MAX_ROWS, read_regular_file
+from .periodic import _detect_period, frf_from_periodic
+
+__all__ = ["load_records_csv", "load_daisy", "load_daq_records", "DaqRecords", "robot_arm",
+           "actuator_records", "dataset_path", "ROBOT_ARM_FILE", "ACTUATOR_FILE",
+           "SHARED_ENV"]
+
+#: Environment variable naming a shared directory whose ``data/robot_arm.dat`` replaces the
+#: shipped copy (optional).
+SHARED_ENV = "FREQID_SHARED"
+#: File name of the DaISy 96-009 data set.
+ROBOT_ARM_FILE = "robot_arm.dat"
+#: Path of the actuator records inside the shipped data sets.
+ACTUATOR_FILE = "actuator/0A.txt.xz"
+
+
+def dataset_path(name):
+    """Path of a data set shipped with the package (``freqid_casadi/datasets/<name>``).
+
+    Parameters
+    ----------
+    name : str
+        Relative path inside ``datasets/``, e.g. ``"robot_arm.dat"`` or
+        ``"actuator/0A.txt.xz"``.
+
+    Raises
+    ------
+    DataError
+        The file is not in the installed package.
+    """
+    from importlib.resources import files
+
+    path = os.fspath(files("freqid_casadi").joinpath("datasets", *name.split("/")))
+    if not os.path.isfile(path):
+        raise DataError(f"the data set {name!r} is missing from the installed package "
+                        f"({path!r}); reinstall freqid_casadi")
+    return path
+
+
+def _text_lines(path, what="records file"):
+    """(path, lines) of a bounded UTF-8 text file, decompressing ``.xz``."""
+    path, payload = read_regular_file(path, what)
+    if path.lower().endswith(".xz"):
+        try:
+            dec = lzma.LZMADecompressor()
+            payload = dec.decompress(payload, max_length=MAX_FILE_BYTES + 1)
+        except lzma.LZMAError as exc:
+            raise DataError(f"{path!r} is not a valid .xz file ({exc})") from None
+        if len(payload) > MAX_FILE_BYTES or not dec.eof:
+            raise DataError(f"{path!r} decompresses to more than {MAX_FILE_BYTES} bytes "
+                            "(freqid_casadi.loaders.MAX_FILE_BYTES), or is truncated")
+    lines = _decode(path, payload).split("\n")
+    if len(lines) > MAX_ROWS + 100:
+        raise DataError(f"{path!r} has more than {MAX_ROWS} lines (limit "
+                        "freqid_casadi.loaders.MAX_ROWS); cut the record or raise that limit")
+    return path, lines
+
+
+def _number(path, line, column, cell):
+    cell = cell.strip()
+    if not _NUM.fullmatch(cell):
+        raise DataError(f"{path!r} line {line}, column {column!r}: {_shown(cell)} is not a "
+                        "number (ASCII decimal numbers only); fix or remove that line")
+    value = float(cell)
+    if not np.isfinite(value):
+        raise DataError(f"{path!r} line {line}, column {column!r}: {cell!r} is not finite; "
+                        "repair or cut out the bad samples")
+    return value
+
+
+def load_records_csv(path):
+    """Read an input/output record from a CSV file with the header ``u,y``.
+
+    Lines starting with ``#`` are comments; the header is case-insensitive; a UTF-8
+    byte-order mark is accepted.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The CSV file.
+
+    Returns
+    -------
+    u, y : ndarray of float, shape (N,)
+        Input and output samples.
+
+    Raises
+    ------
+    DataError
+        Missing file, not a regular file, too large, not UTF-8, bad header, wrong column
+        count, non-numeric or non-finite cells, no data rows.
+    """
+    path, lines = _text_lines(path)
+    rows = [(k + 1, t) for k, t in enumerate(lines)
+            if t.strip() and not t.lstrip().startswith("#")]
+    if not rows:
+        raise DataError(f"{path!r} is empty: expected a header 'u,y' and data rows")
+    head = [h.strip().strip("\"'").lower() for h in rows[0][1].split(",")]
+    if head != ["u", "y"]:
+        raise DataError(
+            f"{path!r}: unrecognised header {_shown(rows[0][1].strip())}; the first line must "
+            "be 'u,y' (input, output)")
+    if len(rows) < 2:
+        raise DataError(f"{path!r} has a header but no data rows")
+    values = np.empty((len(rows) - 1, 2))
+    for k, (line, text) in enumerate(rows[1:]):
+        cells = text.split(",")
+        if len(cells) != 2:
+            raise DataError(f"{path!r} line {line}: expected 2 columns (u,y), got {len(cells)}")
+        values[k, 0] = _number(path, line, "u", cells[0])
+        values[k, 1] = _number(path, line, "y", cells[1])
+    return values[:, 0].copy(), values[:, 1].copy()
+
+
+def load_daisy(path, columns=(0, 1)):
+    """Read a DaISy-style whitespace-separated data file (one sample per line).
+
+    Parameters
+    ----------
+    path : str or path-like
+        The ``.dat`` file; blank lines and lines starting with ``#`` or ``%`` are skipped.
+    columns : (int, int), default (0, 1)
+        Zero-based columns of the input and the output.
+
+    Returns
+    -------
+    u, y : ndarray of float, shape (N,)
+
+    Raises
+    ------
+    DataError
+        Missing or unreadable file, no data, ragged rows, too few columns, non-numeric or
+        non-finite values.
+    """
+    try:
+        cu, cy = (_index(c) for c in columns)
+    except (TypeError, ValueError):
+        raise OptionError(f"columns must be two column indices, got {columns!r}") from None
+    if cu < 0 or cy < 0:
+        raise OptionError(f"columns must be >= 0, got {columns!r}")
+    path, lines = _text_lines(path, "data file")
+    data, width = [], None
+    for k, text in enumerate(lines):
+        cells = text.split()
+        if not cells or cells[0].startswith(("#", "%")):
+            continue
+        line = k + 1
+        if width is None:
+            width = len(cells)
+            if width <= max(cu, cy):
+                raise DataError(
+                    f"{path!r} line {line}: {width} column(s), but columns={tuple(columns)} "
+                    "needs the input and output columns; check the file or columns")
+        elif len(cells) != width:
+            raise DataError(
+                f"{path!r} line {line}: {len(cells)} columns, expected {width} as on the first "
+                "data line")
+        data.append([_number(path, line, f"column {j}", c) for j, c in enumerate(cells)])
+    if not data:
+        raise DataError(f"{path!r} holds no data lines: expected columns input output")
+    values = np.array(data)
+    return values[:, cu].copy(), values[:, cy].copy()
+
+
+def _index(value):
+    """operator.index that rejects bools."""
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral):
+        raise TypeError(value)
+    return int(value)
+
+
+# --------------------------------------------------------------------------- DAQ export
+
+@dataclass(frozen=True)
+class DaqRecords:
+    """Channels of a data-acquisition export.
+
+    Attributes
+    ----------
+    fs : float
+        Sampling rate in Hz (from the header).
+    channels : dict of str to ndarray of float, shape (N,)
+        Samples of every channel, by the header's name (e.g. ``"CHANNEL0"``), read-only.
+    events : tuple of (int, str)
+        ``(sample index, text)`` of every event mark (e.g. ``"DAQ Start"``).
+    header : dict of str to str
+        The ``key: value`` header lines.
+    """
+
+    fs: float
+    channels: dict
+    events: tuple = ()
+    header: dict = field(default_factory=dict)
+
+    @property
+    def n_samples(self):
+        """Number of samples N per channel."""
+        return next(iter(self.channels.values())).size
+
+
+def _daq_header(path, lines):
+    first = lines[0].split(":", 1) if lines else [""]
+    try:
+        n_head = int(first[1]) if first[0].strip().lower() == "header size" else -1
+    except (IndexError, ValueError):
+        n_head = -1
+    if not 2 <= n_head <= min(len(lines), 1000):
+        raise DataError(f"{path!r} line 1: expected 'Header Size: N' (a DAQ export with N "
+                        f"header lines), got {_shown(lines[0].strip() if lines else '')}")
+    header = {}
+    for text in lines[1:n_head - 1]:
+        key, _, value = text.partition(":")
+        header[key.strip()] = value.strip()
+    names = [c.strip() for c in lines[n_head - 1].split(",")]
+    chans = [j for j, c in enumerate(names) if c.upper().startswith("CHANNEL")]
+    if not chans or chans != list(range(2, 2 + len(chans))):
+        raise DataError(f"{path!r} line {n_head}: expected 'Sample Number, Date/Time, "
+                        f"CHANNEL0, ...', got {_shown(lines[n_head - 1].strip())}")
+    try:
+        fs = float(header.get("Sampling Rate", ""))
+    except ValueError:
+        fs = float("nan")
+    if not (np.isfinite(fs) and fs > 0):
+        raise DataError(f"{path!r}: the header has no valid 'Sampling Rate: HZ' line")
+    return n_head, header, [names[j] for j in chans], fs
+
+
+def load_daq_records(path):
+    """Read a data-acquisition export (as in the shipped actuator test; ``.xz`` accepted).
+
+    Layout: line 1 ``Header Size: H``; ``key: value`` lines (``Sampling Rate: 1000``,
+    ``Sample Count: N``, ...); line H ``Sample Number, Date/Time, CHANNEL0, ..., Events``;
+    then one comma-separated row per sample: sample number, time stamp, the channels and
+    optional event texts.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The export (plain text, or ``.xz``-compressed).
+
+    Returns
+    -------
+    DaqRecords
+
+    Raises
+    ------
+    DataError
+        Not such a file, a bad header, non-numeric or non-finite samples (naming the line),
+        a sample count that differs from the header's, samples out of order.
+    """
+    path, lines = _text_lines(path)
+    lines = [t.rstrip("\r") for t in lines]
+    n_head, header, names, fs = _daq_header(path, lines)
+    n_ch = len(names)
+    cols = [[] for _ in range(n_ch)]
+    events = []
+    for k in range(n_head, len(lines)):
+        text = lines[k]
+        if not text.strip():
+            continue
+        cells = text.split(",")
+        if len(cells) < 2 + n_ch:
+            raise DataError(f"{path!r} line {k + 1}: expected sample number, time stamp and "
+                            f"{n_ch} channels, got {len(cells)} fields")
+        for j in range(n_ch):
+            cols[j].append(_number(path, k + 1, names[j], cells[2 + j]))
+        if len(cells) > 2 + n_ch:
+            events.append((len(cols[0]) - 1, ", ".join(c.strip() for c in cells[2 + n_ch:])))
+    n = len(cols[0])
+    if n < 2:
+        raise DataError(f"{path!r} holds {n} sample(s): expected a record after the header")
+    count = header.get("Sample Count")
+    if count is not None and count.isdigit() and int(count) != n:
+        raise DataError(f"{path!r}: the header says Sample Count: {count}, the file holds {n} "
+                        "samples; the file is truncated or damaged")
+    channels = {}
+    for name, values in zip(names, cols):
+        arr = np.array(values)
+        arr.setflags(write=False)
+        channels[name] = arr
+    return DaqRecords(fs, channels, tuple(events), header)
+
+
+def actuator_records(path=None):
+    """Raw records of the servo-hydraulic actuator chirp test shipped with the package.
+
+    Input: ``CHANNEL2`` (commanded displacement, x10 mm); output: ``CHANNEL0`` (measured
+    displacement, x10 mm); ``CHANNEL1`` force (x9806.65 N); fs = 1000 Hz, 61 500 samples of
+    a chirp of about 0.5-20 Hz. Source and license: ``datasets/actuator/SOURCE.md`` (MIT,
+    github.com/DanielMaurelE/vRTHS_AMBC_MRdamper).
+
+    Parameters
+    ----------
+    path : str or path-like, optional
+        Another export in the same format (default: the shipped ``0A.txt.xz``).
+
+    Returns
+    -------
+    DaqRecords
+    """
+    return load_daq_records(dataset_path(ACTUATOR_FILE) if path is None else path)
+
+
+# --------------------------------------------------------------------------- robot arm
+
+def _find_robot_arm():
+    env = os.environ.get(SHARED_ENV)
+    if env:
+        for c in (os.path.join(env, "data", ROBOT_ARM_FILE), os.path.join(env, ROBOT_ARM_FILE)):
+            if os.path.isfile(c):
+                return c
+        raise DataError(
+            f"{SHARED_ENV}={env!r} holds neither data/{ROBOT_ARM_FILE} nor {ROBOT_ARM_FILE}; "
+            f"unset {SHARED_ENV} to use the copy shipped with the package, or pass path=")
+    return dataset_path(ROBOT_ARM_FILE)
+
+
+def robot_arm(path=None):
+    """Frequency response of the DaISy flexible robot arm (data set 96-009).
+
+    Input: measured reaction torque (column 1); output: arm acceleration (column 2); 1024
+    samples of a periodic excitation on the odd DFT bins. The sampling time is not given,
+    so ``omega`` is normalised (rad/sample).
+
+    Parameters
+    ----------
+    path : str or path-like, optional
+        The ``robot_arm.dat`` file. Default: the copy shipped in
+        ``freqid_casadi/datasets``, or ``$FREQID_SHARED/data/robot_arm.dat`` when that
+        environment variable is set.
+
+    Returns
+    -------
+    FrfEstimate
+        One period of 1024 samples (``n_periods = 1``, so ``variance``, ``coherence`` and
+        the weights are None) at the odd bins ``1, 3, ..., K``.
+
+    Raises
+    ------
+    DataError
+        The file cannot be found or read, or is malformed.
+
+    Notes
+    -----
+    The period is taken from the data: the shortest divisor of the record length over which
+    the input repeats (within 20% RMS). No shorter period than 1024 does: the input is
+    *anti*-periodic over 512 samples (``u[n + 512] ~ -u[n]``, 6% RMS residual), the
+    signature of an odd-bin excitation. The band ``K`` is the highest odd bin whose input
+    power is within 20 dB of the maximum (K = 201); every odd bin below it is kept,
+    including the dip of the measured torque near bins 57-61 at the arm's first resonance,
+    where the FRF stays smooth. The even bins carry only noise and distortion (< -22 dB).
+    Cite: B. De Moor et al., DaISy: Database for the Identification of Systems, 96-009.
+    """
+    path = _find_robot_arm() if path is None else path
+    u, y = load_daisy(path)
+    period = _detect_period(u, 0.2)
+    probe = frf_from_periodic(u, y, period)
+    top = int(probe.bins.max())
+    bins = np.arange(1, top + 1, 2) if np.all(probe.bins % 2 == 1) else probe.bins
+    return frf_from_periodic(u, y, period, bins=bins,
+                             name="robot_arm (DaISy 96-009)")

@@ -1,0 +1,440 @@
+"""Tests of freqid_casadi.loaders: every format and unit round-trips to the same data, and
+every bad file is a DataError naming the file, the line or column, and the fix."""
+
+import io
+import os
+import re
+import sys
+import warnings
+import zipfile
+
+import numpy as np
+import pytest
+import scipy.io
+
+import freqid_casadi as fc
+from freqid_casadi import cli, loaders
+from freqid_casadi.errors import DataError, OptionError
+from freqid_casadi.loaders import DataWarning, load, load_mat, load_npz, load_text, load_uff
+
+OMEGA = np.array([0.5, 1.25, 3.0, 7.5, 20.0, 64.0])
+RESP = 2.0 * np.exp(-0.01j * OMEGA) / (1 + 1j * OMEGA / 3.0)
+F_HZ = OMEGA / (2 * np.pi)
+DB = 20 * np.log10(np.abs(RESP))
+DEG = np.degrees(np.angle(RESP))
+
+
+def _write(tmp_path, text, name="frf.csv", encoding="utf-8"):
+    path = tmp_path / name
+    path.write_bytes(text.encode(encoding) if isinstance(text, str) else text)
+    return path
+
+
+def _rows(*cols, sep=","):
+    return "".join(sep.join(repr(float(c[i])) if not isinstance(c[i], str) else c[i]
+                            for c in cols) + "\n" for i in range(len(cols[0])))
+
+
+def _same(data, rtol=1e-13):
+    np.testing.assert_allclose(data.omega, OMEGA, rtol=rtol)
+    np.testing.assert_allclose(data.response, RESP, rtol=rtol)
+
+
+# ------------------------------------------------------------------ text layouts and units
+
+@pytest.mark.parametrize("header, cols, sep, kw", [
+    ("omega,real,imag", (OMEGA, RESP.real, RESP.imag), ",", {}),
+    ("omega,magnitude_db,phase_deg", (OMEGA, DB, DEG), ",", {}),
+    ("f [Hz],re,im", (F_HZ, RESP.real, RESP.imag), ",", {}),
+    ("freq_hz;mag_db;phase_deg", (F_HZ, DB, DEG), ";", {}),
+    ("frequency (rad/s)\tmag\tphase_rad", (OMEGA, np.abs(RESP), np.angle(RESP)), "\t", {}),
+    ("w mag [dB] phase [deg]", (OMEGA, DB, DEG), "  ", {}),
+    ("Frequency (Hz), Magnitude (dB), Phase (degrees)", (F_HZ, DB, DEG), ", ", {}),
+    ("f,re,im", (F_HZ, RESP.real, RESP.imag), ",", {"freq_unit": "Hz"}),
+    ("freq,re,im", (OMEGA, RESP.real, RESP.imag), ",", {"freq_unit": "rad/s"}),
+    (None, (F_HZ, RESP.real, RESP.imag), " ", {"freq_unit": "hz"}),
+    (None, (OMEGA, RESP.real, RESP.imag), ",", {"freq_unit": "rad/s"}),
+    (None, (F_HZ, DB, DEG), "\t", {"freq_unit": "Hz", "columns": "f,mag_db,phase_deg"}),
+    ("a;b;c", (F_HZ, DB, DEG), ";", {"columns": ("freq_hz", "mag_db", "phase_deg")}),
+], ids=["omega-ri", "omega-db-deg", "f-Hz-bracket", "semicolon-hz-db", "tab-rad-lin-rad",
+        "space-w-db", "spreadsheet-words", "f-with-freq-unit", "freq-rad", "headerless-space-hz",
+        "headerless-comma-rad", "headerless-columns", "columns-override-header"])
+def test_text_layouts_and_units_give_the_same_data(tmp_path, header, cols, sep, kw):
+    text = (header + "\n" if header else "") + _rows(*cols, sep=sep)
+    _same(load(_write(tmp_path, text), **kw))
+
+
+def test_hz_data_loaded_with_freq_unit_equals_the_rad_s_data(tmp_path):
+    rad = load(_write(tmp_path, "omega,real,imag\n" + _rows(OMEGA, RESP.real, RESP.imag)))
+    hz = load(_write(tmp_path, _rows(F_HZ, RESP.real, RESP.imag), "hz.txt"), freq_unit="Hz")
+    np.testing.assert_allclose(hz.omega, rad.omega, rtol=1e-15)
+    assert np.array_equal(hz.response, rad.response)
+
+
+@pytest.mark.parametrize("fmt", ["{r!r}+{i!r}j", "({r!r}+{i!r}j)", "{r!r}+{i!r}i",
+                                 "({r!r} + {i!r}j)"])
+def test_complex_literals(tmp_path, fmt):
+    lines = [f"{w!r},{fmt.format(r=z.real, i=z.imag)}".replace("+-", "-").replace("+ -", "- ")
+             for w, z in zip(OMEGA.tolist(), RESP.tolist())]
+    _same(load(_write(tmp_path, "omega,response\n" + "\n".join(lines))), rtol=1e-15)
+    headerless = "\n".join(s.replace(",", "\t") for s in lines)
+    _same(load(_write(tmp_path, headerless, "h.txt"), freq_unit="rad/s"), rtol=1e-15)
+
+
+def test_bom_crlf_comments_quotes_and_skip_column(tmp_path):
+    body = "".join(f'"{w!r}";{z.real!r};{z.imag!r};x\r\n'
+                   for w, z in zip(OMEGA.tolist(), RESP.tolist()))
+    text = "\ufeff% exported\r\n\"omega\";\"real\";\"imag\";\"note\"\r\n" + body
+    path = _write(tmp_path, text)
+    with pytest.raises(DataError, match="column 'note' is not a known name"):
+        load(path)
+    _same(load(path, columns="omega;re;im;skip"), rtol=0)
+
+
+def test_headerless_without_freq_unit_names_the_option(tmp_path):
+    path = _write(tmp_path, _rows(F_HZ, RESP.real, RESP.imag, sep=" "), "plain.txt")
+    with pytest.raises(DataError, match=r"plain\.txt'.*frequency unit is unknown \(it has no "
+                       r"header line\): pass freq_unit='Hz' or freq_unit='rad/s' \(command "
+                       r"line --freq-unit hz\|rad/s\)"):
+        load(path)
+
+
+def test_freq_unit_that_contradicts_the_header(tmp_path):
+    path = _write(tmp_path, "omega,re,im\n1,2,3\n")
+    with pytest.raises(DataError, match=r"freq_unit='hz' contradicts column 'omega' \(rad/s\)"):
+        load(path, freq_unit="Hz")
+
+
+def test_zero_frequency_rows_are_dropped_with_a_note(tmp_path):
+    text = "omega,real,imag\n0,5,0\n" + _rows(OMEGA, RESP.real, RESP.imag)
+    with pytest.warns(DataWarning, match=r"dropped 1 row\(s\) at zero frequency \(lines 2\)"):
+        data = load(_write(tmp_path, text))
+    _same(data, rtol=0)
+
+
+# ------------------------------------------------------------------ .npz, .mat, UFF
+
+def test_npz_freq_hz_and_freq_unit(tmp_path):
+    np.savez(tmp_path / "a.npz", freq_hz=F_HZ, response=RESP)
+    _same(load(tmp_path / "a.npz"))
+    np.savez(tmp_path / "b.npz", omega=F_HZ, response=RESP)
+    _same(load(tmp_path / "b.npz", freq_unit="Hz"))
+
+
+def test_npz_datetime_omega_is_refused(tmp_path):
+    np.savez(tmp_path / "d.npz", omega=np.arange(6).astype("datetime64[D]"), response=RESP)
+    with pytest.raises(DataError, match=r"d\.npz': array 'omega' holds datetimes: omega must "
+                       r"be an array of numbers \(rad/s\); save plain floats"):
+        load(tmp_path / "d.npz")
+
+
+def _npy_header_only(shape):
+    buf = io.BytesIO()
+    np.lib.format.write_array_header_1_0(buf, {"descr": "<f8", "fortran_order": False,
+                                               "shape": shape})
+    return buf.getvalue() + b"\0" * 64
+
+
+def test_npz_header_claiming_1e11_elements_is_refused_before_allocating(tmp_path):
+    path = tmp_path / "huge.npz"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("omega.npy", _npy_header_only((100_000_000_000,)))
+        zf.writestr("response.npy", _npy_header_only((3,)))
+    with pytest.raises(DataError, match=r"array 'omega' claims shape \(100000000000,\) "
+                       r"\(100000000000 elements\), above the limit"):
+        load(path)
+
+
+def test_npz_truncated_member(tmp_path):
+    path = tmp_path / "short.npz"
+    with zipfile.ZipFile(path, "w") as zf:
+        zf.writestr("omega.npy", _npy_header_only((1000,)))
+        zf.writestr("response.npy", _npy_header_only((1000,)))
+    with pytest.raises(DataError, match=r"array 'omega' is truncated"):
+        load(path)
+
+
+@pytest.mark.parametrize("arrays, kw", [
+    ({"omega": OMEGA, "response": RESP}, {}),
+    ({"freq_hz": F_HZ, "H": RESP}, {}),
+    ({"w": OMEGA.reshape(1, -1), "mag_db": DB, "phase_deg": DEG.reshape(-1, 1)}, {}),
+    ({"f": F_HZ, "re": RESP.real, "im": RESP.imag}, {"freq_unit": "Hz"}),
+    ({"frf": np.column_stack([F_HZ, DB, DEG])}, {"columns": "freq_hz,mag_db,phase_deg"}),
+    ({"data": np.vstack([OMEGA, RESP.real, RESP.imag])}, {"freq_unit": "rad/s"}),
+], ids=["omega-response", "freq_hz-H", "w-db-deg-shapes", "f-re-im", "matrix-columns",
+        "matrix-transposed-default"])
+def test_mat_round_trips(tmp_path, arrays, kw):
+    scipy.io.savemat(tmp_path / "m.mat", arrays)
+    _same(load(tmp_path / "m.mat", **kw))
+
+
+def test_mat_errors(tmp_path):
+    scipy.io.savemat(tmp_path / "m.mat", {"a": OMEGA, "b": RESP})
+    with pytest.raises(DataError, match=r"m\.mat': cannot tell the variables apart \(found a, "
+                       r"b\); name them omega"):
+        load_mat(tmp_path / "m.mat")
+    _write(tmp_path, b"MATLAB 5.0 garbage" * 10, "bad.mat")
+    with pytest.raises(DataError, match=r"cannot read .*bad\.mat' as a MATLAB \.mat file"):
+        load(tmp_path / "bad.mat")
+
+
+def _uff_set(pyuff, x, z, node, label="Hz", ident="NONE"):
+    return pyuff.prepare_58(
+        binary=0, func_type=4, rsp_node=node, rsp_dir=1, ref_node=1, ref_dir=1, ord_data_type=6,
+        abscissa_spacing=0, abscissa_spec_data_type=18, abscissa_axis_units_lab=label,
+        ordinate_spec_data_type=12, orddenom_spec_data_type=13, z_axis_spec_data_type=0,
+        x=x, data=z, id1=ident)
+
+
+# frequencies that UFF 58's abscissa format (%13.5e) stores exactly
+F_UFF = np.array([0.5, 1.25, 3.0, 7.5, 20.0, 64.0])
+
+
+def test_uff_written_by_pyuff_several_records(tmp_path):
+    pyuff = pytest.importorskip("pyuff")
+    path = tmp_path / "two.uff"
+    pyuff.UFF(str(path)).write_sets([_uff_set(pyuff, F_UFF, RESP, 1, ident="point 1"),
+                                     _uff_set(pyuff, F_UFF, 2 * RESP, 2)], mode="overwrite")
+    both = load_uff(path)
+    assert [d.name for d in both] == ["point 1", "two:1"]
+    np.testing.assert_allclose(both[0].omega, 2 * np.pi * F_UFF, rtol=1e-15)
+    np.testing.assert_allclose(both[0].response, RESP, rtol=1e-11)   # %20.11e ordinates
+    np.testing.assert_allclose(both[1].response, 2 * RESP, rtol=1e-11)
+    with pytest.raises(DataError, match=r"holds 2 frequency-response records: pass record=0\.\.1"):
+        load(path)
+    np.testing.assert_allclose(load(path, record=1).response, 2 * RESP, rtol=1e-11)
+    with pytest.raises(DataError, match=r"record=2 is out of range"):
+        load(path, record=2)
+
+
+UFF_58 = """    -1
+    58
+hand-written FRF
+NONE
+NONE
+NONE
+NONE
+    4         1    1         0       NONE         1   3       NONE         1   3
+         6         3         0  0.00000E+00  0.00000E+00  0.00000E+00
+        18    0    0    0 Frequency            {unit:<20s}
+        12    0    0    0 Acceleration         m/s^2
+        13    0    0    0 Force                N
+         0    0    0    0 NONE                 NONE
+  1.00000E+00   2.00000000000E+00  -1.00000000000E+00
+  2.00000E+00   1.00000000000E+00  -5.00000000000E-01
+  4.00000E+00   2.50000000000E-01   5.00000000000E-01
+    -1
+"""
+
+
+@pytest.mark.parametrize("unit, scale, kw", [("Hz", 2 * np.pi, {}), ("rad/s", 1.0, {}),
+                                             ("", 1.0, {"freq_unit": "rad/s"})])
+def test_uff_hand_written_ascii(tmp_path, unit, scale, kw):
+    pytest.importorskip("pyuff")
+    path = _write(tmp_path, UFF_58.format(unit=unit), "hand.unv")
+    data = load(path, **kw)
+    assert data.name == "hand-written FRF"
+    np.testing.assert_allclose(data.omega, scale * np.array([1.0, 2.0, 4.0]), rtol=1e-15)
+    np.testing.assert_array_equal(data.response, [2 - 1j, 1 - 0.5j, 0.25 + 0.5j])
+
+
+def test_uff_without_pyuff_names_the_extra(tmp_path, monkeypatch):
+    monkeypatch.setitem(sys.modules, "pyuff", None)
+    path = _write(tmp_path, UFF_58.format(unit="Hz"), "x.uff")
+    with pytest.raises(DataError, match=r"reading UFF files needs pyuff: pip install "
+                       r"'freqid_casadi\[uff\]'"):
+        load(path)
+
+
+# ------------------------------------------------------------------ hostile files
+
+def test_fifo_is_refused_without_blocking(tmp_path):
+    if not hasattr(os, "mkfifo"):
+        pytest.skip("no FIFOs on this system")
+    os.mkfifo(tmp_path / "pipe.csv")
+    with pytest.raises(DataError, match=r"pipe\.csv' is a FIFO \(named pipe\), not a regular "
+                       r"file; save the data to a file"):
+        load(tmp_path / "pipe.csv")
+
+
+@pytest.mark.parametrize("reader", [load, load_npz, load_mat, load_uff, load_text])
+def test_device_is_refused(reader):
+    if not os.path.exists("/dev/zero"):
+        pytest.skip("no /dev/zero")
+    with pytest.raises(DataError, match=r"'/dev/zero' is a character device, not a regular"):
+        reader("/dev/zero")
+
+
+def test_directory_and_missing(tmp_path):
+    with pytest.raises(DataError, match="is a directory, not a data file; name the file"):
+        load(tmp_path)
+    with pytest.raises(DataError, match=r"data file not found: .*nope\.mat'; check the path"):
+        load(tmp_path / "nope.mat")
+
+
+def test_size_and_row_limits(tmp_path, monkeypatch):
+    path = _write(tmp_path, "omega,real,imag\n" + _rows(OMEGA, RESP.real, RESP.imag))
+    monkeypatch.setattr(loaders, "MAX_ROWS", 3)
+    with pytest.raises(DataError, match=r"has more than 3 data rows \(limit "
+                       r"freqid_casadi\.loaders\.MAX_ROWS\); thin the data or raise"):
+        load(path)
+    from freqid_casadi import _readfile
+
+    monkeypatch.setattr(_readfile, "MAX_FILE_BYTES", 50)   # the one every reader uses
+    with pytest.raises(DataError, match=r"holds \d+ bytes, above the limit of 50 bytes"):
+        load(path)
+
+
+@pytest.mark.parametrize("text, match", [
+    ("omega,real,imag\n1," + "7" * 200_000 + "x,1\n",
+     r"line 2, column 'real': '7{37}\.\.\.' is not a number$"),
+    ("omega,real,imag\n1,1_0,1\n",
+     r"line 2, column 'real': '1_0' is not a number \(only ASCII decimal numbers"),
+    ("omega,real,imag\n1,\u0661\u0662,1\n",
+     r"line 2, column 'real': '\u0661\u0662' is not a number \(only ASCII decimal"),
+    ("omega,response\n1,1+2k\n", r"line 2, column 'response': '1\+2k' is not a complex number"),
+    ("omega,magnitude_db,phase_deg\n1,7000,0\n",
+     r"line 2, column 'magnitude_db': 7000\.0 dB is outside the range of floating point "
+     r"\(\|G\| = 10\^\(dB/20\) is infinite\); check that the column is in dB"),
+    ("omega,magnitude_db,phase_deg\n1,-7000,0\n", r"-7000\.0 dB .* is zero\)"),
+    ("omega,real,imag\n1,1e400,1\n", r"line 2, column 'real': inf is not finite: response "
+                                     r"must be finite; remove or re-measure"),
+    ("omega,real,imag\n-1,1,1\n", r"line 2, column 'omega': frequency -1\.0 is negative"),
+    ("omega,real,imag\n1,1,1\n1,2,2\n", r"line 3: omega must be strictly increasing "
+                                        r"\(duplicated rows\)"),
+    ("omega,mag,phase\n1,1,1\n", r"phase column 'phase' does not give its unit; name it "
+                                 r"phase_deg or phase_rad"),
+    ("1,2,3,4\n", r"has no header and 4 columns: cannot tell what they are; pass columns="),
+    ("omega,real,imag\n1,2,3\n" + "1e308,1,1\n", None),
+], ids=["200k-cell", "underscore", "arabic-digits", "bad-complex", "7000-dB", "minus-7000-dB",
+        "overflow-literal", "negative-freq", "duplicate", "phase-no-unit", "4-cols", "ok-1e308"])
+def test_bad_cells_are_data_errors_with_line_and_column_and_no_warning(tmp_path, text, match):
+    path = _write(tmp_path, text)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        if match is None:
+            assert load(path).omega[-1] == 1e308
+        else:
+            with pytest.raises(DataError, match=match) as info:
+                load(path)
+            assert "frf.csv'" in str(info.value) and len(str(info.value)) < 600
+    assert [str(w.message) for w in caught] == []
+
+
+def test_non_utf8_and_binary(tmp_path):
+    path = _write(tmp_path, b"omega,real,imag\n1,2,3\n2,\xff,3\n")
+    with pytest.raises(DataError, match=r"not a text CSV file \(not UTF-8\): byte 0xff on line "
+                       r"3 is not UTF-8; save the file as UTF-8"):
+        load(path)
+    with pytest.raises(DataError, match="holds NUL bytes"):
+        load(_write(tmp_path, b"omega,real,imag\n1,2\x00,3\n"))
+
+
+def test_bad_options_are_option_errors(tmp_path):
+    path = _write(tmp_path, "omega,real,imag\n1,2,3\n")
+    with pytest.raises(OptionError, match=r"freq_unit must be 'Hz' or 'rad/s', got 'kHz'"):
+        load(path, freq_unit="kHz")
+    with pytest.raises(OptionError, match=r"columns: unknown column name 'foo'; name each"):
+        load(path, columns="f,foo,im")
+    with pytest.raises(OptionError, match=r"columns='f,re': the columns must be one frequency"):
+        load(path, columns="f,re")
+
+
+# ------------------------------------------------------------------ command line
+
+def test_cli_fit_reads_hz_text_with_freq_unit_and_columns(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    w = np.logspace(-1, 2, 20)
+    g = 2.0 * np.exp(-0.01j * w) / (1 + 1j * w / 3.0)
+    rows = _rows(np.r_[0.0, w / (2 * np.pi)], np.r_[2.0, 20 * np.log10(np.abs(g))],
+                 np.r_[0.0, np.degrees(np.angle(g))], sep="\t")
+    _write(tmp_path, rows, "m.txt")
+    code = cli.main(["fit", "m.txt", "--sections", "1", "--out", "rep"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1
+    assert "has no header and 3 columns" not in err          # 3 columns: f, re, im default
+    assert "frequency unit is unknown" in err and "--freq-unit hz|rad/s" in err
+    code = cli.main(["fit", "m.txt", "--sections", "1", "--out", "rep", "--freq-unit", "hz",
+                     "--columns", "f,mag_db,phase_deg", "--quiet"])
+    out, err = capsys.readouterr()
+    assert code == 0, err
+    assert err.startswith("note: 'm.txt': dropped 1 row(s) at zero frequency (lines 1)")
+    assert "Warning" not in err
+    assert os.path.isfile("rep/model.json")
+    model = fc.RationalDelayModel.load("rep/model.json")
+    assert np.max(np.abs(model.frequency_response(w) / g - 1)) < 1e-6
+
+
+def test_cli_columns_option_is_validated_by_argparse(capsys):
+    code = cli.main(["fit", "x.csv", "--sections", "1", "--out", "r", "--columns", "f,bad"])
+    err = capsys.readouterr().err
+    assert code == 2 and "--columns" in err and "unknown column name 'bad'" in err
+
+
+# ------------------------------------------------------------------ Touchstone
+
+S1P = """! hand-written 1-port, MHz, dB/angle
+# MHz S DB R 50
+0 0 0
+1.5 -6.020599913279624 90
+3.0 20 -45
+"""
+
+
+def test_touchstone_s1p_hand_written(tmp_path):
+    path = _write(tmp_path, S1P, "res.s1p")
+    with pytest.warns(DataWarning, match=r"dropped 1 row\(s\) at zero frequency \(lines 3\)"):
+        data = load(path)
+    np.testing.assert_allclose(data.omega, 2 * np.pi * np.array([1.5e6, 3e6]), rtol=1e-15)
+    np.testing.assert_allclose(data.response, [0.5j, 10 * np.exp(-0.25j * np.pi)], rtol=1e-12)
+    with pytest.raises(OptionError, match="do not apply to Touchstone"):
+        load(path, freq_unit="Hz")
+    with pytest.raises(OptionError, match=r"parameter='S21' is not in this 1-port S-parameter "
+                       r"file; choose one of S11"):
+        load(path, parameter="S21")
+
+
+@pytest.mark.parametrize("fmt", ["ri", "ma", "db"])
+def test_touchstone_s2p_written_by_scikit_rf(tmp_path, fmt):
+    skrf = pytest.importorskip("skrf")
+    f = np.array([1.0, 2.0, 5.0]) * 1e9
+    s = np.zeros((3, 2, 2), complex)
+    s[:, 0, 0], s[:, 1, 0] = 0.1 + 0.2j, RESP[:3]
+    s[:, 0, 1], s[:, 1, 1] = 0.05j, -0.3 + 0.1j
+    net = skrf.Network(frequency=skrf.Frequency.from_f(f, unit="Hz"), s=s, name="dut")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        net.write_touchstone(str(tmp_path / "dut"), form=fmt)
+    path = tmp_path / "dut.s2p"
+    np.testing.assert_allclose(load(path, parameter="S21").response, RESP[:3], rtol=1e-6)
+    np.testing.assert_allclose(load(path, parameter="s12").response, 0.05j, rtol=1e-6)
+    np.testing.assert_allclose(load(path).response, 0.1 + 0.2j, rtol=1e-6)      # S11
+    np.testing.assert_allclose(load(path).omega, 2 * np.pi * f, rtol=1e-9)
+
+
+def test_touchstone_bad_rows(tmp_path):
+    with pytest.raises(DataError, match=r"line 3: expected 9 numbers for a 2-port row, got 3"):
+        load(_write(tmp_path, "# Hz S RI R 50\n! c\n1 2 3\n", "x.s2p"))
+    with pytest.raises(DataError, match=r"line 2: '1_0' is not a number"):
+        load(_write(tmp_path, "# Hz S RI R 50\n1 1_0 3\n", "x.s1p"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        with pytest.raises(DataError, match=r"line 2: the frequency or S11 is outside the "
+                           "floating-point range"):
+            load(_write(tmp_path, "# Hz S DB R 50\n1 7000 90\n", "y.s1p"))
+
+
+def test_cli_batch_passes_freq_unit_and_prints_notes(tmp_path, monkeypatch, capsys):
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "in").mkdir()
+    w = np.logspace(-1, 2, 20)
+    g = 2.0 * np.exp(-0.01j * w) / (1 + 1j * w / 3.0)
+    _write(tmp_path / "in", _rows(np.r_[0.0, w / (2 * np.pi)], np.r_[2.0, g.real],
+                                  np.r_[0.0, g.imag]), "hz.csv")
+    code = cli.main(["batch", "in", "--out", "rep", "--sections", "1", "--freq-unit", "hz"])
+    out, err = capsys.readouterr()
+    assert code in (0, 1), out + err                  # 1: IPOPT's status, not the data
+    assert err.startswith("note: ") and "hz.csv': dropped 1 row(s) at zero frequency" in err
+    assert "Warning" not in err
+    error = float(re.search(r"hz\.csv: .*max rel\. error ([-+.e0-9]+)", out).group(1))
+    assert error < 1e-6                               # Hz read as Hz: the model fits
