@@ -7,6 +7,7 @@ optionally polishes the max error, and checks the model against the frequency re
 :mod:`freqid_casadi.solvers`).
 """
 
+import dataclasses
 import functools
 import math
 import sys
@@ -17,10 +18,12 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .data import FrequencyData
+from .diagnostics import (check_delay, check_gain_sign, check_minimum_phase, check_trivial,
+                          rhp_zeros_note)
 from .errors import DataError, OptionError, ResolutionWarning, StructureError
 from .mainloop import LoopContext, minimax, rational, sequential
 from .metrics import relative_error
-from .model import BASES, RationalDelayModel, Structure
+from .model import BASES, ZEROS, RationalDelayModel, Structure
 from .options import (INITS, LEGACY_KEYWORDS, METHODS, WARM_STARTS, FitOptions, LoopOptions,
                       legacy_message, solver_options)
 from .resolution import check_resolution, default_delay_max, resolution_damping
@@ -31,6 +34,7 @@ __all__ = ["fit", "FitResult", "StageRecord", "Kept", "StageKind", "METHODS", "I
            "OBJECTIVES", "default_delay_max", "resolution_damping"]
 
 STARTS = ("sequential", "rational", "best")
+GAIN_SIGNS = ("auto", "positive", "negative")
 OBJECTIVES = ("least-squares", "minimax")
 
 
@@ -72,6 +76,11 @@ class FitResult:
         :func:`default_delay_max` of the data.
     zeta_min : float or None
         The damping floor used (``min_damping`` resolved; None without one).
+    diagnostics : tuple of Diagnostic
+        What the checks before and after the fit found about the data and the model
+        class (:mod:`freqid_casadi.diagnostics`): ``negative-gain``,
+        ``non-minimum-phase``, ``delay-undetermined``, ``no-better-than-trivial``. A
+        record of severity "error" makes ``success`` False.
     """
 
     model: RationalDelayModel
@@ -90,6 +99,7 @@ class FitResult:
     start_max_rel_errors: dict = field(default_factory=dict)
     delay_max: float = math.nan
     zeta_min: float = None
+    diagnostics: tuple = ()
 
     @property
     def delay(self):
@@ -111,11 +121,13 @@ class FitResult:
         return int(sum(s.nit for s in self.stages))
 
     def summary(self):
+        """One line (and one more per diagnostic): errors, delay, time, status."""
         m = self.model
-        return (f"{self.data.name or 'data'}: {m.n_sections} sections (order {m.order}), "
+        line = (f"{self.data.name or 'data'}: {m.n_sections} sections (order {m.order}), "
                 f"max rel. error {self.max_rel_error:.4g}, RMS {self.rms_rel_error:.4g}, "
                 f"delay {m.delay:.6g} s, {self.wall_time:.2f} s, method {self.method}, "
                 f"{'converged' if self.success else 'NOT converged'}")
+        return "\n".join([line] + [f"  {d.severity}: {d}" for d in self.diagnostics])
 
 
 def _reject_old_keywords(function):
@@ -186,7 +198,8 @@ def _validate(data, response, n_sections, basis, tol, integrator):
 @_reject_old_keywords
 def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=True,
         basis="second-order", method="ipopt", tol=None, weights=None, start="sequential",
-        objective="least-squares", min_damping=None, progress=False, loop=None):
+        objective="least-squares", min_damping=None, progress=False, loop=None,
+        gain_sign="auto", zeros="minimum-phase"):
     """Fit ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` to frequency-response data.
 
     Parameters
@@ -237,6 +250,16 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
     loop : LoopOptions, optional
         Knobs of the main loop (gauge, new-section init, scaling, delay bound, final
         stage, derivative evaluation); default ``LoopOptions()``.
+    gain_sign : {"auto", "positive", "negative"}
+        Sign of the gain K. "auto" takes it from the data's low-frequency phase
+        (integrator removed): near +-180 deg means a negative static gain (a sign-inverted
+        sensor or transmissibility), fitted as ``-(fit of -Phi)`` and stated by a
+        ``negative-gain`` diagnostic.
+    zeros : {"minimum-phase", "free"}
+        "minimum-phase" (the thesis's class): every zero in the closed left half plane.
+        "free": the numerators are unbounded (zeros anywhere, e.g. non-collocated sensors
+        or accelerances whose excess phase no delay explains), the poles stay stable by
+        their bounds; needs the IPOPT method, the dc gauge and no damping floor.
 
     Returns
     -------
@@ -254,7 +277,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         return _fit(data_or_omega, response, n_sections=n_sections, integrator=integrator,
                     delay=delay, basis=basis, method=method, tol=tol, progress=progress,
                     weights=weights, start=start, objective=objective,
-                    min_damping=min_damping, loop=loop)
+                    min_damping=min_damping, loop=loop, gain_sign=gain_sign, zeros=zeros)
 
 
 def _single_threaded_blas():
@@ -267,7 +290,7 @@ def _single_threaded_blas():
 
 
 def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, method, tol,
-         progress, weights, start, objective, min_damping, loop):
+         progress, weights, start, objective, min_damping, loop, gain_sign, zeros):
     t_start = time.perf_counter()
     solver = solver_options(method)
     loop = LoopOptions() if loop is None else loop
@@ -282,13 +305,17 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                           f"{', '.join(OBJECTIVES)}")
     if weights is not None:
         data = data.with_weights(weights)
+    _check_model_class(gain_sign, zeros, solver.method, loop.gauge, min_damping)
+    sign, found = check_gain_sign(data, integrator, gain_sign)
+    user_data, data = data, (data if sign == 1 else FrequencyData(
+        data.omega, -data.response, data.name, data.weights))
     zeta_min = _zeta_min(min_damping, data.omega, solver.method, loop.gauge, basis)
     dmax = (float(loop.delay_max) if loop.delay_max is not None
             else default_delay_max(data.omega))
     ctx = LoopContext(
         data=data, callback=_progress_callback(progress),
         solve=StageSolver(solver, loop, zeta_min),
-        structure=Structure(int(n_sections), integrator, delay, basis), loop=loop,
+        structure=Structure(int(n_sections), integrator, delay, basis, zeros), loop=loop,
         warm_start=solver.warm_start, delay_max=dmax, final_max_iter=solver.final_max_iter,
         zeta_min=zeta_min)
     options = FitOptions(n_sections=int(n_sections), integrator=bool(integrator),
@@ -313,6 +340,10 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
         z, rec = minimax(ctx, param, z)
         records.append(rec)
     model = param.to_model(z)
+    if sign == -1:
+        model = RationalDelayModel(dataclasses.replace(model.structure, gain_sign=-1),
+                                   model.beta)
+    data = user_data
     stats = relative_error(model, data)
     final = [r for r in records if r.kept != Kept.MINIMAX_REJECTED
              and r.kind != StageKind.RATIONAL_START] or records
@@ -328,12 +359,42 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
             "damping floor from the frequency spacing), remove them with "
             "freqid_casadi.validation.prune_sections, or fit fewer sections",
             ResolutionWarning, stacklevel=4)
+    found += _after_fit(model, data, stats, dmax)
+    success = bool(final[-1].success) and not any(d.severity == "error" for d in found)
     return FitResult(model=model, stages=tuple(records), data=data, rel_error=stats.values,
                      max_rel_error=stats.max, rms_rel_error=stats.rms,
-                     success=bool(final[-1].success), wall_time=time.perf_counter() - t_start,
+                     success=success, wall_time=time.perf_counter() - t_start,
                      method=solver.method, options=options, start=won, objective=objective,
                      resolution=check, start_max_rel_errors=errors, delay_max=dmax,
-                     zeta_min=zeta_min)
+                     zeta_min=zeta_min, diagnostics=found)
+
+
+def _check_model_class(gain_sign, zeros, method, gauge, min_damping):
+    if not isinstance(gain_sign, str) or gain_sign not in GAIN_SIGNS:
+        raise OptionError(f"unknown gain_sign {gain_sign!r}; choose one of "
+                          f"{', '.join(GAIN_SIGNS)}")
+    if not isinstance(zeros, str) or zeros not in ZEROS:
+        raise OptionError(f"unknown zeros {zeros!r}; choose one of {', '.join(ZEROS)}")
+    if zeros == "free":
+        if method != "ipopt":
+            raise OptionError("zeros='free' needs method='ipopt' (the barrier-LM method "
+                              "keeps every parameter inside its log barrier, beta > 0)")
+        if gauge != "dc":
+            raise OptionError(f"zeros='free' needs LoopOptions(gauge='dc'), got {gauge!r}")
+        if min_damping is not None:
+            raise OptionError("zeros='free' takes no min_damping (the damping floor is "
+                              "written for minimum-phase factors); drop one of them")
+
+
+def _after_fit(model, data, stats, delay_max):
+    """Diagnostics of the fitted model on the user's data (see :mod:`.diagnostics`)."""
+    found = check_trivial(stats.max, stats.rms)
+    found += check_delay(model, data, delay_max, stats.rms)
+    if model.structure.zeros == "free":
+        found += rhp_zeros_note(model)
+    else:
+        found += check_minimum_phase(model, data, stats.max, stats.rms)
+    return found
 
 
 def _progress_callback(progress):

@@ -56,9 +56,9 @@ class Gauge:
 def _dc_to_thesis(c2, c1, wr):
     """Thesis form (a, zeta, omega) and scale s of ``1 + c1 (s/wr) + c2 (s/wr)^2``:
     the factor equals ``(a s^2 + 2 zeta omega s + omega^2) / s`` with ``s = omega^2``."""
-    if c2 > 0:
-        omega = wr / np.sqrt(c2)
-        return 1.0, c1 / (2 * np.sqrt(c2)), omega, omega * omega
+    if c2 != 0:       # c2 < 0 only for free zeros: a = -1, real roots of opposite signs
+        omega = wr / np.sqrt(abs(c2))
+        return float(np.sign(c2)), c1 / (2 * np.sqrt(abs(c2))), omega, omega * omega
     # zero at infinity: a = 0, omega = wr -> factor (2 zeta wr s + wr^2)/wr^2
     return 0.0, c1 / 2.0, wr, wr * wr
 

@@ -136,9 +136,23 @@ class Parametrization:
             return self.delay_max, self.gain_ref, self.omega_ref
         return 1.0, 1.0, (1.0,) * self.structure.n_sections
 
+    def free_mask(self):
+        """Boolean mask, shape (n_vars,), of the variables without a lower bound: the
+        numerator variables of every section when ``structure.zeros == "free"`` (dc
+        gauge: any real ``1 + c1 x + c2 x^2`` / ``1 + c1 x``, zeros anywhere)."""
+        mask = np.zeros(self.n_vars, bool)
+        if self.structure.zeros == "free":
+            if self.gauge != "dc":
+                raise OptionError(f"zeros='free' needs the 'dc' gauge, got {self.gauge!r}")
+            ns = self.section_size
+            for k in range(self.structure.n_sections):
+                mask[2 + ns * k: 2 + ns * k + ns // 2] = True
+        return mask
+
     def bounds(self):
-        """(lb, ub) arrays of shape (n_vars,): z >= 0, delay <= delay_max, h = 0 if no delay."""
-        lb = np.zeros(self.n_vars)
+        """(lb, ub) arrays of shape (n_vars,): z >= 0 (numerators free with
+        ``zeros="free"``), delay <= delay_max, h = 0 if no delay."""
+        lb = np.where(self.free_mask(), -np.inf, 0.0)
         ub = np.full(self.n_vars, np.inf)
         h_ref = self._refs()[0]
         ub[0] = (self.delay_max / h_ref) if self.structure.delay else 0.0
@@ -248,8 +262,9 @@ class Parametrization:
 
     # ---------------------------------------------------------------- conversions
     def to_beta(self, z):
-        """Thesis parameters ``beta`` (numpy, >= 0) of the variables ``z``."""
-        z = np.maximum(np.asarray(z, float), 0.0)
+        """Thesis parameters ``beta`` (numpy; >= 0 but for free numerators) of ``z``."""
+        z = np.asarray(z, float)
+        z = np.where(self.free_mask(), z, np.maximum(z, 0.0))
         h_ref, k_ref, wr_all = self._refs()
         h = h_ref * z[0] if self.structure.delay else 0.0
         gain = k_ref * z[1]

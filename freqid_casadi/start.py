@@ -79,6 +79,32 @@ def _quadratics(roots, n_factors, floor):
     return [f[1] for f in factors]
 
 
+def _free_quadratics(roots, n_factors, floor):
+    """As :func:`_quadratics` for roots anywhere (free zeros): real ``(c2, c1, c0)`` with
+    ``c0 > 0`` (a factor with a negative constant term is negated; the gain absorbs the
+    sign), real roots paired in order of magnitude whatever their signs."""
+    roots = np.asarray(roots, complex)
+    tol = 1e-12 * np.maximum(1.0, np.abs(roots))
+    factors = [(abs(r), (1.0, -2 * r.real, max(abs(r), floor) ** 2))
+               for r in roots[roots.imag > tol]]
+    real = roots[np.abs(roots.imag) <= tol].real
+    real = real[np.argsort(np.abs(real))]
+    real = [np.copysign(max(abs(r), floor), r if r != 0 else -1.0) for r in real]
+    for k in range(0, len(real) - 1, 2):
+        r1, r2 = real[k], real[k + 1]
+        c = (1.0, -(r1 + r2), r1 * r2)
+        factors.append((np.sqrt(abs(r1 * r2)), c if c[2] > 0 else tuple(-x for x in c)))
+    if len(real) % 2:
+        r = real[-1]
+        factors.append((abs(r), (0.0, 1.0, -r) if r < 0 else (0.0, -1.0, r)))
+    factors.sort(key=lambda f: f[0])
+    while len(factors) < n_factors:
+        factors.append((np.inf, (0.0, 0.0, 1.0)))
+    if len(factors) > n_factors:                          # pragma: no cover
+        raise RationalStartError(f"{len(factors)} factors for {n_factors} sections")
+    return [f[1] for f in factors]
+
+
 def _theta(c2, c1, c0):
     """Thesis (a, zeta, omega) and scale s with ``c2 s^2 + c1 s + c0 = (a s^2 + 2 zeta omega
     s + omega^2) * s_scale``... returned as (a, zeta, omega, scale)."""
@@ -87,10 +113,12 @@ def _theta(c2, c1, c0):
     return c2, c1 / (2 * omega), omega, scale
 
 
-def sections_from_roots(poles, zeros, n_sections, *, basis="second-order", floor=1e-9):
+def sections_from_roots(poles, zeros, n_sections, *, basis="second-order", floor=1e-9,
+                        free_zeros=False):
     """Section parameters (thesis order) whose roots are ``poles`` and ``zeros``.
 
-    Roots must already be in the closed left half plane; they are paired by frequency.
+    Roots must already be in the closed left half plane (``zeros`` anywhere with
+    ``free_zeros``); they are paired by frequency.
 
     Parameters
     ----------
@@ -100,6 +128,9 @@ def sections_from_roots(poles, zeros, n_sections, *, basis="second-order", floor
     basis : {"second-order", "first-order"}
     floor : float
         Smallest root magnitude used (rad/s): roots at 0 are moved to ``floor``.
+    free_zeros : bool
+        Zeros anywhere (second-order basis): numerators may have negative ``a`` or
+        ``zeta_num`` (a model structure with ``zeros="free"``).
 
     Returns
     -------
@@ -110,7 +141,7 @@ def sections_from_roots(poles, zeros, n_sections, *, basis="second-order", floor
     """
     if basis == "second-order":
         dens = _quadratics(poles, n_sections, floor)
-        nums = _quadratics(zeros, n_sections, floor)
+        nums = (_free_quadratics if free_zeros else _quadratics)(zeros, n_sections, floor)
         rows = []
         for (n2, n1, n0), (d2, d1, d0) in zip(nums, dens):
             a, zn, wn, _ = _theta(n2, n1, n0)
@@ -150,15 +181,20 @@ def _start_at(vector_fitting, data, structure, base, h, n_poles, n_iter, floor):
     else:
         zeros = vf.zeros()
     zeros = zeros[np.isfinite(zeros)]
-    rhp = zeros[zeros.real > 0]
+    free = structure.zeros == "free"
+    # with free zeros only the right-half-plane zeros beyond the band stand for a delay
+    # (their phase is nearly linear in omega there); those inside are kept as zeros
+    rhp_mask = (zeros.real > 0) & ((np.abs(zeros) > omega[-1]) if free else True)
+    rhp = zeros[rhp_mask]
     # each RHP zero z contributes the all-pass (s - z)/(s + conj z), whose group delay at
     # low frequency is 2 Re z / |z|^2: the delay the fit is missing
     step = float(np.sum(2 * rhp.real / np.abs(rhp) ** 2))
     poles = np.where(poles.real > 0, -poles.conj(), poles)
-    zeros = np.where(zeros.real > 0, -zeros.conj(), zeros)
+    zeros = np.where(rhp_mask, -zeros.conj(), zeros)
     zeros = zeros[np.argsort(np.abs(zeros))][:n_poles]
     theta, _ = sections_from_roots(poles, zeros, structure.n_sections,
-                                   basis=structure.basis, floor=floor)
+                                   basis=structure.basis, floor=floor,
+                                   free_zeros=free and structure.basis == "second-order")
     beta = np.concatenate([[h, 1.0], theta.ravel()])
     gain = _fit_gain(RationalDelayModel(structure, beta), omega, phi * np.exp(s * h))
     if not (np.isfinite(gain) and gain > 0):

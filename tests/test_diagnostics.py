@@ -140,3 +140,66 @@ def test_skrf_vector_fitting_peer_recovers_a_rational_system():
     m = skrf_vector_fitting(data, 3)
     assert np.max(m.relative_error(data)) < 1e-9
     assert np.allclose(sorted(np.abs(m.poles())), [2, 2, 10], rtol=1e-7)
+
+
+# ------------------------------------------------------------------ through fit()
+import freqid_casadi as fc  # noqa: E402
+from freqid_casadi.errors import OptionError  # noqa: E402
+
+ALLPASS = (S ** 2 - 1.6 * S + 64) / (S ** 2 + 1.6 * S + 64)     # zeros 0.8 +- 7.96j
+
+
+def codes(res):
+    return [d.code for d in res.diagnostics]
+
+
+def test_fit_recovers_a_sign_inverted_system_with_a_negative_gain():
+    res = fc.fit(OMEGA, -plant(), n_sections=2, start="best")
+    assert res.max_rel_error <= 1e-6
+    assert res.model.gain < 0 and res.model.structure.gain_sign == -1
+    assert np.allclose(res.model.frequency_response(OMEGA), -plant(), rtol=1e-6)
+    assert codes(res) == ["negative-gain"]
+    assert abs(res.model.delay - 0.01) < 1e-5     # traded against a far zero, 1.2e-6 measured
+
+
+def test_fit_forced_positive_gain_on_inverted_data_is_never_a_success():
+    res = fc.fit(OMEGA, -plant(), n_sections=2, gain_sign="positive")
+    assert "negative-gain" in codes(res) and "no-better-than-trivial" in codes(res)
+    assert res.rms_rel_error > 0.75 and not res.success
+
+
+def test_fit_flags_a_right_half_plane_zero_pair_with_minimum_phase_zeros():
+    res = fc.fit(OMEGA, plant() * ALLPASS, n_sections=3, start="best")
+    assert res.max_rel_error > 0.5                       # a delay cannot explain it
+    (d,) = [d for d in res.diagnostics if d.code == "non-minimum-phase"]
+    z = np.array(d.values["rhp_zeros"])
+    assert np.any(np.hypot(z[:, 0] - 0.8, np.abs(z[:, 1]) - 7.96) < 0.05)
+    assert "zeros='free'" in d.message
+
+
+def test_fit_with_free_zeros_recovers_the_non_minimum_phase_system():
+    res = fc.fit(OMEGA, plant() * ALLPASS, n_sections=3, start="best", zeros="free")
+    assert res.max_rel_error <= 1e-6
+    assert res.model.is_stable() and not res.model.is_minimum_phase()
+    rhp = res.model.zeros()[res.model.zeros().real > 0]
+    assert np.allclose(sorted(rhp.imag), [-np.sqrt(64 - 0.64), np.sqrt(64 - 0.64)], rtol=1e-5)
+    assert codes(res) == ["non-minimum-phase"] and res.diagnostics[0].severity == "info"
+
+
+def test_fit_flags_an_aliased_delay():
+    dmax = math.pi / float(np.max(np.diff(OMEGA)))          # 1.38 s on this grid
+    res = fc.fit(OMEGA, plant(delay=2.2 * dmax), n_sections=2)
+    assert "delay-undetermined" in codes(res)
+    assert "no-better-than-trivial" in codes(res) and not res.success
+
+
+@pytest.mark.parametrize("kw, match", [
+    (dict(gain_sign="minus"), "unknown gain_sign 'minus'"),
+    (dict(zeros="any"), "unknown zeros 'any'"),
+    (dict(zeros="free", method="barrier-lm"), "zeros='free' needs method='ipopt'"),
+    (dict(zeros="free", min_damping="auto"), "zeros='free' takes no min_damping"),
+    (dict(zeros="free", loop=fc.LoopOptions(gauge="b1")), "needs LoopOptions\\(gauge='dc'\\)"),
+])
+def test_fit_model_class_options_are_checked(kw, match):
+    with pytest.raises(OptionError, match=match):
+        fc.fit(OMEGA, plant(), n_sections=2, **kw)
