@@ -121,8 +121,8 @@ LAYERS = {
     "objective": 2,
     "solvers": 3,
     "fit": 4, "baselines": 4, "uncertainty": 4, "start": 4, "sweep": 4, "validation": 4,
-    "batch": 4,
-    "report": 5, "plots": 5, "ablation": 5, "reproduce": 5,
+    "batch": 4, "covariance": 4, "bands": 4, "_physical": 1,
+    "report": 5, "plots": 5, "plots_uncertainty": 5, "ablation": 5, "reproduce": 5,
     "cli": 6, "__main__": 6, "cli_frf": 6, "cli_batch": 6,
 }
 FACADE = 6      # the package itself (``import freqid_casadi`` pulls in fit): top layer
