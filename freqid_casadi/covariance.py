@@ -32,7 +32,7 @@ from .errors import DataError, OptionError, StructureError
 from .model import RationalDelayModel
 
 __all__ = ["ModeEstimate", "ParameterUncertainty", "parameter_uncertainty", "bootstrap",
-           "NOISE_SOURCES"]
+           "with_std", "NOISE_SOURCES"]
 
 #: Values of ``ParameterUncertainty.noise_source``.
 NOISE_SOURCES = ("residuals", "given", "data", "bootstrap")
@@ -435,3 +435,32 @@ def bootstrap(model, data=None, *, n_boot=200, seed=0, n_jobs=1, refit=None, wei
     samples.setflags(write=False)
     return _record(model, par, cov, free, base.sigma2, base.dof, base.condition_number,
                    "bootstrap", "bootstrap", samples)
+
+
+def with_std(modes, unc, rtol=1e-6):
+    """Copies of modal records with ``omega_n_std`` and ``zeta_std`` filled from ``unc``.
+
+    Parameters
+    ----------
+    modes : sequence of frozen dataclasses
+        Records with fields ``omega_n`` (rad/s), ``zeta``, ``omega_n_std`` and ``zeta_std``
+        (e.g. ``freqid_casadi.modal.Mode``) of the model ``unc`` describes.
+    unc : ParameterUncertainty
+    rtol : float
+        Relative tolerance of the match of ``omega_n`` with a mode of ``unc``.
+
+    Returns
+    -------
+    list
+        ``dataclasses.replace`` of each record; records without a matching pole pair
+        (e.g. overdamped) keep their values.
+    """
+    import dataclasses
+
+    out = []
+    for rec in modes:
+        match = [m for m in unc.modes if abs(m.omega_n - rec.omega_n) <= rtol * m.omega_n
+                 and abs(m.zeta - rec.zeta) <= max(rtol, 1e-9)]
+        out.append(dataclasses.replace(rec, omega_n_std=match[0].omega_n_std,
+                                       zeta_std=match[0].zeta_std) if match else rec)
+    return out

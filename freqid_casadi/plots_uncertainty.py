@@ -87,7 +87,11 @@ def bode_band(unc, data=None, *, omega=None, level=0.95, fig=None, title=None):
             axes[1].set_ylabel("phase (degrees)")
             axes[1].set_xlabel(r"frequency $\omega$ (rad/s)")
     ax_mag, ax_ph = fig.axes[0], fig.axes[1]
-    label = f"{100 * level:g} % band ({unc.method})"
+    half_db = 20 * np.log10(band.magnitude_upper / band.magnitude)
+    half_deg = np.rad2deg(band.phase_upper - band.phase)
+    # the band is often thinner than the line: its largest half-width goes in the label
+    label = (f"{100 * level:g} % band ({unc.method}), max ±{np.max(half_db):.2g} dB, "
+             f"±{np.max(half_deg):.2g}°")
     ax_mag.fill_between(band.omega, 20 * np.log10(band.magnitude_lower),
                         20 * np.log10(band.magnitude_upper), color="C1", alpha=0.3, lw=0,
                         label=label)
@@ -117,8 +121,9 @@ def rel_error_band(unc, data, *, level=0.95, fig=None, title=None):
     Returns
     -------
     matplotlib.figure.Figure
-        The error ``e`` (line), the band ``e +- z std(e)`` (shaded, lower edge clipped
-        at ``1e-3 e``) and ``z rel_std`` (dashed: the model's own relative uncertainty).
+        The error ``e`` (line), its upper band ``e + z std(e)`` (shaded; the edge an
+        uncertainty weight must cover, :func:`freqid_casadi.bands.fit_band_weight`) and
+        ``z rel_std`` (dashed: the model's own relative uncertainty).
     """
     _check(unc, data)
     if data is None:
@@ -133,8 +138,9 @@ def rel_error_band(unc, data, *, level=0.95, fig=None, title=None):
         ax.grid(True, which="both", alpha=0.3)
     ax = fig.axes[0]
     e, s = band.rel_error, band.rel_error_std
-    ax.fill_between(data.omega, np.maximum(e - z * s, 1e-3 * e), e + z * s, color="C0",
-                    alpha=0.25, lw=0, label=f"{100 * level:g} % band ({unc.method})")
+    ax.fill_between(data.omega, e, e + z * s, color="C0", alpha=0.25, lw=0,
+                    label=rf"$e + {z:.2f}\,\sigma(e)$ ({100 * level:g} % upper band, "
+                          f"{unc.method})")
     ax.loglog(data.omega, z * band.rel_std, "C3--", lw=1.0,
               label=rf"model spread ${z:.2f}\,\sigma(\delta G_N/G_N)$")
     ax.legend(loc="best", fontsize="small", framealpha=0.9)
@@ -143,10 +149,31 @@ def rel_error_band(unc, data, *, level=0.95, fig=None, title=None):
     return fig
 
 
+def _decimals(std):
+    """Decimals that show two significant digits of ``std``."""
+    return max(0, 1 - int(math.floor(math.log10(std)))) if std > 0 else 6
+
+
 def _pm(value, std, digits=4):
+    """``value ± std`` with the value rounded where the std's second digit is."""
+    if not np.isfinite(value):
+        return "–"
     if not np.isfinite(std):
-        return f"{value:.{digits}g} (at bound)" if np.isfinite(value) else "–"
+        return f"{value:.{digits}g} (at bound)"
+    d = _decimals(std)
+    if abs(value) >= 1e-3 or value == 0:
+        return f"{value:.{d}f} ± {std:.2g}"
     return f"{value:.{digits}g} ± {std:.2g}"
+
+
+def _ci(value, std, z):
+    if not np.isfinite(std):
+        return "–"
+    d = _decimals(z * std)
+    lo, hi = value - z * std, value + z * std
+    if abs(value) >= 1e-3:
+        return f"[{lo:.{d}f}, {hi:.{d}f}]"
+    return f"[{lo:.4g}, {hi:.4g}]"
 
 
 def render_markdown(unc, *, level=0.95):
@@ -173,13 +200,11 @@ def render_markdown(unc, *, level=0.95):
         lines.append(
             f"| {k} | {_pm(m.frequency_hz, m.frequency_hz_std)} | "
             f"{_pm(m.omega_n, m.omega_n_std)} | {_pm(m.zeta, m.zeta_std, 3)} | "
-            f"[{m.omega_n - z * m.omega_n_std:.5g}, {m.omega_n + z * m.omega_n_std:.5g}] | "
-            f"[{m.zeta - z * m.zeta_std:.3g}, {m.zeta + z * m.zeta_std:.3g}] |")
+            f"{_ci(m.omega_n, m.omega_n_std, z)} | {_ci(m.zeta, m.zeta_std, z)} |")
     lines += ["", "| parameter | value ± std | " + pct + " CI |", "|---|---:|---|"]
     for name, value, std in (("delay (s)", unc.delay, unc.delay_std),
                              ("gain", unc.gain, unc.gain_std)):
-        lines.append(f"| {name} | {_pm(value, std, 6)} | "
-                     f"[{value - z * std:.6g}, {value + z * std:.6g}] |")
+        lines.append(f"| {name} | {_pm(value, std, 6)} | {_ci(value, std, z)} |")
     lines += ["", f"Standard deviations by the {unc.method} method; noise level from "
                   f"{unc.noise_source} (sigma^2 = {unc.sigma2:.3g} per real component of the "
                   f"weighted relative residual, {unc.dof} degrees of freedom)."]

@@ -2,7 +2,7 @@
 
 Usage::
 
-    nice -n 10 python scripts/uncertainty_calibration.py [--replicates 400] [--jobs 2] \
+    nice -n 10 python scripts/uncertainty_calibration.py [--replicates 1000] [--jobs 2] \
         [--out results/uncertainty] [--force] [--no-actuator]
 
 1. Monte Carlo. A known 2-mode system with a delay (:func:`truth_model`: modes at 5 and
@@ -176,7 +176,11 @@ def actuator_delays(data, variance):
         unc = parameter_uncertainty(res)
         unc_h1 = parameter_uncertainty(res, noise_variance=variance)
         fits[n] = (res, unc)
-        rows.append({"n_sections": n, "delay": unc.delay, "delay_std": unc.delay_std,
+        corr, with_name = delay_correlation(unc)
+        rows.append({"delay_max_abs_corr": corr, "delay_max_corr_with": with_name,
+                     "poles": [str(complex(p)) for p in res.model.poles()],
+                     "zeros": [str(complex(z)) for z in res.model.zeros()],
+                     "n_sections": n, "delay": unc.delay, "delay_std": unc.delay_std,
                      "delay_std_h1_variance": unc_h1.delay_std,
                      "delay_at_bound": bool(unc.at_bound[0]),
                      "max_rel_error": res.max_rel_error, "rms_rel_error": res.rms_rel_error,
@@ -184,6 +188,15 @@ def actuator_delays(data, variance):
                      "modes": [{"omega_n": m.omega_n, "omega_n_std": m.omega_n_std,
                                 "zeta": m.zeta, "zeta_std": m.zeta_std} for m in unc.modes]})
     return rows, fits
+
+
+def delay_correlation(unc):
+    """Largest |correlation| of the delay with another free parameter, and its name."""
+    free = np.flatnonzero(~unc.at_bound)
+    c = unc.covariance
+    corr = {unc.param_names[j]: c[0, j] / (unc.std[0] * unc.std[j]) for j in free if j != 0}
+    name = max(corr, key=lambda k: abs(corr[k]))
+    return float(corr[name]), name
 
 
 def agreement(rows):
@@ -297,7 +310,8 @@ def actuator_section(info, rows, pairs):
     """Markdown of the actuator part."""
     table = [[r["n_sections"], f"{1e3 * r['delay']:.3f}", f"{1e3 * r['delay_std']:.3f}",
               f"{1e3 * r['delay_std_h1_variance']:.3f}", _fmt(r["max_rel_error"], 3),
-              _fmt(r["rms_rel_error"], 3), f"{r['condition_number']:.2g}"] for r in rows]
+              _fmt(r["rms_rel_error"], 3), f"{r['condition_number']:.2g}",
+              f"{r['delay_max_abs_corr']:+.3f} ({r['delay_max_corr_with']})"] for r in rows]
     agree = [[a["pair"], f"{1e3 * a['difference']:.3f}", f"{1e3 * a['combined_std']:.3f}",
               f"{a['in_std']:.2f}", "yes" if a["in_std"] <= 1 else "**no**"] for a in pairs]
     return [
@@ -311,7 +325,12 @@ def actuator_section(info, rows, pairs):
         "Each fit `fit(data, n_sections=n, start=\"rational\")`.", "",
         markdown_table(table, ["sections", "delay (ms)", "std (ms), residuals",
                                "std (ms), H1 coherence variance", "max rel. error",
-                               "RMS rel. error", "condition"], "rrrrrrr"), "",
+                               "RMS rel. error", "condition",
+                               "largest correlation of the delay"], "rrrrrrrl"), "",
+        "Zeros and poles of each fit (rad/s) are in calibration.json. A correlation of the "
+        "delay near ±1 means the data determine only a combination of the delay and that "
+        "parameter (a real zero or pole far above the band adds a phase ~ omega/r, like a "
+        "delay of 1/r): its std is then large, as it should be.", "",
         "The first std takes the noise level from the weighted residuals (the default: it "
         "includes the model error); the second uses the H1 variance from the coherence, "
         "|H|^2 (1 - gamma^2)/(2 n_d gamma^2) (Bendat & Piersol), which ignores the model "
@@ -363,7 +382,7 @@ def run(n, jobs, out, command, force=False, actuator=True):
 
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    ap.add_argument("--replicates", type=int, default=400)
+    ap.add_argument("--replicates", type=int, default=1000)
     ap.add_argument("--jobs", type=int, default=2)
     ap.add_argument("--out", default="results/uncertainty")
     ap.add_argument("--force", action="store_true")

@@ -196,6 +196,21 @@ def test_bad_input(fitted, unc):
         covariance.bootstrap(fitted, refit="global")
 
 
+def test_with_std_fills_modal_records(unc):
+    @dataclasses.dataclass(frozen=True)
+    class Mode:                      # the fields of freqid_casadi.modal.Mode used here
+        omega_n: float
+        zeta: float
+        omega_n_std: float = float("nan")
+        zeta_std: float = float("nan")
+
+    recs = [Mode(m.omega_n * (1 + 1e-9), m.zeta) for m in unc.modes] + [Mode(5.0, 0.5)]
+    out = covariance.with_std(recs, unc)
+    assert [r.omega_n_std for r in out[:2]] == [m.omega_n_std for m in unc.modes]
+    assert [r.zeta_std for r in out[:2]] == [m.zeta_std for m in unc.modes]
+    assert out[2] is recs[2]
+
+
 # ------------------------------------------------------------------ bootstrap
 def test_bootstrap_agrees_with_delta_and_ignores_n_jobs(fitted, unc):
     b1 = covariance.bootstrap(fitted, n_boot=200, seed=1)
