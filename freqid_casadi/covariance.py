@@ -175,6 +175,19 @@ class ParameterUncertainty:
         z = _z(level, dist, self.dof)
         return (float(self.values[i] - z * self.std[i]), float(self.values[i] + z * self.std[i]))
 
+    def to_dict(self):
+        """JSON-ready dict: names, values, at_bound, covariance (NaN as None), noise info."""
+        def clean(a):
+            return [None if not np.isfinite(v) else float(v) for v in np.ravel(a)]
+
+        p = len(self.param_names)
+        return {"method": self.method, "noise_source": self.noise_source,
+                "sigma2": self.sigma2, "dof": self.dof, "param_names": list(self.param_names),
+                "values": clean(self.values), "at_bound": [bool(b) for b in self.at_bound],
+                "covariance": [clean(self.covariance[i]) for i in range(p)],
+                "delay_std": clean([self.delay_std])[0], "gain": self.gain,
+                "gain_std": clean([self.gain_std])[0]}
+
     def intervals(self, level=0.95, dist="normal"):
         """``{name: (lo, hi)}`` for every parameter (NaN bounds at a bound)."""
         return {n: self.interval(n, level, dist) for n in self.param_names}

@@ -133,6 +133,45 @@ def test_record_fields_and_noise_from_residuals(fitted, unc):
     assert hi_t - lo_t > hi - lo
 
 
+def test_to_dict_is_json(unc):
+    import json
+
+    d = json.loads(json.dumps(covariance.ParameterUncertainty.to_dict(unc)))
+    assert d["param_names"] == list(unc.param_names)
+    np.testing.assert_array_equal(np.array(d["covariance"], float), unc.covariance)
+
+
+@pytest.mark.parametrize("name", ["integrator", "first-order basis", "no delay"])
+def test_weighted_calibration_with_local_refits(name):
+    """Heteroscedastic noise (relative RMS 0.3 % .. 3 % over the band), fitted with
+    w = 1/sigma_i^2 (normalised to mean 1): 300 replicates refitted locally from the truth
+    (least squares in the physical parameters). The reported stds, noise from the
+    weighted residuals, match the empirical ones within 20 %, and 95 % intervals cover."""
+    model = MODELS[name]
+    par = _physical.parametrize(model)
+    g = model.frequency_response(OMEGA)
+    sigma = np.geomspace(0.003, 0.03, OMEGA.size)
+    w = 1 / sigma ** 2
+    w /= w.mean()
+    rng = np.random.default_rng(11)
+    est, std = [], []
+    for _ in range(300):
+        n = (rng.standard_normal(OMEGA.size) + 1j * rng.standard_normal(OMEGA.size)) / np.sqrt(2)
+        phi = g * (1 + sigma * n)
+        theta, ok = _physical.polish(par, OMEGA, phi, w)
+        assert ok
+        u = covariance.parameter_uncertainty(_physical.to_model(par, theta),
+                                             FrequencyData(OMEGA, phi, weights=w))
+        est.append(theta)
+        std.append(u.std)
+    est, std = np.array(est), np.array(std)
+    free = ~par.at_bound
+    ratio = std[:, free].mean(axis=0) / est[:, free].std(axis=0, ddof=1)
+    cover = np.mean(np.abs(est - par.theta)[:, free] <= 1.96 * std[:, free], axis=0)
+    assert np.all(np.abs(ratio - 1) < 0.2), ratio
+    assert np.all((cover > 0.9) & (cover < 0.99)), cover
+
+
 def test_given_variance_matches_the_residual_estimate(fitted, unc):
     """With the true noise variance E|Phi - G|^2 = 1e-4 |G|^2 the sandwich gives the same
     stds as the residual estimate, scaled by sqrt(5e-5 / sigma2)."""
@@ -283,16 +322,20 @@ def test_plots_and_markdown(fitted, unc):
 # ------------------------------------------------------------------ calibration
 @pytest.mark.slow
 def test_monte_carlo_calibration():
-    """120 replicates (the script runs 400): coverage of the 95 % intervals of both
-    natural frequencies, dampings and the delay, and reported/empirical std ratio.
-    Bounds: 92-98 % widened by 1.5 binomial standard errors (2 points) for 120 replicates;
-    ratio within 20 %."""
+    """200 replicates (seeds 5000.., independent of the report's 0..999), each refitted
+    with fit(n_sections=2, start="rational"): coverage of the 95 % intervals of both
+    natural frequencies, dampings and the delay, and the mean reported std over the
+    empirical one. Measured: coverage 0.940-0.980, ratios 0.99-1.16 (omega_2: its
+    empirical std is low in this draw; 1000 replicates give 0.998, results/uncertainty).
+    Bounds: ratio within 20 %; coverage 92-98 % widened by about 1.3 binomial standard
+    errors (1.5 points at 200 replicates) to 90-99 %. About 65 s with 2 workers on the
+    loaded 2-core machine."""
     t0 = time.perf_counter()
-    val, std, _ = S.monte_carlo(120, jobs=2, first_seed=5000)
+    val, std, _ = S.monte_carlo(200, jobs=2, first_seed=5000)
     summary = S.summarize(val, std)
-    assert summary["n_valid"] == 120
+    assert summary["n_valid"] == 200
     for name in ("omega_1", "zeta_1", "omega_2", "zeta_2", "delay"):
         p = summary["parameters"][name]
-        assert 0.90 <= p["coverage"] <= 1.0, (name, p)
+        assert 0.90 <= p["coverage"] <= 0.99, (name, p)
         assert 0.8 <= p["std_ratio"] <= 1.2, (name, p)
     assert time.perf_counter() - t0 < 180
