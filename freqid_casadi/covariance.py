@@ -240,7 +240,7 @@ def _stack(z):
 
 
 def _inverse(a):
-    """(A^T A)^-1 of the column-scaled A (2M, p) by SVD; returns it, scales, condition."""
+    """(A^T A)^-1 via the SVD of A (2M, p) with unit-norm columns; and its condition."""
     scale = np.linalg.norm(a, axis=0)
     scale[scale == 0] = 1.0
     _, sv, vt = np.linalg.svd(a / scale, full_matrices=False)
@@ -369,7 +369,7 @@ def _replicate(b, seed, par, data, w, u, refit):
     if refit is None:
         theta, ok = _physical.polish(par, data.omega, phi, w)
         return theta if ok else np.full(par.n_params, np.nan)
-    star = FrequencyData(data.omega, phi, data.name, data.weights)
+    star = FrequencyData(data.omega, phi, data.name, w)
     try:
         model = refit(star) if callable(refit) else _refit_fit(star, par.structure)
     except Exception:   # noqa: BLE001 -- a failed refit is counted, not fatal
