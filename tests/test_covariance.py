@@ -311,6 +311,10 @@ def test_plots_and_markdown(fitted, unc):
     assert len(fig.axes[0].collections) >= 1            # the band
     fig2 = plots_uncertainty.rel_error_band(unc, fitted.data, title="x")
     assert isinstance(fig2, Figure) and fig2.axes[0].get_yscale() == "log"
+    from freqid_casadi import plots
+
+    fig3 = plots_uncertainty.rel_error_band(unc, fitted.data, fig=plots.relative_error(fitted))
+    assert fig3.axes[0].get_legend_handles_labels()[1][-1].startswith("model spread")
     import matplotlib.pyplot as plt
 
     plt.close("all")
