@@ -115,6 +115,24 @@ class FitResult:
                    start_used=self.start)
         return out
 
+    @functools.cached_property
+    def uncertainty(self):
+        """How well the data determine the model: the covariance of its physical
+        parameters (delay, log gain, each factor's natural frequency and damping) from the
+        weighted Jacobian of the relative residual at the optimum, with the noise variance
+        from the residuals (or the data's weights), propagated to every mode, the gain and
+        the delay (``delay_std``, ``gain_std``, ``modes[k].omega_n_std``, ``zeta_std``);
+        parameters at a bound are reported as at the bound. Computed on first access
+        (:func:`freqid_casadi.covariance.parameter_uncertainty`).
+
+        Returns
+        -------
+        freqid_casadi.covariance.ParameterUncertainty
+        """
+        from .covariance import parameter_uncertainty
+
+        return parameter_uncertainty(self)
+
     @property
     def nit(self):
         """IPOPT/LM iterations summed over all stages."""
