@@ -181,7 +181,8 @@ def _residual_phase_scatter(model, data):
     return float(np.sqrt(np.mean(np.angle(ratio) ** 2)))
 
 
-def check_delay(model, data, delay_max, rms_rel_error=None, *, at_bound=0.98, poor_rms=0.3):
+def check_delay(model, data, delay_max, rms_rel_error=None, *, delay_std=None, at_bound=0.98,
+                poor_rms=0.3):
     """``delay-undetermined`` records for a fitted model with a delay.
 
     Parameters
@@ -193,6 +194,10 @@ def check_delay(model, data, delay_max, rms_rel_error=None, *, at_bound=0.98, po
     rms_rel_error : float, optional
         The fit's RMS relative error: a poor fit (>= ``poor_rms``) with the delay in the
         upper half of its range is flagged too (a delay beyond the bound, aliased).
+    delay_std : float, optional
+        The delay's standard deviation (s) from the fit's parameter covariance
+        (:mod:`freqid_casadi.covariance`): a delay whose std exceeds half its value is not
+        determined by the data (typically traded against a zero far above the band).
     at_bound : float
         Fraction of ``delay_max`` from which the delay counts as at its bound.
     poor_rms : float
@@ -221,6 +226,14 @@ def check_delay(model, data, delay_max, rms_rel_error=None, *, at_bound=0.98, po
                "than the frequency spacing can resolve (aliased phase); sample the "
                "frequency axis more densely or remove a known delay from the data")
         values["rms_rel_error"] = float(rms_rel_error)
+        return (Diagnostic("delay-undetermined", msg, "warning", values),)
+    if delay_std is not None and h > 0 and not delay_std <= 0.5 * h:
+        values["delay_std"] = float(delay_std)
+        msg = (f"the delay {h:.6g} s has a standard deviation of {delay_std:.3g} s from the "
+               "fit's parameter covariance: the data do not determine it (it trades "
+               "against other parameters, typically a zero far above the band); fit fewer "
+               "sections, fix the delay, or read it as a lag of the model, not a "
+               "measured dead time")
         return (Diagnostic("delay-undetermined", msg, "warning", values),)
     scatter = _residual_phase_scatter(model, data)
     values["residual_phase_rms_rad"] = scatter

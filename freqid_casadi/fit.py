@@ -20,7 +20,7 @@ import numpy as np
 from .data import FrequencyData
 from .diagnostics import (check_delay, check_gain_sign, check_minimum_phase, check_trivial,
                           rhp_zeros_note)
-from .errors import DataError, OptionError, ResolutionWarning, StructureError
+from .errors import DataError, FreqidError, OptionError, ResolutionWarning, StructureError
 from .mainloop import LoopContext, minimax, rational, sequential
 from .metrics import relative_error
 from .model import BASES, ZEROS, RationalDelayModel, Structure
@@ -404,10 +404,24 @@ def _check_model_class(gain_sign, zeros, method, gauge, min_damping):
                               "written for minimum-phase factors); drop one of them")
 
 
+def _delay_std(model, data, delay_max):
+    """The delay's standard deviation from the parameter covariance, or None."""
+    if not model.structure.delay or model.delay <= 0 or model.delay >= 0.98 * delay_max:
+        return None
+    from .covariance import parameter_uncertainty
+
+    try:
+        std = parameter_uncertainty(model, data, weights=data.weights).delay_std
+    except (FreqidError, np.linalg.LinAlgError, ArithmeticError):
+        return None
+    return float(std) if math.isfinite(std) else None
+
+
 def _after_fit(model, data, stats, delay_max):
     """Diagnostics of the fitted model on the user's data (see :mod:`.diagnostics`)."""
     found = check_trivial(stats.max, stats.rms)
-    found += check_delay(model, data, delay_max, stats.rms)
+    found += check_delay(model, data, delay_max, stats.rms,
+                         delay_std=_delay_std(model, data, delay_max))
     if model.structure.zeros == "free":
         found += rhp_zeros_note(model)
     else:
