@@ -1,10 +1,13 @@
 """Atomic file output (layer L0): write to a temporary file beside the target, then
-``os.replace`` it, so an interrupted run never leaves a partial file."""
+``os.replace`` it, so an interrupted run never leaves a partial file; and the escaping of
+user-supplied strings (file names, data names, headers) in Markdown and CSV output."""
 
+import csv
+import io
 import os
 import tempfile
 
-__all__ = ["atomic_write_text", "atomic_write_bytes"]
+__all__ = ["atomic_write_text", "atomic_write_bytes", "md_text", "md_cell", "csv_row", "one_line"]
 
 
 def atomic_write_bytes(path, payload):
@@ -34,3 +37,32 @@ def _umask():
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+def one_line(text):
+    """``text`` on one line: whitespace runs (line breaks included) become one space and
+    other non-printable characters are dropped (for names echoed to the terminal)."""
+    return "".join(c for c in " ".join(str(text).split()) if c.isprintable())
+
+
+def md_text(text):
+    """``text`` as one line of inline Markdown that cannot start a new block.
+
+    Every run of whitespace (newlines, carriage returns, Unicode line and paragraph
+    separators, tabs) becomes one space, other control characters are dropped, and ``<``
+    becomes ``&lt;`` (no HTML comment or tag can hide the rest of the file).
+    """
+    return one_line(text).replace("<", "&lt;")
+
+
+def md_cell(value):
+    """A Markdown table cell: :func:`md_text` with ``|`` escaped."""
+    return md_text(value).replace("|", "\\|")
+
+
+def csv_row(values):
+    """One CSV line (no line terminator) with every cell quoted as needed (RFC 4180):
+    commas, quotes and line breaks in a cell stay inside it; ``None`` is empty."""
+    buf = io.StringIO()
+    csv.writer(buf, lineterminator="").writerow(["" if v is None else v for v in values])
+    return buf.getvalue()

@@ -26,7 +26,7 @@ import warnings
 import shlex
 import sys
 
-from . import systems
+from . import _interrupt, _outputs, systems
 from .data import load
 from .errors import FreqidError, OptionError, ResolutionWarning
 from .fit import METHODS, OBJECTIVES, STARTS, fit
@@ -436,7 +436,8 @@ def main(argv=None):
     Returns
     -------
     int
-        0 on success, 2 on a usage, data or option error, 130 when interrupted.
+        0 on success, 2 on a usage, data or option error, 130 when interrupted by Ctrl-C,
+        143 by SIGTERM.
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     command = " ".join([PROG] + [shlex.quote(a) for a in argv])
@@ -445,7 +446,8 @@ def main(argv=None):
             args = build_parser().parse_args(argv)
         except SystemExit as exc:                    # --help, --version
             return exc.code if isinstance(exc.code, int) else 0
-        return COMMANDS[args._run][1](args, command)
+        with _interrupt.handlers(), _outputs.inputs(_input_paths(args)):
+            return _run_quietly(COMMANDS[args._run][1], args, command)
     except _UsageError as exc:
         _error(exc)
         return 2
@@ -455,9 +457,31 @@ def main(argv=None):
     except OSError as exc:
         _error(_os_message(exc))
         return 2
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         _error("interrupted")
-        return 130
+        return _interrupt.exit_status(exc)
+    except (MemoryError, RecursionError, ArithmeticError, ValueError, TypeError) as exc:
+        _error(f"internal error ({type(exc).__name__}: {exc}); please report it with the "
+               "command line")
+        return 1
+
+
+def _input_paths(args):
+    """Files and folders the command reads (no output may replace them)."""
+    paths = [getattr(args, a) for a in ("file", "folder", "records")
+             if isinstance(getattr(args, a, None), str)]
+    return [p for p in paths if not p.startswith("example:")]
+
+
+def _run_quietly(run, args, command):
+    """Run a command with its warnings held back: printed as ``warning:`` lines on stderr
+    after it succeeded, dropped if it fails (the ``error:`` line is then the only one)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
+        code = run(args, command)
+    for text in dict.fromkeys(" ".join(str(w.message).split()) for w in caught):
+        sys.stderr.write(f"warning: {text}\n")
+    return code
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -25,6 +25,7 @@ import math
 import os
 
 from ._io import atomic_write_text
+from ._outputs import check_out_file
 from .data import save_csv
 from .errors import OptionError
 from .experiment import frf_from_periodic, load_records_csv
@@ -93,16 +94,10 @@ def stats_path(out):
     return f"{stem}.stats.csv" if ext.lower() == ".csv" else f"{os.fspath(out)}.stats.csv"
 
 
-def _check_target(path, force):
-    full = os.path.abspath(os.fspath(path))
-    if os.path.isdir(full):
-        raise OptionError(f"output {path!r} is a folder; give a file name such as frf.csv")
-    if os.path.lexists(full) and not force:
-        raise OptionError(f"output file {path!r} exists; pass --force to overwrite or "
-                          "choose another --out")
-    parent = os.path.dirname(full)
-    if not os.path.isdir(parent):
-        raise OptionError(f"cannot write {path!r}: its folder {parent!r} does not exist")
+def _check_target(path, force, records=None):
+    """Output file checks (:func:`freqid_casadi._outputs.check_out_file`): never the input
+    ``records``, an existing file only with ``force``, never a folder."""
+    check_out_file(path, force, inputs=() if records is None else (records,))
 
 
 def _stats_text(est):
@@ -138,14 +133,14 @@ def run_cli(args, command):
     """
     force = bool(getattr(args, "force", False))
     out = args.out
-    _check_target(out, force)
+    _check_target(out, force, args.records)
     u, y = load_records_csv(args.records)
     name = os.path.splitext(os.path.basename(os.fspath(args.records)))[0]
     est = frf_from_periodic(u, y, args.period, fs=getattr(args, "fs", None),
                             skip_periods=getattr(args, "skip_periods", 0) or 0, name=name)
     sidecar = stats_path(out) if est.variance is not None else None
     if sidecar is not None:
-        _check_target(sidecar, force)
+        _check_target(sidecar, force, args.records)
     save_csv(est.data, out)
     if sidecar is not None:
         atomic_write_text(sidecar, _stats_text(est))

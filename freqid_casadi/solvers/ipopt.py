@@ -9,6 +9,7 @@ import time
 
 import numpy as np
 
+from .. import _interrupt
 from ..errors import OptionError
 from .common import (StageResult, Status, SUCCESS_STATUSES, TERMINATION_MESSAGES,
                      find_active_constraints)
@@ -121,7 +122,7 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
         opts["ipopt"]["nlp_scaling_method"] = "none"
     if ipopt_options:
         opts["ipopt"].update(ipopt_options)
-    solver = ca.nlpsol("stage", "ipopt", nlp, opts)
+    solver = ca.nlpsol("stage", "ipopt", nlp, {**opts, **_interrupt.ipopt_callback(nlp)})
     t_build = time.perf_counter() - t0
     res, stats, t_solve = _solve(solver, keep, x0, lb, ub, constraints is not None,
                                  lam_x0 if use_warm else None, funcs.cost, t0)
@@ -155,7 +156,8 @@ def _solve(solver, keep, x0, lb, ub, constrained, lam_x0, cost_of, t0):
         args["lam_x0"] = np.asarray(lam_x0, float)
     t_solve = time.perf_counter()
     try:
-        sol = solver(**args)
+        with _interrupt.guard():        # Ctrl-C/SIGTERM: IPOPT stops, then Interrupted
+            sol = solver(**args)
         stats = solver.stats()
         return_status = str(stats.get("return_status", "unknown"))
         x = np.clip(np.array(sol["x"], float).reshape(-1), lb, ub)
@@ -360,7 +362,7 @@ def solve_pnorm(funcs, x0, lb, ub, p, *, max_iter=300, tol=1e-10, constraints=No
     opts = _base_options(max_iter, tol, verbose)
     opts.update({"show_eval_warnings": False, "grad_f": keep[0], "hess_lag": keep[1]})
     opts["ipopt"]["mu_init"] = 1e-6
-    solver = ca.nlpsol("pnorm", "ipopt", nlp, opts)
+    solver = ca.nlpsol("pnorm", "ipopt", nlp, {**opts, **_interrupt.ipopt_callback(nlp)})
 
     def max_abs2(x):
         rr = funcs.residual(x)
