@@ -14,15 +14,19 @@ of P_N in the closed left half plane.
 """
 
 import json
+import os
+import stat
 from dataclasses import dataclass
 
 import numpy as np
 
-from . import _cplx
+from . import _cplx, _model_json
+from ._model_json import MAX_MODEL_BYTES, MAX_MODEL_DEPTH
 from ._io import atomic_write_text
 from .errors import DataError, StructureError
 
-__all__ = ["Structure", "RationalDelayModel", "section_response", "BASES", "FORMAT_VERSION"]
+__all__ = ["Structure", "RationalDelayModel", "section_response", "BASES", "FORMAT_VERSION",
+           "MAX_MODEL_BYTES", "MAX_MODEL_DEPTH"]
 
 BASES = ("second-order", "first-order")
 FORMAT_VERSION = 1
@@ -336,21 +340,37 @@ class RationalDelayModel:
 
     @classmethod
     def from_dict(cls, d):
-        try:
-            if d.get("format") != "freqid_casadi.RationalDelayModel":
-                raise DataError("not a freqid_casadi model (missing 'format')")
-            st = Structure(**d["structure"])
-            return cls(st, np.array(d["beta"], dtype=float))
-        except (KeyError, TypeError, AttributeError, ValueError) as exc:
-            if isinstance(exc, StructureError):
-                raise
-            raise DataError(f"malformed model JSON: {exc}") from None
+        """The model described by ``d`` (as written by :meth:`to_dict`), checked field by
+        field against the schema of :data:`FORMAT_VERSION` (see :meth:`load`).
+
+        Raises
+        ------
+        DataError
+            If a field is missing, unknown, of the wrong type or length, not finite,
+            negative, or if a section's numerator or denominator is identically zero.
+        """
+        n, integrator, delay, basis, beta = _model_json.checked_fields(d, BASES,
+                                                                       FORMAT_VERSION)
+        return cls(Structure(n, integrator, delay, basis), beta)
 
     @classmethod
     def from_json(cls, text):
+        """The model in the JSON ``text`` (str or bytes; see :meth:`load` for the checks)."""
+        if isinstance(text, (bytes, bytearray)):
+            if len(text) > MAX_MODEL_BYTES:
+                raise DataError(_model_json.too_big(len(text)))
+            try:
+                text = bytes(text).decode("utf-8")
+            except UnicodeDecodeError:
+                raise DataError("model file is not UTF-8 JSON text") from None
+        if not isinstance(text, str):
+            raise DataError(f"model JSON must be text, got {type(text).__name__}")
+        if len(text) > MAX_MODEL_BYTES:
+            raise DataError(_model_json.too_big(len(text)))
+        _model_json.check_nesting(text)
         try:
-            d = json.loads(text)
-        except json.JSONDecodeError as exc:
+            d = json.loads(text, parse_constant=_model_json.no_constant)
+        except (json.JSONDecodeError, RecursionError) as exc:
             raise DataError(f"model file is not valid JSON: {exc}") from None
         return cls.from_dict(d)
 
@@ -360,14 +380,40 @@ class RationalDelayModel:
 
     @classmethod
     def load(cls, path):
-        """Read a model written by :meth:`save`."""
+        """Read a model written by :meth:`save`.
+
+        Only a regular file of at most :data:`MAX_MODEL_BYTES` bytes is read (a FIFO or a
+        device is refused before it is opened); its JSON may nest at most
+        :data:`MAX_MODEL_DEPTH` levels and must follow the schema: ``format``
+        ``"freqid_casadi.RationalDelayModel"``, ``version`` 1, ``structure`` with
+        ``n_sections`` (integer >= 0) and optional ``integrator`` and ``delay`` (JSON
+        booleans, default false and true) and ``basis`` (default second-order), optional
+        ``param_names`` (as written), and ``beta``: finite numbers >= 0, one per parameter,
+        no section with an all-zero numerator or denominator.
+
+        Raises
+        ------
+        DataError
+            If the file cannot be read or breaks the schema.
+        """
         try:
-            with open(path, encoding="utf-8") as fh:
-                return cls.from_json(fh.read())
+            st = os.stat(path)
+            if not stat.S_ISREG(st.st_mode):
+                raise DataError(f"cannot read model file {os.fspath(path)!r}: not a regular "
+                                "file (a folder, FIFO or device); give a .json file")
+            if st.st_size > MAX_MODEL_BYTES:
+                raise DataError(f"model file {os.fspath(path)!r}: "
+                                + _model_json.too_big(st.st_size))
+            with open(path, "rb") as fh:
+                payload = fh.read(MAX_MODEL_BYTES + 1)
         except OSError as exc:
             raise DataError(f"cannot read model file {path!r}: {exc.strerror}") from None
-        except UnicodeDecodeError:
-            raise DataError(f"model file {path!r} is not UTF-8 JSON text") from None
+        except (TypeError, ValueError) as exc:
+            raise DataError(f"model path must be a file name, got {path!r}: {exc}") from None
+        try:
+            return cls.from_json(payload)
+        except DataError as exc:
+            raise DataError(f"model file {os.fspath(path)!r}: {exc}") from None
 
     def __repr__(self):
         s = self.structure

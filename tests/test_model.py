@@ -261,12 +261,13 @@ def test_json_round_trip_bit_identical(tmp_path, structure, beta):
     pytest.param("null", r"malformed model JSON", id="null"),
     pytest.param('{"beta": [0, 1]}', r"not a freqid_casadi model", id="no-format"),
     pytest.param('{"format": "other"}', r"not a freqid_casadi model", id="wrong-format"),
-    pytest.param('{"format": "freqid_casadi.RationalDelayModel", "beta": [0, 1]}',
-                 r"malformed model JSON: 'structure'", id="no-structure"),
-    pytest.param('{"format": "freqid_casadi.RationalDelayModel", '
-                 '"structure": {"n_sections": 0}}', r"malformed model JSON: 'beta'",
+    pytest.param('{"format": "freqid_casadi.RationalDelayModel", "version": 1, '
+                 '"beta": [0, 1]}',
+                 r"malformed model JSON: missing field 'structure'", id="no-structure"),
+    pytest.param('{"format": "freqid_casadi.RationalDelayModel", "version": 1, '
+                 '"structure": {"n_sections": 0}}', r"malformed model JSON: missing field 'beta'",
                  id="no-beta"),
-    pytest.param('{"format": "freqid_casadi.RationalDelayModel", '
+    pytest.param('{"format": "freqid_casadi.RationalDelayModel", "version": 1, '
                  '"structure": {"n_sections": 0, "colour": 1}, "beta": [0, 1]}',
                  r"malformed model JSON", id="unknown-structure-key"),
 ])
@@ -286,7 +287,7 @@ def test_load_missing_file_and_directory(tmp_path):
 
 def test_load_invalid_structure_is_freqid_error(tmp_path):
     path = tmp_path / "neg.json"
-    path.write_text('{"format": "freqid_casadi.RationalDelayModel", '
+    path.write_text('{"format": "freqid_casadi.RationalDelayModel", "version": 1, '
                     '"structure": {"n_sections": 0}, "beta": [0, -1]}')
     with pytest.raises(FreqidError, match=r"beta\[1\] \(gain\) = -1"):
         RationalDelayModel.load(path)
@@ -294,7 +295,7 @@ def test_load_invalid_structure_is_freqid_error(tmp_path):
 
 def test_load_non_numeric_beta(tmp_path):
     path = tmp_path / "str.json"
-    path.write_text('{"format": "freqid_casadi.RationalDelayModel", '
+    path.write_text('{"format": "freqid_casadi.RationalDelayModel", "version": 1, '
                     '"structure": {"n_sections": 0}, "beta": ["a", "b"]}')
     with pytest.raises(DataError):
         RationalDelayModel.load(path)
