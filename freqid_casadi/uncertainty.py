@@ -78,6 +78,7 @@ frequencies as vertical lines, and in a second panel the overbound ``20 log10(|W
 the data points (never below ``20 log10(1 + margin)``).
 """
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -315,6 +316,9 @@ def _vector(x, name):
     if arr.ndim != 1:
         raise DataError(f"{name} must be one-dimensional, got shape {arr.shape}")
     return arr
+
+
+_MAX_DECADES = 100     # widest omega band of a weight fit, decades (|W| squares omega)
 
 
 def _validate(result_or_omega, rel_error, order, margin, max_iter, min_damping):
@@ -697,7 +701,16 @@ def fit_uncertainty_weight(result_or_omega, rel_error=None, *, order=2, margin=0
     """
     omega, e = _validate(result_or_omega, rel_error, order, margin, max_iter, min_damping)
     order = int(order)
-    prob = _Problem(omega, e, float(margin), min_damping)
+    # the problem is scale-free: far from 1 rad/s (where squares of omega over/underflow)
+    # solve at omega / scale (about 1) and rescale the corners after
+    scale = 1.0
+    if omega[0] < 1e-100 or omega[-1] > 1e100:
+        scale = math.exp(0.5 * (math.log(omega[0]) + math.log(omega[-1])))
+    decades = math.log10(omega[-1]) - math.log10(omega[0])
+    if decades > _MAX_DECADES:
+        raise DataError(f"omega spans {decades:.0f} decades ({omega[0]:g} to {omega[-1]:g} "
+                        f"rad/s), more than {_MAX_DECADES}; fit the weight on a narrower band")
+    prob = _Problem(omega / scale, e, float(margin), min_damping)
 
     # order 0 is closed form: W = max (1 + margin) e (verified like any other weight)
     best = _candidate(prob, 0.0, (), Status.CONVERGED, "closed form (constant weight)")
@@ -730,7 +743,9 @@ def fit_uncertainty_weight(result_or_omega, rel_error=None, *, order=2, margin=0
     ee.setflags(write=False)
     return WeightResult(
         omega=om, rel_error=ee, magnitude=mag, gain=float(best.gain),
-        sections=tuple(best.sections), order=order, overbound=_overbound(prob, mag),
+        sections=tuple(dataclasses.replace(x, omega_num=x.omega_num * scale,
+                                           omega_den=x.omega_den * scale)
+                       for x in best.sections), order=order, overbound=_overbound(prob, mag),
         margin=float(margin), gain_correction=float(best.correction),
         objective=float(best.objective), status=best.status, message=best.message,
         success=best.status in SUCCESS_STATUSES, nit=int(nit))
