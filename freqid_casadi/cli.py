@@ -22,6 +22,7 @@ register them in :data:`COMMANDS`.
 
 import argparse
 import math
+import re
 import warnings
 import shlex
 import sys
@@ -73,8 +74,14 @@ class _Parser(argparse.ArgumentParser):
 # ----------------------------------------------------------------------------- arg types
 
 
+_ASCII_INT = re.compile(r"[+-]?[0-9]+")
+_ASCII_FLOAT = re.compile(r"[+-]?([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?")
+
+
 def _positive_int(text):
     try:
+        if not _ASCII_INT.fullmatch(text.strip()):    # no "1_0", no non-ASCII digits
+            raise ValueError
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(
@@ -88,6 +95,8 @@ def _min_damping(text):
     if text == "auto":
         return "auto"
     try:
+        if not _ASCII_FLOAT.fullmatch(text.strip()):
+            raise ValueError
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(
@@ -100,6 +109,8 @@ def _min_damping(text):
 
 def _positive_float(text):
     try:
+        if not _ASCII_FLOAT.fullmatch(text.strip()):  # no "1_0", no non-ASCII digits
+            raise ValueError
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}") from None
