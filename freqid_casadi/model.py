@@ -131,9 +131,32 @@ def section_response(basis, omega, theta):
 
 
 def _quad_roots(c2, c1, c0):
-    """Roots of c2 s^2 + c1 s + c0 (c2 may be 0); returns a list of complex."""
+    """Roots of c2 s^2 + c1 s + c0 (c2 may be 0); returns a list of complex.
+
+    For the coefficients of a model (all >= 0) the closed form keeps the sign of every real
+    part exact: 0 for c1 = 0 (an undamped pair on the imaginary axis), else < 0.
+    """
     if c2 == 0:
         return [complex(-c0 / c1)] if c1 != 0 else []
+    if min(c2, c1, c0) >= 0:
+        with np.errstate(all="ignore"):
+            p, q = c1 / (2.0 * c2), c0 / c2            # s^2 + 2 p s + q
+        if not (np.isfinite(p) and np.isfinite(q)):     # c2 negligible: one finite root
+            return [complex(-c0 / c1)] if c1 != 0 else []
+        if p < 1e150:
+            disc = p * p - q
+            if disc < 0:
+                im = float(np.sqrt(-disc))
+                return [complex(-p, im), complex(-p, -im)]
+            sd = float(np.sqrt(disc))
+        else:
+            r = q / p / p                               # disc = p^2 (1 - r), no overflow
+            if r > 1:
+                im = p * float(np.sqrt(r - 1.0))
+                return [complex(-p, im), complex(-p, -im)]
+            sd = p * float(np.sqrt(1.0 - r))
+        big = -(p + sd)                                 # no cancellation
+        return [complex(big), complex(q / big if big != 0 else 0.0)]
     return list(np.roots([c2, c1, c0]).astype(complex))
 
 
@@ -269,16 +292,31 @@ class RationalDelayModel:
         """Finite zeros of the rational part, complex ndarray."""
         return np.array(self._factor_roots("num"), dtype=complex)
 
-    def is_stable(self):
-        """True if every pole of P_N has a negative real part (the integrator's pole at 0,
-        if the structure has one, is not counted)."""
-        p = np.array(self._factor_roots("den"), dtype=complex)
-        return bool(np.all(p.real < 0))
+    def is_stable(self, strict=False):
+        """Whether P_N is stable (the integrator's pole at 0, if any, is not counted).
 
-    def is_minimum_phase(self):
-        """True if every finite zero of P_N has a negative real part."""
+        Parameters
+        ----------
+        strict : bool
+            False (default): no pole in the open right half plane (every real part <= 0),
+            the sense in which every model with beta >= 0 is stable; an undamped pair
+            (zeta_den = 0) on the imaginary axis is allowed, see :meth:`poles_on_axis`.
+            True: every pole has a negative real part (asymptotic stability).
+        """
+        p = np.array(self._factor_roots("den"), dtype=complex)
+        return bool(np.all(p.real < 0)) if strict else bool(np.all(p.real <= 0))
+
+    def is_minimum_phase(self, strict=False):
+        """Whether every finite zero of P_N lies in the closed (``strict``: open) left half
+        plane; see :meth:`is_stable` for the two senses."""
         z = self.zeros()
-        return bool(np.all(z.real < 0))
+        return bool(np.all(z.real < 0)) if strict else bool(np.all(z.real <= 0))
+
+    def poles_on_axis(self):
+        """Poles of P_N on the imaginary axis (undamped pairs, zeta_den = 0, or a pole at 0;
+        the integrator's pole is not counted), complex ndarray."""
+        p = np.array(self._factor_roots("den"), dtype=complex)
+        return p[p.real == 0]
 
     # ------------------------------------------------------------------ export
     def to_control(self, pade_order=None):

@@ -207,6 +207,7 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
         "checks": {
             "stable": model.is_stable(),
             "minimum_phase": model.is_minimum_phase(),
+            "n_poles_on_axis": int(model.poles_on_axis().size),
             "n_poles": int(poles.size),
             "n_zeros": int(zeros.size),
             "max_pole_real_part": float(np.max(poles.real)) if poles.size else None,
@@ -288,7 +289,10 @@ def render_fit_summary(summary):
                  f"{'with' if st['integrator'] else 'no'} integrator, "
                  f"{'with' if st['delay'] else 'no'} delay; order of P_N "
                  f"{st['order_rational_part']}, model order {st['order']}")
+    axis = ck.get("n_poles_on_axis") or 0
     stable = ("yes" if ck["stable"] else "NO") + (
+        f", {axis} pole(s) on the imaginary axis (undamped, zeta = 0: marginally stable)"
+        if axis else "") + (
         f" (largest real part of a pole: {_num(ck['max_pole_real_part'])} rad/s, "
         f"smallest damping ratio {_num(ck['min_pole_damping'])})"
         if ck["max_pole_real_part"] is not None else "")
