@@ -17,9 +17,9 @@ import os
 from dataclasses import dataclass
 
 from .data import FrequencyData, load
-from .errors import DataError, OptionError, StructureError
+from .errors import DataError, OptionError
 from .fit import FitResult, fit
-from .model import BASES
+from .model import BASES, Structure
 from .options import LEGACY_KEYWORDS, LoopOptions, legacy_message, solver_options
 
 __all__ = ["fit_many", "BatchItem", "BATCH_STATUSES"]
@@ -77,6 +77,8 @@ def _check_options(options):
         raise OptionError(f"unknown basis {options['basis']!r}; choose one of "
                           f"{', '.join(BASES)}")
     solver_options(options.get("method", "ipopt"))       # OptionError on a bad method
+    Structure(options["n_sections"], bool(options.get("integrator", False)),
+              bool(options.get("delay", True)), options.get("basis", "second-order"))
     if not isinstance(options.get("loop", LoopOptions()), LoopOptions):
         raise OptionError(f"loop must be a LoopOptions, got {type(options['loop']).__name__}")
 
@@ -102,7 +104,7 @@ def _fit_one(name, item, options):
     try:
         data = item if source is None else load(source, name)
         result = fit(data, **options)
-    except (OptionError, StructureError):
+    except OptionError:
         raise                                   # the same for every dataset: not per item
     except Exception as exc:  # noqa: BLE001 - one failing dataset must not stop the batch
         message = " ".join(str(exc).split())
