@@ -2,8 +2,6 @@
 ``os.replace`` it, so an interrupted run never leaves a partial file; and the escaping of
 user-supplied strings (file names, data names, headers) in Markdown and CSV output."""
 
-import csv
-import io
 import os
 import tempfile
 
@@ -61,8 +59,13 @@ def md_cell(value):
 
 
 def csv_row(values):
-    """One CSV line (no line terminator) with every cell quoted as needed (RFC 4180):
-    commas, quotes and line breaks in a cell stay inside it; ``None`` is empty."""
-    buf = io.StringIO()
-    csv.writer(buf, lineterminator="").writerow(["" if v is None else v for v in values])
-    return buf.getvalue()
+    """One CSV line (no line terminator), RFC 4180: a cell holding a comma, a quote, any line
+    break (``\\r``, ``\\n``, Unicode separators) or other control character is quoted, so it
+    stays one cell; ``None`` is an empty cell."""
+    return ",".join(_csv_cell("" if v is None else str(v)) for v in values)
+
+
+def _csv_cell(text):
+    if any(c in ',"' or (not c.isprintable() and c != " ") for c in text):
+        return '"' + text.replace('"', '""') + '"'
+    return text

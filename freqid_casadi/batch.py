@@ -17,7 +17,7 @@ import os
 from dataclasses import dataclass
 
 from .data import FrequencyData, load
-from .errors import DataError, OptionError
+from .errors import DataError, OptionError, StructureError
 from .fit import FitResult, fit
 from .model import BASES, Structure
 from .options import LEGACY_KEYWORDS, LoopOptions, legacy_message, solver_options
@@ -77,8 +77,9 @@ def _check_options(options):
         raise OptionError(f"unknown basis {options['basis']!r}; choose one of "
                           f"{', '.join(BASES)}")
     solver_options(options.get("method", "ipopt"))       # OptionError on a bad method
-    Structure(options["n_sections"], bool(options.get("integrator", False)),
-              bool(options.get("delay", True)), options.get("basis", "second-order"))
+    n = Structure(options["n_sections"]).n_sections        # StructureError if not an int
+    if n < 1:
+        raise StructureError(f"n_sections must be >= 1, got {n}")
     if not isinstance(options.get("loop", LoopOptions()), LoopOptions):
         raise OptionError(f"loop must be a LoopOptions, got {type(options['loop']).__name__}")
 

@@ -126,10 +126,11 @@ def _unique_names(paths):
     """Model file names (without ``.json``), unique even on a case-insensitive file system:
     the stem, or the whole file name where two stems collide, then ``-2``, ``-3`` ...; a name
     that is empty or starts with a dot gets a ``data`` prefix."""
-    stems = [os.path.splitext(os.path.basename(p))[0] for p in paths]
-    folded = [s.casefold() for s in stems]
-    names = [s if folded.count(s.casefold()) == 1 else os.path.basename(p)
-             for s, p in zip(stems, paths)]
+    bases = [os.path.basename(p) for p in paths]
+    names = [os.path.splitext(b)[0] for b in bases]
+    for _ in range(2):          # a.csv, a.npz, a.csv.npz: a, a -> a.csv, a.csv -> a.csv.npz
+        folded = [n.casefold() for n in names]
+        names = [n if folded.count(n.casefold()) == 1 else b for n, b in zip(names, bases)]
     taken, out = set(), []
     for name in names:
         name = name if name and not name.startswith(".") else f"data{name}"

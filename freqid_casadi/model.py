@@ -399,7 +399,7 @@ class RationalDelayModel:
             if len(text) > MAX_MODEL_BYTES:
                 raise DataError(_model_json.too_big(len(text)))
             try:
-                text = bytes(text).decode("utf-8")
+                text = bytes(text).decode("utf-8-sig")       # a BOM is tolerated
             except UnicodeDecodeError:
                 raise DataError("model file is not UTF-8 JSON text") from None
         if not isinstance(text, str):

@@ -81,6 +81,9 @@ def _check_ipopt(owner, pairs):
     ranges; its complaints on stdout are captured, not shown)."""
     if pairs in _IPOPT_OK:
         return
+    import contextlib
+    import ctypes
+    import io
     import os
     import sys
     import tempfile
@@ -90,7 +93,8 @@ def _check_ipopt(owner, pairs):
     x = ca.MX.sym("x")
     opts = {"ipopt": {"print_level": 0, "sb": "yes", **dict(pairs)}, "print_time": False}
     sys.stdout.flush()
-    with tempfile.TemporaryFile() as log:
+    said = io.StringIO()                    # CasADi prints IPOPT's text through sys.stdout
+    with tempfile.TemporaryFile() as log, contextlib.redirect_stdout(said):
         saved = os.dup(1)
         os.dup2(log.fileno(), 1)
         try:
@@ -101,10 +105,11 @@ def _check_ipopt(owner, pairs):
         except RuntimeError as exc:
             status, error = None, str(exc)
         finally:
+            ctypes.CDLL(None).fflush(None)             # C stdio output, if any
             os.dup2(saved, 1)
             os.close(saved)
         log.seek(0)
-        said = log.read().decode("utf-8", "replace").strip().splitlines()
+        said = (said.getvalue() + log.read().decode("utf-8", "replace")).strip().splitlines()
     if error is None and status != "Invalid_Option":
         _IPOPT_OK.add(pairs)
         return

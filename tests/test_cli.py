@@ -12,7 +12,7 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from freqid_casadi._outputs import MARKER
+from freqid_casadi._outputs import MARKER  # noqa: E402
 from freqid_casadi import cli, report  # noqa: E402
 from freqid_casadi.data import FrequencyData, save_csv  # noqa: E402
 from freqid_casadi.fit import fit  # noqa: E402
