@@ -27,8 +27,9 @@ def atomic_write_bytes(path, payload):
 
 
 def atomic_write_text(path, text):
-    """Write ``text`` (UTF-8) to ``path`` atomically."""
-    atomic_write_bytes(path, text.encode("utf-8"))
+    """Write ``text`` (UTF-8) to ``path`` atomically; characters UTF-8 cannot encode (lone
+    surrogates from undecodable file names) are written as backslash escapes."""
+    atomic_write_bytes(path, text.encode("utf-8", "backslashreplace"))
 
 
 def _umask():

@@ -453,6 +453,11 @@ def main(argv=None):
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     command = " ".join([PROG] + [shlex.quote(a) for a in argv])
+    for stream in (sys.stdout, sys.stderr):           # undecodable file names stay printable
+        try:
+            stream.reconfigure(errors="backslashreplace")
+        except (AttributeError, ValueError, OSError):
+            pass
     try:
         try:
             args = build_parser().parse_args(argv)
