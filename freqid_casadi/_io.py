@@ -3,9 +3,12 @@
 user-supplied strings (file names, data names, headers) in Markdown and CSV output."""
 
 import os
+import sys
 import tempfile
+import warnings
 
-__all__ = ["atomic_write_text", "atomic_write_bytes", "md_text", "md_cell", "csv_row", "one_line"]
+__all__ = ["atomic_write_text", "atomic_write_bytes", "md_text", "md_cell", "csv_row",
+           "one_line", "run_holding_warnings", "printable_streams"]
 
 
 def atomic_write_bytes(path, payload):
@@ -70,3 +73,25 @@ def _csv_cell(text):
     if any(c in ',"' or (not c.isprintable() and c != " ") for c in text):
         return '"' + text.replace('"', '""') + '"'
     return text
+
+
+def run_holding_warnings(run, *args):
+    """``run(*args)`` with its warnings held back: after it returns they are written to
+    stderr as ``warning: <message>`` lines (one per distinct message); if it raises they are
+    dropped, so an ``error:`` line printed by the caller is the only text on stderr."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
+        result = run(*args)
+    for text in dict.fromkeys(one_line(w.message) for w in caught):
+        sys.stderr.write(f"warning: {text}\n")
+    return result
+
+
+def printable_streams():
+    """Let stdout and stderr write any str (lone surrogates of undecodable file names become
+    backslash escapes instead of raising UnicodeEncodeError)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.reconfigure(errors="backslashreplace")
+        except (AttributeError, ValueError, OSError):
+            pass

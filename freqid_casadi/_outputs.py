@@ -27,7 +27,7 @@ import threading
 
 from .errors import OptionError
 
-__all__ = ["MARKER", "inputs", "protected_inputs", "check_out_dir", "check_out_file",
+__all__ = ["MARKER", "inputs", "input_paths", "protected_inputs", "check_out_dir", "check_out_file",
            "building", "set_modes", "move_into_place", "is_package_folder"]
 
 #: Name of the marker file written into every output folder at its creation.
@@ -53,6 +53,12 @@ def inputs(paths):
         yield real
     finally:
         _INPUTS.pop()
+
+
+def input_paths(values):
+    """The paths among ``values`` (command-line arguments: str or None) that name files or
+    folders, i.e. not None and not a built-in ``example:X``."""
+    return [v for v in values if isinstance(v, str) and not v.startswith("example:")]
 
 
 def protected_inputs(extra=()):

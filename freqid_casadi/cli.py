@@ -27,7 +27,7 @@ import warnings
 import shlex
 import sys
 
-from . import _interrupt, _outputs, systems
+from . import _interrupt, _io, _outputs, systems
 from .data import load
 from .errors import FreqidError, OptionError, ResolutionWarning
 from .fit import METHODS, OBJECTIVES, STARTS, fit
@@ -453,18 +453,15 @@ def main(argv=None):
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     command = " ".join([PROG] + [shlex.quote(a) for a in argv])
-    for stream in (sys.stdout, sys.stderr):           # undecodable file names stay printable
-        try:
-            stream.reconfigure(errors="backslashreplace")
-        except (AttributeError, ValueError, OSError):
-            pass
+    _io.printable_streams()                          # undecodable file names stay printable
     try:
         try:
             args = build_parser().parse_args(argv)
         except SystemExit as exc:                    # --help, --version
             return exc.code if isinstance(exc.code, int) else 0
-        with _interrupt.handlers(), _outputs.inputs(_input_paths(args)):
-            return _run_quietly(COMMANDS[args._run][1], args, command)
+        inputs = [getattr(args, a, None) for a in ("file", "folder", "records")]
+        with _interrupt.handlers(), _outputs.inputs(_outputs.input_paths(inputs)):
+            return _io.run_holding_warnings(COMMANDS[args._run][1], args, command)
     except _UsageError as exc:
         _error(exc)
         return 2
@@ -481,24 +478,6 @@ def main(argv=None):
         _error(f"internal error ({type(exc).__name__}: {exc}); please report it with the "
                "command line")
         return 1
-
-
-def _input_paths(args):
-    """Files and folders the command reads (no output may replace them)."""
-    paths = [getattr(args, a) for a in ("file", "folder", "records")
-             if isinstance(getattr(args, a, None), str)]
-    return [p for p in paths if not p.startswith("example:")]
-
-
-def _run_quietly(run, args, command):
-    """Run a command with its warnings held back: printed as ``warning:`` lines on stderr
-    after it succeeded, dropped if it fails (the ``error:`` line is then the only one)."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("default")
-        code = run(args, command)
-    for text in dict.fromkeys(" ".join(str(w.message).split()) for w in caught):
-        sys.stderr.write(f"warning: {text}\n")
-    return code
 
 
 if __name__ == "__main__":  # pragma: no cover

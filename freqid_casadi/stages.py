@@ -24,11 +24,14 @@ from .model import RationalDelayModel
 from .objective import Parametrization, stage_functions
 from .options import LoopOptions, solver_options
 from .resolution import default_delay_max
-from .solvers.common import Status, StageResult, find_active_constraints
-from .solvers.ipopt import solve_least_squares
+from .solvers.barrier_lm import solve_stage_lm
+from .solvers.common import StageProblem, StageResult, Status
+from .solvers.ipopt import solve_stage
 
 __all__ = ["Kept", "StageKind", "StageRecord", "StageSolver", "PolishResult", "polish",
-           "keep_better", "stage_record", "stage_cost", "model_ratio", "solver_timing"]
+           "polish_start"]
+# keep_better, stage_record, stage_cost, model_ratio, solver_timing: helpers of the loops
+# (freqid_casadi.mainloop), not public API.
 
 
 class _ValueEnum(str, enum.Enum):
@@ -233,52 +236,21 @@ class StageSolver:
             if self.zeta_min is not None and param.structure.n_sections:
                 cons = param.damping_constraints(self.zeta_min)
                 x0 = param.project_damping(x0, self.zeta_min)
-            res = solve_least_squares(funcs, x0, lb, ub, lam_x0=lam0, hessian=opts.hessian,
-                                      max_iter=max_iter or opts.max_iter,
-                                      warm_start=opts.warm_start != "none",
-                                      ipopt_options=opts.ipopt_dict(), constraints=cons)
+            problem = StageProblem.from_stage_functions(funcs, lb, ub, cons)
+            res = solve_stage(problem, np.clip(np.asarray(x0, float), lb, ub), lam_x0=lam0,
+                              hessian=opts.hessian, max_iter=max_iter or opts.max_iter,
+                              warm_start=opts.warm_start != "none",
+                              ipopt_options=opts.ipopt_dict())
             if cons is not None:
                 # IPOPT meets g >= 0 to its tolerance; make the floor exact
                 res = dataclasses.replace(res, x=param.project_damping(res.x, self.zeta_min))
             return res
-        return _solve_barrier_lm(funcs, x0, lb, ub, opts.lm_kwargs())
-
-
-def _solve_barrier_lm(funcs, x0, lb, ub, lm_options):
-    """The thesis's SUMT + LM on the same residual/Jacobian Functions as the IPOPT path.
-
-    Fixed variables (``lb == ub``, e.g. the delay of a structure without delay) are removed;
-    the start is moved strictly inside the bounds (the barrier is infinite on them). The
-    barrier method has no upper bounds: the delay's data-derived bound is not imposed.
-    """
-    from .solvers.barrier_lm import barrier_lm
-    from .solvers.common import StageResult, find_active_constraints
-
-    x0 = np.asarray(x0, float)
-    free = lb < ub
-    xf = x0.copy()
-
-    def full(v):
-        xf[free] = v
-        return xf
-
-    def fun(v):
-        return funcs.residual(full(v))
-
-    def jac(v):
-        return funcs.residual_jacobian(full(v))[1][:, free]
-
-    v0 = np.maximum(x0[free], lb[free] + 1e-6 * np.maximum(1.0, np.abs(x0[free])))
-    res = barrier_lm(fun, jac, v0, lb=lb[free], **lm_options)
-    x = x0.copy()
-    x[free] = res.x
-    lam = np.zeros_like(x)
-    lam[free] = res.lam_x
-    return StageResult(x=x, cost=res.cost, status=res.status, message=res.message,
-                       success=res.success, nit=res.nit, nfev=res.nfev,
-                       wall_time=res.wall_time,
-                       active_mask=find_active_constraints(x, lb, ub, rtol=1e-6),
-                       lam_x=lam, solver_status=res.solver_status, extra=res.extra)
+        # the barrier is infinite on the bounds: move the start strictly inside
+        x0 = np.array(x0, float)
+        free = lb < ub
+        x0[free] = np.maximum(x0[free], lb[free] + 1e-6 * np.maximum(1.0, np.abs(x0[free])))
+        return solve_stage_lm(StageProblem.from_stage_functions(funcs, lb, ub), x0,
+                              **opts.lm_kwargs())
 
 
 @dataclass(frozen=True, eq=False)
