@@ -410,7 +410,9 @@ class RationalDelayModel(DelayedResponse):
         _model_json.check_nesting(text)
         try:
             d = json.loads(text, parse_constant=_model_json.no_constant)
-        except (json.JSONDecodeError, RecursionError) as exc:
+        except (ValueError, RecursionError) as exc:   # JSONDecodeError, 5000-digit ints
+            if isinstance(exc, DataError):
+                raise
             raise DataError(f"model file is not valid JSON: {exc}") from None
         return cls.from_dict(d)
 

@@ -624,6 +624,11 @@ MODEL_TEXTS = [
     pytest.param(lambda: '{"format": "' + "[" * 100 + '"}', "not a freqid_casadi model",
                  id="brackets-in-a-string-are-not-nesting"),
     pytest.param(lambda: "[1, 2]", "must be an object", id="top-level-list"),
+    pytest.param(_with(("version",), 10 ** 5000 // 10 ** 4990), "version", id="big-version"),
+    pytest.param(lambda: _MODEL.to_json().replace('"version": 1', '"version": ' + "1" * 5000),
+                 "not valid JSON", id="5000-digit-integer"),
+    pytest.param(_with(("structure", "n_sections"), 10 ** 18), "beta has 8 entries",
+                 id="huge-n-sections"),
 ]
 
 
@@ -720,6 +725,10 @@ def test_sweep_api_counts_a_range_before_listing_it():
     pytest.param(["batch", "data", "--sections", "1", "--jobs", "0", "--out", "r"], "--jobs",
                  id="jobs-zero"),
     pytest.param([*FIT, "--method", "newton", "--out", "r"], "--method", id="method-unknown"),
+    pytest.param([*FIT[:3], "99999999999999999999", "--out", "r"], "too few data points",
+                 id="sections-huge"),
+    pytest.param(["example", "B", "--sections", "1000000", "--out", "r"], "too few data points",
+                 id="example-sections-huge"),
 ])
 def test_cli_numbers_and_choices(ws, capsys, argv, needle):
     before = snapshot(ws.parent)
