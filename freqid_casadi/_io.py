@@ -1,10 +1,14 @@
 """Atomic file output (layer L0): write to a temporary file beside the target, then
-``os.replace`` it, so an interrupted run never leaves a partial file."""
+``os.replace`` it, so an interrupted run never leaves a partial file; and the escaping of
+user-supplied strings (file names, data names, headers) in Markdown and CSV output."""
 
 import os
+import sys
 import tempfile
+import warnings
 
-__all__ = ["atomic_write_text", "atomic_write_bytes"]
+__all__ = ["atomic_write_text", "atomic_write_bytes", "md_text", "md_cell", "csv_row",
+           "one_line", "run_holding_warnings", "printable_streams"]
 
 
 def atomic_write_bytes(path, payload):
@@ -26,11 +30,68 @@ def atomic_write_bytes(path, payload):
 
 
 def atomic_write_text(path, text):
-    """Write ``text`` (UTF-8) to ``path`` atomically."""
-    atomic_write_bytes(path, text.encode("utf-8"))
+    """Write ``text`` (UTF-8) to ``path`` atomically; characters UTF-8 cannot encode (lone
+    surrogates from undecodable file names) are written as backslash escapes."""
+    atomic_write_bytes(path, text.encode("utf-8", "backslashreplace"))
 
 
 def _umask():
     mask = os.umask(0)
     os.umask(mask)
     return mask
+
+
+def one_line(text):
+    """``text`` on one line: whitespace runs (line breaks included) become one space and
+    other non-printable characters are dropped (for names echoed to the terminal)."""
+    return "".join(c for c in " ".join(str(text).split()) if c.isprintable())
+
+
+def md_text(text):
+    """``text`` as one line of inline Markdown that cannot start a new block.
+
+    Every run of whitespace (newlines, carriage returns, Unicode line and paragraph
+    separators, tabs) becomes one space, other control characters are dropped, and ``<``
+    becomes ``&lt;`` (no HTML comment or tag can hide the rest of the file).
+    """
+    return one_line(text).replace("<", "&lt;")
+
+
+def md_cell(value):
+    """A Markdown table cell: :func:`md_text` with ``|`` escaped."""
+    return md_text(value).replace("|", "\\|")
+
+
+def csv_row(values):
+    """One CSV line (no line terminator), RFC 4180: a cell holding a comma, a quote, any line
+    break (``\\r``, ``\\n``, Unicode separators) or other control character is quoted, so it
+    stays one cell; ``None`` is an empty cell."""
+    return ",".join(_csv_cell("" if v is None else str(v)) for v in values)
+
+
+def _csv_cell(text):
+    if any(c in ',"' or (not c.isprintable() and c != " ") for c in text):
+        return '"' + text.replace('"', '""') + '"'
+    return text
+
+
+def run_holding_warnings(run, *args):
+    """``run(*args)`` with its warnings held back: after it returns they are written to
+    stderr as ``warning: <message>`` lines (one per distinct message); if it raises they are
+    dropped, so an ``error:`` line printed by the caller is the only text on stderr."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("default")
+        result = run(*args)
+    for text in dict.fromkeys(one_line(w.message) for w in caught):
+        sys.stderr.write(f"warning: {text}\n")
+    return result
+
+
+def printable_streams():
+    """Let stdout and stderr write any str (lone surrogates of undecodable file names become
+    backslash escapes instead of raising UnicodeEncodeError)."""
+    for stream in (sys.stdout, sys.stderr):
+        try:
+            stream.reconfigure(errors="backslashreplace")
+        except (AttributeError, ValueError, OSError):
+            pass

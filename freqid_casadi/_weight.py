@@ -5,6 +5,7 @@ The weight ``W(s) = k prod_i (1 + 2 zeta_z s/w_z + (s/w_z)^2)/(1 + 2 zeta_p s/w_
 :mod:`freqid_casadi.uncertainty` for the method.
 """
 
+import dataclasses
 import math
 from dataclasses import dataclass
 from typing import NamedTuple
@@ -12,10 +13,11 @@ from typing import NamedTuple
 import numpy as np
 
 from . import _cplx
+from .errors import DataError
 from .solvers.common import Status
 
 __all__ = ["WeightSection", "WeightResult", "Overbound", "MAX_DAMPING", "CORNER_DECADES",
-           "E_FLOOR"]
+           "E_FLOOR", "MAX_DECADES", "frequency_scale", "rescaled"]
 
 MAX_DAMPING = 20.0
 """Upper bound of every damping: real roots up to a ratio of ~1600 (3.2 decades) apart."""
@@ -25,6 +27,9 @@ CORNER_DECADES = 2.0
 
 E_FLOOR = 1e-16
 """Relative floor of ``e`` before logs: ``e_i >= E_FLOOR * max(e)``."""
+
+MAX_DECADES = 100
+"""Widest omega band of a weight fit, decades (``|W|`` squares the frequency)."""
 
 _LN10 = math.log(10.0)
 _GRID_PER_DECADE = 3      # ladder grid search over corner frequencies
@@ -244,3 +249,48 @@ def _real_pair_section(r1, r2):
     """(omega, zeta) of ``(1 + s/r1)(1 + s/r2)``; zeta clipped to MAX_DAMPING."""
     w = np.sqrt(r1 * r2)
     return w, np.minimum((r1 + r2) / (2.0 * w), MAX_DAMPING)
+
+
+# ---------------------------------------------------------------------------- scaling
+def frequency_scale(omega):
+    """Frequency (rad/s) to divide ``omega`` by before the fit: 1, or, far from 1 rad/s
+    (where squares of omega over/underflow), the geometric mean of its ends (the problem
+    is scale-free; :func:`rescaled` maps the sections back).
+
+    Parameters
+    ----------
+    omega : ndarray of float, shape (M,)
+        rad/s, > 0, increasing.
+
+    Returns
+    -------
+    float
+
+    Raises
+    ------
+    DataError
+        If ``omega`` spans more than :data:`MAX_DECADES` decades.
+    """
+    decades = math.log10(omega[-1]) - math.log10(omega[0])
+    if decades > MAX_DECADES:
+        raise DataError(f"omega spans {decades:.0f} decades ({omega[0]:g} to {omega[-1]:g} "
+                        f"rad/s), more than {MAX_DECADES}; fit the weight on a narrower band")
+    if 1e-100 <= omega[0] and omega[-1] <= 1e100:
+        return 1.0
+    return math.exp(0.5 * (math.log(omega[0]) + math.log(omega[-1])))
+
+
+def rescaled(sections, scale):
+    """``sections`` (WeightSection) with corner frequencies multiplied by ``scale``.
+
+    Parameters
+    ----------
+    sections : iterable of WeightSection
+    scale : float
+
+    Returns
+    -------
+    tuple of WeightSection
+    """
+    return tuple(dataclasses.replace(x, omega_num=x.omega_num * scale,
+                                     omega_den=x.omega_den * scale) for x in sections)

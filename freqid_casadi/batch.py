@@ -20,7 +20,7 @@ from .data import FrequencyData
 from .loaders import load
 from .errors import DataError, OptionError, StructureError
 from .fit import FitResult, fit
-from .model import BASES
+from .model import BASES, Structure
 from .options import LEGACY_KEYWORDS, LoopOptions, legacy_message, solver_options
 
 __all__ = ["fit_many", "BatchItem", "BATCH_STATUSES"]
@@ -78,6 +78,9 @@ def _check_options(options):
         raise OptionError(f"unknown basis {options['basis']!r}; choose one of "
                           f"{', '.join(BASES)}")
     solver_options(options.get("method", "ipopt"))       # OptionError on a bad method
+    n = Structure(options["n_sections"]).n_sections        # StructureError if not an int
+    if n < 1:
+        raise StructureError(f"n_sections must be >= 1, got {n}")
     if not isinstance(options.get("loop", LoopOptions()), LoopOptions):
         raise OptionError(f"loop must be a LoopOptions, got {type(options['loop']).__name__}")
 
@@ -103,7 +106,7 @@ def _fit_one(name, item, options, load_options=None):
     try:
         data = item if source is None else load(source, name, **(load_options or {}))
         result = fit(data, **options)
-    except (OptionError, StructureError):
+    except OptionError:
         raise                                   # the same for every dataset: not per item
     except Exception as exc:  # noqa: BLE001 - one failing dataset must not stop the batch
         message = " ".join(str(exc).split())

@@ -22,11 +22,12 @@ register them in :data:`COMMANDS`.
 
 import argparse
 import math
+import re
 import warnings
 import shlex
 import sys
 
-from . import systems
+from . import _interrupt, _io, _outputs, systems
 from .cli_common import add_data_options, load_data
 from .errors import FreqidError, OptionError, ResolutionWarning
 from .fit import METHODS, OBJECTIVES, STARTS, fit
@@ -73,8 +74,15 @@ class _Parser(argparse.ArgumentParser):
 # ----------------------------------------------------------------------------- arg types
 
 
+_ASCII_INT = re.compile(r"[+-]?[0-9]+")
+_ASCII_FLOAT = re.compile(r"[+-]?(([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?|nan|inf(inity)?)",
+                          re.IGNORECASE)
+
+
 def _positive_int(text):
     try:
+        if not _ASCII_INT.fullmatch(text.strip()):    # no "1_0", no non-ASCII digits
+            raise ValueError
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(
@@ -88,6 +96,8 @@ def _min_damping(text):
     if text == "auto":
         return "auto"
     try:
+        if not _ASCII_FLOAT.fullmatch(text.strip()):
+            raise ValueError
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(
@@ -100,6 +110,8 @@ def _min_damping(text):
 
 def _positive_float(text):
     try:
+        if not _ASCII_FLOAT.fullmatch(text.strip()):  # no "1_0", no non-ASCII digits
+            raise ValueError
         value = float(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}") from None
@@ -438,16 +450,20 @@ def main(argv=None):
     Returns
     -------
     int
-        0 on success, 2 on a usage, data or option error, 130 when interrupted.
+        0 on success, 2 on a usage, data or option error, 130 when interrupted by Ctrl-C,
+        143 by SIGTERM.
     """
     argv = list(sys.argv[1:] if argv is None else argv)
     command = " ".join([PROG] + [shlex.quote(a) for a in argv])
+    _io.printable_streams()                          # undecodable file names stay printable
     try:
         try:
             args = build_parser().parse_args(argv)
         except SystemExit as exc:                    # --help, --version
             return exc.code if isinstance(exc.code, int) else 0
-        return COMMANDS[args._run][1](args, command)
+        inputs = [getattr(args, a, None) for a in ("file", "folder", "records")]
+        with _interrupt.handlers(), _outputs.inputs(_outputs.input_paths(inputs)):
+            return _io.run_holding_warnings(COMMANDS[args._run][1], args, command)
     except _UsageError as exc:
         _error(exc)
         return 2
@@ -457,9 +473,13 @@ def main(argv=None):
     except OSError as exc:
         _error(_os_message(exc))
         return 2
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as exc:
         _error("interrupted")
-        return 130
+        return _interrupt.exit_status(exc)
+    except (MemoryError, RecursionError, ArithmeticError, ValueError, TypeError) as exc:
+        _error(f"internal error ({type(exc).__name__}: {exc}); please report it with the "
+               "command line")
+        return 1
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -9,8 +9,9 @@ Every ``.csv`` and ``.npz`` file directly inside ``DIR`` is fitted with the same
 :func:`freqid_casadi.batch.fit_many`. The output folder holds::
 
     summary.md      first line: the command; one table row per file
-    summary.csv     file, name, status, order, max/RMS relative error, delay, ..., error
-    models/<name>.json   the model of every file that was fitted
+    summary.csv     file, name, status, order, max/RMS relative error, ..., error, model
+    models/<name>.json   the model of every file that was fitted (named in the ``model``
+                    column: the file's stem, or its whole name where stems collide)
 
 It is built in a temporary sibling folder and renamed into place when complete (nothing is
 left behind on an error or Ctrl-C); an existing ``--out`` is refused before any fit unless
@@ -22,11 +23,14 @@ Registered by ``cli.py`` as ``COMMANDS["batch"] = (add_cli, run_cli)``.
 
 import math
 import os
+import stat
+import warnings
 
 from .cli_common import add_data_options, load_options, notes_to_stderr
-from ._io import atomic_write_text
+from ._io import atomic_write_text, csv_row, one_line
 from .batch import fit_many
 from .cli import _positive_float, _positive_int   # the CLI's own validators
+from ._outputs import MARKER
 from .errors import DataError
 from .fit import METHODS
 from .model import BASES
@@ -35,12 +39,12 @@ from .report import _num, check_out_dir, generated_by_line, markdown_table, repo
 __all__ = ["add_cli", "run_cli", "write_batch_report", "data_files", "BATCH_FILES"]
 
 #: Files of a batch output folder (besides models/).
-BATCH_FILES = ("summary.csv", "summary.md")
+BATCH_FILES = (MARKER, "summary.csv", "summary.md")
 
 _SUFFIXES = (".csv", ".npz")
 
 _COLUMNS = ("file", "name", "status", "n_sections", "order", "max_rel_error",
-            "rms_rel_error", "delay", "nit", "wall_time", "error")
+            "rms_rel_error", "delay", "nit", "wall_time", "error", "model")
 
 
 def add_cli(subparsers):
@@ -76,7 +80,10 @@ def add_cli(subparsers):
 
 
 def data_files(folder):
-    """Sorted paths of the ``.csv``/``.npz`` files directly inside ``folder``.
+    """Sorted paths of the ``.csv``/``.npz`` regular files directly inside ``folder``.
+
+    A symbolic link is followed only if its target lies inside ``folder``; other links,
+    FIFOs, devices and sub-folders are skipped (a ``UserWarning`` names each skipped link).
 
     Raises
     ------
@@ -92,40 +99,68 @@ def data_files(folder):
         names = sorted(os.listdir(folder))
     except OSError as exc:
         raise DataError(f"cannot list {folder!r}: {exc.strerror}") from None
-    paths = [os.path.join(folder, n) for n in names
-             if n.lower().endswith(_SUFFIXES) and os.path.isfile(os.path.join(folder, n))]
+    real_folder = os.path.realpath(folder)
+    paths = []
+    for n in names:
+        p = os.path.join(folder, n)
+        if not n.lower().endswith(_SUFFIXES):
+            continue
+        real = os.path.realpath(p)
+        if os.path.islink(p) and os.path.dirname(real) != real_folder:
+            warnings.warn(f"skipped {n!r}: a symbolic link to {real!r}, outside the data "
+                          "folder", UserWarning, stacklevel=2)
+            continue
+        if stat.S_ISREG(_mode(p)):
+            paths.append(p)
     if not paths:
         raise DataError(f"no .csv or .npz files in {folder!r}")
     return paths
 
 
+def _mode(path):
+    try:
+        return os.stat(path).st_mode
+    except OSError:
+        return 0
+
+
 def _unique_names(paths):
-    """Model file names: the stem, or the whole file name where two stems collide."""
-    stems = [os.path.splitext(os.path.basename(p))[0] for p in paths]
-    return [s if stems.count(s) == 1 else os.path.basename(p) for s, p in zip(stems, paths)]
+    """Model file names (without ``.json``), unique even on a case-insensitive file system:
+    the stem, or the whole file name where two stems collide, then ``-2``, ``-3`` ...; a name
+    that is empty or starts with a dot gets a ``data`` prefix."""
+    bases = [os.path.basename(p) for p in paths]
+    names = [os.path.splitext(b)[0] for b in bases]
+    for _ in range(2):          # a.csv, a.npz, a.csv.npz: a, a -> a.csv, a.csv -> a.csv.npz
+        folded = [n.casefold() for n in names]
+        names = [n if folded.count(n.casefold()) == 1 else b for n, b in zip(names, bases)]
+    taken, out = set(), []
+    for name in names:
+        name = name if name and not name.startswith(".") else f"data{name}"
+        candidate, k = name, 1
+        while candidate.casefold() in taken:
+            k += 1
+            candidate = f"{name}-{k}"
+        taken.add(candidate.casefold())
+        out.append(candidate)
+    return out
 
 
-def _row(item, file_name):
+def _row(item, file_name, model_file):
     r = item.result
     if r is None:
-        return dict(file=file_name, name=item.name, status=item.status, n_sections=None,
-                    order=None, max_rel_error=None, rms_rel_error=None, delay=None, nit=None,
-                    wall_time=None, error=item.error)
-    return dict(file=file_name, name=item.name, status=item.status,
+        return dict(file=file_name, model=None, name=item.name, status=item.status,
+                    n_sections=None, order=None, max_rel_error=None, rms_rel_error=None,
+                    delay=None, nit=None, wall_time=None, error=item.error)
+    return dict(file=file_name, model=model_file, name=item.name, status=item.status,
                 n_sections=r.model.n_sections, order=r.model.order,
                 max_rel_error=r.max_rel_error, rms_rel_error=r.rms_rel_error,
                 delay=r.model.delay, nit=r.nit, wall_time=r.wall_time, error=None)
 
 
-def _csv_cell(v):
-    if v is None:
-        return ""
+def _csv_value(v):
     if isinstance(v, float):
-        return repr(v) if math.isfinite(v) else ""
-    text = str(v)
-    if any(c in text for c in ',"\n'):
-        text = '"' + text.replace('"', '""') + '"'
-    return text
+        return repr(v) if math.isfinite(v) else None
+    return v
 
 
 def write_batch_report(items, files, out_dir, *, command, force=False):
@@ -148,11 +183,12 @@ def write_batch_report(items, files, out_dir, *, command, force=False):
         os.mkdir(models)
         rows = []
         for item, model_name, f in zip(items, _unique_names(files), files):
+            model_file = f"models/{model_name}.json"
             if item.result is not None:
-                item.result.model.save(os.path.join(models, f"{model_name}.json"))
-            rows.append(_row(item, os.path.basename(f)))
-        lines = [",".join(_COLUMNS)]
-        lines += [",".join(_csv_cell(r[c]) for c in _COLUMNS) for r in rows]
+                item.result.model.save(os.path.join(tmp, model_file))
+            rows.append(_row(item, os.path.basename(f), model_file))
+        lines = [csv_row(_COLUMNS)]
+        lines += [csv_row([_csv_value(r[c]) for c in _COLUMNS]) for r in rows]
         atomic_write_text(os.path.join(tmp, "summary.csv"), "\n".join(lines) + "\n")
         atomic_write_text(os.path.join(tmp, "summary.md"), _markdown(rows, command))
     return path
@@ -164,9 +200,9 @@ def _markdown(rows, command):
     table = markdown_table(
         [(r["file"], r["status"], r["order"], _num(r["max_rel_error"]),
           _num(r["rms_rel_error"]), _num(r["delay"]), r["nit"],
-          _num(r["wall_time"], 3), r["error"]) for r in rows],
+          _num(r["wall_time"], 3), r["error"], r["model"]) for r in rows],
         ("file", "status", "order", "max rel. error", "RMS rel. error", "delay (s)",
-         "iterations", "time (s)", "error"), align="llrrrrrrl")
+         "iterations", "time (s)", "error", "model file"), align="llrrrrrrll")
     return "\n".join([
         generated_by_line(command), "", "# Batch fit", "",
         f"{len(rows)} files: {n_ok} converged, {len(rows) - n_ok - n_fail} not converged, "
@@ -187,6 +223,6 @@ def run_cli(args, command):
     n_ok = sum(i.status == "converged" for i in items)
     for item, f in zip(items, files):
         what = item.result.summary() if item.result is not None else item.error
-        print(f"{os.path.basename(f)}: {item.status}: {what}")
+        print(f"{one_line(os.path.basename(f))}: {item.status}: {one_line(what)}")
     print(f"{n_ok}/{len(items)} converged; report: {path}")
     return 0 if n_ok == len(items) else 1

@@ -31,6 +31,8 @@ import os
 
 import numpy as np
 
+from ._outputs import check_out_file
+
 from ._io import atomic_write_text
 from .errors import OptionError
 from .experiment import (ESTIMATORS, frf_from_periodic, frf_from_records, load_daq_records,
@@ -128,20 +130,9 @@ def stats_path(out):
 
 
 def _check_target(path, force, records=None):
-    full = os.path.abspath(os.fspath(path))
-    if not os.fspath(path).strip():
-        raise OptionError(f"--out {path!r} is empty; give a file name such as frf.csv")
-    if os.path.isdir(full):
-        raise OptionError(f"output {path!r} is a folder; give a file name such as frf.csv")
-    if records is not None and os.path.exists(full) and os.path.exists(records) \
-            and os.path.samefile(full, records):
-        raise OptionError(f"--out {path!r} is the records file itself; choose another --out")
-    if os.path.lexists(full) and not force:
-        raise OptionError(f"output file {path!r} exists; pass --force to overwrite or "
-                          "choose another --out")
-    parent = os.path.dirname(full)
-    if not os.path.isdir(parent):
-        raise OptionError(f"cannot write {path!r}: its folder {parent!r} does not exist")
+    """Output file checks (:func:`freqid_casadi._outputs.check_out_file`): never the input
+    ``records``, an existing file only with ``force``, never a folder."""
+    check_out_file(path, force, inputs=() if records is None else (records,))
 
 
 def _is_daq(path):

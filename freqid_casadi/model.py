@@ -14,17 +14,20 @@ of P_N in the closed left half plane.
 """
 
 import json
+import os
+import stat
 from dataclasses import dataclass
 
 import numpy as np
 
-from . import _cplx
+from . import _cplx, _model_json
+from ._model_json import MAX_MODEL_BYTES, MAX_MODEL_DEPTH
 from ._io import atomic_write_text
 from .errors import DataError, StructureError
 from .metrics import DelayedResponse
 
 __all__ = ["Structure", "RationalDelayModel", "section_response", "attach_delay", "BASES",
-           "ZEROS", "FORMAT_VERSION"]
+           "ZEROS", "FORMAT_VERSION", "MAX_MODEL_BYTES", "MAX_MODEL_DEPTH"]
 
 BASES = ("second-order", "first-order")
 ZEROS = ("minimum-phase", "free")
@@ -156,9 +159,32 @@ def section_response(basis, omega, theta):
 
 
 def _quad_roots(c2, c1, c0):
-    """Roots of c2 s^2 + c1 s + c0 (c2 may be 0); returns a list of complex."""
+    """Roots of c2 s^2 + c1 s + c0 (c2 may be 0); returns a list of complex.
+
+    For the coefficients of a model (all >= 0) the closed form keeps the sign of every real
+    part exact: 0 for c1 = 0 (an undamped pair on the imaginary axis), else < 0.
+    """
     if c2 == 0:
         return [complex(-c0 / c1)] if c1 != 0 else []
+    if min(c2, c1, c0) >= 0:
+        with np.errstate(all="ignore"):
+            p, q = c1 / (2.0 * c2), c0 / c2            # s^2 + 2 p s + q
+        if not (np.isfinite(p) and np.isfinite(q)):     # c2 negligible: one finite root
+            return [complex(-c0 / c1)] if c1 != 0 else []
+        if p < 1e150:
+            disc = p * p - q
+            if disc < 0:
+                im = float(np.sqrt(-disc))
+                return [complex(-p, im), complex(-p, -im)]
+            sd = float(np.sqrt(disc))
+        else:
+            r = q / p / p                               # disc = p^2 (1 - r), no overflow
+            if r > 1:
+                im = p * float(np.sqrt(r - 1.0))
+                return [complex(-p, im), complex(-p, -im)]
+            sd = p * float(np.sqrt(1.0 - r))
+        big = -(p + sd)                                 # no cancellation
+        return [complex(big), complex(q / big if big != 0 else 0.0)]
     return list(np.roots([c2, c1, c0]).astype(complex))
 
 
@@ -313,16 +339,31 @@ class RationalDelayModel(DelayedResponse):
         """Finite zeros of the rational part, complex ndarray."""
         return np.array(self._factor_roots("num"), dtype=complex)
 
-    def is_stable(self):
-        """True if every pole of P_N has a negative real part (the integrator's pole at 0,
-        if the structure has one, is not counted)."""
-        p = np.array(self._factor_roots("den"), dtype=complex)
-        return bool(np.all(p.real < 0))
+    def is_stable(self, strict=False):
+        """Whether P_N is stable (the integrator's pole at 0, if any, is not counted).
 
-    def is_minimum_phase(self):
-        """True if every finite zero of P_N has a negative real part."""
+        Parameters
+        ----------
+        strict : bool
+            False (default): no pole in the open right half plane (every real part <= 0),
+            the sense in which every model with beta >= 0 is stable; an undamped pair
+            (zeta_den = 0) on the imaginary axis is allowed, see :meth:`poles_on_axis`.
+            True: every pole has a negative real part (asymptotic stability).
+        """
+        p = np.array(self._factor_roots("den"), dtype=complex)
+        return bool(np.all(p.real < 0)) if strict else bool(np.all(p.real <= 0))
+
+    def is_minimum_phase(self, strict=False):
+        """Whether every finite zero of P_N lies in the closed (``strict``: open) left half
+        plane; see :meth:`is_stable` for the two senses."""
         z = self.zeros()
-        return bool(np.all(z.real < 0))
+        return bool(np.all(z.real < 0)) if strict else bool(np.all(z.real <= 0))
+
+    def poles_on_axis(self):
+        """Poles of P_N on the imaginary axis (undamped pairs, zeta_den = 0, or a pole at 0;
+        the integrator's pole is not counted), complex ndarray."""
+        p = np.array(self._factor_roots("den"), dtype=complex)
+        return p[p.real == 0]
 
     # ------------------------------------------------------------------ export
     def to_control(self, pade_order=None):
@@ -376,21 +417,39 @@ class RationalDelayModel(DelayedResponse):
 
     @classmethod
     def from_dict(cls, d):
-        try:
-            if d.get("format") != "freqid_casadi.RationalDelayModel":
-                raise DataError("not a freqid_casadi model (missing 'format')")
-            st = Structure(**d["structure"])
-            return cls(st, np.array(d["beta"], dtype=float))
-        except (KeyError, TypeError, AttributeError, ValueError) as exc:
-            if isinstance(exc, StructureError):
-                raise
-            raise DataError(f"malformed model JSON: {exc}") from None
+        """The model described by ``d`` (as written by :meth:`to_dict`), checked field by
+        field against the schema of :data:`FORMAT_VERSION` (see :meth:`load`).
+
+        Raises
+        ------
+        DataError
+            If a field is missing, unknown, of the wrong type or length, not finite,
+            negative, or if a section's numerator or denominator is identically zero.
+        """
+        n, integrator, delay, basis, beta, zeros, sign = _model_json.checked_fields(
+            d, BASES, FORMAT_VERSION)
+        return cls(Structure(n, integrator, delay, basis, zeros, sign), beta)
 
     @classmethod
     def from_json(cls, text):
+        """The model in the JSON ``text`` (str or bytes; see :meth:`load` for the checks)."""
+        if isinstance(text, (bytes, bytearray)):
+            if len(text) > MAX_MODEL_BYTES:
+                raise DataError(_model_json.too_big(len(text)))
+            try:
+                text = bytes(text).decode("utf-8-sig")       # a BOM is tolerated
+            except UnicodeDecodeError:
+                raise DataError("model file is not UTF-8 JSON text") from None
+        if not isinstance(text, str):
+            raise DataError(f"model JSON must be text, got {type(text).__name__}")
+        if len(text) > MAX_MODEL_BYTES:
+            raise DataError(_model_json.too_big(len(text)))
+        _model_json.check_nesting(text)
         try:
-            d = json.loads(text)
-        except json.JSONDecodeError as exc:
+            d = json.loads(text, parse_constant=_model_json.no_constant)
+        except (ValueError, RecursionError) as exc:   # JSONDecodeError, 5000-digit ints
+            if isinstance(exc, DataError):
+                raise
             raise DataError(f"model file is not valid JSON: {exc}") from None
         return cls.from_dict(d)
 
@@ -400,14 +459,40 @@ class RationalDelayModel(DelayedResponse):
 
     @classmethod
     def load(cls, path):
-        """Read a model written by :meth:`save`."""
+        """Read a model written by :meth:`save`.
+
+        Only a regular file of at most :data:`MAX_MODEL_BYTES` bytes is read (a FIFO or a
+        device is refused before it is opened); its JSON may nest at most
+        :data:`MAX_MODEL_DEPTH` levels and must follow the schema: ``format``
+        ``"freqid_casadi.RationalDelayModel"``, ``version`` 1, ``structure`` with
+        ``n_sections`` (integer >= 0) and optional ``integrator`` and ``delay`` (JSON
+        booleans, default false and true) and ``basis`` (default second-order), optional
+        ``param_names`` (as written), and ``beta``: finite numbers >= 0, one per parameter,
+        no section with an all-zero numerator or denominator.
+
+        Raises
+        ------
+        DataError
+            If the file cannot be read or breaks the schema.
+        """
         try:
-            with open(path, encoding="utf-8") as fh:
-                return cls.from_json(fh.read())
+            st = os.stat(path)
+            if not stat.S_ISREG(st.st_mode):
+                raise DataError(f"cannot read model file {os.fspath(path)!r}: not a regular "
+                                "file (a folder, FIFO or device); give a .json file")
+            if st.st_size > MAX_MODEL_BYTES:
+                raise DataError(f"model file {os.fspath(path)!r}: "
+                                + _model_json.too_big(st.st_size))
+            with open(path, "rb") as fh:
+                payload = fh.read(MAX_MODEL_BYTES + 1)
         except OSError as exc:
             raise DataError(f"cannot read model file {path!r}: {exc.strerror}") from None
-        except UnicodeDecodeError:
-            raise DataError(f"model file {path!r} is not UTF-8 JSON text") from None
+        except (TypeError, ValueError) as exc:
+            raise DataError(f"model path must be a file name, got {path!r}: {exc}") from None
+        try:
+            return cls.from_json(payload)
+        except DataError as exc:
+            raise DataError(f"model file {os.fspath(path)!r}: {exc}") from None
 
     def __repr__(self):
         s = self.structure

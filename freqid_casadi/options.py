@@ -72,6 +72,54 @@ def _flag(owner, name, value):
         raise _bad(owner, name, value, "True or False")
 
 
+_IPOPT_OK = set()          # option sets that IPOPT accepted (a probe costs ~2 ms)
+
+
+def _check_ipopt(owner, pairs):
+    """Raise OptionError unless IPOPT accepts the options ``pairs``: they are given to a
+    one-variable NLP that is solved once (IPOPT itself knows its option names, types and
+    ranges; its complaints on stdout are captured, not shown)."""
+    if pairs in _IPOPT_OK:
+        return
+    import contextlib
+    import ctypes
+    import io
+    import os
+    import sys
+    import tempfile
+
+    import casadi as ca
+
+    x = ca.MX.sym("x")
+    opts = {"ipopt": {"print_level": 0, "sb": "yes", **dict(pairs)}, "print_time": False}
+    sys.stdout.flush()
+    said = io.StringIO()                    # CasADi prints IPOPT's text through sys.stdout
+    with tempfile.TemporaryFile() as log, contextlib.redirect_stdout(said):
+        saved = os.dup(1)
+        os.dup2(log.fileno(), 1)
+        try:
+            solver = ca.nlpsol("probe", "ipopt", {"x": x, "f": (x - 1) ** 2}, opts)
+            solver(x0=0)
+            status = solver.stats().get("return_status")
+            error = None
+        except RuntimeError as exc:
+            status, error = None, str(exc)
+        finally:
+            ctypes.CDLL(None).fflush(None)             # C stdio output, if any
+            os.dup2(saved, 1)
+            os.close(saved)
+        log.seek(0)
+        said = (said.getvalue() + log.read().decode("utf-8", "replace")).strip().splitlines()
+    if error is None and status != "Invalid_Option":
+        _IPOPT_OK.add(pairs)
+        return
+    why = (error or "").rstrip().splitlines()[-1:] + said[:1]
+    raise OptionError(f"{owner}.ipopt = {dict(pairs)!r} is not accepted by IPOPT ("
+                      f"{' '.join(w.split(': ', 1)[-1] for w in why) or status}); use IPOPT "
+                      "option names, types and ranges (https://coin-or.github.io/Ipopt/"
+                      "OPTIONS.html), e.g. {'tol': 1e-12}")
+
+
 def _stage_limits(owner, obj):
     _choice(owner, "warm_start", obj.warm_start, WARM_STARTS)
     _int_at_least(owner, "max_iter", obj.max_iter, 1)
@@ -126,6 +174,8 @@ class IpoptOptions:
             if not isinstance(k, str) or not isinstance(v, (str, numbers.Real)):
                 raise _bad(owner, "ipopt", self.ipopt, "a dict of str names to str or number "
                            f"values (bad entry {k!r})")
+        if pairs:
+            _check_ipopt(owner, pairs)
         object.__setattr__(self, "ipopt", pairs)
 
     def ipopt_dict(self):

@@ -24,12 +24,11 @@ import io
 import json
 import math
 import os
-import shutil
-import tempfile
 
 import numpy as np
 
-from ._io import atomic_write_text
+from . import _outputs
+from ._io import atomic_write_text, md_cell, md_text
 from .errors import OptionError
 
 __all__ = ["write_fit_report", "write_sweep_report", "report_folder", "fit_summary", "render_fit_summary", "markdown_table",
@@ -40,7 +39,7 @@ REPORT_FORMAT = "freqid_casadi.fit_report"
 REPORT_VERSION = 1
 
 #: Files of a fit report folder, in the order they are written.
-REPORT_FILES = ("model.json", "rel_error.csv", "stages.csv", "bode.png", "rel_error.png",
+REPORT_FILES = (_outputs.MARKER, "model.json", "rel_error.csv", "stages.csv", "bode.png", "rel_error.png",
                 "pole_zero.png", "stages.png", "summary.json", "summary.md")
 
 _DASH = "—"
@@ -89,8 +88,7 @@ def markdown_table(rows, headers, align=None):
     sep = {"l": "---", "r": "---:", "c": ":---:"}
 
     def cell(v):
-        s = _DASH if v is None else str(v)
-        return s.replace("|", "\\|").replace("\n", " ")
+        return _DASH if v is None else md_cell(v)
 
     lines = ["| " + " | ".join(cell(h) for h in headers) + " |",
              "|" + "|".join(sep[a] for a in align) + "|"]
@@ -139,27 +137,17 @@ def _clean(obj):
 
 
 def check_out_dir(out_dir, force=False):
-    """Check that a report can be written to ``out_dir``; return its absolute path.
+    """Check that a report can be written to ``out_dir``; return its absolute path
+    (:func:`freqid_casadi._outputs.check_out_dir`: ``force`` replaces only a folder this
+    package wrote, never the current folder, a parent of it or a folder holding an input).
 
     Raises
     ------
     OptionError
-        If ``out_dir`` exists and ``force`` is false, if it exists and is not a folder,
-        or if its parent folder does not exist.
+        If ``out_dir`` is blank, exists and ``force`` is false, exists and is not a folder,
+        may not be replaced, or if its parent folder does not exist.
     """
-    path = os.path.abspath(os.fspath(out_dir))
-    if os.path.lexists(path):
-        if not os.path.isdir(path) or os.path.islink(path):
-            raise OptionError(f"output path {out_dir!r} exists and is not a folder; "
-                              "choose another --out")
-        if not force:
-            raise OptionError(f"output folder {out_dir!r} exists; pass --force to overwrite "
-                              "or choose another --out")
-    parent = os.path.dirname(path)
-    if not os.path.isdir(parent):
-        raise OptionError(f"cannot create output folder {out_dir!r}: its parent folder "
-                          f"{parent!r} does not exist")
-    return path
+    return _outputs.check_out_dir(out_dir, force)
 
 
 # ----------------------------------------------------------------------------- summary
@@ -219,6 +207,7 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
         "checks": {
             "stable": model.is_stable(),
             "minimum_phase": model.is_minimum_phase(),
+            "n_poles_on_axis": int(model.poles_on_axis().size),
             "n_poles": int(poles.size),
             "n_zeros": int(zeros.size),
             "max_pole_real_part": float(np.max(poles.real)) if poles.size else None,
@@ -295,12 +284,15 @@ def render_fit_summary(summary):
     """
     s = summary
     d, st, ck = s["data"], s["structure"], s["checks"]
-    lines = [generated_by_line(s["command"]), "", f"# {s['title']}", ""]
+    lines = [generated_by_line(s["command"]), "", f"# {md_text(s['title'])}", ""]
     structure = (f"{st['n_sections']} {st['basis']} sections, "
                  f"{'with' if st['integrator'] else 'no'} integrator, "
                  f"{'with' if st['delay'] else 'no'} delay; order of P_N "
                  f"{st['order_rational_part']}, model order {st['order']}")
+    axis = ck.get("n_poles_on_axis") or 0
     stable = ("yes" if ck["stable"] else "NO") + (
+        f", {axis} pole(s) on the imaginary axis (undamped, zeta = 0: marginally stable)"
+        if axis else "") + (
         f" (largest real part of a pole: {_num(ck['max_pole_real_part'])} rad/s, "
         f"smallest damping ratio {_num(ck['min_pole_damping'])})"
         if ck["max_pole_real_part"] is not None else "")
@@ -444,16 +436,8 @@ def report_folder(out_dir, force=False):
     OptionError
         ``out_dir`` exists and ``force`` is false, or its parent does not exist.
     """
-    path = check_out_dir(out_dir, force)
-    parent, base = os.path.split(path)
-    tmp = tempfile.mkdtemp(prefix=f".{base}.tmp-", dir=parent)
-    try:
-        yield tmp, path
-        _set_modes(tmp)
-        _move_into_place(tmp, path, out_dir, force)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
-        raise
+    with _outputs.building(out_dir, force) as built:
+        yield built
 
 
 def write_fit_report(result, out_dir, *, command, force=False, title=None, thesis=None,
@@ -503,35 +487,13 @@ def write_fit_report(result, out_dir, *, command, force=False, title=None, thesi
 
 
 def _set_modes(folder):
-    """Give the finished tree the usual permissions (umask), not the 0700 folders and 0600
-    files of temporary ones."""
-    from .plots import _file_mode
-
-    for root, dirs, names in os.walk(folder):
-        for d in dirs:
-            os.chmod(os.path.join(root, d), _file_mode(directory=True))
-        for n in names:
-            os.chmod(os.path.join(root, n), _file_mode())
-    os.chmod(folder, _file_mode(directory=True))
+    """Give the finished tree the usual permissions (see :func:`_outputs.set_modes`)."""
+    _outputs.set_modes(folder)
 
 
 def _move_into_place(tmp, path, out_dir, force):
-    """Rename the finished folder ``tmp`` to ``path``; with ``force`` an existing folder is
-    moved aside first and deleted only after the rename succeeded."""
-    check_out_dir(out_dir, force)   # again: it may have appeared during the fit
-    if not os.path.lexists(path):
-        os.rename(tmp, path)
-        return
-    parent, base = os.path.split(path)
-    old = tempfile.mkdtemp(prefix=f".{base}.old-", dir=parent)
-    os.rmdir(old)
-    os.rename(path, old)
-    try:
-        os.rename(tmp, path)
-    except BaseException:
-        os.rename(old, path)
-        raise
-    shutil.rmtree(old, ignore_errors=True)
+    """Rename the finished folder ``tmp`` to ``path`` (see :func:`_outputs.move_into_place`)."""
+    _outputs.move_into_place(tmp, path, out_dir, force)
 
 
 def write_sweep_report(result, out_dir, *, command, force=False):
@@ -563,7 +525,7 @@ def write_sweep_report(result, out_dir, *, command, force=False):
     verdict = ("" if target is None else
                f"Smallest order with max relative error <= {target:g}: "
                f"{d['best_order'] if d['best_order'] is not None else 'none of those tried'}.")
-    md = "\n".join([generated_by_line(command), f"# Order sweep: {d['data'] or 'data'}", "",
+    md = "\n".join([generated_by_line(command), f"# Order sweep: {md_text(d['data'] or 'data')}", "",
                      markdown_table(rows, headers), "", verdict, ""])
     with report_folder(out_dir, force) as (tmp, _):
         atomic_write_text(os.path.join(tmp, "sweep.md"), md)

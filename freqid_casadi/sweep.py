@@ -15,7 +15,7 @@ from .errors import OptionError
 from .fit import fit
 from .metrics import relative_error
 
-__all__ = ["SweepRow", "SweepResult", "sweep", "parse_orders"]
+__all__ = ["SweepRow", "SweepResult", "sweep", "parse_orders", "MAX_ORDERS"]
 
 
 @dataclass(frozen=True)
@@ -74,8 +74,21 @@ class SweepResult:
                 "rows": [dict(r.__dict__) for r in self.rows]}
 
 
+#: Most orders one sweep fits (each is a whole fit).
+MAX_ORDERS = 200
+
+
+def _count(n):
+    if n > MAX_ORDERS:
+        raise OptionError(f"{n} orders to fit, more than {MAX_ORDERS} in one sweep; use a "
+                          "larger step or a shorter range (e.g. --orders 2:40:2)")
+
+
 def parse_orders(spec):
     """Parse "4:40:2" (start:stop:step, stop included), "4,8,12" or "10" into a list.
+
+    Numbers are plain ASCII decimal integers (no "1_0", no non-ASCII digits); at most
+    :data:`MAX_ORDERS` orders, counted before the list is built.
 
     Parameters
     ----------
@@ -88,24 +101,36 @@ def parse_orders(spec):
     Raises
     ------
     OptionError
-        A malformed ``spec``.
+        A malformed ``spec``, or more than :data:`MAX_ORDERS` orders.
     """
+    def number(p):
+        p = p.strip()
+        if not (p.isascii() and p.isdigit()) or len(p) > 12:
+            raise ValueError
+        return int(p)
+
     try:
+        if not isinstance(spec, str) or len(spec) > 10_000:
+            raise ValueError
         if ":" in spec:
-            parts = [int(p) for p in spec.split(":")]
+            parts = [number(p) for p in spec.split(":")]
             if len(parts) == 2:
                 parts.append(1)
             start, stop, step = parts
             if step <= 0 or start <= 0 or stop < start:
                 raise ValueError
+            _count((stop - start) // step + 1)
             return list(range(start, stop + 1, step))
-        orders = [int(p) for p in spec.split(",")]
+        orders = [number(p) for p in spec.split(",")]
         if any(o <= 0 for o in orders):
             raise ValueError
+        _count(len(orders))
         return orders
+    except OptionError:
+        raise
     except ValueError:
-        raise OptionError(f"bad orders {spec!r}: use start:stop:step with positive integers "
-                          "(e.g. 4:40:2), or a comma-separated list") from None
+        raise OptionError(f"bad orders {spec!r:.80}: use start:stop:step with positive "
+                          "integers (e.g. 4:40:2), or a comma-separated list") from None
 
 
 def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=None,
@@ -139,7 +164,10 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
         raise OptionError(f"target must be a number > 0, got {target!r}")
     basis = fit_options.get("basis", "second-order")
     per = 2 if basis == "second-order" else 1
+    if hasattr(orders, "__len__"):
+        _count(len(orders))                 # before a range is turned into a list
     orders = [int(o) for o in orders]
+    _count(len(orders))
     for o in orders:
         if o % per:
             raise OptionError(f"order {o} is odd: second-order sections give even orders; "

@@ -85,7 +85,7 @@ import numpy as np
 from . import _cplx
 from ._weight import (_GRID_PER_DECADE, _LN10, CORNER_DECADES, E_FLOOR, MAX_DAMPING,
                       Overbound, WeightResult, WeightSection, _factor, _real_pair_section,
-                      _response, _section_log_abs2)
+                      _response, _section_log_abs2, frequency_scale, rescaled)
 from .errors import DataError, OptionError
 from .solvers.common import SUCCESS_STATUSES, TERMINATION_MESSAGES, Status
 from .solvers.ipopt import run_nlpsol
@@ -459,7 +459,8 @@ def fit_uncertainty_weight(result_or_omega, rel_error=None, *, order=2, margin=0
     """
     omega, e = _validate(result_or_omega, rel_error, order, margin, max_iter, min_damping)
     order = int(order)
-    prob = _Problem(omega, e, float(margin), min_damping)
+    scale = frequency_scale(omega)              # solve at omega / scale, rescale after
+    prob = _Problem(omega / scale, e, float(margin), min_damping)
 
     # order 0 is closed form: W = max (1 + margin) e (verified like any other weight)
     best = _candidate(prob, 0.0, (), Status.CONVERGED, "closed form (constant weight)")
@@ -492,7 +493,7 @@ def fit_uncertainty_weight(result_or_omega, rel_error=None, *, order=2, margin=0
     ee.setflags(write=False)
     return WeightResult(
         omega=om, rel_error=ee, magnitude=mag, gain=float(best.gain),
-        sections=tuple(best.sections), order=order, overbound=_overbound(prob, mag),
+        sections=rescaled(best.sections, scale), order=order, overbound=_overbound(prob, mag),
         margin=float(margin), gain_correction=float(best.correction),
         objective=float(best.objective), status=best.status, message=best.message,
         success=best.status in SUCCESS_STATUSES, nit=int(nit))

@@ -190,7 +190,7 @@ def test_no_star_imports():
 
 # ------------------------------------------------------------------ layer map (STYLE.md §2)
 LAYERS = {
-    "errors": 0, "_cplx": 0, "_io": 0,
+    "errors": 0, "_cplx": 0, "_io": 0, "_outputs": 0, "_interrupt": 0, "_model_json": 0,
     "data": 1, "experiment": 1, "model": 1, "systems": 1, "options": 1, "metrics": 1,
     "objective": 2, "resolution": 2, "gauges": 2, "derivatives": 2,
     "solvers": 3,

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 import freqid_casadi as fc
+from freqid_casadi._outputs import MARKER
 from freqid_casadi import batch, cli, cli_batch
 from freqid_casadi.batch import BatchItem, fit_many
 from freqid_casadi.errors import DataError, OptionError, StructureError
@@ -152,7 +153,7 @@ def test_cli_batch_writes_models_and_summaries(folder, batch_cli, capsys, serial
     out, err = capsys.readouterr()
     assert code == 1, err                                   # broken.csv failed
     assert "3/4 converged" in out
-    assert sorted(os.listdir(folder / "rep")) == ["models", "summary.csv", "summary.md"]
+    assert sorted(os.listdir(folder / "rep")) == [MARKER, "models", "summary.csv", "summary.md"]
     assert sorted(os.listdir(folder / "rep" / "models")) == ["d0.json", "d1.json", "d2.json"]
     for k in range(3):
         text = (folder / "rep" / "models" / f"d{k}.json").read_text()
@@ -221,6 +222,7 @@ def test_keyboard_interrupt_in_cli_keeps_the_old_folder(folder, batch_cli, capsy
                                                         monkeypatch, serial):
     (folder / "rep").mkdir()
     (folder / "rep" / "old.txt").write_text("old")
+    (folder / "rep" / MARKER).write_text("")          # a folder freqid wrote
     monkeypatch.setattr(cli_batch, "fit_many", lambda files, **kw: serial[:len(files)])
     _interrupt_on_second_save(monkeypatch)
     before = _listing(folder)

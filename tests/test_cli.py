@@ -12,6 +12,7 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
+from freqid_casadi._outputs import MARKER  # noqa: E402
 from freqid_casadi import cli, report  # noqa: E402
 from freqid_casadi.data import FrequencyData  # noqa: E402
 from freqid_casadi.loaders import save_csv  # noqa: E402
@@ -141,6 +142,7 @@ def test_existing_out_is_refused_before_fitting(workdir, capsys, fake_fit):
 def test_force_replaces(workdir, capsys, fake_fit, fast_figures):
     (workdir / "rep").mkdir()
     (workdir / "rep" / "keep.txt").write_text("old")
+    (workdir / "rep" / MARKER).write_text("")        # a folder freqid wrote
     code, out, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--integrator",
                          "--out", "rep", "--force")
     assert code == 0, err

@@ -178,19 +178,26 @@ def test_zero_a_gives_one_real_zero():
     assert m.poles().size == 2 and m.is_minimum_phase()
 
 
-def test_damping_zero_is_not_stable_nor_minimum_phase():
+def test_damping_zero_is_marginal_not_strictly_stable():
+    """zeta = 0 puts a pair on the imaginary axis: stable in the package's sense (no pole in
+    the open right half plane, what beta >= 0 guarantees), not asymptotically stable."""
     beta = np.array([0.0, 1.0, 1.0, 0.3, 2.0, 1.0, 0.4, 3.0])
-    assert RationalDelayModel(Structure(1), beta).is_stable()
+    m = RationalDelayModel(Structure(1), beta)
+    assert m.is_stable(strict=True) and m.is_minimum_phase(strict=True)
+    assert m.poles_on_axis().size == 0
     undamped_den = beta.copy()
     undamped_den[6] = 0.0                                 # zeta_den = 0: poles at +-3j
     m = RationalDelayModel(Structure(1), undamped_den)
     _same_roots(m.poles(), [3j, -3j], 1e-15)
-    assert not m.is_stable() and m.is_minimum_phase()
+    assert np.all(m.poles().real == 0)                    # exactly on the axis
+    assert m.is_stable() and not m.is_stable(strict=True) and m.is_minimum_phase()
+    _same_roots(m.poles_on_axis(), [3j, -3j], 1e-15)
     undamped_num = beta.copy()
     undamped_num[3] = 0.0                                 # zeta_num = 0: zeros at +-2j
     m = RationalDelayModel(Structure(1), undamped_num)
     _same_roots(m.zeros(), [2j, -2j], 1e-15)
-    assert m.is_stable() and not m.is_minimum_phase()
+    assert m.is_minimum_phase() and not m.is_minimum_phase(strict=True)
+    assert m.is_stable(strict=True)
 
 
 # ------------------------------------------------------------------ python-control export
@@ -261,12 +268,13 @@ def test_json_round_trip_bit_identical(tmp_path, structure, beta):
     pytest.param("null", r"malformed model JSON", id="null"),
     pytest.param('{"beta": [0, 1]}', r"not a freqid_casadi model", id="no-format"),
     pytest.param('{"format": "other"}', r"not a freqid_casadi model", id="wrong-format"),
-    pytest.param('{"format": "freqid_casadi.RationalDelayModel", "beta": [0, 1]}',
-                 r"malformed model JSON: 'structure'", id="no-structure"),
-    pytest.param('{"format": "freqid_casadi.RationalDelayModel", '
-                 '"structure": {"n_sections": 0}}', r"malformed model JSON: 'beta'",
+    pytest.param('{"format": "freqid_casadi.RationalDelayModel", "version": 1, '
+                 '"beta": [0, 1]}',
+                 r"malformed model JSON: missing field 'structure'", id="no-structure"),
+    pytest.param('{"format": "freqid_casadi.RationalDelayModel", "version": 1, '
+                 '"structure": {"n_sections": 0}}', r"malformed model JSON: missing field 'beta'",
                  id="no-beta"),
-    pytest.param('{"format": "freqid_casadi.RationalDelayModel", '
+    pytest.param('{"format": "freqid_casadi.RationalDelayModel", "version": 1, '
                  '"structure": {"n_sections": 0, "colour": 1}, "beta": [0, 1]}',
                  r"malformed model JSON", id="unknown-structure-key"),
 ])
@@ -286,7 +294,7 @@ def test_load_missing_file_and_directory(tmp_path):
 
 def test_load_invalid_structure_is_freqid_error(tmp_path):
     path = tmp_path / "neg.json"
-    path.write_text('{"format": "freqid_casadi.RationalDelayModel", '
+    path.write_text('{"format": "freqid_casadi.RationalDelayModel", "version": 1, '
                     '"structure": {"n_sections": 0}, "beta": [0, -1]}')
     with pytest.raises(FreqidError, match=r"beta\[1\] \(gain\) = -1"):
         RationalDelayModel.load(path)
@@ -294,7 +302,7 @@ def test_load_invalid_structure_is_freqid_error(tmp_path):
 
 def test_load_non_numeric_beta(tmp_path):
     path = tmp_path / "str.json"
-    path.write_text('{"format": "freqid_casadi.RationalDelayModel", '
+    path.write_text('{"format": "freqid_casadi.RationalDelayModel", "version": 1, '
                     '"structure": {"n_sections": 0}, "beta": ["a", "b"]}')
     with pytest.raises(DataError):
         RationalDelayModel.load(path)

@@ -15,6 +15,7 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
+from freqid_casadi._outputs import MARKER
 from freqid_casadi import report  # noqa: E402
 from freqid_casadi.data import FrequencyData  # noqa: E402
 from freqid_casadi.errors import OptionError  # noqa: E402
@@ -205,9 +206,10 @@ def test_existing_folder_needs_force(result, tmp_path, fast_figures):
     out = tmp_path / "rep"
     out.mkdir()
     (out / "keep.txt").write_text("old")
+    (out / MARKER).write_text("")            # written by freqid: --force may replace it
     with pytest.raises(OptionError, match="exists; pass --force"):
         report.write_fit_report(result, out, command="x")
-    assert _tree(out) == ["keep.txt"]
+    assert _tree(out) == sorted([MARKER, "keep.txt"])
     assert _tree(tmp_path) == ["rep"]
     report.write_fit_report(result, out, command="x", force=True)
     assert _tree(out) == sorted(report.REPORT_FILES)
@@ -237,12 +239,13 @@ def test_interrupted_forced_write_keeps_the_old_folder(result, tmp_path, monkeyp
     out = tmp_path / "rep"
     out.mkdir()
     (out / "keep.txt").write_text("old")
+    (out / MARKER).write_text("")
     monkeypatch.setattr(report, "render_fit_summary", _interrupt)   # the last file
     monkeypatch.setattr(report, "_write_figures", lambda *a: None)
     with pytest.raises(KeyboardInterrupt):
         report.write_fit_report(result, out, command="x", force=True)
     assert _tree(tmp_path) == ["rep"]
-    assert _tree(out) == ["keep.txt"]
+    assert _tree(out) == sorted([MARKER, "keep.txt"])
 
 
 def test_failing_rename_restores_the_old_folder(result, tmp_path, monkeypatch,
@@ -250,6 +253,7 @@ def test_failing_rename_restores_the_old_folder(result, tmp_path, monkeypatch,
     out = tmp_path / "rep"
     out.mkdir()
     (out / "keep.txt").write_text("old")
+    (out / MARKER).write_text("")
     real_rename = os.rename
     calls = []
 
@@ -263,7 +267,7 @@ def test_failing_rename_restores_the_old_folder(result, tmp_path, monkeypatch,
     with pytest.raises(OSError):
         report.write_fit_report(result, out, command="x", force=True)
     assert _tree(tmp_path) == ["rep"]
-    assert _tree(out) == ["keep.txt"]
+    assert _tree(out) == sorted([MARKER, "keep.txt"])
 
 
 # ----------------------------------------------------------------------------- imports

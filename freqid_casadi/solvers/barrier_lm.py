@@ -30,6 +30,7 @@ import time
 import numpy as np
 from scipy import linalg
 
+from .. import _interrupt
 from ..errors import DataError, OptionError
 from ..options import DAMPING_MODES, BarrierLMOptions
 from .common import (Status, TERMINATION_MESSAGES, StageResult, check_start,
@@ -152,6 +153,7 @@ def _inner_lm(fun, jac, x, r, J, lb, fin, t, opts, counts):
     n_finite_trials = 0      # trial points with finite residuals since the last acceptance
     n_nonfinite_trials = 0
     while True:                                               # Step 6
+        _interrupt.check()                                    # Ctrl-C / SIGTERM
         if k >= max_inner:                                    # Step xi
             return x, r, J, k, _MAXITER
         k += 1                                                # Step i

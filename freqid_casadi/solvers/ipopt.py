@@ -13,6 +13,7 @@ import time
 
 import numpy as np
 
+from .. import _interrupt
 from ..errors import OptionError
 from ..options import HESSIANS
 from ._callbacks import _Cost, _GradF, _Hess
@@ -231,7 +232,7 @@ def run_nlpsol(name, nlp, opts, x0, lb, ub, *, constrained=False, lam_x0=None,
     import casadi as ca
 
     t0 = time.perf_counter() if t0 is None else t0
-    solver = ca.nlpsol(name, "ipopt", nlp, opts)
+    solver = ca.nlpsol(name, "ipopt", nlp, {**opts, **_interrupt.ipopt_callback(nlp)})
     t_build = time.perf_counter() - t0
     args = {"x0": x0, "lbx": lb, "ubx": ub}
     if constrained:
@@ -240,7 +241,8 @@ def run_nlpsol(name, nlp, opts, x0, lb, ub, *, constrained=False, lam_x0=None,
         args["lam_x0"] = np.asarray(lam_x0, float)
     t_solve = time.perf_counter()
     try:
-        sol = solver(**args)
+        with _interrupt.guard():        # Ctrl-C/SIGTERM: IPOPT stops, then Interrupted
+            sol = solver(**args)
         stats = solver.stats()
         return_status = str(stats.get("return_status", "unknown"))
         x = np.clip(np.array(sol["x"], float).reshape(-1), lb, ub)
