@@ -201,7 +201,7 @@ def _sumt_pass(s, Hi_u, ctnow, beta_i_2, t_, st, integrator, budget):
     stop = not np.max(np.abs(g)) < st["tol1"]                           # l.197-202
     mu = _SECTIONS["tau"] * np.max(np.diag(A))                          # l.203-204
     beta_i_all = _pack(ctnow, beta_i)                                   # l.206-207
-    beta_i_2_all = beta_i_all                                           # see READINGS (l.301)
+    beta_i_2_all = beta_i_all                   # see READINGS (l.301): no trial, no change
     while stop and budget.ok(k):                                        # l.208 (k < Inf)
         k += 1                                                          # l.209
         st["tol1"] = grow_tol1(k, st["tol1"])                           # l.210-212

@@ -77,7 +77,7 @@ READINGS = (
      "two entries [0; |Phi_1| omega_1]: l.121 appends four zeros to make the 6-row column "
      "of [h K 0 0 0 0], and with six entries create_jacob takes its section branch (l.51) "
      "with a 0/0 section and pinv stops on NaN"),
-    ("cost_and_coeffs.m l.33, main.m l.33",
+    ("main.m l.33",
      "find(abs(H_err) == max(abs(H_err))) can return several indices",
      "the first (lowest-frequency) one; ties do not occur on the benchmark data"),
     ("cost_and_coeffs.m l.147-152, l.296-297",
@@ -85,8 +85,11 @@ READINGS = (
      "runs exactly once (Ni = 1, ni = n); the window is 1..w_index_pre (l.156-164)"),
     ("cost_and_coeffs.m l.206-232, l.301",
      "beta_i_2_all is first assigned at l.232 inside the loop but read at l.301",
-     "if a SUMT pass stops before its first trial step, beta_i_2_all is the pass's start "
-     "(MATLAB would stop with 'undefined variable'); does not happen on A, B, C"),
+     "if a barrier problem stops before its first trial step, beta_i_2_all is the pass's "
+     "start. MATLAB variables live for the whole call, so there it would be the previous "
+     "pass's beta_i_2_all, which is the same vector (l.301-304 built this pass's start from "
+     "it); only in a stage's first pass would MATLAB stop on an undefined variable (a pass "
+     "with 2 or more iterations made a trial: see pass_nit)"),
     ("cost_and_coeffs.m l.313-325",
      "a negative coefficient or a section with zeta_d + omega_d = 0 returns coeffs = NaN, "
      "which main.m l.43 would then evaluate (NaN model, empty find at l.33: no way on)",
