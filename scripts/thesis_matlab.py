@@ -119,7 +119,8 @@ def figure(path, name, curves, omega):
                label=f"Table 4.1 max ({tm.TABLE_4_1[name]['max_rel_error']})")
     ax.set_xlabel("omega (rad/s)")
     ax.set_ylabel("|(G - G_N)/G_N|")
-    ax.set_title(f"Example {name}: relative error, {tm.TABLE_4_1[name]['n_sections']} sections")
+    ax.set_title(f"Example {name}: relative error (Table 4.1 order: "
+                 f"{tm.TABLE_4_1[name]['n_sections']} sections)")
     ax.grid(True, which="major", alpha=0.3)
     ax.legend(fontsize=8, loc="best")
     fig.tight_layout()
@@ -257,6 +258,10 @@ JACOBIAN_DIFFERENCES = (
 )
 
 
+def _tr_label(tr):
+    return f"thesis MATLAB, transcribed, {tr['n_sections']} sections"
+
+
 def rerender(out):
     """Rewrite report.md, the conclusions and the figures from ``out/thesis_matlab.json``."""
     result = json.loads((out / "thesis_matlab.json").read_text(encoding="utf-8"))
@@ -264,9 +269,9 @@ def rerender(out):
     result["jacobian_differences"] = list(JACOBIAN_DIFFERENCES)
     result["readings"] = [list(r) for r in tm.READINGS]
     tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=out.parent))
-    labels = {"transcription": "thesis MATLAB, transcribed", "ipopt": "ours, ipopt",
-              "barrier-lm": "ours, barrier-lm"}
     for name, ex in result["examples"].items():
+        labels = {"transcription": _tr_label(ex["transcription"]), "ipopt": "ours, ipopt",
+                  "barrier-lm": "ours, barrier-lm"}
         curves = {k: (labels[k], np.array(v)) for k, v in ex["rel_error"].items()}
         figure(tmp / f"rel_error_{name}.png", name, curves, np.array(ex["omega"]))
     (tmp / "thesis_matlab.json").write_text(json.dumps(result, indent=1) + "\n",
@@ -329,7 +334,7 @@ def main(argv=None):
     examples = {}
     for name in names:
         tr, rel = done[("transcription", name, None)]
-        curves = {"transcription": ("thesis MATLAB, transcribed", rel)}
+        curves = {"transcription": (_tr_label(tr), rel)}
         methods = {}
         for key in ("ipopt", "barrier-lm"):
             if ("fit", name, key) in done:

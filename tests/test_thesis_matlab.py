@@ -263,13 +263,17 @@ _A_STOP = ("capped run (max_inner=100) stops at stage 6: cost_and_coeffs returns
            "(a[4] = -0.2667 < 0, l.313), so 5 of 17 sections")
 _C_STOP = ("capped run (max_inner=100) stops at stage 1: cost_and_coeffs returns NaN "
            "(zeta_den[1] = -3.396 < 0, l.313), so 0 of 27 sections")
+#: Uncapped (results/thesis_matlab, 1060 s): A reaches 17 sections, max 0.01191 <= 0.2549
+#: (reproduces); B stops at stage 5 (zeta_den[5] < 0), C at stage 3 (zeta_den[1] < 0).
 MAX_REASONS = {
-    "A": f"{_A_STOP}; measured max 0.2364 (<= 0.2549 but at order 10, not 34)",
+    "A": f"{_A_STOP}; measured max 0.2364 (<= 0.2549 but at order 10, not 34; uncapped: "
+         "17 sections, max 0.01191, see results/thesis_matlab)",
     "B": "measured max 2.032 > 0.0027 (9 sections, capped run max_inner=100)",
     "C": f"{_C_STOP}; measured max 287.6 > 5.9884",
 }
 RMS_REASONS = {
-    "A": f"{_A_STOP}; measured RMS 0.04397 (<= 0.2549 but at order 10, not 34)",
+    "A": f"{_A_STOP}; measured RMS 0.04397 (<= 0.2549 but at order 10, not 34; uncapped: "
+         "17 sections, RMS 0.002127)",
     "B": "measured RMS 0.7847 > 0.0027 (9 sections, capped run max_inner=100)",
     "C": f"{_C_STOP}; measured RMS 22.83 > 5.9884",
 }
