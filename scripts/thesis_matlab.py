@@ -176,9 +176,9 @@ def conclusions(examples):
     return out
 
 
-def _table(rows, head):
-    lines = ["| " + " | ".join(head) + " |", "|" + "|".join(["---"] + ["---:"] * (len(head) - 2)
-                                                          + ["---"]) + "|"]
+def _table(rows, head, numeric=True):
+    mid = ["---:" if numeric else "---"] * (len(head) - 2)
+    lines = ["| " + " | ".join(head) + " |", "|" + "|".join(["---"] + mid + ["---"]) + "|"]
     lines += ["| " + " | ".join(r) + " |" for r in rows]
     return lines
 
@@ -229,7 +229,8 @@ def report_md(command, result):
                             "capped"])
         L += ["", f"![relative error](rel_error_{name}.png)"]
     L += ["", "## How the ambiguous or damaged lines of Appendix A are read", ""]
-    L += _table([[w, p, r] for w, p, r in tm.READINGS], ["where", "printed", "read as"])
+    L += _table([[w, p, r] for w, p, r in tm.READINGS], ["where", "printed", "read as"],
+                numeric=False)
     L += ["", "## Where create_jacob.m is not the derivative of its residual", "",
           "Asserted column by column against finite differences in "
           "`tests/test_thesis_matlab.py` (J is compared with -d eps_p/d beta, the sign the "
