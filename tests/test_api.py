@@ -124,6 +124,7 @@ LAYERS = {
     "batch": 4,
     "report": 5, "plots": 5, "ablation": 5, "reproduce": 5,
     "cli": 6, "__main__": 6, "cli_frf": 6, "cli_batch": 6,
+    "formatting": 0, "examples": 1, "studies": 6,
 }
 FACADE = 6      # the package itself (``import freqid_casadi`` pulls in fit): top layer
 

@@ -1,42 +1,19 @@
-"""Benchmark systems of SPEC §4 as frequency-response data (layer L1).
+"""Examples A, B and C of the thesis (beams and rod, SPEC §4) and their perturbed plants.
 
-Each benchmark has a low-level evaluator at complex ``s`` (``G_A_at``, ``G_B_at``, ...;
-numpy complex in, complex out, same shape) and a function returning
-:class:`~freqid_casadi.data.FrequencyData` on a frequency grid (``G_A``, ``G_B``, ...).
-Without ``omega`` the grid is the thesis's: 500 log-spaced points from 1e-2 to 1e3 rad/s
-(:func:`thesis_grid`).
-
-The beam transfer functions are evaluated stably over the whole frequency range:
-
-- near ``s = 0`` the hyperbolic/trigonometric combinations cancel to leading order, so a
-  power series in ``z = m**4`` (the functions are even in the branch of the fourth root, hence
-  analytic in ``z``) replaces the closed form for ``|z| < SERIES_THRESHOLD``;
-- at high frequency ``cosh m``, ``cos m`` grow like ``exp(|Re m| + |Im m|)``; numerator and
-  denominator are divided by that growth before the ratio is formed, so no overflow or
-  precision loss occurs (tested up to ``omega = 1e5`` rad/s and beyond).
-
-References: O. Demir, MSc thesis, Bilkent 2014, ch. 4 (examples A, B, C, §4.2 fractional);
-S. O. R. Moheimani, ASME JDSMC 122 (2000), §3 (simply-supported beam, eq. 11).
+The beam ratios are evaluated stably over the whole frequency range (see
+:mod:`freqid_casadi.systems`): a power series in ``z = m**4`` near ``s = 0`` and rescaled
+closed forms at high frequency.
 """
 
 import math
 
 import numpy as np
 
-from .data import FrequencyData
-from .errors import DataError, OptionError
+from ._common import _data, _omega, _positive, _real_scalar, thesis_grid
+from ..errors import OptionError
 
-__all__ = [
-    "thesis_grid",
-    "G_A", "G_A_at",
-    "G_B", "G_B_at",
-    "G_C", "G_C_at",
-    "sqrt_inverse", "sqrt_inverse_at",
-    "G_D", "G_D_at",
-    "perturbed",
-    "moheimani_beam", "moheimani_at", "moheimani_modes", "moheimani_kopt",
-    "SERIES_THRESHOLD",
-]
+__all__ = ["G_A", "G_A_at", "G_B", "G_B_at", "G_C", "G_C_at", "perturbed",
+           "SERIES_THRESHOLD"]
 
 #: ``|z|`` (z = m**4, dimensionless) below which the beam ratios use their power series.
 #: At ``|z| = 4`` the series (16 terms, truncation < 1e-30) and the rescaled closed form
@@ -51,79 +28,6 @@ _N_SERIES = 16
 # Python int / int true division is correctly rounded.
 _C_NUM = tuple((-4) * (-4) ** j / math.factorial(4 * j + 3) for j in range(_N_SERIES))
 _C_COSCOSH = tuple((-4) ** k / math.factorial(4 * k) for k in range(_N_SERIES + 1))
-
-
-# ----------------------------------------------------------------------------- helpers
-
-
-def thesis_grid(n_points=500, omega_min=1e-2, omega_max=1e3):
-    """Logarithmically spaced frequency grid (the thesis's data grid by default).
-
-    Parameters
-    ----------
-    n_points : int, optional
-        Number of points M >= 2 (default 500).
-    omega_min, omega_max : float, optional
-        First and last frequency in rad/s, ``0 < omega_min < omega_max`` (default 1e-2, 1e3).
-
-    Returns
-    -------
-    omega : ndarray of float, shape (n_points,)
-        Strictly increasing frequencies in rad/s; the end points are exactly
-        ``omega_min`` and ``omega_max``.
-
-    Raises
-    ------
-    OptionError
-        If ``n_points`` is not an integer >= 2 or the bounds are not finite with
-        ``0 < omega_min < omega_max``.
-
-    Notes
-    -----
-    SPEC §4: M = 500 log-spaced points, omega from 1e-2 to 1e3 rad/s.
-    """
-    if isinstance(n_points, bool) or not isinstance(n_points, (int, np.integer)):
-        raise OptionError(f"n_points must be an integer >= 2, got {n_points!r}")
-    if n_points < 2:
-        raise OptionError(f"n_points must be >= 2, got {n_points}; a grid needs two ends")
-    lo = _real_scalar(omega_min, "omega_min")
-    hi = _real_scalar(omega_max, "omega_max")
-    if not 0 < lo < hi:
-        raise OptionError(
-            f"need 0 < omega_min < omega_max (rad/s), got omega_min={lo!r}, omega_max={hi!r}")
-    omega = np.logspace(math.log10(lo), math.log10(hi), int(n_points))
-    omega[0], omega[-1] = lo, hi
-    return omega
-
-
-def _real_scalar(value, name):
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise OptionError(f"{name} must be a real number, got {value!r}") from None
-    if not math.isfinite(x):
-        raise OptionError(f"{name} must be finite, got {value!r}")
-    return x
-
-
-def _positive(value, name, allow_zero=False):
-    x = _real_scalar(value, name)
-    if x < 0 or (x == 0 and not allow_zero):
-        bound = ">= 0" if allow_zero else "> 0"
-        raise OptionError(f"{name} must be {bound}, got {value!r}")
-    return x
-
-
-def _omega(omega, default):
-    """Validated frequency vector (DataError naming ``omega``), or the default grid."""
-    if omega is None:
-        return default()
-    # FrequencyData does the validation (finite, > 0, strictly increasing, 1-D).
-    return FrequencyData(omega, np.ones(np.size(omega), dtype=complex)).omega
-
-
-def _data(omega, response, name):
-    return FrequencyData(omega, response, name)
 
 
 def _fourth_root(z):
@@ -415,70 +319,6 @@ def G_C(omega=None, *, lam=0.5, tau=0.0525, c=0.2, G=0.4, I_p=2.5, eps=0.001):
     return _data(omega, resp, "G_C")
 
 
-# ----------------------------------------------------------------------------- fractional
-
-
-def _fractional_grid():
-    return thesis_grid(500, 1e-5, 1e5)
-
-
-def sqrt_inverse_at(s):
-    """``1/sqrt(s)`` (principal branch) at complex ``s``, rad/s; shape of ``s``."""
-    return 1 / np.sqrt(np.asarray(s, dtype=complex))
-
-
-def sqrt_inverse(omega=None):
-    """Frequency response of the fractional integrator ``1/sqrt(s)`` (thesis §4.2).
-
-    Parameters
-    ----------
-    omega : array_like of float, shape (M,), optional
-        Frequencies in rad/s, > 0 and strictly increasing (default: 500 log-spaced points
-        from 1e-5 to 1e5 rad/s).
-
-    Returns
-    -------
-    FrequencyData
-        ``response = (1j*omega)**(-1/2)`` (magnitude ``omega**-0.5``, phase -45 deg),
-        named ``"1/sqrt(s)"``.
-
-    Raises
-    ------
-    DataError
-        If ``omega`` is not a valid frequency vector.
-    """
-    omega = _omega(omega, _fractional_grid)
-    return _data(omega, sqrt_inverse_at(1j * omega), "1/sqrt(s)")
-
-
-def G_D_at(s):
-    """Closed loop ``G_D(s) = 1/(1 + sqrt(s))`` (principal branch) at complex ``s``."""
-    return 1 / (1 + np.sqrt(np.asarray(s, dtype=complex)))
-
-
-def G_D(omega=None):
-    """Frequency response of ``G_D(s) = 1/(1 + sqrt(s))`` (thesis §4.2, SPEC §4).
-
-    Parameters
-    ----------
-    omega : array_like of float, shape (M,), optional
-        Frequencies in rad/s, > 0 and strictly increasing (default: 500 log-spaced points
-        from 1e-5 to 1e5 rad/s).
-
-    Returns
-    -------
-    FrequencyData
-        ``response[i] = G_D(1j*omega[i])``, named ``"G_D"``.
-
-    Raises
-    ------
-    DataError
-        If ``omega`` is not a valid frequency vector.
-    """
-    omega = _omega(omega, _fractional_grid)
-    return _data(omega, G_D_at(1j * omega), "G_D")
-
-
 # ----------------------------------------------------------------------------- perturbed
 
 _PERTURBED = {
@@ -533,168 +373,3 @@ def perturbed(example, percent, omega=None):
     factor = 1 + pct / 100
     data = fun(omega, **{k: v * factor for k, v in nominal.items()})
     return _data(data.omega, data.response, f"G_{key}{pct:+g}%")
-
-
-# ----------------------------------------------------------------------------- Moheimani
-
-_BEAM = {"L": 1.3, "r1": 0.075, "r2": 0.075, "rho_A": 0.6265, "EI": 5.329}
-
-
-def _n_modes(n, name="n_modes"):
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)):
-        raise OptionError(f"{name} must be an integer >= 1, got {n!r}")
-    if n < 1:
-        raise OptionError(f"{name} must be >= 1, got {n}")
-    return int(n)
-
-
-def moheimani_modes(n_modes=30, *, L=1.3, r1=0.075, r2=0.075, rho_A=0.6265, EI=5.329):
-    """Natural frequencies and residues of Moheimani's simply-supported beam.
-
-    Parameters
-    ----------
-    n_modes : int, optional
-        Number of modes (default 30, the "truth" model), >= 1.
-    L : float, optional
-        Beam length in m (default 1.3).
-    r1, r2 : float, optional
-        Actuator and sensor positions in m (default 0.075 both: collocated).
-    rho_A : float, optional
-        Mass per unit length in kg/m (default 0.6265).
-    EI : float, optional
-        Flexural rigidity in N m^2 (default 5.329).
-
-    Returns
-    -------
-    omega_i : ndarray of float, shape (n_modes,)
-        Natural frequencies in rad/s, increasing.
-    F_i : ndarray of float, shape (n_modes,)
-        Residues ``phi_i(r1) phi_i(r2)`` in 1/kg.
-
-    Notes
-    -----
-    SPEC §4 (seed 003 §3): ``omega_i = (i pi / L)^2 sqrt(EI / rho_A)``,
-    ``phi_i(r) = sqrt(2/(rho_A L)) sin(i pi r / L)``.
-    """
-    n = _n_modes(n_modes)
-    L = _positive(L, "L")
-    r1 = _real_scalar(r1, "r1")
-    r2 = _real_scalar(r2, "r2")
-    rho_A = _positive(rho_A, "rho_A")
-    EI = _positive(EI, "EI")
-    i = np.arange(1, n + 1, dtype=float)
-    omega_i = (i * np.pi / L) ** 2 * math.sqrt(EI / rho_A)
-    F_i = 2 / (rho_A * L) * np.sin(i * np.pi * r1 / L) * np.sin(i * np.pi * r2 / L)
-    return omega_i, F_i
-
-
-def moheimani_at(s, n_modes=30, **beam):
-    """Modal model ``G(s) = sum_{i<=n_modes} F_i / (s^2 + omega_i^2)`` at complex ``s``.
-
-    Parameters
-    ----------
-    s : array_like of complex, any shape
-        Laplace variable in rad/s; ``s = +-1j*omega_i`` are (undamped) poles.
-    n_modes : int, optional
-        Number of modes kept (default 30).
-    **beam
-        Beam parameters ``L, r1, r2, rho_A, EI`` of :func:`moheimani_modes`.
-
-    Returns
-    -------
-    ndarray of complex, shape of ``s``
-        G(s) in m/N (displacement per force).
-    """
-    omega_i, F_i = moheimani_modes(n_modes, **beam)
-    s = np.asarray(s, dtype=complex)
-    return np.sum(F_i / (s[..., None] ** 2 + omega_i ** 2), axis=-1)
-
-
-def _moheimani_grid():
-    return thesis_grid(500, 1.0, 1e4)
-
-
-def moheimani_beam(omega=None, n_modes=30, **beam):
-    """Frequency response of Moheimani's simply-supported beam (SPEC §4, seed 003 §3).
-
-    Parameters
-    ----------
-    omega : array_like of float, shape (M,), optional
-        Frequencies in rad/s, > 0, strictly increasing and not exactly at a mode
-        (default: 500 log-spaced points from 1 to 1e4 rad/s, which miss every mode).
-    n_modes : int, optional
-        Number of modes (default 30).
-    **beam
-        Beam parameters ``L, r1, r2, rho_A, EI`` of :func:`moheimani_modes`.
-
-    Returns
-    -------
-    FrequencyData
-        ``response[i] = G(1j*omega[i])`` (real-valued: the model is undamped), named
-        ``"moheimani_beam"``.
-
-    Raises
-    ------
-    DataError
-        If ``omega`` is invalid or hits a natural frequency (the response is infinite
-        there).
-    """
-    omega = _omega(omega, _moheimani_grid)
-    omega_i, _ = moheimani_modes(n_modes, **beam)
-    close = np.isclose(omega[:, None], omega_i[None, :], rtol=1e-12, atol=0)
-    if close.any():
-        k, i = np.argwhere(close)[0]
-        raise DataError(
-            f"omega[{k}]={omega[k]!r} is the natural frequency omega_{i + 1}={omega_i[i]!r} of "
-            "the undamped beam, where the response is infinite; move that point")
-    return _data(omega, moheimani_at(1j * omega, n_modes, **beam), "moheimani_beam")
-
-
-def moheimani_kopt(n_kept, omega_c, n_modes=30, **beam):
-    """Moheimani's optimal feedthrough term for an ``n_kept``-mode truncation.
-
-    Parameters
-    ----------
-    n_kept : int
-        Number N of modes kept in the truncated model G_r, ``1 <= n_kept < n_modes``.
-    omega_c : float
-        Bandwidth in rad/s, ``0 < omega_c < omega_{N+1}``.
-    n_modes : int, optional
-        Number of modes of the "truth" model (default 30).
-    **beam
-        Beam parameters ``L, r1, r2, rho_A, EI`` of :func:`moheimani_modes`.
-
-    Returns
-    -------
-    float
-        K_opt in m/N; ``G_r(s) + K_opt`` is the corrected truncated model.
-
-    Raises
-    ------
-    OptionError
-        If ``n_kept`` or ``omega_c`` is out of range.
-
-    Notes
-    -----
-    Seed 003 eq. (11), SPEC §4::
-
-        K_opt = 1/(2 omega_c) sum_{i=N+1}^{n_modes} (F_i/omega_i) ln((omega_i + omega_c)
-                                                                    / (omega_i - omega_c)),
-
-    the closed form of ``(1/(2 omega_c)) int_{-omega_c}^{omega_c} Re(G - G_r)(j omega)
-    d omega`` (SPEC §6).
-    """
-    n = _n_modes(n_modes)
-    n_kept = _n_modes(n_kept, "n_kept")
-    if n_kept >= n:
-        raise OptionError(
-            f"n_kept must be < n_modes={n} (no truncated modes otherwise), got {n_kept}")
-    omega_c = _positive(omega_c, "omega_c")
-    omega_i, F_i = moheimani_modes(n, **beam)
-    if omega_c >= omega_i[n_kept]:
-        raise OptionError(
-            f"omega_c={omega_c!r} rad/s must be below the first truncated mode "
-            f"omega_{n_kept + 1}={omega_i[n_kept]!r} rad/s; lower omega_c or keep more modes")
-    wi, Fi = omega_i[n_kept:], F_i[n_kept:]
-    # ln((w + wc)/(w - wc)) = 2 artanh(wc / w), accurate for wc << w
-    return float(np.sum(Fi / wi * 2 * np.arctanh(omega_c / wi)) / (2 * omega_c))
