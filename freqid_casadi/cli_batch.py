@@ -29,7 +29,8 @@ from .cli import _positive_float, _positive_int   # the CLI's own validators
 from .errors import DataError
 from .fit import METHODS
 from .model import BASES
-from .report import _num, check_out_dir, generated_by_line, markdown_table, report_folder
+from .formatting import number as _num
+from .report import check_out_dir, generated_by_line, markdown_table, report_folder
 
 __all__ = ["add_cli", "run_cli", "write_batch_report", "data_files", "BATCH_FILES"]
 
