@@ -22,42 +22,23 @@ register them in :data:`COMMANDS`.
 
 import argparse
 import math
-import warnings
+import os
 import shlex
 import sys
+import warnings
+from functools import partial
 
-from . import systems
 from .data import load
 from .errors import FreqidError, OptionError, ResolutionWarning
+from .examples import EXAMPLES, FRACTIONAL_SECTIONS
 from .fit import METHODS, OBJECTIVES, STARTS, fit
+from .formatting import number, text_table
 from .model import BASES
 from .report import check_out_dir, dense_error, write_fit_report
 
 __all__ = ["main", "build_parser", "EXAMPLES", "FRACTIONAL_SECTIONS", "PROG"]
 
 PROG = "freqid"
-
-#: Number of first-order sections for the 1/sqrt(s) example. The thesis (§4.2, figs
-#: 4.20-4.21) does not state the order of its 1/sqrt(s) model in the text; 10 is our choice:
-#: one real pole/zero pair per decade of the 1e-5..1e5 rad/s grid.
-FRACTIONAL_SECTIONS = 10
-
-#: The built-in examples at the thesis's orders, with its published numbers (Table 4.1,
-#: thesis §4.1; SPEC §5). ``thesis["order"]`` is the order of P_N.
-EXAMPLES = {
-    "A": dict(data=systems.G_A, n_sections=17, integrator=True, delay=True,
-              basis="second-order",
-              thesis=dict(order=34, max_rel_error=0.2549, delay=0.0106, source="thesis")),
-    "B": dict(data=systems.G_B, n_sections=9, integrator=False, delay=True,
-              basis="second-order",
-              thesis=dict(order=18, max_rel_error=0.0027, delay=0.011, source="thesis")),
-    "C": dict(data=systems.G_C, n_sections=27, integrator=True, delay=True,
-              basis="second-order",
-              thesis=dict(order=54, max_rel_error=5.9884, delay=0.0261, source="thesis")),
-    "fractional": dict(data=systems.sqrt_inverse, n_sections=FRACTIONAL_SECTIONS,
-                       integrator=False, delay=False, basis="first-order", thesis=None),
-}
-
 
 class _UsageError(Exception):
     """A command-line usage error (reported as one ``error:`` line, exit code 2)."""
@@ -209,18 +190,65 @@ def _add_ablation(sub):
 
 
 def _cmd_ablation(args, command):
-    from . import ablation
+    from .studies import ablation, ablation_report
 
     check_out_dir(args.out, args.force)              # before the (long) study
     names = args.examples or (list(ablation.QUICK["examples"]) if args.quick
                               else list(EXAMPLES))
-    path, summary = ablation.write_ablation_report(
+    path, summary = ablation_report.write_ablation_report(
         {n: EXAMPLES[n] for n in names}, args.out, command=args.report_command or command,
         quick=args.quick, force=args.force, progress=not args.quiet)
     for line in summary["conclusions"]:
         print(f"- {line}")
     print(f"total time {summary['total_wall_time']:.1f} s")
     print(f"report: {path}")
+    return 0
+
+
+def _add_reproduce(sub):
+    from .studies.reproduce import EXAMPLE_NAMES
+
+    p = sub.add_parser(
+        "reproduce", help="reproduce the thesis's Table 4.1 and figures 4.1-4.21",
+        description="Fit the thesis's examples with our method and the baselines and write "
+                    "a report folder (report.md, report.json, figures).")
+    p.add_argument("--out", default="results/thesis", metavar="DIR",
+                   help="report folder to create (default results/thesis; must not exist "
+                        "unless --force)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing report folder (after the new one is complete)")
+    p.add_argument("--quick", action="store_true",
+                   help="tiny problems (about a minute) to test the report; numbers not "
+                        "comparable with the thesis")
+    p.add_argument("--examples", metavar="LIST",
+                   help=f"comma-separated subset of {','.join(EXAMPLE_NAMES)} (default: all; "
+                        "with --quick: A,fractional,moheimani)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--progress", dest="progress", action="store_true", default=None,
+                   help="log each fit to stderr (default when stderr is a terminal)")
+    g.add_argument("--quiet", dest="progress", action="store_false", help="no progress output")
+    p.add_argument("--report-command", help=argparse.SUPPRESS)
+    return p
+
+
+def _cmd_reproduce(args, command):
+    import logging
+
+    from .studies.reproduce_report import write_reproduce_report
+
+    if _progress(args) and not logging.getLogger().handlers:
+        logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s",
+                            stream=sys.stderr)
+    summary = write_reproduce_report(args.out, command=args.report_command or command,
+                                     force=args.force, quick=args.quick,
+                                     examples=args.examples)
+    table = summary.get("table_4_1") or {}
+    for row in table.get("rows", []):
+        if row["quantity"] == "max_rel_error":
+            cells = ", ".join(f"{c}={number(v)}" for c, v in zip(table["columns"],
+                                                                 row["values"]))
+            print(f"{row['example']}: max rel. error: {cells}")
+    print(f"report: {os.path.abspath(args.out)} ({summary['wall_time']:.0f} s)")
     return 0
 
 
@@ -246,42 +274,32 @@ def _progress(args):
     return sys.stderr.isatty() if args.progress is None else bool(args.progress)
 
 
-def _text_table(rows, headers):
-    rows = [[str(c) for c in r] for r in rows]
-    widths = [max(len(h), *(len(r[j]) for r in rows)) for j, h in enumerate(headers)]
-    fmt = "  ".join(f"{{:<{w}}}" for w in widths)
-    lines = [fmt.format(*headers), fmt.format(*("-" * w for w in widths))]
-    lines += [fmt.format(*r) for r in rows]
-    return "\n".join(line.rstrip() for line in lines)
-
-
-def _g(x, digits=4):
-    return "-" if x is None else f"{x:.{digits}g}"
+# a number in the console tables: "-" when missing
+_g = partial(number, missing="-")
 
 
 def _cmd_example(args, command):
     ex = EXAMPLES[args.name]
     out = args.out or f"freqid_example_{args.name}"
     check_out_dir(out, args.force)                   # before the (long) fit
-    n_sections = args.sections or ex["n_sections"]
-    data = ex["data"]()
+    structure = ex.structure(args.sections)
+    data = ex.data()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ResolutionWarning)   # reported below, one line
-        result = fit(data, n_sections=n_sections, integrator=ex["integrator"],
-                     delay=ex["delay"], basis=ex["basis"], method=args.method,
-                     progress=_progress(args), start=args.start, objective=args.objective)
-    truth = lambda w: ex["data"](omega=w).response  # noqa: E731
+        result = fit(data, **structure, method=args.method, progress=_progress(args),
+                     start=args.start, objective=args.objective)
+    thesis = ex.thesis.as_dict() if ex.thesis is not None else None
     path = write_fit_report(result, out, command=command, force=args.force,
-                            title=f"Example {args.name}: {data.name}", thesis=ex["thesis"],
-                            truth=truth)
-    dense = dense_error(result.model, data.omega, truth)
-    t = ex["thesis"] or {}
-    per = 2 if ex["basis"] == "second-order" else 1
-    row = (args.name, per * n_sections, _g(result.max_rel_error),
+                            title=f"Example {args.name}: {data.name}", thesis=thesis,
+                            truth=ex.truth)
+    dense = dense_error(result.model, data.omega, ex.truth)
+    t = thesis or {}
+    per = 2 if ex.basis == "second-order" else 1
+    row = (args.name, per * structure["n_sections"], _g(result.max_rel_error),
            _g(dense["max_rel_error"]), _g(result.rms_rel_error),
            _g(result.model.delay), f"{result.wall_time:.1f}",
            t.get("order", "-"), _g(t.get("max_rel_error")), _g(t.get("delay")))
-    print(_text_table([row], ("example", "order", "max rel. err", "10x grid",
+    print(text_table([row], ("example", "order", "max rel. err", "10x grid",
                               "RMS rel. err", "delay (s)", "time (s)", "thesis order",
                               "thesis max", "thesis delay")))
     _resolution_warning(result)
@@ -354,10 +372,9 @@ def _cmd_sweep(args, command):
         if name not in ("A", "B", "C"):
             raise OptionError(f"unknown example {name!r} in {args.file!r}; use example:A, "
                               "example:B or example:C")
-        make = {"A": systems.G_A, "B": systems.G_B, "C": systems.G_C}[name]
-        data = make()
-        truth = lambda w: make(w).response  # noqa: E731
-        integrator = integrator or EXAMPLES[name]["integrator"]
+        data = EXAMPLES[name].data()
+        truth = EXAMPLES[name].truth
+        integrator = integrator or EXAMPLES[name].integrator
     else:
         data = load(args.file)
     check_out_dir(args.out, args.force)
@@ -373,7 +390,7 @@ def _cmd_sweep(args, command):
     path = write_sweep_report(result, args.out, command=command, force=args.force)
     rows = [(r.order, _g(r.max_rel_error), _g(r.rms_rel_error), _g(r.max_rel_error_dense),
              _g(r.delay, 6), f"{r.wall_time:.1f}") for r in result.rows]
-    print(_text_table(rows, ("order", "max rel. err", "RMS", "max (10x grid)", "delay (s)",
+    print(text_table(rows, ("order", "max rel. err", "RMS", "max (10x grid)", "delay (s)",
                              "time (s)")))
     if args.target is not None:
         print(f"smallest order with max rel. error <= {args.target:g}: "
@@ -385,6 +402,7 @@ def _cmd_sweep(args, command):
 COMMANDS["example"] = (_add_example, _cmd_example)
 COMMANDS["fit"] = (_add_fit, _cmd_fit)
 COMMANDS["ablation"] = (_add_ablation, _cmd_ablation)
+COMMANDS["reproduce"] = (_add_reproduce, _cmd_reproduce)
 COMMANDS["sweep"] = (_add_sweep, _cmd_sweep)
 
 
@@ -408,7 +426,6 @@ def _plugin(module_name):
 
 
 COMMANDS["frf"] = _plugin("cli_frf")
-COMMANDS["reproduce"] = _plugin("reproduce")
 COMMANDS["batch"] = _plugin("cli_batch")
 
 

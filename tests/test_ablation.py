@@ -1,4 +1,5 @@
-"""Tests of the ablation study (freqid_casadi.ablation, `freqid ablation`, scripts/ablation.py).
+"""Tests of the ablation study (freqid_casadi.studies.ablation and ablation_report,
+`freqid ablation`, scripts/ablation.py).
 
 One quick run (`freqid ablation --quick`, < 1 min) through the CLI: the files, the first line
 of report.md, and every number of its tables against ablation.json. The rest is cheap: the
@@ -6,6 +7,7 @@ time-to-reach rule, failed variants kept in the report, the CLI's errors and the
 command line.
 """
 
+import dataclasses
 import json
 import math
 import os
@@ -18,7 +20,9 @@ matplotlib.use("Agg")
 
 import pytest  # noqa: E402
 
-from freqid_casadi import ablation, cli, report, systems  # noqa: E402
+from freqid_casadi import cli, report, systems  # noqa: E402
+from freqid_casadi.examples import EXAMPLES  # noqa: E402
+from freqid_casadi.studies import ablation, ablation_report  # noqa: E402
 from freqid_casadi.fit import fit  # noqa: E402
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "ablation.py"
@@ -200,17 +204,18 @@ def test_failed_variant_is_reported_not_dropped(small_result, monkeypatch):
         return small_result
 
     monkeypatch.setattr(ablation, "fit", fake_fit)
-    spec = dict(data=small_result.data, n_sections=1, integrator=True, delay=True,
-                basis="second-order")
-    summary, fits = ablation.run_ablation({"A": spec}, quick=True)
-    summary["command"] = "test"
+    spec = dataclasses.replace(EXAMPLES["A"], system=lambda: small_result.data, n_sections=1)
+    result = ablation.run_ablation({"A": spec}, quick=True)
+    fits = result.fits
+    summary = dict(result.as_dict(), command="test")
+    summary["conclusions"] = ablation_report.conclusions(summary)
     rec = {r["key"]: r for r in summary["cases"]["A"]["variants"]}
     assert len(calls) == 3 and set(rec) == {"ipopt", "lm-marquardt", "gauge-b1"}
     assert rec["lm-marquardt"]["status"] == "failed"
     assert rec["lm-marquardt"]["message"] == "RuntimeError: boom second line"
     assert rec["lm-marquardt"]["max_rel_error"] is None
     assert "lm-marquardt" not in fits["A"]
-    md = ablation.render_ablation(summary)
+    md = ablation_report.render_ablation(summary)
     assert "FAILED: RuntimeError: boom second line" in md
     assert any("Failed variants: A barrier-LM" in c for c in summary["conclusions"])
     comp = summary["cases"]["A"]["comparison"][0]
@@ -244,7 +249,7 @@ def test_cli_bad_examples(capsys, tmp_path):
 
 
 def test_cli_refuses_existing_folder(capsys, tmp_path, monkeypatch):
-    monkeypatch.setattr(ablation, "run_ablation", lambda *a, **k: pytest.fail("ran"))
+    monkeypatch.setattr(ablation_report, "run_ablation", lambda *a, **k: pytest.fail("ran"))
     (tmp_path / "x").mkdir()
     code = cli.main(["ablation", "--quick", "--out", str(tmp_path / "x")])
     err = capsys.readouterr().err
