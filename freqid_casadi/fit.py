@@ -8,6 +8,7 @@ one NLP (see :mod:`freqid_casadi.solvers`).
 """
 
 import dataclasses
+import functools
 import math
 import sys
 import time
@@ -19,19 +20,17 @@ import numpy as np
 from .data import FrequencyData
 from .errors import DataError, OptionError, ResolutionWarning, StructureError
 from .model import BASES, RationalDelayModel, Structure
-from .objective import GAUGES, Parametrization, rel_error_stats, stage_functions
+from .objective import Parametrization, rel_error_stats, stage_functions
 from .solvers.common import Status
-from .solvers.ipopt import HESSIANS, solve_least_squares
+from .options import (INITS, LEGACY_KEYWORDS, METHODS, WARM_STARTS, FitOptions, LoopOptions,
+                      legacy_message, solver_options)
+from .solvers.ipopt import solve_least_squares
 
 __all__ = ["fit", "FitResult", "StageRecord", "METHODS", "INITS", "WARM_STARTS", "STARTS",
            "OBJECTIVES", "default_delay_max", "resolution_damping"]
 
-METHODS = ("ipopt", "barrier-lm")
-INITS = ("peak", "identity")
-WARM_STARTS = ("primal-dual", "primal", "none")
 STARTS = ("sequential", "rational", "best")
 OBJECTIVES = ("least-squares", "minimax")
-DERIVATIVES = (None, "affine", "casadi-map")
 
 
 @dataclass(frozen=True)
@@ -118,8 +117,10 @@ class FitResult:
     wall_time : float
         Seconds for the whole fit.
     method : str
-    options : dict
-        The options the fit ran with (for reports).
+        "ipopt" or "barrier-lm" (the type of ``options.solver``).
+    options : FitOptions
+        The options the fit ran with: fit's keywords and the typed ``solver``
+        (IpoptOptions or BarrierLMOptions) and ``loop`` (LoopOptions) objects.
     start : str
         Which start produced the model ("sequential" or "rational").
     objective : str
@@ -128,6 +129,14 @@ class FitResult:
         The model checked against the data's frequency spacing (None for the first-order
         basis, whose real roots are never narrow); when ``resolution.ok`` is False,
         :func:`fit` also issued a :class:`~freqid_casadi.errors.ResolutionWarning`.
+    start_max_rel_errors : dict of str to float
+        Max relative error over all data of the model of each start that ran
+        ("sequential", "rational"), before the minimax polish.
+    delay_max : float
+        Upper bound of the delay used (s): ``LoopOptions.delay_max`` or
+        :func:`default_delay_max` of the data.
+    zeta_min : float or None
+        The damping floor used (``min_damping`` resolved; None without one).
     """
 
     model: RationalDelayModel
@@ -139,14 +148,27 @@ class FitResult:
     success: bool
     wall_time: float
     method: str
-    options: dict = field(default_factory=dict)
+    options: FitOptions = None
     start: str = "sequential"
     objective: str = "least-squares"
     resolution: object = None
+    start_max_rel_errors: dict = field(default_factory=dict)
+    delay_max: float = math.nan
+    zeta_min: float = None
 
     @property
     def delay(self):
         return self.model.delay
+
+    def options_dict(self):
+        """Flat dict of the options (:meth:`FitOptions.as_dict`) with the values the fit
+        used: ``delay_max`` and ``min_damping`` resolved, ``start_max_rel_errors`` and
+        ``start_used``; for reports and JSON."""
+        out = self.options.as_dict() if self.options is not None else {}
+        out.update(delay_max=self.delay_max, min_damping=self.zeta_min,
+                   start_max_rel_errors=dict(self.start_max_rel_errors),
+                   start_used=self.start)
+        return out
 
     @property
     def nit(self):
@@ -202,6 +224,21 @@ def resolution_damping(omega, fraction=1.0):
     return 0.5 * float(fraction) * float(np.median(rel))
 
 
+def _reject_old_keywords(function):
+    """Wrap ``function`` so that a keyword it no longer takes raises a TypeError naming
+    the option object it moved to (:data:`~freqid_casadi.options.LEGACY_KEYWORDS`);
+    ``__wrapped__`` keeps the real signature for :func:`inspect.signature`."""
+
+    @functools.wraps(function)
+    def wrapper(*args, **kwargs):
+        for name in kwargs:
+            if name in LEGACY_KEYWORDS:
+                raise TypeError(legacy_message(function.__name__, name, kwargs[name]))
+        return function(*args, **kwargs)
+
+    return wrapper
+
+
 def _zeta_min(min_damping, omega, method, gauge, basis):
     if min_damping is None:
         return None
@@ -225,8 +262,7 @@ def _zeta_min(min_damping, omega, method, gauge, basis):
     return value
 
 
-def _validate(data, response, n_sections, method, basis, tol, gauge, init, hessian,
-              warm_start, delay_max, integrator, scale_l):
+def _validate(data, response, n_sections, basis, tol, integrator):
     if isinstance(data, FrequencyData):
         if response is not None:
             raise DataError("pass either a FrequencyData or (omega, response), not both")
@@ -239,26 +275,10 @@ def _validate(data, response, n_sections, method, basis, tol, gauge, init, hessi
         raise StructureError(f"n_sections must be a positive integer, got {n_sections!r}")
     if n_sections < 1:
         raise StructureError(f"n_sections must be >= 1, got {n_sections}")
-    if method not in METHODS:
-        raise OptionError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}")
     if basis not in BASES:
         raise OptionError(f"unknown basis {basis!r}; choose one of {', '.join(BASES)}")
-    if gauge not in GAUGES:
-        raise OptionError(f"unknown gauge {gauge!r}; choose one of {', '.join(GAUGES)}")
-    if init not in INITS:
-        raise OptionError(f"unknown init {init!r}; choose one of {', '.join(INITS)}")
-    if hessian not in HESSIANS:
-        raise OptionError(f"unknown hessian {hessian!r}; choose one of {', '.join(HESSIANS)}")
-    if warm_start not in WARM_STARTS:
-        raise OptionError(f"unknown warm_start {warm_start!r}; choose one of "
-                          f"{', '.join(WARM_STARTS)}")
     if tol is not None and not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
         raise OptionError(f"tol must be a number > 0 (a max relative error), got {tol!r}")
-    if delay_max is not None and not (isinstance(delay_max, (int, float))
-                                      and math.isfinite(delay_max) and delay_max > 0):
-        raise OptionError(f"delay_max must be a finite number > 0 (seconds), got {delay_max!r}")
-    if not (isinstance(scale_l, (int, float)) and scale_l >= 1):
-        raise OptionError(f"scale_l must be >= 1, got {scale_l!r}")
     structure = Structure(int(n_sections), integrator, True, basis)
     n_params = structure.n_params
     if data.n_points < n_params:
@@ -269,13 +289,10 @@ def _validate(data, response, n_sections, method, basis, tol, gauge, init, hessi
     return data
 
 
+@_reject_old_keywords
 def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=True,
-        basis="second-order", method="ipopt", tol=None, progress=False, weights=None,
-        gauge="dc", init="peak", scale_l=1.0, hessian="exact",
-        warm_start="primal-dual", scaled=True, delay_max=None, bound_delay=True,
-        final_stage=True, max_iter=100, final_max_iter=200, ipopt_options=None,
-        lm_options=None, start="sequential", objective="least-squares", derivatives=None,
-        min_damping=None):
+        basis="second-order", method="ipopt", tol=None, weights=None, start="sequential",
+        objective="least-squares", min_damping=None, progress=False, loop=None):
     """Fit ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` to frequency-response data.
 
     Parameters
@@ -292,45 +309,16 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
     delay : bool
         Fit a delay h >= 0 (else h = 0).
     basis : {"second-order", "first-order"}
-    method : {"ipopt", "barrier-lm"}
-        IPOPT with true bounds (the package's method) or the thesis's log-barrier +
-        Levenberg-Marquardt (SPEC §3).
+    method : {"ipopt", "barrier-lm"} or IpoptOptions or BarrierLMOptions
+        The stage solver: IPOPT with true bounds (the package's method) or the thesis's
+        log-barrier + Levenberg-Marquardt (SPEC §3). A string means that method's default
+        options; an option object (:mod:`freqid_casadi.options`) selects the method by its
+        type and carries its knobs (Hessian, warm start, iteration limits, extra IPOPT or
+        LM options).
     tol : float, optional
         Stop adding sections once the max relative error over all data is below ``tol``.
-    progress : bool or callable
-        True writes a line per stage to stderr; a callable receives each StageRecord.
     weights : array_like of float, shape (M,), optional
         Weights of the squared relative residuals (overrides ``data.weights``).
-    gauge : {"dc", "b1", "raw"}
-        Parametrization of the sections, see :mod:`freqid_casadi.objective`.
-    init : {"peak", "identity"}
-        New-section initialisation: "peak" places a pole/zero pair at omega_c whose
-        value there reproduces the error peak; "identity" is the thesis's a=b=1,
-        zeta=0.5, omega=omega_c (optionally scaled by ``scale_l``).
-    scale_l : float
-        The thesis's l >= 1 for the identity section (affects only the "raw" gauge).
-    hessian : {"gauss-newton", "exact", "limited-memory"}
-        Hessian used by IPOPT.
-    warm_start : {"primal-dual", "primal", "none"}
-        What a stage takes from the previous stage: the point and the bound multipliers,
-        the point only, or nothing (the stage restarts from the identity-extended initial
-        guess of stage 0's gain with all sections at their insertion values).
-    scaled : bool
-        Scale the variables to about 1 (delay by ``delay_max``, gain by its initial value,
-        section frequencies by their insertion frequency).
-    delay_max : float, optional
-        Upper bound of the delay in seconds. Default :func:`default_delay_max` of the data.
-    bound_delay : bool
-        If False, the delay has no upper bound (for the ablation).
-    final_stage : bool
-        End with a stage on all data (default True).
-    max_iter : int
-        Iteration limit of each intermediate stage (the next stage continues from its
-        point, so a stage stopped at the limit is not a failure of the fit).
-    final_max_iter : int
-        Iteration limit of the final all-data stage, whose status is ``success``.
-    ipopt_options, lm_options : dict, optional
-        Extra options for the stage solver.
     start : {"sequential", "rational", "best"}
         "sequential" is the thesis's main loop; "rational" fits all sections at once by
         vector fitting with the delay refined from the right-half-plane zeros
@@ -342,11 +330,6 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         p-norm of the residuals (p = 4 ... 1024, :data:`PNORM_SCHEDULE`), each stage an
         IPOPT NLP with true bounds; kept only if it lowers the max relative error (and the
         start is below 1).
-    derivatives : {None, "affine", "casadi-map"}
-        How the stage derivatives are evaluated (both exact, same results to rounding):
-        None picks "affine" (numpy over points x sections; "dc" gauge only) or
-        "casadi-map" (CasADi AD of the per-point formula mapped over the points; any
-        gauge, about 3x slower), see :class:`~freqid_casadi.objective.StageFunctions`.
     min_damping : {None, "auto"} or float
         A floor on the damping ratio of every pole and zero, imposed as constraints of each
         stage NLP (``c1^2 >= 4 zeta_min^2 c2`` per quadratic; dc gauge, second-order
@@ -354,7 +337,12 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         (:func:`resolution_damping`): no pole or zero narrower than the local spacing, so
         a pole/zero pair cannot fit noise at one sample and be wrong between samples. For
         noisy data (it biases lightly damped modes narrower than the spacing); the value
-        used is in ``FitResult.options["min_damping"]``.
+        used is ``FitResult.zeta_min``.
+    progress : bool or callable
+        True writes a line per stage to stderr; a callable receives each StageRecord.
+    loop : LoopOptions, optional
+        Knobs of the main loop (gauge, new-section init, scaling, delay bound, final
+        stage, derivative evaluation); default ``LoopOptions()``.
 
     Returns
     -------
@@ -364,16 +352,15 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
     ------
     DataError, StructureError, OptionError
         Bad data or options (checked before any solve).
+    TypeError
+        A keyword fit() no longer takes (``gauge=``, ``hessian=``, ...): the message names
+        the option object and field it moved to.
     """
     with _single_threaded_blas():
         return _fit(data_or_omega, response, n_sections=n_sections, integrator=integrator,
                     delay=delay, basis=basis, method=method, tol=tol, progress=progress,
-                    weights=weights, gauge=gauge, init=init, scale_l=scale_l,
-                    hessian=hessian, warm_start=warm_start, scaled=scaled,
-                    delay_max=delay_max, bound_delay=bound_delay, final_stage=final_stage,
-                    max_iter=max_iter, final_max_iter=final_max_iter,
-                    ipopt_options=ipopt_options, lm_options=lm_options, start=start,
-                    objective=objective, derivatives=derivatives, min_damping=min_damping)
+                    weights=weights, start=start, objective=objective,
+                    min_damping=min_damping, loop=loop)
 
 
 def _single_threaded_blas():
@@ -386,42 +373,37 @@ def _single_threaded_blas():
 
 
 def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, method, tol,
-         progress, weights, gauge, init, scale_l, hessian, warm_start, scaled, delay_max,
-         bound_delay, final_stage, max_iter, final_max_iter, ipopt_options, lm_options,
-         start, objective, derivatives, min_damping):
+         progress, weights, start, objective, min_damping, loop):
     t_start = time.perf_counter()
-    data = _validate(data_or_omega, response, n_sections, method, basis, tol, gauge, init,
-                     hessian, warm_start, delay_max, integrator, scale_l)
+    solver = solver_options(method)
+    loop = LoopOptions() if loop is None else loop
+    if not isinstance(loop, LoopOptions):
+        raise OptionError(f"loop must be a LoopOptions or None, got {type(loop).__name__}; "
+                          "pass loop=LoopOptions(gauge=..., init=..., ...)")
+    data = _validate(data_or_omega, response, n_sections, basis, tol, integrator)
     if start not in STARTS:
         raise OptionError(f"unknown start {start!r}; choose one of {', '.join(STARTS)}")
     if objective not in OBJECTIVES:
         raise OptionError(f"unknown objective {objective!r}; choose one of "
                           f"{', '.join(OBJECTIVES)}")
-    if derivatives not in DERIVATIVES:
-        raise OptionError(f"unknown derivatives {derivatives!r}; choose None, 'affine' or "
-                          "'casadi-map'")
-    if derivatives == "affine" and gauge != "dc":
-        raise OptionError(f"derivatives='affine' needs gauge='dc' (got {gauge!r}); use "
-                          "derivatives='casadi-map' or None")
     if weights is not None:
         data = data.with_weights(weights)
-    zeta_min = _zeta_min(min_damping, data.omega, method, gauge, basis)
-    dmax = float(delay_max) if delay_max is not None else default_delay_max(data.omega)
+    zeta_min = _zeta_min(min_damping, data.omega, solver.method, loop.gauge, basis)
+    dmax = (float(loop.delay_max) if loop.delay_max is not None
+            else default_delay_max(data.omega))
     ctx = _Context(
         data=data, callback=_progress_callback(progress),
-        solve=_StageSolver(method, hessian, max_iter, ipopt_options, lm_options,
-                           warm_start != "none", bound_delay, derivatives, zeta_min),
-        structure=Structure(int(n_sections), integrator, delay, basis), gauge=gauge,
-        scaled=scaled, delay_max=dmax, final_max_iter=final_max_iter, zeta_min=zeta_min)
-    options = dict(n_sections=int(n_sections), integrator=bool(integrator), delay=bool(delay),
-                   basis=basis, method=method, tol=tol, gauge=gauge, init=init,
-                   scale_l=scale_l, hessian=hessian, warm_start=warm_start, scaled=scaled,
-                   delay_max=dmax, bound_delay=bound_delay, final_stage=final_stage,
-                   max_iter=max_iter, final_max_iter=final_max_iter, start=start,
-                   objective=objective, derivatives=derivatives, min_damping=zeta_min)
+        solve=_StageSolver(solver, loop, zeta_min),
+        structure=Structure(int(n_sections), integrator, delay, basis), loop=loop,
+        warm_start=solver.warm_start, delay_max=dmax, final_max_iter=solver.final_max_iter,
+        zeta_min=zeta_min)
+    options = FitOptions(n_sections=int(n_sections), integrator=bool(integrator),
+                         delay=bool(delay), basis=basis, method=solver.method, tol=tol,
+                         start=start, objective=objective, min_damping=min_damping,
+                         solver=solver, loop=loop)
     runs = {}
     if start in ("sequential", "best"):
-        runs["sequential"] = _sequential(ctx, tol, init, scale_l, warm_start, final_stage)
+        runs["sequential"] = _sequential(ctx, tol)
     if start in ("rational", "best"):
         # the delay update of the rational start only sees a delay that is too small (it
         # shows as right-half-plane zeros), so it always starts from h = 0
@@ -434,8 +416,6 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
               for k, (p, z, _, _) in runs.items()}
     won = min(errors, key=lambda k: (errors[k], k != "sequential"))
     param, z, lam, records = runs[won]
-    options["start_max_rel_errors"] = errors
-    options["start_used"] = won
     if objective == "minimax":
         z, rec = _minimax(ctx, param, z)
         records.append(rec)
@@ -457,12 +437,13 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
             "noisy data); inspect FitResult.resolution, refit with min_damping='auto' (a "
             "damping floor from the frequency spacing), remove them with "
             "freqid_casadi.validation.prune_sections, or fit fewer sections",
-            ResolutionWarning, stacklevel=3)
+            ResolutionWarning, stacklevel=4)
     return FitResult(model=model, stages=tuple(records), data=data, rel_error=rel,
                      max_rel_error=mx, rms_rel_error=rms,
                      success=bool(final[-1].success), wall_time=time.perf_counter() - t_start,
-                     method=method, options=options, start=won, objective=objective,
-                     resolution=check)
+                     method=solver.method, options=options, start=won, objective=objective,
+                     resolution=check, start_max_rel_errors=errors, delay_max=dmax,
+                     zeta_min=zeta_min)
 
 
 @dataclass(frozen=True)
@@ -471,22 +452,24 @@ class _Context:
     callback: object
     solve: object
     structure: Structure
-    gauge: str
-    scaled: bool
+    loop: LoopOptions
+    warm_start: str
     delay_max: float
     final_max_iter: int
     zeta_min: object = None
 
 
-def _sequential(ctx, tol, init, scale_l, warm_start, final_stage):
+def _sequential(ctx, tol):
     """The thesis's main loop (SPEC §2). Returns (param, z, lam, records)."""
     data, solve, callback = ctx.data, ctx.solve, ctx.callback
+    init, scale_l, final_stage = ctx.loop.init, ctx.loop.scale_l, ctx.loop.final_stage
+    warm_start = ctx.warm_start
     omega, phi = data.omega, data.response
     m = data.n_points
     st = ctx.structure
     gain0 = abs(phi[0]) * (omega[0] if st.integrator else 1.0)
-    param = Parametrization(st.with_sections(0), ctx.gauge, (), gain0, ctx.delay_max,
-                            ctx.scaled)
+    param = Parametrization(st.with_sections(0), ctx.loop.gauge, (), gain0, ctx.delay_max,
+                            ctx.loop.scaled)
 
     # ---- stage 0: gain and delay on a growing low-frequency window (thesis: 1..5 points)
     z = np.zeros(param.n_vars)
@@ -549,7 +532,7 @@ def _sequential(ctx, tol, init, scale_l, warm_start, final_stage):
         callback(records[-1])
 
     # ---- final stage on all data
-    if final_stage and window < m or records[-1].status == Status.MAX_ITER:
+    if final_stage and (window < m or records[-1].status == Status.MAX_ITER):
         t0 = time.perf_counter()
         res = solve(param, data, z, lam if warm_start == "primal-dual" else None,
                     max_iter=ctx.final_max_iter)
@@ -573,7 +556,8 @@ def _rational(ctx, delay0):
     col = 5 if st.basis == "second-order" else 3
     refs = [float(w) if np.isfinite(w) and w > 0 else float(data.omega[0]) for w in secs[:, col]]
     gain_ref = beta[1] if beta[1] > 0 else 1.0
-    param = Parametrization(st, ctx.gauge, tuple(refs), gain_ref, ctx.delay_max, ctx.scaled)
+    param = Parametrization(st, ctx.loop.gauge, tuple(refs), gain_ref, ctx.delay_max,
+                            ctx.loop.scaled)
     z0 = param.from_beta(beta)
     lb, ub = param.bounds()
     z0 = np.clip(z0, lb, ub)
@@ -763,39 +747,32 @@ def _progress_callback(progress):
 class _StageSolver:
     """Builds the stage's CasADi functions once and calls the chosen solver."""
 
-    def __init__(self, method, hessian, max_iter, ipopt_options, lm_options, warm, bound_delay,
-                 derivatives=None, zeta_min=None):
-        self.derivatives = derivatives
+    def __init__(self, solver, loop, zeta_min=None):
+        self.solver = solver
+        self.loop = loop
         self.zeta_min = zeta_min
-        self.method = method
-        self.hessian = hessian
-        self.max_iter = max_iter
-        self.ipopt_options = ipopt_options
-        self.lm_options = lm_options or {}
-        self.warm = warm
-        self.bound_delay = bound_delay
 
     def __call__(self, param, wdata, x0, lam0, max_iter=None):
         funcs = stage_functions(param, wdata.omega, wdata.response, wdata.weights,
-                                derivatives=self.derivatives)
+                                derivatives=self.loop.derivatives)
         lb, ub = param.bounds()
-        if not self.bound_delay and param.structure.delay:
+        if not self.loop.bound_delay and param.structure.delay:
             ub[0] = np.inf
-        if self.method == "ipopt":
+        opts = self.solver
+        if opts.method == "ipopt":
             cons = None
             if self.zeta_min is not None and param.structure.n_sections:
                 cons = param.damping_constraints(self.zeta_min)
                 x0 = param.project_damping(x0, self.zeta_min)
-            res = solve_least_squares(funcs, x0, lb, ub, lam_x0=lam0,
-                                      hessian=self.hessian,
-                                      max_iter=max_iter or self.max_iter,
-                                      warm_start=self.warm,
-                                      ipopt_options=self.ipopt_options, constraints=cons)
+            res = solve_least_squares(funcs, x0, lb, ub, lam_x0=lam0, hessian=opts.hessian,
+                                      max_iter=max_iter or opts.max_iter,
+                                      warm_start=opts.warm_start != "none",
+                                      ipopt_options=opts.ipopt_dict(), constraints=cons)
             if cons is not None:
                 # IPOPT meets g >= 0 to its tolerance; make the floor exact
                 res = dataclasses.replace(res, x=param.project_damping(res.x, self.zeta_min))
             return res
-        return _solve_barrier_lm(funcs, x0, lb, ub, self.lm_options)
+        return _solve_barrier_lm(funcs, x0, lb, ub, opts.lm_kwargs())
 
 
 def _solve_barrier_lm(funcs, x0, lb, ub, lm_options):

@@ -24,6 +24,7 @@ from freqid_casadi import cli, report, systems  # noqa: E402
 from freqid_casadi.examples import EXAMPLES  # noqa: E402
 from freqid_casadi.studies import ablation, ablation_report  # noqa: E402
 from freqid_casadi.fit import fit  # noqa: E402
+from freqid_casadi.options import BarrierLMOptions, IpoptOptions, LoopOptions  # noqa: E402
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "ablation.py"
 
@@ -199,7 +200,7 @@ def test_failed_variant_is_reported_not_dropped(small_result, monkeypatch):
 
     def fake_fit(data, **kw):
         calls.append(kw)
-        if kw["method"] == "barrier-lm":
+        if kw["method"].method == "barrier-lm":
             raise RuntimeError("boom\nsecond line")
         return small_result
 
@@ -222,20 +223,38 @@ def test_failed_variant_is_reported_not_dropped(small_result, monkeypatch):
     assert comp["error_ratio"] is None and comp["ipopt_time_to_reach"] is None
 
 
+def _changed(opts):
+    """Fields of the variant's option objects that differ from the study's defaults."""
+    out = set()
+    for obj, default in ((opts["loop"], ablation.DEFAULT_LOOP),
+                         (opts["method"], ablation.DEFAULT_IPOPT)):
+        out |= {f.name for f in dataclasses.fields(obj)
+                if getattr(obj, f.name) != getattr(default, f.name)}
+    return out
+
+
 def test_variants_one_factor_at_a_time():
+    # the defaults are the option objects' own, except the stated final_max_iter=500
+    assert dataclasses.replace(ablation.DEFAULT_IPOPT, final_max_iter=200) == IpoptOptions()
+    assert ablation.DEFAULT_IPOPT.final_max_iter == 500
+    assert ablation.DEFAULT_LOOP == LoopOptions()
     full = ablation.variants(delay=True)
-    assert full[0].key == "ipopt" and full[0].fit_options() == ablation.DEFAULT_OPTIONS
+    assert full[0].key == "ipopt" and full[0].fit_options() == {
+        "method": ablation.DEFAULT_IPOPT, "loop": ablation.DEFAULT_LOOP}
     assert len({v.key for v in full}) == len(full)
     for v in full:
         if v.group == "method" or v.key == "init-identity-raw-l2":
             continue
-        changed = {k for k, val in v.fit_options().items()
-                   if ablation.DEFAULT_OPTIONS.get(k) != val}
+        changed = _changed(v.fit_options())
         assert changed <= {"gauge", "scale_l"} if v.group == "gauge" else len(changed) == 1
+    assert _changed(full[-1].fit_options()) == {"bound_delay"}
     assert "delay-unbounded" not in {v.key for v in ablation.variants(delay=False)}
-    lm = {v.key: v.fit_options()["lm_options"] for v in full if v.key.startswith("lm")}
-    assert lm["lm-thesis"]["damping"] == "thesis"
-    assert lm["lm-marquardt"]["damping"] == "marquardt"
+    lm = {v.key: v.fit_options()["method"] for v in full if v.key.startswith("lm")}
+    assert lm["lm-thesis"].damping == "thesis"
+    assert lm["lm-marquardt"].damping == "marquardt"
+    for solver in lm.values():
+        assert isinstance(solver, BarrierLMOptions)
+        assert (solver.max_inner, solver.max_iter, solver.final_max_iter) == (50, 100, 500)
 
 
 # ----------------------------------------------------------------------------- CLI and script

@@ -107,8 +107,8 @@ OMEGA = np.logspace(-1, 2, 30)
 def test_fit_random_small_problems(beta, integrator, method):
     model = fc.RationalDelayModel(fc.Structure(1, integrator, True), beta)
     data = fc.FrequencyData(OMEGA, model.frequency_response(OMEGA), "random")
-    res = fc.fit(data, n_sections=1, integrator=integrator, method=method,
-                 lm_options={"max_inner": 50})
+    solver = (fc.BarrierLMOptions(max_inner=50) if method == "barrier-lm" else method)
+    res = fc.fit(data, n_sections=1, integrator=integrator, method=solver)
     note(f"{res.summary()}; stages {[(r.stage, r.status.name, r.kept) for r in res.stages]}; "
          f"beta {res.model.beta.tolist()!r}")
     beta_fit = res.model.beta

@@ -59,7 +59,7 @@ def test_start_best_is_never_worse_than_sequential():
     best = fc.fit(data, n_sections=2, integrator=True, start="best")
     assert best.max_rel_error <= seq.max_rel_error
     assert best.start in ("sequential", "rational")
-    assert set(best.options["start_max_rel_errors"]) == {"sequential", "rational"}
+    assert set(best.start_max_rel_errors) == {"sequential", "rational"}
 
 
 def test_start_best_on_example_a_prefix():

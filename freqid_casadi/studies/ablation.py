@@ -25,37 +25,49 @@ import os
 import platform
 import sys
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, replace
 
 import numpy as np
 
 from ..errors import OptionError
 from ..fit import fit
 from ..formatting import json_safe
+from ..options import BarrierLMOptions, IpoptOptions, LoopOptions
 
 __all__ = ["Variant", "AblationResult", "variants", "run_ablation", "time_to_reach",
-           "DEFAULT_OPTIONS", "LM_OPTIONS", "QUICK", "NEAR_BOUND", "ABLATION_FORMAT",
-           "ABLATION_VERSION"]
+           "DEFAULT_OPTIONS", "DEFAULT_IPOPT", "DEFAULT_LOOP", "DEFAULT_LM", "LM_OPTIONS",
+           "QUICK", "NEAR_BOUND", "ABLATION_FORMAT", "ABLATION_VERSION"]
 
 ABLATION_FORMAT = "freqid_casadi.ablation_report"
 ABLATION_VERSION = 1
-
-#: The IPOPT default every ablation starts from: the defaults of :func:`~freqid_casadi.fit.fit`
-#: except ``final_max_iter=500`` (fit: 200), an explicit choice. The final all-data stage
-#: runs into its iteration cap in nearly every variant (results/ablation/ablation.json: every
-#: IPOPT variant of A, C and the fractional example stops at Maximum_Iterations_Exceeded), so
-#: the final errors compare how far each variant gets within a fixed budget; 2.5x fit's
-#: budget lets the ablated option, more than the cap, set the ranking, and keeps the
-#: published numbers of results/ablation comparable with earlier runs.
-DEFAULT_OPTIONS = dict(method="ipopt", gauge="dc", init="peak", scale_l=1.0, hessian="exact",
-                       warm_start="primal-dual", scaled=True, bound_delay=True,
-                       max_iter=100, final_max_iter=500)
 
 #: Options of the barrier-LM stage solver besides the damping (the caps of the run):
 #: ``max_inner`` = k_max, trial steps per inner LM solve (the solver's default is 500; 50
 #: keeps the 27-section example C at a few minutes per variant on 2 cores); the outer loop
 #: runs t = 1, 20, 400, ... <= 1e12 (10 barrier problems per stage, thesis code).
 LM_OPTIONS = dict(max_inner=50, t0=1.0, t_factor=20.0, t_max=1e12)
+
+#: The stage-solver options every variant starts from: the defaults of the option objects
+#: (:class:`~freqid_casadi.options.IpoptOptions`, :class:`~freqid_casadi.options.LoopOptions`)
+#: except ``final_max_iter=500`` (fit: 200), an explicit choice. The final all-data stage
+#: runs into its iteration cap in nearly every variant (results/ablation/ablation.json: every
+#: IPOPT variant of A, C and the fractional example stops at Maximum_Iterations_Exceeded), so
+#: the final errors compare how far each variant gets within a fixed budget; 2.5x fit's
+#: budget lets the ablated option, more than the cap, set the ranking, and keeps the
+#: published numbers of results/ablation unchanged. The barrier-LM variants share the same
+#: stage limits (as they did when fit took flat keywords).
+DEFAULT_IPOPT = replace(IpoptOptions(), final_max_iter=500)
+DEFAULT_LOOP = LoopOptions()
+DEFAULT_LM = replace(BarrierLMOptions(), warm_start=DEFAULT_IPOPT.warm_start,
+                     max_iter=DEFAULT_IPOPT.max_iter,
+                     final_max_iter=DEFAULT_IPOPT.final_max_iter, **LM_OPTIONS)
+
+#: The default as the report states it (one flat dict, ``settings.default`` of ablation.json).
+DEFAULT_OPTIONS = dict(method="ipopt", gauge=DEFAULT_LOOP.gauge, init=DEFAULT_LOOP.init,
+                       scale_l=DEFAULT_LOOP.scale_l, hessian=DEFAULT_IPOPT.hessian,
+                       warm_start=DEFAULT_IPOPT.warm_start, scaled=DEFAULT_LOOP.scaled,
+                       bound_delay=DEFAULT_LOOP.bound_delay, max_iter=DEFAULT_IPOPT.max_iter,
+                       final_max_iter=DEFAULT_IPOPT.final_max_iter)
 
 #: The reduced problem of ``quick=True``: each example windowed to its first ``n_points``
 #: points, with ``n_sections`` sections (at most its own number), and the barrier-LM's
@@ -87,8 +99,8 @@ class Variant:
     label : str
         How the report names it.
     options : dict
-        Keyword arguments of :func:`~freqid_casadi.fit.fit` that differ from
-        :data:`DEFAULT_OPTIONS`.
+        What differs from the default: fields of LoopOptions or IpoptOptions by name, or
+        ``method="barrier-lm"`` with ``lm_options`` (fields of BarrierLMOptions).
     note : str
         Remark printed under the table (empty if none).
     """
@@ -100,10 +112,19 @@ class Variant:
     note: str = ""
 
     def fit_options(self):
-        """:data:`DEFAULT_OPTIONS` updated with this variant's options (a new dict)."""
-        opts = dict(DEFAULT_OPTIONS)
-        opts.update(self.options)
-        return opts
+        """``{"method": solver options, "loop": LoopOptions}`` for :func:`~freqid_casadi.fit.fit`:
+        :data:`DEFAULT_IPOPT` (or :data:`DEFAULT_LM`) and :data:`DEFAULT_LOOP` with this
+        variant's changes (``dataclasses.replace``)."""
+        changes = dict(self.options)
+        loop = replace(DEFAULT_LOOP, **{k: changes.pop(k) for k in list(changes)
+                                        if k in _LOOP_FIELDS})
+        if changes.pop("method", "ipopt") == "barrier-lm":
+            return {"method": replace(DEFAULT_LM, **changes.pop("lm_options", {}), **changes),
+                    "loop": loop}
+        return {"method": replace(DEFAULT_IPOPT, **changes), "loop": loop}
+
+
+_LOOP_FIELDS = {f.name for f in fields(LoopOptions)}
 
 
 @dataclass(frozen=True, eq=False)
@@ -242,7 +263,7 @@ def _near_bound(result):
     if not st.delay:
         free[0] = False
     out = [names[i] for i in np.flatnonzero(free & (beta <= NEAR_BOUND))]
-    dmax = (result.options or {}).get("delay_max")
+    dmax = result.delay_max
     if st.delay and dmax and beta[0] >= (1.0 - NEAR_BOUND) * dmax:
         out.append("delay (upper bound)" if beta[0] <= dmax else "delay (above delay_max)")
     return out
@@ -261,13 +282,12 @@ def _ratio(a, b):
 
 def _run_variant(data, spec, variant):
     """Fit one variant; a dict record (status "ok" or "failed") and the FitResult or None."""
-    opts = variant.fit_options()
     rec = {"key": variant.key, "group": variant.group, "label": variant.label,
            "options": dict(variant.options), "note": variant.note}
     t0 = time.perf_counter()
     try:
         result = fit(data, n_sections=spec["n_sections"], integrator=spec["integrator"],
-                     delay=spec["delay"], basis=spec["basis"], **opts)
+                     delay=spec["delay"], basis=spec["basis"], **variant.fit_options())
     except Exception as exc:           # noqa: BLE001 - reported as a failed variant
         rec.update(dict.fromkeys(_RECORD_KEYS), status="failed",
                    message=" ".join(f"{type(exc).__name__}: {exc}".split()),
@@ -297,7 +317,7 @@ def _run_variant(data, spec, variant):
         near_bound=near,
         n_active_final=int(result.stages[-1].n_active),
         delay=float(result.model.delay),
-        delay_max=float(result.options.get("delay_max", math.nan)),
+        delay_max=float(result.delay_max),
         n_failed_stages=len(bad),
         failed_stages=bad,
         n_max_iter_stages=len(limit),

@@ -25,6 +25,7 @@ from ..errors import FreqidError, OptionError
 from ..examples import EXAMPLES, FRACTIONAL_SECTIONS, TABLE_4_1
 from ..fit import fit
 from ..model import RationalDelayModel, Structure
+from ..options import BarrierLMOptions
 
 __all__ = ["run_reproduction", "Reproduction", "RationalExample", "FractionalStudy",
            "MoheimaniStudy", "parse_examples", "EXAMPLE_NAMES", "THESIS_TABLE_4_1",
@@ -313,7 +314,7 @@ def _run_barrier_lm(key, cfg, lm_gate, data, n_sections, integrator):
     log.info("%s: fit with barrier-LM (limit %.0f s)", key, limit)
     lm, elapsed, last = _fit_time_limited(
         data, limit, n_sections=n_sections, integrator=integrator, delay=True,
-        method="barrier-lm", lm_options=dict(BARRIER_LM_OPTIONS))
+        method=BarrierLMOptions(**BARRIER_LM_OPTIONS))
     if lm is not None:
         entry, rel = _entry(lm.model, data, lm.wall_time, delay_fitted=True,
                             extra={"success": bool(lm.success), "nit": lm.nit,
