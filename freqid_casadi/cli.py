@@ -119,6 +119,19 @@ def _common(p, *, out_required):
                    help="no progress output")
 
 
+def _add_model_arguments(p, tol=True):
+    """--integrator, --no-delay, --basis (and --tol): the model structure of a fit (used
+    by the fit, sweep and batch commands)."""
+    p.add_argument("--integrator", action="store_true", help="include the factor K0/s")
+    p.add_argument("--no-delay", dest="delay", action="store_false",
+                   help="fix the delay h at 0")
+    p.add_argument("--basis", choices=BASES, default="second-order",
+                   help="section type (default second-order)")
+    if tol:
+        p.add_argument("--tol", type=_positive_float, metavar="X",
+                       help="stop adding sections once the max relative error is below X")
+
+
 def _add_example(sub):
     p = sub.add_parser("example", help="fit a built-in example at the thesis's order",
                        description="Fit one of the thesis's examples (A, B, C: beams and "
@@ -141,13 +154,7 @@ def _add_fit(sub):
     p.add_argument("file", metavar="FILE", help="data file (.csv or .npz)")
     p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
                    help="number of sections N >= 1")
-    p.add_argument("--integrator", action="store_true", help="include the factor K0/s")
-    p.add_argument("--no-delay", dest="delay", action="store_false",
-                   help="fix the delay h at 0")
-    p.add_argument("--basis", choices=BASES, default="second-order",
-                   help="section type (default second-order)")
-    p.add_argument("--tol", type=_positive_float, metavar="X",
-                   help="stop adding sections once the max relative error is below X")
+    _add_model_arguments(p)
     p.add_argument("--min-damping", type=_min_damping, metavar="auto|ZETA",
                    help="floor on the damping ratio of every pole and zero; 'auto' ties it "
                         "to the frequency spacing (for noisy data: no pole/zero pair "
@@ -348,10 +355,7 @@ def _add_sweep(sub):
                    help="orders of P_N, e.g. 4:40:2 (stop included) or 10,20,34")
     p.add_argument("--target", type=_positive_float, metavar="X",
                    help="name the smallest order whose max relative error is <= X")
-    p.add_argument("--integrator", action="store_true", help="include the factor K0/s")
-    p.add_argument("--no-delay", dest="delay", action="store_false",
-                   help="fix the delay h at 0")
-    p.add_argument("--basis", choices=BASES, default="second-order")
+    _add_model_arguments(p, tol=False)
     p.add_argument("--method", choices=METHODS, default="ipopt")
     p.add_argument("--start", choices=STARTS, default="best")
     p.add_argument("--out", required=True, metavar="DIR")

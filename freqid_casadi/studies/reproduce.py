@@ -106,10 +106,6 @@ def _config(quick):
                    1024, BARRIER_LM_TIME_LIMIT, BARRIER_LM_TIME_CAP)
 
 
-_SYSTEMS = {k: EXAMPLES[k].system for k in ("A", "B", "C")}
-_TRUE_DELAY = {k: EXAMPLES[k].true_delay for k in ("A", "B", "C")}
-
-
 # ----------------------------------------------------------------------------- helpers
 
 
@@ -167,10 +163,9 @@ def _fit_time_limited(data, limit, **kw):
         return None, time.perf_counter() - t0, stages[-1]
 
 
-def _timed(fun, *args, **kw):
+def _timed(fun):
     t0 = time.perf_counter()
-    out = fun(*args, **kw)
-    return out, time.perf_counter() - t0
+    return fun(), time.perf_counter() - t0
 
 
 def _p_n(model):
@@ -179,9 +174,6 @@ def _p_n(model):
     beta = np.concatenate([[0.0, 1.0], model.beta[2:]])
     return RationalDelayModel(Structure(st.n_sections, False, False, st.basis), beta)
 
-
-
-# ----------------------------------------------------------------------------- results
 
 
 @dataclass(frozen=True, eq=False)
@@ -247,8 +239,7 @@ class Reproduction:
         The barrier-LM's options and its time limits (s).
     examples : dict
         ``{"A": RationalExample, ...}`` for the examples of Table 4.1 that were run.
-    fractional : FractionalStudy or None
-    moheimani : MoheimaniStudy or None
+    fractional, moheimani : FractionalStudy or MoheimaniStudy, or None
     """
 
     quick: bool
@@ -267,14 +258,14 @@ def _run_rational(key, cfg, lm_gate):
 
     ``lm_gate`` (a dict shared by the examples) holds ``"skip"``: why barrier-LM is not run
     (set when the fit of A exceeds ``cfg.lm_time_limit``), or None."""
-    data = _SYSTEMS[key]()
+    data = EXAMPLES[key].data()
     if cfg.window < data.n_points:
         data = data.window(cfg.window)
     n_sections, integrator = cfg.sections[key]
     out = {"data": {"name": data.name, "n_points": int(data.n_points),
                     "omega_min": float(data.omega[0]), "omega_max": float(data.omega[-1])},
            "n_sections": n_sections, "integrator": integrator,
-           "order_p_n": 2 * n_sections, "true_delay": _TRUE_DELAY[key],
+           "order_p_n": 2 * n_sections, "true_delay": EXAMPLES[key].true_delay,
            "thesis": THESIS_TABLE_4_1[key], "methods": {}}
     curves = {"omega": data.omega, "rel_error": {}}
     models = {}
@@ -496,7 +487,7 @@ def run_reproduction(examples=None, *, quick=False):
     names = parse_examples(examples, quick)
     cfg = _config(quick)
     lm_gate = {"skip": None}
-    rational = {key: _run_rational(key, cfg, lm_gate) for key in names if key in _SYSTEMS}
+    rational = {key: _run_rational(key, cfg, lm_gate) for key in names if key in ORDERS}
     return Reproduction(
         quick=bool(quick), examples_run=names,
         barrier_lm={"options": dict(BARRIER_LM_OPTIONS), "time_limit_A": cfg.lm_time_limit,

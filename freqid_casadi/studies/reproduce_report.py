@@ -213,13 +213,12 @@ def _example_lines(k, v, figures):
         if fname in figures:
             tf = _THESIS_FIGS.get((k, fig))
             note = _FIGURE_NOTES[fig] + (f" (thesis fig. {tf})" if tf else "")
-            lines += [f"![{note}]({fname})", "", f"*{fname}: {note}.*", ""]
+            lines += _figure_lines(fname, note, note)
     return lines
 
 
 def _fractional_lines(f):
-    lines = []
-    lines += ["## 1/√s (thesis §4.2, figs 4.20–4.21)", "",
+    lines = ["## 1/√s (thesis §4.2, figs 4.20–4.21)", "",
               f"Data: 1/√s on {f['data']['n_points']} points, "
               f"{number(f['data']['omega_min'])} to "
               f"{number(f['data']['omega_max'])} rad/s. Ours: {f['n_sections']} "
@@ -233,19 +232,21 @@ def _fractional_lines(f):
               number(e["wall_time"])] for label, e in f["methods"].items()]
     lines += [markdown_table(frows, ["method", "poles", "max E(jω)",
                                      "max rel. error (open loop)", "minimum phase",
-                                     "wall time (s)"], "lrrrlr"), "",
-              "![1/√s and its approximations](fractional_bode.png)", "",
-              "*fractional_bode.png: 1/√s and the approximations (thesis fig. 4.20).*",
-              "",
-              "![closed-loop error](fractional_closed_loop_error.png)", "",
-              "*fractional_closed_loop_error.png: E(jω) for each method "
-              "(thesis fig. 4.21).*", ""]
+                                     "wall time (s)"], "lrrrlr"), ""]
+    lines += _figure_lines("fractional_bode.png", "1/√s and its approximations",
+                           "1/√s and the approximations (thesis fig. 4.20)")
+    lines += _figure_lines("fractional_closed_loop_error.png", "closed-loop error",
+                           "E(jω) for each method (thesis fig. 4.21)")
     return lines
 
 
+def _figure_lines(fname, alt, caption):
+    """A figure of report.md and its caption line."""
+    return [f"![{alt}]({fname})", "", f"*{fname}: {caption}.*", ""]
+
+
 def _moheimani_lines(m):
-    lines = []
-    lines += ["## Moheimani's beam with and without K_opt", "",
+    lines = ["## Moheimani's beam with and without K_opt", "",
               f"{m['n_modes']}-mode simply-supported beam as the truth, "
               f"{m['n_kept']}-mode truncation G_r, ω_c = {number(m['omega_c'])} rad/s "
               "(SPEC §4).", "",
@@ -261,11 +262,11 @@ def _moheimani_lines(m):
                    number(m["rms_abs_error_in_band_without_k"])],
                   ["RMS |G − G_r − K_opt| for ω ≤ ω_c (m/N)",
                    number(m["rms_abs_error_in_band_with_k"])]],
-                  ["quantity", "value"], "lr"), "",
-              "![beam](moheimani_bode.png)", "",
-              "*moheimani_bode.png: magnitude of the truth, G_r and G_r + K_opt.*", "",
-              "![beam error](moheimani_error.png)", "",
-              "*moheimani_error.png: |G − G_r| with and without K_opt.*", ""]
+                  ["quantity", "value"], "lr"), ""]
+    lines += _figure_lines("moheimani_bode.png", "beam",
+                           "magnitude of the truth, G_r and G_r + K_opt")
+    lines += _figure_lines("moheimani_error.png", "beam error",
+                           "|G − G_r| with and without K_opt")
     return lines
 
 

@@ -224,7 +224,7 @@ def G_B(omega=None, *, E=5.0, I=1.0, c_d=0.01, L=5.5):  # noqa: E741
     Parameters
     ----------
     omega : array_like of float, shape (M,), optional
-        Frequencies in rad/s, > 0 and strictly increasing (default: :func:`thesis_grid`).
+        Frequencies as in :func:`G_A` (rad/s; default :func:`thesis_grid`).
     E, I, c_d, L : float, optional
         Beam parameters; see :func:`G_B_at`.
 
@@ -235,10 +235,8 @@ def G_B(omega=None, *, E=5.0, I=1.0, c_d=0.01, L=5.5):  # noqa: E741
 
     Raises
     ------
-    DataError
-        If ``omega`` is not a valid frequency vector.
-    OptionError
-        If a parameter is out of range.
+    DataError, OptionError
+        As :func:`G_A`: an invalid ``omega``; a parameter of :func:`G_B_at` out of range.
     """
     omega = _omega(omega, thesis_grid)
     return _data(omega, G_B_at(1j * omega, E=E, I=I, c_d=c_d, L=L), "G_B")
@@ -298,7 +296,7 @@ def G_C(omega=None, *, lam=0.5, tau=0.0525, c=0.2, G=0.4, I_p=2.5, eps=0.001):
     Parameters
     ----------
     omega : array_like of float, shape (M,), optional
-        Frequencies in rad/s, > 0 and strictly increasing (default: :func:`thesis_grid`).
+        Frequencies as in :func:`G_A` (rad/s; default :func:`thesis_grid`).
     lam, tau, c, G, I_p, eps : float, optional
         Rod parameters; see :func:`G_C_at`.
 
@@ -309,10 +307,8 @@ def G_C(omega=None, *, lam=0.5, tau=0.0525, c=0.2, G=0.4, I_p=2.5, eps=0.001):
 
     Raises
     ------
-    DataError
-        If ``omega`` is not a valid frequency vector.
-    OptionError
-        If a parameter is out of range.
+    DataError, OptionError
+        As :func:`G_A`: an invalid ``omega``; a parameter of :func:`G_C_at` out of range.
     """
     omega = _omega(omega, thesis_grid)
     resp = G_C_at(1j * omega, lam=lam, tau=tau, c=c, G=G, I_p=I_p, eps=eps)

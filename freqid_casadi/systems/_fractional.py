@@ -59,8 +59,7 @@ def G_D(omega=None):
     Parameters
     ----------
     omega : array_like of float, shape (M,), optional
-        Frequencies in rad/s, > 0 and strictly increasing (default: 500 log-spaced points
-        from 1e-5 to 1e5 rad/s).
+        Frequencies as in :func:`sqrt_inverse` (rad/s; default 1e-5 to 1e5 rad/s).
 
     Returns
     -------
@@ -70,7 +69,7 @@ def G_D(omega=None):
     Raises
     ------
     DataError
-        If ``omega`` is not a valid frequency vector.
+        As :func:`sqrt_inverse`, for an invalid ``omega``.
     """
     omega = _omega(omega, _fractional_grid)
     return _data(omega, G_D_at(1j * omega), "G_D")
