@@ -21,6 +21,7 @@ import numpy as np
 from . import _cplx
 from ._io import atomic_write_text
 from .errors import DataError, StructureError
+from .metrics import relative_error
 
 __all__ = ["Structure", "RationalDelayModel", "section_response", "BASES", "FORMAT_VERSION"]
 
@@ -237,7 +238,7 @@ class RationalDelayModel:
 
     def relative_error(self, data):
         """|(Phi - G_N)/G_N| at the data points, shape (M,)."""
-        return np.abs(data.response / self.frequency_response(data.omega) - 1.0)
+        return relative_error(self, data).values
 
     # ------------------------------------------------------------------ poles / zeros
     def _factor_roots(self, which):

@@ -41,6 +41,7 @@ import numpy as np
 
 from . import _cplx
 from .errors import OptionError, StructureError
+from .metrics import error_stats
 from .model import RationalDelayModel, Structure
 
 __all__ = ["GAUGES", "Parametrization", "relative_residual", "rel_error_stats",
@@ -55,9 +56,9 @@ def relative_residual(model, omega, response):
 
 
 def rel_error_stats(rel_error):
-    """(max, rms) of an array of |relative error| values."""
-    rel_error = np.asarray(rel_error, float)
-    return float(np.max(rel_error)), float(np.sqrt(np.mean(rel_error ** 2)))
+    """(max, rms) of an array of |relative error| values (:func:`~freqid_casadi.metrics.error_stats`)."""
+    stats = error_stats(rel_error)
+    return stats.max, stats.rms
 
 
 @dataclass(frozen=True)

@@ -10,9 +10,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .data import FrequencyData
+from .data import FrequencyData, dense_grid
 from .errors import OptionError
 from .fit import fit
+from .metrics import relative_error
 
 __all__ = ["SweepRow", "SweepResult", "sweep", "parse_orders"]
 
@@ -119,14 +120,12 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
                               "use even orders or basis='first-order'")
     dense = None
     if truth is not None:
-        from .validation import dense_grid   # lazy: validation builds on fit
-
         dense = dense_grid(data.omega, dense_factor)
         g_dense = truth(dense)
     rows = []
     for o in orders:
         res = fit(data, n_sections=o // per, **fit_options)
-        dense_err = (float(np.max(np.abs(g_dense / res.model.frequency_response(dense) - 1)))
+        dense_err = (relative_error(res.model, dense, g_dense).max
                      if dense is not None else float("nan"))
         row = SweepRow(order=o, n_sections=o // per, max_rel_error=res.max_rel_error,
                        rms_rel_error=res.rms_rel_error, max_rel_error_dense=dense_err,

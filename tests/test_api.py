@@ -117,11 +117,11 @@ def test_no_star_imports():
 # ------------------------------------------------------------------ layer map (STYLE.md §2)
 LAYERS = {
     "errors": 0, "_cplx": 0, "_io": 0,
-    "data": 1, "experiment": 1, "model": 1, "systems": 1, "options": 1,
-    "objective": 2,
+    "data": 1, "experiment": 1, "model": 1, "systems": 1, "options": 1, "metrics": 1,
+    "objective": 2, "resolution": 2,
     "solvers": 3,
-    "fit": 4, "baselines": 4, "uncertainty": 4, "start": 4, "sweep": 4, "validation": 4,
-    "batch": 4,
+    "stages": 4, "start": 4, "baselines": 4, "uncertainty": 4, "mainloop": 4,
+    "fit": 5, "validation": 5, "sweep": 5, "batch": 5,
     "report": 5, "plots": 5, "ablation": 5, "reproduce": 5,
     "cli": 6, "__main__": 6, "cli_frf": 6, "cli_batch": 6,
     "formatting": 0, "examples": 1, "studies": 6,

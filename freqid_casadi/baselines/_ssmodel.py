@@ -16,6 +16,7 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import DataError, OptionError, StructureError
+from ..metrics import relative_error
 
 __all__ = ["StateSpaceModel", "count_rhp"]
 
@@ -167,7 +168,7 @@ class StateSpaceModel:
 
     def relative_error(self, data):
         """``|(Phi - G)/G|`` at the data points, shape (M,) (SPEC §1)."""
-        return np.abs(data.response / self.frequency_response(data.omega) - 1.0)
+        return relative_error(self, data).values
 
     # ------------------------------------------------------------------ poles / zeros
     def poles(self):

@@ -1,8 +1,12 @@
-"""Result type and small kernels shared by the stage solvers (layer L3).
+"""The stage-solver contract and small kernels shared by the stage solvers (layer L3).
 
-Solvers return a frozen :class:`StageResult` whose field names follow scipy's
-``OptimizeResult``; ``status`` is a :class:`Status` and :data:`TERMINATION_MESSAGES` maps it
-to text, as scipy's ``least_squares`` does.
+Both stage solvers (:func:`~freqid_casadi.solvers.ipopt.solve_stage`, IPOPT with true
+bounds, and :func:`~freqid_casadi.solvers.barrier_lm.solve_stage_lm`, the thesis's
+barrier + LM) take a frozen :class:`StageProblem` of numpy callables and a start, reject an
+infeasible start with :class:`InfeasibleStartError` (:func:`check_start`), and return a
+frozen :class:`StageResult` whose field names follow scipy's ``OptimizeResult``; ``status``
+is a :class:`Status`, :data:`TERMINATION_MESSAGES` maps it to text, as scipy's
+``least_squares`` does, and :func:`is_success` is the one success rule.
 """
 
 import enum
@@ -10,7 +14,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Status", "TERMINATION_MESSAGES", "StageResult", "find_active_constraints"]
+from ..errors import DataError, SolverError
+
+__all__ = ["Status", "TERMINATION_MESSAGES", "SUCCESS_STATUSES", "StageResult",
+           "StageProblem", "InfeasibleStartError", "check_start", "is_success",
+           "find_active_constraints"]
 
 
 class Status(enum.IntEnum):
@@ -35,8 +43,169 @@ TERMINATION_MESSAGES = {
     Status.COST_TOL: "converged: cost below its tolerance",
 }
 
+#: The statuses that count as success (:func:`is_success`), for every stage solver.
 SUCCESS_STATUSES = frozenset({Status.CONVERGED, Status.ACCEPTABLE, Status.SMALL_STEP,
                               Status.COST_TOL})
+
+
+def is_success(status):
+    """The one success rule of the stage solvers: ``status`` in :data:`SUCCESS_STATUSES`.
+
+    Parameters
+    ----------
+    status : Status
+
+    Returns
+    -------
+    bool
+    """
+    return Status(status) in SUCCESS_STATUSES
+
+
+class InfeasibleStartError(SolverError, DataError):
+    """A stage solver was started outside its bounds (or, for the barrier method, on a
+    bound). Also a DataError: the start is bad input to the solver."""
+
+
+def check_start(x0, lb, ub, *, strict=False):
+    """Check a start against its bounds.
+
+    Parameters
+    ----------
+    x0 : array_like of float, shape (n,)
+    lb, ub : float or array_like of float, shape (n,)
+        Bounds (``-inf``/``inf`` for none).
+    strict : bool
+        Require ``lb < x0`` where ``lb < ub`` (a barrier method's interior start).
+
+    Returns
+    -------
+    x0, lb, ub : ndarray of float, shape (n,)
+
+    Raises
+    ------
+    DataError
+        ``x0`` empty, not 1-D or not finite; bounds of another shape or NaN.
+    InfeasibleStartError
+        A component outside ``[lb, ub]`` (or on a lower bound with ``strict``).
+    """
+    try:
+        x = np.array(x0, dtype=float).reshape(-1) if np.ndim(x0) <= 1 else None
+    except (TypeError, ValueError):
+        x = None
+    if x is None or x.size == 0:
+        raise DataError(f"x0 must be a non-empty real 1-D array, got {x0!r}")
+    if not np.all(np.isfinite(x)):
+        i = int(np.flatnonzero(~np.isfinite(x))[0])
+        raise DataError(f"x0 must be finite: x0[{i}]={x[i]}; give a finite starting point")
+    try:
+        lbv = np.array(np.broadcast_to(np.asarray(lb, float), x.shape))
+        ubv = np.array(np.broadcast_to(np.asarray(ub, float), x.shape))
+    except (TypeError, ValueError):
+        raise DataError(f"lb and ub must be scalars or arrays of shape {x.shape}, got "
+                        f"{np.shape(lb)} and {np.shape(ub)}") from None
+    bad = np.flatnonzero(np.isnan(lbv) | np.isnan(ubv) | (lbv > ubv) | (lbv == np.inf)
+                         | (ubv == -np.inf))
+    if bad.size:
+        i = int(bad[0])
+        raise DataError(f"bounds lb[{i}]={lbv[i]}, ub[{i}]={ubv[i]} are not valid: they must "
+                        "not be NaN and lb <= ub, lb < inf, ub > -inf; use -inf/inf for no "
+                        "bound")
+    low = (x <= lbv) & (lbv < ubv) if strict else x < lbv
+    bad = np.flatnonzero(low | (x > ubv))
+    if bad.size:
+        i = int(bad[0])
+        raise InfeasibleStartError(
+            f"the start is infeasible: x0[{i}]={x[i]:g} with bounds [{lbv[i]:g}, {ubv[i]:g}]"
+            + ("; the barrier method needs a start strictly above lb" if strict else "")
+            + f"; move x0[{i}] inside (e.g. np.clip(x0, lb, ub)"
+            + (" plus a small margin above lb)" if strict else ")"))
+    return x, lbv, ubv
+
+
+@dataclass(frozen=True, eq=False)
+class StageProblem:
+    """A stage's least-squares problem ``min ||r(z)||^2, lb <= z <= ub [, g(z) >= 0]``
+    as numpy callables: what both stage solvers accept.
+
+    Attributes
+    ----------
+    residual : callable ``residual(z) -> ndarray of float, shape (m,)``
+        Real residual ``r`` (complex residuals stacked as ``[Re; Im]``).
+    jacobian : callable ``jacobian(z) -> ndarray of float, shape (m, n)``
+        ``dr/dz``.
+    lb, ub : ndarray of float, shape (n,)
+        Bounds (``-inf``/``inf`` for none; ``lb == ub`` fixes a variable).
+    gradient : callable ``gradient(z) -> (cost, ndarray shape (n,))``, optional
+        Cost ``r.r`` and its gradient ``2 J^T r``; default from ``residual``/``jacobian``.
+    hessian : callable ``hessian(z, exact=True) -> ndarray shape (n, n)``, optional
+        Hessian of the cost (``exact=False``: Gauss-Newton ``2 J^T J``); default
+        Gauss-Newton from ``jacobian``.
+    cost : callable ``cost(z) -> float``, optional
+        ``r.r``; default from ``residual``.
+    constraints : callable, optional
+        ``g(z) >= 0`` on a CasADi vector (IPOPT only; e.g. the damping floor).
+    casadi_residual : casadi.Function, optional
+        ``r`` as a CasADi Function: IPOPT then builds its objective from it; else the
+        objective is a callback of ``cost``.
+    """
+
+    residual: object
+    jacobian: object
+    lb: np.ndarray
+    ub: np.ndarray
+    gradient: object = None
+    hessian: object = None
+    cost: object = None
+    constraints: object = None
+    casadi_residual: object = None
+
+    def __post_init__(self):
+        for name in ("residual", "jacobian"):
+            if not callable(getattr(self, name)):
+                raise DataError(f"StageProblem.{name} must be callable, got "
+                                f"{type(getattr(self, name)).__name__}")
+        lb = np.array(self.lb, float).reshape(-1)
+        ub = np.array(np.broadcast_to(np.asarray(self.ub, float), lb.shape))
+        object.__setattr__(self, "lb", lb)
+        object.__setattr__(self, "ub", ub)
+
+    @property
+    def n(self):
+        """Number of variables."""
+        return self.lb.size
+
+    def eval_cost(self, z):
+        """``r(z).r(z)``."""
+        if self.cost is not None:
+            return float(self.cost(z))
+        r = np.asarray(self.residual(z), float)
+        return float(r @ r)
+
+    def eval_gradient(self, z):
+        """``(cost, gradient)`` at ``z``."""
+        if self.gradient is not None:
+            return self.gradient(z)
+        r = np.asarray(self.residual(z), float)
+        return float(r @ r), 2.0 * np.asarray(self.jacobian(z), float).T @ r
+
+    def eval_hessian(self, z, exact=True):
+        """Hessian of the cost at ``z`` (Gauss-Newton when no ``hessian`` was given)."""
+        if self.hessian is not None:
+            return self.hessian(z, exact=exact)
+        J = np.asarray(self.jacobian(z), float)
+        return 2.0 * J.T @ J
+
+    @classmethod
+    def from_stage_functions(cls, funcs, lb, ub, constraints=None):
+        """The problem of an :class:`~freqid_casadi.objective.StageFunctions` (its exact
+        structured derivatives and its CasADi residual)."""
+        return cls(residual=funcs.residual,
+                   jacobian=lambda z: funcs.residual_jacobian(z)[1],
+                   lb=lb, ub=ub, gradient=funcs.gradient,
+                   hessian=lambda z, exact=True: funcs.hessian(z, exact=exact),
+                   cost=funcs.cost, constraints=constraints,
+                   casadi_residual=getattr(funcs, "r_fun", None))
 
 
 @dataclass(frozen=True)
@@ -52,7 +221,7 @@ class StageResult:
     status : Status
     message : str
     success : bool
-        ``status`` is one of CONVERGED, ACCEPTABLE, SMALL_STEP, COST_TOL.
+        :func:`is_success` of ``status`` (CONVERGED, ACCEPTABLE, SMALL_STEP, COST_TOL).
     nit : int
         Iterations (IPOPT iterations, or LM inner iterations summed over outer steps).
     nfev : int
@@ -67,6 +236,8 @@ class StageResult:
         where the solver has none.
     solver_status : str
         The solver's own return status (e.g. IPOPT's ``Solve_Succeeded``).
+    extra : dict
+        Solver-specific numbers (IPOPT: timings; barrier-LM: its outer-loop history).
     """
 
     x: np.ndarray

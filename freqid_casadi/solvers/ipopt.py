@@ -1,7 +1,11 @@
 """One stage NLP solved by IPOPT through CasADi (layer L3; the only ``nlpsol`` user).
 
-The stage problem is ``min_z  sum(r(z)^2)  s.t.  lb <= z <= ub`` with the bounds passed to
-IPOPT as simple bounds (``lbx``/``ubx``), never as penalties (SPEC §3, first variant).
+The stage problem (:class:`~freqid_casadi.solvers.common.StageProblem`) is
+``min_z  sum(r(z)^2)  s.t.  lb <= z <= ub`` with the bounds passed to IPOPT as simple
+bounds (``lbx``/``ubx``), never as penalties (SPEC §3, first variant):
+:func:`solve_stage`. :func:`solve_pnorm` is the p-norm stage of the minimax polish, and
+:func:`run_nlpsol` the one wrapper of ``nlpsol`` (status, projection onto the bounds,
+evaluation errors) that every IPOPT solve of the package goes through.
 """
 
 import dataclasses
@@ -10,12 +14,12 @@ import time
 import numpy as np
 
 from ..errors import OptionError
-from .common import (StageResult, Status, SUCCESS_STATUSES, TERMINATION_MESSAGES,
-                     find_active_constraints)
+from ..options import HESSIANS
+from .common import (StageProblem, StageResult, Status, TERMINATION_MESSAGES, check_start,
+                     find_active_constraints, is_success)
 
-__all__ = ["HESSIANS", "solve_least_squares", "solve_pnorm", "ipopt_status"]
-
-HESSIANS = ("exact", "exact-clip", "gauss-newton", "limited-memory")
+__all__ = ["HESSIANS", "solve_stage", "solve_least_squares", "solve_pnorm", "ipopt_status",
+           "run_nlpsol", "base_options"]
 
 _IPOPT_STATUS = {
     "Solve_Succeeded": Status.CONVERGED,
@@ -35,29 +39,50 @@ def ipopt_status(return_status):
     return _IPOPT_STATUS.get(return_status, Status.FAILED)
 
 
-def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
-                        max_iter=3000, tol=1e-12, warm_start=True, ipopt_options=None,
-                        verbose=False, constraints=None):
-    """Minimise ``||r(z)||^2`` subject to ``lb <= z <= ub`` with IPOPT.
+def solve_least_squares(funcs, x0, lb, ub, *, constraints=None, **options):
+    """:func:`solve_stage` of the problem of an
+    :class:`~freqid_casadi.objective.StageFunctions` with bounds ``lb``, ``ub``.
 
     Parameters
     ----------
     funcs : objective.StageFunctions
-        The stage's residual ``r_fun`` (CasADi; the NLP objective is
-        ``sumsqr(r_fun(z))``) and the numpy assembly of its gradient ``2 J^T r`` and
-        Hessian, passed to IPOPT as ``grad_f``/``hess_lag`` Functions
-        (:class:`casadi.Callback`): the dense products are done by BLAS, the one
-        operation the CasADi VM is slow at.
     x0 : ndarray of float, shape (n,)
-        Start; clipped into ``[lb, ub]``.
+        Start, within the bounds.
     lb, ub : ndarray of float, shape (n,)
-        Simple bounds (``ub`` may be inf).
+    constraints : callable, optional
+        ``g(z) >= 0`` on a CasADi vector.
+    **options
+        Keyword arguments of :func:`solve_stage`.
+
+    Returns
+    -------
+    StageResult
+    """
+    problem = StageProblem.from_stage_functions(funcs, lb, ub, constraints)
+    return solve_stage(problem, x0, **options)
+
+
+def solve_stage(problem, x0, *, lam_x0=None, hessian="exact", max_iter=3000, tol=1e-12,
+                warm_start=True, ipopt_options=None, verbose=False):
+    """Minimise ``||r(z)||^2`` subject to ``lb <= z <= ub`` (and ``g(z) >= 0``) with IPOPT.
+
+    Parameters
+    ----------
+    problem : StageProblem
+        Residual, derivatives, bounds and optional constraints. IPOPT gets the cost (from
+        ``problem.casadi_residual`` when given, else a callback of ``problem.cost``), and
+        the gradient and Hessian from the problem's numpy callables as ``grad_f`` /
+        ``hess_lag`` Functions (:class:`casadi.Callback`): the dense products are done
+        by BLAS, the one operation the CasADi VM is slow at.
+    x0 : ndarray of float, shape (n,)
+        Start, within ``[lb, ub]`` (else :class:`InfeasibleStartError`).
     lam_x0 : ndarray of float, shape (n,), optional
         Bound multipliers to warm-start with (CasADi convention).
     hessian : {"exact", "gauss-newton", "limited-memory"}
-        "exact" is the true Hessian assembled from the model's product structure
-        (:class:`~freqid_casadi.objective.StageFunctions`); "gauss-newton" drops the
-        second-order residual term (undamped, it jumps to phase-wrapped delays).
+        "exact" is ``problem.hessian`` (for a stage: the true Hessian assembled from the
+        model's product structure); "gauss-newton" drops the second-order residual term
+        (undamped, it jumps to phase-wrapped delays); "limited-memory" is IPOPT's
+        quasi-Newton update.
     max_iter : int
     tol : float
         IPOPT's ``tol`` (scaled NLP error).
@@ -68,40 +93,46 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
         Extra IPOPT options (without the ``ipopt.`` prefix); they override the defaults.
     verbose : bool
         Let IPOPT print its iteration log.
-    constraints : callable, optional
-        ``g(z) >= 0``: maps a CasADi (n,) vector to the constraint vector (e.g.
-        :meth:`~freqid_casadi.objective.Parametrization.damping_constraints`). Its Jacobian
-        and its part of the Lagrangian's Hessian come from CasADi's AD; ``x0`` should be
-        feasible (IPOPT then keeps it so).
 
     Returns
     -------
     StageResult
         ``x`` is projected onto the bounds exactly (IPOPT's bound relaxation can leave
         e.g. a damping at -1e-9, a right-half-plane root), and ``cost`` is evaluated there.
+
+    Raises
+    ------
+    OptionError
+        Unknown ``hessian``.
+    InfeasibleStartError
+        ``x0`` outside the bounds.
+    DataError
+        ``x0`` not finite or of the wrong shape.
     """
     import casadi as ca
 
     if hessian not in HESSIANS:
         raise OptionError(f"unknown hessian {hessian!r}; choose one of {', '.join(HESSIANS)}")
     t0 = time.perf_counter()
-    n = funcs.param.n_vars
-    lb = np.asarray(lb, float)
-    ub = np.asarray(ub, float)
-    x0 = np.clip(np.asarray(x0, float), lb, ub)
+    x0, lb, ub = check_start(x0, problem.lb, problem.ub)
+    n = problem.n
     z = ca.MX.sym("z", n)
-    f = ca.sumsqr(funcs.r_fun(z))
+    keep = [_GradF(n, problem.eval_gradient)]     # the callbacks must outlive the solver
+    if problem.casadi_residual is not None:
+        f = ca.sumsqr(problem.casadi_residual(z))
+    else:
+        keep.append(_Cost(n, problem.eval_cost))
+        f = keep[-1](z)
     nlp = {"x": z, "f": f}
-    hess_g = _add_constraints(nlp, z, constraints)
-    opts = _base_options(max_iter, tol, verbose)
+    hess_g = _add_constraints(nlp, z, problem.constraints)
+    opts = base_options(max_iter, tol, verbose)
     opts["ipopt"].update({"acceptable_tol": 1e-8, "acceptable_iter": 30})
-    keep = [_GradF(funcs)]          # the callbacks must outlive the solver
     opts["grad_f"] = keep[0]
     if hessian == "limited-memory":
         opts["ipopt"]["hessian_approximation"] = "limited-memory"
     else:
-        keep.append(_Hess(funcs, hessian, hess_g))
-        opts["hess_lag"] = keep[1]
+        keep.append(_Hess(n, problem.eval_hessian, hessian, hess_g))
+        opts["hess_lag"] = keep[-1]
     use_warm = warm_start and lam_x0 is not None
     if use_warm:
         opts["ipopt"].update({
@@ -115,25 +146,36 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
         })
     # scale the objective to about 1 at the start: IPOPT's tolerances and its Hessian
     # regularisation (inertia correction) are absolute, and the cost of a good fit is tiny
-    cost0 = funcs.cost(x0)
+    cost0 = problem.eval_cost(x0)
     if np.isfinite(cost0) and cost0 > 0:
         opts["ipopt"]["obj_scaling_factor"] = 1.0 / cost0
         opts["ipopt"]["nlp_scaling_method"] = "none"
     if ipopt_options:
         opts["ipopt"].update(ipopt_options)
-    solver = ca.nlpsol("stage", "ipopt", nlp, opts)
-    t_build = time.perf_counter() - t0
-    res, stats, t_solve = _solve(solver, keep, x0, lb, ub, constraints is not None,
-                                 lam_x0 if use_warm else None, funcs.cost, t0)
+    res, stats, t_build, t_solve = run_nlpsol(
+        "stage", nlp, opts, x0, lb, ub, constrained=problem.constraints is not None,
+        lam_x0=lam_x0 if use_warm else None, cost_of=problem.eval_cost, keep=keep, t0=t0)
     return dataclasses.replace(res, extra={
         "t_build": t_build, "t_solve": t_solve,
         **{f"t_{k}": float(stats.get(f"t_wall_nlp_{k}", 0.0) or 0.0)
            for k in ("f", "grad_f", "hess_l")}})
 
 
-def _base_options(max_iter, tol, verbose):
+def base_options(max_iter, tol, verbose):
     """nlpsol options shared by the stage solvers: true bounds (no relaxation, IPOPT's
-    pushes off the bounds tiny, so lightly damped parameters stay near 0)."""
+    pushes off the bounds tiny, so lightly damped parameters stay near 0).
+
+    Parameters
+    ----------
+    max_iter : int
+    tol : float
+    verbose : bool
+
+    Returns
+    -------
+    dict
+        ``nlpsol`` options with an ``"ipopt"`` sub-dict.
+    """
     return {"print_time": False, "error_on_fail": False,
             "ipopt": {"print_level": 5 if verbose else 0, "sb": "yes",
                       "max_iter": int(max_iter), "tol": float(tol),
@@ -141,13 +183,45 @@ def _base_options(max_iter, tol, verbose):
                       "bound_push": 1e-9, "bound_frac": 1e-9}}
 
 
-def _solve(solver, keep, x0, lb, ub, constrained, lam_x0, cost_of, t0):
-    """Run ``solver`` from ``x0``; return ``(StageResult, stats, t_solve)``.
+def run_nlpsol(name, nlp, opts, x0, lb, ub, *, constrained=False, lam_x0=None,
+               cost_of=None, keep=None, t0=None):
+    """Build ``nlpsol(name, "ipopt", nlp, opts)`` and run it from ``x0``.
 
-    ``x`` is projected onto the bounds; ``cost_of(x)`` gives the result's cost; an
-    evaluation error inside CasADi or a non-finite point gives ``Status.ERROR`` at ``x0``.
-    ``keep`` (the callbacks) is released after the solve.
+    Parameters
+    ----------
+    name : str
+    nlp : dict
+        CasADi NLP (``x``, ``f``, optional ``g``).
+    opts : dict
+        nlpsol options (e.g. :func:`base_options`).
+    x0, lb, ub : ndarray of float, shape (n,)
+    constrained : bool
+        ``nlp`` has ``g >= 0`` constraints.
+    lam_x0 : ndarray of float, shape (n,), optional
+        Bound multipliers to start from.
+    cost_of : callable, optional
+        ``cost_of(x)`` gives the result's ``cost``; a non-finite cost makes the status
+        ERROR. Without it ``cost`` is nan.
+    keep : list, optional
+        Callbacks that must outlive the solver; released after the solve.
+    t0 : float, optional
+        ``time.perf_counter()`` at the start of the caller's work (for ``wall_time``).
+
+    Returns
+    -------
+    result : StageResult
+        ``x`` projected onto the bounds; an evaluation error inside CasADi or a
+        non-finite point gives ``Status.ERROR`` at ``x0``.
+    stats : dict
+        IPOPT's statistics (empty after an exception).
+    t_build, t_solve : float
+        Seconds building the solver (from ``t0``) and solving.
     """
+    import casadi as ca
+
+    t0 = time.perf_counter() if t0 is None else t0
+    solver = ca.nlpsol(name, "ipopt", nlp, opts)
+    t_build = time.perf_counter() - t0
     args = {"x0": x0, "lbx": lb, "ubx": ub}
     if constrained:
         args.update(lbg=0.0, ubg=np.inf)
@@ -163,19 +237,21 @@ def _solve(solver, keep, x0, lb, ub, constrained, lam_x0, cost_of, t0):
     except RuntimeError as exc:  # evaluation errors raised inside CasADi
         stats, return_status, x, lam_x = {}, f"exception: {exc}", x0, np.zeros(x0.size)
     t_solve = time.perf_counter() - t_solve
-    del keep[:]
-    cost = cost_of(x)
-    status = ipopt_status(return_status) if np.isfinite(cost) else Status.ERROR
+    if keep is not None:
+        del keep[:]
+    cost = cost_of(x) if cost_of is not None else float("nan")
+    status = (ipopt_status(return_status) if cost_of is None or np.isfinite(cost)
+              else Status.ERROR)
     if not np.all(np.isfinite(x)):
         status, x = Status.ERROR, x0
     res = StageResult(
         x=x, cost=cost, status=status,
         message=f"{TERMINATION_MESSAGES[status]} (IPOPT: {return_status})",
-        success=status in SUCCESS_STATUSES, nit=int(stats.get("iter_count", 0)),
+        success=is_success(status), nit=int(stats.get("iter_count", 0)),
         nfev=int(stats.get("n_call_nlp_f", 0) or 0), wall_time=time.perf_counter() - t0,
         active_mask=find_active_constraints(x, lb, ub, rtol=1e-8),
         lam_x=lam_x, solver_status=return_status)
-    return res, stats, t_solve
+    return res, stats, t_build, t_solve
 
 
 def _add_constraints(nlp, z, constraints):
@@ -196,12 +272,12 @@ def _make_callbacks():
     import casadi as ca
 
     class GradF(ca.Callback):
-        """``nlp_grad_f``: (x, p) -> (f, grad f) with grad f = 2 J^T r."""
+        """``nlp_grad_f``: (x, p) -> (f, grad f) from ``gradient(x) -> (f, grad)``."""
 
-        def __init__(self, funcs):
+        def __init__(self, n, gradient):
             ca.Callback.__init__(self)
-            self.funcs = funcs
-            self.n = funcs.param.n_vars
+            self.gradient = gradient
+            self.n = n
             self.construct("nlp_grad_f", {})
 
         def get_n_in(self):
@@ -228,7 +304,7 @@ def _make_callbacks():
         def eval_buffer(self, arg, res):
             # copy-free: read x from and write (f, grad) into CasADi's own buffers
             x = np.frombuffer(arg[0], dtype=np.float64)
-            cost, grad = self.funcs.gradient(x.copy())
+            cost, grad = self.gradient(x.copy())
             if res[0] is not None:              # an output not asked for is None
                 np.frombuffer(res[0], dtype=np.float64)[0] = cost
             if res[1] is not None:
@@ -238,14 +314,13 @@ def _make_callbacks():
     class Hess(ca.Callback):
         """``nlp_hess_l``: (x, p, lam_f, lam_g) -> triu(lam_f * Hessian of the cost)."""
 
-        def __init__(self, funcs, kind, hess_g=None):
+        def __init__(self, n, hessian, kind, hess_g=None):
             ca.Callback.__init__(self)
-            self.funcs = funcs
+            self.hessian = hessian
             self.hess_g = hess_g
             self.ng = 0 if hess_g is None else hess_g.numel_in(1)
             self.exact = kind != "gauss-newton"
-            self.clip = kind == "exact-clip"
-            n = self.n = funcs.param.n_vars
+            self.n = n
             self.sp = ca.Sparsity.upper(n)
             rows, cols = np.triu_indices(n)
             order = np.lexsort((rows, cols))                 # column-major nonzero order
@@ -279,7 +354,7 @@ def _make_callbacks():
             lam_f = float(np.frombuffer(arg[2], dtype=np.float64)[0])
             if res[0] is None:
                 return 0
-            h = lam_f * self.funcs.hessian(x, exact=self.exact, clip=self.clip)
+            h = lam_f * self.hessian(x, exact=self.exact)
             if self.ng:
                 lam_g = (np.zeros(self.ng) if arg[3] is None
                          else np.frombuffer(arg[3], dtype=np.float64))
@@ -287,7 +362,31 @@ def _make_callbacks():
             np.copyto(np.frombuffer(res[0], dtype=np.float64), h.ravel().take(self.flat))
             return 0
 
-    return GradF, Hess
+    class Cost(ca.Callback):
+        """``f``: x -> cost(x), for a problem without a CasADi residual."""
+
+        def __init__(self, n, cost):
+            ca.Callback.__init__(self)
+            self.cost = cost
+            self.n = n
+            self.construct("nlp_f_callback", {})
+
+        def get_n_in(self):
+            return 1
+
+        def get_n_out(self):
+            return 1
+
+        def get_sparsity_in(self, i):
+            return ca.Sparsity.dense(self.n, 1)
+
+        def get_sparsity_out(self, i):
+            return ca.Sparsity.dense(1, 1)
+
+        def eval(self, arg):
+            return [float(self.cost(np.array(arg[0], float).reshape(-1)))]
+
+    return GradF, Hess, Cost
 
 
 _CALLBACKS = []
@@ -299,12 +398,16 @@ def _callback_classes():
     return _CALLBACKS
 
 
-def _GradF(funcs):
-    return _callback_classes()[0](funcs)
+def _GradF(n, gradient):
+    return _callback_classes()[0](n, gradient)
 
 
-def _Hess(funcs, kind, hess_g=None):
-    return _callback_classes()[1](funcs, kind, hess_g)
+def _Hess(n, hessian, kind, hess_g=None):
+    return _callback_classes()[1](n, hessian, kind, hess_g)
+
+
+def _Cost(n, cost):
+    return _callback_classes()[2](n, cost)
 
 
 def solve_pnorm(funcs, x0, lb, ub, p, *, max_iter=300, tol=1e-10, constraints=None,
@@ -324,6 +427,7 @@ def solve_pnorm(funcs, x0, lb, ub, p, *, max_iter=300, tol=1e-10, constraints=No
     ----------
     funcs : objective.StageFunctions
     x0, lb, ub : ndarray of float, shape (n,)
+        Start (within the bounds, else :class:`InfeasibleStartError`) and bounds.
     p : float >= 2
     max_iter : int
     tol : float
@@ -340,9 +444,7 @@ def solve_pnorm(funcs, x0, lb, ub, p, *, max_iter=300, tol=1e-10, constraints=No
 
     t_start = time.perf_counter()
     n, m = funcs.param.n_vars, funcs.n_points
-    lb = np.asarray(lb, float)
-    ub = np.asarray(ub, float)
-    x0 = np.clip(np.asarray(x0, float), lb, ub)
+    x0, lb, ub = check_start(x0, lb, ub)
     r0 = funcs.residual(x0)
     s = float(np.max(r0[:m] ** 2 + r0[m:] ** 2))
     if not (np.isfinite(s) and s > 0):
@@ -356,16 +458,15 @@ def solve_pnorm(funcs, x0, lb, ub, p, *, max_iter=300, tol=1e-10, constraints=No
     nlp = {"x": z, "f": ca.logsumexp(0.5 * float(p) * ca.log(e2 + 1e-300)) / float(p)}
     hess_g = _add_constraints(nlp, z, constraints)
     pn = PNormFunctions(funcs, p, s)
-    keep = [_GradF(pn), _Hess(pn, "exact", hess_g)]     # must outlive the solver
-    opts = _base_options(max_iter, tol, verbose)
+    keep = [_GradF(n, pn.gradient), _Hess(n, pn.hessian, "exact", hess_g)]  # outlive solver
+    opts = base_options(max_iter, tol, verbose)
     opts.update({"show_eval_warnings": False, "grad_f": keep[0], "hess_lag": keep[1]})
     opts["ipopt"]["mu_init"] = 1e-6
-    solver = ca.nlpsol("pnorm", "ipopt", nlp, opts)
 
     def max_abs2(x):
         rr = funcs.residual(x)
         return float(np.max(rr[:m] ** 2 + rr[m:] ** 2))
 
-    res, _, _ = _solve(solver, keep, x0, lb, ub, constraints is not None, None, max_abs2,
-                       t_start)
+    res = run_nlpsol("pnorm", nlp, opts, x0, lb, ub, constrained=constraints is not None,
+                     cost_of=max_abs2, keep=keep, t0=t_start)[0]
     return dataclasses.replace(res, extra={"p": float(p)})
