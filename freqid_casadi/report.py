@@ -28,8 +28,10 @@ import tempfile
 import numpy as np
 
 from ._io import atomic_write_text
+from .data import dense_grid
 from .errors import OptionError
 from .formatting import csv_text, generated_by_line, json_safe, markdown_table, number
+from .metrics import relative_error
 
 __all__ = ["write_fit_report", "write_sweep_report", "report_folder", "fit_summary",
            "render_fit_summary", "dense_error", "check_out_dir", "markdown_table",
@@ -151,14 +153,11 @@ def dense_error(model, omega, truth, factor=10):
     ``omega_at_max_rel_error`` (rad/s), ``rms_rel_error``; None without ``truth``."""
     if truth is None:
         return None
-    from .validation import dense_grid   # lazy: validation builds on fit
-
     grid = dense_grid(omega, factor)
-    err = np.abs(np.asarray(truth(grid)) / model.frequency_response(grid) - 1.0)
-    i = int(np.argmax(err))
+    err = relative_error(model, grid, np.asarray(truth(grid)))
     return {"factor": int(factor), "n_points": int(grid.size),
-            "max_rel_error": float(err[i]), "omega_at_max_rel_error": float(grid[i]),
-            "rms_rel_error": float(np.sqrt(np.mean(err ** 2)))}
+            "max_rel_error": err.max, "omega_at_max_rel_error": err.omega_at_max,
+            "rms_rel_error": err.rms}
 
 
 def _resolution_dict(check):

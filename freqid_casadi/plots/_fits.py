@@ -4,8 +4,9 @@ import math
 
 import numpy as np
 
-from ..data import FrequencyData
+from ..data import FrequencyData, dense_grid
 from ..errors import OptionError
+from ..metrics import relative_error as relative_error_of
 from ..model import RationalDelayModel
 from ._base import (_dense_grid, _is_result, _label_of, _labelled, _pyplot, finish_axes,
                     new_figure)
@@ -149,10 +150,8 @@ def relative_error(results, *, labels=None, title=None, figsize=None, annotate_m
         omega = res.data.omega
         color = f"C{k}"
         if truth is not None:
-            from ..validation import dense_grid
-
             grid = dense_grid(omega, dense_factor)
-            dense = np.abs(np.asarray(truth(grid)) / res.model.frequency_response(grid) - 1)
+            dense = relative_error_of(res.model, grid, np.asarray(truth(grid))).values
             ax.loglog(grid, dense, "-", color=color, lw=0.6, alpha=0.45,
                       label=f"{lab}, between the samples ({int(dense_factor)}x grid, max "
                             f"{np.max(dense):.3g})")

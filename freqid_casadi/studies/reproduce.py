@@ -24,6 +24,7 @@ from .. import baselines, systems
 from ..errors import FreqidError, OptionError
 from ..examples import EXAMPLES, FRACTIONAL_SECTIONS, TABLE_4_1
 from ..fit import fit
+from ..metrics import relative_error
 from ..model import RationalDelayModel, Structure
 from ..options import BarrierLMOptions
 
@@ -109,20 +110,15 @@ def _config(quick):
 # ----------------------------------------------------------------------------- helpers
 
 
-def _rel_error(model, data):
-    """|Phi/G_N - 1| (= |(G - G_N)/G_N|, thesis Table 4.1) at the data points."""
-    return np.abs(data.response / model.frequency_response(data.omega) - 1.0)
-
-
 def _entry(model, data, wall_time, *, delay_fitted, extra=None):
     """Numbers of one method on one example (a JSON dict) and its rel. error curve."""
-    rel = _rel_error(model, data)
+    err = relative_error(model, data)
     n_rhp_poles, n_rhp_zeros = baselines.count_rhp(model)
     entry = {
         "n_poles": int(np.asarray(model.poles()).size),
-        "max_rel_error": float(np.max(rel)),
-        "rms_rel_error": float(np.sqrt(np.mean(rel ** 2))),
-        "omega_at_max_rel_error": float(data.omega[int(np.argmax(rel))]),
+        "max_rel_error": err.max,
+        "rms_rel_error": err.rms,
+        "omega_at_max_rel_error": err.omega_at_max,
         "n_rhp_zeros": n_rhp_zeros,
         "n_rhp_poles": n_rhp_poles,
         "minimum_phase": bool(model.is_minimum_phase()),
@@ -132,7 +128,7 @@ def _entry(model, data, wall_time, *, delay_fitted, extra=None):
         "status": "ok",
     }
     entry.update(extra or {})
-    return entry, rel
+    return entry, err.values
 
 
 def _not_run(reason):
@@ -380,7 +376,7 @@ def _run_fractional(cfg):
     for label, model in models.items():
         g = model.frequency_response(omega)
         e_cl = np.abs(g_d - g / (1 + g))
-        rel = np.abs(data.response / g - 1.0)
+        rel = relative_error(model, data).values
         n_rhp_poles, n_rhp_zeros = baselines.count_rhp(model)
         out["methods"][label] = {
             "n_poles": int(np.asarray(model.poles()).size),
