@@ -27,10 +27,9 @@ import numpy as np
 import freqid_casadi as fc
 from freqid_casadi._io import atomic_write_text
 from freqid_casadi.objective import Parametrization, stage_functions
+from freqid_casadi.examples import EXAMPLES
 from freqid_casadi.report import dense_error
 
-EXAMPLES = {"A": (fc.systems.G_A, 17, True), "B": (fc.systems.G_B, 9, False),
-            "C": (fc.systems.G_C, 27, True)}
 
 
 def _timeit(fun, repeat):
@@ -92,7 +91,8 @@ def best_of(repeat, name, start="sequential", derivatives=None):
 
 
 def fit_costs(name, start="sequential", derivatives=None):
-    make, n, integ = EXAMPLES[name]
+    ex = EXAMPLES[name]
+    make, n, integ = ex.system, ex.n_sections, ex.integrator
     data = make()
     t0 = time.perf_counter()
     res = fc.fit(data, n_sections=n, integrator=integ, start=start,

@@ -31,7 +31,8 @@ from freqid_casadi import plots, systems
 from freqid_casadi._io import atomic_write_text
 from freqid_casadi.data import FrequencyData
 from freqid_casadi.fit import fit
-from freqid_casadi.report import (_clean, check_out_dir, report_folder,
+from freqid_casadi.formatting import json_safe as _clean
+from freqid_casadi.report import (check_out_dir, report_folder,
                                   generated_by_line, markdown_table)
 from freqid_casadi.validation import check_resolution, dense_grid, prune_sections
 

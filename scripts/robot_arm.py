@@ -28,7 +28,8 @@ import numpy as np
 from freqid_casadi import experiment, plots
 from freqid_casadi.data import FrequencyData, save_csv
 from freqid_casadi.fit import fit
-from freqid_casadi.report import (_clean, check_out_dir, report_folder,
+from freqid_casadi.formatting import json_safe as _clean
+from freqid_casadi.report import (check_out_dir, report_folder,
                                   generated_by_line, markdown_table)
 from freqid_casadi.uncertainty import fit_uncertainty_weight
 from freqid_casadi.validation import prune_sections
