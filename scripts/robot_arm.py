@@ -28,7 +28,7 @@ import numpy as np
 from freqid_casadi import experiment, plots
 from freqid_casadi.data import FrequencyData, save_csv
 from freqid_casadi.fit import fit
-from freqid_casadi.formatting import json_safe as _clean
+from freqid_casadi.formatting import json_safe
 from freqid_casadi.report import (check_out_dir, report_folder,
                                   generated_by_line, markdown_table)
 from freqid_casadi.uncertainty import fit_uncertainty_weight
@@ -133,33 +133,29 @@ def _figures(folder, data, results, rows, pick, weight):
                       os.path.join(folder, "rel_error.png"))
     plots.save_figure(plots.pole_zero(res.model, title=f"robot arm: poles and zeros ({label})"),
                       os.path.join(folder, "pole_zero.png"))
-    plt = plots._pyplot()
-    fig, ax = plt.subplots(layout="constrained")
-    for delay, marker in ((False, "o-"), (True, "s--")):
+    lines = []
+    for delay, marker, ls in ((False, "o", "-"), (True, "s", "--")):
         rr = [r for r in rows if r["delay"] == delay]
-        if rr:
-            ax.semilogy([r["n_sections"] for r in rr], [r["max_rel_error"] for r in rr], marker,
-                        label=f"max, {'with' if delay else 'no'} delay")
-            ax.semilogy([r["n_sections"] for r in rr], [r["rms_rel_error"] for r in rr],
-                        marker, alpha=0.5, label=f"RMS, {'with' if delay else 'no'} delay")
-    ax.axvline(pick["n_sections"], color="k", ls=":", label="chosen")
-    ax.set_xlabel("sections N (order 2N)")
-    ax.set_ylabel("relative error")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize="small")
-    ax.set_title("robot arm: error against order")
-    plots.save_figure(fig, os.path.join(folder, "error_vs_order.png"))
-    fig, ax = plt.subplots(layout="constrained")
+        x = [r["n_sections"] for r in rr]
+        lines += [dict(x=x, y=[r["max_rel_error"] for r in rr], marker=marker, ls=ls,
+                       color=f"C{2 * delay}", label=f"max, {'with' if delay else 'no'} delay"),
+                  dict(x=x, y=[r["rms_rel_error"] for r in rr], marker=marker, ls=ls,
+                       color=f"C{2 * delay + 1}", alpha=0.5,
+                       label=f"RMS, {'with' if delay else 'no'} delay")] if rr else []
+    plots.save_figure(plots.line_plot(
+        lines, xscale="linear", vlines=[dict(x=pick["n_sections"], color="k", ls=":",
+                                             label="chosen")],
+        xlabel="sections N (order 2N)", ylabel="relative error",
+        title="robot arm: error against order"), os.path.join(folder, "error_vs_order.png"))
     dense = np.logspace(np.log10(data.omega[0]), np.log10(data.omega[-1]), 2000)
-    ax.loglog(data.omega, res.rel_error, "o", ms=3, label="relative error |G/G_N - 1|")
-    ax.loglog(dense, np.abs(weight.frequency_response(dense)), "-",
-              label=f"|W|, order {weight.order}")
-    ax.set_xlabel(r"$\omega$ (rad/sample)")
-    ax.set_ylabel("magnitude")
-    ax.grid(True, which="both", alpha=0.3)
-    ax.legend(fontsize="small")
-    ax.set_title(f"robot arm: multiplicative uncertainty weight ({label})")
-    plots.save_figure(fig, os.path.join(folder, "uncertainty_weight.png"))
+    plots.save_figure(plots.line_plot(
+        [dict(x=data.omega, y=res.rel_error, marker="o", ms=3, ls="none",
+              label="relative error |G/G_N - 1|"),
+         dict(x=dense, y=np.abs(weight.frequency_response(dense)),
+              label=f"|W|, order {weight.order}")],
+        xlabel=r"$\omega$ (rad/sample)", ylabel="magnitude",
+        title=f"robot arm: multiplicative uncertainty weight ({label})"),
+        os.path.join(folder, "uncertainty_weight.png"))
 
 
 def _markdown(command, summary):
@@ -280,7 +276,7 @@ def run(orders, out, command, force=False, path=None, delays=(False, True)):
                    "poles": [[p.real, p.imag] for p in weight.poles()],
                    "zeros": [[z.real, z.imag] for z in weight.zeros()]},
     }
-    summary = _clean(summary)
+    summary = json_safe(summary)
     with report_folder(out, force) as (tmp, _):
         save_csv(est.data, os.path.join(tmp, "frf.csv"))
         _figures(tmp, data, results, rows, pick, weight)

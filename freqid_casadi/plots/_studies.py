@@ -21,7 +21,7 @@ def line_style(k):
 
 
 def line_plot(lines, *, xlabel, ylabel, title, xscale="log", yscale="log", hlines=(),
-              vlines=(), legend_fontsize="small", figsize=None):
+              vlines=(), legend_fontsize="small", figsize=None, ylim=None):
     """Lines on one axes (log-log by default), with horizontal and vertical markers.
 
     Parameters
@@ -40,6 +40,8 @@ def line_plot(lines, *, xlabel, ylabel, title, xscale="log", yscale="log", hline
         Font size of the legend (no legend when no item has a label).
     figsize : (float, float), optional
         Inches (default (6.4, 4.8)).
+    ylim : (float or None, float or None), optional
+        Limits of the y axis (None: automatic at that end).
 
     Returns
     -------
@@ -76,6 +78,8 @@ def line_plot(lines, *, xlabel, ylabel, title, xscale="log", yscale="log", hline
     ax.set_xlabel(xlabel)
     ax.set_ylabel(ylabel)
     ax.set_title(title)
+    if ylim is not None:
+        ax.set_ylim(*ylim)
     finish_axes(ax)
     if labelled:
         ax.legend(loc="best", fontsize=legend_fontsize, framealpha=0.9)
