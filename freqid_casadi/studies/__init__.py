@@ -1,9 +1,10 @@
 """Studies built on the package's public API, like scipy's benchmarks (layer L6).
 
 Each study is an experiment module returning result dataclasses and a ``*_report`` module
-that renders them (Markdown, JSON, figures through :mod:`freqid_casadi.plots`) into a report
-folder: ``reproduce`` / ``reproduce_report`` (the thesis's chapter 4) and ``ablation`` /
-``ablation_report`` (IPOPT vs the barrier-LM, IPOPT's options one at a time).
+that renders them (Markdown, JSON, figures through :mod:`freqid_casadi.plots`) into a
+report folder: ``reproduce`` / ``reproduce_report`` (the thesis's chapter 4), ``ablation`` /
+``ablation_report`` (IPOPT vs the barrier-LM, IPOPT's options one at a time) and ``noisy`` /
+``noisy_report`` (example A on noisy data: the safeguard, the damping floor, weights).
 """
 
 __all__ = []
