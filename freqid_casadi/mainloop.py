@@ -28,8 +28,23 @@ __all__ = ["LoopContext", "sequential", "rational", "minimax", "PNORM_SCHEDULE"]
 
 @dataclass(frozen=True)
 class LoopContext:
-    """What the loops share: the data, the progress callback, the stage solver
-    (:class:`~freqid_casadi.stages.StageSolver`), the structure and the options."""
+    """What the loops share.
+
+    Attributes
+    ----------
+    data : FrequencyData
+    callback : callable
+        Receives each StageRecord.
+    solve : StageSolver
+    structure : Structure
+    loop : LoopOptions
+    warm_start : {"primal-dual", "primal", "none"}
+    delay_max : float
+        Upper bound of the delay, s.
+    final_max_iter : int
+    zeta_min : float or None
+        Damping floor.
+    """
 
     data: FrequencyData
     callback: object
@@ -42,36 +57,58 @@ class LoopContext:
     zeta_min: object = None
 
 
+def _gain_delay_stage(ctx):
+    """Stage 0: the gain and the delay on a growing low-frequency window (thesis: 1..5
+    points). Returns (param, z, lam, record)."""
+    data, st = ctx.data, ctx.structure
+    omega, phi = data.omega, data.response
+    gain0 = abs(phi[0]) * (omega[0] if st.integrator else 1.0)
+    param = Parametrization(st.with_sections(0), ctx.loop.gauge, (), gain0, ctx.delay_max,
+                            ctx.loop.scaled)
+    z = np.zeros(param.n_vars)
+    z[1] = gain0 / param._refs()[1]
+    lam = np.zeros(param.n_vars)
+    l0 = min(5, data.n_points)
+    t0 = time.perf_counter()
+    nit = nfev = 0
+    solves = []
+    for length in range(1, l0 + 1):
+        res = ctx.solve(param, data.window(length), z, lam)
+        solves.append(res)
+        nit, nfev = nit + res.nit, nfev + res.nfev
+        z, lam = keep_better(param, data.window(length), z, lam, res)[:2]
+    record = stage_record(0, param, z, data, l0, math.nan, res, nit, nfev,
+                          time.perf_counter() - t0, Kept.SOLUTION, StageKind.GAIN_DELAY,
+                          solver_timing(solves))
+    return param, z, lam, record
+
+
 def sequential(ctx, tol):
-    """The thesis's main loop (SPEC §2). Returns (param, z, lam, records)."""
+    """The thesis's main loop (SPEC §2).
+
+    Parameters
+    ----------
+    ctx : LoopContext
+    tol : float or None
+        Stop adding sections once the max relative error is below ``tol``.
+
+    Returns
+    -------
+    param : Parametrization
+    z, lam : ndarray of float
+        The final variables and bound multipliers.
+    records : list of StageRecord
+    """
     data, solve, callback = ctx.data, ctx.solve, ctx.callback
     init, scale_l, final_stage = ctx.loop.init, ctx.loop.scale_l, ctx.loop.final_stage
     warm_start = ctx.warm_start
     omega, phi = data.omega, data.response
     m = data.n_points
     st = ctx.structure
-    gain0 = abs(phi[0]) * (omega[0] if st.integrator else 1.0)
-    param = Parametrization(st.with_sections(0), ctx.loop.gauge, (), gain0, ctx.delay_max,
-                            ctx.loop.scaled)
-
-    # ---- stage 0: gain and delay on a growing low-frequency window (thesis: 1..5 points)
-    z = np.zeros(param.n_vars)
-    z[1] = gain0 / param._refs()[1]
-    lam = np.zeros(param.n_vars)
-    records = []
-    l0 = min(5, m)
-    t0 = time.perf_counter()
-    nit = nfev = 0
-    solves = []
-    for length in range(1, l0 + 1):
-        res = solve(param, data.window(length), z, lam)
-        solves.append(res)
-        nit, nfev = nit + res.nit, nfev + res.nfev
-        z, lam = keep_better(param, data.window(length), z, lam, res)[:2]
-    records.append(stage_record(0, param, z, data, l0, math.nan, res, nit, nfev,
-                                time.perf_counter() - t0, Kept.SOLUTION, StageKind.GAIN_DELAY,
-                                solver_timing(solves)))
-    callback(records[-1])
+    param, z, lam, record = _gain_delay_stage(ctx)
+    records = [record]
+    callback(record)
+    l0 = record.window
     window = l0
     init_z = z.copy()
 
@@ -131,7 +168,24 @@ def sequential(ctx, tol):
 
 def rational(ctx, delay0):
     """Global start (:mod:`freqid_casadi.start`) polished by one stage on all data
-    (:func:`~freqid_casadi.stages.polish`). Returns (param, z, lam, records)."""
+    (:func:`~freqid_casadi.stages.polish`).
+
+    Parameters
+    ----------
+    ctx : LoopContext
+    delay0 : float
+        First trial delay of the rational start (s).
+
+    Returns
+    -------
+    param, z, lam, records
+        As :func:`sequential`.
+
+    Raises
+    ------
+    RationalStartError
+        Vector fitting gave no usable model.
+    """
     from .start import rational_start
 
     data, st = ctx.data, ctx.structure
@@ -170,7 +224,21 @@ def minimax(ctx, param, z):
     IPOPT NLP with true bounds started from the last), keeping the point with the lowest
     max error. Kept only if it lowers the max error and the start is below 1 (an
     infinite-gain model has relative error exactly 1 everywhere, the trap of a minimax
-    stage started above 1)."""
+    stage started above 1).
+
+    Parameters
+    ----------
+    ctx : LoopContext
+    param : Parametrization
+    z : ndarray of float, shape (param.n_vars,)
+        The least-squares model's variables.
+
+    Returns
+    -------
+    z : ndarray of float
+        The kept variables.
+    record : StageRecord
+    """
     from .solvers.ipopt import solve_pnorm
 
     data = ctx.data

@@ -15,7 +15,7 @@ import numpy as np
 from .data import FrequencyData
 from .errors import DataError
 
-__all__ = ["ErrorStats", "error_stats", "relative_error"]
+__all__ = ["ErrorStats", "error_stats", "relative_error", "DelayedResponse"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -102,3 +102,31 @@ def relative_error(model, data_or_omega, response=None):
                             f"and {response.shape}")
     values = np.abs(response / model.frequency_response(omega) - 1.0)
     return error_stats(values, omega)
+
+
+class DelayedResponse:
+    """Mixin of the models: ``G(j w) = exp(-j w h) R(j w)`` from the class's
+    ``rational_response(omega)`` and ``delay`` (s), and its :func:`relative_error`."""
+
+    def frequency_response(self, omega):
+        """``G(j omega)`` including the delay: complex, shape of ``omega``.
+
+        Parameters
+        ----------
+        omega : array_like of float (rad/s)
+        """
+        omega = np.asarray(omega, dtype=float)
+        return np.exp(-1j * omega * self.delay) * self.rational_response(omega)
+
+    def relative_error(self, data):
+        """``|(Phi - G)/G|`` at the data points, shape (M,) (SPEC §1).
+
+        Parameters
+        ----------
+        data : FrequencyData
+
+        Returns
+        -------
+        ndarray of float, shape (M,)
+        """
+        return relative_error(self, data).values

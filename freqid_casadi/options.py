@@ -340,7 +340,21 @@ LEGACY_KEYWORDS = {**{k: ("LoopOptions", k) for k in _LOOP_FIELDS},
 
 
 def legacy_message(function, name, value):
-    """Text of the TypeError for an old keyword ``name=value`` of ``function``."""
+    """Text of the TypeError for an old keyword ``name=value`` of ``function``.
+
+    Parameters
+    ----------
+    function : str
+        Name of the function called (e.g. "fit").
+    name : str
+        The old keyword (a key of :data:`LEGACY_KEYWORDS`).
+    value : object
+        The value passed.
+
+    Returns
+    -------
+    str
+    """
     cls, field_name = LEGACY_KEYWORDS[name]
     if field_name is None:
         inner = ", ".join(f"{k}={v!r}" for k, v in dict(value or {}).items())

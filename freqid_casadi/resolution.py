@@ -248,6 +248,16 @@ def default_delay_max(omega):
 
     Beyond it the phase ``-h w`` changes by more than pi between neighbouring samples and
     the delay is ambiguous (phase-wrapped minima).
+
+    Parameters
+    ----------
+    omega : array_like of float, shape (M,)
+        rad/s, increasing.
+
+    Returns
+    -------
+    float
+        Seconds.
     """
     omega = np.asarray(omega, float)
     if omega.size < 2:

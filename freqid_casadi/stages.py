@@ -29,7 +29,9 @@ from .solvers.common import StageProblem, StageResult, Status
 from .solvers.ipopt import solve_stage
 
 __all__ = ["Kept", "StageKind", "StageRecord", "StageSolver", "PolishResult", "polish",
-           "keep_better", "stage_record", "stage_cost", "model_ratio", "solver_timing"]
+           "polish_start"]
+# keep_better, stage_record, stage_cost, model_ratio, solver_timing: helpers of the loops
+# (freqid_casadi.mainloop), not public API.
 
 
 class _ValueEnum(str, enum.Enum):

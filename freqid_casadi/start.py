@@ -92,6 +92,15 @@ def sections_from_roots(poles, zeros, n_sections, *, basis="second-order", floor
 
     Roots must already be in the closed left half plane; they are paired by frequency.
 
+    Parameters
+    ----------
+    poles, zeros : array_like of complex
+        The roots (closed left half plane).
+    n_sections : int
+    basis : {"second-order", "first-order"}
+    floor : float
+        Smallest root magnitude used (rad/s): roots at 0 are moved to ``floor``.
+
     Returns
     -------
     theta : ndarray, shape (n_sections, 6) or (n_sections, 4)

@@ -52,7 +52,17 @@ class SweepRow:
 
 @dataclass(frozen=True)
 class SweepResult:
-    """All orders of a sweep; ``best_order`` is the smallest meeting ``target`` (or None)."""
+    """All orders of a sweep.
+
+    Attributes
+    ----------
+    rows : tuple of SweepRow
+    target : float or None
+        The max relative error aimed at.
+    best_order : int or None
+        The smallest order meeting ``target``.
+    data_name : str
+    """
 
     rows: tuple
     target: float
@@ -65,7 +75,21 @@ class SweepResult:
 
 
 def parse_orders(spec):
-    """Parse "4:40:2" (start:stop:step, stop included), "4,8,12" or "10" into a list."""
+    """Parse "4:40:2" (start:stop:step, stop included), "4,8,12" or "10" into a list.
+
+    Parameters
+    ----------
+    spec : str
+
+    Returns
+    -------
+    list of int
+
+    Raises
+    ------
+    OptionError
+        A malformed ``spec``.
+    """
     try:
         if ":" in spec:
             parts = [int(p) for p in spec.split(":")]
@@ -98,6 +122,8 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
     truth : callable, optional
         ``omega (rad/s) -> complex response`` of the true system, to evaluate the error on
         a log grid ``dense_factor`` times denser than the data.
+    dense_factor : int
+        Points of the dense grid per data point (:func:`~freqid_casadi.data.dense_grid`).
     progress : callable, optional
         Called with each :class:`SweepRow` as it is done.
     **fit_options

@@ -1,26 +1,17 @@
-"""Checks that a fitted model is resolved by its data, and a safeguard (layer L4).
+"""A safeguard against sections the data cannot resolve (layer L5).
 
-A least-squares fit of noisy data can spend sections on near-cancelling pole/zero pairs
-whose half-power bandwidth is far narrower than the spacing of the data (damping ratios
-``zeta ~ 1e-7`` were measured on example A with 2 % noise). Such a pair bends the response
-by up to a factor ``zeta_num / zeta_den`` in a band that falls between two samples: it
-lowers the error *at* the samples and is wrong *between* them. This module
+:func:`~freqid_casadi.resolution.check_resolution` flags near-cancelling pole/zero pairs
+narrower than the data spacing (definitions in :mod:`freqid_casadi.resolution`): features
+between the samples that lower the error *at* the samples and are wrong *between* them.
+This module
 
-- flags such sections (:func:`check_resolution`),
-- removes them and refits the remaining parameters on the data (:func:`prune_sections`),
-- and combines both with :func:`~freqid_casadi.fit.fit` (:func:`fit_validated`),
+- removes them and refits the remaining parameters on the data (:func:`prune_sections`,
+  the refit is :func:`~freqid_casadi.stages.polish`),
+- and combines the check and the pruning with :func:`~freqid_casadi.fit.fit`
+  (:func:`fit_validated`),
 
 so the package never returns such a model silently: the flags are in the result and a
-``logging`` warning names them.
-
-Definitions (SPEC §1 sections ``(a s^2 + 2 zn wn s + wn^2) / (b s^2 + 2 zd wd s + wd^2)``):
-a quadratic ``a s^2 + 2 zeta w s + w^2`` has the natural frequency ``w0 = w / sqrt(a)``,
-the damping ratio ``zeta0 = zeta / sqrt(a)`` and the half-power bandwidth ``2 zeta0 w0 =
-2 zeta w / a`` (rad/s). It is *resolved* by a grid ``omega`` if that bandwidth is at least
-the local spacing ``delta omega`` of the grid at ``w0`` (the width of the grid interval that
-contains ``w0``). A zero and a pole (of any sections) are *near-cancelling* when
-``|w0_num - w0_den|`` is below the local spacing (or the smaller of the two
-bandwidths). Features outside the data band are not flagged (the data says nothing there).
+``logging`` warning names them. ``check_resolution`` and its types are re-exported here.
 """
 
 import logging

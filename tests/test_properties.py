@@ -112,7 +112,8 @@ def test_fit_random_small_problems(beta, integrator, method):
     note(f"{res.summary()}; stages {[(r.stage, r.status.name, r.kept) for r in res.stages]}; "
          f"beta {res.model.beta.tolist()!r}")
     beta_fit = res.model.beta
-    assert np.all(np.isfinite(beta_fit)) and np.all(beta_fit >= 0)   # feasible: beta >= 0
+    assert np.all(np.isfinite(beta_fit))
+    assert res.model.is_stable() and res.model.is_minimum_phase()    # what beta >= 0 means
     assert np.all(np.isfinite(res.rel_error))
     assert np.isfinite(res.max_rel_error) and np.isfinite(res.rms_rel_error)
     last = res.stages[-1]

@@ -399,8 +399,8 @@ def solve_stage_lm(problem, x0, **options):
     """:func:`barrier_lm` on a :class:`~freqid_casadi.solvers.common.StageProblem`.
 
     Fixed variables (``lb == ub``) are removed; the barrier method has no upper bounds, so
-    ``problem.ub`` is not imposed (the fit's delay bound is an IPOPT feature) and
-    ``problem.constraints`` are not supported.
+    ``problem.ub`` is neither imposed nor checked (the fit's delay bound is an IPOPT
+    feature; it only marks ``active_mask``) and ``problem.constraints`` are not supported.
 
     Parameters
     ----------
@@ -428,8 +428,8 @@ def solve_stage_lm(problem, x0, **options):
         raise OptionError("the barrier-LM stage solver takes no constraints; use IPOPT "
                           "(method='ipopt') for a damping floor")
     lb, ub = problem.lb, problem.ub
-    x0 = np.asarray(x0, float)
     free = lb < ub
+    x0 = check_start(x0, lb, np.where(free, np.inf, ub), strict=True)[0]
     xf = x0.copy()
 
     def full(v):

@@ -259,6 +259,17 @@ def find_active_constraints(x, lb, ub, rtol=1e-10):
 
     A bound counts as active when ``x`` is within ``rtol * max(1, |bound|)`` of it, as in
     scipy ``optimize/_lsq/common.py``.
+
+    Parameters
+    ----------
+    x : array_like of float, shape (n,)
+    lb, ub : float or array_like of float, shape (n,)
+    rtol : float
+        Relative tolerance (0: exactly on the bound).
+
+    Returns
+    -------
+    ndarray of int, shape (n,)
     """
     x = np.asarray(x, float)
     lb = np.broadcast_to(np.asarray(lb, float), x.shape)
