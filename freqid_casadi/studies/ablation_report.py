@@ -21,9 +21,8 @@ import os
 from functools import partial
 
 from .. import plots
-from .._io import atomic_write_text
 from ..formatting import generated_by_line, markdown_table, number, ratio
-from ..report import check_out_dir, report_folder
+from ..report import atomic_write_text, check_out_dir, report_folder
 from .ablation import NEAR_BOUND, run_ablation
 
 __all__ = ["conclusions", "render_ablation", "write_ablation_report", "VARIANT_COLUMNS",

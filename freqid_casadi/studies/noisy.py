@@ -36,8 +36,22 @@ DENSE = 10
 
 
 def noisy_data(sigma, seed=SEED, name=None):
-    """G_A on the thesis grid times (1 + n), n complex Gaussian with RMS ``sigma`` (scalar
-    or per point): ``E|n_i|^2 = sigma_i^2``."""
+    """G_A on the thesis grid times (1 + n), n complex Gaussian: ``E|n_i|^2 = sigma_i^2``.
+
+    Parameters
+    ----------
+    sigma : float or ndarray of float, shape (500,)
+        Noise RMS (relative), one value or one per point.
+    seed : int
+        Seed of ``numpy.random.default_rng``.
+    name : str, optional
+        Name of the noisy data (default ``"G_A + 2 % noise"``).
+
+    Returns
+    -------
+    (FrequencyData, FrequencyData)
+        The clean and the noisy data.
+    """
     clean = systems.G_A()
     rng = np.random.default_rng(seed)
     m = clean.n_points
@@ -47,7 +61,21 @@ def noisy_data(sigma, seed=SEED, name=None):
 
 
 def clean_errors(model, clean, dense):
-    """Relative errors |G_A / G_N - 1| at the samples and on the dense grid."""
+    """Relative errors |G_A / G_N - 1| against the clean system.
+
+    Parameters
+    ----------
+    model : RationalDelayModel
+    clean : FrequencyData
+        The clean G_A at the samples.
+    dense : ndarray of float, shape (K,)
+        The dense grid (rad/s).
+
+    Returns
+    -------
+    (ndarray, ndarray)
+        The errors at the samples, shape (M,), and on the dense grid, shape (K,).
+    """
     e_s = relative_error(model, clean).values
     e_d = relative_error(model, dense, systems.G_A(omega=dense).response).values
     return e_s, e_d
@@ -59,7 +87,28 @@ def _stats(e):
 
 def study(data, clean, dense, n_sections, weights=None, floor=False):
     """Fit, errors against the clean system before/after the safeguard (pruning), and,
-    with ``floor``, of the fit with the damping floor ``min_damping="auto"``."""
+    with ``floor``, of the fit with the damping floor ``min_damping="auto"``.
+
+    Parameters
+    ----------
+    data, clean : FrequencyData
+        The noisy data fitted and the clean system at the same points.
+    dense : ndarray of float, shape (K,)
+        The dense grid (rad/s).
+    n_sections : int
+        Sections of the fits (integrator and delay included).
+    weights : ndarray of float, shape (M,), optional
+        Weights of the fit.
+    floor : bool
+        Also fit with ``min_damping="auto"``.
+
+    Returns
+    -------
+    (dict, FitResult, PruneResult, tuple, tuple)
+        The JSON-ready numbers (with ``"_floor_errors"`` when ``floor``), the plain fit,
+        the pruned one, and the clean errors before and after pruning
+        (:func:`clean_errors`).
+    """
     res = fit(data, n_sections=n_sections, integrator=True, delay=True, weights=weights)
     check = check_resolution(res, data.omega)
     pr = prune_sections(res, reference=lambda w: systems.G_A(omega=w), dense_factor=DENSE)

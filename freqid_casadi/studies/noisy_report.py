@@ -9,9 +9,8 @@ import json
 import os
 
 from .. import plots
-from .._io import atomic_write_text
 from ..formatting import generated_by_line, json_safe, markdown_table, number
-from ..report import check_out_dir, report_folder
+from ..report import atomic_write_text, check_out_dir, report_folder
 from .noisy import DENSE, NOISE, SEED, SIGMA_RANGE, run_noisy
 
 __all__ = ["write_noisy_report", "render_noisy", "weights_effect"]
@@ -27,7 +26,19 @@ _HEAD = ("", "max at samples", "RMS at samples", "max on dense grid", "RMS on de
 
 
 def render_noisy(command, s):
-    """The Markdown text of report.md from the content of report.json (``s``)."""
+    """The Markdown text of report.md.
+
+    Parameters
+    ----------
+    command : str
+        The command that made the report (first line).
+    s : dict
+        The content of report.json.
+
+    Returns
+    -------
+    str
+    """
     a = s["noisy"]
     f = a["floor"]
     head = _HEAD
@@ -140,7 +151,19 @@ def _weights_lines(s):
 
 
 def weights_effect(n_sections, s):
-    """The sentence on the weighted fits (``weights_effect`` of report.json)."""
+    """The sentence on the weighted fits (``weights_effect`` of report.json).
+
+    Parameters
+    ----------
+    n_sections : int
+        Sections of the fits.
+    s : dict
+        :attr:`NoisyStudy.summary <freqid_casadi.studies.noisy.NoisyStudy>`.
+
+    Returns
+    -------
+    str
+    """
     effect, uni, wtd = s["weighted_study"], s["uniform"], s["weighted"]
     better_lo = effect["weighted_rms_below_1rad"] < effect["uniform_rms_below_1rad"]
     better_hi = effect["weighted_rms_above_100rad"] < effect["uniform_rms_above_100rad"]
@@ -220,7 +243,7 @@ def write_noisy_report(out_dir, *, command, n_sections=17, force=False):
     Returns
     -------
     dict
-        The content of report.json.
+        Every number of the report, as written to report.json.
 
     Raises
     ------

@@ -81,9 +81,6 @@ _MOHEIMANI_OMEGA_C = 100.0
 _MOHEIMANI_MODES = 30
 
 
-# ----------------------------------------------------------------------------- configuration
-
-
 @dataclass(frozen=True)
 class _Config:
     """Problem sizes of one run (full: the thesis's; quick: a smoke test)."""
@@ -105,9 +102,6 @@ def _config(quick):
                        100, 4, 2, 128, 60.0, 60.0)
     return _Config(False, 500, dict(ORDERS), 500, FRACTIONAL_SECTIONS, NEWTON_ITERATIONS,
                    1024, BARRIER_LM_TIME_LIMIT, BARRIER_LM_TIME_CAP)
-
-
-# ----------------------------------------------------------------------------- helpers
 
 
 def _entry(model, data, wall_time, *, delay_fitted, extra=None):
@@ -203,9 +197,17 @@ class RationalExample:
 
 @dataclass(frozen=True, eq=False)
 class FractionalStudy:
-    """1/sqrt(s) (thesis §4.2): ``summary`` (JSON-ready numbers per method), ``curves``
-    (``omega`` in rad/s, closed-loop error E, relative error and response per method) and
-    ``data`` (the FrequencyData of 1/sqrt(s))."""
+    """1/sqrt(s) (thesis §4.2), our model and the classical approximations.
+
+    Attributes
+    ----------
+    summary : dict
+        JSON-ready numbers per method (poles, max closed-loop error E, max rel. error).
+    curves : dict
+        ``omega`` (rad/s); closed-loop error, relative error and response per method.
+    data : FrequencyData
+        1/sqrt(s) on the grid.
+    """
 
     summary: dict
     curves: dict
@@ -214,8 +216,15 @@ class FractionalStudy:
 
 @dataclass(frozen=True, eq=False)
 class MoheimaniStudy:
-    """Moheimani's beam with and without K_opt: ``summary`` (JSON-ready numbers, m/N) and
-    ``curves`` (``omega`` in rad/s, the responses and absolute errors)."""
+    """Moheimani's beam with and without K_opt.
+
+    Attributes
+    ----------
+    summary : dict
+        JSON-ready numbers (m/N): K_opt, K from the data, in-band errors.
+    curves : dict
+        ``omega`` (rad/s), the responses and the absolute errors.
+    """
 
     summary: dict
     curves: dict
@@ -244,9 +253,6 @@ class Reproduction:
     examples: dict
     fractional: Optional[FractionalStudy]
     moheimani: Optional[MoheimaniStudy]
-
-
-# ----------------------------------------------------------------------------- examples
 
 
 def _run_rational(key, cfg, lm_gate):
@@ -417,9 +423,6 @@ def _run_moheimani():
               "G_r + K_opt": g_k.frequency_response(omega),
               "error_without_k": err_r, "error_with_k": err_k}
     return MoheimaniStudy(out, curves)
-
-
-# ----------------------------------------------------------------------------- entry
 
 
 def parse_examples(examples, quick):

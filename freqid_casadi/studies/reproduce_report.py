@@ -23,9 +23,8 @@ import time
 import numpy as np
 
 from .. import plots
-from .._io import atomic_write_text
 from ..formatting import generated_by_line, json_safe, markdown_table, number
-from ..report import check_out_dir, report_folder
+from ..report import atomic_write_text, check_out_dir, report_folder
 from .reproduce import (METHOD_KEYS, NO_DELAY, TABLE_QUANTITIES, THESIS_TABLE_4_1,
                         run_reproduction)
 

@@ -20,7 +20,17 @@ def _fractional_grid():
 
 
 def sqrt_inverse_at(s):
-    """``1/sqrt(s)`` (principal branch) at complex ``s``, rad/s; shape of ``s``."""
+    """``1/sqrt(s)`` (principal branch).
+
+    Parameters
+    ----------
+    s : array_like of complex
+        Laplace variable (rad/s).
+
+    Returns
+    -------
+    ndarray of complex, shape of ``s``
+    """
     return 1 / np.sqrt(np.asarray(s, dtype=complex))
 
 
@@ -49,7 +59,8 @@ def sqrt_inverse(omega=None):
 
 
 def G_D_at(s):
-    """Closed loop ``G_D(s) = 1/(1 + sqrt(s))`` (principal branch) at complex ``s``."""
+    """Closed loop ``G_D(s) = 1/(1 + sqrt(s))``: ``s`` (array_like of complex, rad/s) as in
+    :func:`sqrt_inverse_at`, the same branch, and a complex array of the shape of ``s``."""
     return 1 / (1 + np.sqrt(np.asarray(s, dtype=complex)))
 
 
