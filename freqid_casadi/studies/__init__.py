@@ -3,8 +3,9 @@
 Each study is an experiment module returning result dataclasses and a ``*_report`` module
 that renders them (Markdown, JSON, figures through :mod:`freqid_casadi.plots`) into a
 report folder: ``reproduce`` / ``reproduce_report`` (the thesis's chapter 4), ``ablation`` /
-``ablation_report`` (IPOPT vs the barrier-LM, IPOPT's options one at a time) and ``noisy`` /
-``noisy_report`` (example A on noisy data: the safeguard, the damping floor, weights).
+``ablation_report`` (IPOPT vs the barrier-LM, IPOPT's options one at a time), ``noisy`` /
+``noisy_report`` (example A on noisy data: the safeguard, the damping floor, weights) and
+``robot_arm`` / ``robot_arm_report`` (the DaISy robot arm: orders, choice, weight).
 """
 
 __all__ = []
