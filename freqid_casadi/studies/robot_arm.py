@@ -204,10 +204,8 @@ def run_robot_arm(orders=(1, 2, 3, 4, 5), *, path=None, delays=(False, True), pr
         Numbers of sections to fit.
     path : str, optional
         The DaISy file (default: the package's copy).
-    delays : sequence of bool
-        With and/or without a fitted delay.
-    progress : callable, optional
-        Receives one line (str) per fit.
+    delays, progress
+        As in :func:`scan`.
 
     Returns
     -------

@@ -115,14 +115,14 @@ def _figures(folder, study):
 
 
 def render_robot_arm(command, summary):
-    """The Markdown text of report.md.
+    """report.md of the robot arm, every number taken from ``summary``.
 
     Parameters
     ----------
     command : str
-        The command that made the report (first line).
+        The command line of the run, named on the first line.
     summary : dict
-        The content of report.json.
+        What report.json holds.
 
     Returns
     -------
@@ -199,8 +199,6 @@ def _roots_text(roots):
     return [f"{number(r.real)}{r.imag:+.4g}j" for r in roots] or ["none"]
 
 
-
-
 def write_robot_arm_report(out_dir, *, command, orders=(1, 2, 3, 4, 5), force=False,
                            path=None, progress=None):
     """Run the robot-arm study and write its report folder.
@@ -208,9 +206,9 @@ def write_robot_arm_report(out_dir, *, command, orders=(1, 2, 3, 4, 5), force=Fa
     Parameters
     ----------
     out_dir : str or os.PathLike
-        Folder to create; its parent must exist.
+        The report folder (new unless ``force``; in an existing parent).
     command : str
-        The command that made the report (first line of report.md).
+        The command line of the run, named on report.md's first line.
     orders : sequence of int
         Numbers of sections to fit.
     force : bool
