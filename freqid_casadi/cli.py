@@ -54,39 +54,33 @@ class _Parser(argparse.ArgumentParser):
 # ----------------------------------------------------------------------------- arg types
 
 
-def _positive_int(text):
+def _checked(text, convert, valid, bad_type, bad_value):
+    """``convert(text)`` if ``valid`` of it, else an ArgumentTypeError: ``bad_type`` (text)
+    when it does not convert, ``bad_value(value)`` when it is out of range."""
     try:
-        value = int(text)
+        value = convert(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"must be a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer (>= 1), got {value}")
+        raise argparse.ArgumentTypeError(f"{bad_type}, got {text!r}") from None
+    if not valid(value):
+        raise argparse.ArgumentTypeError(bad_value(value))
     return value
+
+
+def _positive_int(text):
+    return _checked(text, int, lambda v: v >= 1, "must be a positive integer",
+                    lambda v: f"must be a positive integer (>= 1), got {v}")
 
 
 def _min_damping(text):
-    if text == "auto":
-        return "auto"
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"must be 'auto' or a damping ratio in [0, 1), got {text!r}") from None
-    if not (math.isfinite(value) and 0 <= value < 1):
-        raise argparse.ArgumentTypeError(
-            f"must be 'auto' or a damping ratio in [0, 1), got {text!r}")
-    return value
+    what = "must be 'auto' or a damping ratio in [0, 1)"
+    return "auto" if text == "auto" else _checked(
+        text, float, lambda v: math.isfinite(v) and 0 <= v < 1, what,
+        lambda v: f"{what}, got {text!r}")
 
 
 def _positive_float(text):
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
-    return value
+    return _checked(text, float, lambda v: math.isfinite(v) and v > 0, "must be a number > 0",
+                    lambda v: f"must be a finite number > 0, got {text!r}")
 
 
 # ----------------------------------------------------------------------------- parser
