@@ -201,7 +201,7 @@ LAYERS = {
     "solvers": 3,
     "stages": 4, "start": 4, "baselines": 4, "uncertainty": 4, "_weight": 4, "mainloop": 4,
     "fit": 5, "validation": 5, "sweep": 5, "batch": 5,
-    "report": 6, "summary": 6, "plots": 6, "ablation": 6, "reproduce": 6,
+    "report": 6, "summary": 6, "plots": 6,
     "cli": 7, "__main__": 7, "cli_frf": 7, "cli_batch": 7,
     "studies": 7,      # public API only; beside the CLI, whose ablation and reproduce
     "formatting": 0, "examples": 1,   # commands run them
