@@ -5,6 +5,10 @@ Commands::
     freqid example {A,B,C,fractional} [--sections N] [--method M] [--out DIR] [--force]
     freqid fit FILE --sections N [--integrator] [--no-delay] [--basis B] [--method M]
                     [--tol X] --out DIR [--force]
+    freqid sweep FILE|example:X --orders SPEC [--target X] --out DIR
+    freqid ablation [--examples LIST] [--quick] [--out DIR]     (studies.ablation_report)
+    freqid reproduce [--examples LIST] [--quick] [--out DIR]    (studies.reproduce_report)
+    freqid frf ..., freqid batch ...                            (cli_frf, cli_batch)
 
 Each command parses its arguments, calls the API (:func:`freqid_casadi.fit.fit`), writes a
 report folder (:func:`freqid_casadi.report.write_fit_report`) and prints a short summary.
