@@ -200,7 +200,7 @@ def _roots_text(roots):
 
 
 def write_robot_arm_report(out_dir, *, command, orders=(1, 2, 3, 4, 5), force=False,
-                           path=None, progress=None):
+                           path=None, delays=(False, True), progress=None):
     """Run the robot-arm study and write its report folder.
 
     Parameters
@@ -213,10 +213,8 @@ def write_robot_arm_report(out_dir, *, command, orders=(1, 2, 3, 4, 5), force=Fa
         Numbers of sections to fit.
     force : bool
         Replace an existing ``out_dir`` (only after the new report is complete).
-    path : str, optional
-        The DaISy file (default: the package's copy).
-    progress : callable, optional
-        Receives one line (str) per fit.
+    path, delays, progress
+        As in :func:`~freqid_casadi.studies.robot_arm.run_robot_arm`.
 
     Returns
     -------
@@ -229,7 +227,7 @@ def write_robot_arm_report(out_dir, *, command, orders=(1, 2, 3, 4, 5), force=Fa
         If ``out_dir`` exists and ``force`` is false, or its parent does not exist.
     """
     check_out_dir(out_dir, force)                 # early: before the long study
-    study = run_robot_arm(orders, path=path, progress=progress)
+    study = run_robot_arm(orders, path=path, delays=delays, progress=progress)
     summary = _summary(study, command)
     with report_folder(out_dir, force) as (tmp, _):
         save_csv(study.estimate.data, os.path.join(tmp, "frf.csv"))
