@@ -5,6 +5,10 @@ Commands::
     freqid example {A,B,C,fractional} [--sections N] [--method M] [--out DIR] [--force]
     freqid fit FILE --sections N [--integrator] [--no-delay] [--basis B] [--method M]
                     [--tol X] --out DIR [--force]
+    freqid sweep FILE|example:X --orders SPEC [--target X] --out DIR
+    freqid ablation [--examples LIST] [--quick] [--out DIR]     (studies.ablation_report)
+    freqid reproduce [--examples LIST] [--quick] [--out DIR]    (studies.reproduce_report)
+    freqid frf ..., freqid batch ...                            (cli_frf, cli_batch)
 
 Each command parses its arguments, calls the API (:func:`freqid_casadi.fit.fit`), writes a
 report folder (:func:`freqid_casadi.report.write_fit_report`) and prints a short summary.
@@ -22,43 +26,25 @@ register them in :data:`COMMANDS`.
 
 import argparse
 import math
+import os
 import re
-import warnings
 import shlex
 import sys
+import warnings
+from functools import partial
 
-from . import _interrupt, _io, _outputs, systems
+from . import _interrupt, _io, _outputs
 from .cli_common import add_data_options, load_data
 from .errors import FreqidError, OptionError, ResolutionWarning
+from .examples import EXAMPLES, FRACTIONAL_SECTIONS
 from .fit import METHODS, OBJECTIVES, STARTS, fit
+from .formatting import number, text_table
 from .model import BASES
 from .report import check_out_dir, dense_error, write_fit_report
 
 __all__ = ["main", "build_parser", "EXAMPLES", "FRACTIONAL_SECTIONS", "PROG"]
 
 PROG = "freqid"
-
-#: Number of first-order sections for the 1/sqrt(s) example. The thesis (§4.2, figs
-#: 4.20-4.21) does not state the order of its 1/sqrt(s) model in the text; 10 is our choice:
-#: one real pole/zero pair per decade of the 1e-5..1e5 rad/s grid.
-FRACTIONAL_SECTIONS = 10
-
-#: The built-in examples at the thesis's orders, with its published numbers (Table 4.1,
-#: thesis §4.1; SPEC §5). ``thesis["order"]`` is the order of P_N.
-EXAMPLES = {
-    "A": dict(data=systems.G_A, n_sections=17, integrator=True, delay=True,
-              basis="second-order",
-              thesis=dict(order=34, max_rel_error=0.2549, delay=0.0106, source="thesis")),
-    "B": dict(data=systems.G_B, n_sections=9, integrator=False, delay=True,
-              basis="second-order",
-              thesis=dict(order=18, max_rel_error=0.0027, delay=0.011, source="thesis")),
-    "C": dict(data=systems.G_C, n_sections=27, integrator=True, delay=True,
-              basis="second-order",
-              thesis=dict(order=54, max_rel_error=5.9884, delay=0.0261, source="thesis")),
-    "fractional": dict(data=systems.sqrt_inverse, n_sections=FRACTIONAL_SECTIONS,
-                       integrator=False, delay=False, basis="first-order", thesis=None),
-}
-
 
 class _UsageError(Exception):
     """A command-line usage error (reported as one ``error:`` line, exit code 2)."""
@@ -79,45 +65,43 @@ _ASCII_FLOAT = re.compile(r"[+-]?(([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?|n
                           re.IGNORECASE)
 
 
-def _positive_int(text):
+def _ascii(pattern, convert):
+    """``convert`` that first requires ``pattern`` (no "1_0", no non-ASCII digits)."""
+    def checked(text):
+        if not pattern.fullmatch(text.strip()):
+            raise ValueError(text)
+        return convert(text)
+    return checked
+
+
+def _checked(text, convert, valid, bad_type, bad_value):
+    """``convert(text)`` if ``valid`` of it, else an ArgumentTypeError: ``bad_type`` (text)
+    when it does not convert, ``bad_value(value)`` when it is out of range."""
     try:
-        if not _ASCII_INT.fullmatch(text.strip()):    # no "1_0", no non-ASCII digits
-            raise ValueError
-        value = int(text)
+        value = convert(text)
     except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"must be a positive integer, got {text!r}") from None
-    if value < 1:
-        raise argparse.ArgumentTypeError(f"must be a positive integer (>= 1), got {value}")
+        raise argparse.ArgumentTypeError(f"{bad_type}, got {text!r}") from None
+    if not valid(value):
+        raise argparse.ArgumentTypeError(bad_value(value))
     return value
+
+
+def _positive_int(text):
+    return _checked(text, _ascii(_ASCII_INT, int), lambda v: v >= 1, "must be a positive integer",
+                    lambda v: f"must be a positive integer (>= 1), got {v}")
 
 
 def _min_damping(text):
-    if text == "auto":
-        return "auto"
-    try:
-        if not _ASCII_FLOAT.fullmatch(text.strip()):
-            raise ValueError
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(
-            f"must be 'auto' or a damping ratio in [0, 1), got {text!r}") from None
-    if not (math.isfinite(value) and 0 <= value < 1):
-        raise argparse.ArgumentTypeError(
-            f"must be 'auto' or a damping ratio in [0, 1), got {text!r}")
-    return value
+    what = "must be 'auto' or a damping ratio in [0, 1)"
+    return "auto" if text == "auto" else _checked(
+        text, _ascii(_ASCII_FLOAT, float), lambda v: math.isfinite(v) and 0 <= v < 1, what,
+        lambda v: f"{what}, got {text!r}")
 
 
 def _positive_float(text):
-    try:
-        if not _ASCII_FLOAT.fullmatch(text.strip()):  # no "1_0", no non-ASCII digits
-            raise ValueError
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number > 0, got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0, got {text!r}")
-    return value
+    return _checked(text, _ascii(_ASCII_FLOAT, float), lambda v: math.isfinite(v) and v > 0,
+                    "must be a number > 0",
+                    lambda v: f"must be a finite number > 0, got {text!r}")
 
 
 # ----------------------------------------------------------------------------- parser
@@ -150,6 +134,19 @@ def _common(p, *, out_required):
                    help="no progress output")
 
 
+def _add_model_arguments(p, tol=True):
+    """--integrator, --no-delay, --basis (and --tol): the model structure of a fit (used
+    by the fit, sweep and batch commands)."""
+    p.add_argument("--integrator", action="store_true", help="include the factor K0/s")
+    p.add_argument("--no-delay", dest="delay", action="store_false",
+                   help="fix the delay h at 0")
+    p.add_argument("--basis", choices=BASES, default="second-order",
+                   help="section type (default second-order)")
+    if tol:
+        p.add_argument("--tol", type=_positive_float, metavar="X",
+                       help="stop adding sections once the max relative error is below X")
+
+
 def _add_example(sub):
     p = sub.add_parser("example", help="fit a built-in example at the thesis's order",
                        description="Fit one of the thesis's examples (A, B, C: beams and "
@@ -173,13 +170,7 @@ def _add_fit(sub):
     add_data_options(p)
     p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
                    help="number of sections N >= 1")
-    p.add_argument("--integrator", action="store_true", help="include the factor K0/s")
-    p.add_argument("--no-delay", dest="delay", action="store_false",
-                   help="fix the delay h at 0")
-    p.add_argument("--basis", choices=BASES, default="second-order",
-                   help="section type (default second-order)")
-    p.add_argument("--tol", type=_positive_float, metavar="X",
-                   help="stop adding sections once the max relative error is below X")
+    _add_model_arguments(p)
     p.add_argument("--min-damping", type=_min_damping, metavar="auto|ZETA",
                    help="floor on the damping ratio of every pole and zero; 'auto' ties it "
                         "to the frequency spacing (for noisy data: no pole/zero pair "
@@ -222,18 +213,65 @@ def _add_ablation(sub):
 
 
 def _cmd_ablation(args, command):
-    from . import ablation
+    from .studies import ablation, ablation_report
 
     check_out_dir(args.out, args.force)              # before the (long) study
     names = args.examples or (list(ablation.QUICK["examples"]) if args.quick
                               else list(EXAMPLES))
-    path, summary = ablation.write_ablation_report(
+    path, summary = ablation_report.write_ablation_report(
         {n: EXAMPLES[n] for n in names}, args.out, command=args.report_command or command,
         quick=args.quick, force=args.force, progress=not args.quiet)
     for line in summary["conclusions"]:
         print(f"- {line}")
     print(f"total time {summary['total_wall_time']:.1f} s")
     print(f"report: {path}")
+    return 0
+
+
+def _add_reproduce(sub):
+    from .studies.reproduce import EXAMPLE_NAMES
+
+    p = sub.add_parser(
+        "reproduce", help="reproduce the thesis's Table 4.1 and figures 4.1-4.21",
+        description="Fit the thesis's examples with our method and the baselines and write "
+                    "a report folder (report.md, report.json, figures).")
+    p.add_argument("--out", default="results/thesis", metavar="DIR",
+                   help="report folder to create (default results/thesis; must not exist "
+                        "unless --force)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing report folder (after the new one is complete)")
+    p.add_argument("--quick", action="store_true",
+                   help="tiny problems (about a minute) to test the report; numbers not "
+                        "comparable with the thesis")
+    p.add_argument("--examples", metavar="LIST",
+                   help=f"comma-separated subset of {','.join(EXAMPLE_NAMES)} (default: all; "
+                        "with --quick: A,fractional,moheimani)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--progress", dest="progress", action="store_true", default=None,
+                   help="log each fit to stderr (default when stderr is a terminal)")
+    g.add_argument("--quiet", dest="progress", action="store_false", help="no progress output")
+    p.add_argument("--report-command", help=argparse.SUPPRESS)
+    return p
+
+
+def _cmd_reproduce(args, command):
+    import logging
+
+    from .studies.reproduce_report import write_reproduce_report
+
+    if _progress(args) and not logging.getLogger().handlers:
+        logging.basicConfig(level=logging.INFO, format="%(asctime)s %(message)s",
+                            stream=sys.stderr)
+    summary = write_reproduce_report(args.out, command=args.report_command or command,
+                                     force=args.force, quick=args.quick,
+                                     examples=args.examples)
+    table = summary.get("table_4_1") or {}
+    for row in table.get("rows", []):
+        if row["quantity"] == "max_rel_error":
+            cells = ", ".join(f"{c}={number(v)}" for c, v in zip(table["columns"],
+                                                                 row["values"]))
+            print(f"{row['example']}: max rel. error: {cells}")
+    print(f"report: {os.path.abspath(args.out)} ({summary['wall_time']:.0f} s)")
     return 0
 
 
@@ -259,42 +297,32 @@ def _progress(args):
     return sys.stderr.isatty() if args.progress is None else bool(args.progress)
 
 
-def _text_table(rows, headers):
-    rows = [[str(c) for c in r] for r in rows]
-    widths = [max(len(h), *(len(r[j]) for r in rows)) for j, h in enumerate(headers)]
-    fmt = "  ".join(f"{{:<{w}}}" for w in widths)
-    lines = [fmt.format(*headers), fmt.format(*("-" * w for w in widths))]
-    lines += [fmt.format(*r) for r in rows]
-    return "\n".join(line.rstrip() for line in lines)
-
-
-def _g(x, digits=4):
-    return "-" if x is None else f"{x:.{digits}g}"
+# a number in the console tables: "-" when missing
+_g = partial(number, missing="-")
 
 
 def _cmd_example(args, command):
     ex = EXAMPLES[args.name]
     out = args.out or f"freqid_example_{args.name}"
     check_out_dir(out, args.force)                   # before the (long) fit
-    n_sections = args.sections or ex["n_sections"]
-    data = ex["data"]()
+    structure = ex.structure(args.sections)
+    data = ex.data()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ResolutionWarning)   # reported below, one line
-        result = fit(data, n_sections=n_sections, integrator=ex["integrator"],
-                     delay=ex["delay"], basis=ex["basis"], method=args.method,
-                     progress=_progress(args), start=args.start, objective=args.objective)
-    truth = lambda w: ex["data"](omega=w).response  # noqa: E731
+        result = fit(data, **structure, method=args.method, progress=_progress(args),
+                     start=args.start, objective=args.objective)
+    thesis = ex.thesis.as_dict() if ex.thesis is not None else None
     path = write_fit_report(result, out, command=command, force=args.force,
-                            title=f"Example {args.name}: {data.name}", thesis=ex["thesis"],
-                            truth=truth)
-    dense = dense_error(result.model, data.omega, truth)
-    t = ex["thesis"] or {}
-    per = 2 if ex["basis"] == "second-order" else 1
-    row = (args.name, per * n_sections, _g(result.max_rel_error),
+                            title=f"Example {args.name}: {data.name}", thesis=thesis,
+                            truth=ex.truth)
+    dense = dense_error(result.model, data.omega, ex.truth)
+    t = thesis or {}
+    per = 2 if ex.basis == "second-order" else 1
+    row = (args.name, per * structure["n_sections"], _g(result.max_rel_error),
            _g(dense["max_rel_error"]), _g(result.rms_rel_error),
            _g(result.model.delay), f"{result.wall_time:.1f}",
            t.get("order", "-"), _g(t.get("max_rel_error")), _g(t.get("delay")))
-    print(_text_table([row], ("example", "order", "max rel. err", "10x grid",
+    print(text_table([row], ("example", "order", "max rel. err", "10x grid",
                               "RMS rel. err", "delay (s)", "time (s)", "thesis order",
                               "thesis max", "thesis delay")))
     _resolution_warning(result)
@@ -344,10 +372,7 @@ def _add_sweep(sub):
                    help="orders of P_N, e.g. 4:40:2 (stop included) or 10,20,34")
     p.add_argument("--target", type=_positive_float, metavar="X",
                    help="name the smallest order whose max relative error is <= X")
-    p.add_argument("--integrator", action="store_true", help="include the factor K0/s")
-    p.add_argument("--no-delay", dest="delay", action="store_false",
-                   help="fix the delay h at 0")
-    p.add_argument("--basis", choices=BASES, default="second-order")
+    _add_model_arguments(p, tol=False)
     p.add_argument("--method", choices=METHODS, default="ipopt")
     p.add_argument("--start", choices=STARTS, default="best")
     p.add_argument("--out", required=True, metavar="DIR")
@@ -368,10 +393,9 @@ def _cmd_sweep(args, command):
         if name not in ("A", "B", "C"):
             raise OptionError(f"unknown example {name!r} in {args.file!r}; use example:A, "
                               "example:B or example:C")
-        make = {"A": systems.G_A, "B": systems.G_B, "C": systems.G_C}[name]
-        data = make()
-        truth = lambda w: make(w).response  # noqa: E731
-        integrator = integrator or EXAMPLES[name]["integrator"]
+        data = EXAMPLES[name].data()
+        truth = EXAMPLES[name].truth
+        integrator = integrator or EXAMPLES[name].integrator
     else:
         data = load_data(args, args.file)
     check_out_dir(args.out, args.force)
@@ -387,7 +411,7 @@ def _cmd_sweep(args, command):
     path = write_sweep_report(result, args.out, command=command, force=args.force)
     rows = [(r.order, _g(r.max_rel_error), _g(r.rms_rel_error), _g(r.max_rel_error_dense),
              _g(r.delay, 6), f"{r.wall_time:.1f}") for r in result.rows]
-    print(_text_table(rows, ("order", "max rel. err", "RMS", "max (10x grid)", "delay (s)",
+    print(text_table(rows, ("order", "max rel. err", "RMS", "max (10x grid)", "delay (s)",
                              "time (s)")))
     if args.target is not None:
         print(f"smallest order with max rel. error <= {args.target:g}: "
@@ -399,6 +423,7 @@ def _cmd_sweep(args, command):
 COMMANDS["example"] = (_add_example, _cmd_example)
 COMMANDS["fit"] = (_add_fit, _cmd_fit)
 COMMANDS["ablation"] = (_add_ablation, _cmd_ablation)
+COMMANDS["reproduce"] = (_add_reproduce, _cmd_reproduce)
 COMMANDS["sweep"] = (_add_sweep, _cmd_sweep)
 
 
@@ -422,7 +447,6 @@ def _plugin(module_name):
 
 
 COMMANDS["frf"] = _plugin("cli_frf")
-COMMANDS["reproduce"] = _plugin("reproduce")
 COMMANDS["batch"] = _plugin("cli_batch")
 
 

@@ -29,12 +29,12 @@ import warnings
 from .cli_common import add_data_options, load_options, notes_to_stderr
 from ._io import atomic_write_text, csv_row, one_line
 from .batch import fit_many
-from .cli import _positive_float, _positive_int   # the CLI's own validators
+from .cli import _add_model_arguments, _positive_int   # the CLI's own helpers
 from ._outputs import MARKER
 from .errors import DataError
 from .fit import METHODS
-from .model import BASES
-from .report import _num, check_out_dir, generated_by_line, markdown_table, report_folder
+from .formatting import number as _num
+from .report import check_out_dir, generated_by_line, markdown_table, report_folder
 
 __all__ = ["add_cli", "run_cli", "write_batch_report", "data_files", "BATCH_FILES"]
 
@@ -65,15 +65,9 @@ def add_cli(subparsers):
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="Dask scheduler address (e.g. tcp://127.0.0.1:8786); needs "
                         "pip install freqid_casadi[dask]")
-    p.add_argument("--integrator", action="store_true", help="include the factor K0/s")
-    p.add_argument("--no-delay", dest="delay", action="store_false",
-                   help="fix the delay h at 0")
-    p.add_argument("--basis", choices=BASES, default="second-order",
-                   help="section type (default second-order)")
+    _add_model_arguments(p)
     p.add_argument("--method", choices=METHODS, default="ipopt",
                    help="stage solver (default ipopt)")
-    p.add_argument("--tol", type=_positive_float, metavar="X",
-                   help="stop adding sections once the max relative error is below X")
     p.add_argument("--force", action="store_true",
                    help="replace an existing output folder (after the new one is complete)")
     return p

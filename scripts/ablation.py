@@ -5,7 +5,7 @@ Usage::
     python scripts/ablation.py [--examples A,B,C,fractional] [--quick]
                                [--out results/ablation] [--force] [--quiet]
 
-The same as ``freqid ablation [same args]`` (:mod:`freqid_casadi.ablation`): writes
+The same as ``freqid ablation [same args]`` (:mod:`freqid_casadi.studies.ablation_report`): writes
 ``<out>/report.md`` (first line: this command), ``<out>/ablation.json`` and PNG figures, and
 prints one progress line per variant to stderr. Exit codes as ``freqid``: 0 on success,
 2 on a usage or option error, 130 when interrupted.

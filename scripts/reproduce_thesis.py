@@ -3,15 +3,27 @@
 Usage::
 
     python scripts/reproduce_thesis.py [--out results/thesis] [--force] [--quick]
-                                       [--examples A,B,C,fractional,moheimani]
+                                       [--examples A,B,C,fractional,moheimani] [--quiet]
 
-A thin wrapper around :func:`freqid_casadi.reproduce.main` (also ``freqid reproduce``).
-The first line of ``report.md`` names this command.
+The same as ``freqid reproduce [same args]`` (:mod:`freqid_casadi.studies.reproduce_report`),
+with progress logged to stderr unless ``--quiet``. The first line of ``report.md`` names
+this command. Exit codes as ``freqid``: 0 on success, 2 on a usage or option error, 130
+when interrupted.
 """
 
+import shlex
 import sys
 
-from freqid_casadi.reproduce import main
+from freqid_casadi import cli
+
+
+def main(argv=None):
+    argv = list(sys.argv[1:] if argv is None else argv)
+    command = " ".join(["python", "scripts/reproduce_thesis.py"]
+                       + [shlex.quote(a) for a in argv])
+    progress = [] if "--quiet" in argv or "--progress" in argv else ["--progress"]
+    return cli.main(["reproduce", *argv, *progress, "--report-command", command])
+
 
 if __name__ == "__main__":
-    sys.exit(main(prog="scripts/reproduce_thesis.py"))
+    sys.exit(main())

@@ -1,4 +1,5 @@
-"""Tests of the ablation study (freqid_casadi.ablation, `freqid ablation`, scripts/ablation.py).
+"""Tests of the ablation study (freqid_casadi.studies.ablation and ablation_report,
+`freqid ablation`, scripts/ablation.py).
 
 One quick run (`freqid ablation --quick`, < 1 min) through the CLI: the files, the first line
 of report.md, and every number of its tables against ablation.json. The rest is cheap: the
@@ -6,6 +7,7 @@ time-to-reach rule, failed variants kept in the report, the CLI's errors and the
 command line.
 """
 
+import dataclasses
 import json
 import math
 import os
@@ -18,8 +20,11 @@ matplotlib.use("Agg")
 
 import pytest  # noqa: E402
 
-from freqid_casadi import ablation, cli, report, systems  # noqa: E402
+from freqid_casadi import cli, report, systems  # noqa: E402
+from freqid_casadi.examples import EXAMPLES  # noqa: E402
+from freqid_casadi.studies import ablation, ablation_report  # noqa: E402
 from freqid_casadi.fit import fit  # noqa: E402
+from freqid_casadi.options import BarrierLMOptions, IpoptOptions, LoopOptions  # noqa: E402
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "ablation.py"
 
@@ -200,37 +205,56 @@ def test_failed_variant_is_reported_not_dropped(small_result, monkeypatch):
         return small_result
 
     monkeypatch.setattr(ablation, "fit", fake_fit)
-    spec = dict(data=small_result.data, n_sections=1, integrator=True, delay=True,
-                basis="second-order")
-    summary, fits = ablation.run_ablation({"A": spec}, quick=True)
-    summary["command"] = "test"
+    spec = dataclasses.replace(EXAMPLES["A"], system=lambda: small_result.data, n_sections=1)
+    result = ablation.run_ablation({"A": spec}, quick=True)
+    fits = result.fits
+    summary = dict(result.as_dict(), command="test")
+    summary["conclusions"] = ablation_report.conclusions(summary)
     rec = {r["key"]: r for r in summary["cases"]["A"]["variants"]}
     assert len(calls) == 3 and set(rec) == {"ipopt", "lm-marquardt", "gauge-b1"}
     assert rec["lm-marquardt"]["status"] == "failed"
     assert rec["lm-marquardt"]["message"] == "RuntimeError: boom second line"
     assert rec["lm-marquardt"]["max_rel_error"] is None
     assert "lm-marquardt" not in fits["A"]
-    md = ablation.render_ablation(summary)
+    md = ablation_report.render_ablation(summary)
     assert "FAILED: RuntimeError: boom second line" in md
     assert any("Failed variants: A barrier-LM" in c for c in summary["conclusions"])
     comp = summary["cases"]["A"]["comparison"][0]
     assert comp["error_ratio"] is None and comp["ipopt_time_to_reach"] is None
 
 
+def _changed(opts):
+    """Fields of the variant's option objects that differ from the study's defaults."""
+    out = set()
+    for obj, default in ((opts["loop"], ablation.DEFAULT_LOOP),
+                         (opts["method"], ablation.DEFAULT_IPOPT)):
+        out |= {f.name for f in dataclasses.fields(obj)
+                if getattr(obj, f.name) != getattr(default, f.name)}
+    return out
+
+
 def test_variants_one_factor_at_a_time():
+    # the defaults are the option objects' own, except the stated final_max_iter=500
+    assert dataclasses.replace(ablation.DEFAULT_IPOPT, final_max_iter=200) == IpoptOptions()
+    assert ablation.DEFAULT_IPOPT.final_max_iter == 500
+    assert ablation.DEFAULT_LOOP == LoopOptions()
     full = ablation.variants(delay=True)
-    assert full[0].key == "ipopt" and full[0].fit_options() == ablation.DEFAULT_OPTIONS
+    assert full[0].key == "ipopt" and full[0].fit_options() == {
+        "method": ablation.DEFAULT_IPOPT, "loop": ablation.DEFAULT_LOOP}
     assert len({v.key for v in full}) == len(full)
     for v in full:
         if v.group == "method" or v.key == "init-identity-raw-l2":
             continue
-        changed = {k for k, val in v.fit_options().items()
-                   if ablation.DEFAULT_OPTIONS.get(k) != val}
+        changed = _changed(v.fit_options())
         assert changed <= {"gauge", "scale_l"} if v.group == "gauge" else len(changed) == 1
+    assert _changed(full[-1].fit_options()) == {"bound_delay"}
     assert "delay-unbounded" not in {v.key for v in ablation.variants(delay=False)}
-    lm = {v.key: v.fit_options()["lm_options"] for v in full if v.key.startswith("lm")}
-    assert lm["lm-thesis"]["damping"] == "thesis"
-    assert lm["lm-marquardt"]["damping"] == "marquardt"
+    lm = {v.key: v.fit_options()["method"] for v in full if v.key.startswith("lm")}
+    assert lm["lm-thesis"].damping == "thesis"
+    assert lm["lm-marquardt"].damping == "marquardt"
+    for solver in lm.values():
+        assert isinstance(solver, BarrierLMOptions)
+        assert (solver.max_inner, solver.max_iter, solver.final_max_iter) == (50, 100, 500)
 
 
 # ----------------------------------------------------------------------------- CLI and script
@@ -244,7 +268,7 @@ def test_cli_bad_examples(capsys, tmp_path):
 
 
 def test_cli_refuses_existing_folder(capsys, tmp_path, monkeypatch):
-    monkeypatch.setattr(ablation, "run_ablation", lambda *a, **k: pytest.fail("ran"))
+    monkeypatch.setattr(ablation_report, "run_ablation", lambda *a, **k: pytest.fail("ran"))
     (tmp_path / "x").mkdir()
     code = cli.main(["ablation", "--quick", "--out", str(tmp_path / "x")])
     err = capsys.readouterr().err

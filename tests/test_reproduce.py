@@ -1,14 +1,18 @@
-"""The thesis-reproduction report (freqid_casadi.reproduce) in quick mode (about a minute)."""
+"""The thesis-reproduction study (freqid_casadi.studies.reproduce, its report and
+`freqid reproduce`) in quick mode (about a minute)."""
 
-import argparse
 import json
+import runpy
+from pathlib import Path
 
 import pytest
 
+from freqid_casadi import cli
 from freqid_casadi.errors import OptionError
-from freqid_casadi.report import generated_by_line
-from freqid_casadi.reproduce import (EXAMPLE_NAMES, TABLE_COLUMNS, TABLE_QUANTITIES,
-                                     add_cli, reproduce, table_cell)
+from freqid_casadi.formatting import generated_by_line, number as table_cell
+from freqid_casadi.studies.reproduce import EXAMPLE_NAMES, TABLE_QUANTITIES
+from freqid_casadi.studies.reproduce_report import TABLE_COLUMNS
+from freqid_casadi.studies.reproduce_report import write_reproduce_report as reproduce
 
 COMMAND = "python scripts/reproduce_thesis.py --quick --out OUT"
 
@@ -101,9 +105,7 @@ def test_refuses_existing_folder_without_force(tmp_path):
 
 
 def test_cli_parser():
-    parser = argparse.ArgumentParser()
-    add_cli(parser.add_subparsers(dest="command"))
-    args = parser.parse_args(["reproduce", "--quick", "--examples", "A,B"])
+    args = cli.build_parser().parse_args(["reproduce", "--quick", "--examples", "A,B"])
     assert args.out.endswith("thesis") and args.quick and not args.force
     assert args.examples == "A,B"
     assert set(EXAMPLE_NAMES) == {"A", "B", "C", "fractional", "moheimani"}
@@ -111,7 +113,7 @@ def test_cli_parser():
 
 def test_time_limited_fit_stops_and_reports_last_stage():
     from freqid_casadi import systems
-    from freqid_casadi.reproduce import _fit_time_limited
+    from freqid_casadi.studies.reproduce import _fit_time_limited
 
     data = systems.G_A().window(60)
     res, elapsed, last = _fit_time_limited(data, 0.0, n_sections=2, integrator=True,
@@ -120,3 +122,13 @@ def test_time_limited_fit_stops_and_reports_last_stage():
     res, _, last = _fit_time_limited(data, 1e6, n_sections=1, integrator=True,
                                      method="ipopt")
     assert last is None and res.model.n_sections == 1
+
+
+def test_script_calls_the_cli_with_its_own_command(monkeypatch):
+    seen = []
+    monkeypatch.setattr(cli, "main", lambda argv: seen.append(argv) or 0)
+    script = Path(__file__).resolve().parents[1] / "scripts" / "reproduce_thesis.py"
+    assert runpy.run_path(str(script))["main"](["--quick", "--out", "my dir"]) == 0
+    assert seen == [["reproduce", "--quick", "--out", "my dir", "--progress",
+                     "--report-command",
+                     "python scripts/reproduce_thesis.py --quick --out 'my dir'"]]

@@ -1,7 +1,8 @@
-"""Fast test of scripts/robot_arm.py on two orders (the script's logic and its folder)."""
+"""Fast test of the robot-arm study (freqid_casadi.studies.robot_arm, its report and
+scripts/robot_arm.py) on two orders."""
 
-import importlib.util
 import json
+import runpy
 from pathlib import Path
 
 import matplotlib
@@ -11,29 +12,22 @@ matplotlib.use("Agg")
 import pytest  # noqa: E402
 
 from freqid_casadi.errors import DataError  # noqa: E402
+from freqid_casadi.studies import robot_arm, robot_arm_report  # noqa: E402
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "robot_arm.py"
 
 
-def _script():
-    spec = importlib.util.spec_from_file_location("robot_arm_script", SCRIPT)
-    mod = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(mod)
-    return mod
-
-
 @pytest.fixture(scope="module")
 def script():
-    mod = _script()
     try:
-        mod.arm_data()
+        robot_arm.arm_data()
     except DataError as exc:
         pytest.skip(f"robot arm data not available: {exc}")
-    return mod
+    return robot_arm
 
 
 def test_choose_smallest_order_within_factor():
-    mod = _script()
+    mod = robot_arm
     rows = [{"n_sections": 1, "delay": False, "rms_rel_error": 0.5},
             {"n_sections": 2, "delay": True, "rms_rel_error": 0.11},
             {"n_sections": 2, "delay": False, "rms_rel_error": 0.12},
@@ -53,8 +47,9 @@ def test_low_frequency_is_flat_and_inverted(script):
 
 def test_run_on_two_orders_writes_the_folder(script, tmp_path):
     out = tmp_path / "arm"
-    s = script.run([2, 3], str(out), "python scripts/robot_arm.py --orders 2,3",
-                   delays=(False,))
+    s = robot_arm_report.write_robot_arm_report(
+        str(out), command="python scripts/robot_arm.py --orders 2,3", orders=[2, 3],
+        delays=(False,))
     assert sorted(p.name for p in out.iterdir()) == sorted(
         ["bode.png", "error_vs_order.png", "frf.csv", "pole_zero.png", "rel_error.png",
          "report.json", "report.md", "uncertainty_weight.png"])
@@ -67,3 +62,18 @@ def test_run_on_two_orders_writes_the_folder(script, tmp_path):
     assert js["chosen"]["n_sections"] in (2, 3)
     assert js["chosen"]["stable"] and js["chosen"]["minimum_phase"]
     assert s["chosen"]["rms_rel_error"] < 0.25
+
+
+def test_script_calls_the_study(monkeypatch, capsys):
+    seen = []
+
+    def fake(out, **kw):
+        seen.append((out, kw["command"], kw["orders"], kw["force"]))
+        return {"chosen": {"n_sections": 2, "n_sections_kept": 2, "delay": False,
+                           "max_rel_error": 0.5, "rms_rel_error": 0.1}}
+
+    monkeypatch.setattr(robot_arm_report, "write_robot_arm_report", fake)
+    assert runpy.run_path(str(SCRIPT))["main"](["--orders", "2,3", "--out", "a b"]) == 0
+    assert seen == [("a b", "python scripts/robot_arm.py --orders 2,3 --out 'a b'", [2, 3],
+                     False)]
+    assert "chosen: 2 sections (2 kept), no delay" in capsys.readouterr().out

@@ -6,6 +6,7 @@ from scipy import integrate, optimize
 from scipy.signal import argrelmax
 
 from freqid_casadi import systems
+from freqid_casadi.systems import _beams
 from freqid_casadi.data import FrequencyData
 from freqid_casadi.errors import DataError, OptionError
 from freqid_casadi.systems import (
@@ -64,17 +65,17 @@ def test_matches_high_precision_reference(ours, ref):
 def test_series_and_rescaled_forms_agree_at_threshold():
     # both kernels around the circle |z| = SERIES_THRESHOLD, every direction
     z = systems.SERIES_THRESHOLD * np.exp(1j * np.linspace(-np.pi, np.pi, 361))
-    m = systems._fourth_root(z)
-    a1, a2, r = systems._scaled_beam_terms(m)
-    q_series = systems._horner(systems._C_NUM, z) / systems._horner(systems._C_COSCOSH[1:], z)
+    m = _beams._fourth_root(z)
+    a1, a2, r = _beams._scaled_beam_terms(m)
+    q_series = _beams._horner(_beams._C_NUM, z) / _beams._horner(_beams._C_COSCOSH[1:], z)
     np.testing.assert_allclose(q_series, m * a1 / (a2 - r), rtol=1e-13)
-    b_series = -systems._horner(systems._C_NUM, z) / (1 + systems._horner(systems._C_COSCOSH, z))
+    b_series = -_beams._horner(_beams._C_NUM, z) / (1 + _beams._horner(_beams._C_COSCOSH, z))
     np.testing.assert_allclose(b_series, -a1 / (m ** 3 * (a2 + r)), rtol=1e-13)
 
 
 def test_fourth_root_branch():
     z = np.exp(1j * np.linspace(-np.pi, np.pi, 101)) * np.logspace(-3, 3, 101)
-    m = systems._fourth_root(z)
+    m = _beams._fourth_root(z)
     np.testing.assert_allclose(m ** 4, z, rtol=1e-13)
     assert np.all(m.real >= 0) and np.all(m.imag >= 0)
 
@@ -300,3 +301,20 @@ def test_all_names_have_docstrings():
         obj = getattr(systems, name)
         if callable(obj):
             assert obj.__doc__ and obj.__doc__.strip(), name
+
+
+def test_catalogue_matches_the_systems_and_table_4_1():
+    """The example catalogue: the thesis's structures and numbers (SPEC §5)."""
+    from freqid_casadi.examples import EXAMPLES, TABLE_4_1
+
+    assert [(k, e.n_sections, e.integrator, e.order) for k, e in EXAMPLES.items()] == [
+        ("A", 17, True, 34), ("B", 9, False, 18), ("C", 27, True, 54),
+        ("fractional", 10, False, 10)]
+    assert [(t.max_rel_error, t.subspace_max_rel_error, t.delay)
+            for t in TABLE_4_1.values()] == [(0.2549, 2.5724, 0.0106),
+                                             (0.0027, 0.0044, 0.011),
+                                             (5.9884, 7.3382, 0.0261)]
+    assert all(EXAMPLES[k].thesis.order == EXAMPLES[k].order for k in "ABC")
+    omega = systems.thesis_grid(5)
+    assert EXAMPLES["C"].data(omega).name == "G_C"
+    np.testing.assert_array_equal(EXAMPLES["A"].truth(omega), systems.G_A(omega).response)

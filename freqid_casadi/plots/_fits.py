@@ -1,113 +1,17 @@
-"""Figures of fits: Bode, relative error, pole-zero map, per-stage error (layer L5).
+"""Figures of fits: Bode, relative error, pole-zero map, per-stage error, order sweep."""
 
-matplotlib is imported inside the functions, never at module import, so ``import
-freqid_casadi`` (and ``import freqid_casadi.plots``) stays free of it (STYLE.md §3). Without
-matplotlib every function raises :class:`MatplotlibMissingError`, an ``ImportError`` that
-says how to install it.
-
-Every function takes results (or data and models) and returns a
-``matplotlib.figure.Figure``; none calls ``show()``. Write a figure with
-:func:`save_figure`, which writes the PNG atomically and closes the figure.
-
-Conventions: frequencies in rad/s on a log axis, magnitudes in dB, phases in degrees
-(unwrapped), relative errors ``|(G - G_N)/G_N|`` on log-log axes (SPEC §1).
-"""
-
-import io
 import math
-import os
-from collections.abc import Mapping
 
 import numpy as np
 
-from ._io import atomic_write_bytes
-from .data import FrequencyData
-from .errors import FreqidError, OptionError
-from .model import RationalDelayModel
+from ..data import FrequencyData, dense_grid
+from ..errors import OptionError
+from ..metrics import relative_error as relative_error_of
+from ..model import RationalDelayModel
+from ._base import (_dense_grid, _is_result, _label_of, _labelled, _pyplot, finish_axes,
+                    new_figure)
 
-__all__ = ["bode", "relative_error", "pole_zero", "stage_errors", "save_figure",
-           "MatplotlibMissingError", "DPI", "sweep"]
-
-#: Resolution (dots per inch) of the PNG files written by :func:`save_figure`.
-DPI = 150
-
-_FIGSIZE = (6.4, 4.8)
-_DENSE_POINTS = 2000
-
-
-class MatplotlibMissingError(FreqidError, ImportError):
-    """matplotlib is needed for plotting but is not installed."""
-
-
-def _pyplot():
-    """Import and return ``matplotlib.pyplot`` or raise :class:`MatplotlibMissingError`."""
-    try:
-        import matplotlib.pyplot as plt
-    except ImportError as exc:
-        raise MatplotlibMissingError(
-            f"plotting needs matplotlib, which could not be imported ({exc}); "
-            "install it with: pip install matplotlib") from exc
-    return plt
-
-
-def _new_figure(nrows=1, ncols=1, figsize=None, **kw):
-    plt = _pyplot()
-    fig, axes = plt.subplots(nrows, ncols, figsize=figsize or _FIGSIZE, layout="constrained",
-                             **kw)
-    return fig, axes
-
-
-def _finish_axes(ax):
-    ax.grid(True, which="major", alpha=0.5, linewidth=0.6)
-    ax.grid(True, which="minor", alpha=0.2, linewidth=0.4)
-    ax.tick_params(which="both", direction="in", top=True, right=True)
-
-
-# ----------------------------------------------------------------------------- inputs
-
-
-def _is_result(obj):
-    """Duck-typed FitResult: has a model and data."""
-    return (hasattr(obj, "model") and hasattr(obj, "data")
-            and isinstance(getattr(obj, "model"), RationalDelayModel))
-
-
-def _label_of(result, default):
-    method = getattr(result, "method", None)
-    return str(method) if method else default
-
-
-def _labelled(items, labels, what):
-    """Normalise ``items`` (one object, a sequence or a mapping label -> object) to a list
-    of (label, object); ``labels`` overrides the labels."""
-    if isinstance(items, Mapping):
-        pairs = [(str(k), v) for k, v in items.items()]
-    elif isinstance(items, (list, tuple)):
-        pairs = [(None, v) for v in items]
-    else:
-        pairs = [(None, items)]
-    if not pairs:
-        raise OptionError(f"{what}: nothing to plot (got an empty collection)")
-    if labels is not None:
-        labels = list(labels)
-        if len(labels) != len(pairs):
-            raise OptionError(f"labels has {len(labels)} entries for {len(pairs)} {what}; "
-                              "give one label per item")
-        pairs = [(str(lab), v) for lab, (_, v) in zip(labels, pairs)]
-    return pairs
-
-
-def _dense_grid(omega, n=_DENSE_POINTS):
-    """Log-spaced grid over the data range, merged with the data frequencies."""
-    lo, hi = float(omega[0]), float(omega[-1])
-    if hi > lo:
-        grid = np.logspace(math.log10(lo), math.log10(hi), n)
-    else:
-        grid = np.array([lo])
-    return np.union1d(grid, omega)
-
-
-# ----------------------------------------------------------------------------- Bode
+__all__ = ["bode", "relative_error", "pole_zero", "stage_errors", "sweep"]
 
 
 def bode(result_or_data, models=None, *, labels=None, title=None, figsize=None,
@@ -171,7 +75,7 @@ def bode(result_or_data, models=None, *, labels=None, title=None, figsize=None,
     pairs = [(lab or f"model {k + 1}", m) for k, (lab, m) in enumerate(pairs)]
 
     omega, phi = data.omega, data.response
-    fig, (ax_mag, ax_ph) = _new_figure(2, 1, figsize=figsize or (6.4, 5.6), sharex=True,
+    fig, (ax_mag, ax_ph) = new_figure(2, 1, figsize=figsize or (6.4, 5.6), sharex=True,
                                        height_ratios=(1, 1))
     grid = _dense_grid(omega)
     at_data = np.searchsorted(grid, omega)
@@ -198,7 +102,7 @@ def bode(result_or_data, models=None, *, labels=None, title=None, figsize=None,
     ax_ph.set_xlabel(r"frequency $\omega$ (rad/s)")
     ax_ph.set_xlim(omega[0], omega[-1])
     for ax in (ax_mag, ax_ph):
-        _finish_axes(ax)
+        finish_axes(ax)
     ax_mag.legend(loc="best", fontsize="small", framealpha=0.9)
     fig.suptitle(title if title is not None else (data.name or "Bode plot"))
     return fig
@@ -236,7 +140,7 @@ def relative_error(results, *, labels=None, title=None, figsize=None, annotate_m
     matplotlib.figure.Figure
     """
     pairs = _labelled(results, labels, "results")
-    fig, ax = _new_figure(figsize=figsize)
+    fig, ax = new_figure(figsize=figsize)
     for k, (lab, res) in enumerate(pairs):
         if not _is_result(res):
             raise OptionError("relative_error: expected FitResult objects, got "
@@ -246,10 +150,8 @@ def relative_error(results, *, labels=None, title=None, figsize=None, annotate_m
         omega = res.data.omega
         color = f"C{k}"
         if truth is not None:
-            from .validation import dense_grid
-
             grid = dense_grid(omega, dense_factor)
-            dense = np.abs(np.asarray(truth(grid)) / res.model.frequency_response(grid) - 1)
+            dense = relative_error_of(res.model, grid, np.asarray(truth(grid))).values
             ax.loglog(grid, dense, "-", color=color, lw=0.6, alpha=0.45,
                       label=f"{lab}, between the samples ({int(dense_factor)}x grid, max "
                             f"{np.max(dense):.3g})")
@@ -271,7 +173,7 @@ def relative_error(results, *, labels=None, title=None, figsize=None, annotate_m
     ax.margins(x=0.02, y=0.12)           # head room for the max annotations
     ax.set_xlabel(r"frequency $\omega$ (rad/s)")
     ax.set_ylabel(r"relative error $|(G - G_N)/G_N|$")
-    _finish_axes(ax)
+    finish_axes(ax)
     ax.legend(loc="best", fontsize="small", framealpha=0.9)
     if title is None:
         names = {getattr(r.data, "name", None) for _, r in pairs}
@@ -325,7 +227,7 @@ def pole_zero(model, *, zoom=None, title=None, figsize=None):
         if not (math.isfinite(zoom) and zoom > 0):
             raise OptionError(f"zoom must be a number > 0 (rad/s) or 'auto', got {zoom!r}")
     ncols = 1 if zoom is None else 2
-    fig, axes = _new_figure(1, ncols, figsize=figsize or ((6.4, 4.8) if ncols == 1
+    fig, axes = new_figure(1, ncols, figsize=figsize or ((6.4, 4.8) if ncols == 1
                                                           else (10.0, 4.6)))
     axes = [axes] if ncols == 1 else list(axes)
     for j, ax in enumerate(axes):
@@ -339,7 +241,7 @@ def pole_zero(model, *, zoom=None, title=None, figsize=None):
             ax.plot([0.0], [0.0], "s", color="k", ms=5, label="integrator pole")
         ax.set_xlabel(r"real part (rad/s)")
         ax.set_ylabel(r"imaginary part (rad/s)")
-        _finish_axes(ax)
+        finish_axes(ax)
         if j == 1:
             near = np.concatenate([poles, zeros, integ])
             _pz_limits(ax, near[np.abs(near) <= zoom], zoom)
@@ -390,7 +292,7 @@ def stage_errors(results_by_label, *, title=None, figsize=None, window=False):
         stage is drawn with a filled marker), max relative error on a log y axis.
     """
     pairs = _labelled(results_by_label, None, "results")
-    fig, ax = _new_figure(figsize=figsize)
+    fig, ax = new_figure(figsize=figsize)
     for k, (lab, res) in enumerate(pairs):
         stages = getattr(res, "stages", None)
         if stages is None:
@@ -412,55 +314,10 @@ def stage_errors(results_by_label, *, title=None, figsize=None, window=False):
     ax.set_xlabel("stage (0: gain and delay; N: section N added; ◆: final, all data)")
     ax.set_ylabel("max relative error over all data")
     ax.xaxis.get_major_locator().set_params(integer=True)
-    _finish_axes(ax)
+    finish_axes(ax)
     ax.legend(loc="best", fontsize="small", framealpha=0.9)
     ax.set_title(title if title is not None else "error after each stage")
     return fig
-
-
-# ----------------------------------------------------------------------------- output
-
-
-def save_figure(fig, path, *, dpi=DPI):
-    """Write ``fig`` to ``path`` atomically and close it.
-
-    Parameters
-    ----------
-    fig : matplotlib.figure.Figure
-    path : str or os.PathLike
-        Target file; the format follows the extension (``.png`` if there is none).
-    dpi : float
-        Resolution (default :data:`DPI`, 150).
-
-    Returns
-    -------
-    str
-        The path written.
-
-    Notes
-    -----
-    The image is rendered to memory, written to a temporary file in the target's folder and
-    moved over the target with ``os.replace``: an interrupted run leaves no partial file.
-    The figure is closed even if writing fails.
-    """
-    path = os.fspath(path)
-    ext = os.path.splitext(path)[1].lstrip(".").lower() or "png"
-    try:
-        buf = io.BytesIO()
-        fig.savefig(buf, format=ext, dpi=dpi)
-        atomic_write_bytes(path, buf.getvalue())
-        os.chmod(path, _file_mode())
-    finally:
-        _pyplot().close(fig)
-    return path
-
-
-def _file_mode(directory=False):
-    """Permissions of a new file (or folder) under the current umask; temporary files are
-    created 0600/0700, and a finished report should not keep that."""
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return (0o777 if directory else 0o666) & ~mask
 
 
 def sweep(result):
