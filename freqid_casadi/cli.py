@@ -37,9 +37,9 @@ from . import _interrupt, _io, _outputs
 from .cli_common import add_data_options, load_data
 from .errors import FreqidError, OptionError, ResolutionWarning
 from .examples import EXAMPLES, FRACTIONAL_SECTIONS
-from .fit import METHODS, OBJECTIVES, STARTS, fit
+from .fit import GAIN_SIGNS, METHODS, OBJECTIVES, STARTS, fit
 from .formatting import number, text_table
-from .model import BASES
+from .model import BASES, ZEROS
 from .report import check_out_dir, dense_error, write_fit_report
 
 __all__ = ["main", "build_parser", "EXAMPLES", "FRACTIONAL_SECTIONS", "PROG"]
@@ -171,6 +171,12 @@ def _add_fit(sub):
     p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
                    help="number of sections N >= 1")
     _add_model_arguments(p)
+    p.add_argument("--gain-sign", choices=GAIN_SIGNS, default="auto",
+                   help="sign of the gain (default auto: from the low-frequency phase; a "
+                        "sign-inverted system is fitted with a negative gain and said so)")
+    p.add_argument("--zeros", choices=ZEROS, default="minimum-phase",
+                   help="minimum-phase (default) or free: zeros anywhere, poles stable (for "
+                        "excess phase a delay cannot explain)")
     p.add_argument("--min-damping", type=_min_damping, metavar="auto|ZETA",
                    help="floor on the damping ratio of every pole and zero; 'auto' ties it "
                         "to the frequency spacing (for noisy data: no pole/zero pair "
@@ -350,7 +356,8 @@ def _cmd_fit(args, command):
         result = fit(data, n_sections=args.sections, integrator=args.integrator,
                      delay=args.delay, basis=args.basis, method=args.method, tol=args.tol,
                      progress=_progress(args), start=args.start, objective=args.objective,
-                     min_damping=args.min_damping)
+                     min_damping=args.min_damping, gain_sign=args.gain_sign,
+                     zeros=args.zeros)
     _resolution_warning(result)
     path = write_fit_report(result, args.out, command=command, force=args.force)
     print(result.summary())

@@ -109,7 +109,8 @@ class ParameterUncertainty:
     delay, delay_std : float
         Delay and its standard deviation, s (NaN std without a delay or at its bound).
     gain, gain_std : float
-        Gain ``g`` (lowest coefficient of ``K [1/s] P_N``: DC gain, K0 with an integrator)
+        Gain ``g`` (lowest coefficient of ``K [1/s] P_N``: DC gain, K0 with an integrator;
+        signed)
         and its standard deviation ``g * std(log_gain)``.
     modes : tuple of ModeEstimate
         Every denominator quadratic with ``zeta < 1``, by increasing ``omega_n``.
@@ -285,14 +286,14 @@ def _record(model, par, cov_free, free, sigma2, dof, cond, source, method, sampl
                 zeta_std=float(std[iz]), zeta_at_bound=bool(par.at_bound[iz])))
     modes.sort(key=lambda m: m.omega_n)
     ig = par.index("log_gain")
-    gain = float(np.exp(values[ig]))
+    gain = float(model.structure.gain_sign * np.exp(values[ig]))   # signed, like model.gain
     delay_std = float(std[0]) if par.structure.delay else math.nan
     for arr in (values, cov, std):
         arr.setflags(write=False)
     return ParameterUncertainty(
         model=model, param_names=par.names, values=values, at_bound=np.array(par.at_bound),
         covariance=cov, std=std, delay=model.delay, delay_std=delay_std, gain=gain,
-        gain_std=float(gain * std[ig]), modes=tuple(modes), noise_source=source,
+        gain_std=float(abs(gain) * std[ig]), modes=tuple(modes), noise_source=source,
         sigma2=float(sigma2), dof=int(dof), condition_number=float(cond), method=method,
         samples=samples)
 

@@ -30,8 +30,9 @@ from .resolution import check_resolution, default_delay_max, resolution_damping
 from .stages import Kept, StageKind, StageRecord, StageSolver
 from .start import RationalStartError
 
-__all__ = ["fit", "FitResult", "StageRecord", "Kept", "StageKind", "METHODS", "INITS", "WARM_STARTS", "STARTS",
-           "OBJECTIVES", "default_delay_max", "resolution_damping"]
+__all__ = ["fit", "FitResult", "StageRecord", "Kept", "StageKind", "METHODS", "INITS",
+           "WARM_STARTS", "STARTS", "OBJECTIVES", "GAIN_SIGNS", "default_delay_max",
+           "resolution_damping"]
 
 STARTS = ("sequential", "rational", "best")
 GAIN_SIGNS = ("auto", "positive", "negative")

@@ -11,7 +11,7 @@ import numpy as np
 from . import _outputs
 from ._io import md_text
 from .data import dense_grid
-from .errors import OptionError
+from .errors import FreqidError, OptionError
 from .formatting import generated_by_line, json_safe, markdown_table, number
 from .metrics import relative_error
 
@@ -95,9 +95,25 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
                              else dict(getattr(result, "options", {}) or {})),
         "resolution": _resolution_dict(getattr(result, "resolution", None)),
         "dense": dense_error(model, data.omega, truth, dense_factor),
+        "diagnostics": [d.as_dict() for d in getattr(result, "diagnostics", ())],
+        "uncertainty": _uncertainty_dict(result),
         "files": list(REPORT_FILES),
     }
     return json_safe(summary)
+
+
+def _uncertainty_dict(result):
+    """Delay, gain and modes with their standard deviations (FitResult.uncertainty), or
+    None with the reason when the covariance cannot be formed."""
+    try:
+        u = result.uncertainty
+    except (FreqidError, np.linalg.LinAlgError, ArithmeticError, AttributeError) as exc:
+        return {"error": str(exc)}
+    return {"noise_source": u.noise_source, "delay": u.delay, "delay_std": u.delay_std,
+            "gain": u.gain, "gain_std": u.gain_std,
+            "modes": [{"omega_n": m.omega_n, "omega_n_std": m.omega_n_std,
+                       "frequency_hz": m.frequency_hz, "zeta": m.zeta, "zeta_std": m.zeta_std,
+                       "zeta_at_bound": m.zeta_at_bound} for m in u.modes]}
 
 
 def dense_error(model, omega, truth, factor=10):
@@ -180,6 +196,8 @@ def render_fit_summary(summary):
     s = summary
     lines = [generated_by_line(s["command"]), "", f"# {md_text(s['title'])}", "",
              markdown_table(_overview_rows(s), ("quantity", "value")), ""]
+    lines += _diagnostic_lines(s)
+    lines += _uncertainty_lines(s)
     lines += _thesis_lines(s)
     lines += _stage_lines(s["stages"])
     lines += ["## Figures", "",
@@ -248,6 +266,37 @@ def _overview_rows(s):
                      f"{res['n_unresolved']} unresolved pole(s)/zero(s) narrower than the "
                      "frequency spacing (try min_damping='auto')"))
     return rows
+
+
+def _diagnostic_lines(s):
+    """The "Diagnostics" section: what the checks found (empty when nothing)."""
+    diags = s.get("diagnostics") or []
+    if not diags:
+        return []
+    return (["## Diagnostics", ""]
+            + [f"- **{d['code']}** ({d['severity']}): {md_text(d['message'])}" for d in diags]
+            + [""])
+
+
+def _pm(value, std, digits=4):
+    return f"{number(value, digits)} ± {number(std, 2)}" if std == std else \
+        f"{number(value, digits)} (at its bound)"
+
+
+def _uncertainty_lines(s):
+    """The "What the data determine" section: delay, gain and modes with ± one std."""
+    u = s.get("uncertainty")
+    if not u or "error" in u:
+        return ([f"Parameter uncertainty: not available ({md_text(u['error'])}).", ""]
+                if u else [])
+    rows = [("delay h (s)", _pm(u["delay"], u["delay_std"], 6)),
+            ("gain", _pm(u["gain"], u["gain_std"]))]
+    rows += [(f"mode {k}: omega_n (rad/s), zeta", f"{_pm(m['omega_n'], m['omega_n_std'])}, "
+              f"{_pm(m['zeta'], m['zeta_std'])}") for k, m in enumerate(u["modes"], 1)]
+    return ["## What the data determine", "",
+            "One standard deviation from the weighted Jacobian at the optimum (delta method; "
+            f"noise variance from the {u['noise_source']}); `FitResult.uncertainty`.", "",
+            markdown_table(rows, ("parameter", "value ± std")), ""]
 
 
 def _thesis_lines(s):

@@ -203,3 +203,32 @@ def test_fit_flags_an_aliased_delay():
 def test_fit_model_class_options_are_checked(kw, match):
     with pytest.raises(OptionError, match=match):
         fc.fit(OMEGA, plant(), n_sections=2, **kw)
+
+
+def test_cli_fit_states_the_negative_gain_and_the_free_zeros(tmp_path, monkeypatch, capsys):
+    import json
+
+    from freqid_casadi import cli
+    from freqid_casadi.loaders import save_csv
+
+    monkeypatch.chdir(tmp_path)
+    save_csv(FrequencyData(OMEGA, -plant()), "neg.csv")
+    assert cli.main(["fit", "neg.csv", "--sections", "2", "--start", "best", "--out", "a",
+                     "--quiet"]) == 0
+    out = capsys.readouterr().out
+    assert "info: negative-gain:" in out
+    md = (tmp_path / "a" / "summary.md").read_text()
+    assert "## Diagnostics" in md and "**negative-gain** (info)" in md
+    assert "## What the data determine" in md
+    s = json.loads((tmp_path / "a" / "summary.json").read_text())
+    assert s["diagnostics"][0]["code"] == "negative-gain"
+    assert s["uncertainty"]["gain"] < 0 and abs(s["uncertainty"]["delay"] - 0.01) < 1e-5
+    save_csv(FrequencyData(OMEGA, plant() * ALLPASS), "nmp.csv")
+    assert cli.main(["fit", "nmp.csv", "--sections", "3", "--start", "best", "--zeros", "free",
+                     "--out", "b", "--quiet"]) == 0
+    s = json.loads((tmp_path / "b" / "summary.json").read_text())
+    assert s["max_rel_error"] < 1e-6 and not s["checks"]["minimum_phase"]
+    assert [d["code"] for d in s["diagnostics"]] == ["non-minimum-phase"]
+    assert cli.main(["fit", "nmp.csv", "--sections", "1", "--gain-sign", "up", "--out",
+                     "c"]) == 2
+    assert "error:" in capsys.readouterr().err
