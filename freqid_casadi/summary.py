@@ -279,7 +279,7 @@ def _diagnostic_lines(s):
 
 
 def _pm(value, std, digits=4):
-    return f"{number(value, digits)} ± {number(std, 2)}" if std == std else \
+    return f"{number(value, digits)} ± {number(std)}" if std == std else \
         f"{number(value, digits)} (at its bound)"
 
 

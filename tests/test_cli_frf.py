@@ -187,7 +187,7 @@ def test_frf_refuses_to_write_onto_its_records(tmp_path, monkeypatch, capsys):
     before = (tmp_path / "rec.csv").read_bytes()
     code = cli.main(["frf", "rec.csv", "--fs", "100", "--out", "rec.csv", "--force"])
     err = capsys.readouterr().err
-    assert code == 2 and "--out 'rec.csv' is the records file itself" in err
+    assert code == 2 and "output 'rec.csv' is an input of this command" in err
     assert (tmp_path / "rec.csv").read_bytes() == before
     code = cli.main(["frf", "rec.csv", "--estimator", "h2", "--out", "frf.csv"])
     assert code == 2 and "--estimator h2 needs --fs HZ" in capsys.readouterr().err

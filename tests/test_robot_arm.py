@@ -51,7 +51,7 @@ def test_run_on_two_orders_writes_the_folder(script, tmp_path):
         str(out), command="python scripts/robot_arm.py --orders 2,3", orders=[2, 3],
         delays=(False,))
     assert sorted(p.name for p in out.iterdir()) == sorted(
-        ["bode.png", "error_vs_order.png", "frf.csv", "pole_zero.png", "rel_error.png",
+        [".freqid-output", "bode.png", "error_vs_order.png", "frf.csv", "pole_zero.png", "rel_error.png",
          "report.json", "report.md", "uncertainty_weight.png"])
     md = (out / "report.md").read_text()
     assert md.splitlines()[0] == \
