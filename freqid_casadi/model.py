@@ -44,12 +44,18 @@ class Structure:
     delay : bool
         Whether the delay h is a free parameter (else h = 0).
     basis : {"second-order", "first-order"}
+    minimum_phase : bool
+        True (default): every entry of beta is >= 0. False: the gain and the numerator
+        coefficients (``a``, ``zeta_num``; first order ``a1``, ``a0``) may be negative, so
+        zeros may lie in the right half plane (:func:`freqid_casadi.fit_shared` with
+        ``zeros="free"``); the denominators and the delay stay >= 0 (stable).
     """
 
     n_sections: int
     integrator: bool = False
     delay: bool = True
     basis: str = "second-order"
+    minimum_phase: bool = True
 
     def __post_init__(self):
         n = self.n_sections
@@ -63,6 +69,7 @@ class Structure:
                 f"unknown basis {self.basis!r}; choose one of {', '.join(BASES)}")
         object.__setattr__(self, "integrator", bool(self.integrator))
         object.__setattr__(self, "delay", bool(self.delay))
+        object.__setattr__(self, "minimum_phase", bool(self.minimum_phase))
 
     @property
     def section_size(self):
@@ -86,7 +93,8 @@ class Structure:
 
     def with_sections(self, n_sections):
         """The same structure with another number of sections."""
-        return Structure(n_sections, self.integrator, self.delay, self.basis)
+        return Structure(n_sections, self.integrator, self.delay, self.basis,
+                         self.minimum_phase)
 
     def param_names(self):
         """Names of the entries of beta, e.g. ``["delay", "gain", "a[1]", ...]``."""
@@ -164,8 +172,13 @@ class RationalDelayModel:
             i = int(np.flatnonzero(~np.isfinite(beta))[0])
             raise StructureError(f"beta must be finite: beta[{i}] "
                                  f"({self.structure.param_names()[i]}) = {beta[i]}")
-        if np.any(beta < 0):
-            i = int(np.flatnonzero(beta < 0)[0])
+        negative = beta < 0
+        if not self.structure.minimum_phase:      # gain and numerators may be negative
+            ss = self.structure.section_size
+            negative[1] = False
+            negative[2::ss] = negative[3::ss] = False
+        if np.any(negative):
+            i = int(np.flatnonzero(negative)[0])
             raise StructureError(
                 f"beta must be >= 0 (poles and zeros in the left half plane): "
                 f"beta[{i}] ({self.structure.param_names()[i]}) = {beta[i]}")
@@ -325,7 +338,8 @@ class RationalDelayModel:
             "format": "freqid_casadi.RationalDelayModel",
             "version": FORMAT_VERSION,
             "structure": {"n_sections": s.n_sections, "integrator": s.integrator,
-                          "delay": s.delay, "basis": s.basis},
+                          "delay": s.delay, "basis": s.basis,
+                          **({} if s.minimum_phase else {"minimum_phase": False})},
             "param_names": s.param_names(),
             "beta": [float(v) for v in self.beta],
         }
