@@ -24,10 +24,12 @@ import time
 
 import numpy as np
 
+from . import _cplx
 from .solvers.ipopt import ipopt_status
 from .solvers.common import SUCCESS_STATUSES
 
 __all__ = ["SharedProblem", "solve_stage"]
+_EXTRA = {}
 
 
 class SharedProblem:
@@ -93,7 +95,7 @@ class SharedProblem:
             h = own[:, 1].copy()
         else:
             h = np.zeros(self.n_channels)
-        return q, own[:, 0].copy(), h * self.delay_max, own[:, no - n2:].reshape(-1, n, 2)
+        return q, own[:, 0].copy(), h * self.delay_max, own[:, no - n2:].reshape(self.n_channels, n, 2)
 
     def join(self, q, v, h, p):
         """Inverse of :meth:`split` (h in s)."""
@@ -208,6 +210,32 @@ class SharedProblem:
         mask[:, :, iv] = 1.0
         mask[:, iv, iv] = 0.0
         return mask
+
+    def casadi_cost(self, z, n_points=None):
+        """The cost as a CasADi expression of the symbol ``z`` (SX or MX, (n_vars, 1)),
+        the same formula on (re, im) pairs; its AD Hessian has the block-arrowhead pattern
+        of :meth:`hessian_pattern` (checked by the tests)."""
+        import casadi as ca
+
+        m = self.omega.size if n_points is None else int(n_points)
+        n, n2, ns, no = self.n_sections, 2 * self.n_sections, self.n_shared, self.n_own
+        w = self.omega[:m]
+        cost = 0
+        for c in range(self.n_channels):
+            o = ns + c * no
+            hz = (z[n2] if self.delay == "shared" else z[o + 1]
+                  if self.delay == "per-channel" else 0.0)
+            ph = self.phi[c, :m] / self.g[c] * ((1j * w) if self.integrator else 1.0)
+            q = _cplx.mul((ph.real * z[o], ph.imag * z[o]),
+                          _cplx.expj(w * self.delay_max * hz, ca.cos, ca.sin))
+            for k in range(n):
+                x = w / self.wr[k]
+                den = (1 - z[2 * k] * x * x, z[2 * k + 1] * x)
+                pk = o + no - n2 + 2 * k
+                num = (1 - z[pk] * x * x, z[pk + 1] * x)
+                q = _cplx.mul(q, _cplx.div(den, num))
+            cost = cost + ca.sum1(ca.DM(self.weights[c, :m]) * ((q[0] - 1) ** 2 + q[1] ** 2))
+        return cost
 
     # ------------------------------------------------------------------ sparse Hessian
     def hessian_pattern(self):
@@ -347,7 +375,7 @@ def solve_stage(problem, x0, n_points=None, *, lam_x0=None, max_iter=200, tol=1e
     ipopt = {"print_level": 0, "sb": "yes", "max_iter": int(max_iter), "tol": float(tol),
              "acceptable_tol": 1e-8, "acceptable_iter": 30, "bound_relax_factor": 0.0,
              "honor_original_bounds": "yes", "bound_push": 1e-9, "bound_frac": 1e-9,
-             "nlp_scaling_method": "none"}
+             "nlp_scaling_method": "none", **_EXTRA}
     cost0 = problem.cost(x0, n_points)
     if np.isfinite(cost0) and cost0 > 0:
         ipopt["obj_scaling_factor"] = 1.0 / cost0

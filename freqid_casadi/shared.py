@@ -307,9 +307,14 @@ def _logger(progress):
 def _stage(prob, x0, window, stage, omega_c, log, lam=None, max_iter=200):
     """Solve one stage, keep the better of solution and start; return (z, lam, record)."""
     t0 = time.perf_counter()
-    res = solve_stage(prob, x0, window, lam_x0=lam, max_iter=max_iter)
-    z, lam_x = res["x"], res["lam_x"]
     x0c = np.clip(x0, *prob.bounds())
+    if np.max(np.abs(prob.ratio(x0c, window) - 1.0)) < 1e-10:
+        # exact to rounding already: IPOPT cannot meet its tolerance on rounding noise
+        res = {"x": x0c, "lam_x": np.zeros_like(x0c), "cost": prob.cost(x0c, window),
+               "nit": 0, "t_solve": 0.0, "status": "start-exact", "success": True}
+    else:
+        res = solve_stage(prob, x0, window, lam_x0=lam, max_iter=max_iter)
+    z, lam_x = res["x"], res["lam_x"]
     if not res["cost"] <= prob.cost(x0c, window):
         z, lam_x = x0c, np.zeros_like(x0c)
     err = float(np.max(np.abs(prob.ratio(z) - 1.0)))
