@@ -410,6 +410,7 @@ def _plugin(module_name):
 COMMANDS["frf"] = _plugin("cli_frf")
 COMMANDS["reproduce"] = _plugin("reproduce")
 COMMANDS["batch"] = _plugin("cli_batch")
+COMMANDS["modal"] = _plugin("cli_modal")
 
 
 # ----------------------------------------------------------------------------- main
