@@ -249,21 +249,31 @@ def _check_orders(orders):
     return orders
 
 
-def _classify(prev, cur, freq_tol, damping_tol):
-    """Status of each (omega_n, zeta) of ``cur`` against the poles of ``prev``."""
-    out = []
-    for w, z in cur:
-        if not prev:
-            out.append("new")
-            continue
-        pw, pz = min(prev, key=lambda t: abs(t[0] - w))
-        if abs(pw - w) > freq_tol * w:
-            out.append("new")
-        elif abs(pz - z) <= damping_tol * max(z, 1e-12):
-            out.append("stable-frequency-damping")
+def _match(prev, cur, freq_tol, damping_tol):
+    """Status of each (omega_n, zeta) of ``cur`` against the poles of ``prev`` and the index
+    of its match in ``prev`` (or None). One-to-one: the closest pairs (relative frequency
+    distance) are matched first, so a spurious pole beside a physical one stays "new"."""
+    pairs = sorted((abs(pw - w) / w, i, j) for i, (w, _) in enumerate(cur)
+                   for j, (pw, _) in enumerate(prev))
+    match, used = [None] * len(cur), set()
+    for dist, i, j in pairs:
+        if dist <= freq_tol and match[i] is None and j not in used:
+            match[i] = j
+            used.add(j)
+    status = []
+    for i, (w, z) in enumerate(cur):
+        if match[i] is None:
+            status.append("new")
+        elif abs(prev[match[i]][1] - z) <= damping_tol * max(z, 1e-12):
+            status.append("stable-frequency-damping")
         else:
-            out.append("stable-frequency")
-    return out
+            status.append("stable-frequency")
+    return status, match
+
+
+def _classify(prev, cur, freq_tol, damping_tol):
+    """Statuses of :func:`_match`."""
+    return _match(prev, cur, freq_tol, damping_tol)[0]
 
 
 def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, damping_tol=0.10,
@@ -304,8 +314,8 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
         res = fit_shared(datas, order // 2, **fit_options)
         fits.append(res)
         cur = [(m.omega_n, m.zeta) for m in res.modes]
-        status = _classify(prev, cur, freq_tol, damping_tol)
-        history.append(status)
+        status, match = _match(prev, cur, freq_tol, damping_tol)
+        history.append((status, match))
         poles += [StabilizationPole(order, w, w / (2 * np.pi), z, s)
                   for (w, z), s in zip(cur, status)]
         if progress:
@@ -313,7 +323,7 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
             print(f"  order {order}: {len(cur)} modes, "
                   f"{status.count('stable-frequency-damping')} stable", file=sys.stderr)
         prev = cur
-    selected = _select(fits, orders, freq_tol, damping_tol, min_stable)
+    selected = _select(fits[-1].modes, history, min_stable)
     d0 = fits[0].datas
     return StabilizationResult(
         orders=orders, poles=tuple(poles), modes=selected, fits=tuple(fits),
@@ -321,21 +331,18 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
         summed_magnitude=np.sum([np.abs(d.response) for d in d0], axis=0))
 
 
-def _select(fits, orders, freq_tol, damping_tol, min_stable):
-    """Modes of the highest order whose chain of nearest predecessors stayed within the
-    tolerances over the last ``min_stable`` orders."""
-    last = fits[-1].modes
-    k = min(int(min_stable), len(fits) - 1)
+def _select(last, history, min_stable):
+    """Modes of the highest order whose chain of matched predecessors was "stable-frequency-
+    damping" at each of the last ``min_stable`` orders."""
+    k = min(int(min_stable), len(history) - 1)
     keep = []
-    for mode in last:
-        w, z, ok = mode.omega_n, mode.zeta, True
-        for res in fits[-1 - k:-1][::-1]:
-            cand = [(m.omega_n, m.zeta) for m in res.modes]
-            if not cand or _classify(cand, [(w, z)], freq_tol, damping_tol)[0] != \
-                    "stable-frequency-damping":
+    for i, mode in enumerate(last):
+        idx, ok = i, True
+        for status, match in history[::-1][:k]:
+            if status[idx] != "stable-frequency-damping":
                 ok = False
                 break
-            w, z = min(cand, key=lambda t: abs(t[0] - w))
+            idx = match[idx]
         if ok:
             keep.append(mode)
     return tuple(keep)
