@@ -19,10 +19,13 @@ from .data import FrequencyData, load, load_csv, load_npz, save_csv
 from .errors import DataError, FreqidError, OptionError, SolverError, StructureError
 from .fit import FitResult, StageRecord, fit
 from .model import RationalDelayModel, Structure
+from .modal import stabilization
+from .shared import SharedFitResult, fit_shared
 
 __all__ = [
     "fit", "FitResult", "StageRecord", "FrequencyData", "RationalDelayModel", "Structure",
     "load", "load_csv", "load_npz", "save_csv", "systems",
     "FreqidError", "DataError", "StructureError", "OptionError", "SolverError",
+    "fit_shared", "SharedFitResult", "stabilization",
 ]
 __version__ = "0.1.0"
