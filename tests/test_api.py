@@ -124,6 +124,8 @@ LAYERS = {
     "batch": 4,
     "report": 5, "plots": 5, "ablation": 5, "reproduce": 5,
     "cli": 6, "__main__": 6, "cli_frf": 6, "cli_batch": 6,
+    "_shared_nlp": 3, "_shared_start": 4, "shared": 4, "modal": 4, "plots_modal": 5,
+    "cli_modal": 6,
 }
 FACADE = 6      # the package itself (``import freqid_casadi`` pulls in fit): top layer
 
