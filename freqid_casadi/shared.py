@@ -284,7 +284,8 @@ def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, pro
     make = (lambda wr: SharedProblem(omega, phi, wts, g, wr, integrator, delay, free, dmax))
     log = _logger(progress)
     if start == "rational":
-        prob, z, stages = _rational(make, n, omega, phi, wts, free, log, max_iter, n_vf_iter)
+        base = phi * (1j * omega) if integrator else phi      # VF fits the rational part
+        prob, z, stages = _rational(make, n, omega, base, wts, free, log, max_iter, n_vf_iter)
     else:
         prob, z, stages = _sequential(make, n, omega, wts, log, max_iter)
     return _result(prob, z, datas, stages, zs, time.perf_counter() - t0,

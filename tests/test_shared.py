@@ -285,3 +285,13 @@ def test_input_errors():
         fit_shared(datas, 2, start="best")
     with pytest.raises(DataError, match="weights"):
         fit_shared(datas, 2, weights=-np.ones(200))
+
+
+def test_integrator_in_every_channel():
+    datas = [fc.FrequencyData(d.omega, d.response / (1j * d.omega), d.name)
+             for d in _two_mode_datas()]
+    res = fit_shared(datas, 2, integrator=True, delay=False)
+    assert res.success and np.all(res.max_rel_errors < 1e-8)
+    assert all(m.integrator for m in res.models)
+    np.testing.assert_allclose([m.omega_n for m in res.modes], [5.0, 17.0], rtol=1e-8)
+    assert res.poles.size == 4                      # the integrator's pole is not listed
