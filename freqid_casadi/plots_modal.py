@@ -59,12 +59,12 @@ def stabilization_diagram(result, *, title=None, figsize=(8.0, 5.0), log_frequen
     ax.set_xlim(f_hz[0], f_hz[-1])
     if log_frequency:
         ax.set_xscale("log")
-    ax.set_ylim(0, result.orders[-1] + 2)
+    ax.set_ylim(0, result.orders[-1] + 3)
     ax.set_xlabel("frequency (Hz)")
     ax.set_ylabel("model order (number of shared poles)")
     ax.set_zorder(ax2.get_zorder() + 1)
     ax.patch.set_visible(False)
-    ax.legend(loc="upper left", fontsize=8, framealpha=0.9)
+    ax.legend(loc="lower left", fontsize=8, framealpha=0.9)
     ax.set_title(title or f"Stabilization diagram ({len(result.modes)} modes selected; "
                  f"tolerances {100 * result.freq_tol:g} % frequency, "
                  f"{100 * result.damping_tol:g} % damping)", fontsize=10)
