@@ -142,10 +142,12 @@ def test_ema_acceptance_frequencies_and_dampings():
     # sdypy-EMA's criteria: within 1 Hz or 2 % in frequency, 2 % in damping (each mode)
     assert np.all(np.abs(f - f_true) <= np.maximum(1.0, 0.02 * f_true))
     assert np.all(np.abs(zeta - zeta_true) <= 0.02 * zeta_true)
-    # what we measured: exact to 1e-7 relative, every channel's error below 1e-4
+    # far inside them: measured 4.5e-13 (frequency), 9.9e-12 (damping), 5.4e-11 (worst
+    # channel's max rel. error); the bounds leave room for other BLAS/IPOPT builds (the
+    # last digits of a polish at this level depend on rounding)
     assert np.max(np.abs(f - f_true) / f_true) < 1e-7
-    assert np.max(np.abs(zeta - zeta_true) / zeta_true) < 1e-5   # measured 1.0e-6
-    assert np.all(res.max_rel_errors < 1e-4)
+    assert np.max(np.abs(zeta - zeta_true) / zeta_true) < 1e-6
+    assert np.all(res.max_rel_errors < 1e-6)
     assert all(m.is_stable() and m.is_minimum_phase() for m in res.models)
     # residues: the driving point's are -j r with r > 0 (positive modal mass)
     assert all(m.residues[0].imag < 0 for m in res.modes)
