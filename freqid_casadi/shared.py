@@ -44,8 +44,9 @@ class SharedStage:
     Attributes
     ----------
     stage : int
-        0 gain/delay stage, n the stage that added section n, ``n_sections + 1`` the final
-        all-data stage (and the polish of the rational start).
+        0 gain/delay stage (or the rational start's vector fitting), n the stage that added
+        section n, ``n_sections + 1`` the final all-data stage (the polish of the rational
+        start).
     n_sections, window : int
         Sections and number of frequencies (lowest first) fitted.
     omega_c : float
@@ -53,8 +54,13 @@ class SharedStage:
     max_rel_error : float
         Over all channels and points after the stage.
     nit : int
+        IPOPT iterations (for the rational start's stage 0, status "vector-fitting": the
+        vector-fitting iterations).
     t_solve, wall_time : float
         s: the IPOPT solve alone, and the stage with its NLP construction.
+    cpu_solve : float
+        s: CPU time of this process during the IPOPT solve(s) (single-threaded BLAS, so
+        close to the solve's own cost even when other jobs load the machine).
     status : str
         IPOPT's return_status.
     success : bool
@@ -70,6 +76,7 @@ class SharedStage:
     wall_time: float
     status: str
     success: bool
+    cpu_solve: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -201,8 +208,10 @@ def _check_datas(datas, weights):
         if d.weights is not None:
             wts[c] = d.weights
     if weights is not None:
-        w = np.broadcast_to(np.asarray(weights, float), wts.shape) if np.ndim(weights) \
-            else None
+        try:
+            w = np.broadcast_to(np.asarray(weights, float), wts.shape)
+        except (ValueError, TypeError):
+            w = None
         if w is None or not np.all(np.isfinite(w)) or np.any(w < 0) or \
                 np.any(np.sum(w, axis=1) <= 0):
             raise DataError(f"weights must be finite, >= 0 and broadcastable to (channels, "
@@ -312,7 +321,8 @@ def _stage(prob, x0, window, stage, omega_c, log, lam=None, max_iter=200):
     if np.max(np.abs(prob.ratio(x0c, window) - 1.0)) < 1e-10:
         # exact to rounding already: IPOPT cannot meet its tolerance on rounding noise
         res = {"x": x0c, "lam_x": np.zeros_like(x0c), "cost": prob.cost(x0c, window),
-               "nit": 0, "t_solve": 0.0, "status": "start-exact", "success": True}
+               "nit": 0, "t_solve": 0.0, "c_solve": 0.0, "status": "start-exact",
+               "success": True}
     else:
         res = solve_stage(prob, x0, window, lam_x0=lam, max_iter=max_iter)
         res = _resolve(prob, res, prob.cost(x0c, window), window, max_iter)
@@ -322,7 +332,7 @@ def _stage(prob, x0, window, stage, omega_c, log, lam=None, max_iter=200):
     err = float(np.max(np.abs(prob.ratio(z) - 1.0)))
     rec = SharedStage(stage, prob.n_sections, window or prob.omega.size, omega_c, err,
                       res["nit"], res["t_solve"], time.perf_counter() - t0, res["status"],
-                      res["success"])
+                      res["success"], res["c_solve"])
     return z, lam_x, log(rec)
 
 
@@ -337,6 +347,7 @@ def _resolve(prob, res, cost0, window, max_iter):
     new = solve_stage(prob, res["x"], window, lam_x0=res["lam_x"],
                       max_iter=max(10, max_iter // 4))
     out = dict(res, nit=res["nit"] + new["nit"], t_solve=res["t_solve"] + new["t_solve"],
+               c_solve=res["c_solve"] + new["c_solve"],
                status=f"{res['status']}; rescaled polish: {new['status']}")
     if new["cost"] < res["cost"]:
         out.update(x=new["x"], lam_x=new["lam_x"], cost=new["cost"])

@@ -297,3 +297,15 @@ def test_integrator_in_every_channel():
     assert all(m.integrator for m in res.models)
     np.testing.assert_allclose([m.omega_n for m in res.modes], [5.0, 17.0], rtol=1e-8)
     assert res.poles.size == 4                      # the integrator's pole is not listed
+
+
+def test_weights_scale_the_channels():
+    datas = _two_mode_datas()
+    w = np.ones((2, 200))
+    w[1, 100:] = 0.0                              # the second channel's upper half ignored
+    res = fit_shared(datas, 2, delay=False, weights=w)
+    assert res.success and np.all(res.max_rel_errors < 1e-6)
+    same = fit_shared(datas, 2, delay=False, weights=2.0)
+    assert np.all(same.max_rel_errors < 1e-6)
+    with pytest.raises(DataError, match="broadcastable"):
+        fit_shared(datas, 2, weights=np.ones(7))
