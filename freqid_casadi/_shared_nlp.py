@@ -178,33 +178,51 @@ class SharedProblem:
         J[:, :, self._iv] = P
         return J
 
-    def hessian_blocks(self, z, n_points=None):
-        """Exact Hessian of the cost per channel, real (C, nl, nl), local order
-        ``[shared | own_c]``; the global Hessian sums the shared-shared blocks."""
+    def hessian_parts(self, z, n_points=None):
+        """The exact Hessian of the cost in three parts: ``ss`` (ns, ns) the shared block
+        (summed over channels), ``so`` (C, ns, no) each channel's coupling to the shared
+        variables and ``oo`` (C, no, no) its own block; no channel-channel block exists.
+
+        The shared columns of the log-derivatives are the same for every channel, so the
+        shared block is one product with channel-summed weights; each channel costs two
+        products of its own columns.
+        """
         m = self.omega.size if n_points is None else int(n_points)
         E, Q, P, v = self._local(z, m)
         wt = self.weights[:, :m]
+        ns = self.n_shared
         mask = self._second_order_mask(v)
         J = self._jac(E, Q, P)
         u = wt * np.conj(Q - 1.0) * P
-        out = np.empty((J.shape[0], J.shape[2], J.shape[2]))
-        for c in range(J.shape[0]):                  # per channel: one BLAS product each
-            gn = (np.conj(J[c]).T * wt[c]) @ J[c]
-            t = (E[c].T * u[c]) @ E[c]
-            out[c] = gn.real + t.real * mask[c]
-        return 2.0 * out
+        es = E[0, :, :ns]                               # identical for every channel
+        ss = ((es.conj().T * np.sum(wt * np.abs(Q) ** 2, axis=0)) @ es).real + \
+            ((es.T * np.sum(v[:, None] * u, axis=0)) @ es).real * self._base_mask()[:ns, :ns]
+        c, no = self.n_channels, self.n_own
+        so, oo = np.empty((c, ns, no)), np.empty((c, no, no))
+        for k in range(c):                              # per channel: BLAS products
+            jo, eo = J[k, :, ns:], E[k, :, ns:]
+            so[k] = ((es.conj().T * (wt[k] * np.conj(Q[k]))) @ jo).real + \
+                ((es.T * u[k]) @ eo).real * mask[k, :ns, ns:]
+            oo[k] = ((jo.conj().T * wt[k]) @ jo).real + \
+                ((eo.T * u[k]) @ eo).real * mask[k, ns:, ns:]
+        return 2.0 * ss, 2.0 * so, 2.0 * oo
 
-    def _second_order_mask(self, v):
-        """d2 Q_ab = Q E_a E_b (1 + s_ab) with s = -1 inside a denominator factor, +1 inside a
-        numerator factor (each affine: d2 log F = -dF dF / F^2), 0 else; the v row/column
-        (Q = v P) is P E_b, and d2 Q / dv2 = 0."""
-        n, ns, iv = self.n_sections, self.n_shared, self._iv
-        nl = ns + self.n_own
+    def _base_mask(self):
+        """``1 + s_ab`` (see :meth:`_second_order_mask`), shape (nl, nl)."""
+        n, nl = self.n_sections, self.n_shared + self.n_own
         base = np.ones((nl, nl))
         for k in range(n):
             base[2 * k:2 * k + 2, 2 * k:2 * k + 2] = 0.0
             o = nl - 2 * n + 2 * k
             base[o:o + 2, o:o + 2] = 2.0
+        return base
+
+    def _second_order_mask(self, v):
+        """d2 Q_ab = Q E_a E_b (1 + s_ab) with s = -1 inside a denominator factor, +1 inside a
+        numerator factor (each affine: d2 log F = -dF dF / F^2), 0 else; the v row/column
+        (Q = v P) is P E_b, and d2 Q / dv2 = 0."""
+        iv = self._iv
+        base = self._base_mask()
         mask = v[:, None, None] * base[None]
         mask[:, iv, :] = 1.0
         mask[:, :, iv] = 1.0
@@ -258,14 +276,11 @@ class SharedProblem:
 
     def hessian_values(self, z, n_points=None):
         """Nonzeros of the upper triangle of the Hessian, in :meth:`hessian_pattern` order."""
-        hb = self.hessian_blocks(z, n_points)
-        ns = self.n_shared
-        rs, cs = np.triu_indices(ns)
+        ss, so, oo = self.hessian_parts(z, n_points)
+        rs, cs = np.triu_indices(self.n_shared)
         ro, co = np.triu_indices(self.n_own)
-        shared = hb[:, :ns, :ns].sum(axis=0)[rs, cs]
-        so = hb[:, :ns, ns:].reshape(hb.shape[0], -1)
-        oo = hb[:, ns:, ns:][:, ro, co]
-        return np.concatenate([shared, np.concatenate([so, oo], axis=1).ravel()])
+        return np.concatenate([ss[rs, cs], np.concatenate(
+            [so.reshape(so.shape[0], -1), oo[:, ro, co]], axis=1).ravel()])
 
     def hessian_dense(self, z, n_points=None):
         """The full symmetric Hessian, shape (n_vars, n_vars) (for tests)."""
