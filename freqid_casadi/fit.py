@@ -153,6 +153,13 @@ class FitResult:
         """IPOPT/LM iterations summed over all stages."""
         return int(sum(s.nit for s in self.stages))
 
+    def modes(self):
+        """The model's modes (:func:`freqid_casadi.modal.modes`): tuple of Mode, one residue
+        each, by increasing frequency."""
+        from .modal import modes
+
+        return modes(self.model)
+
     def summary(self):
         m = self.model
         return (f"{self.data.name or 'data'}: {m.n_sections} sections (order {m.order}), "
