@@ -56,6 +56,7 @@ def test_modes_of_fit_result_and_errors():
     res = fc.fit(_datas()[0], n_sections=2, delay=False, start="rational")
     found = modal.modes(res)
     np.testing.assert_allclose([m.omega_n for m in found], [5.0, 17.0], rtol=1e-6)
+    assert res.modes() == found
     with pytest.raises(DataError, match="RationalDelayModel"):
         modal.modes("model.json")
 
