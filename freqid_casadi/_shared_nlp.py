@@ -95,7 +95,8 @@ class SharedProblem:
             h = own[:, 1].copy()
         else:
             h = np.zeros(self.n_channels)
-        return q, own[:, 0].copy(), h * self.delay_max, own[:, no - n2:].reshape(self.n_channels, n, 2)
+        p = own[:, no - n2:].reshape(self.n_channels, n, 2)
+        return q, own[:, 0].copy(), h * self.delay_max, p
 
     def join(self, q, v, h, p):
         """Inverse of :meth:`split` (h in s)."""

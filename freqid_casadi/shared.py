@@ -28,6 +28,8 @@ from .errors import DataError, OptionError
 from .fit import default_delay_max
 from .model import RationalDelayModel, Structure
 from ._shared_nlp import SharedProblem, solve_stage
+from .solvers.common import Status
+from .solvers.ipopt import ipopt_status
 from ._shared_start import channel_zeros, factor_variables, shared_vector_fitting
 
 __all__ = ["fit_shared", "SharedFitResult", "SharedStage", "DELAYS", "ZEROS", "SHARED_STARTS"]
@@ -61,8 +63,11 @@ class SharedStage:
     cpu_solve : float
         s: CPU time of this process during the IPOPT solve(s) (single-threaded BLAS, so
         close to the solve's own cost even when other jobs load the machine).
-    status : str
-        IPOPT's return_status.
+    status : freqid_casadi.solvers.common.Status
+        Why the stage stopped (COST_TOL: the start was exact to rounding, no solve).
+    solver_status : str
+        IPOPT's return_status ("vector-fitting" for the rational start's stage 0,
+        "start-exact" when no solve was needed).
     success : bool
     """
 
@@ -74,7 +79,8 @@ class SharedStage:
     nit: int
     t_solve: float
     wall_time: float
-    status: str
+    status: Status
+    solver_status: str
     success: bool
     cpu_solve: float = 0.0
 
@@ -309,7 +315,7 @@ def _logger(progress):
         if progress:
             print(f"  stage {rec.stage:2d}: {rec.n_sections} sections, window {rec.window}, "
                   f"max rel. error {rec.max_rel_error:.3e}, {rec.nit} it, "
-                  f"{rec.wall_time:.2f} s, {rec.status}", file=sys.stderr)
+                  f"{rec.wall_time:.2f} s, {rec.solver_status}", file=sys.stderr)
         return rec
     return log
 
@@ -330,9 +336,11 @@ def _stage(prob, x0, window, stage, omega_c, log, lam=None, max_iter=200):
     if not res["cost"] <= prob.cost(x0c, window):
         z, lam_x = x0c, np.zeros_like(x0c)
     err = float(np.max(np.abs(prob.ratio(z) - 1.0)))
+    first = res["status"].split(";")[0]
+    status = Status.COST_TOL if first == "start-exact" else ipopt_status(first)
     rec = SharedStage(stage, prob.n_sections, window or prob.omega.size, omega_c, err,
-                      res["nit"], res["t_solve"], time.perf_counter() - t0, res["status"],
-                      res["success"], res["c_solve"])
+                      res["nit"], res["t_solve"], time.perf_counter() - t0, status,
+                      res["status"], res["success"], res["c_solve"])
     return z, lam_x, log(rec)
 
 
@@ -437,7 +445,8 @@ def _rational(make, n, omega, phi, wts, free, log, max_iter, n_iter):
     z0 = prob.join(q, v, h, p)
     err = float(np.max(np.abs(prob.ratio(z0) - 1.0)))
     stages = [log(SharedStage(0, n, omega.size, np.nan, err, n_iter, 0.0,
-                              time.perf_counter() - t0, "vector-fitting", True))]
+                              time.perf_counter() - t0, Status.CONVERGED, "vector-fitting",
+                              True))]
     z, _, rec = _stage(prob, z0, None, n + 1, np.nan, log, None, 2 * max_iter)
     return prob, z, stages + [rec]
 
@@ -483,5 +492,6 @@ def _result(prob, z, datas, stages, zeros, wall, options):
         models=models, datas=tuple(datas), poles=poles, rel_errors=rel,
         max_rel_errors=np.max(rel, axis=1), rms_rel_errors=np.sqrt(np.mean(rel ** 2, axis=1)),
         success=bool(stages[-1].success), modes=modes_of_models(models),
-        wall_time=wall, nit=int(sum(s.nit for s in stages if s.status != "vector-fitting")),
+        wall_time=wall, nit=int(sum(s.nit for s in stages
+                                   if s.solver_status != "vector-fitting")),
         stages=tuple(stages), zeros=tuple(zeros), options=options)

@@ -73,7 +73,7 @@ def timed_fit(n_channels, repeats=3):
     return {"channels": n_channels, "wall_time": min(walls), "wall_times": walls,
             "nit": polish.nit, "t_per_iteration": min(per_it), "t_per_iteration_all": per_it,
             "cpu_per_iteration": min(cpu_it),
-            "status": polish.status, "success": res.success, "n_modes": len(res.modes),
+            "status": polish.solver_status, "success": res.success, "n_modes": len(res.modes),
             "max_rel_error_worst": float(np.max(res.max_rel_errors)),
             "rms_rel_error_worst": float(np.max(res.rms_rel_errors)),
             "max_freq_error": max(freq_err), "max_zeta_error": max(zeta_err),
