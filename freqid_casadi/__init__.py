@@ -21,6 +21,8 @@ from .fit import FitResult, StageRecord, fit
 from .loaders import (DataWarning, load, load_csv, load_mat, load_npz, load_text,
                       load_touchstone, load_uff, save_csv)
 from .model import RationalDelayModel, Structure
+from .survey import stabilization
+from .shared import SharedFitResult, fit_shared
 from .options import BarrierLMOptions, FitOptions, IpoptOptions, LoopOptions
 
 __all__ = [
@@ -30,5 +32,6 @@ __all__ = [
     "load_touchstone", "save_csv",
     "DataWarning", "systems",
     "FreqidError", "DataError", "StructureError", "OptionError", "SolverError",
+    "fit_shared", "SharedFitResult", "stabilization",
 ]
 __version__ = "0.1.0"

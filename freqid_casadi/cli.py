@@ -455,6 +455,7 @@ def _plugin(module_name):
 
 COMMANDS["frf"] = _plugin("cli_frf")
 COMMANDS["batch"] = _plugin("cli_batch")
+COMMANDS["modal"] = _plugin("cli_modal")
 
 
 # ----------------------------------------------------------------------------- main

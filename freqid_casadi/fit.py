@@ -139,6 +139,24 @@ class FitResult:
         """IPOPT/LM iterations summed over all stages."""
         return int(sum(s.nit for s in self.stages))
 
+    def modes(self):
+        """The model's modes (:func:`freqid_casadi.modal.modes`): tuple of Mode, one residue
+        each, by increasing frequency, with ``omega_n_std`` and ``zeta_std`` from
+        :attr:`uncertainty` (None where the covariance cannot be formed).
+
+        Returns
+        -------
+        tuple of freqid_casadi.modal.Mode
+        """
+        from .covariance import with_std
+        from .modal import modes
+
+        found = modes(self.model)
+        try:
+            return with_std(found, self.uncertainty)
+        except (FreqidError, np.linalg.LinAlgError, ArithmeticError):
+            return found
+
     def summary(self):
         """One line (and one more per diagnostic): errors, delay, time, status."""
         m = self.model

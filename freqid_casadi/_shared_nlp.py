@@ -1,0 +1,424 @@
+"""One stage NLP of the shared-pole fit: variables, exact sparse derivatives, IPOPT (layer L3).
+
+Channel ``c`` is modelled as ``G_c(s) = exp(-h_c s) K_c [1/s] prod_k N_ck(s) / D_k(s)``
+with the denominators ``D_k`` common to all channels. In the package's "dc" gauge
+(:mod:`freqid_casadi.objective`) every factor is ``1 + c1 (s/wr_k) + c2 (s/wr_k)^2``, i.e.
+``1 - c2 x^2 + j c1 x`` at ``s = j w``, ``x = w/wr_k``; ``c >= 0`` is exactly "roots in the
+closed left half plane". The relative residual of channel ``c`` at ``w_i`` is::
+
+    r_ci = Q_ci - 1,   Q_ci = Phi_ci exp(j w_i h_c) [j w_i] (v_c / g_c) prod_k D_k / N_ck
+
+with ``v_c = g_c / K_c`` (``g_c`` a reference gain): ``Q`` is linear in ``v``, so a gain of
+either sign (``zeros="free"``) is a smooth variable that can cross zero.
+
+Variables ``z = [shared | own_1 | ... | own_C]``: shared = ``(q2, q1)`` of every section
+(+ the delay with ``delay="shared"``), own_c = ``v_c`` (+ ``h_c``) + ``(p2, p1)`` of every
+numerator section. The cost ``sum_c sum_i w_ci |r_ci|^2`` couples the channels only
+through the shared block, so its Hessian is block-arrowhead; :class:`SharedProblem`
+evaluates its exact gradient and Hessian with numpy (``dQ = Q d log Q``; each factor is
+affine in its two variables) and hands IPOPT only the arrowhead's upper triangle, so the
+work per iteration is linear in the number of channels.
+"""
+
+import time
+
+import numpy as np
+
+from . import _cplx
+from .solvers.ipopt import ipopt_status
+from .solvers.common import SUCCESS_STATUSES
+
+__all__ = ["SharedProblem", "solve_stage"]
+_EXTRA = {}
+
+
+class SharedProblem:
+    """Variables, bounds and exact derivatives of one stage (see the module docstring).
+
+    Parameters
+    ----------
+    omega : ndarray of float, shape (M,)
+        rad/s.
+    phi : ndarray of complex, shape (C, M)
+    weights : ndarray of float, shape (C, M)
+    g : ndarray of float, shape (C,)
+        Reference gains (K_c = g_c / v_c).
+    wr : sequence of float, length N
+        Reference frequency (rad/s) of each section.
+    integrator : bool
+    delay : {"per-channel", "shared", False}
+    free : ndarray of bool, shape (C,)
+        Channels whose gain and numerator coefficients are unbounded.
+    delay_max : float
+        s; h = delay_max * z_h with 0 <= z_h <= 1.
+    """
+
+    def __init__(self, omega, phi, weights, g, wr, integrator, delay, free, delay_max):
+        self.omega, self.phi, self.weights, self.g = omega, phi, weights, g
+        self.wr = np.asarray(wr, float)
+        self.integrator, self.delay, self.free = integrator, delay, np.asarray(free, bool)
+        self.delay_max = float(delay_max)
+        n, c = self.wr.size, phi.shape[0]
+        self.n_sections, self.n_channels = n, c
+        self.n_shared = 2 * n + (delay == "shared")
+        self.n_own = 1 + (delay == "per-channel") + 2 * n
+        self.n_vars = self.n_shared + c * self.n_own
+        self._cache = (None, None)
+        self._sparsity = None
+
+    # ------------------------------------------------------------------ layout
+    def bounds(self):
+        """(lb, ub), shape (n_vars,): denominators and delays >= 0 (delay <= delay_max);
+        gains and numerators >= 0 for minimum-phase channels, free otherwise."""
+        lb, ub = np.zeros(self.n_vars), np.full(self.n_vars, np.inf)
+        n2, ns, no = 2 * self.n_sections, self.n_shared, self.n_own
+        if self.delay == "shared":
+            ub[n2] = 1.0
+        for c in range(self.n_channels):
+            o = ns + c * no
+            if self.delay == "per-channel":
+                ub[o + 1] = 1.0
+            if self.free[c]:
+                lb[o] = -np.inf
+                lb[o + no - n2:o + no] = -np.inf
+        return lb, ub
+
+    def split(self, z):
+        """(q (N, 2), v (C,), h (C,) in s, p (C, N, 2)) of the variables ``z``."""
+        z = np.asarray(z, float)
+        n, n2, ns, no = self.n_sections, 2 * self.n_sections, self.n_shared, self.n_own
+        q = z[:n2].reshape(n, 2)
+        own = z[ns:].reshape(self.n_channels, no)
+        if self.delay == "shared":
+            h = np.full(self.n_channels, z[n2])
+        elif self.delay == "per-channel":
+            h = own[:, 1].copy()
+        else:
+            h = np.zeros(self.n_channels)
+        p = own[:, no - n2:].reshape(self.n_channels, n, 2)
+        return q, own[:, 0].copy(), h * self.delay_max, p
+
+    def join(self, q, v, h, p):
+        """Inverse of :meth:`split` (h in s)."""
+        n2, ns = 2 * self.n_sections, self.n_shared
+        z = np.zeros(self.n_vars)
+        z[:n2] = np.ravel(q)
+        if self.delay == "shared":
+            z[n2] = float(np.mean(h)) / self.delay_max
+        own = np.zeros((self.n_channels, self.n_own))
+        own[:, 0] = v
+        if self.delay == "per-channel":
+            own[:, 1] = np.asarray(h) / self.delay_max
+        own[:, self.n_own - n2:] = np.reshape(p, (self.n_channels, -1))
+        z[ns:] = own.ravel()
+        return z
+
+    # ------------------------------------------------------------------ evaluation
+    def ratio(self, z, n_points=None):
+        """``Q = Phi / G`` per channel, complex (C, L), on the first ``n_points``."""
+        return self._pieces(z, n_points)[0]
+
+    def _pieces(self, z, n_points):
+        m = self.omega.size if n_points is None else int(n_points)
+        q, v, h, p = self.split(z)
+        w = self.omega[:m]
+        x = w[None, :] / self.wr[:, None]                                   # (N, L)
+        x2 = x * x
+        den = 1.0 - q[:, 0:1] * x2 + 1j * q[:, 1:2] * x                     # (N, L)
+        num = 1.0 - p[:, :, 0:1] * x2[None] + 1j * p[:, :, 1:2] * x[None]   # (C, N, L)
+        base = self.phi[:, :m] * np.exp(1j * w[None, :] * h[:, None]) / self.g[:, None]
+        if self.integrator:
+            base = base * (1j * w)[None, :]
+        P = base * np.prod(den, axis=0)[None, :] / np.prod(num, axis=1)
+        return v[:, None] * P, P, v, x, x2, den, num, w
+
+    def cost(self, z, n_points=None):
+        """``sum_c sum_i w_ci |Q_ci - 1|^2`` on the first ``n_points``."""
+        m = self.omega.size if n_points is None else int(n_points)
+        r = self.ratio(z, m) - 1.0
+        return float(np.sum(self.weights[:, :m] * (r.real ** 2 + r.imag ** 2)))
+
+    def _local(self, z, m):
+        """Per-channel log-derivative columns E (C, L, nl), column v set to 1, and pieces."""
+        key = (np.asarray(z, float).tobytes(), m)
+        if self._cache[0] == key:
+            return self._cache[1]
+        Q, P, v, x, x2, den, num, w = self._pieces(z, m)
+        n, c = self.n_sections, self.n_channels
+        cols = [np.broadcast_to(a, (c, a.shape[0], m)) for a in
+                (np.stack([-x2 / den, 1j * x / den], axis=1).reshape(2 * n, m),)]
+        jw = np.broadcast_to((1j * self.delay_max) * w, (c, 1, m))
+        if self.delay == "shared":
+            cols.append(jw)
+        cols.append(np.ones((c, 1, m), complex))                          # v (see _scaled)
+        if self.delay == "per-channel":
+            cols.append(jw)
+        cols.append(np.stack([x2[None] / num, -1j * x[None] / num], axis=2).reshape(c, 2 * n, m))
+        E = np.concatenate(cols, axis=1).transpose(0, 2, 1)               # (C, L, nl)
+        self._cache = (key, (E, Q, P, v))
+        return self._cache[1]
+
+    @property
+    def _iv(self):
+        return self.n_shared                     # local index of v
+
+    def gradient(self, z, n_points=None):
+        """(cost, gradient (n_vars,)) on the first ``n_points``."""
+        m = self.omega.size if n_points is None else int(n_points)
+        E, Q, P, v = self._local(z, m)
+        wt = self.weights[:, :m]
+        r = Q - 1.0
+        J = self._jac(E, Q, P)
+        g = 2.0 * np.real(np.einsum("cl,cla->ca", wt * np.conj(r), J))
+        cost = float(np.sum(wt * (r.real ** 2 + r.imag ** 2)))
+        ns = self.n_shared
+        return cost, np.concatenate([g[:, :ns].sum(axis=0), g[:, ns:].ravel()])
+
+    def _jac(self, E, Q, P):
+        J = Q[:, :, None] * E
+        J[:, :, self._iv] = P
+        return J
+
+    def hessian_parts(self, z, n_points=None):
+        """The exact Hessian of the cost in three parts: ``ss`` (ns, ns) the shared block
+        (summed over channels), ``so`` (C, ns, no) each channel's coupling to the shared
+        variables and ``oo`` (C, no, no) its own block; no channel-channel block exists.
+
+        The shared columns of the log-derivatives are the same for every channel, so the
+        shared block is one product with channel-summed weights; each channel costs two
+        products of its own columns.
+        """
+        m = self.omega.size if n_points is None else int(n_points)
+        E, Q, P, v = self._local(z, m)
+        wt = self.weights[:, :m]
+        ns = self.n_shared
+        mask = self._second_order_mask(v)
+        J = self._jac(E, Q, P)
+        u = wt * np.conj(Q - 1.0) * P
+        es = E[0, :, :ns]                               # identical for every channel
+        ss = ((es.conj().T * np.sum(wt * np.abs(Q) ** 2, axis=0)) @ es).real + \
+            ((es.T * np.sum(v[:, None] * u, axis=0)) @ es).real * self._base_mask()[:ns, :ns]
+        c, no = self.n_channels, self.n_own
+        so, oo = np.empty((c, ns, no)), np.empty((c, no, no))
+        for k in range(c):                              # per channel: BLAS products
+            jo, eo = J[k, :, ns:], E[k, :, ns:]
+            so[k] = ((es.conj().T * (wt[k] * np.conj(Q[k]))) @ jo).real + \
+                ((es.T * u[k]) @ eo).real * mask[k, :ns, ns:]
+            oo[k] = ((jo.conj().T * wt[k]) @ jo).real + \
+                ((eo.T * u[k]) @ eo).real * mask[k, ns:, ns:]
+        return 2.0 * ss, 2.0 * so, 2.0 * oo
+
+    def _base_mask(self):
+        """``1 + s_ab`` (see :meth:`_second_order_mask`), shape (nl, nl)."""
+        n, nl = self.n_sections, self.n_shared + self.n_own
+        base = np.ones((nl, nl))
+        for k in range(n):
+            base[2 * k:2 * k + 2, 2 * k:2 * k + 2] = 0.0
+            o = nl - 2 * n + 2 * k
+            base[o:o + 2, o:o + 2] = 2.0
+        return base
+
+    def _second_order_mask(self, v):
+        """d2 Q_ab = Q E_a E_b (1 + s_ab) with s = -1 inside a denominator factor, +1 inside a
+        numerator factor (each affine: d2 log F = -dF dF / F^2), 0 else; the v row/column
+        (Q = v P) is P E_b, and d2 Q / dv2 = 0."""
+        iv = self._iv
+        base = self._base_mask()
+        mask = v[:, None, None] * base[None]
+        mask[:, iv, :] = 1.0
+        mask[:, :, iv] = 1.0
+        mask[:, iv, iv] = 0.0
+        return mask
+
+    def casadi_cost(self, z, n_points=None):
+        """The cost as a CasADi expression of the symbol ``z`` (SX or MX, (n_vars, 1)),
+        the same formula on (re, im) pairs; its AD Hessian has the block-arrowhead pattern
+        of :meth:`hessian_pattern` (checked by the tests)."""
+        import casadi as ca
+
+        m = self.omega.size if n_points is None else int(n_points)
+        n, n2, ns, no = self.n_sections, 2 * self.n_sections, self.n_shared, self.n_own
+        w = self.omega[:m]
+        cost = 0
+        for c in range(self.n_channels):
+            o = ns + c * no
+            hz = (z[n2] if self.delay == "shared" else z[o + 1]
+                  if self.delay == "per-channel" else 0.0)
+            ph = self.phi[c, :m] / self.g[c] * ((1j * w) if self.integrator else 1.0)
+            q = _cplx.mul((ph.real * z[o], ph.imag * z[o]),
+                          _cplx.expj(w * self.delay_max * hz, ca.cos, ca.sin))
+            for k in range(n):
+                x = w / self.wr[k]
+                den = (1 - z[2 * k] * x * x, z[2 * k + 1] * x)
+                pk = o + no - n2 + 2 * k
+                num = (1 - z[pk] * x * x, z[pk + 1] * x)
+                q = _cplx.mul(q, _cplx.div(den, num))
+            cost = cost + ca.sum1(ca.DM(self.weights[c, :m]) * ((q[0] - 1) ** 2 + q[1] ** 2))
+        return cost
+
+    # ------------------------------------------------------------------ sparse Hessian
+    def hessian_pattern(self):
+        """(rows, cols, order): upper triangle of the block-arrowhead Hessian in the order
+        :meth:`hessian_values` returns its values, and the permutation to CasADi's
+        column-major order."""
+        if self._sparsity is None:
+            ns, no, c = self.n_shared, self.n_own, self.n_channels
+            rs, cs = np.triu_indices(ns)
+            ro, co = np.triu_indices(no)
+            rows, cols = [rs], [cs]
+            for k in range(c):
+                o = ns + k * no
+                a, b = np.meshgrid(np.arange(ns), o + np.arange(no), indexing="ij")
+                rows += [a.ravel(), o + ro]
+                cols += [b.ravel(), o + co]
+            rows, cols = np.concatenate(rows), np.concatenate(cols)
+            self._sparsity = (rows, cols, np.lexsort((rows, cols)))
+        return self._sparsity
+
+    def hessian_values(self, z, n_points=None):
+        """Nonzeros of the upper triangle of the Hessian, in :meth:`hessian_pattern` order."""
+        ss, so, oo = self.hessian_parts(z, n_points)
+        rs, cs = np.triu_indices(self.n_shared)
+        ro, co = np.triu_indices(self.n_own)
+        return np.concatenate([ss[rs, cs], np.concatenate(
+            [so.reshape(so.shape[0], -1), oo[:, ro, co]], axis=1).ravel()])
+
+    def hessian_dense(self, z, n_points=None):
+        """The full symmetric Hessian, shape (n_vars, n_vars) (for tests)."""
+        rows, cols, _ = self.hessian_pattern()
+        h = np.zeros((self.n_vars, self.n_vars))
+        h[rows, cols] = self.hessian_values(z, n_points)
+        return h + np.triu(h, 1).T
+
+
+def _callbacks():
+    import casadi as ca
+
+    class _Fn(ca.Callback):
+        """A numpy function as a CasADi Function writing into CasADi's buffers."""
+
+        def __init__(self, name, fn, names_in, sp_in, names_out, sp_out, jac=None):
+            ca.Callback.__init__(self)
+            self.fn, self.names_in, self.sp_in = fn, names_in, sp_in
+            self.names_out, self.sp_out = names_out, sp_out
+            self.jac = jac                  # (x -> [gradient]) for CasADi's own AD of f
+            self._jac_fn = None
+            self.construct(name, {})
+
+        def has_jacobian(self):
+            return self.jac is not None
+
+        def get_jacobian(self, name, inames, onames, opts):
+            n = self.sp_in[0].size1()
+            self._jac_fn = _Fn(name, lambda x, out: self.jac(x), inames,
+                               [self.sp_in[0], self.sp_out[0]], onames,
+                               [ca.Sparsity.dense(1, n)])
+            return self._jac_fn
+
+        def get_n_in(self):
+            return len(self.sp_in)
+
+        def get_n_out(self):
+            return len(self.sp_out)
+
+        def get_name_in(self, i):
+            return self.names_in[i]
+
+        def get_name_out(self, i):
+            return self.names_out[i]
+
+        def get_sparsity_in(self, i):
+            return self.sp_in[i]
+
+        def get_sparsity_out(self, i):
+            return self.sp_out[i]
+
+        def has_eval_buffer(self):
+            return True
+
+        def eval_buffer(self, arg, res):
+            args = [None if a is None else np.frombuffer(a, dtype=np.float64).copy()
+                    for a in arg]
+            for buf, val in zip(res, self.fn(*args)):
+                if buf is not None:
+                    np.frombuffer(buf, dtype=np.float64)[:] = val
+            return 0
+
+    return _Fn
+
+
+def solve_stage(problem, x0, n_points=None, *, lam_x0=None, max_iter=200, tol=1e-10):
+    """Minimise the stage cost with IPOPT (CasADi ``nlpsol``), true bounds, exact sparse
+    Hessian.
+
+    Parameters
+    ----------
+    problem : SharedProblem
+    x0 : ndarray of float, shape (n_vars,)
+    n_points : int, optional
+        Fit the first ``n_points`` frequencies (the window); default all.
+    lam_x0 : ndarray, optional
+        Bound multipliers for IPOPT's warm start.
+    max_iter : int
+    tol : float
+
+    Returns
+    -------
+    dict
+        ``x`` (projected on the bounds), ``lam_x``, ``cost``, ``nit``, ``status`` (IPOPT's
+        return_status), ``success``, ``t_solve`` (s, wall), ``c_solve`` (s, CPU time of
+        this process: robust to other jobs on the machine), ``t_build`` (s).
+    """
+    import casadi as ca
+
+    t0 = time.perf_counter()
+    n = problem.n_vars
+    lb, ub = problem.bounds()
+    x0 = np.clip(np.asarray(x0, float), lb, ub)
+    rows, cols, order = problem.hessian_pattern()
+    sp_h = ca.Sparsity.triplet(n, n, rows[order].tolist(), cols[order].tolist())
+    Fn = _callbacks()
+    dense = ca.Sparsity.dense
+    keep = [
+        Fn("f", lambda x: [problem.cost(x, n_points)], ["x"], [dense(n, 1)], ["f"],
+           [dense(1, 1)], jac=lambda x: [problem.gradient(x, n_points)[1]]),
+        Fn("nlp_grad_f", lambda x, p: problem.gradient(x, n_points), ["x", "p"],
+           [dense(n, 1), dense(0, 1)], ["f", "grad_f"], [dense(1, 1), dense(n, 1)]),
+        Fn("nlp_hess_l", lambda x, p, lf, lg: [lf[0] * problem.hessian_values(x, n_points)
+                                               [order]],
+           ["x", "p", "lam_f", "lam_g"], [dense(n, 1), dense(0, 1), dense(1, 1),
+                                          dense(0, 1)], ["hess_gamma_x_x"], [sp_h])]
+    z = ca.MX.sym("z", n)
+    ipopt = {"print_level": 0, "sb": "yes", "max_iter": int(max_iter), "tol": float(tol),
+             "acceptable_tol": 1e-8, "acceptable_iter": 30, "bound_relax_factor": 0.0,
+             "honor_original_bounds": "yes", "bound_push": 1e-9, "bound_frac": 1e-9,
+             "nlp_scaling_method": "none", **_EXTRA}
+    cost0 = problem.cost(x0, n_points)
+    if np.isfinite(cost0) and cost0 > 0:
+        ipopt["obj_scaling_factor"] = 1.0 / cost0
+    args = {"x0": x0, "lbx": lb, "ubx": ub}
+    if lam_x0 is not None:
+        ipopt.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
+                      "warm_start_bound_frac": 1e-9, "warm_start_mult_bound_push": 1e-9,
+                      "mu_init": 1e-6})
+        args["lam_x0"] = np.asarray(lam_x0, float)
+    solver = ca.nlpsol("shared_stage", "ipopt", {"x": z, "f": keep[0](z)},
+                       {"print_time": False, "error_on_fail": False, "grad_f": keep[1],
+                        "hess_lag": keep[2], "ipopt": ipopt})
+    t_build = time.perf_counter() - t0
+    t1, c1 = time.perf_counter(), time.process_time()
+    try:
+        sol = solver(**args)
+        stats = solver.stats()
+        status = str(stats.get("return_status", "unknown"))
+        x = np.clip(np.array(sol["x"], float).ravel(), lb, ub)
+        lam = np.array(sol["lam_x"], float).ravel()
+    except RuntimeError as exc:                       # evaluation error inside CasADi
+        stats, status, x, lam = {}, f"exception: {exc}", x0, np.zeros(n)
+    t_solve, c_solve = time.perf_counter() - t1, time.process_time() - c1
+    cost = problem.cost(x, n_points)
+    if not (np.isfinite(cost) and np.all(np.isfinite(x))):
+        x, cost, status = x0, cost0, "Invalid_Number_Detected"
+    return {"x": x, "lam_x": lam, "cost": cost, "nit": int(stats.get("iter_count", 0)),
+            "status": status, "success": ipopt_status(status) in SUCCESS_STATUSES,
+            "t_solve": t_solve, "c_solve": c_solve, "t_build": t_build}

@@ -1,0 +1,195 @@
+"""Rational start of the shared-pole fit: vector fitting with one common pole set (layer L4).
+
+Relaxed vector fitting (Gustavsen & Semlyen 1999; Gustavsen 2006) over all channels at once:
+every channel ``c`` has its own residues, all share the weight function
+``sigma(s) = dt + sum_k ct_k phi_k(s)`` whose zeros are the next poles. Each channel's own
+unknowns are eliminated by a QR factorisation of its block (Deschrijver et al.'s "fast VF"),
+so one iteration costs C small QRs plus one least-squares problem in the ``n + 1`` shared
+unknowns. Rows are weighted by ``1/|Phi_c|`` (the relative error, the fit's measure);
+relocated poles with ``Re > 0`` are flipped to the left half plane. The channels' zeros
+are the finite generalised eigenvalues of their pole-residue realisation; the caller turns
+poles and zeros into the dc-gauge section variables (:func:`factor_variables`).
+"""
+
+import numpy as np
+import scipy.linalg
+
+__all__ = ["shared_vector_fitting", "channel_zeros", "factor_variables"]
+
+
+def _initial_poles(omega, n):
+    """Pairs ``-b/100 +- j b`` (b spread over the band) and one real pole if n is odd."""
+    b = np.linspace(omega[0], omega[-1], n // 2 + 2)[1:-1] if n // 2 else np.zeros(0)
+    if omega[-1] / omega[0] > 30:
+        b = np.geomspace(omega[0], omega[-1], n // 2 + 2)[1:-1] if n // 2 else b
+    poles = list(-b / 100 + 1j * b) + list(np.conj(-b / 100 + 1j * b))
+    if n % 2:
+        poles.append(-np.sqrt(omega[0] * omega[-1]))
+    return np.array(poles, complex)
+
+
+def _basis(s, poles):
+    """Real-formulation partial-fraction basis (M, n): ``1/(s-a)`` per real pole,
+    ``1/(s-a) + 1/(s-a*)`` and ``j/(s-a) - j/(s-a*)`` per pair (upper member listed)."""
+    cols = []
+    for a in poles:
+        if abs(a.imag) <= 1e-12 * abs(a):
+            cols.append(1.0 / (s - a.real))
+        elif a.imag > 0:
+            u, v = 1.0 / (s - a), 1.0 / (s - np.conj(a))
+            cols += [u + v, 1j * (u - v)]
+    return np.stack(cols, axis=1)
+
+
+def _realisation(poles):
+    """A, b with ``(sI - A)^-1 b`` equal to :func:`_basis`."""
+    n = len(poles)
+    A, b, k = np.zeros((n, n)), np.zeros(n), 0
+    for a in poles:
+        if abs(a.imag) <= 1e-12 * abs(a):
+            A[k, k], b[k] = a.real, 1.0
+            k += 1
+        elif a.imag > 0:
+            A[k:k + 2, k:k + 2] = [[a.real, a.imag], [-a.imag, a.real]]
+            b[k] = 2.0
+            k += 2
+    return A, b
+
+
+def _clean(lam):
+    """Upper members of conjugate pairs and real values (a real matrix's eigenvalues)."""
+    lam = np.where(lam.real > 0, -np.conj(lam), lam)
+    real = np.abs(lam.imag) <= 1e-12 * np.abs(lam)
+    upper = lam[~real & (lam.imag > 0)]
+    return np.concatenate([lam[real].real + 0j, upper, np.conj(upper)])
+
+
+def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10):
+    """Common poles and per-channel residues of ``Phi_c(s) ~ sum_k r_ck / (s - p_k)``.
+
+    Parameters
+    ----------
+    omega : ndarray of float, shape (M,), rad/s
+    phi : ndarray of complex, shape (C, M)
+    n_poles : int
+    weights : ndarray of float, shape (C, M), optional
+        Multiply the relative row weights ``1/|Phi|`` (as squared-residual weights).
+    n_iter : int
+
+    Returns
+    -------
+    poles : ndarray of complex, shape (n_poles,)
+        Closed left half plane, conjugate pairs complete.
+    residues : ndarray of complex, shape (C, n_poles)
+    """
+    s = 1j * omega
+    m = omega.size
+    wt = 1.0 / np.abs(phi)
+    if weights is not None:
+        wt = wt * np.sqrt(weights)
+    poles = _initial_poles(omega, n_poles)
+    n = n_poles
+    for _ in range(n_iter):
+        basis = _basis(s, poles)
+        ones = np.hstack([basis, np.ones((m, 1))])
+        rows = []
+        for c in range(phi.shape[0]):
+            block = np.hstack([wt[c, :, None] * basis, -(wt[c] * phi[c])[:, None] * ones])
+            r = np.linalg.qr(np.vstack([block.real, block.imag]), mode="r")
+            rows.append(r[n:2 * n + 1, n:])
+        norm = np.sqrt(np.sum((wt * np.abs(phi)) ** 2))
+        relax = norm / m * np.real(np.sum(ones, axis=0))
+        mat = np.vstack(rows + [relax[None, :]])
+        rhs = np.zeros(mat.shape[0])
+        rhs[-1] = norm
+        scale = np.linalg.norm(mat, axis=0)
+        scale[scale == 0] = 1.0
+        x = scipy.linalg.lstsq(mat / scale, rhs)[0] / scale
+        ct, dt = x[:n], x[n]
+        if abs(dt) < 1e-8:
+            dt = 1e-8 if dt >= 0 else -1e-8
+        A, b = _realisation(poles)
+        poles = _clean(np.linalg.eigvals(A - np.outer(b, ct) / dt))
+    basis = _basis(s, poles)
+    residues = np.zeros((phi.shape[0], n), complex)
+    order = _column_poles(poles)
+    for c in range(phi.shape[0]):
+        a = wt[c, :, None] * basis
+        coef = scipy.linalg.lstsq(np.vstack([a.real, a.imag]),
+                                  np.concatenate([(wt[c] * phi[c]).real,
+                                                  (wt[c] * phi[c]).imag]))[0]
+        residues[c] = _complex_residues(coef, poles, order)
+    return poles, residues
+
+
+def _column_poles(poles):
+    return [a for a in poles if abs(a.imag) <= 1e-12 * abs(a) or a.imag > 0]
+
+
+def _complex_residues(coef, poles, listed):
+    """Residue of every pole (pairs conjugate) from the real-basis coefficients."""
+    res, k = {}, 0
+    for a in listed:
+        if abs(a.imag) <= 1e-12 * abs(a):
+            res[complex(a)] = coef[k] + 0j
+            k += 1
+        else:
+            r = coef[k] + 1j * coef[k + 1]
+            res[complex(a)], res[complex(np.conj(a))] = r, np.conj(r)
+            k += 2
+    return np.array([res[complex(a)] for a in poles])
+
+
+def channel_zeros(poles, residues):
+    """Finite zeros of ``sum_k r_k/(s - p_k)``: generalised eigenvalues of the Rosenbrock
+    pencil of its diagonal realisation; complex (<= n-1,)."""
+    n = len(poles)
+    mat = np.zeros((n + 1, n + 1), complex)
+    mat[:n, :n] = np.diag(poles)
+    mat[:n, n] = 1.0
+    mat[n, :n] = residues
+    e = np.zeros((n + 1, n + 1))
+    e[:n, :n] = np.eye(n)
+    with np.errstate(all="ignore"):
+        z = scipy.linalg.eigvals(mat, e)
+    scale = np.max(np.abs(poles))
+    z = z[np.isfinite(z) & (np.abs(z) < 1e6 * scale)]
+    return np.where(np.abs(z.imag) <= 1e-9 * np.abs(z), z.real + 0j, z)
+
+
+def factor_variables(roots, wr=None, floor=0.0):
+    """dc-gauge variables ``(c2, c1)`` per section of ``prod (1 - s/root)``.
+
+    Parameters
+    ----------
+    roots : complex array
+        Conjugate pairs complete; paired with the sections in order of magnitude.
+    wr : ndarray of float, shape (N,), optional
+        Sections' reference frequencies (rad/s), increasing; default the factors' own
+        natural frequencies.
+    floor : float
+        Smallest root magnitude (rad/s) kept (a root at 0 is not representable).
+
+    Returns
+    -------
+    vars : ndarray of float, shape (N, 2)
+        Sections beyond the roots get ``(0, 0)`` (a factor 1).
+    wr : ndarray of float, shape (N,)
+    """
+    roots = np.asarray(roots, complex)
+    roots = np.where(np.abs(roots) < floor, -floor + 0j, roots)
+    cplx = roots[roots.imag > 0]
+    real = np.sort(roots[roots.imag == 0].real)
+    factors = [(abs(z), 1.0 / abs(z) ** 2, -2 * z.real / abs(z) ** 2) for z in cplx]
+    for k in range(0, real.size - 1, 2):
+        a, b = real[k], real[k + 1]
+        factors.append((np.sqrt(abs(a * b)), 1.0 / (a * b), -(1 / a + 1 / b)))
+    if real.size % 2:
+        factors.append((abs(real[-1]), 0.0, -1.0 / real[-1]))
+    factors.sort(key=lambda f: f[0])
+    if wr is None:
+        wr = np.array([f[0] for f in factors])
+    out = np.zeros((len(wr), 2))
+    for k, (_, c2, c1) in enumerate(factors[:len(wr)]):
+        out[k] = c2 * wr[k] ** 2, c1 * wr[k]
+    return out, np.asarray(wr, float)

@@ -1,0 +1,164 @@
+"""Tests of the modal table, the stabilization diagram and the ``freqid modal`` command."""
+
+import csv
+import io
+import json
+import os
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+import freqid_casadi as fc
+from freqid_casadi import modal, survey
+from freqid_casadi.cli import main
+from freqid_casadi.errors import DataError, OptionError
+from freqid_casadi.model import RationalDelayModel, Structure
+
+POLES = ((5.0, 0.02), (17.0, 0.03))           # (omega_n rad/s, zeta)
+RESIDUE_SCALE = ((1.0, 2.0), (1.5, -0.5))      # per channel, per mode
+
+
+def _datas(n=300):
+    w = np.linspace(1.0, 30.0, n)
+    s = 1j * w
+    out = []
+    for c, amps in enumerate(RESIDUE_SCALE):
+        g = sum(a / (s * s + 2 * z * p * s + p * p) for a, (p, z) in zip(amps, POLES))
+        out.append(fc.FrequencyData(w, g, f"ch{c + 1}"))
+    return out
+
+
+def test_modes_of_one_model_and_residue():
+    # G(s) = 3 (s^2 + 0.4 s + 4)/(s^2 + 2 0.1 5 s + 25): residue at the upper pole
+    beta = [0.0, 3.0 * 25 / 4, 1.0, 0.1, 2.0, 1.0, 0.1, 5.0]
+    model = RationalDelayModel(Structure(1, delay=False), beta)
+    (mode,) = modal.modes(model)
+    p = 5.0 * (-0.1 + 1j * np.sqrt(1 - 0.01))
+    assert mode.pole == pytest.approx(p)
+    assert mode.omega_n == pytest.approx(5.0) and mode.zeta == pytest.approx(0.1)
+    assert mode.frequency_hz == pytest.approx(5.0 / (2 * np.pi))
+    expected = 3.0 * 25 / 4 * (p * p + 0.4 * p + 4) / (p - np.conj(p))
+    assert mode.residues[0] == pytest.approx(expected)
+    # the residue is lim (s - p) G(s): check numerically next to the pole
+    s = p + 1e-7
+    g = 3.0 * 25 / 4 * (s * s + 0.4 * s + 4) / (s * s + s + 25)
+    assert (s - p) * g == pytest.approx(expected, rel=1e-5)
+    w = np.array([1.0, 7.0])
+    np.testing.assert_allclose(model.frequency_response(w),
+                               3.0 * 25 / 4 * ((1j * w) ** 2 + 0.4j * w + 4)
+                               / ((1j * w) ** 2 + 1j * w + 25))
+    assert mode.omega_n_std is None and mode.zeta_std is None
+
+
+def test_modes_of_fit_result_and_errors():
+    res = fc.fit(_datas()[0], n_sections=2, delay=False, start="rational")
+    found = modal.modes(res)
+    np.testing.assert_allclose([m.omega_n for m in found], [5.0, 17.0], rtol=1e-6)
+    with_std = res.modes()                        # the same modes, with their std filled
+    assert [(m.omega_n, m.zeta) for m in with_std] == [(m.omega_n, m.zeta) for m in found]
+    assert all(m.omega_n_std is not None and m.zeta_std is not None for m in with_std)
+    with pytest.raises(DataError, match="RationalDelayModel"):
+        modal.modes("model.json")
+
+
+def test_shared_modes_residues_are_the_modal_constants():
+    res = fc.shared.fit_shared(_datas(), 2, delay=False, zeros=["minimum-phase", "free"])
+    assert [m.omega_n for m in res.modes] == pytest.approx([5.0, 17.0], rel=1e-7)
+    assert [m.zeta for m in res.modes] == pytest.approx([0.02, 0.03], rel=1e-6)
+    for k, (w, z) in enumerate(POLES):
+        wd = w * np.sqrt(1 - z * z)                   # a/(s^2+...) has residue a/(2 j wd)
+        for c, amps in enumerate(RESIDUE_SCALE):
+            assert res.modes[k].residues[c] == pytest.approx(amps[k] / (2j * wd), rel=1e-5)
+
+
+def test_csv_and_markdown_writers(tmp_path):
+    res = fc.shared.fit_shared(_datas(), 2, delay=False, zeros="free")
+    text = modal.modes_csv(res.modes, ["a", "b"])
+    rows = list(csv.reader(io.StringIO(text)))
+    assert rows[0][:4] == ["mode", "frequency_hz", "omega_n_rad_s", "zeta"]
+    assert rows[0][6:] == ["residue_re[a]", "residue_im[a]", "residue_re[b]", "residue_im[b]"]
+    assert float(rows[1][2]) == res.modes[0].omega_n            # full precision
+    assert complex(float(rows[2][8]), float(rows[2][9])) == res.modes[1].residues[1]
+    md = modal.modes_markdown(res.modes, ["a", "b"])
+    assert md.splitlines()[0].startswith("| mode | f (Hz)") and len(md.splitlines()) == 4
+    modal.write_modes(res.modes, tmp_path / "m.csv", tmp_path / "m.md", ["a", "b"])
+    assert (tmp_path / "m.csv").read_text() == text
+    with pytest.raises(OptionError, match="one entry per channel"):
+        modal.modes_csv(res.modes, ["a"])
+
+
+def test_parse_orders():
+    assert survey.parse_orders("2:10:2") == (2, 4, 6, 8, 10)
+    assert survey.parse_orders("4,8") == (4, 8)
+    for bad in ("3:9:2", "x", "8,4", "0:4:2"):
+        with pytest.raises(OptionError):
+            survey.parse_orders(bad)
+
+
+def test_stabilization_marks_and_selects_the_two_modes():
+    res = survey.stabilization(_datas(), orders=(2, 4, 6, 8, 10), delay=False,
+                              zeros="free", max_iter=100)
+    assert res.orders == (2, 4, 6, 8, 10)
+    assert [m.omega_n for m in res.modes] == pytest.approx([5.0, 17.0], rel=1e-4)
+    # order 4 finds both modes; from order 6 on they are stable in frequency and damping
+    at4 = res.poles_of(4)
+    assert sorted(p.omega_n for p in at4) == pytest.approx([5.0, 17.0], rel=1e-6)
+    for order in (6, 8, 10):
+        near = [p for p in res.poles_of(order)
+                if min(abs(p.omega_n - 5.0), abs(p.omega_n - 17.0)) < 0.01]
+        assert len(near) == 2 and all(p.status == "stable-frequency-damping" for p in near)
+    assert all(p.status == "new" for p in res.poles_of(2))
+    rows = list(csv.reader(io.StringIO(survey.stabilization_csv(res))))
+    assert rows[0] == ["order", "frequency_hz", "omega_n_rad_s", "zeta", "status", "selected"]
+    assert sum(int(r[5]) for r in rows[1:]) == 2
+    assert res.summed_magnitude.shape == res.omega.shape
+    with pytest.raises(OptionError, match="freq_tol"):
+        survey.stabilization(_datas(), orders=(2,), freq_tol=2.0)
+
+
+def test_classify_tolerances():
+    prev = [(100.0, 0.02)]
+    assert survey._classify(prev, [(100.5, 0.021)], 0.01, 0.10) == ["stable-frequency-damping"]
+    assert survey._classify(prev, [(100.5, 0.03)], 0.01, 0.10) == ["stable-frequency"]
+    assert survey._classify(prev, [(102.0, 0.02)], 0.01, 0.10) == ["new"]
+
+
+def test_cli_modal_writes_report_and_refuses_existing_out(tmp_path, capsys):
+    files = []
+    for d in _datas(120):
+        path = tmp_path / f"{d.name}.csv"
+        fc.save_csv(d, path)
+        files.append(str(path))
+    out = tmp_path / "rep"
+    argv = ["modal", *files, "--orders", "2:8:2", "--min-stable", "2", "--out", str(out),
+            "--zeros", "free"]
+    assert main(argv) == 0
+    names = sorted(os.listdir(out))
+    for f in ("summary.md", "summary.json", "modes.csv", "modes.md", "stabilization.csv",
+              "stabilization.png", "bode_ch1.png", "bode_ch2.png", "model_ch1.json",
+              "model_ch2.json"):
+        assert f in names
+    first = (out / "summary.md").read_text().splitlines()[0]
+    assert first.startswith("`freqid modal ") and "--orders 2:8:2" in first
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["n_modes_selected"] == 2
+    assert [m["omega_n"] for m in summary["modes"]] == pytest.approx([5.0, 17.0], rel=1e-4)
+    model = RationalDelayModel.load(out / "model_ch2.json")
+    assert model.structure.zeros == "free"
+    before = (out / "modes.csv").read_text()
+    assert main(argv) == 2
+    assert "exists" in capsys.readouterr().err
+    assert (out / "modes.csv").read_text() == before
+    assert main(argv + ["--force", "--zeros", "free,banana"]) == 2
+    assert main([*argv[:-2], "--orders", "3:7:2", "--force"]) == 2
+
+
+def test_import_does_not_load_matplotlib():
+    code = ("import sys, freqid_casadi, freqid_casadi.modal, freqid_casadi.shared, "
+            "freqid_casadi.plots_modal, freqid_casadi.cli_modal; "
+            "print('matplotlib' in sys.modules)")
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
+                         check=True, env={**os.environ, "PYTHONPATH": os.getcwd()})
+    assert out.stdout.strip() == "False"

@@ -1,0 +1,311 @@
+"""Tests of fit_shared: derivatives and the block-arrowhead Hessian, sdypy-EMA's acceptance
+system, Moheimani's beam seen by several sensors, export and input errors."""
+
+import warnings
+
+import numpy as np
+import pytest
+
+import freqid_casadi as fc
+from freqid_casadi._shared_nlp import SharedProblem
+from freqid_casadi.errors import DataError, OptionError
+from freqid_casadi.model import RationalDelayModel
+from freqid_casadi.shared import SharedFitResult, fit_shared
+from freqid_casadi.systems import moheimani_modes
+
+
+def _random_problem(delay, integrator=True, seed=0):
+    rng = np.random.default_rng(seed)
+    c, m = 3, 30
+    w = np.linspace(1.0, 10.0, m)
+    phi = rng.normal(size=(c, m)) + 1j * rng.normal(size=(c, m))
+    prob = SharedProblem(w, phi, rng.uniform(0.5, 1.0, (c, m)), np.ones(c), [2.0, 5.0],
+                         integrator, delay, [True, False, True], 0.1)
+    z = rng.uniform(0.1, 1.0, prob.n_vars)
+    z[prob.n_shared] = -0.3                       # a negative gain variable (free channel)
+    return prob, z
+
+
+@pytest.mark.parametrize("delay", ["per-channel", "shared", False])
+def test_gradient_and_hessian_match_finite_differences(delay):
+    prob, z = _random_problem(delay)
+    cost, grad = prob.gradient(z)
+    assert cost == pytest.approx(prob.cost(z), rel=1e-14)
+    eye = np.eye(prob.n_vars)
+    eps = 1e-6
+    fd = np.array([(prob.cost(z + eps * e) - prob.cost(z - eps * e)) / (2 * eps) for e in eye])
+    assert np.max(np.abs(grad - fd)) < 1e-7 * np.max(np.abs(grad))
+    fdh = np.array([(prob.gradient(z + eps * e)[1] - prob.gradient(z - eps * e)[1]) / (2 * eps)
+                    for e in eye])
+    h = prob.hessian_dense(z)
+    assert np.max(np.abs(h - fdh)) < 1e-7 * np.max(np.abs(h))
+
+
+@pytest.mark.parametrize("delay", ["per-channel", "shared", False])
+def test_casadi_ad_hessian_is_block_arrowhead_and_equals_ours(delay):
+    import casadi as ca
+
+    prob, z = _random_problem(delay)
+    x = ca.SX.sym("z", prob.n_vars)
+    f = prob.casadi_cost(x)
+    hess = ca.hessian(f, x)[0]
+    assert float(ca.Function("f", [x], [f])(z)) == pytest.approx(prob.cost(z), rel=1e-13)
+    ours = prob.hessian_dense(z)
+    ad = np.array(ca.Function("h", [x], [hess])(z))
+    assert np.max(np.abs(ad - ours)) < 1e-12 * np.max(np.abs(ad))
+    # AD's structural pattern == the arrowhead we hand IPOPT: no channel-channel block
+    rows, cols, _ = prob.hessian_pattern()
+    pattern = np.zeros(ours.shape, bool)
+    pattern[rows, cols] = True
+    pattern |= pattern.T
+    r_ad, c_ad = hess.sparsity().get_triplet()
+    ad_pattern = np.zeros(ours.shape, bool)
+    ad_pattern[r_ad, c_ad] = True
+    assert np.array_equal(ad_pattern, pattern)
+    ns, no = prob.n_shared, prob.n_own
+    assert not ad_pattern[ns:ns + no, ns + no:].any()          # channel 1 x channels 2, 3
+
+
+def test_hessian_nonzeros_grow_linearly_with_channels():
+    counts = []
+    for c in (4, 8, 16):
+        w = np.linspace(1.0, 10.0, 20)
+        prob = SharedProblem(w, np.ones((c, 20), complex), np.ones((c, 20)), np.ones(c),
+                             [2.0, 5.0, 7.0], False, "per-channel", [False] * c, 0.1)
+        counts.append(prob.hessian_pattern()[0].size)
+    assert counts[2] - counts[1] == 2 * (counts[1] - counts[0])
+
+
+# ------------------------------------------------------------------ sdypy-EMA's system
+def _chain(values):
+    """Stiffness-type matrix of a chain grounded on the left (pyLump boundaries="left")."""
+    n = len(values)
+    a = np.zeros((n, n))
+    for i in range(n):
+        a[i, i] += values[i]
+        if i + 1 < n:
+            a[i, i] += values[i + 1]
+            a[i, i + 1] -= values[i + 1]
+            a[i + 1, i] -= values[i + 1]
+    return a
+
+
+def ema_system():
+    """sdypy-EMA's acceptance system (tests/test_tools/generate_synth_frf.py): 5-DOF chain,
+    masses/stiffnesses/dampings drawn after ``np.random.seed(6020)``, 5000 linear points,
+    first row of the receptance matrix. Returns (datas, f_true (Hz), zeta_true)."""
+    state = np.random.get_state()
+    try:
+        np.random.seed(6020)
+        m = np.random.uniform(0.1, 1, 5)
+        k = np.random.uniform(500e3, 1e6, 5)
+        c = np.random.uniform(10, 100, 5)
+    finally:
+        np.random.set_state(state)
+    M, K, C = np.diag(m), _chain(k), _chain(c)
+    lam = np.linalg.eigvals(np.block([[np.zeros((5, 5)), np.eye(5)],
+                                      [-np.linalg.solve(M, K), -np.linalg.solve(M, C)]]))
+    lam = np.sort_complex(lam[lam.imag > 0])
+    lam = lam[np.argsort(np.abs(lam))]
+    f_true, zeta_true = np.abs(lam) / (2 * np.pi), -lam.real / np.abs(lam)
+    f_min = np.round(f_true[0] * 0.25 / 10) * 10
+    f_max = np.round(f_true[-1] * 5.0 / 100) * 100
+    omega = 2 * np.pi * np.linspace(f_min, f_max, 5000)
+    row = np.array([np.linalg.inv(K - w * w * M + 1j * w * C)[0] for w in omega]).T
+    return [fc.FrequencyData(omega, row[j], f"H1{j + 1}") for j in range(5)], f_true, zeta_true
+
+
+def test_ema_system_matches_pylump():
+    lumped = pytest.importorskip("pyLump")
+    rng = np.random.RandomState(6020)          # the same stream as np.random.seed(6020)
+    m = rng.uniform(0.1, 1, 5)
+    k = rng.uniform(500e3, 1e6, 5)
+    c = rng.uniform(10, 100, 5)
+    model = lumped.Model(n_dof=5, mass=m, stiffness=k, damping=c, boundaries="left")
+    datas, f_true, zeta_true = ema_system()
+    np.testing.assert_allclose(zeta_true, model.get_damping_ratios(), rtol=1e-9)
+    freq = datas[0].omega / (2 * np.pi)
+    assert freq[0] == pytest.approx(10.0) and freq[-1] == pytest.approx(1700.0)
+    assert freq.size == 5000
+    frf = model.get_FRF_matrix(freq=np.linspace(10.0, 1700.0, 5000)[::500], frf_method="f")[0]
+    for j in range(5):
+        np.testing.assert_allclose(frf[j], datas[j].response[::500], rtol=1e-9)
+
+
+def test_ema_acceptance_frequencies_and_dampings():
+    datas, f_true, zeta_true = ema_system()
+    res = fit_shared(datas, 5, delay=False)
+    assert isinstance(res, SharedFitResult) and res.success
+    f = np.array([m.frequency_hz for m in res.modes])
+    zeta = np.array([m.zeta for m in res.modes])
+    assert f.size == 5
+    # sdypy-EMA's criteria: within 1 Hz or 2 % in frequency, 2 % in damping (each mode)
+    assert np.all(np.abs(f - f_true) <= np.maximum(1.0, 0.02 * f_true))
+    assert np.all(np.abs(zeta - zeta_true) <= 0.02 * zeta_true)
+    # far inside them: measured 4.5e-13 (frequency), 9.9e-12 (damping), 5.4e-11 (worst
+    # channel's max rel. error); the bounds leave room for other BLAS/IPOPT builds (the
+    # last digits of a polish at this level depend on rounding)
+    assert np.max(np.abs(f - f_true) / f_true) < 1e-7
+    assert np.max(np.abs(zeta - zeta_true) / zeta_true) < 1e-6
+    assert np.all(res.max_rel_errors < 1e-6)
+    assert all(m.is_stable() and m.is_minimum_phase() for m in res.models)
+    # residues: the driving point's are -j r with r > 0 (positive modal mass)
+    assert all(m.residues[0].imag < 0 for m in res.modes)
+
+
+# ------------------------------------------------------------------ Moheimani's beam
+SENSORS = (0.075, 0.3, 0.55, 0.9, 1.2)
+
+
+def beam_datas(zeta=0.01, n_modes=30, omega_max=500.0, n_points=800):
+    """Moheimani's simply-supported beam (SPEC §4), actuator at r1 = 0.075 m, one channel
+    per sensor position in SENSORS, modal damping ``zeta``, log grid 5..omega_max rad/s."""
+    w = np.geomspace(5.0, omega_max, n_points)
+    s = 1j * w[:, None]
+    out = []
+    for r2 in SENSORS:
+        wi, fi = moheimani_modes(n_modes, r2=r2)
+        g = np.sum(fi / (s * s + 2 * zeta * wi * s + wi * wi), axis=1)
+        out.append(fc.FrequencyData(w, g, f"r2={r2}"))
+    return out
+
+
+BEAM_ZEROS = ["minimum-phase"] + ["free"] * (len(SENSORS) - 1)
+
+
+@pytest.fixture(scope="module")
+def beam_fit():
+    return fit_shared(beam_datas(), 6, delay=False, zeros=BEAM_ZEROS)
+
+
+def test_beam_modes_within_half_percent(beam_fit):
+    wi, _ = moheimani_modes(30)
+    in_band = wi[wi < 500.0]                                 # modes 1..5
+    found = np.array([m.omega_n for m in beam_fit.modes])
+    for w in in_band:
+        assert np.min(np.abs(found - w)) / w < 0.005
+        assert np.min(np.abs(found - w)) / w < 2e-5          # measured: <= 1.1e-5
+    for m in beam_fit.modes:
+        if m.omega_n < 500.0:
+            assert m.zeta == pytest.approx(0.01, rel=1e-3)
+    assert [mod.structure.zeros == "minimum-phase" for mod in beam_fit.models] == [True] + [False] * 4
+    assert all(mod.is_stable() for mod in beam_fit.models)
+
+
+def test_beam_non_collocated_channels_beat_single_channel_fits(beam_fit):
+    # non-collocated channels are non-minimum phase (residues change sign): fc.fit cannot
+    # follow them (max rel. error >= 0.16), zeros="free" can
+    datas = beam_datas()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        for c in range(1, len(SENSORS)):
+            single = fc.fit(datas[c], n_sections=6, delay=False)
+            assert beam_fit.max_rel_errors[c] <= single.max_rel_error
+            assert beam_fit.rms_rel_errors[c] <= single.rms_rel_error
+            assert beam_fit.max_rel_errors[c] < 0.012
+
+
+@pytest.mark.xfail(strict=True, reason=(
+    "measured: collocated channel (r2 = r1 = 0.075 m) max rel. error 0.0248 shared vs "
+    "0.00306 single-channel fc.fit, 6 sections, band 5..500 rad/s: its sixth section is not "
+    "a mode but stands in for modes 6..30 above the band, which the other channels need "
+    "placed elsewhere; with one pole set it is a compromise"))
+def test_beam_collocated_channel_no_worse_than_single_fit(beam_fit):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        single = fc.fit(beam_datas()[0], n_sections=6, delay=False)
+    assert beam_fit.max_rel_errors[0] <= single.max_rel_error
+
+
+# ------------------------------------------------------------------ options, export, errors
+def _two_mode_datas(delays=(0.0, 0.0), n=200):
+    w = np.linspace(1.0, 30.0, n)
+    s = 1j * w
+    poles = [(5.0, 0.02), (17.0, 0.03)]
+
+    def g(res, h):
+        return np.exp(-s * h) * sum(r / (s * s + 2 * z * p * s + p * p)
+                                    for r, (p, z) in zip(res, poles))
+    return [fc.FrequencyData(w, g((1.0, 2.0), delays[0]), "a"),
+            fc.FrequencyData(w, g((1.5, 0.5), delays[1]), "b")]
+
+
+def test_per_channel_delays_and_sequential_start():
+    datas = _two_mode_datas(delays=(0.01, 0.02))
+    for start in ("rational", "sequential"):
+        res = fit_shared(datas, 2, delay="per-channel", start=start)
+        assert np.all(res.max_rel_errors < 1e-6), (start, res.max_rel_errors)
+        # a delay trades against a far zero pair at 45 degrees (exp(-sh)(1 + sh + s^2 h^2/2)
+        # = 1 + O(s^3 h^3)): the absolute delays are within 6e-4 s (measured), their
+        # difference, which the far zeros cannot mimic, within 1e-5 s
+        np.testing.assert_allclose(res.delays, [0.01, 0.02], atol=1e-3)
+        assert res.delays[1] - res.delays[0] == pytest.approx(0.01, abs=1e-5)
+        np.testing.assert_allclose(sorted(m.omega_n for m in res.modes), [5.0, 17.0],
+                                   rtol=1e-6)
+    assert [s.stage for s in res.stages] == [0, 1, 2, 3]
+
+
+def test_to_control_outputs_every_channel_with_delays():
+    datas = _two_mode_datas(delays=(0.0, 0.02))
+    res = fit_shared(datas, 2, delay="per-channel")
+    sys = res.to_control()
+    assert sys.ninputs == 1 and sys.noutputs == 2
+    np.testing.assert_allclose(sys.output_delays, res.delays)
+    w = datas[0].omega[::20]
+    fr = sys(1j * w)                                      # (outputs, inputs, points)
+    for c, m in enumerate(res.models):
+        np.testing.assert_allclose(fr[c, 0] * np.exp(-1j * w * res.delays[c]),
+                                   m.frequency_response(w), rtol=1e-8)
+    two = res.to_control(references=["x", "y"])
+    assert two.ninputs == 2 and two.input_references == ("x", "y")
+    assert np.allclose(two.D[0, 1], 0) and np.allclose(two.B[:, 1][:two.nstates // 2], 0)
+
+
+def test_free_zeros_model_json_round_trip(beam_fit):
+    m = beam_fit.models[2]
+    assert m.structure.zeros == "free" and not m.is_minimum_phase()
+    back = RationalDelayModel.from_json(m.to_json())
+    assert back == m
+    assert np.array_equal(back.frequency_response([10.0, 100.0]),
+                          m.frequency_response([10.0, 100.0]))
+
+
+def test_input_errors():
+    datas = _two_mode_datas()
+    other = fc.FrequencyData(datas[0].omega * 1.01, datas[1].response)
+    with pytest.raises(DataError, match="omega grid"):
+        fit_shared([datas[0], other], 2)
+    with pytest.raises(DataError, match="sequence of FrequencyData"):
+        fit_shared([], 2)
+    with pytest.raises(OptionError, match="delay"):
+        fit_shared(datas, 2, delay="both")
+    with pytest.raises(OptionError, match="zeros"):
+        fit_shared(datas, 2, zeros=["free"])
+    with pytest.raises(OptionError, match="n_sections"):
+        fit_shared(datas, 0)
+    with pytest.raises(OptionError, match="start"):
+        fit_shared(datas, 2, start="best")
+    with pytest.raises(DataError, match="weights"):
+        fit_shared(datas, 2, weights=-np.ones(200))
+
+
+def test_integrator_in_every_channel():
+    datas = [fc.FrequencyData(d.omega, d.response / (1j * d.omega), d.name)
+             for d in _two_mode_datas()]
+    res = fit_shared(datas, 2, integrator=True, delay=False)
+    assert res.success and np.all(res.max_rel_errors < 1e-8)
+    assert all(m.integrator for m in res.models)
+    np.testing.assert_allclose([m.omega_n for m in res.modes], [5.0, 17.0], rtol=1e-8)
+    assert res.poles.size == 4                      # the integrator's pole is not listed
+
+
+def test_weights_scale_the_channels():
+    datas = _two_mode_datas()
+    w = np.ones((2, 200))
+    w[1, 100:] = 0.0                              # the second channel's upper half ignored
+    res = fit_shared(datas, 2, delay=False, weights=w)
+    assert res.success and np.all(res.max_rel_errors < 1e-6)
+    same = fit_shared(datas, 2, delay=False, weights=2.0)
+    assert np.all(same.max_rel_errors < 1e-6)
+    with pytest.raises(DataError, match="broadcastable"):
+        fit_shared(datas, 2, weights=np.ones(7))
