@@ -4,11 +4,11 @@ Commands::
 
     freqid example {A,B,C,fractional} [--sections N] [--method M] [--out DIR] [--force]
     freqid fit FILE --sections N [--integrator] [--no-delay] [--basis B] [--method M]
-                    [--tol X] --out DIR [--force]
+                    [--gain-sign S] [--zeros Z] [--tol X] --out DIR [--force]
     freqid sweep FILE|example:X --orders SPEC [--target X] --out DIR
-    freqid ablation [--examples LIST] [--quick] [--out DIR]     (studies.ablation_report)
+    freqid ablation [--examples LIST] [--quick] [--out DIR]     (cli_ablation)
     freqid reproduce [--examples LIST] [--quick] [--out DIR]    (studies.reproduce_report)
-    freqid frf ..., freqid batch ...                            (cli_frf, cli_batch)
+    freqid frf ..., freqid batch ..., freqid modal ...   (cli_frf, cli_batch, cli_modal)
 
 Each command parses its arguments, calls the API (:func:`freqid_casadi.fit.fit`), writes a
 report folder (:func:`freqid_casadi.report.write_fit_report`) and prints a short summary.
@@ -183,55 +183,6 @@ def _add_fit(sub):
                         "narrower than the spacing)")
     _common(p, out_required=True)
     return p
-
-
-def _example_list(text):
-    names = [n.strip() for n in text.split(",") if n.strip()]
-    unknown = [n for n in names if n not in EXAMPLES]
-    if not names or unknown:
-        raise argparse.ArgumentTypeError(
-            f"must be a comma-separated list of {', '.join(EXAMPLES)}, got {text!r}")
-    return list(dict.fromkeys(names))
-
-
-def _add_ablation(sub):
-    p = sub.add_parser("ablation", help="IPOPT vs the thesis's barrier-LM, and IPOPT's "
-                                        "options one at a time",
-                       description="Fit the built-in examples at the thesis's orders with "
-                                   "IPOPT and the barrier-LM, and with IPOPT's options "
-                                   "changed one at a time; write report.md, ablation.json "
-                                   "and figures. Long: about 15-30 minutes for all examples.")
-    p.add_argument("--examples", type=_example_list, metavar="LIST",
-                   help=f"comma-separated examples (default: all, {','.join(EXAMPLES)}; "
-                        "with --quick: A,fractional)")
-    p.add_argument("--quick", action="store_true",
-                   help="small problems (300 points, 3 sections) and 3 variants: a smoke "
-                        "test of the report, under a minute")
-    p.add_argument("--out", default="results/ablation", metavar="DIR",
-                   help="report folder to create (default results/ablation)")
-    p.add_argument("--force", action="store_true",
-                   help="replace an existing report folder (after the new one is complete)")
-    p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")
-    # the command recorded in report.md when another entry point (scripts/ablation.py)
-    # runs this command
-    p.add_argument("--report-command", help=argparse.SUPPRESS)
-    return p
-
-
-def _cmd_ablation(args, command):
-    from .studies import ablation, ablation_report
-
-    check_out_dir(args.out, args.force)              # before the (long) study
-    names = args.examples or (list(ablation.QUICK["examples"]) if args.quick
-                              else list(EXAMPLES))
-    path, summary = ablation_report.write_ablation_report(
-        {n: EXAMPLES[n] for n in names}, args.out, command=args.report_command or command,
-        quick=args.quick, force=args.force, progress=not args.quiet)
-    for line in summary["conclusions"]:
-        print(f"- {line}")
-    print(f"total time {summary['total_wall_time']:.1f} s")
-    print(f"report: {path}")
-    return 0
 
 
 def _add_reproduce(sub):
@@ -429,7 +380,6 @@ def _cmd_sweep(args, command):
 
 COMMANDS["example"] = (_add_example, _cmd_example)
 COMMANDS["fit"] = (_add_fit, _cmd_fit)
-COMMANDS["ablation"] = (_add_ablation, _cmd_ablation)
 COMMANDS["reproduce"] = (_add_reproduce, _cmd_reproduce)
 COMMANDS["sweep"] = (_add_sweep, _cmd_sweep)
 
@@ -453,6 +403,7 @@ def _plugin(module_name):
     return add, run
 
 
+COMMANDS["ablation"] = _plugin("cli_ablation")
 COMMANDS["frf"] = _plugin("cli_frf")
 COMMANDS["batch"] = _plugin("cli_batch")
 COMMANDS["modal"] = _plugin("cli_modal")
