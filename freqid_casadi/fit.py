@@ -20,6 +20,7 @@ from .data import FrequencyData
 from .errors import DataError, OptionError, ResolutionWarning, StructureError
 from .model import BASES, RationalDelayModel, Structure
 from .objective import GAUGES, Parametrization, rel_error_stats, stage_functions
+from .scaling import check_finite_result, reference_scales, scale_data, unscale_model
 from .solvers.common import Status
 from .solvers.ipopt import HESSIANS, solve_least_squares
 
@@ -405,10 +406,21 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                           "derivatives='casadi-map' or None")
     if weights is not None:
         data = data.with_weights(weights)
+    # the problem is scale free: fit omega / w_ref and response / g_ref (powers of two, so
+    # O(1) data is fitted bit for bit as given) and map the model back (issue 13 item 3)
+    w_ref, g_ref = reference_scales(data)
+    user_data, data = data, scale_data(data, w_ref, g_ref)
     zeta_min = _zeta_min(min_damping, data.omega, method, gauge, basis)
-    dmax = float(delay_max) if delay_max is not None else default_delay_max(data.omega)
+    dmax = (float(delay_max) * w_ref if delay_max is not None
+            else default_delay_max(data.omega))
+    user_callback, unscaled = _progress_callback(progress), {}
+
+    def callback(rec):              # the user sees (and FitResult keeps) the same records
+        unscaled[id(rec)] = (rec, _unscale_record(rec, w_ref))
+        user_callback(unscaled[id(rec)][1])
+
     ctx = _Context(
-        data=data, callback=_progress_callback(progress),
+        data=data, callback=callback,
         solve=_StageSolver(method, hessian, max_iter, ipopt_options, lm_options,
                            warm_start != "none", bound_delay, derivatives, zeta_min),
         structure=Structure(int(n_sections), integrator, delay, basis), gauge=gauge,
@@ -416,9 +428,10 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     options = dict(n_sections=int(n_sections), integrator=bool(integrator), delay=bool(delay),
                    basis=basis, method=method, tol=tol, gauge=gauge, init=init,
                    scale_l=scale_l, hessian=hessian, warm_start=warm_start, scaled=scaled,
-                   delay_max=dmax, bound_delay=bound_delay, final_stage=final_stage,
+                   delay_max=dmax / w_ref, bound_delay=bound_delay, final_stage=final_stage,
                    max_iter=max_iter, final_max_iter=final_max_iter, start=start,
-                   objective=objective, derivatives=derivatives, min_damping=zeta_min)
+                   objective=objective, derivatives=derivatives, min_damping=zeta_min,
+                   omega_ref=w_ref, response_ref=g_ref)
     runs = {}
     if start in ("sequential", "best"):
         runs["sequential"] = _sequential(ctx, tol, init, scale_l, warm_start, final_stage)
@@ -439,15 +452,19 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     if objective == "minimax":
         z, rec = _minimax(ctx, param, z)
         records.append(rec)
-    model = param.to_model(z)
-    rel = model.relative_error(data)
+    model_scaled = param.to_model(z)
+    rel = model_scaled.relative_error(data)
+    check_finite_result(model_scaled.structure, model_scaled.beta, rel)
+    model = unscale_model(model_scaled, w_ref, g_ref)
+    records = [unscaled[id(r)][1] if id(r) in unscaled else _unscale_record(r, w_ref)
+               for r in records]
     mx, rms = rel_error_stats(rel)
     final = [r for r in records if r.kept != "minimax-rejected" and r.solver_status
              != "vector-fitting"] or records
     from .validation import check_resolution   # lazy: validation builds on fit
 
     # first-order sections have real roots, never narrow: nothing to check
-    check = (check_resolution(model, data.omega)
+    check = (check_resolution(model, user_data.omega)
              if model.structure.basis == "second-order" and model.n_sections else None)
     if check is not None and not check.ok:
         warnings.warn(
@@ -458,6 +475,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
             "damping floor from the frequency spacing), remove them with "
             "freqid_casadi.validation.prune_sections, or fit fewer sections",
             ResolutionWarning, stacklevel=3)
+    data = user_data
     return FitResult(model=model, stages=tuple(records), data=data, rel_error=rel,
                      max_rel_error=mx, rms_rel_error=rms,
                      success=bool(final[-1].success), wall_time=time.perf_counter() - t_start,
@@ -644,6 +662,11 @@ def _minimax(ctx, param, z):
     return z_new, rec
 
 
+def _unscale_record(rec, w_ref):
+    """A stage record of the scaled problem in the user's units (rad/s, s)."""
+    return dataclasses.replace(rec, omega_c=rec.omega_c * w_ref, delay=rec.delay / w_ref)
+
+
 def _cold_start(init_z, param, z):
     """Cold start for warm_start='none': stage-0 gain/delay, sections as inserted."""
     out = z.copy()
@@ -760,6 +783,9 @@ def _progress_callback(progress):
     return write
 
 
+STAGE_TERMINATION = {"stage": {}, "final": {}}
+
+
 class _StageSolver:
     """Builds the stage's CasADi functions once and calls the chosen solver."""
 
@@ -776,6 +802,10 @@ class _StageSolver:
         self.bound_delay = bound_delay
 
     def __call__(self, param, wdata, x0, lam0, max_iter=None):
+        from .solvers.common import Termination
+
+        final = max_iter is not None
+        term = Termination(**STAGE_TERMINATION["final" if final else "stage"])
         funcs = stage_functions(param, wdata.omega, wdata.response, wdata.weights,
                                 derivatives=self.derivatives)
         lb, ub = param.bounds()
@@ -790,7 +820,8 @@ class _StageSolver:
                                       hessian=self.hessian,
                                       max_iter=max_iter or self.max_iter,
                                       warm_start=self.warm,
-                                      ipopt_options=self.ipopt_options, constraints=cons)
+                                      ipopt_options=self.ipopt_options, constraints=cons,
+                                      termination=term)
             if cons is not None:
                 # IPOPT meets g >= 0 to its tolerance; make the floor exact
                 res = dataclasses.replace(res, x=param.project_damping(res.x, self.zeta_min))

@@ -117,7 +117,7 @@ def test_no_star_imports():
 # ------------------------------------------------------------------ layer map (STYLE.md §2)
 LAYERS = {
     "errors": 0, "_cplx": 0, "_io": 0,
-    "data": 1, "experiment": 1, "model": 1, "systems": 1,
+    "data": 1, "experiment": 1, "model": 1, "systems": 1, "scaling": 1,
     "objective": 2,
     "solvers": 3,
     "fit": 4, "baselines": 4, "uncertainty": 4, "start": 4, "sweep": 4, "validation": 4,

@@ -11,7 +11,8 @@ import numpy as np
 
 from ..errors import OptionError
 from .common import (StageResult, Status, SUCCESS_STATUSES, TERMINATION_MESSAGES,
-                     find_active_constraints)
+                     Termination, find_active_constraints, free_variables,
+                     projected_fraction, relative_stationarity)
 
 __all__ = ["HESSIANS", "solve_least_squares", "solve_pnorm", "ipopt_status"]
 
@@ -25,6 +26,7 @@ _IPOPT_STATUS = {
     "Maximum_WallTime_Exceeded": Status.MAX_ITER,
     "Search_Direction_Becomes_Too_Small": Status.SMALL_STEP,
     "Feasible_Point_Found": Status.ACCEPTABLE,
+    "User_Requested_Stop": Status.STALLED,
     "Invalid_Number_Detected": Status.ERROR,
     "NonIpopt_Exception_Thrown": Status.ERROR,
 }
@@ -37,7 +39,7 @@ def ipopt_status(return_status):
 
 def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
                         max_iter=3000, tol=1e-12, warm_start=True, ipopt_options=None,
-                        verbose=False, constraints=None):
+                        verbose=False, constraints=None, termination=None):
     """Minimise ``||r(z)||^2`` subject to ``lb <= z <= ub`` with IPOPT.
 
     Parameters
@@ -73,11 +75,17 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
         :meth:`~freqid_casadi.objective.Parametrization.damping_constraints`). Its Jacobian
         and its part of the Lagrangian's Hessian come from CasADi's AD; ``x0`` should be
         feasible (IPOPT then keeps it so).
+    termination : Termination, optional
+        The scale-free test checked after every IPOPT iteration (relative stationarity, or
+        a stall of the relative cost decrease); default ``Termination()``. IPOPT's own
+        ``tol`` applies to the objective scaled by its start value and cannot be met once
+        the cost has fallen by many orders (the gradient's rounding noise); this test can.
 
     Returns
     -------
     StageResult
-        ``x`` is projected onto the bounds exactly (IPOPT's bound relaxation can leave
+        ``success`` is True when IPOPT converged or the point passes the relative
+        stationarity test; ``x`` is projected onto the bounds exactly (IPOPT's bound relaxation can leave
         e.g. a damping at -1e-9, a right-half-plane root), and ``cost`` is evaluated there.
     """
     import casadi as ca
@@ -97,11 +105,14 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
     opts["ipopt"].update({"acceptable_tol": 1e-8, "acceptable_iter": 30})
     keep = [_GradF(funcs)]          # the callbacks must outlive the solver
     opts["grad_f"] = keep[0]
+    monitor = _Monitor(funcs, lb, ub, termination or Termination())
+    keep.append(_IterCB(monitor, n, 0 if constraints is None else int(nlp["g"].numel())))
+    opts["iteration_callback"] = keep[-1]
     if hessian == "limited-memory":
         opts["ipopt"]["hessian_approximation"] = "limited-memory"
     else:
         keep.append(_Hess(funcs, hessian, hess_g))
-        opts["hess_lag"] = keep[1]
+        opts["hess_lag"] = keep[-1]
     use_warm = warm_start and lam_x0 is not None
     if use_warm:
         opts["ipopt"].update({
@@ -125,6 +136,7 @@ def solve_least_squares(funcs, x0, lb, ub, *, lam_x0=None, hessian="exact",
     t_build = time.perf_counter() - t0
     res, stats, t_solve = _solve(solver, keep, x0, lb, ub, constraints is not None,
                                  lam_x0 if use_warm else None, funcs.cost, t0)
+    res = monitor.decide(res)
     return dataclasses.replace(res, extra={
         "t_build": t_build, "t_solve": t_solve,
         **{f"t_{k}": float(stats.get(f"t_wall_nlp_{k}", 0.0) or 0.0)
@@ -287,7 +299,119 @@ def _make_callbacks():
             np.copyto(np.frombuffer(res[0], dtype=np.float64), h.ravel().take(self.flat))
             return 0
 
-    return GradF, Hess
+
+    class IterCB(ca.Callback):
+        """``iteration_callback``: runs the :class:`_Monitor`; a nonzero return stops IPOPT
+        (``User_Requested_Stop``)."""
+
+        def __init__(self, monitor, n, ng):
+            ca.Callback.__init__(self)
+            self.monitor, self.n, self.ng = monitor, n, ng
+            self.construct("iteration_monitor", {})
+
+        def get_n_in(self):
+            return ca.nlpsol_n_out()
+
+        def get_n_out(self):
+            return 1
+
+        def get_name_in(self, i):
+            return ca.nlpsol_out(i)
+
+        def get_name_out(self, i):
+            return "ret"
+
+        def get_sparsity_in(self, i):
+            name = ca.nlpsol_out(i)
+            if name == "f":
+                return ca.Sparsity.scalar()
+            if name in ("x", "lam_x"):
+                return ca.Sparsity.dense(self.n)
+            if name in ("g", "lam_g"):
+                return ca.Sparsity.dense(self.ng)
+            return ca.Sparsity(0, 0)
+
+        def eval(self, arg):
+            return [1 if self.monitor.check(np.array(arg[0].full(), float).reshape(-1))
+                    else 0]
+
+    return GradF, Hess, IterCB
+
+
+class _Monitor:
+    """The :class:`~freqid_casadi.solvers.common.Termination` test of one stage, run after
+    every IPOPT iteration and once more at the returned point."""
+
+    def __init__(self, funcs, lb, ub, term):
+        self.funcs, self.lb, self.ub, self.term = funcs, lb, ub, term
+        nsec = funcs.param.structure.n_sections
+        self.n_factors = 2 * nsec + 3
+        self.history = []
+        self.reason = None
+        self.cos = self.allowed = self.proj = float("nan")
+
+    def stationary(self, x):
+        """(stationary?, cost) at ``x``: the cheap cosine test, then the projection."""
+        x = np.clip(x, self.lb, self.ub)
+        cost, grad = self.funcs.gradient(x)
+        if not np.isfinite(cost):
+            return False, cost
+        cn = self.funcs.column_norms(x)
+        free = free_variables(grad, x, self.lb, self.ub, cn, np.sqrt(max(cost, 0.0)),
+                              np.sqrt(self.term.ftol))
+        cmax, noise = relative_stationarity(grad, cn, cost, free,
+                                            self.funcs.n_points, self.n_factors)
+        noise *= self.term.noise_factor
+        self.cos, self.allowed = cmax, np.sqrt(self.term.ftol) + noise
+        if cmax > self.allowed:
+            return False, cost
+        r, jac = self.funcs.residual_jacobian(x)
+        self.proj = projected_fraction(r, jac, free, self.term.rcond)
+        return self.proj ** 2 <= self.term.ftol + noise, cost
+
+    def check(self, x):
+        ok, cost = self.stationary(x)
+        if ok:
+            self.reason = "stationary"
+            return True
+        self.history.append(cost)
+        w = self.term.stall_window
+        if w and len(self.history) > w:
+            old = self.history[-w - 1]
+            if old - self.history[-1] <= self.term.stall_ftol * old:
+                self.reason = "stalled"
+                return True
+        return False
+
+    def decide(self, res):
+        """The stage's status and success from the test at the returned point; a point
+        that fails it gets a bounded LM polish (:func:`~.polish.lm_polish`) first."""
+        if res.status == Status.ERROR:
+            return res
+        ok, _ = self.stationary(res.x)
+        if not ok:
+            from .polish import lm_polish
+
+            x, steps = lm_polish(self.funcs, res.x, self.lb, self.ub,
+                                 lambda v: self.stationary(v)[0])
+            if steps:
+                res = dataclasses.replace(res, x=x, cost=self.funcs.cost(x),
+                                          nit=res.nit + steps)
+                ok, _ = self.stationary(x)
+        ipopt_ok = res.status in (Status.CONVERGED, Status.ACCEPTABLE)
+        test = (f"max cos(r, J_j) {self.cos:.2g} (allowed {self.allowed:.2g}), "
+                f"||P r||/||r|| {self.proj:.2g}")
+        if ok or ipopt_ok:
+            status = res.status if ipopt_ok else Status.CONVERGED
+            how = "relative stationarity" if ok else "IPOPT's tolerance"
+            msg = f"converged ({how}: {test}; IPOPT: {res.solver_status})"
+            return dataclasses.replace(res, status=status, success=True, message=msg)
+        status = Status.STALLED if self.reason == "stalled" else res.status
+        if status == Status.SMALL_STEP or status in SUCCESS_STATUSES:
+            status = Status.SMALL_STEP
+        msg = (f"{TERMINATION_MESSAGES[status]}; not stationary ({test}; IPOPT: "
+               f"{res.solver_status})")
+        return dataclasses.replace(res, status=status, success=False, message=msg)
 
 
 _CALLBACKS = []
@@ -305,6 +429,10 @@ def _GradF(funcs):
 
 def _Hess(funcs, kind, hess_g=None):
     return _callback_classes()[1](funcs, kind, hess_g)
+
+
+def _IterCB(monitor, n, ng):
+    return _callback_classes()[2](monitor, n, ng)
 
 
 def solve_pnorm(funcs, x0, lb, ub, p, *, max_iter=300, tol=1e-10, constraints=None,
