@@ -19,9 +19,11 @@ from .data import FrequencyData, load, load_csv, load_npz, save_csv
 from .errors import DataError, FreqidError, OptionError, SolverError, StructureError
 from .fit import FitResult, StageRecord, fit
 from .model import RationalDelayModel, Structure
+from .options import BarrierLMOptions, FitOptions, IpoptOptions, LoopOptions
 
 __all__ = [
-    "fit", "FitResult", "StageRecord", "FrequencyData", "RationalDelayModel", "Structure",
+    "fit", "FitResult", "StageRecord", "IpoptOptions", "BarrierLMOptions", "LoopOptions",
+    "FitOptions", "FrequencyData", "RationalDelayModel", "Structure",
     "load", "load_csv", "load_npz", "save_csv", "systems",
     "FreqidError", "DataError", "StructureError", "OptionError", "SolverError",
 ]

@@ -46,6 +46,7 @@ from . import report
 from ._io import atomic_write_text
 from .errors import OptionError
 from .fit import fit
+from .options import options_from_keywords
 
 __all__ = ["Variant", "variants", "run_ablation", "render_ablation", "conclusions",
            "time_to_reach", "write_ablation_report", "DEFAULT_OPTIONS", "LM_OPTIONS",
@@ -219,7 +220,7 @@ def _near_bound(result):
     if not st.delay:
         free[0] = False
     out = [names[i] for i in np.flatnonzero(free & (beta <= NEAR_BOUND))]
-    dmax = (result.options or {}).get("delay_max")
+    dmax = result.delay_max
     if st.delay and dmax and beta[0] >= (1.0 - NEAR_BOUND) * dmax:
         out.append("delay (upper bound)" if beta[0] <= dmax else "delay (above delay_max)")
     return out
@@ -243,8 +244,9 @@ def _run_variant(data, spec, variant):
            "options": dict(variant.options), "note": variant.note}
     t0 = time.perf_counter()
     try:
+        solver, loop = options_from_keywords(**opts)
         result = fit(data, n_sections=spec["n_sections"], integrator=spec["integrator"],
-                     delay=spec["delay"], basis=spec["basis"], **opts)
+                     delay=spec["delay"], basis=spec["basis"], method=solver, loop=loop)
     except Exception as exc:           # noqa: BLE001 - reported as a failed variant
         rec.update(dict.fromkeys(_RECORD_KEYS), status="failed",
                    message=" ".join(f"{type(exc).__name__}: {exc}".split()),
@@ -274,7 +276,7 @@ def _run_variant(data, spec, variant):
         near_bound=near,
         n_active_final=int(result.stages[-1].n_active),
         delay=float(result.model.delay),
-        delay_max=float(result.options.get("delay_max", math.nan)),
+        delay_max=float(result.delay_max),
         n_failed_stages=len(bad),
         failed_stages=bad,
         n_max_iter_stages=len(limit),

@@ -20,6 +20,7 @@ from .data import FrequencyData, load
 from .errors import DataError, OptionError, StructureError
 from .fit import FitResult, fit
 from .model import BASES
+from .options import LEGACY_KEYWORDS, LoopOptions, legacy_message, solver_options
 
 __all__ = ["fit_many", "BatchItem", "BATCH_STATUSES"]
 
@@ -63,6 +64,9 @@ class BatchItem:
 
 
 def _check_options(options):
+    for name in options:
+        if name in LEGACY_KEYWORDS:
+            raise TypeError(legacy_message("fit_many", name, options[name]))
     unknown = sorted(set(options) - _FIT_OPTIONS)
     if unknown:
         raise OptionError(f"unknown fit option(s) {', '.join(map(repr, unknown))}; "
@@ -72,6 +76,9 @@ def _check_options(options):
     if options.get("basis", "second-order") not in BASES:
         raise OptionError(f"unknown basis {options['basis']!r}; choose one of "
                           f"{', '.join(BASES)}")
+    solver_options(options.get("method", "ipopt"))       # OptionError on a bad method
+    if not isinstance(options.get("loop", LoopOptions()), LoopOptions):
+        raise OptionError(f"loop must be a LoopOptions, got {type(options['loop']).__name__}")
 
 
 def _check_jobs(jobs):
@@ -128,6 +135,8 @@ def fit_many(datasets, *, jobs=1, scheduler=None, **options):
 
     Raises
     ------
+    TypeError
+        A keyword fit() no longer takes (the message names its option object).
     OptionError
         Unknown or invalid options, bad ``jobs``, or ``scheduler`` given but Dask is not
         installed.

@@ -5,15 +5,17 @@ are read-only, so a window or a result can share them safely.
 """
 
 import csv
+import math
 import os
 import zipfile
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from .errors import DataError
+from .errors import DataError, OptionError
 
-__all__ = ["FrequencyData", "load_csv", "load_npz", "load", "save_csv"]
+__all__ = ["FrequencyData", "load_csv", "load_npz", "load", "save_csv", "dense_grid",
+           "frequency_grid"]
 
 
 def _first_bad(mask):
@@ -303,3 +305,55 @@ def save_csv(data, path):
     lines += [f"{w!r},{z.real!r},{z.imag!r}" for w, z in zip(data.omega.tolist(),
                                                             data.response.tolist())]
     atomic_write_text(path, "\n".join(lines) + "\n")
+
+
+def frequency_grid(omega):
+    """The frequencies of ``omega`` (FrequencyData or array) as a checked float array.
+
+    Parameters
+    ----------
+    omega : FrequencyData or array_like of float, shape (M,)
+
+    Returns
+    -------
+    ndarray of float, shape (M,)
+
+    Raises
+    ------
+    DataError
+        Fewer than 2 values, a value not finite or <= 0, or not strictly increasing.
+    """
+    if isinstance(omega, FrequencyData):
+        return omega.omega
+    w = np.asarray(omega, float).reshape(-1)
+    if w.size < 2 or not np.all(np.isfinite(w)) or np.any(w <= 0) or np.any(np.diff(w) <= 0):
+        raise DataError("omega must hold >= 2 finite frequencies > 0 (rad/s), strictly "
+                        "increasing; use FrequencyData.sorted()")
+    return w
+
+
+def dense_grid(omega, factor=10):
+    """A log-spaced grid with ``factor`` x as many points over the range of ``omega``.
+
+    Parameters
+    ----------
+    omega : FrequencyData or array_like of float, shape (M,)
+        rad/s, >= 2 finite values > 0, strictly increasing.
+    factor : int
+        >= 1.
+
+    Returns
+    -------
+    ndarray of float, shape (factor * M,)
+
+    Raises
+    ------
+    DataError
+        Bad ``omega``.
+    OptionError
+        Bad ``factor``.
+    """
+    w = frequency_grid(omega)
+    if isinstance(factor, bool) or not isinstance(factor, (int, np.integer)) or factor < 1:
+        raise OptionError(f"factor must be an integer >= 1, got {factor!r}")
+    return np.logspace(math.log10(w[0]), math.log10(w[-1]), int(factor) * w.size)

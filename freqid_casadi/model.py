@@ -21,8 +21,10 @@ import numpy as np
 from . import _cplx
 from ._io import atomic_write_text
 from .errors import DataError, StructureError
+from .metrics import DelayedResponse
 
-__all__ = ["Structure", "RationalDelayModel", "section_response", "BASES", "FORMAT_VERSION"]
+__all__ = ["Structure", "RationalDelayModel", "section_response", "attach_delay", "BASES",
+           "FORMAT_VERSION"]
 
 BASES = ("second-order", "first-order")
 FORMAT_VERSION = 1
@@ -133,8 +135,34 @@ def _quad_roots(c2, c1, c0):
     return list(np.roots([c2, c1, c0]).astype(complex))
 
 
+def attach_delay(sys, delay, pade_order=None):
+    """A python-control system with the delay ``delay`` (s): as a Pade approximation of
+    order ``pade_order`` in series, or (None) in the system's ``delay`` attribute.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+    delay : float
+    pade_order : int or None
+
+    Returns
+    -------
+    control.StateSpace
+    """
+    import control as ct
+
+    if pade_order is not None:
+        if delay > 0:
+            pn, pd = ct.pade(delay, int(pade_order))
+            sys = ct.series(sys, ct.ss(ct.tf(pn, pd)))
+        sys.delay = 0.0
+    else:
+        sys.delay = delay
+    return sys
+
+
 @dataclass(frozen=True, eq=False)
-class RationalDelayModel:
+class RationalDelayModel(DelayedResponse):
     """A fitted model ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` (SPEC §1).
 
     Parameters
@@ -220,24 +248,6 @@ class RationalDelayModel:
             z = _cplx.mul(z, _cplx.div(num, den))
         return _cplx.to_complex(z)
 
-    def frequency_response(self, omega):
-        """G_N(j omega) including delay and integrator.
-
-        Parameters
-        ----------
-        omega : array_like of float, shape (M,)
-            Frequencies in rad/s.
-
-        Returns
-        -------
-        ndarray of complex, shape (M,)
-        """
-        omega = np.asarray(omega, dtype=float)
-        return np.exp(-1j * omega * self.delay) * self.rational_response(omega)
-
-    def relative_error(self, data):
-        """|(Phi - G_N)/G_N| at the data points, shape (M,)."""
-        return np.abs(data.response / self.frequency_response(data.omega) - 1.0)
 
     # ------------------------------------------------------------------ poles / zeros
     def _factor_roots(self, which):
@@ -309,14 +319,7 @@ class RationalDelayModel:
                 raise StructureError("section is improper (numerator degree > denominator's); "
                                      "cannot export to a state-space model")
             sys = ct.series(sys, ct.ss(ct.tf(num, den)))
-        if pade_order is not None:
-            if self.delay > 0:
-                pn, pd = ct.pade(self.delay, int(pade_order))
-                sys = ct.series(sys, ct.ss(ct.tf(pn, pd)))
-            sys.delay = 0.0
-        else:
-            sys.delay = self.delay
-        return sys
+        return attach_delay(sys, self.delay, pade_order)
 
     # ------------------------------------------------------------------ JSON
     def to_dict(self):

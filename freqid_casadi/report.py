@@ -228,7 +228,8 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
         },
         "stages": [_stage_dict(s) for s in result.stages],
         "thesis": _thesis_dict(thesis),
-        "options": _clean(dict(getattr(result, "options", {}) or {})),
+        "options": _clean(result.options_dict() if hasattr(result, "options_dict")
+                          else dict(getattr(result, "options", {}) or {})),
         "resolution": _resolution_dict(getattr(result, "resolution", None)),
         "dense": dense_error(model, data.omega, truth, dense_factor),
         "files": list(REPORT_FILES),

@@ -37,6 +37,7 @@ from . import baselines, systems
 from ._io import atomic_write_text
 from .errors import FreqidError, OptionError
 from .fit import fit
+from .options import BarrierLMOptions
 from .model import RationalDelayModel, Structure
 from .report import (_clean, check_out_dir, generated_by_line, report_folder,
                      markdown_table)
@@ -261,7 +262,7 @@ def _run_rational(key, cfg, lm_gate):
         log.info("%s: fit with barrier-LM (limit %.0f s)", key, limit)
         lm, elapsed, last = _fit_time_limited(
             data, limit, n_sections=n_sections, integrator=integrator, delay=True,
-            method="barrier-lm", lm_options=dict(BARRIER_LM_OPTIONS))
+            method=BarrierLMOptions(**BARRIER_LM_OPTIONS))
         if lm is None:
             label = "not run (time)" if key == "A" else "stopped (time)"
             entry = _not_run(label)

@@ -51,13 +51,37 @@ def reference_scales(data):
 
 
 def scale_data(data, w_ref, g_ref):
-    """``FrequencyData(omega / w_ref, response / g_ref)`` with the name and weights kept."""
+    """``FrequencyData(omega / w_ref, response / g_ref)`` with the name and weights kept.
+
+    Parameters
+    ----------
+    data : FrequencyData
+    w_ref : float
+        Reference frequency, rad/s.
+    g_ref : float
+        Reference magnitude of the response.
+
+    Returns
+    -------
+    FrequencyData
+    """
     return FrequencyData(data.omega / w_ref, data.response / g_ref, data.name, data.weights)
 
 
 def unscale_model(model, w_ref, g_ref):
     """The model of the original data from the model ``model`` fitted to
     :func:`scale_data` (exact for powers of two, barring overflow).
+
+    Parameters
+    ----------
+    model : RationalDelayModel
+        Fitted to ``scale_data(data, w_ref, g_ref)``.
+    w_ref, g_ref : float
+        The scales of :func:`scale_data`.
+
+    Returns
+    -------
+    RationalDelayModel
 
     Raises
     ------

@@ -16,10 +16,15 @@ from dataclasses import dataclass
 import numpy as np
 
 from .data import FrequencyData
-from .errors import OptionError
+from .errors import OptionError, SolverError
 from .model import RationalDelayModel
 
-__all__ = ["RationalStart", "rational_start", "sections_from_roots"]
+__all__ = ["RationalStart", "RationalStartError", "rational_start", "sections_from_roots"]
+
+
+class RationalStartError(SolverError):
+    """Vector fitting gave no usable model at any trial delay (fit's ``start="best"``
+    then keeps the sequential start; ``start="rational"`` raises it)."""
 
 
 @dataclass(frozen=True)
@@ -86,6 +91,15 @@ def sections_from_roots(poles, zeros, n_sections, *, basis="second-order", floor
     """Section parameters (thesis order) whose roots are ``poles`` and ``zeros``.
 
     Roots must already be in the closed left half plane; they are paired by frequency.
+
+    Parameters
+    ----------
+    poles, zeros : array_like of complex
+        The roots (closed left half plane).
+    n_sections : int
+    basis : {"second-order", "first-order"}
+    floor : float
+        Smallest root magnitude used (rad/s): roots at 0 are moved to ``floor``.
 
     Returns
     -------
@@ -216,7 +230,7 @@ def rational_start(data, structure, *, delay_max, delay0=0.0, max_delay_updates=
             break
         h = float(new_h)
     if best is None:
-        raise OptionError("the rational start failed (vector fitting gave no usable model); "
+        raise RationalStartError("the rational start failed (vector fitting gave no usable model); "
                           "use start='sequential'")
     return RationalStart(model=best[0], delay=float(best[1]), max_rel_error=best[2],
                          delays=np.asarray(delays, float), errors=np.asarray(errors, float),

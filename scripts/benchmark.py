@@ -95,7 +95,8 @@ def fit_costs(name, start="sequential", derivatives=None):
     make, n, integ = EXAMPLES[name]
     data = make()
     t0 = time.perf_counter()
-    res = fc.fit(data, n_sections=n, integrator=integ, start=start, derivatives=derivatives)
+    res = fc.fit(data, n_sections=n, integrator=integ, start=start,
+                 loop=fc.LoopOptions(derivatives=derivatives))
     wall = time.perf_counter() - t0
     nit = res.nit
     solver_time = sum(s.wall_time for s in res.stages)

@@ -97,7 +97,7 @@ def study(data, clean, dense, n_sections, weights=None, floor=False):
                  min_damping="auto")
         fe = clean_errors(rf.model, clean, dense)
         out["floor"] = {
-            "n_sections": rf.model.n_sections, "zeta_min": rf.options["min_damping"],
+            "n_sections": rf.model.n_sections, "zeta_min": rf.zeta_min,
             "wall_time": rf.wall_time, "success": rf.success,
             "resolution_ok": rf.resolution.ok, "n_flagged_pairs": len(rf.resolution.flags),
             "fit_max_rel_error_vs_noisy": rf.max_rel_error,

@@ -78,11 +78,12 @@ def _solver(method, funcs, param, z0, n_iter):
 
         res = solve_least_squares(funcs, z0, lb, ub, max_iter=n_iter)
     else:
-        from freqid_casadi.fit import _solve_barrier_lm
+        from freqid_casadi.solvers.barrier_lm import solve_stage_lm
+        from freqid_casadi.solvers.common import StageProblem
 
         # the fit's barrier-LM stage: one barrier step (t = 1), n_iter LM trial steps
-        res = _solve_barrier_lm(funcs, z0, lb, ub,
-                                {"t0": 1.0, "t_max": 1.0, "max_inner": n_iter})
+        res = solve_stage_lm(StageProblem.from_stage_functions(funcs, lb, ub), z0,
+                             t0=1.0, t_max=1.0, max_inner=n_iter)
     return time.perf_counter() - t0, int(res.nit)
 
 

@@ -195,7 +195,7 @@ def test_failed_variant_is_reported_not_dropped(small_result, monkeypatch):
 
     def fake_fit(data, **kw):
         calls.append(kw)
-        if kw["method"] == "barrier-lm":
+        if kw["method"].method == "barrier-lm":
             raise RuntimeError("boom\nsecond line")
         return small_result
 

@@ -4,11 +4,13 @@ point and the names of the public contract."""
 
 import ast
 import dataclasses
+import enum
 import importlib
 import inspect
 import json
 import os
 import pkgutil
+import re
 import subprocess
 import sys
 from pathlib import Path
@@ -88,6 +90,83 @@ def test_public_name_has_docstring(module, attr):
     assert _own_doc(obj), f"{module}.{attr} has no docstring"
 
 
+#: Parameters of other helpers' modules not yet documented (owner in the comment); a name
+#: added here must be documented, not listed. The test fails on any other undocumented one.
+KNOWN_UNDOCUMENTED = {
+    # studies branch (ablation, reproduce, report, systems)
+    "freqid_casadi.ablation.render_ablation": {"summary"},
+    "freqid_casadi.reproduce.add_cli": {"subparsers"},
+    "freqid_casadi.reproduce.run_cli": {"args", "command"},
+    "freqid_casadi.reproduce.main": {"argv", "prog"},
+    "freqid_casadi.reproduce.table_cell": {"value"},
+    "freqid_casadi.report.report_folder": {"out_dir", "force"},
+    "freqid_casadi.report.render_fit_summary": {"summary"},
+    "freqid_casadi.report.generated_by_line": {"command"},
+    "freqid_casadi.report.check_out_dir": {"out_dir", "force"},
+    "freqid_casadi.systems.sqrt_inverse_at": {"s"},
+    "freqid_casadi.systems.G_D_at": {"s"},
+    # measured branch (data loaders, experiment, cli_frf); hostile (cli_batch)
+    "freqid_casadi.data.load_csv": {"path", "name"},
+    "freqid_casadi.data.load_npz": {"path", "name"},
+    "freqid_casadi.data.load": {"path", "name"},
+    "freqid_casadi.data.save_csv": {"data", "path"},
+    "freqid_casadi.experiment.load_records_csv": {"path"},
+    "freqid_casadi.cli_frf.add_cli": {"subparsers"},
+    "freqid_casadi.cli_frf.stats_path": {"out"},
+    "freqid_casadi.cli_batch.add_cli": {"subparsers"},
+    "freqid_casadi.cli_batch.run_cli": {"args", "command"},
+    "freqid_casadi.cli_batch.data_files": {"folder"},
+}
+
+
+def _documents(doc, name):
+    """``doc`` has a numpydoc entry for ``name`` ("name : type", "a, name : type" or a
+    bare "name" line), in Parameters, Other Parameters or (dataclasses) Attributes."""
+    pattern = (r"^\s*(\*{0,2}\w+\s*,\s*)*\*{0,2}" + re.escape(name)
+               + r"(\s*,\s*\*{0,2}\w+)*\s*(:.*)?$")
+    return re.search(pattern, doc, re.M) is not None
+
+
+def _parameter_rows():
+    rows = []
+    for name in PUBLIC:
+        mod = importlib.import_module(name)
+        for attr in getattr(mod, "__all__", ()):
+            obj = getattr(mod, attr, None)
+            if not (inspect.isfunction(obj) or inspect.isclass(obj)) \
+                    or getattr(obj, "__module__", "") != name:
+                continue                       # re-exports are checked where defined
+            if inspect.isclass(obj) and issubclass(obj, (BaseException, enum.Enum)):
+                continue
+            rows.append(pytest.param(name, attr, id=f"{name}.{attr}"))
+    return rows
+
+
+@pytest.mark.parametrize("module, attr", _parameter_rows())
+def test_every_parameter_is_documented(module, attr):
+    """python-control ``tests/docstrings_test.py``: each parameter of a public function or
+    class (its signature) has an entry in the docstring."""
+    obj = getattr(importlib.import_module(module), attr)
+    try:
+        sig = inspect.signature(obj)
+    except (TypeError, ValueError):
+        pytest.skip("no signature")
+    doc = inspect.getdoc(obj) or ""
+    if inspect.isclass(obj) and not dataclasses.is_dataclass(obj):
+        doc += "\n" + (inspect.getdoc(obj.__init__) or "")
+    known = KNOWN_UNDOCUMENTED.get(f"{module}.{attr}", set())
+    missing = [p for p in sig.parameters if p not in ("self", "cls")
+               and not _documents(doc, p) and p not in known]
+    assert not missing, f"{module}.{attr}: parameters {missing} are not documented"
+    still = [p for p in known if _documents(doc, p)]
+    assert not still, f"{module}.{attr}: {still} are documented now; drop them from KNOWN"
+
+
+def test_parameter_check_has_teeth():
+    assert _documents("x : float\n    y, z : int", "z")
+    assert not _documents("Parameters\n----------\nxy : float", "x")
+
+
 def test_private_modules_are_importable():
     # private modules need no __all__; they must still import cleanly
     private = [m for m in MODULES if _is_private(m)]
@@ -117,15 +196,18 @@ def test_no_star_imports():
 # ------------------------------------------------------------------ layer map (STYLE.md §2)
 LAYERS = {
     "errors": 0, "_cplx": 0, "_io": 0,
-    "data": 1, "experiment": 1, "model": 1, "systems": 1, "scaling": 1,
-    "objective": 2,
+    "data": 1, "experiment": 1, "model": 1, "systems": 1, "options": 1, "metrics": 1,
+    "scaling": 1,
+    "objective": 2, "resolution": 2, "gauges": 2, "derivatives": 2,
     "solvers": 3,
-    "fit": 4, "baselines": 4, "uncertainty": 4, "start": 4, "sweep": 4, "validation": 4,
-    "batch": 4,
-    "report": 5, "plots": 5, "ablation": 5, "reproduce": 5,
-    "cli": 6, "__main__": 6, "cli_frf": 6, "cli_batch": 6,
+    "stages": 4, "start": 4, "baselines": 4, "uncertainty": 4, "_weight": 4, "mainloop": 4,
+    "candidates": 4,
+    "fit": 5, "validation": 5, "sweep": 5, "batch": 5,
+    "report": 6, "plots": 6, "ablation": 6, "reproduce": 6,
+    "cli": 7, "__main__": 7, "cli_frf": 7, "cli_batch": 7,
+    "studies": 8,      # the studies use only the public API and may import anything public
 }
-FACADE = 6      # the package itself (``import freqid_casadi`` pulls in fit): top layer
+FACADE = 7      # the package itself (``import freqid_casadi`` pulls in fit): top layer
 
 
 def _layer(name):
@@ -177,6 +259,75 @@ def test_every_module_is_in_the_layer_map():
 def test_import_direction(name):
     source = _source_file(name).read_text(encoding="utf-8")
     assert not _violations(name, source)
+
+
+def _graph():
+    """Module -> set of package modules it imports (imports inside functions included)."""
+    graph = {}
+    for name in MODULES:
+        source = _source_file(name).read_text(encoding="utf-8")
+        graph[name] = {t for _, t in _imports(name, source) if t != name}
+    return graph
+
+
+def _cycle(graph):
+    """One import cycle of ``graph`` as a list of modules, or None (depth-first search)."""
+    state, stack = {}, []
+
+    def visit(node):
+        state[node] = 1
+        stack.append(node)
+        for nxt in sorted(graph.get(node, ())):
+            if state.get(nxt) == 1:
+                return stack[stack.index(nxt):] + [nxt]
+            if nxt not in state:
+                found = visit(nxt)
+                if found:
+                    return found
+        state[node] = 2
+        stack.pop()
+        return None
+
+    for node in sorted(graph):
+        if node not in state:
+            found = visit(node)
+            if found:
+                return found
+    return None
+
+
+def test_import_graph_is_acyclic():
+    # a package's __init__ re-exports its modules; its modules import siblings, not it
+    graph = {k: {t for t in v if not (k.startswith(t + ".") and t in PACKAGES)}
+             for k, v in _graph().items()}
+    cycle = _cycle(graph)
+    assert cycle is None, "import cycle: " + " -> ".join(cycle)
+
+
+def test_cycle_check_has_teeth():
+    assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
+    assert _cycle({"a": {"b"}, "b": set(), "c": {"a", "b"}}) is None
+    # the cycle this issue removed: fit imported validation lazily, validation imports fit
+    graph = _graph()
+    graph["freqid_casadi.fit"] = graph["freqid_casadi.fit"] | {"freqid_casadi.validation"}
+    assert _cycle(graph) is not None
+
+
+def test_studies_use_only_the_public_api():
+    studies = [m for m in MODULES if m.split(".")[1:2] == ["studies"]]
+    bad = []
+    for name in studies:
+        tree = ast.parse(_source_file(name).read_text(encoding="utf-8"))
+        for node in ast.walk(tree):
+            if isinstance(node, ast.ImportFrom) and node.level and node.level >= 2 or (
+                    isinstance(node, ast.ImportFrom) and (node.module or "").startswith(
+                        PACKAGE)):
+                mod = node.module or ""
+                names = [a.name for a in node.names]
+                if any(p.startswith("_") for p in mod.split(".")) or any(
+                        n.startswith("_") for n in names):
+                    bad.append(f"{name}:{node.lineno}")
+    assert not bad, f"studies import private names: {bad}"
 
 
 def test_import_direction_check_has_teeth():

@@ -16,6 +16,8 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import DataError, OptionError, StructureError
+from ..metrics import DelayedResponse
+from ..model import attach_delay
 
 __all__ = ["StateSpaceModel", "count_rhp"]
 
@@ -24,7 +26,7 @@ _BATCH_ENTRIES = 2_000_000
 
 
 @dataclass(frozen=True, eq=False)
-class StateSpaceModel:
+class StateSpaceModel(DelayedResponse):
     """``G(s) = exp(-delay s) (C (sI - A)^{-1} B + D)``, continuous time, one input, one output.
 
     Parameters
@@ -150,24 +152,6 @@ class StateSpaceModel:
             out[i0:i0 + step] = x[:, :, 0] @ c + self.D
         return out.reshape(shape)
 
-    def frequency_response(self, omega):
-        """``G(j omega)`` including the delay.
-
-        Parameters
-        ----------
-        omega : array_like of float, shape (M,)
-            Frequencies in rad/s.
-
-        Returns
-        -------
-        ndarray of complex, shape (M,)
-        """
-        omega = np.asarray(omega, dtype=float)
-        return np.exp(-1j * omega * self.delay) * self.rational_response(omega)
-
-    def relative_error(self, data):
-        """``|(Phi - G)/G|`` at the data points, shape (M,) (SPEC §1)."""
-        return np.abs(data.response / self.frequency_response(data.omega) - 1.0)
 
     # ------------------------------------------------------------------ poles / zeros
     def poles(self):
@@ -215,17 +199,7 @@ class StateSpaceModel:
         -------
         control.StateSpace
         """
-        import control as ct
-
-        sys = self._control_ss()
-        if pade_order is not None:
-            if self.delay > 0:
-                pn, pd = ct.pade(self.delay, int(pade_order))
-                sys = ct.series(sys, ct.ss(ct.tf(pn, pd)))
-            sys.delay = 0.0
-        else:
-            sys.delay = self.delay
-        return sys
+        return attach_delay(self._control_ss(), self.delay, pade_order)
 
     def __repr__(self):
         return (f"StateSpaceModel(name={self.name!r}, order={self.order}, "

@@ -55,6 +55,19 @@ def fourier_impulse_response(fun, n_fft, T):
     half circle is the complex conjugate. Then
     ``h_k = (1/n_fft) sum_l Gd(e^{j theta_l}) e^{j theta_l k}``, which equals the true
     coefficients up to the aliasing ``sum_{r != 0} (-1)^r h_{k + r n_fft}``.
+
+    Parameters
+    ----------
+    fun : callable
+        ``omega (ndarray, rad/s) -> complex ndarray`` of the same size.
+    n_fft : int
+        Samples on the unit circle (even).
+    T : float
+        Bilinear-map period, s.
+
+    Returns
+    -------
+    ndarray of float, shape (n_fft,)
     """
     half = n_fft // 2
     theta = np.pi * (2 * np.arange(half) + 1) / n_fft

@@ -19,7 +19,17 @@ __all__ = ["subspace", "default_bilinear_T"]
 def default_bilinear_T(omega):
     """``T = 2 / geometric mean(omega)`` (s): the bilinear map then sends the geometric
     centre of the band to ``z = j`` (a quarter of the circle), so log-spaced data spread
-    symmetrically over the upper half circle."""
+    symmetrically over the upper half circle.
+
+    Parameters
+    ----------
+    omega : array_like of float, shape (M,)
+        rad/s, > 0.
+
+    Returns
+    -------
+    float
+    """
     omega = np.asarray(omega, float)
     return 2.0 / float(np.exp(np.mean(np.log(omega))))
 

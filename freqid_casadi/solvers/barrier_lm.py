@@ -23,6 +23,7 @@ The small kernels :func:`predicted_decrease`, :func:`gain_ratio` and :func:`upda
 are exported so the tests can check them on their own, as scipy ``_lsq/common.py`` does.
 """
 
+import dataclasses
 import math
 import time
 
@@ -30,15 +31,17 @@ import numpy as np
 from scipy import linalg
 
 from ..errors import DataError, OptionError
-from .common import Status, TERMINATION_MESSAGES, StageResult, find_active_constraints
+from ..options import DAMPING_MODES, BarrierLMOptions
+from .common import (Status, TERMINATION_MESSAGES, StageResult, check_start,
+                     find_active_constraints, is_success)
+from .lm_kernels import _ratio, gain_ratio, model_decrease, predicted_decrease, update_damping
 
-__all__ = ["barrier_lm", "gain_ratio", "predicted_decrease", "model_decrease",
-           "update_damping", "DAMPING_MODES"]
+__all__ = ["barrier_lm", "solve_stage_lm", "gain_ratio", "predicted_decrease",
+           "model_decrease", "update_damping", "DAMPING_MODES"]
 
-#: The two damping matrices the inner loop offers: ``"thesis"`` is ``sigma*I`` with
-#: ``sigma0 = tau*max(diag(A))`` (thesis eq. 3.2, Step 5); ``"marquardt"`` is
-#: ``sigma*diag(A)`` with ``sigma0 = tau``.
-DAMPING_MODES = ("thesis", "marquardt")
+# DAMPING_MODES (from freqid_casadi.options): ``"thesis"`` is ``sigma*I`` with
+# ``sigma0 = tau*max(diag(A))`` (thesis eq. 3.2, Step 5); ``"marquardt"`` is
+# ``sigma*diag(A)`` with ``sigma0 = tau``.
 
 # Inner-loop stop reasons (kept in ``extra["inner_stop"]``).
 _GTOL, _XTOL, _FTOL, _MAXITER = "gtol", "xtol", "ftol", "max_iter"
@@ -48,190 +51,16 @@ _ERRORS = (_ERROR_JAC, _ERROR_FUN, _ERROR_MODEL)
 
 
 # --------------------------------------------------------------------------------------
-# Kernels
-# --------------------------------------------------------------------------------------
-def predicted_decrease(delta, g, sigma_or_D):
-    """Decrease of the quadratic LM model for the step ``delta``.
-
-    Parameters
-    ----------
-    delta : ndarray of float, shape (n,)
-        Step, the solution of ``(A + D) delta = -g``.
-    g : ndarray of float, shape (n,)
-        Gradient of the objective at the current point.
-    sigma_or_D : float or ndarray of float, shape (n,)
-        The damping: a scalar ``sigma`` (``D = sigma*I``, thesis) or the diagonal of ``D``
-        (``sigma*diag(A)``, Marquardt).
-
-    Returns
-    -------
-    float
-        ``L(0) - L(delta) = -g.delta - delta.A.delta/2 = delta.(D delta - g)/2`` where
-        ``L(delta) = phi + g.delta + delta.A.delta/2``.
-
-    Notes
-    -----
-    The thesis (Step v) writes the denominator of the gain ratio as
-    ``delta^T (sigma delta + g)``; it solves ``(A + sigma I) delta = +g`` with
-    ``A = J^H J``, ``g = J^H F`` for the objective ``||F||^2``, so its ``g`` is minus half
-    the gradient used here and its ``A`` half the Hessian. Both give the same ratio.
-    """
-    delta = np.asarray(delta, float)
-    g = np.asarray(g, float)
-    d_delta = np.asarray(sigma_or_D, float) * delta
-    return 0.5 * float(delta @ (d_delta - g))
-
-
-def model_decrease(delta, g, A):
-    """Decrease ``L(0) - L(delta) = -(g.delta + delta.A.delta/2)`` of the quadratic model.
-
-    Parameters
-    ----------
-    delta : ndarray of float, shape (n,)
-        Any step.
-    g : ndarray of float, shape (n,)
-        Gradient of the objective at the current point.
-    A : ndarray of float, shape (n, n)
-        Hessian (approximation) of the objective, without damping.
-
-    Returns
-    -------
-    float
-        Equals :func:`predicted_decrease` when ``delta`` solves ``(A + D) delta = -g``.
-        :func:`barrier_lm` evaluates it at the step actually taken,
-        ``delta = (x + delta) - x`` after rounding, so that the actual and the predicted
-        decrease refer to the same step even when ``x - lb`` is near the rounding level of
-        ``x``.
-    """
-    delta = np.asarray(delta, float)
-    g = np.asarray(g, float)
-    return -float(g @ delta + 0.5 * (delta @ (np.asarray(A, float) @ delta)))
-
-
-def gain_ratio(phi_old, phi_new, delta, g, sigma_or_D):
-    """Gain ratio ``rho`` = actual / predicted decrease (thesis §3.1.1, Step v).
-
-    Parameters
-    ----------
-    phi_old, phi_new : float
-        Objective at the current point and at ``x + delta``.
-    delta, g, sigma_or_D
-        As in :func:`predicted_decrease`.
-
-    Returns
-    -------
-    float
-        ``(phi_old - phi_new) / predicted_decrease(delta, g, sigma_or_D)``; ``-inf`` when the
-        new objective is not finite or the predicted decrease is not positive (a step to
-        reject). Equals 1 when the objective is exactly the quadratic model.
-    """
-    pred = predicted_decrease(delta, g, sigma_or_D)
-    return _ratio(float(phi_old) - float(phi_new), pred)
-
-
-def _ratio(actual, pred):
-    if not (math.isfinite(actual) and math.isfinite(pred)) or pred <= 0.0:
-        return -math.inf
-    return actual / pred
-
-
-def update_damping(sigma, nu, rho):
-    """Nielsen's damping update used by the thesis (§3.1.1, Steps vi and ix).
-
-    Parameters
-    ----------
-    sigma : float
-        Current damping (> 0).
-    nu : float
-        Current growth factor (2 after a success, doubled after each failure).
-    rho : float
-        Gain ratio of the last trial step.
-
-    Returns
-    -------
-    (float, float)
-        ``(sigma*max(1/3, 1-(2 rho-1)^3), 2)`` if ``rho > 0`` (step accepted), else
-        ``(sigma*nu, 2 nu)``.
-    """
-    sigma = float(sigma)
-    nu = float(nu)
-    rho = float(rho)
-    if rho > 0.0:
-        return sigma * max(1.0 / 3.0, 1.0 - (2.0 * rho - 1.0) ** 3), 2.0
-    return sigma * nu, 2.0 * nu
-
-
-# --------------------------------------------------------------------------------------
 # Validation (STYLE §7: at the entry point, before any work)
 # --------------------------------------------------------------------------------------
-def _check_options(fun, jac, t0, t_factor, t_max, tau, eps1, eps2, eps3, max_inner,
-                   damping, callback):
-    if not callable(fun):
-        raise OptionError(f"fun must be callable, got {type(fun).__name__}")
-    if not callable(jac):
-        raise OptionError(f"jac must be callable, got {type(jac).__name__}")
+def _check_options(fun, jac, callback, **options):
+    """The options as a validated :class:`~freqid_casadi.options.BarrierLMOptions`."""
+    for name, f in (("fun", fun), ("jac", jac)):
+        if not callable(f):
+            raise OptionError(f"{name} must be callable, got {type(f).__name__}")
     if callback is not None and not callable(callback):
         raise OptionError(f"callback must be callable or None, got {type(callback).__name__}")
-    if damping not in DAMPING_MODES:
-        raise OptionError(f"damping must be one of {DAMPING_MODES}, got {damping!r}")
-
-    def positive(name, value, lower=0.0, strict=True):
-        try:
-            v = float(value)
-        except (TypeError, ValueError):
-            raise OptionError(f"{name} must be a real number, got {value!r}") from None
-        bad = not math.isfinite(v) or (v <= lower if strict else v < lower)
-        if bad:
-            rel = ">" if strict else ">="
-            raise OptionError(f"{name} must be finite and {rel} {lower:g}, got {value!r}")
-        return v
-
-    t0 = positive("t0", t0)
-    t_factor = positive("t_factor", t_factor, lower=1.0)
-    t_max = positive("t_max", t_max)
-    if t_max < t0:
-        raise OptionError(f"t_max must be >= t0 (at least one outer step), got "
-                          f"t_max={t_max:g} < t0={t0:g}")
-    tau = positive("tau", tau)
-    eps1 = positive("eps1", eps1, strict=False)
-    eps2 = positive("eps2", eps2, strict=False)
-    eps3 = positive("eps3", eps3, strict=False)
-    if isinstance(max_inner, bool) or not isinstance(max_inner, (int, np.integer)) \
-            or max_inner < 1:
-        raise OptionError(f"max_inner must be an integer >= 1, got {max_inner!r}")
-    return t0, t_factor, t_max, tau, eps1, eps2, eps3, int(max_inner)
-
-
-def _check_x0_lb(x0, lb):
-    try:
-        x = np.array(x0, dtype=float)
-    except (TypeError, ValueError):
-        raise DataError(f"x0 must be a real 1-D array, got {x0!r}") from None
-    if x.ndim != 1 or x.size == 0:
-        raise DataError(f"x0 must be a non-empty 1-D array, got shape {x.shape}")
-    bad = np.flatnonzero(~np.isfinite(x))
-    if bad.size:
-        i = bad[0]
-        raise DataError(f"x0 must be finite: x0[{i}]={x[i]}; give a finite starting point")
-    try:
-        lbv = np.array(np.broadcast_to(np.asarray(lb, dtype=float), x.shape))
-    except (TypeError, ValueError):
-        raise DataError(f"lb must be a scalar or an array of shape {x.shape}, got "
-                        f"{np.shape(lb)}") from None
-    bad = np.flatnonzero(np.isnan(lbv) | (lbv == np.inf))
-    if bad.size:
-        i = bad[0]
-        raise DataError(f"lb[{i}]={lbv[i]} is not a valid lower bound; use a finite value "
-                        f"or -inf for an unbounded variable")
-    bad = np.flatnonzero(x <= lbv)
-    if bad.size:
-        i = bad[0]
-        where = "on its bound" if x[i] == lbv[i] else "below its bound"
-        raise DataError(
-            f"x0[{i}]={x[i]:g} is {where} lb[{i}]={lbv[i]:g}; the barrier method needs a "
-            f"strictly interior start: move x0[{i}] above lb[{i}] "
-            f"(e.g. lb[{i}] + 1e-3*max(1, |lb[{i}]|))")
-    return x, lbv
+    return BarrierLMOptions(**options)
 
 
 def _eval_fun(fun, x, m=None):
@@ -496,9 +325,10 @@ def barrier_lm(fun, jac, x0, *, lb=0.0, t0=1.0, t_factor=20.0, t_max=1e12, tau=1
     parameter in Marquardt's method" (IMM-REP-1999-05); Boyd & Vandenberghe §11.3.
     """
     start = time.perf_counter()
-    t0, t_factor, t_max, tau, eps1, eps2, eps3, max_inner = _check_options(
-        fun, jac, t0, t_factor, t_max, tau, eps1, eps2, eps3, max_inner, damping, callback)
-    x, lbv = _check_x0_lb(x0, lb)
+    o = _check_options(fun, jac, callback, t0=t0, t_factor=t_factor, t_max=t_max, tau=tau,
+                       eps1=eps1, eps2=eps2, eps3=eps3, max_inner=max_inner, damping=damping)
+    t0, t_factor, t_max = float(o.t0), float(o.t_factor), float(o.t_max)
+    x, lbv, _ = check_start(x0, lb, np.inf, strict=True)
     n = x.size
     fin = np.isfinite(lbv)
 
@@ -517,7 +347,8 @@ def barrier_lm(fun, jac, x0, *, lb=0.0, t0=1.0, t_factor=20.0, t_max=1e12, tau=1
                         f"the model can be differentiated")
 
     counts = {"nfev": 1, "njev": 1}
-    opts = (tau, eps1, eps2, eps3, max_inner, damping == "marquardt")
+    opts = (float(o.tau), float(o.eps1), float(o.eps2), float(o.eps3), int(o.max_inner),
+            damping == "marquardt")
     history = []
     inner_stop = []
     nit = 0
@@ -552,7 +383,7 @@ def barrier_lm(fun, jac, x0, *, lb=0.0, t0=1.0, t_factor=20.0, t_max=1e12, tau=1
         cost=float(r @ r),
         status=status,
         message=TERMINATION_MESSAGES[status],
-        success=status == Status.CONVERGED,
+        success=is_success(status),
         nit=int(nit),
         nfev=int(counts["nfev"]),
         wall_time=time.perf_counter() - start,
@@ -562,3 +393,55 @@ def barrier_lm(fun, jac, x0, *, lb=0.0, t0=1.0, t_factor=20.0, t_max=1e12, tau=1
         extra={"n_outer": len(history), "t_final": float(t_last), "history": history,
                "inner_stop": inner_stop, "njev": int(counts["njev"]), "damping": damping},
     )
+
+
+def solve_stage_lm(problem, x0, **options):
+    """:func:`barrier_lm` on a :class:`~freqid_casadi.solvers.common.StageProblem`.
+
+    Fixed variables (``lb == ub``) are removed; the barrier method has no upper bounds, so
+    ``problem.ub`` is neither imposed nor checked (the fit's delay bound is an IPOPT
+    feature; it only marks ``active_mask``) and ``problem.constraints`` are not supported.
+
+    Parameters
+    ----------
+    problem : StageProblem
+    x0 : ndarray of float, shape (n,)
+        Start, strictly above ``lb`` in every free variable (else
+        :class:`~freqid_casadi.solvers.common.InfeasibleStartError`).
+    **options
+        Keyword arguments of :func:`barrier_lm` (``damping``, ``t0``, ..., ``max_inner``).
+
+    Returns
+    -------
+    StageResult
+        In all ``n`` variables (``lam_x`` 0 for the fixed ones; active set with relative
+        tolerance 1e-6).
+
+    Raises
+    ------
+    OptionError
+        Bad options, or a problem with constraints.
+    DataError, InfeasibleStartError
+        As :func:`barrier_lm`.
+    """
+    if problem.constraints is not None:
+        raise OptionError("the barrier-LM stage solver takes no constraints; use IPOPT "
+                          "(method='ipopt') for a damping floor")
+    lb, ub = problem.lb, problem.ub
+    free = lb < ub
+    x0 = check_start(x0, lb, np.where(free, np.inf, ub), strict=True)[0]
+    xf = x0.copy()
+
+    def full(v):
+        xf[free] = v
+        return xf
+
+    res = barrier_lm(lambda v: problem.residual(full(v)),
+                     lambda v: problem.jacobian(full(v))[:, free], x0[free], lb=lb[free],
+                     **options)
+    x = x0.copy()
+    x[free] = res.x
+    lam = np.zeros_like(x)
+    lam[free] = res.lam_x
+    return dataclasses.replace(res, x=x, lam_x=lam,
+                               active_mask=find_active_constraints(x, lb, ub, rtol=1e-6))

@@ -1,8 +1,12 @@
-"""Result type and small kernels shared by the stage solvers (layer L3).
+"""The stage-solver contract and small kernels shared by the stage solvers (layer L3).
 
-Solvers return a frozen :class:`StageResult` whose field names follow scipy's
-``OptimizeResult``; ``status`` is a :class:`Status` and :data:`TERMINATION_MESSAGES` maps it
-to text, as scipy's ``least_squares`` does.
+Both stage solvers (:func:`~freqid_casadi.solvers.ipopt.solve_stage`, IPOPT with true
+bounds, and :func:`~freqid_casadi.solvers.barrier_lm.solve_stage_lm`, the thesis's
+barrier + LM) take a frozen :class:`StageProblem` of numpy callables and a start, reject an
+infeasible start with :class:`InfeasibleStartError` (:func:`check_start`), and return a
+frozen :class:`StageResult` whose field names follow scipy's ``OptimizeResult``; ``status``
+is a :class:`Status`, :data:`TERMINATION_MESSAGES` maps it to text, as scipy's
+``least_squares`` does, and :func:`is_success` is the one success rule.
 """
 
 import enum
@@ -10,8 +14,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-__all__ = ["Status", "TERMINATION_MESSAGES", "StageResult", "find_active_constraints",
-           "Termination", "relative_stationarity", "free_variables", "projected_fraction"]
+from ..errors import DataError, SolverError
+
+__all__ = ["Status", "TERMINATION_MESSAGES", "SUCCESS_STATUSES", "StageResult",
+           "StageProblem", "InfeasibleStartError", "check_start", "is_success",
+           "find_active_constraints"]
 
 
 class Status(enum.IntEnum):
@@ -35,12 +42,173 @@ TERMINATION_MESSAGES = {
     Status.MAX_ITER: "iteration limit reached",
     Status.SMALL_STEP: "stopped: step smaller than the step tolerance",
     Status.COST_TOL: "converged: cost below its tolerance",
-    Status.STALLED: "stopped: the cost decreased by less than its relative tolerance over "
-                    "the last iterations, but the point is not stationary",
+    Status.STALLED: "stopped: the cost fell by less than its relative tolerance over the "
+                    "last iterations, at a point that is not stationary",
 }
 
+#: The statuses that count as success (:func:`is_success`), for every stage solver.
 SUCCESS_STATUSES = frozenset({Status.CONVERGED, Status.ACCEPTABLE, Status.SMALL_STEP,
                               Status.COST_TOL})
+
+
+def is_success(status):
+    """The one success rule of the stage solvers: ``status`` in :data:`SUCCESS_STATUSES`.
+
+    Parameters
+    ----------
+    status : Status
+
+    Returns
+    -------
+    bool
+    """
+    return Status(status) in SUCCESS_STATUSES
+
+
+class InfeasibleStartError(SolverError, DataError):
+    """A stage solver was started outside its bounds (or, for the barrier method, on a
+    bound). Also a DataError: the start is bad input to the solver."""
+
+
+def check_start(x0, lb, ub, *, strict=False):
+    """Check a start against its bounds.
+
+    Parameters
+    ----------
+    x0 : array_like of float, shape (n,)
+    lb, ub : float or array_like of float, shape (n,)
+        Bounds (``-inf``/``inf`` for none).
+    strict : bool
+        Require ``lb < x0`` where ``lb < ub`` (a barrier method's interior start).
+
+    Returns
+    -------
+    x0, lb, ub : ndarray of float, shape (n,)
+
+    Raises
+    ------
+    DataError
+        ``x0`` empty, not 1-D or not finite; bounds of another shape or NaN.
+    InfeasibleStartError
+        A component outside ``[lb, ub]`` (or on a lower bound with ``strict``).
+    """
+    try:
+        x = np.array(x0, dtype=float).reshape(-1) if np.ndim(x0) <= 1 else None
+    except (TypeError, ValueError):
+        x = None
+    if x is None or x.size == 0:
+        raise DataError(f"x0 must be a non-empty real 1-D array, got {x0!r}")
+    if not np.all(np.isfinite(x)):
+        i = int(np.flatnonzero(~np.isfinite(x))[0])
+        raise DataError(f"x0 must be finite: x0[{i}]={x[i]}; give a finite starting point")
+    try:
+        lbv = np.array(np.broadcast_to(np.asarray(lb, float), x.shape))
+        ubv = np.array(np.broadcast_to(np.asarray(ub, float), x.shape))
+    except (TypeError, ValueError):
+        raise DataError(f"lb and ub must be scalars or arrays of shape {x.shape}, got "
+                        f"{np.shape(lb)} and {np.shape(ub)}") from None
+    bad = np.flatnonzero(np.isnan(lbv) | np.isnan(ubv) | (lbv > ubv) | (lbv == np.inf)
+                         | (ubv == -np.inf))
+    if bad.size:
+        i = int(bad[0])
+        raise DataError(f"bounds lb[{i}]={lbv[i]}, ub[{i}]={ubv[i]} are not valid: they must "
+                        "not be NaN and lb <= ub, lb < inf, ub > -inf; use -inf/inf for no "
+                        "bound")
+    low = (x <= lbv) & (lbv < ubv) if strict else x < lbv
+    bad = np.flatnonzero(low | (x > ubv))
+    if bad.size:
+        i = int(bad[0])
+        raise InfeasibleStartError(
+            f"the start is infeasible: x0[{i}]={x[i]:g} with bounds [{lbv[i]:g}, {ubv[i]:g}]"
+            + ("; the barrier method needs a start strictly above lb" if strict else "")
+            + f"; move x0[{i}] inside (e.g. np.clip(x0, lb, ub)"
+            + (" plus a small margin above lb)" if strict else ")"))
+    return x, lbv, ubv
+
+
+@dataclass(frozen=True, eq=False)
+class StageProblem:
+    """A stage's least-squares problem ``min ||r(z)||^2, lb <= z <= ub [, g(z) >= 0]``
+    as numpy callables: what both stage solvers accept.
+
+    Attributes
+    ----------
+    residual : callable ``residual(z) -> ndarray of float, shape (m,)``
+        Real residual ``r`` (complex residuals stacked as ``[Re; Im]``).
+    jacobian : callable ``jacobian(z) -> ndarray of float, shape (m, n)``
+        ``dr/dz``.
+    lb, ub : ndarray of float, shape (n,)
+        Bounds (``-inf``/``inf`` for none; ``lb == ub`` fixes a variable).
+    gradient : callable ``gradient(z) -> (cost, ndarray shape (n,))``, optional
+        Cost ``r.r`` and its gradient ``2 J^T r``; default from ``residual``/``jacobian``.
+    hessian : callable ``hessian(z, exact=True) -> ndarray shape (n, n)``, optional
+        Hessian of the cost (``exact=False``: Gauss-Newton ``2 J^T J``); default
+        Gauss-Newton from ``jacobian``.
+    cost : callable ``cost(z) -> float``, optional
+        ``r.r``; default from ``residual``.
+    constraints : callable, optional
+        ``g(z) >= 0`` on a CasADi vector (IPOPT only; e.g. the damping floor).
+    casadi_residual : casadi.Function, optional
+        ``r`` as a CasADi Function: IPOPT then builds its objective from it; else the
+        objective is a callback of ``cost``.
+    """
+
+    residual: object
+    jacobian: object
+    lb: np.ndarray
+    ub: np.ndarray
+    gradient: object = None
+    hessian: object = None
+    cost: object = None
+    constraints: object = None
+    casadi_residual: object = None
+
+    def __post_init__(self):
+        for name in ("residual", "jacobian"):
+            if not callable(getattr(self, name)):
+                raise DataError(f"StageProblem.{name} must be callable, got "
+                                f"{type(getattr(self, name)).__name__}")
+        lb = np.array(self.lb, float).reshape(-1)
+        ub = np.array(np.broadcast_to(np.asarray(self.ub, float), lb.shape))
+        object.__setattr__(self, "lb", lb)
+        object.__setattr__(self, "ub", ub)
+
+    @property
+    def n(self):
+        """Number of variables."""
+        return self.lb.size
+
+    def eval_cost(self, z):
+        """``r(z).r(z)``."""
+        if self.cost is not None:
+            return float(self.cost(z))
+        r = np.asarray(self.residual(z), float)
+        return float(r @ r)
+
+    def eval_gradient(self, z):
+        """``(cost, gradient)`` at ``z``."""
+        if self.gradient is not None:
+            return self.gradient(z)
+        r = np.asarray(self.residual(z), float)
+        return float(r @ r), 2.0 * np.asarray(self.jacobian(z), float).T @ r
+
+    def eval_hessian(self, z, exact=True):
+        """Hessian of the cost at ``z`` (Gauss-Newton when no ``hessian`` was given)."""
+        if self.hessian is not None:
+            return self.hessian(z, exact=exact)
+        J = np.asarray(self.jacobian(z), float)
+        return 2.0 * J.T @ J
+
+    @classmethod
+    def from_stage_functions(cls, funcs, lb, ub, constraints=None):
+        """The problem of an :class:`~freqid_casadi.objective.StageFunctions` (its exact
+        structured derivatives and its CasADi residual)."""
+        return cls(residual=funcs.residual,
+                   jacobian=lambda z: funcs.residual_jacobian(z)[1],
+                   lb=lb, ub=ub, gradient=funcs.gradient,
+                   hessian=lambda z, exact=True: funcs.hessian(z, exact=exact),
+                   cost=funcs.cost, constraints=constraints,
+                   casadi_residual=getattr(funcs, "r_fun", None))
 
 
 @dataclass(frozen=True)
@@ -56,7 +224,7 @@ class StageResult:
     status : Status
     message : str
     success : bool
-        ``status`` is one of CONVERGED, ACCEPTABLE, SMALL_STEP, COST_TOL.
+        :func:`is_success` of ``status`` (CONVERGED, ACCEPTABLE, SMALL_STEP, COST_TOL).
     nit : int
         Iterations (IPOPT iterations, or LM inner iterations summed over outer steps).
     nfev : int
@@ -71,6 +239,8 @@ class StageResult:
         where the solver has none.
     solver_status : str
         The solver's own return status (e.g. IPOPT's ``Solve_Succeeded``).
+    extra : dict
+        Solver-specific numbers (IPOPT: timings; barrier-LM: its outer-loop history).
     """
 
     x: np.ndarray
@@ -92,6 +262,17 @@ def find_active_constraints(x, lb, ub, rtol=1e-10):
 
     A bound counts as active when ``x`` is within ``rtol * max(1, |bound|)`` of it, as in
     scipy ``optimize/_lsq/common.py``.
+
+    Parameters
+    ----------
+    x : array_like of float, shape (n,)
+    lb, ub : float or array_like of float, shape (n,)
+    rtol : float
+        Relative tolerance (0: exactly on the bound).
+
+    Returns
+    -------
+    ndarray of int, shape (n,)
     """
     x = np.asarray(x, float)
     lb = np.broadcast_to(np.asarray(lb, float), x.shape)
@@ -110,94 +291,3 @@ def find_active_constraints(x, lb, ub, rtol=1e-10):
     upper_active = np.isfinite(ub) & (upper_dist <= np.minimum(lower_dist, upper_thr))
     active[upper_active] = 1
     return active
-
-
-EPS = float(np.finfo(float).eps)
-
-
-@dataclass(frozen=True)
-class Termination:
-    """Scale-free termination test of a least-squares stage (the relative residuals ``r``
-    are dimensionless; the test is invariant to the scale of each variable).
-
-    A point is *stationary* when the Gauss-Newton model cannot lower the cost by more than
-    the fraction ``ftol``: ``||P r||^2 / ||r||^2 <= ftol``, ``P`` the projection onto the
-    range of the Jacobian's columns of the free variables (those not held at a bound by the
-    gradient). A cheap necessary condition is checked first at every iteration:
-    ``max_j cos_j <= sqrt(ftol)``, with ``cos_j = |J_j^T r| / (||J_j|| ||r||)`` (MINPACK's
-    ``gtol`` measure). Both thresholds are raised by ``noise / rms(r)``, the rounding level
-    of a relative residual (``noise_factor * eps * n_factors``): an exact fit at machine
-    precision is stationary.
-
-    The stage is *stalled* when the cost fell by less than ``stall_ftol`` (relative) over
-    the last ``stall_window`` iterations without being stationary (0: no stall test).
-
-    Attributes
-    ----------
-    ftol : float
-    noise_factor : float
-    stall_window : int
-    stall_ftol : float
-    rcond : float
-        Relative singular-value cutoff of the column-scaled Jacobian in ``P``.
-    """
-
-    ftol: float = 1e-8
-    noise_factor: float = 10.0
-    stall_window: int = 0
-    stall_ftol: float = 0.0
-    rcond: float = 1e-10
-
-
-def free_variables(grad, x, lb, ub, col_norms, norm_r, tol=1e-4):
-    """Mask of the variables not held at a bound: a variable is held when the gradient
-    ``grad`` points out of the box at its bound and moving it onto the bound would change
-    the residual by at most ``tol * norm_r`` (``col_norms * distance``, to first order)."""
-    big = tol * norm_r
-    at_lb = (col_norms * (x - lb) <= big) & (grad > 0)
-    at_ub = (col_norms * (ub - x) <= big) & (grad < 0)
-    return ~(at_lb | at_ub) & (lb < ub)
-
-
-def relative_stationarity(grad, col_norms, cost, free, n_points, n_factors):
-    """``(max cos_j, noise / rms)`` over the ``free`` variables (see :class:`Termination`).
-
-    Parameters
-    ----------
-    grad : ndarray (n,)
-        ``2 J^T r``.
-    col_norms : ndarray (n,)
-        ``||J_j||``.
-    cost : float
-        ``||r||^2`` (2M real residuals for M points).
-    free : ndarray of bool (n,)
-    n_points : int
-    n_factors : int
-        Number of factors multiplied to form a residual (rounding model).
-    """
-    grad = np.asarray(grad, float)
-    use = free & (col_norms > 0)
-    norm_r = np.sqrt(max(cost, 0.0))
-    if not np.any(use) or norm_r == 0.0:
-        return 0.0, np.inf
-    cos = np.abs(grad[use]) / (2.0 * col_norms[use] * norm_r)
-    rms = norm_r / np.sqrt(max(n_points, 1))
-    return float(np.max(cos)), float(EPS * n_factors / rms)
-
-
-def projected_fraction(r, jac, free, rcond=1e-10):
-    """``||P r|| / ||r||``: the part of the residual the linearised model can remove, ``P``
-    the projection onto the span of the free columns of ``jac`` (columns scaled to unit
-    norm; singular values below ``rcond`` times the largest dropped)."""
-    r = np.asarray(r, float)
-    nr = float(np.linalg.norm(r))
-    if nr == 0.0 or not np.any(free):
-        return 0.0
-    a = jac[:, free]
-    cn = np.linalg.norm(a, axis=0)
-    a = a[:, cn > 0] / cn[cn > 0]
-    if a.shape[1] == 0:
-        return 0.0
-    u, sv, _ = np.linalg.svd(a, full_matrices=False)
-    u = u[:, sv > rcond * sv[0]]
-    return float(np.linalg.norm(u.T @ r)) / nr

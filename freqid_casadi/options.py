@@ -1,0 +1,402 @@
+"""Option objects of :func:`~freqid_casadi.fit.fit` (layer L1): frozen, self-validating.
+
+The solver and loop knobs of the fit live here, each default in one place (the dataclass
+field), each check in ``__post_init__`` raising an :class:`~freqid_casadi.errors.OptionError`
+that names the field, its value and the fix. Variants are built with
+:func:`dataclasses.replace`, e.g. ``replace(IpoptOptions(), hessian="gauss-newton")``.
+
+- :class:`IpoptOptions`: the package's stage solver, IPOPT with true bounds.
+- :class:`BarrierLMOptions`: the thesis's log-barrier + Levenberg-Marquardt stage solver.
+- :class:`LoopOptions`: the sequential main loop (parametrization, new sections, scaling).
+- :class:`FitOptions`: the record of one fit (``FitResult.options``).
+
+``fit(..., method=IpoptOptions(...))`` selects the method by the object's type; a string
+method means that method's default options.
+"""
+
+import math
+import numbers
+from dataclasses import dataclass, fields
+
+from .errors import OptionError
+
+__all__ = ["IpoptOptions", "BarrierLMOptions", "LoopOptions", "FitOptions", "METHODS",
+           "HESSIANS", "WARM_STARTS", "GAUGES", "INITS", "DERIVATIVES", "DAMPING_MODES",
+           "LEGACY_KEYWORDS", "solver_options", "options_from_keywords", "legacy_message"]
+
+#: Stage-solver methods of :func:`~freqid_casadi.fit.fit`.
+METHODS = ("ipopt", "barrier-lm")
+#: Hessians of the IPOPT stage: the exact one (analytic second derivatives of the
+#: residuals), Gauss-Newton ``2 J^T J``, or IPOPT's own limited-memory quasi-Newton.
+HESSIANS = ("exact", "gauss-newton", "limited-memory")
+#: What a stage takes from the previous one: point and bound multipliers, point, nothing.
+WARM_STARTS = ("primal-dual", "primal", "none")
+#: Parametrizations of the sections (:mod:`freqid_casadi.objective`).
+GAUGES = ("dc", "b1", "raw")
+#: Initialisations of a new section.
+INITS = ("peak", "identity")
+#: Evaluations of the stage derivatives (None: "affine" for the dc gauge, else "casadi-map").
+DERIVATIVES = (None, "affine", "casadi-map")
+#: Damping of the barrier-LM inner steps.
+DAMPING_MODES = ("thesis", "marquardt")
+
+
+def _bad(owner, name, value, requirement):
+    return OptionError(f"{owner}.{name} must be {requirement}, got {value!r}")
+
+
+def _choice(owner, name, value, choices):
+    if not any(value is c or (isinstance(value, str) and value == c) for c in choices):
+        raise OptionError(f"unknown {name} {value!r}: {owner}.{name} must be one of "
+                          + ", ".join(map(repr, choices)))
+
+
+def _int_at_least(owner, name, value, low):
+    if isinstance(value, bool) or not isinstance(value, numbers.Integral) or value < low:
+        raise _bad(owner, name, value, f"an integer >= {low}")
+
+
+def _real(owner, name, value, low=None, strict=True, allow_inf=False):
+    """A real number (not bool), finite unless ``allow_inf``, above ``low``."""
+    ok = isinstance(value, numbers.Real) and not isinstance(value, bool) \
+        and not math.isnan(value) and (allow_inf or math.isfinite(value))
+    if ok and low is not None:
+        ok = value > low if strict else value >= low
+    if not ok:
+        where = "" if low is None else f" {'>' if strict else '>='} {low:g}"
+        raise _bad(owner, name, value, f"a finite real number{where}")
+
+
+def _flag(owner, name, value):
+    if not isinstance(value, bool):
+        raise _bad(owner, name, value, "True or False")
+
+
+def _stage_limits(owner, obj):
+    _choice(owner, "warm_start", obj.warm_start, WARM_STARTS)
+    _int_at_least(owner, "max_iter", obj.max_iter, 1)
+    _int_at_least(owner, "final_max_iter", obj.final_max_iter, 1)
+
+
+@dataclass(frozen=True)
+class IpoptOptions:
+    """Options of the IPOPT stage solver (the package's method).
+
+    Parameters
+    ----------
+    hessian : {"exact", "gauss-newton", "limited-memory"}
+        Hessian of the Lagrangian given to IPOPT: the exact one (analytic second
+        derivatives of the residuals plus the constraints' AD Hessian), the Gauss-Newton
+        ``2 J^T J``, or IPOPT's limited-memory quasi-Newton update.
+    warm_start : {"primal-dual", "primal", "none"}
+        What a stage takes from the previous stage: the point and the bound multipliers,
+        the point only, or nothing (the stage restarts from stage 0's gain with all
+        sections at their insertion values).
+    max_iter : int >= 1
+        Iteration limit of each intermediate stage (the next stage continues from its
+        point, so a stage stopped at the limit is not a failure of the fit).
+    final_max_iter : int >= 1
+        Iteration limit of the final all-data stage (whose status is ``success``), of the
+        rational start's polish and of each p-norm stage of the minimax polish.
+    ipopt : mapping of str to str, int or float, optional
+        Extra IPOPT options (e.g. ``{"tol": 1e-12}``), applied over the package's. Stored
+        as a sorted tuple of ``(name, value)`` pairs (read-only, hashable, picklable);
+        :meth:`ipopt_dict` gives a dict.
+    """
+
+    hessian: str = "exact"
+    warm_start: str = "primal-dual"
+    max_iter: int = 100
+    final_max_iter: int = 200
+    ipopt: tuple = ()
+
+    method = "ipopt"
+
+    def __post_init__(self):
+        owner = type(self).__name__
+        _choice(owner, "hessian", self.hessian, HESSIANS)
+        _stage_limits(owner, self)
+        items = self.ipopt.items() if hasattr(self.ipopt, "items") else self.ipopt
+        try:
+            pairs = tuple(sorted((k, v) for k, v in items))
+        except (TypeError, ValueError):
+            raise _bad(owner, "ipopt", self.ipopt, "a dict of IPOPT option names to values, "
+                       "e.g. {'tol': 1e-12}") from None
+        for k, v in pairs:
+            if not isinstance(k, str) or not isinstance(v, (str, numbers.Real)):
+                raise _bad(owner, "ipopt", self.ipopt, "a dict of str names to str or number "
+                           f"values (bad entry {k!r})")
+        object.__setattr__(self, "ipopt", pairs)
+
+    def ipopt_dict(self):
+        """The extra IPOPT options as a new dict (None if there are none)."""
+        return dict(self.ipopt) or None
+
+
+@dataclass(frozen=True)
+class BarrierLMOptions:
+    """Options of the thesis's log-barrier + Levenberg-Marquardt stage solver (SPEC §3).
+
+    Parameters
+    ----------
+    warm_start : {"primal-dual", "primal", "none"}
+        As :attr:`IpoptOptions.warm_start` ("primal-dual" and "primal" are the same for
+        this solver, which takes no multipliers).
+    max_iter : int >= 1
+        Kept for symmetry with :class:`IpoptOptions`; the barrier-LM stages are capped by
+        ``max_inner`` and the ``t`` schedule instead.
+    final_max_iter : int >= 1
+        Iteration limit of each p-norm stage of the minimax polish (an IPOPT NLP).
+    damping : {"thesis", "marquardt"}
+        ``(A + sigma I)`` as the thesis, or ``(A + sigma diag(A))``; see
+        :func:`~freqid_casadi.solvers.barrier_lm.barrier_lm`.
+    t0 : float > 0
+        First barrier parameter ``t = 1/mu``.
+    t_factor : float > 1
+        Growth of ``t`` per outer step.
+    t_max : float >= t0
+        Last barrier parameter.
+    tau : float > 0
+        Initial LM damping factor.
+    eps1, eps2, eps3 : float >= 0
+        Inner stops: gradient, step and cost tolerances.
+    max_inner : int >= 1
+        Trial steps per inner LM solve (the thesis's ``k_max``).
+    """
+
+    warm_start: str = "primal-dual"
+    max_iter: int = 100
+    final_max_iter: int = 200
+    damping: str = "thesis"
+    t0: float = 1.0
+    t_factor: float = 20.0
+    t_max: float = 1e12
+    tau: float = 1.0
+    eps1: float = 1e-10
+    eps2: float = 1e-16
+    eps3: float = 0.0
+    max_inner: int = 500
+
+    method = "barrier-lm"
+
+    def __post_init__(self):
+        owner = type(self).__name__
+        _stage_limits(owner, self)
+        _choice(owner, "damping", self.damping, DAMPING_MODES)
+        _real(owner, "t0", self.t0, 0.0)
+        _real(owner, "t_factor", self.t_factor, 1.0)
+        _real(owner, "t_max", self.t_max, 0.0)
+        if self.t_max < self.t0:
+            raise _bad(owner, "t_max", self.t_max, f">= t0={self.t0!r} (at least one outer "
+                       "step)")
+        _real(owner, "tau", self.tau, 0.0)
+        for name in ("eps1", "eps2", "eps3"):
+            _real(owner, name, getattr(self, name), 0.0, strict=False)
+        _int_at_least(owner, "max_inner", self.max_inner, 1)
+
+    def lm_kwargs(self):
+        """Keyword arguments of :func:`~freqid_casadi.solvers.barrier_lm.barrier_lm`."""
+        keep = ("damping", "t0", "t_factor", "t_max", "tau", "eps1", "eps2", "eps3",
+                "max_inner")
+        return {k: getattr(self, k) for k in keep}
+
+
+@dataclass(frozen=True)
+class LoopOptions:
+    """Options of the sequential main loop and of the stage parametrization.
+
+    Parameters
+    ----------
+    gauge : {"dc", "b1", "raw"}
+        Parametrization of the sections, see :mod:`freqid_casadi.objective`.
+    init : {"peak", "identity"}
+        New-section initialisation: "peak" places a pole/zero pair at omega_c whose value
+        there reproduces the error peak; "identity" is the thesis's a = b = 1,
+        zeta = 0.5, omega = omega_c (optionally scaled by ``scale_l``).
+    scale_l : float >= 1
+        The thesis's l for the identity section (affects only the "raw" gauge).
+    scaled : bool
+        Scale the variables to about 1 (delay by ``delay_max``, gain by its initial
+        value, section frequencies by their insertion frequency).
+    bound_delay : bool
+        If False, the delay has no upper bound (for the ablation).
+    delay_max : float > 0 or None
+        Upper bound of the delay in seconds; None: :func:`~freqid_casadi.fit.default_delay_max`
+        of the data (the value used is ``FitResult.delay_max``).
+    final_stage : bool
+        End with a stage on all data (also run after a stage stopped at its iteration
+        limit only when True).
+    derivatives : {None, "affine", "casadi-map"}
+        How the stage derivatives are evaluated (both exact, same results to rounding):
+        None picks "affine" (numpy over points x sections; "dc" gauge only) or
+        "casadi-map" (CasADi AD of the per-point formula mapped over the points).
+    """
+
+    gauge: str = "dc"
+    init: str = "peak"
+    scale_l: float = 1.0
+    scaled: bool = True
+    bound_delay: bool = True
+    delay_max: float = None
+    final_stage: bool = True
+    derivatives: str = None
+
+    def __post_init__(self):
+        owner = type(self).__name__
+        _choice(owner, "gauge", self.gauge, GAUGES)
+        _choice(owner, "init", self.init, INITS)
+        _real(owner, "scale_l", self.scale_l, 1.0, strict=False)
+        _flag(owner, "scaled", self.scaled)
+        _flag(owner, "bound_delay", self.bound_delay)
+        _flag(owner, "final_stage", self.final_stage)
+        if self.delay_max is not None:
+            _real(owner, "delay_max (seconds)", self.delay_max, 0.0)
+        _choice(owner, "derivatives", self.derivatives, DERIVATIVES)
+        if self.derivatives == "affine" and self.gauge != "dc":
+            raise OptionError(f"{owner}.derivatives='affine' needs gauge='dc' (got "
+                              f"{self.gauge!r}); use derivatives='casadi-map' or None")
+
+
+@dataclass(frozen=True)
+class FitOptions:
+    """The options one :func:`~freqid_casadi.fit.fit` ran with (``FitResult.options``).
+
+    Parameters
+    ----------
+    n_sections : int
+    integrator, delay : bool
+    basis : str
+    method : {"ipopt", "barrier-lm"}
+        The name of the stage solver (the type of ``solver``).
+    tol : float or None
+    start : str
+    objective : str
+    min_damping : None, "auto" or float
+        As given to fit (the floor used is ``FitResult.zeta_min``).
+    solver : IpoptOptions or BarrierLMOptions
+    loop : LoopOptions
+    """
+
+    n_sections: int
+    integrator: bool
+    delay: bool
+    basis: str
+    method: str
+    tol: float
+    start: str
+    objective: str
+    min_damping: object
+    solver: object
+    loop: LoopOptions
+
+    def as_dict(self):
+        """Flat dict of every option (the solver's and loop's fields included), for
+        reports; ``ipopt`` becomes a dict."""
+        out = {f.name: getattr(self, f.name) for f in fields(self)
+               if f.name not in ("solver", "loop")}
+        for obj in (self.solver, self.loop):
+            out.update({f.name: getattr(obj, f.name) for f in fields(obj)})
+        if "ipopt" in out:
+            out["ipopt"] = dict(out["ipopt"])
+        return out
+
+
+def solver_options(method):
+    """The option object of ``method``: an :class:`IpoptOptions` or
+    :class:`BarrierLMOptions` is returned as is, "ipopt" or "barrier-lm" gives that
+    method's defaults.
+
+    Parameters
+    ----------
+    method : {"ipopt", "barrier-lm"} or IpoptOptions or BarrierLMOptions
+
+    Returns
+    -------
+    IpoptOptions or BarrierLMOptions
+
+    Raises
+    ------
+    OptionError
+        Anything else.
+    """
+    if isinstance(method, (IpoptOptions, BarrierLMOptions)):
+        return method
+    if isinstance(method, str) and method in METHODS:
+        return IpoptOptions() if method == "ipopt" else BarrierLMOptions()
+    raise OptionError(f"unknown method {method!r}; choose one of {', '.join(METHODS)}, or "
+                      "pass an IpoptOptions or BarrierLMOptions")
+
+
+_LOOP_FIELDS = ("gauge", "init", "scale_l", "scaled", "bound_delay", "delay_max",
+                "final_stage", "derivatives")
+_SOLVER_FIELDS = ("hessian", "warm_start", "max_iter", "final_max_iter")
+
+#: The keywords fit() no longer takes: old name -> (option class, field). ``lm_options``
+#: maps to the fields of :class:`BarrierLMOptions` (field None).
+LEGACY_KEYWORDS = {**{k: ("LoopOptions", k) for k in _LOOP_FIELDS},
+                   **{k: ("IpoptOptions", k) for k in _SOLVER_FIELDS},
+                   "ipopt_options": ("IpoptOptions", "ipopt"),
+                   "lm_options": ("BarrierLMOptions", None)}
+
+
+def legacy_message(function, name, value):
+    """Text of the TypeError for an old keyword ``name=value`` of ``function``.
+
+    Parameters
+    ----------
+    function : str
+        Name of the function called (e.g. "fit").
+    name : str
+        The old keyword (a key of :data:`LEGACY_KEYWORDS`).
+    value : object
+        The value passed.
+
+    Returns
+    -------
+    str
+    """
+    cls, field_name = LEGACY_KEYWORDS[name]
+    if field_name is None:
+        inner = ", ".join(f"{k}={v!r}" for k, v in dict(value or {}).items())
+        how = f"method={cls}({inner})"
+    elif cls == "LoopOptions":
+        how = f"loop={cls}({field_name}={value!r})"
+    else:
+        how = (f"method={cls}({field_name}={value!r}) (or BarrierLMOptions({field_name}=...) "
+               "for method='barrier-lm')" if field_name in ("warm_start", "max_iter",
+                                                             "final_max_iter")
+               else f"method={cls}({field_name}={value!r})")
+    return f"{function}() no longer takes {name}=; pass {how}"
+
+
+def options_from_keywords(method="ipopt", **keywords):
+    """Translate the old flat keywords of fit() into ``(solver, loop)`` option objects.
+
+    Parameters
+    ----------
+    method : {"ipopt", "barrier-lm"}
+    **keywords
+        Any of :data:`LEGACY_KEYWORDS` (``lm_options`` a dict of BarrierLMOptions fields,
+        ``ipopt_options`` a dict of IPOPT options).
+
+    Returns
+    -------
+    solver : IpoptOptions or BarrierLMOptions
+    loop : LoopOptions
+
+    Raises
+    ------
+    OptionError
+        An unknown keyword, or a value the option objects reject.
+    """
+    unknown = sorted(set(keywords) - set(LEGACY_KEYWORDS))
+    if unknown:
+        raise OptionError(f"unknown option(s) {', '.join(map(repr, unknown))}; choose from "
+                          f"{', '.join(LEGACY_KEYWORDS)}")
+    loop = LoopOptions(**{k: v for k, v in keywords.items() if k in _LOOP_FIELDS})
+    common = {k: v for k, v in keywords.items() if k in _SOLVER_FIELDS}
+    if solver_options(method).method == "ipopt":
+        extra = keywords.get("ipopt_options") or {}
+        return IpoptOptions(**common, ipopt=extra), loop
+    common.pop("hessian", None)
+    return BarrierLMOptions(**common, **dict(keywords.get("lm_options") or {})), loop

@@ -1,0 +1,146 @@
+"""Contract tests of the two stage solvers, in the style of scipy's
+``TestTRF(BaseMixin, BoundsMixin)``: the same tests run against IPOPT
+(:func:`~freqid_casadi.solvers.ipopt.solve_stage`) and the thesis's barrier + LM
+(:func:`~freqid_casadi.solvers.barrier_lm.solve_stage_lm`), both given the same
+:class:`~freqid_casadi.solvers.common.StageProblem` of numpy callables."""
+
+import numpy as np
+import pytest
+from scipy.optimize import lsq_linear
+
+from freqid_casadi.errors import DataError, SolverError
+from freqid_casadi.solvers.barrier_lm import solve_stage_lm
+from freqid_casadi.solvers.common import (InfeasibleStartError, StageProblem, StageResult,
+                                          Status, check_start, find_active_constraints,
+                                          is_success)
+from freqid_casadi.solvers.ipopt import solve_stage
+
+A = np.array([[1.0, 2.0, 0.0], [0.5, -1.0, 1.0], [2.0, 0.0, -1.0], [1.0, 1.0, 1.0],
+              [0.0, 3.0, 1.0]])
+B = np.array([-1.0, 2.0, -3.0, 0.5, -2.0])
+
+
+def linear_problem(lb=0.0, ub=np.inf):
+    """``min ||A x - b||^2, lb <= x <= ub``: a non-negative least-squares problem whose
+    optimum scipy's ``lsq_linear`` gives to machine precision."""
+    return StageProblem(residual=lambda x: A @ x - B, jacobian=lambda x: A,
+                        lb=np.broadcast_to(lb, 3).astype(float),
+                        ub=np.broadcast_to(ub, 3).astype(float))
+
+
+def rosenbrock_problem():
+    """Rosenbrock as least squares, ``x >= (-inf, 1.5)``: the bound is active; the local
+    optimum near x0 = 1 lies on it (computed in the test by a 1-D minimisation)."""
+    return StageProblem(residual=lambda x: np.array([10 * (x[1] - x[0] ** 2), 1 - x[0]]),
+                        jacobian=lambda x: np.array([[-20 * x[0], 10.0], [-1.0, 0.0]]),
+                        lb=np.array([-np.inf, 1.5]), ub=np.array([np.inf, np.inf]))
+
+
+class BaseMixin:
+    """What every stage solver must do (``solve(problem, x0)`` set by the subclass)."""
+
+    def solve(self, problem, x0):
+        raise NotImplementedError
+
+    def test_known_optimum_of_a_bounded_linear_problem(self):
+        ref = lsq_linear(A, B, bounds=(0.0, np.inf), tol=1e-14, method="bvls")
+        res = self.solve(linear_problem(), np.full(3, 0.5))
+        assert isinstance(res, StageResult)
+        assert res.success and is_success(res.status)
+        np.testing.assert_allclose(res.x, ref.x, atol=self.atol)
+        assert res.cost == pytest.approx(2 * ref.cost, rel=1e-8)
+
+    def test_result_is_feasible(self):
+        res = self.solve(linear_problem(), np.full(3, 0.5))
+        assert np.all(res.x >= 0.0)                  # the solver's own output, not a model
+        assert np.all(np.isfinite(res.x)) and res.x.shape == (3,)
+
+    def test_active_mask_marks_the_bound(self):
+        ref = lsq_linear(A, B, bounds=(0.0, np.inf), method="bvls")
+        res = self.solve(linear_problem(), np.full(3, 0.5))
+        expect = find_active_constraints(ref.x, 0.0, np.inf, rtol=1e-6)
+        assert -1 in expect                           # the problem has an active bound
+        np.testing.assert_array_equal(res.active_mask, expect)
+
+    def test_nonlinear_problem_with_active_bound(self):
+        res = self.solve(rosenbrock_problem(), np.array([1.0, 2.0]))
+        # on the bound x1 = 1.5 the cost is 100 (1.5 - x0^2)^2 + (1 - x0)^2
+        from scipy.optimize import minimize_scalar
+
+        best = minimize_scalar(lambda a: 100 * (1.5 - a * a) ** 2 + (1 - a) ** 2,
+                               bracket=(1.0, 1.3)).x
+        np.testing.assert_allclose(res.x, [best, 1.5], atol=self.atol)
+        assert res.active_mask[1] == -1 and res.active_mask[0] == 0
+
+    def test_infeasible_start_raises_typed_error(self):
+        with pytest.raises(InfeasibleStartError, match=r"x0\[1\]=-1 with bounds \[0, inf\]"):
+            self.solve(linear_problem(), np.array([1.0, -1.0, 1.0]))
+        with pytest.raises(SolverError):
+            self.solve(linear_problem(lb=0.5), np.array([1.0, 1.0, 0.2]))
+
+    @pytest.mark.parametrize("x0", [[np.nan, 1.0, 1.0], [1.0, 1.0], [[1.0, 1.0, 1.0]]])
+    def test_bad_start_is_a_data_error(self, x0):
+        with pytest.raises(DataError):
+            self.solve(linear_problem(), np.array(x0))
+
+    def test_problem_rejects_non_callables(self):
+        with pytest.raises(DataError, match="StageProblem.residual must be callable"):
+            StageProblem(residual=3, jacobian=lambda x: A, lb=np.zeros(3), ub=np.zeros(3))
+
+
+class TestIpoptStage(BaseMixin):
+    atol = 1e-7
+
+    def solve(self, problem, x0):
+        return solve_stage(problem, x0, tol=1e-14)
+
+    def test_start_on_the_bound_is_feasible(self):
+        res = self.solve(linear_problem(), np.array([1.0, 0.0, 1.0]))
+        assert res.success
+
+    def test_start_above_upper_bound_raises(self):
+        with pytest.raises(InfeasibleStartError, match=r"x0\[2\]=3 with bounds \[0, 2\]"):
+            self.solve(linear_problem(ub=2.0), np.array([1.0, 1.0, 3.0]))
+
+    def test_upper_bounds_are_imposed(self):
+        res = self.solve(linear_problem(lb=-10.0, ub=0.1), np.zeros(3))
+        ref = lsq_linear(A, B, bounds=(-10.0, 0.1), tol=1e-14, method="bvls")
+        np.testing.assert_allclose(res.x, ref.x, atol=1e-7)
+        assert np.all(res.x <= 0.1)
+
+
+class TestBarrierLMStage(BaseMixin):
+    atol = 1e-5            # the barrier's last t leaves x - lb ~ 1/(t lambda)
+
+    def solve(self, problem, x0):
+        return solve_stage_lm(problem, x0, damping="marquardt")
+
+    def test_start_on_the_bound_is_infeasible_for_a_barrier(self):
+        with pytest.raises(InfeasibleStartError, match="strictly above lb"):
+            self.solve(linear_problem(), np.array([1.0, 0.0, 1.0]))
+
+    def test_fixed_variables_are_kept(self):
+        problem = linear_problem(lb=np.array([0.0, 0.7, 0.0]), ub=np.array([np.inf, 0.7, np.inf]))
+        res = self.solve(problem, np.array([0.5, 0.7, 0.5]))
+        assert res.x[1] == 0.7 and res.lam_x[1] == 0.0
+
+    def test_constraints_are_refused(self):
+        from freqid_casadi.errors import OptionError
+
+        problem = StageProblem(residual=lambda x: A @ x - B, jacobian=lambda x: A,
+                               lb=np.zeros(3), ub=np.full(3, np.inf),
+                               constraints=lambda z: z)
+        with pytest.raises(OptionError, match="takes no constraints"):
+            self.solve(problem, np.full(3, 0.5))
+
+
+def test_check_start_returns_arrays_and_bounds():
+    x, lb, ub = check_start([1, 2], 0.0, [5.0, np.inf])
+    assert x.dtype == float and lb.tolist() == [0.0, 0.0] and ub.tolist() == [5.0, np.inf]
+    with pytest.raises(DataError, match="are not valid"):
+        check_start([1.0], 2.0, 1.0)
+
+
+def test_one_success_rule():
+    assert {s for s in Status if is_success(s)} == {
+        Status.CONVERGED, Status.ACCEPTABLE, Status.SMALL_STEP, Status.COST_TOL}
