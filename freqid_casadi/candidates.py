@@ -78,7 +78,8 @@ def zero_delay_run(ctx, run):
     """The candidate "the same fit at h = 0": the model of ``run`` with its delay removed,
     polished on all data without a delay (one stage), in ``run``'s structure (h = 0).
 
-    Always tried for a structure with a delay: a phase-wrapped delay (e.g. 0.14 s where
+    Tried for every structure with a delay unless ``LoopOptions.final_stage`` is False (the
+    candidate is a stage on all data): a phase-wrapped delay (e.g. 0.14 s where
     the data have none, measured in tests/test_convergence.py) is a local minimum the
     h = 0 model escapes.
 
@@ -97,7 +98,7 @@ def zero_delay_run(ctx, run):
     param, z, _, records = run
     st, data = param.structure, ctx.data
     beta = np.array(param.to_beta(z), float)
-    if not st.delay:
+    if not st.delay or not ctx.loop.final_stage:
         return None
     t0 = time.perf_counter()
     beta[0] = 0.0

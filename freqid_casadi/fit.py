@@ -79,6 +79,10 @@ class FitResult:
         :func:`default_delay_max` of the data.
     zeta_min : float or None
         The damping floor used (``min_damping`` resolved; None without one).
+    candidate_max_rel_errors : dict of str to float
+        Max relative error of every candidate :func:`fit` chose from: the starts and,
+        with a delay, each start's model at h = 0 ("<start> at h=0"), see
+        :func:`~freqid_casadi.candidates.choose`.
     message : str
         Why ``success`` is what it is: the final stage's termination (with the relative
         stationarity numbers) or the reason the fit is not a success.
@@ -98,6 +102,7 @@ class FitResult:
     objective: str = "least-squares"
     resolution: object = None
     start_max_rel_errors: dict = field(default_factory=dict)
+    candidate_max_rel_errors: dict = field(default_factory=dict)
     delay_max: float = math.nan
     zeta_min: float = None
     message: str = ""
@@ -335,7 +340,8 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
         zero = zero_delay_run(ctx, cand.run)
         if zero is not None:
             cands.append(Candidate.of(f"{cand.name} at h=0", zero, data))
-    errors = {c.name: c.max_rel_error for c in cands}
+    cand_errors = {c.name: c.max_rel_error for c in cands}
+    errors = {k: v for k, v in cand_errors.items() if k in runs}
     kept = choose(cands)
     won = kept.name.split(" at h=0")[0]
     param, z, lam, records = kept.run
@@ -370,7 +376,8 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                      max_rel_error=stats.max, rms_rel_error=stats.rms,
                      success=success, message=message, wall_time=time.perf_counter() - t_start,
                      method=solver.method, options=options, start=won, objective=objective,
-                     resolution=check, start_max_rel_errors=errors, delay_max=dmax / w_ref,
+                     resolution=check, start_max_rel_errors=errors,
+                     candidate_max_rel_errors=cand_errors, delay_max=dmax / w_ref,
                      zeta_min=zeta_min)
 
 

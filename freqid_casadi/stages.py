@@ -209,6 +209,16 @@ def stage_record(stage, param, z, data, window, omega_c, res, nit, nfev, wall, k
                        kind=StageKind(kind), message=str(res.message))
 
 
+def _termination(ftol):
+    """The stages' :class:`~freqid_casadi.solvers.termination.Termination` for
+    ``IpoptOptions.ftol`` (0: the test and its polish off)."""
+    from .solvers.termination import Termination
+
+    if ftol > 0:
+        return Termination(ftol=float(ftol))
+    return Termination(ftol=0.0, noise_factor=0.0, polish_steps=0)
+
+
 class StageSolver:
     """Builds the stage's functions and calls the chosen stage solver.
 
@@ -245,7 +255,8 @@ class StageSolver:
             res = solve_stage(problem, np.clip(np.asarray(x0, float), lb, ub), lam_x0=lam0,
                               hessian=opts.hessian, max_iter=max_iter or opts.max_iter,
                               warm_start=opts.warm_start != "none",
-                              ipopt_options=opts.ipopt_dict())
+                              ipopt_options=opts.ipopt_dict(),
+                              termination=_termination(opts.ftol))
             if cons is not None:
                 # IPOPT meets g >= 0 to its tolerance; make the floor exact
                 res = dataclasses.replace(res, x=param.project_damping(res.x, self.zeta_min))
