@@ -59,8 +59,10 @@ def test_a_variable_held_at_its_bound_is_not_free():
 
 # ------------------------------------------------------------------ success flag
 def test_exact_fit_at_machine_precision_is_converged_with_a_reason():
+    # (the sequential loop ends in a phase-wrapped delay basin on these data, h = 0.145 s,
+    # max rel. error 1.30, also at b24cee6 before issue 14; the rational start is exact)
     model, g = _exact()
-    res = fc.fit(W, g, n_sections=2, integrator=True)
+    res = fc.fit(W, g, n_sections=2, integrator=True, start="rational")
     assert res.max_rel_error < 1e-10
     assert res.success, res.message
     assert "converged" in res.message
@@ -129,8 +131,8 @@ def test_reference_scales_are_powers_of_two_and_the_map_back_is_exact():
                                                 (1.0, 1e-310), (1.0, 1e300), (1e300, 1e-300)])
 def test_fit_of_scaled_data_equals_the_unscaled_fit(w_factor, g_factor):
     model, g = _exact()
-    ref = fc.fit(W, g, n_sections=2, integrator=True)
-    res = fc.fit(W * w_factor, g * g_factor, n_sections=2, integrator=True)
+    ref = fc.fit(W, g, n_sections=2, integrator=True, start="rational")
+    res = fc.fit(W * w_factor, g * g_factor, n_sections=2, integrator=True, start="rational")
     tol = 1e-6 if g_factor < 1e-307 else 1e-9          # subnormal responses: 2e-16 lost
     assert res.max_rel_error < 1e-9 + tol and res.success
     assert res.delay * w_factor == pytest.approx(ref.delay, rel=tol)
