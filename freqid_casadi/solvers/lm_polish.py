@@ -5,8 +5,8 @@ converge fast where an interior-point method is held back by its barrier (a vari
 optimum is on its bound, e.g. a delay of 0, stays ``mu / gradient`` away from it) or by an
 objective scaling fixed at the stage's start. The polish runs after the IPOPT solve when its
 point fails the stage's termination test
-(:class:`~freqid_casadi.solvers.termination.StageMonitor`), with the bounds kept by
-projection; it stops as soon as a step is slow (the regime of a flat valley, where it would
+(:class:`~freqid_casadi.solvers.termination.StageMonitor`); each step keeps the variables
+strictly inside their bounds (fraction to the boundary 0.99); it stops as soon as a step is slow (the regime of a flat valley, where it would
 only creep).
 """
 
@@ -57,7 +57,10 @@ def lm_polish(problem, x, is_stationary, max_steps=10, fast=0.5):
         w, v = np.linalg.eigh(a.T @ a)
         step = np.zeros_like(x)
         step[free] = -(v @ ((v.T @ (a.T @ r)) / (np.maximum(w, 0.0) + lam))) / np.sqrt(d2[free])
-        x_new = np.clip(x + step, lb, ub)
+        # fraction to the boundary (as IPOPT's tau = 0.99): a variable inside its bounds
+        # stays strictly inside (a damping of exactly 0 is a root on the axis)
+        step = np.clip(step, -0.99 * (x - lb), 0.99 * (ub - x))
+        x_new = x + step
         c_new = problem.eval_cost(x_new)
         if np.isfinite(c_new) and c_new < cost:
             slow = c_new > (1.0 - fast) * cost

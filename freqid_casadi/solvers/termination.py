@@ -162,7 +162,6 @@ class StageMonitor:
         self.history = []
         self.reason = None
         self.cos = self.allowed = self.proj = float("nan")
-        self.held = None
 
     def stationary(self, x):
         """(stationary?, cost) at ``x``: the cheap cosine test, then the projection."""
@@ -175,8 +174,8 @@ class StageMonitor:
         jac = np.asarray(pb.jacobian(x), float)
         cn = np.linalg.norm(jac, axis=0)
         norm_r = float(np.sqrt(max(cost, 0.0)))
-        free = free_variables(grad, x, pb.lb, pb.ub, cn, norm_r, np.sqrt(self.term.ftol))
-        self.held = ~free & (pb.lb < pb.ub)
+        # held: putting it onto its bound changes the cost by at most ftol (relative)
+        free = free_variables(grad, x, pb.lb, pb.ub, cn, norm_r, 0.5 * self.term.ftol)
         cmax, noise = relative_stationarity(grad, cn, cost, free, max(r.size // 2, 1), pb.n)
         noise *= self.term.noise_factor
         self.cos, self.allowed = cmax, np.sqrt(self.term.ftol) + noise
@@ -230,25 +229,6 @@ class StageMonitor:
                            active_mask=find_active_constraints(x, pb.lb, pb.ub, rtol=1e-8),
                            lam_x=lam, solver_status="start stationary")
 
-    def _snap(self, res):
-        """``res`` with the variables held at a bound put onto it (an interior point
-        leaves them ``mu / gradient`` away), if that does not raise the cost."""
-        pb = self.problem
-        x = np.array(res.x, float)
-        held = self.held if self.held is not None else np.zeros(x.size, bool)
-        if not np.any(held):
-            return res
-        grad = pb.eval_gradient(x)[1]
-        x[held] = np.where(grad[held] > 0, pb.lb[held], pb.ub[held])
-        cost = pb.eval_cost(x)
-        if not cost <= res.cost:
-            return res
-        from .common import find_active_constraints
-
-        return dataclasses.replace(res, x=x, cost=cost,
-                                   active_mask=find_active_constraints(x, pb.lb, pb.ub,
-                                                                       rtol=1e-8))
-
     def decide(self, res):
         """``res`` with the status, success and message of the test at its point, after an
         LM polish (:func:`~.lm_polish.lm_polish`) if the point fails the test.
@@ -273,8 +253,6 @@ class StageMonitor:
                 res = dataclasses.replace(res, x=x, cost=self.problem.eval_cost(x),
                                           nit=res.nit + steps)
                 ok, _ = self.stationary(x)
-        if ok:
-            res = self._snap(res)
         ipopt_ok = res.status in (Status.CONVERGED, Status.ACCEPTABLE)
         test = (f"max cos(r, J_j) {self.cos:.2g} (allowed {self.allowed:.2g}), "
                 f"||P r||/||r|| {self.proj:.2g}")
