@@ -26,7 +26,7 @@ from .model import RationalDelayModel
 __all__ = ["SweepRow", "SweepResult", "sweep", "parse_orders", "EXTEND_MAX_ITER"]
 
 #: Iteration limit of the polish of the extended start (the previous order's model with one
-#: more section).
+#: more section) when :func:`fit` also runs at that order (``incremental=False``).
 EXTEND_MAX_ITER = 50
 
 
@@ -123,7 +123,7 @@ def parse_orders(spec):
 
 
 def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=None,
-          **fit_options):
+          incremental=True, **fit_options):
     """Fit ``data`` at each order in ``orders``.
 
     Parameters
@@ -140,6 +140,13 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
         Points of the dense grid per data point (:func:`~freqid_casadi.data.dense_grid`).
     progress : callable, optional
         Called with each :class:`SweepRow` as it is done.
+    incremental : bool
+        With the sequential start (the default), an order one section above the previous
+        is fitted only from the previous order's model with one more section at its
+        largest error, polished on all data (the sequential loop continued: about one
+        stage per order instead of a whole fit); False (or another ``start``) also runs
+        :func:`~freqid_casadi.fit.fit` at every order and keeps the better model. Either
+        way the max error never increases with the order.
     **fit_options
         Passed to :func:`~freqid_casadi.fit.fit` (``integrator``, ``start``, ...).
 
@@ -164,17 +171,24 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
         g_dense = truth(dense)
     rows = []
     prev = None
+    only_ext = incremental and fit_options.get("start", "sequential") == "sequential"
     for o in orders:
         t0 = time.perf_counter()
-        res = fit(data, n_sections=o // per, **fit_options)
-        model, success, start = res.model, res.success, res.start
-        mx, rms = res.max_rel_error, res.rms_rel_error
-        if prev is not None and prev[0].n_sections + 1 == o // per:
-            for ext in _extended(prev[0], prev[1], data):
-                if _better(ext[1:3], (mx, rms)):
+        follows = prev is not None and prev[0].n_sections + 1 == o // per
+        if follows and only_ext:
+            res = prev[1]
+            model, mx, rms, success, start = None, np.inf, np.inf, False, "extended"
+        else:
+            res = fit(data, n_sections=o // per, **fit_options)
+            model, success, start = res.model, res.success, res.start
+            mx, rms = res.max_rel_error, res.rms_rel_error
+        if follows:
+            max_iter = None if only_ext else EXTEND_MAX_ITER
+            for ext in _extended(prev[0], prev[1], data, max_iter, prev[2]):
+                if model is None or _better(ext[1:3], (mx, rms)):
                     model, success, start = ext[0], ext[3], "extended"
                     mx, rms = ext[1], ext[2]
-        prev = (model, res)
+        prev = (model, res, success)
         dense_err = (relative_error(model, dense, g_dense).max
                      if dense is not None else float("nan"))
         row = SweepRow(order=o, n_sections=o // per, max_rel_error=mx, rms_rel_error=rms,
@@ -195,10 +209,11 @@ def _better(a, b):
     return a[0] <= b[0] * 1.001 and a[1] < b[1]
 
 
-def _extended(model, res, data, max_iter=EXTEND_MAX_ITER):
+def _extended(model, res, data, max_iter=EXTEND_MAX_ITER, success=None):
     """The previous order's ``model`` with one more section at its largest error (an
     identity section: exactly the previous error), as is and polished on all ``data``
-    with ``res``'s options (at most ``max_iter`` iterations).
+    with ``res``'s options (at most ``max_iter`` iterations; None: the options'
+    ``final_max_iter``). ``success`` is that of ``model`` (default ``res.success``).
 
     Returns a list of ``(model, max, rms, success)``: the polished one, then the identity
     extension (success as the previous fit's), so a sweep's error never increases."""
@@ -219,5 +234,6 @@ def _extended(model, res, data, max_iter=EXTEND_MAX_ITER):
                  max_iter=max_iter)
     stats = relative_error(pol.model, data)
     out.append((pol.model, float(stats.max), float(stats.rms), bool(pol.result.success)))
-    out.append((ext, float(same.max), float(same.rms), bool(res.success)))
+    out.append((ext, float(same.max), float(same.rms),
+                bool(res.success if success is None else success)))
     return out

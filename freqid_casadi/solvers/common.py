@@ -151,6 +151,9 @@ class StageProblem:
     casadi_residual : casadi.Function, optional
         ``r`` as a CasADi Function: IPOPT then builds its objective from it; else the
         objective is a callback of ``cost``.
+    column_norms : callable ``column_norms(z) -> ndarray shape (n,)``, optional
+        ``||J_j||`` (cheap to give: the termination test asks for it after every
+        iteration); default from ``jacobian``.
     """
 
     residual: object
@@ -162,6 +165,7 @@ class StageProblem:
     cost: object = None
     constraints: object = None
     casadi_residual: object = None
+    column_norms: object = None
 
     def __post_init__(self):
         for name in ("residual", "jacobian"):
@@ -192,6 +196,12 @@ class StageProblem:
         r = np.asarray(self.residual(z), float)
         return float(r @ r), 2.0 * np.asarray(self.jacobian(z), float).T @ r
 
+    def eval_column_norms(self, z):
+        """``||J_j||`` at ``z``, ndarray (n,)."""
+        if self.column_norms is not None:
+            return np.asarray(self.column_norms(z), float)
+        return np.linalg.norm(np.asarray(self.jacobian(z), float), axis=0)
+
     def eval_hessian(self, z, exact=True):
         """Hessian of the cost at ``z`` (Gauss-Newton when no ``hessian`` was given)."""
         if self.hessian is not None:
@@ -208,7 +218,8 @@ class StageProblem:
                    lb=lb, ub=ub, gradient=funcs.gradient,
                    hessian=lambda z, exact=True: funcs.hessian(z, exact=exact),
                    cost=funcs.cost, constraints=constraints,
-                   casadi_residual=getattr(funcs, "r_fun", None))
+                   casadi_residual=getattr(funcs, "r_fun", None),
+                   column_norms=getattr(funcs, "column_norms", None))
 
 
 @dataclass(frozen=True)

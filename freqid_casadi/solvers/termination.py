@@ -161,6 +161,7 @@ class StageMonitor:
         self.problem, self.term = problem, term
         self.history = []
         self.reason = None
+        self.n_points = None         # complex residuals, from the first residual evaluated
         self.cos = self.allowed = self.proj = float("nan")
 
     def stationary(self, x):
@@ -170,17 +171,20 @@ class StageMonitor:
         cost, grad = pb.eval_gradient(x)
         if not np.isfinite(cost):
             return False, cost
-        r = np.asarray(pb.residual(x), float)
-        jac = np.asarray(pb.jacobian(x), float)
-        cn = np.linalg.norm(jac, axis=0)
+        cn = pb.eval_column_norms(x)
         norm_r = float(np.sqrt(max(cost, 0.0)))
         # held: putting it onto its bound changes the cost by at most ftol (relative)
         free = free_variables(grad, x, pb.lb, pb.ub, cn, norm_r, 0.5 * self.term.ftol)
-        cmax, noise = relative_stationarity(grad, cn, cost, free, max(r.size // 2, 1), pb.n)
+        if self.n_points is None:
+            self.n_points = max(np.asarray(pb.residual(x), float).size // 2, 1)
+        n_points = self.n_points
+        cmax, noise = relative_stationarity(grad, cn, cost, free, n_points, pb.n)
         noise *= self.term.noise_factor
         self.cos, self.allowed = cmax, np.sqrt(self.term.ftol) + noise
         if cmax > self.allowed:
             return False, cost
+        r = np.asarray(pb.residual(x), float)
+        jac = np.asarray(pb.jacobian(x), float)
         self.proj = projected_fraction(r, jac, free, self.term.rcond)
         return self.proj ** 2 <= self.term.ftol + noise, cost
 
