@@ -144,9 +144,10 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
         With the sequential start (the default), an order one section above the previous
         is fitted only from the previous order's model with one more section at its
         largest error, polished on all data (the sequential loop continued: about one
-        stage per order instead of a whole fit); False (or another ``start``) also runs
-        :func:`~freqid_casadi.fit.fit` at every order and keeps the better model. Either
-        way the max error never increases with the order.
+        stage per order instead of a whole fit), unless the previous model is no better
+        than an infinite gain (max relative error >= 1); False (or another ``start``) also
+        runs :func:`~freqid_casadi.fit.fit` at every order and keeps the better model.
+        Either way the max error never increases with the order.
     **fit_options
         Passed to :func:`~freqid_casadi.fit.fit` (``integrator``, ``start``, ...).
 
@@ -175,7 +176,8 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
     for o in orders:
         t0 = time.perf_counter()
         follows = prev is not None and prev[0].n_sections + 1 == o // per
-        if follows and only_ext:
+        # a previous model no better than an infinite gain (max error >= 1) is a poor start
+        if follows and only_ext and prev[3] < 1.0:
             res = prev[1]
             model, mx, rms, success, start = None, np.inf, np.inf, False, "extended"
         else:
@@ -188,7 +190,7 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
                 if model is None or _better(ext[1:3], (mx, rms)):
                     model, success, start = ext[0], ext[3], "extended"
                     mx, rms = ext[1], ext[2]
-        prev = (model, res, success)
+        prev = (model, res, success, mx)
         dense_err = (relative_error(model, dense, g_dense).max
                      if dense is not None else float("nan"))
         row = SweepRow(order=o, n_sections=o // per, max_rel_error=mx, rms_rel_error=rms,
