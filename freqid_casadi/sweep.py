@@ -171,26 +171,32 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
         dense = dense_grid(data.omega, dense_factor)
         g_dense = truth(dense)
     rows = []
-    prev = None
+    chain = shown = None        # the continued model, and the last row's (model, max, rms, ok)
     only_ext = incremental and fit_options.get("start", "sequential") == "sequential"
     for o in orders:
         t0 = time.perf_counter()
-        follows = prev is not None and prev[0].n_sections + 1 == o // per
+        follows = chain is not None and chain[0].n_sections + 1 == o // per
+        cand = []
         # a previous model no better than an infinite gain (max error >= 1) is a poor start
-        if follows and only_ext and prev[3] < 1.0:
-            res = prev[1]
-            model, mx, rms, success, start = None, np.inf, np.inf, False, "extended"
-        else:
+        if not (follows and only_ext and chain[3] < 1.0):
             res = fit(data, n_sections=o // per, **fit_options)
-            model, success, start = res.model, res.success, res.start
-            mx, rms = res.max_rel_error, res.rms_rel_error
+            cand.append((res.model, res.max_rel_error, res.rms_rel_error, res.success,
+                         res.start))
+        else:
+            res = chain[1]
         if follows:
-            max_iter = None if only_ext else EXTEND_MAX_ITER
-            for ext in _extended(prev[0], prev[1], data, max_iter, prev[2]):
-                if model is None or _better(ext[1:3], (mx, rms)):
-                    model, success, start = ext[0], ext[3], "extended"
-                    mx, rms = ext[1], ext[2]
-        prev = (model, res, success, mx)
+            cand.append(_extended(chain[0], res, data,
+                                  None if only_ext else EXTEND_MAX_ITER) + ("extended",))
+        best = cand[0]
+        for c in cand[1:]:
+            best = c if _better(c[1:3], best[1:3]) else best
+        # the sequential loop continues from its best model; the row never gets worse
+        chain = (best[0], res, best[3], best[1])
+        if follows and shown is not None and shown[0].n_sections + 1 == o // per:
+            same = _identity_extension(shown[0], data) + (shown[3], "extended")
+            best = same if _better(same[1:3], best[1:3]) else best
+        model, mx, rms, success, start = best
+        shown = best
         dense_err = (relative_error(model, dense, g_dense).max
                      if dense is not None else float("nan"))
         row = SweepRow(order=o, n_sections=o // per, max_rel_error=mx, rms_rel_error=rms,
@@ -211,16 +217,9 @@ def _better(a, b):
     return a[0] <= b[0] * 1.001 and a[1] < b[1]
 
 
-def _extended(model, res, data, max_iter=EXTEND_MAX_ITER, success=None):
-    """The previous order's ``model`` with one more section at its largest error (an
-    identity section: exactly the previous error), as is and polished on all ``data``
-    with ``res``'s options (at most ``max_iter`` iterations; None: the options'
-    ``final_max_iter``). ``success`` is that of ``model`` (default ``res.success``).
-
-    Returns a list of ``(model, max, rms, success)``: the polished one, then the identity
-    extension (success as the previous fit's), so a sweep's error never increases."""
-    from .stages import polish
-
+def _identity_extension(model, data):
+    """``model`` with one more section at its largest error, an identity section there
+    (num = den: exactly the same error). Returns ``(model, max, rms)``."""
     err = relative_error(model, data).values
     w = float(data.omega[int(np.argmax(err))])
     st = model.structure
@@ -229,13 +228,21 @@ def _extended(model, res, data, max_iter=EXTEND_MAX_ITER, success=None):
     ext = RationalDelayModel(st.with_sections(st.n_sections + 1),
                              np.concatenate([model.beta, new]))
     same = relative_error(ext, data)
-    out = []
+    return ext, float(same.max), float(same.rms)
+
+
+def _extended(model, res, data, max_iter=EXTEND_MAX_ITER):
+    """The previous order's ``model`` with one more section at its largest error
+    (:func:`_identity_extension`) polished on all ``data`` with ``res``'s options (at most
+    ``max_iter`` iterations; None: the options' ``final_max_iter``).
+
+    Returns ``(model, max, rms, success)``."""
+    from .stages import polish
+
+    ext = _identity_extension(model, data)[0]
     opts = res.options
     pol = polish(ext, data, method=opts.solver, loop=opts.loop,
                  delay_max=max(res.delay_max, model.delay), zeta_min=res.zeta_min,
                  max_iter=max_iter)
     stats = relative_error(pol.model, data)
-    out.append((pol.model, float(stats.max), float(stats.rms), bool(pol.result.success)))
-    out.append((ext, float(same.max), float(same.rms),
-                bool(res.success if success is None else success)))
-    return out
+    return pol.model, float(stats.max), float(stats.rms), bool(pol.result.success)
