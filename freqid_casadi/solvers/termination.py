@@ -248,7 +248,8 @@ class StageMonitor:
         if res.status == Status.ERROR:
             return res
         ok, _ = self.stationary(res.x)
-        if not ok and self.term.polish_steps:
+        # (the polish keeps only the bounds: not with constraints such as a damping floor)
+        if not ok and self.term.polish_steps and self.problem.constraints is None:
             from .lm_polish import lm_polish
 
             x, steps = lm_polish(self.problem, res.x, lambda v: self.stationary(v)[0],
