@@ -276,6 +276,22 @@ class StageFunctions:
         self._blk = [] if not nsec else [(full, sln, 1.0), (full, sld, -1.0)]
         self._t2 = t2.reshape(m, self.n_t2).copy() if self.n_t2 else None
 
+    def column_norms(self, z):
+        """``||J_j||``, ndarray (n,): the 2-norms of the Jacobian's columns (the square
+        root of the Gauss-Newton diagonal), O(n M) from the cached pieces.
+
+        Parameters
+        ----------
+        z : ndarray of float, shape (n,)
+
+        Returns
+        -------
+        ndarray of float, shape (n,)
+        """
+        self._eval(z)
+        a = self._sq.real ** 2 + self._sq.imag ** 2
+        return np.sqrt((self._L.real ** 2 + self._L.imag ** 2) @ a)
+
     def residual_jacobian(self, z):
         """``(r (2M,), J (2M, n))`` with ``J = dr/dz`` stacked ``[Re; Im]``."""
         self._eval(z)

@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .candidates import Candidate, choose, zero_delay_run
 from .data import FrequencyData
 from .diagnostics import (check_delay, check_gain_sign, check_minimum_phase, check_trivial,
                           rhp_zeros_note)
@@ -26,6 +27,7 @@ from .metrics import relative_error
 from .model import BASES, ZEROS, RationalDelayModel, Structure
 from .options import (INITS, LEGACY_KEYWORDS, METHODS, WARM_STARTS, FitOptions, LoopOptions,
                       legacy_message, solver_options)
+from .scaling import check_finite_result, reference_scales, scale_data, unscale_model
 from .resolution import check_resolution, default_delay_max, resolution_damping
 from .stages import Kept, StageKind, StageRecord, StageSolver
 from .start import RationalStartError
@@ -53,7 +55,11 @@ class FitResult:
         |(Phi - G_N)/G_N| at every data point.
     max_rel_error, rms_rel_error : float
     success : bool
-        True if the final all-data stage converged (IPOPT/LM status).
+        True when the final model is at a (local) optimum within tolerance: the final
+        all-data stage converged (IPOPT's tolerance, or the scale-free relative
+        stationarity test of :mod:`freqid_casadi.solvers.termination`, which a fit at
+        machine precision passes) and the model is better than an infinite gain (RMS
+        relative error < 1). ``message`` says why not.
     wall_time : float
         Seconds for the whole fit.
     method : str
@@ -82,6 +88,13 @@ class FitResult:
         class (:mod:`freqid_casadi.diagnostics`): ``negative-gain``,
         ``non-minimum-phase``, ``delay-undetermined``, ``no-better-than-trivial``. A
         record of severity "error" makes ``success`` False.
+    candidate_max_rel_errors : dict of str to float
+        Max relative error of every candidate :func:`fit` chose from: the starts and,
+        with a delay, each start's model at h = 0 ("<start> at h=0"), see
+        :func:`~freqid_casadi.candidates.choose`.
+    message : str
+        Why ``success`` is what it is: the final stage's termination (with the relative
+        stationarity numbers) or the reason the fit is not a success.
     """
 
     model: RationalDelayModel
@@ -98,9 +111,11 @@ class FitResult:
     objective: str = "least-squares"
     resolution: object = None
     start_max_rel_errors: dict = field(default_factory=dict)
+    candidate_max_rel_errors: dict = field(default_factory=dict)
     delay_max: float = math.nan
     zeta_min: float = None
     diagnostics: tuple = ()
+    message: str = ""
 
     @property
     def delay(self):
@@ -163,7 +178,7 @@ class FitResult:
         line = (f"{self.data.name or 'data'}: {m.n_sections} sections (order {m.order}), "
                 f"max rel. error {self.max_rel_error:.4g}, RMS {self.rms_rel_error:.4g}, "
                 f"delay {m.delay:.6g} s, {self.wall_time:.2f} s, method {self.method}, "
-                f"{'converged' if self.success else 'NOT converged'}")
+                + ("converged" if self.success else f"NOT converged ({self.message})"))
         return "\n".join([line] + [f"  {d.severity}: {d}" for d in self.diagnostics])
 
 
@@ -267,8 +282,11 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         "sequential" is the thesis's main loop; "rational" fits all sections at once by
         vector fitting with the delay refined from the right-half-plane zeros
         (:mod:`freqid_casadi.start`), then polishes everything by one IPOPT stage on all
-        data; "best" runs both (the rational start begins at the sequential delay) and
-        keeps the lower max relative error (``FitResult.start`` says which won).
+        data; "best" runs both and keeps, among the models within 10 % of the lowest max
+        relative error, a converged one if any, then the lower RMS error
+        (:func:`~freqid_casadi.candidates.choose`; ``FitResult.start`` says which won).
+        With a delay, every start also tries the same model at h = 0, polished without
+        the delay, so a fit with a delay is never worse than that fit at h = 0.
     objective : {"least-squares", "minimax"}
         "minimax" adds a polish of the max relative error: a continuation in p of the
         p-norm of the residuals (p = 4 ... 1024, :data:`PNORM_SCHEDULE`), each stage an
@@ -344,13 +362,24 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
         data = data.with_weights(weights)
     _check_model_class(gain_sign, zeros, solver.method, loop.gauge, min_damping)
     sign, found = check_gain_sign(data, integrator, gain_sign)
-    user_data, data = data, (data if sign == 1 else FrequencyData(
-        data.omega, -data.response, data.name, data.weights))
+    user_data = data
+    if sign == -1:                  # a negative gain: fit -Phi, the model gets gain_sign -1
+        data = FrequencyData(data.omega, -data.response, data.name, data.weights)
+    # the problem is scale free: fit omega / w_ref and response / g_ref (powers of two, so
+    # O(1) data is fitted bit for bit as given) and map the model back (issue 13 item 3)
+    w_ref, g_ref = reference_scales(data)
+    data = scale_data(data, w_ref, g_ref)
     zeta_min = _zeta_min(min_damping, data.omega, solver.method, loop.gauge, basis)
-    dmax = (float(loop.delay_max) if loop.delay_max is not None
+    dmax = (float(loop.delay_max) * w_ref if loop.delay_max is not None
             else default_delay_max(data.omega))
+    user_callback, unscaled = _progress_callback(progress), {}
+
+    def callback(rec):              # the user sees (and FitResult keeps) the same records
+        unscaled[id(rec)] = (rec, _unscale_record(rec, w_ref))
+        user_callback(unscaled[id(rec)][1])
+
     ctx = LoopContext(
-        data=data, callback=_progress_callback(progress),
+        data=data, callback=callback,
         solve=StageSolver(solver, loop, zeta_min),
         structure=Structure(int(n_sections), integrator, delay, basis, zeros), loop=loop,
         warm_start=solver.warm_start, delay_max=dmax, final_max_iter=solver.final_max_iter,
@@ -370,16 +399,30 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
         except RationalStartError:
             if start == "rational":
                 raise
-    errors = {k: relative_error(p.to_model(z), data).max for k, (p, z, _, _) in runs.items()}
-    won = min(errors, key=lambda k: (errors[k], k != "sequential"))
-    param, z, lam, records = runs[won]
+    cands = [Candidate.of(name, run, data) for name, run in runs.items()]
+    for cand in list(cands):
+        zero = zero_delay_run(ctx, cand.run)
+        if zero is not None:
+            cands.append(Candidate.of(f"{cand.name} at h=0", zero, data))
+    cand_errors = {c.name: c.max_rel_error for c in cands}
+    errors = {k: v for k, v in cand_errors.items() if k in runs}
+    kept = choose(cands)
+    won = kept.name.split(" at h=0")[0]
+    param, z, lam, records = kept.run
+    if kept.name != won:
+        ctx.callback(records[-1])
     if objective == "minimax":
         z, rec = minimax(ctx, param, z)
         records.append(rec)
-    model = param.to_model(z)
+    model_scaled = param.to_model(z)
+    stats = relative_error(model_scaled, data)
+    check_finite_result(model_scaled.structure, model_scaled.beta, stats.values)
+    model = unscale_model(model_scaled, w_ref, g_ref)
     if sign == -1:
         model = RationalDelayModel(dataclasses.replace(model.structure, gain_sign=-1),
                                    model.beta)
+    records = [unscaled[id(r)][1] if id(r) in unscaled else _unscale_record(r, w_ref)
+               for r in records]
     data = user_data
     stats = relative_error(model, data)
     final = [r for r in records if r.kept != Kept.MINIMAX_REJECTED
@@ -396,13 +439,17 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
             "damping floor from the frequency spacing), remove them with "
             "freqid_casadi.validation.prune_sections, or fit fewer sections",
             ResolutionWarning, stacklevel=4)
-    found += _after_fit(model, data, stats, dmax)
-    success = bool(final[-1].success) and not any(d.severity == "error" for d in found)
+    found += _after_fit(model, data, stats, dmax / w_ref)
+    success, message = _success(final[-1], stats)
+    errors_found = [d for d in found if d.severity == "error"]
+    if success and errors_found:
+        success, message = False, f"{errors_found[0].code}: {errors_found[0].message}"
     return FitResult(model=model, stages=tuple(records), data=data, rel_error=stats.values,
                      max_rel_error=stats.max, rms_rel_error=stats.rms,
-                     success=success, wall_time=time.perf_counter() - t_start,
+                     success=success, message=message, wall_time=time.perf_counter() - t_start,
                      method=solver.method, options=options, start=won, objective=objective,
-                     resolution=check, start_max_rel_errors=errors, delay_max=dmax,
+                     resolution=check, start_max_rel_errors=errors,
+                     candidate_max_rel_errors=cand_errors, delay_max=dmax / w_ref,
                      zeta_min=zeta_min, diagnostics=found)
 
 
@@ -446,6 +493,23 @@ def _after_fit(model, data, stats, delay_max):
     else:
         found += check_minimum_phase(model, data, stats.max, stats.rms)
     return found
+
+
+def _success(last, stats):
+    """``(success, message)`` of a fit from its last stage record and its error."""
+    if not stats.rms < 1.0:
+        return False, (f"RMS relative error {stats.rms:.3g} >= 1: no better than an "
+                       "infinite-gain model (a stationary point at infinity); try "
+                       "start='rational', another structure or fewer sections")
+    if last.success:
+        return True, last.message or "converged"
+    return False, (f"the final stage did not converge: {last.message or last.solver_status}"
+                   f" (stage {last.stage}, {last.nit} iterations)")
+
+
+def _unscale_record(rec, w_ref):
+    """A stage record of the scaled problem in the user's units (rad/s, s)."""
+    return dataclasses.replace(rec, omega_c=rec.omega_c * w_ref, delay=rec.delay / w_ref)
 
 
 def _progress_callback(progress):

@@ -146,6 +146,12 @@ class IpoptOptions:
     final_max_iter : int >= 1
         Iteration limit of the final all-data stage (whose status is ``success``), of the
         rational start's polish and of each p-norm stage of the minimax polish.
+    ftol : float >= 0
+        Tolerance of the scale-free stationarity test checked after every IPOPT iteration
+        (:class:`~freqid_casadi.solvers.termination.Termination`): a stage stops when the
+        Gauss-Newton model promises a relative cost decrease of at most ``ftol`` (raised to
+        the rounding level at machine precision). ``0`` turns the test (and its LM polish)
+        off: IPOPT's own ``tol`` only, the behaviour before issue 14.
     ipopt : mapping of str to str, int or float, optional
         Extra IPOPT options (e.g. ``{"tol": 1e-12}``), applied over the package's. Stored
         as a sorted tuple of ``(name, value)`` pairs (read-only, hashable, picklable);
@@ -157,6 +163,7 @@ class IpoptOptions:
     max_iter: int = 100
     final_max_iter: int = 200
     ipopt: tuple = ()
+    ftol: float = 1e-12
 
     method = "ipopt"
 
@@ -164,6 +171,7 @@ class IpoptOptions:
         owner = type(self).__name__
         _choice(owner, "hessian", self.hessian, HESSIANS)
         _stage_limits(owner, self)
+        _real(owner, "ftol", self.ftol, low=0.0, strict=False)
         items = self.ipopt.items() if hasattr(self.ipopt, "items") else self.ipopt
         try:
             pairs = tuple(sorted((k, v) for k, v in items))

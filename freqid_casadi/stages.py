@@ -64,6 +64,7 @@ class StageKind(_ValueEnum):
     FINAL = "final"                      #: the last stage on all data (and the polish)
     RATIONAL_START = "rational-start"    #: the vector-fitting start (no solve)
     MINIMAX = "minimax"                  #: the p-norm continuation of the minimax polish
+    ZERO_DELAY = "zero-delay"            #: the same model at h = 0, polished (a candidate)
 
 
 @dataclass(frozen=True)
@@ -107,6 +108,9 @@ class StageRecord:
         IPOPT's own work. Empty for other solvers.
     kind : StageKind
         "gain-delay" (stage 0), "section", "final", "rational-start" or "minimax".
+    message : str
+        The stage solver's message: why it stopped, and for IPOPT the termination test's
+        numbers (:class:`~freqid_casadi.solvers.termination.StageMonitor`).
     """
 
     stage: int
@@ -128,6 +132,7 @@ class StageRecord:
     n_active: int
     timing: dict = field(default_factory=dict)
     kind: StageKind = StageKind.SECTION
+    message: str = ""
 
     def as_dict(self):
         """JSON-ready dict of the fields (enums as their names/values)."""
@@ -201,7 +206,17 @@ def stage_record(stage, param, z, data, window, omega_c, res, nit, nfev, wall, k
                        delay=float(param.to_beta(z)[0]),
                        n_active=int(np.count_nonzero(res.active_mask)),
                        timing=solver_timing([res]) if timing is None else timing,
-                       kind=StageKind(kind))
+                       kind=StageKind(kind), message=str(res.message))
+
+
+def _termination(ftol):
+    """The stages' :class:`~freqid_casadi.solvers.termination.Termination` for
+    ``IpoptOptions.ftol`` (0: the test and its polish off)."""
+    from .solvers.termination import Termination
+
+    if ftol > 0:
+        return Termination(ftol=float(ftol))
+    return Termination(ftol=0.0, noise_factor=0.0, polish_steps=0)
 
 
 class StageSolver:
@@ -240,7 +255,8 @@ class StageSolver:
             res = solve_stage(problem, np.clip(np.asarray(x0, float), lb, ub), lam_x0=lam0,
                               hessian=opts.hessian, max_iter=max_iter or opts.max_iter,
                               warm_start=opts.warm_start != "none",
-                              ipopt_options=opts.ipopt_dict())
+                              ipopt_options=opts.ipopt_dict(),
+                              termination=_termination(opts.ftol))
             if cons is not None:
                 # IPOPT meets g >= 0 to its tolerance; make the floor exact
                 res = dataclasses.replace(res, x=param.project_damping(res.x, self.zeta_min))

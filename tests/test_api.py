@@ -192,10 +192,11 @@ def test_no_star_imports():
 LAYERS = {
     "errors": 0, "_cplx": 0, "_io": 0, "_outputs": 0, "_interrupt": 0, "_model_json": 0,
     "data": 1, "experiment": 1, "model": 1, "systems": 1, "options": 1, "metrics": 1,
+    "scaling": 1,
     "objective": 2, "resolution": 2, "gauges": 2, "derivatives": 2,
     "solvers": 3,
     "stages": 4, "start": 4, "baselines": 4, "uncertainty": 4, "_weight": 4, "mainloop": 4,
-    "diagnostics": 4,
+    "diagnostics": 4, "candidates": 4,
     "fit": 5, "validation": 5, "sweep": 5, "batch": 5,
     "report": 6, "summary": 6, "plots": 6,
     "cli": 7, "__main__": 7, "cli_frf": 7, "cli_batch": 7,

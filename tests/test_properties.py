@@ -141,10 +141,6 @@ def test_fit_recovers_an_exact_one_section_model():
     assert res.model.is_stable() and res.model.is_minimum_phase()
 
 
-@pytest.mark.xfail(strict=True, reason="the final stage of this exact fit stops at IPOPT's "
-                   "iteration limit (measured: max rel. error 2.6e-11 after 200 iterations): "
-                   "the true section has double real roots (zeta = 1), where the section's "
-                   "parametrization is singular and convergence is only linear")
 def test_exact_one_section_fit_converges():
     beta = [0.0, 1.0, 1.0, 1.0, 2.0, 1.0, 1.0, 1.0]
     model = fc.RationalDelayModel(fc.Structure(1, False, True), beta)

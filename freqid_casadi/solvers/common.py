@@ -31,6 +31,7 @@ class Status(enum.IntEnum):
     MAX_ITER = 2              #: iteration or evaluation limit reached
     SMALL_STEP = 3            #: steps became too small to make progress
     COST_TOL = 4              #: the cost fell below its tolerance
+    STALLED = 5               #: the cost stopped decreasing (relative), not stationary
 
 
 TERMINATION_MESSAGES = {
@@ -41,6 +42,8 @@ TERMINATION_MESSAGES = {
     Status.MAX_ITER: "iteration limit reached",
     Status.SMALL_STEP: "stopped: step smaller than the step tolerance",
     Status.COST_TOL: "converged: cost below its tolerance",
+    Status.STALLED: "stopped: the cost fell by less than its relative tolerance over the "
+                    "last iterations, at a point that is not stationary",
 }
 
 #: The statuses that count as success (:func:`is_success`), for every stage solver.
@@ -148,6 +151,9 @@ class StageProblem:
     casadi_residual : casadi.Function, optional
         ``r`` as a CasADi Function: IPOPT then builds its objective from it; else the
         objective is a callback of ``cost``.
+    column_norms : callable ``column_norms(z) -> ndarray shape (n,)``, optional
+        ``||J_j||`` (cheap to give: the termination test asks for it after every
+        iteration); default from ``jacobian``.
     """
 
     residual: object
@@ -159,6 +165,7 @@ class StageProblem:
     cost: object = None
     constraints: object = None
     casadi_residual: object = None
+    column_norms: object = None
 
     def __post_init__(self):
         for name in ("residual", "jacobian"):
@@ -189,6 +196,12 @@ class StageProblem:
         r = np.asarray(self.residual(z), float)
         return float(r @ r), 2.0 * np.asarray(self.jacobian(z), float).T @ r
 
+    def eval_column_norms(self, z):
+        """``||J_j||`` at ``z``, ndarray (n,)."""
+        if self.column_norms is not None:
+            return np.asarray(self.column_norms(z), float)
+        return np.linalg.norm(np.asarray(self.jacobian(z), float), axis=0)
+
     def eval_hessian(self, z, exact=True):
         """Hessian of the cost at ``z`` (Gauss-Newton when no ``hessian`` was given)."""
         if self.hessian is not None:
@@ -205,7 +218,8 @@ class StageProblem:
                    lb=lb, ub=ub, gradient=funcs.gradient,
                    hessian=lambda z, exact=True: funcs.hessian(z, exact=exact),
                    cost=funcs.cost, constraints=constraints,
-                   casadi_residual=getattr(funcs, "r_fun", None))
+                   casadi_residual=getattr(funcs, "r_fun", None),
+                   column_norms=getattr(funcs, "column_norms", None))
 
 
 @dataclass(frozen=True)

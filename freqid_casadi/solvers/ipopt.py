@@ -19,6 +19,7 @@ from ..options import HESSIANS
 from ._callbacks import _Cost, _GradF, _Hess
 from .common import (StageProblem, StageResult, Status, TERMINATION_MESSAGES, check_start,
                      find_active_constraints, is_success)
+from .termination import StageMonitor, Termination, iteration_callback
 
 __all__ = ["HESSIANS", "solve_stage", "solve_least_squares", "solve_pnorm", "ipopt_status",
            "run_nlpsol", "base_options"]
@@ -33,6 +34,7 @@ _IPOPT_STATUS = {
     "Feasible_Point_Found": Status.ACCEPTABLE,
     "Invalid_Number_Detected": Status.ERROR,
     "NonIpopt_Exception_Thrown": Status.ERROR,
+    "User_Requested_Stop": Status.STALLED,       # our iteration callback stopped it
 }
 
 
@@ -75,7 +77,7 @@ def solve_least_squares(funcs, x0, lb, ub, *, constraints=None, **options):
 
 
 def solve_stage(problem, x0, *, lam_x0=None, hessian="exact", max_iter=3000, tol=1e-12,
-                warm_start=True, ipopt_options=None, verbose=False):
+                warm_start=True, ipopt_options=None, verbose=False, termination=None):
     """Minimise ``||r(z)||^2`` subject to ``lb <= z <= ub`` (and ``g(z) >= 0``) with IPOPT.
 
     Parameters
@@ -105,12 +107,20 @@ def solve_stage(problem, x0, *, lam_x0=None, hessian="exact", max_iter=3000, tol
         Extra IPOPT options (without the ``ipopt.`` prefix); they override the defaults.
     verbose : bool
         Let IPOPT print its iteration log.
+    termination : Termination, optional
+        The scale-free test (:mod:`~freqid_casadi.solvers.termination`) checked after
+        every IPOPT iteration and at the returned point; default ``Termination()``.
+        ``max_iter`` is then a safety net: IPOPT's own ``tol`` applies to the objective
+        scaled by its start value, which the gradient's rounding noise exceeds once the
+        cost has fallen by many orders.
 
     Returns
     -------
     StageResult
         ``x`` is projected onto the bounds exactly (IPOPT's bound relaxation can leave
         e.g. a damping at -1e-9, a right-half-plane root), and ``cost`` is evaluated there.
+        ``success`` is True when IPOPT converged or the point passes the termination test
+        (after a short LM polish if needed); ``message`` says which.
 
     Raises
     ------
@@ -140,6 +150,12 @@ def solve_stage(problem, x0, *, lam_x0=None, hessian="exact", max_iter=3000, tol
     opts = base_options(max_iter, tol, verbose)
     opts["ipopt"].update({"acceptable_tol": 1e-8, "acceptable_iter": 30})
     opts["grad_f"] = keep[0]
+    monitor = StageMonitor(problem, termination or Termination())
+    if monitor.stationary(x0)[0]:
+        # already at a (relative) optimum: IPOPT's pushes off the bounds would only move it
+        return monitor.at_start(x0, lam_x0, t0)
+    keep.append(iteration_callback(monitor, n, 0 if "g" not in nlp else int(nlp["g"].numel())))
+    opts["iteration_callback"] = keep[-1]
     if hessian == "limited-memory":
         opts["ipopt"]["hessian_approximation"] = "limited-memory"
     else:
@@ -167,6 +183,7 @@ def solve_stage(problem, x0, *, lam_x0=None, hessian="exact", max_iter=3000, tol
     res, stats, t_build, t_solve = run_nlpsol(
         "stage", nlp, opts, x0, lb, ub, constrained=problem.constraints is not None,
         lam_x0=lam_x0 if use_warm else None, cost_of=problem.eval_cost, keep=keep, t0=t0)
+    res = monitor.decide(res)
     return dataclasses.replace(res, extra={
         "t_build": t_build, "t_solve": t_solve,
         **{f"t_{k}": float(stats.get(f"t_wall_nlp_{k}", 0.0) or 0.0)

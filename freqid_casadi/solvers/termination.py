@@ -1,0 +1,324 @@
+"""Scale-free termination of a least-squares stage (layer L3).
+
+IPOPT's tolerances are absolute on its scaled NLP, whose objective scale is fixed at the
+stage's start (the cost there). On exact data the cost falls by 10..20 orders within a
+stage; the scaled gradient is then dominated by rounding noise, IPOPT's ``tol`` cannot be
+met and every such stage ran to its iteration limit (measured: /work/notes/convergence.md).
+:class:`StageMonitor` checks a test that is invariant to the scale of the residuals and of
+the variables after every IPOPT iteration (a CasADi ``iteration_callback``) and once more
+at the returned point, where a point that fails it gets a short Levenberg-Marquardt polish
+(:func:`~freqid_casadi.solvers.lm_polish.lm_polish`).
+"""
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from .common import Status, TERMINATION_MESSAGES
+
+__all__ = ["Termination", "StageMonitor", "free_variables", "relative_stationarity",
+           "projected_fraction"]
+
+EPS = float(np.finfo(float).eps)
+
+
+@dataclass(frozen=True)
+class Termination:
+    """The stage's termination test.
+
+    A point is *stationary* when the Gauss-Newton model cannot lower the cost by more than
+    the fraction ``ftol``: ``||P r||^2 / ||r||^2 <= ftol``, ``P`` the projection onto the
+    span of the Jacobian's columns of the free variables (those not held at a bound by the
+    gradient). A cheap necessary condition is checked first at every iteration:
+    ``max_j cos_j <= sqrt(ftol)``, ``cos_j = |J_j^T r| / (||J_j|| ||r||)`` (MINPACK's
+    ``gtol`` measure). Both thresholds are raised by ``noise / rms(r)``, the rounding level
+    of a relative residual (``noise_factor * eps * n``, n variables): an exact fit at
+    machine precision is stationary.
+
+    The stage is *stalled* when the cost fell by less than ``stall_ftol`` (relative) over
+    the last ``stall_window`` iterations without being stationary (0: no stall test).
+
+    Parameters
+    ----------
+    ftol : float
+        Largest relative cost decrease the linearised model may still promise.
+    noise_factor : float
+        Multiplier of the rounding-noise model.
+    stall_window : int
+        Iterations over which the stall test measures the decrease (0: off).
+    stall_ftol : float
+        Relative decrease over ``stall_window`` iterations below which the stage stops.
+    rcond : float
+        Relative singular-value cutoff of the column-scaled Jacobian in ``P``.
+    polish_steps : int
+        Largest number of LM steps tried at a point that fails the test (0: none).
+    """
+
+    ftol: float = 1e-12
+    noise_factor: float = 10.0
+    stall_window: int = 0
+    stall_ftol: float = 0.0
+    rcond: float = 1e-10
+    polish_steps: int = 10
+
+
+def free_variables(grad, x, lb, ub, col_norms, norm_r, tol=1e-4):
+    """Mask of the variables not held at a bound.
+
+    A variable is held when the gradient points out of the box at its bound and moving
+    it onto the bound would change the residual by at most ``tol * norm_r`` (to first
+    order, ``col_norms * distance``).
+
+    Parameters
+    ----------
+    grad, x, lb, ub, col_norms : ndarray of float, shape (n,)
+    norm_r : float
+        ``||r||``.
+    tol : float
+
+    Returns
+    -------
+    ndarray of bool, shape (n,)
+    """
+    big = tol * norm_r
+    at_lb = (col_norms * (x - lb) <= big) & (grad > 0)
+    at_ub = (col_norms * (ub - x) <= big) & (grad < 0)
+    return ~(at_lb | at_ub) & (lb < ub)
+
+
+def relative_stationarity(grad, col_norms, cost, free, n_points, n_factors):
+    """``(max cos_j, noise / rms)`` over the ``free`` variables (see :class:`Termination`).
+
+    Parameters
+    ----------
+    grad : ndarray (n,)
+        ``2 J^T r``.
+    col_norms : ndarray (n,)
+        ``||J_j||``.
+    cost : float
+        ``||r||^2``.
+    free : ndarray of bool (n,)
+    n_points : int
+        Number of (complex) residuals.
+    n_factors : int
+        Size of the rounding model (rounding level ``eps * n_factors``).
+
+    Returns
+    -------
+    (float, float)
+    """
+    grad = np.asarray(grad, float)
+    use = free & (col_norms > 0)
+    norm_r = np.sqrt(max(cost, 0.0))
+    if not np.any(use) or norm_r == 0.0:
+        return 0.0, np.inf
+    cos = np.abs(grad[use]) / (2.0 * col_norms[use] * norm_r)
+    rms = norm_r / np.sqrt(max(n_points, 1))
+    return float(np.max(cos)), float(EPS * n_factors / rms)
+
+
+def projected_fraction(r, jac, free, rcond=1e-10):
+    """``||P r|| / ||r||``: the part of the residual the linearised model can remove.
+
+    Parameters
+    ----------
+    r : ndarray (m,)
+    jac : ndarray (m, n)
+    free : ndarray of bool (n,)
+    rcond : float
+        Singular values of the unit-column Jacobian below ``rcond`` times the largest are
+        dropped.
+
+    Returns
+    -------
+    float
+    """
+    r = np.asarray(r, float)
+    nr = float(np.linalg.norm(r))
+    if nr == 0.0 or not np.any(free):
+        return 0.0
+    a = jac[:, free]
+    cn = np.linalg.norm(a, axis=0)
+    a = a[:, cn > 0] / cn[cn > 0]
+    if a.shape[1] == 0:
+        return 0.0
+    u, sv, _ = np.linalg.svd(a, full_matrices=False)
+    u = u[:, sv > rcond * sv[0]]
+    return float(np.linalg.norm(u.T @ r)) / nr
+
+
+class StageMonitor:
+    """The :class:`Termination` test of one stage problem.
+
+    Parameters
+    ----------
+    problem : StageProblem
+    term : Termination
+    """
+
+    def __init__(self, problem, term):
+        self.problem, self.term = problem, term
+        self.history = []
+        self.reason = None
+        self.n_points = None         # complex residuals, from the first residual evaluated
+        self.cos = self.allowed = self.proj = float("nan")
+
+    def stationary(self, x):
+        """(stationary?, cost) at ``x``: the cheap cosine test, then the projection."""
+        pb = self.problem
+        x = np.clip(np.asarray(x, float), pb.lb, pb.ub)
+        cost, grad = pb.eval_gradient(x)
+        if not np.isfinite(cost):
+            return False, cost
+        cn = pb.eval_column_norms(x)
+        norm_r = float(np.sqrt(max(cost, 0.0)))
+        # held: putting it onto its bound changes the cost by at most ftol (relative)
+        free = free_variables(grad, x, pb.lb, pb.ub, cn, norm_r, 0.5 * self.term.ftol)
+        if self.n_points is None:
+            self.n_points = max(np.asarray(pb.residual(x), float).size // 2, 1)
+        n_points = self.n_points
+        cmax, noise = relative_stationarity(grad, cn, cost, free, n_points, pb.n)
+        noise *= self.term.noise_factor
+        self.cos, self.allowed = cmax, np.sqrt(self.term.ftol) + noise
+        if cmax > self.allowed:
+            return False, cost
+        r = np.asarray(pb.residual(x), float)
+        jac = np.asarray(pb.jacobian(x), float)
+        self.proj = projected_fraction(r, jac, free, self.term.rcond)
+        return self.proj ** 2 <= self.term.ftol + noise, cost
+
+    def check(self, x):
+        """After an iteration at ``x``: True to stop (stationary or stalled)."""
+        ok, cost = self.stationary(x)
+        if ok:
+            self.reason = "stationary"
+            return True
+        self.history.append(cost)
+        w = self.term.stall_window
+        if w and len(self.history) > w:
+            old = self.history[-w - 1]
+            if old - self.history[-1] <= self.term.stall_ftol * old:
+                self.reason = "stalled"
+                return True
+        return False
+
+    def at_start(self, x0, lam_x0, t0):
+        """The result of a stage whose start ``x0`` passes the test (no solve).
+
+        Parameters
+        ----------
+        x0 : ndarray (n,)
+        lam_x0 : ndarray (n,) or None
+            Bound multipliers of the start (kept).
+        t0 : float
+            ``time.perf_counter()`` at the start of the stage.
+
+        Returns
+        -------
+        StageResult
+        """
+        import time
+
+        from .common import StageResult, find_active_constraints
+
+        pb = self.problem
+        x = np.clip(np.asarray(x0, float), pb.lb, pb.ub)
+        lam = np.zeros_like(x) if lam_x0 is None else np.asarray(lam_x0, float).copy()
+        test = (f"max cos(r, J_j) {self.cos:.2g} (allowed {self.allowed:.2g}), "
+                f"||P r||/||r|| {self.proj:.2g}")
+        return StageResult(x=x, cost=pb.eval_cost(x), status=Status.CONVERGED,
+                           message=f"converged: the start is stationary ({test})",
+                           success=True, nit=0, nfev=1, wall_time=time.perf_counter() - t0,
+                           active_mask=find_active_constraints(x, pb.lb, pb.ub, rtol=1e-8),
+                           lam_x=lam, solver_status="start stationary")
+
+    def decide(self, res):
+        """``res`` with the status, success and message of the test at its point, after an
+        LM polish (:func:`~.lm_polish.lm_polish`) if the point fails the test.
+
+        Parameters
+        ----------
+        res : StageResult
+
+        Returns
+        -------
+        StageResult
+        """
+        if res.status == Status.ERROR:
+            return res
+        ok, _ = self.stationary(res.x)
+        # (the polish keeps only the bounds: not with constraints such as a damping floor)
+        if not ok and self.term.polish_steps and self.problem.constraints is None:
+            from .lm_polish import lm_polish
+
+            x, steps = lm_polish(self.problem, res.x, lambda v: self.stationary(v)[0],
+                                 max_steps=self.term.polish_steps)
+            if steps:
+                res = dataclasses.replace(res, x=x, cost=self.problem.eval_cost(x),
+                                          nit=res.nit + steps)
+                ok, _ = self.stationary(x)
+        ipopt_ok = res.status in (Status.CONVERGED, Status.ACCEPTABLE)
+        test = (f"max cos(r, J_j) {self.cos:.2g} (allowed {self.allowed:.2g}), "
+                f"||P r||/||r|| {self.proj:.2g}")
+        if ok or ipopt_ok:
+            status = res.status if ipopt_ok else Status.CONVERGED
+            how = "relative stationarity" if ok else "IPOPT's tolerance"
+            msg = f"converged ({how}: {test}; {res.solver_status})"
+            return dataclasses.replace(res, status=status, success=True, message=msg)
+        status = Status.STALLED if self.reason == "stalled" else res.status
+        if status in (Status.CONVERGED, Status.ACCEPTABLE, Status.COST_TOL):
+            status = Status.SMALL_STEP
+        msg = (f"{TERMINATION_MESSAGES[status]}; not stationary ({test}; "
+               f"{res.solver_status})")
+        return dataclasses.replace(res, status=status, success=False, message=msg)
+
+
+def iteration_callback(monitor, n, ng):
+    """A CasADi ``iteration_callback`` running ``monitor.check`` after every IPOPT
+    iteration (a nonzero return stops IPOPT with ``User_Requested_Stop``).
+
+    Parameters
+    ----------
+    monitor : StageMonitor
+    n, ng : int
+        Numbers of variables and constraints of the NLP.
+
+    Returns
+    -------
+    casadi.Callback
+    """
+    import casadi as ca
+
+    class IterCB(ca.Callback):
+        def __init__(self):
+            ca.Callback.__init__(self)
+            self.construct("iteration_monitor", {})
+
+        def get_n_in(self):
+            return ca.nlpsol_n_out()
+
+        def get_n_out(self):
+            return 1
+
+        def get_name_in(self, i):
+            return ca.nlpsol_out(i)
+
+        def get_name_out(self, i):
+            return "ret"
+
+        def get_sparsity_in(self, i):
+            name = ca.nlpsol_out(i)
+            if name == "f":
+                return ca.Sparsity.scalar()
+            if name in ("x", "lam_x"):
+                return ca.Sparsity.dense(n)
+            if name in ("g", "lam_g"):
+                return ca.Sparsity.dense(ng)
+            return ca.Sparsity(0, 0)
+
+        def eval(self, arg):
+            x = np.array(arg[0].full(), float).reshape(-1)
+            return [1 if monitor.check(x) else 0]
+
+    return IterCB()
