@@ -102,7 +102,7 @@ def low_frequency_phase(data, integrator):
     g = data.response[:m]
     if integrator:
         g = g * 1j * data.omega[:m]
-    unit = g / np.abs(g)
+    unit = np.exp(1j * np.angle(g))       # no division: subnormal or huge responses
     return float(np.angle(np.mean(unit)))
 
 

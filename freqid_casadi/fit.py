@@ -423,8 +423,8 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                                    model.beta)
     records = [unscaled[id(r)][1] if id(r) in unscaled else _unscale_record(r, w_ref)
                for r in records]
-    data = user_data
-    stats = relative_error(model, data)
+    data = user_data       # stats stay those of the scaled problem (the same numbers, and
+                           # no overflow of the model at the user's extreme omega)
     final = [r for r in records if r.kept != Kept.MINIMAX_REJECTED
              and r.kind != StageKind.RATIONAL_START] or records
     # first-order sections have real roots, never narrow: nothing to check
@@ -439,7 +439,8 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
             "damping floor from the frequency spacing), remove them with "
             "freqid_casadi.validation.prune_sections, or fit fewer sections",
             ResolutionWarning, stacklevel=4)
-    found += _after_fit(model, data, stats, dmax / w_ref)
+    with np.errstate(all="ignore"):     # extreme user scales: a check may give up, not warn
+        found += _after_fit(model, data, stats, dmax / w_ref)
     success, message = _success(final[-1], stats)
     errors_found = [d for d in found if d.severity == "error"]
     if success and errors_found:

@@ -53,7 +53,6 @@ from freqid_casadi.model import RationalDelayModel, Structure, _quad_roots  # no
 
 ROOT = Path(__file__).resolve().parents[1]
 MARKER = _outputs.MARKER
-SCALING = pytest.mark.xfail(strict=False, reason="internal scaling lands with branch conv")
 
 # a small known plant: one lightly damped section, delay 0.01 s, 40 points, 0.1..100 rad/s
 _OMEGA = np.logspace(-1, 2, 40)
@@ -522,7 +521,7 @@ def test_sigterm_while_writing_keeps_the_old_report(ws, capsys, monkeypatch, no_
 
 
 def test_ctrl_c_stops_an_api_fit_between_ipopt_iterations():
-    data = fc.systems.G_A()
+    data = fc.systems.G_C()            # a long fit (27 sections): the signal comes mid-fit
     main = threading.main_thread().ident
     sent = []
 
@@ -530,11 +529,11 @@ def test_ctrl_c_stops_an_api_fit_between_ipopt_iterations():
         sent.append(time.monotonic())
         signal.pthread_kill(main, signal.SIGINT)
 
-    timer = threading.Timer(1.5, interrupt)
+    timer = threading.Timer(1.0, interrupt)
     timer.start()
     try:
         with pytest.raises(KeyboardInterrupt):
-            fc.fit(data, n_sections=17, integrator=True)
+            fc.fit(data, n_sections=27, integrator=True)
     finally:
         timer.cancel()
     assert sent and time.monotonic() - sent[0] < 10
@@ -1022,7 +1021,6 @@ def test_frf_huge_fs_warns_nothing(tmp_path):
 # ----------------------------------------------------------------------------- finite
 
 
-@SCALING
 @pytest.mark.parametrize("omega_scale, response_scale", [
     pytest.param(1e150, 1.0, id="omega-1e150"),
     pytest.param(1e-150, 1.0, id="omega-1e-150"),

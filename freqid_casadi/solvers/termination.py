@@ -15,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .. import _interrupt
 from .common import Status, TERMINATION_MESSAGES
 
 __all__ = ["Termination", "StageMonitor", "free_variables", "relative_stationarity",
@@ -319,6 +320,7 @@ def iteration_callback(monitor, n, ng):
 
         def eval(self, arg):
             x = np.array(arg[0].full(), float).reshape(-1)
-            return [1 if monitor.check(x) else 0]
+            # a signal (Ctrl-C, SIGTERM) stops IPOPT too: _interrupt.guard raises after it
+            return [1 if _interrupt.requested() or monitor.check(x) else 0]
 
     return IterCB()
