@@ -163,6 +163,13 @@ def _add_model_arguments(p, tol=True):
                        help="stop adding sections once the max relative error is below X")
 
 
+def _add_input(p, name, metavar, text):
+    """The positional data input ``name`` and the data-file options (``--freq-unit``,
+    ``--columns``) of a command that reads data (fit, sweep, batch)."""
+    p.add_argument(name, metavar=metavar, help=text)
+    add_data_options(p)
+
+
 def _add_example(sub):
     p = sub.add_parser("example", help="fit a built-in example at the thesis's order",
                        description="Fit one of the thesis's examples (A, B, C: beams and "
@@ -182,8 +189,7 @@ def _add_fit(sub):
                        description="Fit G_N(s) = exp(-hs) K [1/s] P_N(s) to data read from "
                                    "a CSV (omega,real,imag or omega,magnitude_db,phase_deg) "
                                    "or .npz file and write a report folder.")
-    p.add_argument("file", metavar="FILE", help="data file (.csv or .npz)")
-    add_data_options(p)
+    _add_input(p, "file", "FILE", "data file (.csv or .npz)")
     p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
                    help="number of sections N >= 1")
     _add_model_arguments(p)
@@ -333,10 +339,9 @@ def _add_sweep(sub):
                        description="Fit the data at each order of P_N and write a table "
                                    "(sweep.md, sweep.csv, sweep.json) and a figure of "
                                    "order vs max relative error, delay and time.")
-    p.add_argument("file", metavar="FILE",
-                   help="data file (.csv or .npz), or example:A (B, C) for a built-in "
-                        "example (then the error on a 10x denser grid is reported too)")
-    add_data_options(p)
+    _add_input(p, "file", "FILE", "data file (.csv or .npz), or example:A (B, C) for a "
+                                  "built-in example (then the error on a 10x denser grid "
+                                  "is reported too)")
     p.add_argument("--orders", required=True, metavar="START:STOP:STEP",
                    help="orders of P_N, e.g. 4:40:2 (stop included) or 10,20,34")
     p.add_argument("--target", type=_positive_float, metavar="X",
