@@ -314,13 +314,18 @@ def polish(par, omega, response, weights, theta0=None, max_nfev=200):
     Parameters
     ----------
     par : Parametrization
+        The model in physical parameters (:func:`parametrize`); its slots at their bound
+        (``par.at_bound``) stay fixed.
     omega : ndarray of float, shape (M,)
-        rad/s.
+        Data frequencies, rad/s.
     response : ndarray of complex, shape (M,)
+        Measured response at ``omega``.
     weights : ndarray of float, shape (M,)
+        Weight of each point's squared relative error ``|response / G(j omega) - 1|^2``.
     theta0 : ndarray of float, shape (P,), optional
         Start (default ``par.theta``).
     max_nfev : int
+        Most residual evaluations of scipy ``least_squares`` (default 200).
 
     Returns
     -------

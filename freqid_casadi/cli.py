@@ -107,17 +107,33 @@ def _positive_float(text):
 # ----------------------------------------------------------------------------- parser
 
 
+#: --flag -> (choices, default, help) of the fit's options that take one of a set of words
+_CHOICE_OPTIONS = {
+    "--method": (METHODS, "ipopt", "stage solver: IPOPT with bounds (default) or the thesis's "
+                                   "log-barrier Levenberg-Marquardt"),
+    "--start": (STARTS, "sequential", "sequential: the thesis's main loop (default); rational: "
+                                      "vector fitting of all sections then one IPOPT polish; "
+                                      "best: both, the lower max error wins"),
+    "--objective": (OBJECTIVES, "least-squares", "minimax adds a polish of the max relative "
+                                                 "error (kept only if it lowers it)"),
+    "--gain-sign": (GAIN_SIGNS, "auto", "sign of the gain (default auto: from the "
+                                        "low-frequency phase; a sign-inverted system is "
+                                        "fitted with a negative gain and said so)"),
+    "--zeros": (ZEROS, "minimum-phase", "minimum-phase (default) or free: zeros anywhere, "
+                                        "poles stable (for excess phase a delay cannot "
+                                        "explain)"),
+}
+
+
+def _add_choices(p, *flags):
+    """Add the options ``flags`` of :data:`_CHOICE_OPTIONS` to ``p``, in that order."""
+    for flag in flags:
+        choices, default, text = _CHOICE_OPTIONS[flag]
+        p.add_argument(flag, choices=choices, default=default, help=text)
+
+
 def _common(p, *, out_required):
-    p.add_argument("--method", choices=METHODS, default="ipopt",
-                   help="stage solver: IPOPT with bounds (default) or the thesis's "
-                        "log-barrier Levenberg-Marquardt")
-    p.add_argument("--start", choices=STARTS, default="sequential",
-                   help="sequential: the thesis's main loop (default); rational: vector "
-                        "fitting of all sections then one IPOPT polish; best: both, the "
-                        "lower max error wins")
-    p.add_argument("--objective", choices=OBJECTIVES, default="least-squares",
-                   help="minimax adds a polish of the max relative error (kept only if "
-                        "it lowers it)")
+    _add_choices(p, "--method", "--start", "--objective")
     if out_required:
         p.add_argument("--out", required=True, metavar="DIR",
                        help="report folder to create (must not exist unless --force)")
@@ -147,6 +163,13 @@ def _add_model_arguments(p, tol=True):
                        help="stop adding sections once the max relative error is below X")
 
 
+def _add_input(p, name, metavar, text):
+    """The positional data input ``name`` and the data-file options (``--freq-unit``,
+    ``--columns``) of a command that reads data (fit, sweep, batch)."""
+    p.add_argument(name, metavar=metavar, help=text)
+    add_data_options(p)
+
+
 def _add_example(sub):
     p = sub.add_parser("example", help="fit a built-in example at the thesis's order",
                        description="Fit one of the thesis's examples (A, B, C: beams and "
@@ -166,17 +189,11 @@ def _add_fit(sub):
                        description="Fit G_N(s) = exp(-hs) K [1/s] P_N(s) to data read from "
                                    "a CSV (omega,real,imag or omega,magnitude_db,phase_deg) "
                                    "or .npz file and write a report folder.")
-    p.add_argument("file", metavar="FILE", help="data file (.csv or .npz)")
-    add_data_options(p)
+    _add_input(p, "file", "FILE", "data file (.csv or .npz)")
     p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
                    help="number of sections N >= 1")
     _add_model_arguments(p)
-    p.add_argument("--gain-sign", choices=GAIN_SIGNS, default="auto",
-                   help="sign of the gain (default auto: from the low-frequency phase; a "
-                        "sign-inverted system is fitted with a negative gain and said so)")
-    p.add_argument("--zeros", choices=ZEROS, default="minimum-phase",
-                   help="minimum-phase (default) or free: zeros anywhere, poles stable (for "
-                        "excess phase a delay cannot explain)")
+    _add_choices(p, "--gain-sign", "--zeros")
     p.add_argument("--min-damping", type=_min_damping, metavar="auto|ZETA",
                    help="floor on the damping ratio of every pole and zero; 'auto' ties it "
                         "to the frequency spacing (for noisy data: no pole/zero pair "
@@ -322,10 +339,9 @@ def _add_sweep(sub):
                        description="Fit the data at each order of P_N and write a table "
                                    "(sweep.md, sweep.csv, sweep.json) and a figure of "
                                    "order vs max relative error, delay and time.")
-    p.add_argument("file", metavar="FILE",
-                   help="data file (.csv or .npz), or example:A (B, C) for a built-in "
-                        "example (then the error on a 10x denser grid is reported too)")
-    add_data_options(p)
+    _add_input(p, "file", "FILE", "data file (.csv or .npz), or example:A (B, C) for a "
+                                  "built-in example (then the error on a 10x denser grid "
+                                  "is reported too)")
     p.add_argument("--orders", required=True, metavar="START:STOP:STEP",
                    help="orders of P_N, e.g. 4:40:2 (stop included) or 10,20,34")
     p.add_argument("--target", type=_positive_float, metavar="X",

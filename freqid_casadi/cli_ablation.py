@@ -61,9 +61,11 @@ def run_cli(args, command):
     Parameters
     ----------
     args : argparse.Namespace
-        The parsed arguments.
+        The parsed ``freqid ablation`` arguments (``examples``, ``quick``, ``out``,
+        ``force``, ``quiet``, ``report_command``).
     command : str
-        The command line, written as the report's first line.
+        The command line, written as the first line of ``report.md`` (unless
+        ``--report-command`` names another).
     """
     from .studies import ablation, ablation_report
 

@@ -26,10 +26,10 @@ import os
 import stat
 import warnings
 
-from .cli_common import add_data_options, load_options, notes_to_stderr
+from .cli_common import load_options, notes_to_stderr
 from ._io import atomic_write_text, csv_row, one_line
 from .batch import fit_many
-from .cli import _add_model_arguments, _positive_int   # the CLI's own helpers
+from .cli import _add_input, _add_model_arguments, _positive_int   # the CLI's own helpers
 from ._outputs import MARKER
 from .errors import DataError
 from .fit import METHODS
@@ -54,8 +54,7 @@ def add_cli(subparsers):
         description="Fit G_N(s) = exp(-hs) K [1/s] P_N(s) to every .csv and .npz file in a "
                     "folder with the same options, in parallel processes (--jobs) or on a "
                     "Dask cluster (--scheduler), and write per-file models and a summary.")
-    p.add_argument("folder", metavar="DIR", help="folder of data files (.csv, .npz)")
-    add_data_options(p)
+    _add_input(p, "folder", "DIR", "folder of data files (.csv, .npz)")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="output folder to create (must not exist unless --force)")
     p.add_argument("--sections", type=_positive_int, required=True, metavar="N",

@@ -25,7 +25,6 @@ them. Errors are raised as :class:`~freqid_casadi.errors.FreqidError` for the ca
 print as ``error: ...``.
 """
 
-import argparse
 import math
 import os
 
@@ -34,6 +33,7 @@ import numpy as np
 from ._outputs import check_out_file
 
 from ._io import atomic_write_text
+from .cli import _checked   # the CLI's own argument-type helper
 from .errors import OptionError
 from .experiment import (ESTIMATORS, frf_from_periodic, frf_from_records, load_daq_records,
                          load_records_csv)
@@ -46,43 +46,24 @@ NAME = "frf"
 
 
 def _period(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 2, got {text!r}") from None
-    if value < 2:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 2, got {value}")
-    return value
+    return _checked(text, int, lambda v: v >= 2, "must be an integer >= 2",
+                    lambda v: f"must be an integer >= 2, got {v}")
 
 
 def _count(text):
-    try:
-        value = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"must be an integer >= 0, got {value}")
-    return value
+    return _checked(text, int, lambda v: v >= 0, "must be an integer >= 0",
+                    lambda v: f"must be an integer >= 0, got {v}")
 
 
 def _fs(text):
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number > 0 (Hz), got {text!r}") from None
-    if not (math.isfinite(value) and value > 0):
-        raise argparse.ArgumentTypeError(f"must be a finite number > 0 (Hz), got {text!r}")
-    return value
+    return _checked(text, float, lambda v: math.isfinite(v) and v > 0,
+                    "must be a number > 0 (Hz)",
+                    lambda v: f"must be a finite number > 0 (Hz), got {text!r}")
 
 
 def _fraction(text):
-    try:
-        value = float(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"must be a number in [0, 1), got {text!r}") from None
-    if not 0 <= value < 1:
-        raise argparse.ArgumentTypeError(f"must be a number in [0, 1), got {text!r}")
-    return value
+    return _checked(text, float, lambda v: 0 <= v < 1, "must be a number in [0, 1)",
+                    lambda v: f"must be a number in [0, 1), got {text!r}")
 
 
 def add_cli(subparsers):

@@ -101,9 +101,11 @@ def run_cli(args, command):
     Parameters
     ----------
     args : argparse.Namespace
-        The parsed arguments.
+        The parsed ``freqid modal`` arguments (``files``, ``orders``, ``out``, ``force``,
+        ``delay``, ``zeros``, ``integrator``, ``freq_tol``, ``damping_tol``, ``min_stable``,
+        ``max_iter``).
     command : str
-        The command line, written as the report's first line.
+        The command line, written as the first line of ``summary.md``.
 
     Raises
     ------

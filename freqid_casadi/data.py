@@ -158,22 +158,20 @@ def _as_float_vector(x, name):
     if is_complex:
         raise DataError(f"{name} must be real, got complex values; pass the magnitude or "
                         "real part, or the complex data as 'response'")
-    try:
-        arr = np.array(x, dtype=float, copy=True)
-    except (TypeError, ValueError) as exc:
-        raise DataError(f"{name} must be an array of numbers: {exc}") from None
-    if arr.ndim != 1:
-        arr = arr.reshape(-1) if arr.ndim == 0 or max(arr.shape) == arr.size else arr
-    if arr.ndim != 1:
-        raise DataError(f"{name} must be one-dimensional, got shape {np.shape(x)}")
-    return arr
+    return _as_vector(x, name, float, "numbers")
 
 
 def _as_complex_vector(x, name):
+    return _as_vector(x, name, complex, "complex numbers")
+
+
+def _as_vector(x, name, dtype, what):
+    """A one-dimensional copy of ``x`` as ``dtype`` (a scalar or a row/column counts as a
+    vector); DataError naming ``name`` otherwise (``what``: the expected elements)."""
     try:
-        arr = np.array(x, dtype=complex, copy=True)
+        arr = np.array(x, dtype=dtype, copy=True)
     except (TypeError, ValueError) as exc:
-        raise DataError(f"{name} must be an array of complex numbers: {exc}") from None
+        raise DataError(f"{name} must be an array of {what}: {exc}") from None
     if arr.ndim != 1:
         arr = arr.reshape(-1) if arr.ndim == 0 or max(arr.shape) == arr.size else arr
     if arr.ndim != 1:

@@ -137,6 +137,8 @@ def load_text(path, name=None, *, freq_unit=None, columns=None):
     Returns
     -------
     FrequencyData
+        The data rows (``omega`` in rad/s, rows at zero frequency dropped), named
+        ``name`` or the file's stem.
 
     Raises
     ------
@@ -232,6 +234,8 @@ def load_npz(path, name=None, *, freq_unit=None):
     Returns
     -------
     FrequencyData
+        The arrays ``omega`` (in rad/s), ``response`` and ``weights`` (if the archive
+        holds it), named ``name`` or the file's stem.
 
     Raises
     ------
@@ -288,6 +292,8 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None):
     Returns
     -------
     FrequencyData
+        The matched variables or matrix columns (``omega`` in rad/s), named ``name`` or
+        the file's stem.
 
     Raises
     ------

@@ -13,10 +13,9 @@ from .bands import response_band
 from .covariance import ParameterUncertainty, _z
 from .data import FrequencyData
 from .errors import OptionError
+from .plots._base import _dense_grid, _pyplot   # plots.bode's grid; lazy pyplot
 
 __all__ = ["bode_band", "rel_error_band", "render_markdown"]
-
-_DENSE_POINTS = 2000
 
 
 def _check(unc, data):
@@ -24,26 +23,6 @@ def _check(unc, data):
         raise OptionError(f"expected a ParameterUncertainty, got {type(unc).__name__}")
     if data is not None and not isinstance(data, FrequencyData):
         raise OptionError(f"data must be a FrequencyData, got {type(data).__name__}")
-
-
-def _pyplot():
-    """``matplotlib.pyplot``, or :class:`freqid_casadi.plots.MatplotlibMissingError`."""
-    try:
-        import matplotlib.pyplot as plt
-    except ImportError as exc:
-        from .plots import MatplotlibMissingError
-
-        raise MatplotlibMissingError(
-            f"plotting needs matplotlib, which could not be imported ({exc}); "
-            "install it with: pip install matplotlib") from exc
-    return plt
-
-
-def _grid(omega):
-    """2000 log-spaced points over the range merged with ``omega`` (as plots.bode does)."""
-    lo, hi = float(omega[0]), float(omega[-1])
-    grid = np.logspace(math.log10(lo), math.log10(hi), _DENSE_POINTS) if hi > lo else omega
-    return np.union1d(grid, omega)
 
 
 def bode_band(unc, data=None, *, omega=None, level=0.95, fig=None, title=None):
@@ -72,7 +51,7 @@ def bode_band(unc, data=None, *, omega=None, level=0.95, fig=None, title=None):
     if omega is None:
         if data is None:
             raise OptionError("bode_band needs data or omega: the frequencies of the band")
-        omega = _grid(data.omega)
+        omega = _dense_grid(data.omega)
     band = response_band(unc, np.asarray(omega, dtype=float), level=level)
     if fig is None:
         from . import plots

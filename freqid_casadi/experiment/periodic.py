@@ -136,12 +136,8 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
     _check_excited(U, bins, skip_periods)
     H = Y_b / U_b                        # of the scaled records; times gain below
     G = H.mean(axis=0)
-    zero = G == 0
-    if zero.any():
-        j = int(np.flatnonzero(zero)[0])
-        raise DataError(
-            f"estimated response is exactly zero at bin {bins[j]}: the output has no "
-            "component there; check the output channel or remove that bin")
+    _check_nonzero(G, lambda j: f"at bin {bins[j]}: the output has no component there; "
+                                "check the output channel or remove that bin")
     variance = coherence = weights = None
     if n_periods >= 2:
         variance = np.sum(np.abs(H - G) ** 2, axis=0) / (n_periods * (n_periods - 1))
@@ -156,6 +152,14 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
     data = FrequencyData(omega, G, name, weights)
     return FrfEstimate(data, bins, variance, coherence, n_periods, period, fs,
                        estimator="periodic")
+
+
+def _check_nonzero(response, where):
+    """DataError at the first exact zero of ``response`` (complex, shape (M,)): the message
+    is "estimated response is exactly zero " + ``where(index)``."""
+    zero = np.flatnonzero(response == 0)
+    if zero.size:
+        raise DataError(f"estimated response is exactly zero {where(int(zero[0]))}")
 
 
 def _unscale(G, variance, gain):
@@ -337,12 +341,8 @@ def frf_stepped_sine(records, *, fs, frequencies, n_skip=0, sine_rtol=0.5, name=
             raise DataError(f"records[{i}] must be a (u, y) pair") from None
         u, y = _as_pair(u, y, f"[{i}]")
         response[i] = _sine_ratio(u, y, freqs[i], fs, skips[i], i, sine_rtol)
-    zero = response == 0
-    if zero.any():
-        i = int(np.flatnonzero(zero)[0])
-        raise DataError(
-            f"estimated response is exactly zero for records[{i}] ({freqs[i]} Hz): the output "
-            "has no component at that frequency; check the output channel")
+    _check_nonzero(response, lambda i: f"for records[{i}] ({freqs[i]} Hz): the output has no "
+                                       "component at that frequency; check the output channel")
     data = FrequencyData(2.0 * np.pi * freqs[order], response[order], name)
     return FrfEstimate(data, None, None, None, None, None, fs, estimator="stepped-sine")
 

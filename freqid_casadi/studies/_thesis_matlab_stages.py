@@ -47,11 +47,31 @@ class _Budget:
     def out_of_time(self):
         return self.deadline is not None and time.perf_counter() > self.deadline
 
+    def returned(self, accepted, trial):
+        """The point an LM loop returns: the last trial point (as printed; l.121 and l.301
+        read it) or, in the deviation study (``last_point="accepted"``), the last accepted."""
+        return accepted if self.last_point == "accepted" else trial
+
 
 def _normal(Jr, eps_p):
     """``A = real(Jr'*Jr)``, ``g = real(Jr'*eps_p)`` (cost_and_coeffs.m l.54, l.56)."""
     JH = Jr.conj().T
     return (JH @ Jr).real, (JH @ eps_p).real
+
+
+def _lm_init(Jr, eps_p, tol1, tau):
+    """``A``, ``g``, ``stop`` and ``mu`` before an LM loop; cost_and_coeffs.m prints these
+    lines twice: l.54-63 (stage 0) and l.191-204 (stage N)."""
+    A, g = _normal(Jr, eps_p)                                 # l.54, l.56 / l.191, l.196
+    stop = not np.max(np.abs(g)) < tol1                       # l.57-61 / l.197-202
+    mu = tau * np.max(np.diag(A))                             # l.62-63 / l.203-204
+    return A, g, stop, mu
+
+
+def _converged(g, eps_p, tol1):
+    """The two stop tests after an accepted step; cost_and_coeffs.m prints them twice:
+    l.99-105 (stage 0) and l.276-284 (stage N)."""
+    return np.max(np.abs(g)) < tol1 or np.linalg.norm(eps_p) ** 2 < tol1   # l.99-101, l.103-105
 
 
 def stage0_start(Hi_u, s, integrator=True):
@@ -103,9 +123,7 @@ def _stage0_lm(s, Hi_u, beta_i_1, st, integrator, budget):
     Jr = create_jacob(s, None, beta_i, Hi_u, fi, 1200.0, integrator)[:, 1:]   # l.49-50
     k, v = 0, 2.0                                                       # l.52-53
     eps_p = stage0_residual(s, Hi_u, beta_i, t_, integrator)           # l.55
-    A, g = _normal(Jr, eps_p)                                           # l.54, l.56
-    stop = not np.max(np.abs(g)) < st["tol1"]                           # l.57-61
-    mu = _STAGE0["tau"] * np.max(np.diag(A))                            # l.62-63
+    A, g, stop, mu = _lm_init(Jr, eps_p, st["tol1"], _STAGE0["tau"])    # l.54, l.56-63
     while stop and budget.ok(k):                                        # l.65
         k += 1                                                          # l.66
         st["tol1"] = grow_tol1(k, st["tol1"])                           # l.67-69
@@ -123,14 +141,10 @@ def _stage0_lm(s, Hi_u, beta_i_1, st, integrator, budget):
             fi = first_factor(s, beta_i[0], beta_i[1], integrator)     # l.95
             eps_p = stage0_residual(s, Hi_u, beta_i, t_, integrator)   # l.96
             A, g = _normal(Jr, eps_p)                                   # l.93, l.97
-            if np.max(np.abs(g)) < st["tol1"]:                          # l.99-101
-                stop = False
-            if np.linalg.norm(eps_p) ** 2 < st["tol1"]:                 # l.103-105
+            if _converged(g, eps_p, st["tol1"]):                        # l.99-105
                 stop = False
         mu, v = update_damping(mu, v, rho)                              # l.107-111
-    if budget.last_point == "accepted":                                 # deviation study only
-        return beta_i, k
-    return beta_i_1, k
+    return budget.returned(beta_i, beta_i_1), k                         # l.121 reads beta_i_1
 
 
 def integrator_stage(H, omega, start=1, n=5, *, integrator=True, budget=None):
@@ -197,9 +211,7 @@ def _sumt_pass(s, Hi_u, ctnow, beta_i_2, t_, st, integrator, budget):
     Jr = create_jacob(s, ctnow, beta_i, Hi_u, fi, t_, integrator)[:, 1:]    # l.187-188
     k, v = 0, 2.0                                                       # l.189-190
     eps_p = stage_residual(Hi_u, fi, beta_i, ctnow, t_)                 # l.192-195
-    A, g = _normal(Jr, eps_p)                                           # l.191, l.196
-    stop = not np.max(np.abs(g)) < st["tol1"]                           # l.197-202
-    mu = _SECTIONS["tau"] * np.max(np.diag(A))                          # l.203-204
+    A, g, stop, mu = _lm_init(Jr, eps_p, st["tol1"], _SECTIONS["tau"])  # l.191, l.196-204
     beta_i_all = _pack(ctnow, beta_i)                                   # l.206-207
     beta_i_2_all = beta_i_all                   # see READINGS (l.301): no trial, no change
     while stop and budget.ok(k):                                        # l.208 (k < Inf)
@@ -228,14 +240,10 @@ def _sumt_pass(s, Hi_u, ctnow, beta_i_2, t_, st, integrator, budget):
             fi = tf_approx(s, ctnow[:, :-1], beta_i, integrator)        # l.267
             eps_p = stage_residual(Hi_u, fi, beta_i, ctnow, t_)         # l.269-273
             A, g = _normal(Jr, eps_p)                                   # l.261, l.274
-            if np.max(np.abs(g)) < st["tol1"]:                          # l.276-279
-                stop = False
-            if np.linalg.norm(eps_p) ** 2 < st["tol1"]:                 # l.281-284
+            if _converged(g, eps_p, st["tol1"]):                        # l.276-284
                 stop = False
         mu, v = update_damping(mu, v, rho)                              # l.286-290
-    if budget.last_point == "accepted":                                 # deviation study only
-        return beta_i_all, k
-    return beta_i_2_all, k
+    return budget.returned(beta_i_all, beta_i_2_all), k                 # l.301 reads it
 
 
 _NAMES = ("h", "K", "", "", "", "")
