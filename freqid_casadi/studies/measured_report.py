@@ -31,6 +31,12 @@ def _yes(v):
 _UNITS = {"actuator": (1e3, "ms"), "robot arm": (1.0, "samples")}
 
 
+def _std(r):
+    """The delay's std of a row (None in JSON for a NaN: no delay, or at a bound)."""
+    v = r.get("delay_std")
+    return float("nan") if v is None else v
+
+
 def _table(ds, scale, unit):
     rows = []
     for r in ds.rows:
@@ -38,7 +44,7 @@ def _table(ds, scale, unit):
             rows.append((_LABEL[r["method"]], r["order"], "failed: " + r["error"][:60],
                          "", "", "", "", "", ""))
             continue
-        delay = (f"{number(r['delay'] * scale, 4)} ± {number(r['delay_std'] * scale, 2)}"
+        delay = (f"{number(r['delay'] * scale, 4)} ± {number(_std(r) * scale, 2)}"
                  if r["method"] == "freqid" else "—")
         diags = ", ".join(d["code"] for d in r.get("diagnostics", ())) or "—"
         rows.append((_LABEL[r["method"]], r["order"], number(r["max_rel_error"]),
@@ -69,12 +75,11 @@ def _conclusions(ds):
                if peer else "")
         out.append(f"{r['n_sections']} section(s) (order {r['order']}): max relative error "
                    f"{number(r['max_rel_error'])}, RMS {number(r['rms_rel_error'])}, delay "
-                   f"{number(r['delay'] * scale, 4)} ± {number(r['delay_std'] * scale, 2)} "
+                   f"{number(r['delay'] * scale, 4)} ± {number(_std(r) * scale, 2)} "
                    f"{unit}, {'converged' if r['success'] else 'NOT converged'}{cmp}.")
         for d in r.get("diagnostics", ()):
             out.append(f"  {r['n_sections']} section(s), {d['code']}: {d['message']}")
-    determined = [r for r in ours if np.isfinite(r["delay_std"])
-                  and r["delay_std"] <= 0.5 * r["delay"]]
+    determined = [r for r in ours if np.isfinite(_std(r)) and _std(r) <= 0.5 * r["delay"]]
     if len(determined) >= 2:
         d = [r["delay"] * scale for r in determined]
         out.append("Delays the data determine (std <= half the delay): "
