@@ -17,6 +17,8 @@ import contextlib
 import signal
 import threading
 
+import numpy as np
+
 __all__ = ["Interrupted", "handlers", "guard", "check", "requested", "ipopt_callback",
            "exit_status"]
 
@@ -122,13 +124,35 @@ def ipopt_callback(nlp):
     return {"iteration_callback": _CALLBACKS[key]}
 
 
-def _make_callback(ca, n_x, n_g, n_p):
+def stop_callback(n_x, n_g, check, name="iteration_monitor"):
+    """A new ``iteration_callback`` for an NLP without parameters that stops IPOPT when a
+    signal arrived or when ``check(x)`` is true after an iteration.
+
+    Parameters
+    ----------
+    n_x, n_g : int
+        Numbers of variables and constraints of the NLP.
+    check : callable
+        ``check(x) -> bool`` on the iterate, ndarray of float, shape (n_x,).
+    name : str
+        Name of the CasADi Function.
+
+    Returns
+    -------
+    casadi.Callback
+    """
+    import casadi as ca
+
+    return _make_callback(ca, n_x, n_g, 0, check, name)
+
+
+def _make_callback(ca, n_x, n_g, n_p, check=None, name=None):
     sizes = (n_x, 1, n_g, n_x, n_g, n_p)    # nlpsol outputs: x, f, g, lam_x, lam_g, lam_p
 
     class _Stop(ca.Callback):
         def __init__(self):
             ca.Callback.__init__(self)
-            self.construct(f"freqid_interrupt_{n_x}_{n_g}_{n_p}", {})
+            self.construct(name or f"freqid_interrupt_{n_x}_{n_g}_{n_p}", {})
 
         def get_n_in(self):
             return ca.nlpsol_n_out()
@@ -146,6 +170,10 @@ def _make_callback(ca, n_x, n_g, n_p):
             return ca.Sparsity.dense(sizes[i], 1)
 
         def eval(self, arg):
-            return [1 if requested() else 0]
+            if requested():                     # a signal: guard() raises after the stop
+                return [1]
+            if check is None:
+                return [0]
+            return [1 if check(np.array(arg[0].full(), float).reshape(-1)) else 0]
 
     return _Stop()

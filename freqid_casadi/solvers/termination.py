@@ -277,7 +277,8 @@ class StageMonitor:
 
 def iteration_callback(monitor, n, ng):
     """A CasADi ``iteration_callback`` running ``monitor.check`` after every IPOPT
-    iteration (a nonzero return stops IPOPT with ``User_Requested_Stop``).
+    iteration (a nonzero return stops IPOPT with ``User_Requested_Stop``); a signal
+    (Ctrl-C, SIGTERM) stops it too (:func:`freqid_casadi._interrupt.stop_callback`).
 
     Parameters
     ----------
@@ -289,38 +290,4 @@ def iteration_callback(monitor, n, ng):
     -------
     casadi.Callback
     """
-    import casadi as ca
-
-    class IterCB(ca.Callback):
-        def __init__(self):
-            ca.Callback.__init__(self)
-            self.construct("iteration_monitor", {})
-
-        def get_n_in(self):
-            return ca.nlpsol_n_out()
-
-        def get_n_out(self):
-            return 1
-
-        def get_name_in(self, i):
-            return ca.nlpsol_out(i)
-
-        def get_name_out(self, i):
-            return "ret"
-
-        def get_sparsity_in(self, i):
-            name = ca.nlpsol_out(i)
-            if name == "f":
-                return ca.Sparsity.scalar()
-            if name in ("x", "lam_x"):
-                return ca.Sparsity.dense(n)
-            if name in ("g", "lam_g"):
-                return ca.Sparsity.dense(ng)
-            return ca.Sparsity(0, 0)
-
-        def eval(self, arg):
-            x = np.array(arg[0].full(), float).reshape(-1)
-            # a signal (Ctrl-C, SIGTERM) stops IPOPT too: _interrupt.guard raises after it
-            return [1 if _interrupt.requested() or monitor.check(x) else 0]
-
-    return IterCB()
+    return _interrupt.stop_callback(n, ng, monitor.check)

@@ -59,6 +59,24 @@ def _normal(Jr, eps_p):
     return (JH @ Jr).real, (JH @ eps_p).real
 
 
+def _lm_step(k, st, A, mu, g, beta):
+    """The head of both LM loops: ``k = k + 1``, tol1 grown every 1000 iterations, the step
+    ``pinv(A + mu I) g`` and its size test (main.m stage 0 l.66-74; sections l.209-227).
+
+    Returns
+    -------
+    (int, ndarray or None)
+        The new ``k`` and the step, or None when ``norm(delta) < tol1 norm(beta)`` (the
+        caller then sets ``stop = false``, l.75 / l.228).
+    """
+    k += 1                                                              # l.66 / l.209
+    st["tol1"] = grow_tol1(k, st["tol1"])                               # l.67-69 / l.210-212
+    delta = matlab_pinv(A + mu * np.eye(len(A))) @ g                    # l.72 / l.225
+    if np.linalg.norm(delta) < st["tol1"] * np.linalg.norm(beta):       # l.74 / l.227
+        return k, None
+    return k, delta
+
+
 def _lm_init(Jr, eps_p, tol1, tau):
     """``A``, ``g``, ``stop`` and ``mu`` before an LM loop; cost_and_coeffs.m prints these
     lines twice: l.54-63 (stage 0) and l.191-204 (stage N)."""
@@ -125,10 +143,8 @@ def _stage0_lm(s, Hi_u, beta_i_1, st, integrator, budget):
     eps_p = stage0_residual(s, Hi_u, beta_i, t_, integrator)           # l.55
     A, g, stop, mu = _lm_init(Jr, eps_p, st["tol1"], _STAGE0["tau"])    # l.54, l.56-63
     while stop and budget.ok(k):                                        # l.65
-        k += 1                                                          # l.66
-        st["tol1"] = grow_tol1(k, st["tol1"])                           # l.67-69
-        delta = matlab_pinv(A + mu * np.eye(len(A))) @ g                # l.72
-        if np.linalg.norm(delta) < st["tol1"] * np.linalg.norm(beta_i):    # l.74
+        k, delta = _lm_step(k, st, A, mu, g, beta_i)                    # l.66-74
+        if delta is None:
             stop = False                                                # l.75
             continue
         beta_i_1 = beta_i + delta                                       # l.77
@@ -215,10 +231,8 @@ def _sumt_pass(s, Hi_u, ctnow, beta_i_2, t_, st, integrator, budget):
     beta_i_all = _pack(ctnow, beta_i)                                   # l.206-207
     beta_i_2_all = beta_i_all                   # see READINGS (l.301): no trial, no change
     while stop and budget.ok(k):                                        # l.208 (k < Inf)
-        k += 1                                                          # l.209
-        st["tol1"] = grow_tol1(k, st["tol1"])                           # l.210-212
-        delta = matlab_pinv(A + mu * np.eye(len(A))) @ g                # l.225
-        if np.linalg.norm(delta) < st["tol1"] * np.linalg.norm(beta_i_all):   # l.227
+        k, delta = _lm_step(k, st, A, mu, g, beta_i_all)                # l.209-227
+        if delta is None:
             stop = False                                                # l.228
             continue
         beta_i_2_all = beta_i_all + delta                               # l.232
