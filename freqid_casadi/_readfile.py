@@ -105,7 +105,11 @@ def _too_big(path, what, size):
 
 
 def _stem(path):
-    return os.path.splitext(os.path.basename(path))[0]
+    """The file's name without folder and extension, the data's default name; bytes that
+    are not UTF-8 (surrogates from os.fsdecode) are written as ``\\udcff`` escapes, so the
+    name can be printed, drawn and written into reports."""
+    stem = os.path.splitext(os.path.basename(path))[0]
+    return stem.encode("utf-8", "backslashreplace").decode("utf-8")
 
 
 def _finish(path, omega, response, name, weights=None, lines=None):

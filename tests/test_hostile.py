@@ -274,10 +274,6 @@ def test_too_long_out_name_is_one_error_line(ws, capsys):
     assert_untouched_except(ws.parent, before)
 
 
-@pytest.mark.xfail(strict=False, reason="a data name with undecodable bytes (surrogates) "
-                   "breaks matplotlib's text in the report figures: the figure titles "
-                   "(plots, branch studies) or FrequencyData names (loaders, branch "
-                   "measured) must escape them")
 def test_undecodable_file_name(ws, capsys):
     name = os.fsdecode(b"\xff.csv")
     save_csv(_plant(), ws / "data" / name)
