@@ -18,13 +18,14 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .candidates import Candidate, choose, zero_delay_run
+from ._fit_checks import (GAIN_SIGNS, after_fit, check_model_class, success_of, validate,
+                          zeta_min_of)
 from .data import FrequencyData
-from .diagnostics import (check_delay, check_gain_sign, check_minimum_phase, check_trivial,
-                          rhp_zeros_note)
-from .errors import DataError, FreqidError, OptionError, ResolutionWarning, StructureError
+from .diagnostics import check_gain_sign
+from .errors import FreqidError, OptionError, ResolutionWarning
 from .mainloop import LoopContext, minimax, rational, sequential
 from .metrics import relative_error
-from .model import BASES, ZEROS, RationalDelayModel, Structure
+from .model import RationalDelayModel, Structure
 from .options import (INITS, LEGACY_KEYWORDS, METHODS, WARM_STARTS, FitOptions, LoopOptions,
                       legacy_message, solver_options)
 from .scaling import check_finite_result, reference_scales, scale_data, unscale_model
@@ -37,7 +38,6 @@ __all__ = ["fit", "FitResult", "StageRecord", "Kept", "StageKind", "METHODS", "I
            "resolution_damping"]
 
 STARTS = ("sequential", "rational", "best")
-GAIN_SIGNS = ("auto", "positive", "negative")
 OBJECTIVES = ("least-squares", "minimax")
 
 
@@ -197,56 +197,6 @@ def _reject_old_keywords(function):
     return wrapper
 
 
-def _zeta_min(min_damping, omega, method, gauge, basis):
-    if min_damping is None:
-        return None
-    if isinstance(min_damping, str):
-        if min_damping != "auto":
-            raise OptionError(f"unknown min_damping {min_damping!r}; use None, 'auto' or a "
-                              "number in [0, 1)")
-        value = resolution_damping(omega)
-    elif (isinstance(min_damping, bool) or not isinstance(min_damping, (int, float, np.floating))
-          or not (0.0 <= float(min_damping) < 1.0)):
-        raise OptionError(f"min_damping must be None, 'auto' or a number in [0, 1), got "
-                          f"{min_damping!r}")
-    else:
-        value = float(min_damping)
-    if method != "ipopt":
-        raise OptionError("min_damping needs method='ipopt' (the barrier-LM method has "
-                          "bounds only)")
-    if gauge != "dc" or basis != "second-order":
-        raise OptionError("min_damping needs gauge='dc' and basis='second-order' (first-order "
-                          "sections have real roots and are never narrow)")
-    return value
-
-
-def _validate(data, response, n_sections, basis, tol, integrator):
-    if isinstance(data, FrequencyData):
-        if response is not None:
-            raise DataError("pass either a FrequencyData or (omega, response), not both")
-    else:
-        if response is None:
-            raise DataError("response is missing: call fit(omega, response, ...) or "
-                            "fit(FrequencyData(...), ...)")
-        data = FrequencyData(data, response)
-    if isinstance(n_sections, bool) or not isinstance(n_sections, (int, np.integer)):
-        raise StructureError(f"n_sections must be a positive integer, got {n_sections!r}")
-    if n_sections < 1:
-        raise StructureError(f"n_sections must be >= 1, got {n_sections}")
-    if basis not in BASES:
-        raise OptionError(f"unknown basis {basis!r}; choose one of {', '.join(BASES)}")
-    if tol is not None and not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
-        raise OptionError(f"tol must be a number > 0 (a max relative error), got {tol!r}")
-    structure = Structure(int(n_sections), integrator, True, basis)
-    n_params = structure.n_params
-    if data.n_points < n_params:
-        raise DataError(
-            f"too few data points for {n_sections} sections: {data.n_points} points for "
-            f"{n_params} parameters; use fewer sections (at most "
-            f"{max((data.n_points - 2) // structure.section_size, 0)}) or more data")
-    return data
-
-
 @_reject_old_keywords
 def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=True,
         basis="second-order", method="ipopt", tol=None, weights=None, start="sequential",
@@ -352,7 +302,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     if not isinstance(loop, LoopOptions):
         raise OptionError(f"loop must be a LoopOptions or None, got {type(loop).__name__}; "
                           "pass loop=LoopOptions(gauge=..., init=..., ...)")
-    data = _validate(data_or_omega, response, n_sections, basis, tol, integrator)
+    data = validate(data_or_omega, response, n_sections, basis, tol, integrator)
     if start not in STARTS:
         raise OptionError(f"unknown start {start!r}; choose one of {', '.join(STARTS)}")
     if objective not in OBJECTIVES:
@@ -360,7 +310,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                           f"{', '.join(OBJECTIVES)}")
     if weights is not None:
         data = data.with_weights(weights)
-    _check_model_class(gain_sign, zeros, solver.method, loop.gauge, min_damping)
+    check_model_class(gain_sign, zeros, solver.method, loop.gauge, min_damping)
     sign, found = check_gain_sign(data, integrator, gain_sign)
     user_data = data
     if sign == -1:                  # a negative gain: fit -Phi, the model gets gain_sign -1
@@ -369,7 +319,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     # O(1) data is fitted bit for bit as given) and map the model back (issue 13 item 3)
     w_ref, g_ref = reference_scales(data)
     data = scale_data(data, w_ref, g_ref)
-    zeta_min = _zeta_min(min_damping, data.omega, solver.method, loop.gauge, basis)
+    zeta_min = zeta_min_of(min_damping, data.omega, solver.method, loop.gauge, basis)
     dmax = (float(loop.delay_max) * w_ref if loop.delay_max is not None
             else default_delay_max(data.omega))
     user_callback, unscaled = _progress_callback(progress), {}
@@ -388,6 +338,43 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                          delay=bool(delay), basis=basis, method=solver.method, tol=tol,
                          start=start, objective=objective, min_damping=min_damping,
                          solver=solver, loop=loop)
+    param, z, records, won, errors, cand_errors = _run_starts(ctx, start, tol, data)
+    if objective == "minimax":
+        z, rec = minimax(ctx, param, z)
+        records.append(rec)
+    model_scaled = param.to_model(z)
+    stats = relative_error(model_scaled, data)
+    check_finite_result(model_scaled.structure, model_scaled.beta, stats.values)
+    model = unscale_model(model_scaled, w_ref, g_ref)
+    if sign == -1:
+        model = RationalDelayModel(dataclasses.replace(model.structure, gain_sign=-1),
+                                   model.beta)
+    records = [unscaled[id(r)][1] if id(r) in unscaled else _unscale_record(r, w_ref)
+               for r in records]
+    data = user_data       # stats stay those of the scaled problem (the same numbers, and
+                           # no overflow of the model at the user's extreme omega)
+    final = [r for r in records if r.kept != Kept.MINIMAX_REJECTED
+             and r.kind != StageKind.RATIONAL_START] or records
+    check = _resolution_check(model, data.omega)
+    with np.errstate(all="ignore"):     # extreme user scales: a check may give up, not warn
+        found += after_fit(model, data, stats, dmax / w_ref)
+    success, message = success_of(final[-1], stats)
+    errors_found = [d for d in found if d.severity == "error"]
+    if success and errors_found:
+        success, message = False, f"{errors_found[0].code}: {errors_found[0].message}"
+    return FitResult(model=model, stages=tuple(records), data=data, rel_error=stats.values,
+                     max_rel_error=stats.max, rms_rel_error=stats.rms,
+                     success=success, message=message, wall_time=time.perf_counter() - t_start,
+                     method=solver.method, options=options, start=won, objective=objective,
+                     resolution=check, start_max_rel_errors=errors,
+                     candidate_max_rel_errors=cand_errors, delay_max=dmax / w_ref,
+                     zeta_min=zeta_min, diagnostics=found)
+
+
+def _run_starts(ctx, start, tol, data):
+    """Run the starts ``start`` asks for and keep one (:func:`candidates.choose`, the h = 0
+    model of each start a candidate too); returns ``(param, z, records, won, errors,
+    cand_errors)``."""
     runs = {}
     if start in ("sequential", "best"):
         runs["sequential"] = sequential(ctx, tol)
@@ -411,26 +398,16 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     param, z, lam, records = kept.run
     if kept.name != won:
         ctx.callback(records[-1])
-    if objective == "minimax":
-        z, rec = minimax(ctx, param, z)
-        records.append(rec)
-    model_scaled = param.to_model(z)
-    stats = relative_error(model_scaled, data)
-    check_finite_result(model_scaled.structure, model_scaled.beta, stats.values)
-    model = unscale_model(model_scaled, w_ref, g_ref)
-    if sign == -1:
-        model = RationalDelayModel(dataclasses.replace(model.structure, gain_sign=-1),
-                                   model.beta)
-    records = [unscaled[id(r)][1] if id(r) in unscaled else _unscale_record(r, w_ref)
-               for r in records]
-    data = user_data       # stats stay those of the scaled problem (the same numbers, and
-                           # no overflow of the model at the user's extreme omega)
-    final = [r for r in records if r.kept != Kept.MINIMAX_REJECTED
-             and r.kind != StageKind.RATIONAL_START] or records
-    # first-order sections have real roots, never narrow: nothing to check
-    check = (check_resolution(model, data.omega)
-             if model.structure.basis == "second-order" and model.n_sections else None)
-    if check is not None and not check.ok:
+    return param, z, records, won, errors, cand_errors
+
+
+def _resolution_check(model, omega):
+    """The model checked against the frequency spacing (None for first-order sections,
+    whose real roots are never narrow), with a ResolutionWarning when it fails."""
+    if model.structure.basis != "second-order" or not model.n_sections:
+        return None
+    check = check_resolution(model, omega)
+    if not check.ok:
         warnings.warn(
             f"the model has {len(check.flags)} near-cancelling pole/zero pair(s) and "
             f"{len(check.unresolved)} pole(s)/zero(s) narrower than the frequency spacing: "
@@ -438,74 +415,8 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
             "noisy data); inspect FitResult.resolution, refit with min_damping='auto' (a "
             "damping floor from the frequency spacing), remove them with "
             "freqid_casadi.validation.prune_sections, or fit fewer sections",
-            ResolutionWarning, stacklevel=4)
-    with np.errstate(all="ignore"):     # extreme user scales: a check may give up, not warn
-        found += _after_fit(model, data, stats, dmax / w_ref)
-    success, message = _success(final[-1], stats)
-    errors_found = [d for d in found if d.severity == "error"]
-    if success and errors_found:
-        success, message = False, f"{errors_found[0].code}: {errors_found[0].message}"
-    return FitResult(model=model, stages=tuple(records), data=data, rel_error=stats.values,
-                     max_rel_error=stats.max, rms_rel_error=stats.rms,
-                     success=success, message=message, wall_time=time.perf_counter() - t_start,
-                     method=solver.method, options=options, start=won, objective=objective,
-                     resolution=check, start_max_rel_errors=errors,
-                     candidate_max_rel_errors=cand_errors, delay_max=dmax / w_ref,
-                     zeta_min=zeta_min, diagnostics=found)
-
-
-def _check_model_class(gain_sign, zeros, method, gauge, min_damping):
-    if not isinstance(gain_sign, str) or gain_sign not in GAIN_SIGNS:
-        raise OptionError(f"unknown gain_sign {gain_sign!r}; choose one of "
-                          f"{', '.join(GAIN_SIGNS)}")
-    if not isinstance(zeros, str) or zeros not in ZEROS:
-        raise OptionError(f"unknown zeros {zeros!r}; choose one of {', '.join(ZEROS)}")
-    if zeros == "free":
-        if method != "ipopt":
-            raise OptionError("zeros='free' needs method='ipopt' (the barrier-LM method "
-                              "keeps every parameter inside its log barrier, beta > 0)")
-        if gauge != "dc":
-            raise OptionError(f"zeros='free' needs LoopOptions(gauge='dc'), got {gauge!r}")
-        if min_damping is not None:
-            raise OptionError("zeros='free' takes no min_damping (the damping floor is "
-                              "written for minimum-phase factors); drop one of them")
-
-
-def _delay_std(model, data, delay_max):
-    """The delay's standard deviation from the parameter covariance, or None."""
-    if not model.structure.delay or model.delay <= 0 or model.delay >= 0.98 * delay_max:
-        return None
-    from .covariance import parameter_uncertainty
-
-    try:
-        std = parameter_uncertainty(model, data, weights=data.weights).delay_std
-    except (FreqidError, np.linalg.LinAlgError, ArithmeticError):
-        return None
-    return float(std) if math.isfinite(std) else None
-
-
-def _after_fit(model, data, stats, delay_max):
-    """Diagnostics of the fitted model on the user's data (see :mod:`.diagnostics`)."""
-    found = check_trivial(stats.max, stats.rms)
-    found += check_delay(model, data, delay_max, stats.rms,
-                         delay_std=_delay_std(model, data, delay_max))
-    if model.structure.zeros == "free":
-        found += rhp_zeros_note(model)
-    else:
-        found += check_minimum_phase(model, data, stats.max, stats.rms)
-    return found
-
-
-def _success(last, stats):
-    """``(success, message)`` of a fit from its last stage record and its error."""
-    if not stats.rms < 1.0:
-        return False, (f"RMS relative error {stats.rms:.3g} >= 1: no better than an "
-                       "infinite-gain model (a stationary point at infinity); try "
-                       "start='rational', another structure or fewer sections")
-    if last.success:
-        return True, last.message or "converged"
-    return False, (f"the final stage did not converge: {last.message or last.solver_status}"
-                   f" (stage {last.stage}, {last.nit} iterations)")
+            ResolutionWarning, stacklevel=5)
+    return check
 
 
 def _unscale_record(rec, w_ref):
