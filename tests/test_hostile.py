@@ -516,7 +516,16 @@ def test_sigterm_while_writing_keeps_the_old_report(ws, capsys, monkeypatch, no_
     assert signal.getsignal(signal.SIGTERM) is signal.SIG_DFL
 
 
-def test_ctrl_c_stops_an_api_fit_between_ipopt_iterations():
+@pytest.fixture
+def python_sigint():
+    """Python's own SIGINT handler for the test: a runner started in the background by a
+    non-interactive shell inherits SIGINT ignored (SIG_IGN), where Ctrl-C never arrives."""
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, old)
+
+
+def test_ctrl_c_stops_an_api_fit_between_ipopt_iterations(python_sigint):
     data = fc.systems.G_C()            # a long fit (27 sections): the signal comes mid-fit
     main = threading.main_thread().ident
     sent = []
@@ -537,7 +546,7 @@ def test_ctrl_c_stops_an_api_fit_between_ipopt_iterations():
     assert not _interrupt.requested()
 
 
-def test_guard_defers_the_signal_and_clears_it():
+def test_guard_defers_the_signal_and_clears_it(python_sigint):
     with pytest.raises(_interrupt.Interrupted) as info:
         with _interrupt.guard():
             os.kill(os.getpid(), signal.SIGINT)
