@@ -33,7 +33,7 @@ import numpy as np
 from ._outputs import check_out_file
 
 from ._io import atomic_write_text
-from .cli import _checked   # the CLI's own argument-type helper
+from .cli import _ASCII_FLOAT, _ASCII_INT, _ascii, _checked   # the CLI's own type helpers
 from .errors import OptionError
 from .experiment import (ESTIMATORS, frf_from_periodic, frf_from_records, load_daq_records,
                          load_records_csv)
@@ -45,24 +45,28 @@ __all__ = ["add_cli", "run_cli", "read_records", "stats_path", "NAME"]
 NAME = "frf"
 
 
+_INT = _ascii(_ASCII_INT, int)          # ASCII decimal numbers only, as the other commands
+_FLOAT = _ascii(_ASCII_FLOAT, float)    # ("1_0" and non-ASCII digits are refused)
+
+
 def _period(text):
-    return _checked(text, int, lambda v: v >= 2, "must be an integer >= 2",
+    return _checked(text, _INT, lambda v: v >= 2, "must be an integer >= 2",
                     lambda v: f"must be an integer >= 2, got {v}")
 
 
 def _count(text):
-    return _checked(text, int, lambda v: v >= 0, "must be an integer >= 0",
+    return _checked(text, _INT, lambda v: v >= 0, "must be an integer >= 0",
                     lambda v: f"must be an integer >= 0, got {v}")
 
 
 def _fs(text):
-    return _checked(text, float, lambda v: math.isfinite(v) and v > 0,
+    return _checked(text, _FLOAT, lambda v: math.isfinite(v) and v > 0,
                     "must be a number > 0 (Hz)",
                     lambda v: f"must be a finite number > 0 (Hz), got {text!r}")
 
 
 def _fraction(text):
-    return _checked(text, float, lambda v: 0 <= v < 1, "must be a number in [0, 1)",
+    return _checked(text, _FLOAT, lambda v: 0 <= v < 1, "must be a number in [0, 1)",
                     lambda v: f"must be a number in [0, 1), got {text!r}")
 
 

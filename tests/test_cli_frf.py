@@ -191,3 +191,13 @@ def test_frf_refuses_to_write_onto_its_records(tmp_path, monkeypatch, capsys):
     assert (tmp_path / "rec.csv").read_bytes() == before
     code = cli.main(["frf", "rec.csv", "--estimator", "h2", "--out", "frf.csv"])
     assert code == 2 and "--estimator h2 needs --fs HZ" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize("value", ["1_024", "١٠٢٤"])
+def test_frf_numbers_are_ascii_decimals(tmp_path, monkeypatch, capsys, value):
+    monkeypatch.chdir(tmp_path)
+    u, y = _filter_records(1024)
+    _write(tmp_path / "rec.csv", u, y)
+    code = cli.main(["frf", "rec.csv", "--period", value, "--out", "frf.csv"])
+    assert code == 2 and "--period" in capsys.readouterr().err
+    assert not (tmp_path / "frf.csv").exists()
