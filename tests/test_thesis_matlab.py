@@ -321,3 +321,24 @@ def test_table_4_1_row_rms_relative_error(name):
     _show(name, res)
     assert res.n_sections == row["n_sections"]
     assert res.rms_rel_error <= row["max_rel_error"]
+
+
+def test_transcription_rows_feed_the_other_reports(tmp_path):
+    import json
+
+    from freqid_casadi.studies.thesis_matlab import transcription_lines, transcription_rows
+
+    assert transcription_rows(str(tmp_path / "missing.json")) is None
+    assert "Not available here" in "\n".join(transcription_lines(None))
+    t = {"n_sections": 17, "max_rel_error": 0.0119, "rms_rel_error": 0.002, "delay": 0.0104,
+         "iterations": 10, "wall_time": 1.0, "status": "stopped-at-n-sections"}
+    bad = dict(t, n_sections=4, max_rel_error=24.2)
+    path = tmp_path / "tm.json"
+    path.write_text(json.dumps({"command": "python scripts/thesis_matlab.py",
+                                "examples": {"A": {"transcription": t},
+                                             "B": {"transcription": bad}}}))
+    info = transcription_rows(str(path))
+    text = "\n".join(transcription_lines(info, {"A": 6.3e-6}))
+    assert "| A | 0.2549 | 0.0119 |" in text and "| yes |" in text
+    assert "| B | 0.0027 | 24.2 |" in text and "4 / 9" in text
+    assert "reproduces 1 of 2 published rows (A)" in text

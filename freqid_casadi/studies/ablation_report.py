@@ -23,6 +23,7 @@ from functools import partial
 from .. import plots
 from ..formatting import generated_by_line, markdown_table, number, ratio
 from ..report import atomic_write_text, check_out_dir, report_folder
+from .thesis_matlab import transcription_lines, transcription_rows
 from .ablation import NEAR_BOUND, run_ablation
 
 __all__ = ["conclusions", "render_ablation", "write_ablation_report", "VARIANT_COLUMNS",
@@ -188,6 +189,10 @@ def render_ablation(summary):
     lines += ["## Conclusions (computed from the numbers below)", ""]
     lines += [f"- {c}" for c in s["conclusions"]] + [""]
     lines += _summary_lines(s["cases"])
+    if "thesis_matlab" in s and not s.get("quick"):
+        ours = {n: c["comparison"][0]["ipopt_max_rel_error"] for n, c in s["cases"].items()
+                if c.get("comparison")}
+        lines += transcription_lines(s["thesis_matlab"], ours)
     for name, case in s["cases"].items():
         lines += _case_lines(name, case)
     lines += ["## Files", "",
@@ -393,6 +398,7 @@ def write_ablation_report(examples, out_dir, *, command, quick=False, force=Fals
     result = run_ablation(examples, quick=quick, progress=progress)
     summary = dict(command=" ".join(str(command).split()), **result.as_dict())
     summary["conclusions"] = conclusions(summary)
+    summary["thesis_matlab"] = None if quick else transcription_rows()
     with report_folder(out_dir, force) as (tmp, _):
         figures = _figures(summary, result.fits, tmp)
         summary["files"] = list(ABLATION_FILES) + figures

@@ -25,6 +25,7 @@ import numpy as np
 from .. import plots
 from ..formatting import generated_by_line, json_safe, markdown_table, number
 from ..report import atomic_write_text, check_out_dir, report_folder
+from .thesis_matlab import transcription_lines, transcription_rows
 from .reproduce import (METHOD_KEYS, NO_DELAY, TABLE_QUANTITIES, THESIS_TABLE_4_1,
                         run_reproduction)
 
@@ -122,6 +123,9 @@ def render_reproduction(summary):
         lines += _table_lines(s)
         for k, v in s["examples"].items():
             lines += _example_lines(k, v, s["figures"])
+    if s.get("thesis_matlab") is not None or (s["examples"] and not s["quick"]):
+        ours = {k: v["methods"]["ipopt"]["max_rel_error"] for k, v in s["examples"].items()}
+        lines += transcription_lines(s.get("thesis_matlab"), ours)
     if s.get("fractional"):
         lines += _fractional_lines(s["fractional"])
     if s.get("moheimani"):
@@ -386,6 +390,7 @@ def _summary(run, command):
                "moheimani": run.moheimani.summary if run.moheimani else None}
     if summary["examples"]:
         summary["table_4_1"] = table_4_1(summary["examples"])
+    summary["thesis_matlab"] = None if run.quick else transcription_rows()
     return summary
 
 

@@ -22,6 +22,7 @@ residual (:func:`create_jacob` lists the differences), and a SUMT pass keeps its
 """
 
 import logging
+import os
 import time
 from dataclasses import dataclass
 
@@ -41,7 +42,8 @@ __all__ = [
     "integrator_stage", "res_antires_stage", "tf_approx", "create_jacob", "cost_func",
     "stage0_residual", "stage_residual", "matlab_pinv", "gain_ratio", "update_damping",
     "grow_tol1", "stage0_windows", "main_loop_continues", "coeffs_constraint", "matlab_log",
-    "first_factor", "stage0_start", "new_section", "SectionStage",
+    "first_factor", "stage0_start", "new_section", "SectionStage", "RESULTS_JSON",
+    "transcription_rows", "transcription_lines",
 ]
 
 log = logging.getLogger(__name__)
@@ -346,3 +348,81 @@ def _result(coeffs, H, G_aprx, integrator, nit, t_run, history, status, message,
         nit=int(nit), wall_time=time.perf_counter() - t_run, history=tuple(history),
         status=status, message=message, max_inner=budget.max_inner, time_budget=budget.time_budget,
         last_point=budget.last_point, n_capped=budget.n_capped)
+
+
+#: Where ``scripts/thesis_matlab.py`` writes the transcription's numbers (from the
+#: repository root), read by the reproduction and ablation reports.
+RESULTS_JSON = os.path.join("results", "thesis_matlab", "thesis_matlab.json")
+
+
+def transcription_rows(path=RESULTS_JSON):
+    """The transcription's numbers per example, read from the report of
+    ``python scripts/thesis_matlab.py`` (a run takes about 20 minutes), for other reports.
+
+    Parameters
+    ----------
+    path : str
+        The ``thesis_matlab.json`` file.
+
+    Returns
+    -------
+    dict or None
+        ``{"command": str, "rows": {example: {n_sections, max_rel_error, rms_rel_error,
+        delay, iterations, wall_time, status, published_max_rel_error}}}``; None when the
+        file is absent or not readable.
+    """
+    import json
+
+    try:
+        with open(path, encoding="utf-8") as fh:
+            d = json.load(fh)
+        rows = {}
+        for key, ex in d["examples"].items():
+            t = ex["transcription"]
+            rows[key] = {k: t.get(k) for k in ("n_sections", "max_rel_error", "rms_rel_error",
+                                               "delay", "iterations", "wall_time", "status")}
+            rows[key]["published_max_rel_error"] = TABLE_4_1[key]["max_rel_error"]
+        return {"command": d["command"], "rows": rows}
+    except (OSError, ValueError, KeyError, TypeError):
+        return None
+
+
+def transcription_lines(info, ours=None):
+    """Markdown section of the transcription's rows beside the published numbers (and
+    ours: ``{example: max_rel_error}``), with a conclusion computed from them.
+
+    Parameters
+    ----------
+    info : dict or None
+        :func:`transcription_rows`.
+    ours : dict, optional
+        Our max relative error per example.
+
+    Returns
+    -------
+    list of str
+    """
+    from ..formatting import markdown_table, number
+
+    head = ["## The thesis's own MATLAB code (Appendix A, transcribed)", ""]
+    if not info:
+        return head + ["Not available here: run `python scripts/thesis_matlab.py` "
+                       "(`results/thesis_matlab/`, about 20 minutes).", ""]
+    ours = ours or {}
+    rows, repro = [], []
+    for key, r in info["rows"].items():
+        ok = (r["max_rel_error"] is not None and r["n_sections"] == TABLE_4_1[key]["n_sections"]
+              and r["max_rel_error"] <= r["published_max_rel_error"])
+        repro.append(key) if ok else None
+        rows.append((key, number(r["published_max_rel_error"]), number(r["max_rel_error"]),
+                     number(r["rms_rel_error"]), f"{r['n_sections']} / "
+                     f"{TABLE_4_1[key]['n_sections']}", number(r["delay"], 6),
+                     number(r["iterations"]), number(ours.get(key)),
+                     "yes" if ok else "NO"))
+    table = markdown_table(rows, ("example", "published max", "transcription max",
+                                  "transcription RMS", "sections reached", "delay (s)",
+                                  "LM iterations", "ours (IPOPT) max", "reproduces"),
+                           "lrrrlrrrl")
+    return head + [f"From `{info['command']}` (`results/thesis_matlab/report.md`).", "", table,
+                   "", f"The printed algorithm reproduces {len(repro)} of {len(rows)} "
+                   f"published rows ({', '.join(repro) or 'none'}).", ""]
