@@ -29,6 +29,7 @@ import numpy as np
 
 from . import _outputs
 from ._io import atomic_write_text, md_text
+from .errors import FreqidError
 from .formatting import csv_text, generated_by_line, json_safe, markdown_table, number
 from .summary import (REPORT_FILES, REPORT_FORMAT, REPORT_VERSION, dense_error, fit_summary,
                       render_fit_summary)
@@ -80,15 +81,31 @@ def _write_figures(result, folder, summary, truth=None):
     from . import plots
 
     t = summary.get("thesis") or {}
-    plots.save_figure(plots.bode(result), os.path.join(folder, "bode.png"))
-    plots.save_figure(plots.relative_error(result, reference=t.get("max_rel_error"),
-                                           reference_label=t.get("source") or "thesis",
-                                           truth=truth),
-                      os.path.join(folder, "rel_error.png"))
+    bode = plots.bode(result)
+    rel = plots.relative_error(result, reference=t.get("max_rel_error"),
+                               reference_label=t.get("source") or "thesis", truth=truth)
+    _add_bands(result, bode, rel)
+    plots.save_figure(bode, os.path.join(folder, "bode.png"))
+    plots.save_figure(rel, os.path.join(folder, "rel_error.png"))
     plots.save_figure(plots.pole_zero(result.model, zoom="auto"),
                       os.path.join(folder, "pole_zero.png"))
     plots.save_figure(plots.stage_errors({result.method: result}),
                       os.path.join(folder, "stages.png"))
+
+
+def _add_bands(result, bode, rel):
+    """The 95 % confidence bands of the response and of the relative error
+    (:attr:`FitResult.uncertainty`) on the two figures; none when the covariance cannot be
+    formed (then summary.md says why)."""
+    from .plots_uncertainty import bode_band, rel_error_band
+
+    try:
+        unc = result.uncertainty
+        with np.errstate(all="ignore"):
+            bode_band(unc, result.data, fig=bode)
+            rel_error_band(unc, result.data, fig=rel)
+    except (FreqidError, AttributeError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+        return
 
 
 @contextlib.contextmanager

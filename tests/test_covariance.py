@@ -367,3 +367,20 @@ def test_uncertainty_of_a_negative_gain_fit():
     u = res.uncertainty
     assert np.isfinite(u.gain_std) and 0 < u.gain_std < 0.1 * abs(u.gain)
     assert abs(u.modes[0].omega_n - 10) < 3 * u.modes[0].omega_n_std + 1e-3
+
+
+def test_fit_report_figures_carry_the_bands(fitted):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from freqid_casadi import plots, report
+
+    bode, rel = plots.bode(fitted), plots.relative_error(fitted)
+    report._add_bands(fitted, bode, rel)
+    labels = [t.get_text() for ax in bode.axes for leg in [ax.get_legend()] if leg
+              for t in leg.get_texts()]
+    assert any("95 % band" in t for t in labels)
+    assert len(rel.axes[0].collections) >= 1               # the shaded upper band
+    import matplotlib.pyplot as plt
+
+    plt.close("all")
