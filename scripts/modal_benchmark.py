@@ -25,7 +25,9 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 import freqid_casadi as fc  # noqa: E402
-from freqid_casadi.modal import modes_markdown, stabilization, stabilization_csv  # noqa: E402
+from freqid_casadi.formatting import generated_by_line  # noqa: E402
+from freqid_casadi.modal import modes_markdown  # noqa: E402
+from freqid_casadi.survey import stabilization, stabilization_csv  # noqa: E402
 from freqid_casadi.shared import fit_shared  # noqa: E402
 from freqid_casadi.systems import moheimani_modes  # noqa: E402
 
@@ -163,7 +165,7 @@ def stabilization_example():
 
 
 def render(r):
-    lines = [f"`{r['command']}`", "", "# fit_shared benchmark (issue 16)", "",
+    lines = [generated_by_line(r['command']), "", "# fit_shared benchmark (issue 16)", "",
              "Moheimani's beam truncated to 10 modes (damping 0.01), one actuator at 0.075 m, "
              "sensors spread over the beam, 1000 log points 5..2000 rad/s, 0.2 % noise; "
              "10 shared sections, delay none, collocated channel minimum phase, the others "

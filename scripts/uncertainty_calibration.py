@@ -15,7 +15,7 @@ Usage::
    gain. Reported: the coverage of the truth, the ratio of the mean reported standard
    deviation to the empirical one over the replicates, the bias; and, on replicate 0, the
    residual bootstrap (local and global refits) beside the delta method.
-2. Actuator (``/work/shared/data/actuator/0A.txt.xz``, CHANNEL2 -> CHANNEL0, 1000 Hz):
+2. Actuator (the package's ``datasets/actuator/0A.txt.xz``, CHANNEL2 -> CHANNEL0, 1000 Hz):
    Welch H1 estimate (scipy.signal.csd/welch, nperseg 4096, Hann, 50 % overlap) kept where
    the coherence exceeds 0.95 within 0.1..19.5 Hz, weights ``gamma^2 / (1 - gamma^2)``
    (inverse relative variance of H1, Bendat & Piersol eq. 9.90) normalised to mean 1;
@@ -29,7 +29,6 @@ Writes ``--out`` atomically: ``report.md`` (first line: the command), ``calibrat
 
 import argparse
 import json
-import lzma
 import os
 import shlex
 import sys
@@ -51,7 +50,6 @@ NOISE = 0.01
 LEVEL = 0.95
 OMEGA = np.logspace(np.log10(2.0), np.log10(600.0), 400)
 TRACKED = ("omega_1", "zeta_1", "omega_2", "zeta_2", "delay", "gain")
-ACTUATOR = "/work/shared/data/actuator/0A.txt.xz"
 FS = 1000.0
 SECTIONS = (1, 2, 3)
 
@@ -138,14 +136,13 @@ def summarize(val, std, level=LEVEL):
 
 # --------------------------------------------------------------------------- actuator
 
-def actuator_records(path=ACTUATOR):
-    """Input (CHANNEL2) and output (CHANNEL0) records of the actuator test."""
-    with lzma.open(path, "rt", encoding="utf-8", errors="replace") as fh:
-        lines = fh.read().splitlines()[8:]
-    rows = [line.split(",") for line in lines if line.strip()]
-    y = np.array([float(r[2]) for r in rows])
-    u = np.array([float(r[4]) for r in rows])
-    return u, y
+def actuator_records():
+    """Input (CHANNEL2) and output (CHANNEL0) records of the actuator test, from the copy
+    shipped with the package (``freqid_casadi/datasets/actuator``)."""
+    from freqid_casadi import experiment
+
+    rec = experiment.actuator_records()
+    return rec.channels["CHANNEL2"], rec.channels["CHANNEL0"]
 
 
 def actuator_frf(u, y, nperseg=4096, min_coherence=0.95, band=(0.1, 19.5)):
@@ -317,7 +314,7 @@ def actuator_section(info, rows, pairs):
               f"{a['in_std']:.2f}", "yes" if a["in_std"] <= 1 else "**no**"] for a in pairs]
     return [
         "## 2. Actuator delay at 1, 2 and 3 sections", "",
-        "Records `/work/shared/data/actuator/0A.txt.xz` (see its SOURCE.md): commanded "
+        "Records `freqid_casadi/datasets/actuator/0A.txt.xz` (see its SOURCE.md): commanded "
         "displacement CHANNEL2 -> measured displacement CHANNEL0, 1000 Hz. Welch H1 "
         f"(nperseg 4096, Hann, 50 % overlap, {info['n_averages']} averages), kept where the "
         f"coherence exceeds 0.95 within 0.1-19.5 Hz: {info['n_points']} points, "
