@@ -34,7 +34,8 @@ import numpy as np
 
 from .data import FrequencyData
 
-__all__ = ["Diagnostic", "CODES", "TRIVIAL_RMS", "low_frequency_phase", "check_gain_sign",
+__all__ = ["Diagnostic", "CODES", "TRIVIAL_RMS", "low_frequency_phase", "low_frequency_slope",
+           "check_gain_sign",
            "check_trivial", "check_delay", "check_minimum_phase", "rhp_zeros_note"]
 
 CODES = ("negative-gain", "non-minimum-phase", "delay-undetermined", "no-better-than-trivial")
@@ -106,6 +107,31 @@ def low_frequency_phase(data, integrator):
     return float(np.angle(np.mean(unit)))
 
 
+def low_frequency_slope(data, integrator):
+    """Log-log slope of |G| (integrator removed) over the lowest points (as
+    :func:`low_frequency_phase`): about 0 for a static gain, +k for k zeros at the origin
+    (e.g. +2 for an accelerance of a free or lightly supported structure).
+
+    Parameters
+    ----------
+    data : FrequencyData
+    integrator : bool
+
+    Returns
+    -------
+    float
+        d log|G| / d log omega (nan with fewer than 2 distinct points).
+    """
+    m = max(_low_points(data.omega), 2)
+    w = data.omega[:m]
+    g = np.abs(data.response[:m]) * (w if integrator else 1.0)
+    if m < 2 or w[-1] <= w[0]:
+        return float("nan")
+    with np.errstate(all="ignore"):
+        slope = np.polyfit(np.log(w), np.log(g), 1)[0]
+    return float(slope)
+
+
 def check_gain_sign(data, integrator, gain_sign="auto"):
     """The gain sign to fit, and the record that says why.
 
@@ -128,15 +154,21 @@ def check_gain_sign(data, integrator, gain_sign="auto"):
     phase = low_frequency_phase(data, integrator)
     looks_negative = abs(phase) > math.pi / 2
     deg = math.degrees(phase)
+    slope = low_frequency_slope(data, integrator)
     values = {"low_frequency_phase_deg": deg, "n_points": _low_points(data.omega),
-              "omega_max_used": float(data.omega[_low_points(data.omega) - 1])}
+              "omega_max_used": float(data.omega[_low_points(data.omega) - 1]),
+              "low_frequency_slope": slope}
+    origin = (f" (the magnitude rises as omega^{slope:.1f} there: part of this phase comes "
+              "from zeros at the origin, as in an accelerance, which the unit-DC factors "
+              "can only approach; dividing the data by (j omega)^k before fitting is the "
+              "cleaner model)" if abs(slope) > 0.5 else "")
     what = "with the integrator removed, " if integrator else ""
     if gain_sign == "negative" or (gain_sign == "auto" and looks_negative):
         if not looks_negative:
             return -1, ()
         msg = (f"the low-frequency phase ({what}lowest {values['n_points']} points up to "
                f"{values['omega_max_used']:.4g} rad/s) is {deg:.1f} deg, near +-180 deg: "
-               "the static gain is negative; fitted with a negative gain "
+               f"the static gain is negative{origin}; fitted with a negative gain "
                "(gain_sign='auto'; pass gain_sign='positive' to force K > 0)")
         return -1, (Diagnostic("negative-gain", msg, "info", values),)
     if looks_negative:

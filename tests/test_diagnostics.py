@@ -232,3 +232,15 @@ def test_cli_fit_states_the_negative_gain_and_the_free_zeros(tmp_path, monkeypat
     assert cli.main(["fit", "nmp.csv", "--sections", "1", "--gain-sign", "up", "--out",
                      "c"]) == 2
     assert "error:" in capsys.readouterr().err
+
+
+def test_an_accelerance_is_said_to_have_zeros_at_the_origin():
+    w = np.logspace(1, 3, 200)
+    s = 1j * w
+    acc = s ** 2 / (s ** 2 + 2 * 0.02 * 300 * s + 300 ** 2)      # 180 deg from s^2
+    assert abs(dg.low_frequency_slope(FrequencyData(w, acc), False) - 2.0) < 0.05
+    sign, (d,) = dg.check_gain_sign(FrequencyData(w, acc), False)
+    assert sign == -1 and "zeros at the origin" in d.message
+    assert abs(d.values["low_frequency_slope"] - 2.0) < 0.05
+    _, (d,) = dg.check_gain_sign(FrequencyData(OMEGA, -plant()), False)
+    assert "zeros at the origin" not in d.message and abs(d.values["low_frequency_slope"]) < 0.1
