@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .data import FrequencyData
+from .metrics import relative_error
 
 __all__ = ["Diagnostic", "CODES", "TRIVIAL_RMS", "low_frequency_phase", "low_frequency_slope",
            "check_gain_sign",
@@ -123,13 +124,12 @@ def low_frequency_slope(data, integrator):
         d log|G| / d log omega (nan with fewer than 2 distinct points).
     """
     m = max(_low_points(data.omega), 2)
-    w = data.omega[:m]
-    g = np.abs(data.response[:m]) * (w if integrator else 1.0)
-    if m < 2 or w[-1] <= w[0]:
+    if data.omega.size < 2:
         return float("nan")
-    with np.errstate(all="ignore"):
-        slope = np.polyfit(np.log(w), np.log(g), 1)[0]
-    return float(slope)
+    log_w = np.log(data.omega[:m])
+    with np.errstate(divide="ignore"):      # logs: no overflow at extreme scales
+        log_g = np.log(np.abs(data.response[:m])) + (log_w if integrator else 0.0)
+    return float(np.polyfit(log_w, log_g, 1)[0])
 
 
 def check_gain_sign(data, integrator, gain_sign="auto"):
@@ -287,19 +287,19 @@ def _vf_free_zeros(data, model, n_poles):
     if model.integrator:
         base = base * s
     try:
-        vf = vector_fitting(FrequencyData(data.omega, base), n_poles, n_iter=10,
-                            enforce_stable_poles=True)
-        rel = np.abs(base / vf.frequency_response(data.omega) - 1.0)
+        target = FrequencyData(data.omega, base)
+        vf = vector_fitting(target, n_poles, n_iter=10, enforce_stable_poles=True)
+        err = relative_error(vf, target)
         zeros = np.asarray(vf.zeros(), complex)
     except (ValueError, ArithmeticError, np.linalg.LinAlgError):
         return None
-    if not np.all(np.isfinite(rel)):
+    if not np.all(np.isfinite(err.values)):
         return None
     zeros = zeros[np.isfinite(zeros)]
     # right-half-plane zeros beyond the band act like a delay there (their phase is nearly
     # linear in omega below |z|): only those inside the band are excess phase
     rhp = zeros[(zeros.real > 0) & (np.abs(zeros) <= data.omega[-1])]
-    return float(np.max(rel)), float(np.sqrt(np.mean(rel ** 2))), rhp
+    return err.max, err.rms, rhp
 
 
 def _freqs(roots):

@@ -12,7 +12,7 @@ import numpy as np
 
 from .errors import OptionError, StructureError
 
-__all__ = ["GAUGES", "Gauge", "gauge_for"]
+__all__ = ["GAUGES", "Gauge", "gauge_for", "dc_to_thesis"]
 
 #: The gauges of :class:`~freqid_casadi.objective.Parametrization`.
 GAUGES = ("dc", "b1", "raw")
@@ -53,9 +53,23 @@ class Gauge:
         raise NotImplementedError
 
 
-def _dc_to_thesis(c2, c1, wr):
+def dc_to_thesis(c2, c1, wr):
     """Thesis form (a, zeta, omega) and scale s of ``1 + c1 (s/wr) + c2 (s/wr)^2``:
-    the factor equals ``(a s^2 + 2 zeta omega s + omega^2) / s`` with ``s = omega^2``."""
+    the factor equals ``(a s^2 + 2 zeta omega s + omega^2) / s`` with ``s = omega^2``
+    (``a = -1`` for ``c2 < 0``, real roots of opposite signs: free numerators only).
+
+    Parameters
+    ----------
+    c2, c1 : float
+        The factor's coefficients (dc gauge).
+    wr : float
+        Its reference frequency (rad/s).
+
+    Returns
+    -------
+    (float, float, float, float)
+        ``a, zeta, omega, scale``.
+    """
     if c2 != 0:       # c2 < 0 only for free zeros: a = -1, real roots of opposite signs
         omega = wr / np.sqrt(abs(c2))
         return float(np.sign(c2)), c1 / (2 * np.sqrt(abs(c2))), omega, omega * omega
@@ -85,8 +99,8 @@ class _DC(Gauge):
     def to_thesis(self, v, wr):
         if self.second:
             p2, p1, q2, q1 = v
-            a, zn, wn, sn = _dc_to_thesis(p2, p1, wr)
-            b, zd, wd, sd = _dc_to_thesis(q2, q1, wr)
+            a, zn, wn, sn = dc_to_thesis(p2, p1, wr)
+            b, zd, wd, sd = dc_to_thesis(q2, q1, wr)
             return [a, zn, wn, b, zd, wd], sd / sn
         p1, q1 = v
         return [p1 / wr, 1.0, q1 / wr, 1.0], None

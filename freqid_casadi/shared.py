@@ -24,8 +24,9 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .data import FrequencyData
+from .gauges import dc_to_thesis
 from .errors import DataError, OptionError
-from .fit import default_delay_max
+from .resolution import default_delay_max
 from .model import RationalDelayModel, Structure
 from ._shared_nlp import SharedProblem, solve_stage
 from .solvers.common import Status
@@ -451,15 +452,6 @@ def _rational(make, n, omega, phi, wts, free, log, max_iter, n_iter):
     return prob, z, stages + [rec]
 
 
-def _dc_thesis(c2, c1, wr):
-    """(a, zeta, omega, scale): ``1 + c1 (s/wr) + c2 (s/wr)^2 = (a s^2 + 2 zeta omega s
-    + omega^2) / scale`` (c2 <= 0 or c1 < 0 only for free numerators)."""
-    if c2 > 0:
-        w = wr / np.sqrt(c2)
-        return 1.0, c1 / (2 * np.sqrt(c2)), w, w * w
-    return c2, c1 / 2.0, wr, wr * wr
-
-
 def _models(prob, z):
     """One RationalDelayModel per channel from the variables ``z``."""
     q, v, h, p = prob.split(z)
@@ -469,8 +461,8 @@ def _models(prob, z):
         gain = prob.g[c] / vc
         secs = []
         for k, wr in enumerate(prob.wr):
-            a, zn, wn, sn = _dc_thesis(p[c, k, 0], p[c, k, 1], wr)
-            b, zd, wd, sd = _dc_thesis(q[k, 0], q[k, 1], wr)
+            a, zn, wn, sn = dc_to_thesis(p[c, k, 0], p[c, k, 1], wr)
+            b, zd, wd, sd = dc_to_thesis(q[k, 0], q[k, 1], wr)
             gain *= sd / sn
             secs += [a, zn, wn, b, zd, wd]
         st = Structure(prob.n_sections, prob.integrator, prob.delay is not False,

@@ -21,6 +21,7 @@ from ..baselines import aaa
 from ..data import FrequencyData
 from ..errors import FreqidError
 from ..fit import fit
+from ..metrics import relative_error
 
 __all__ = ["MeasuredStudy", "DataSetStudy", "run_measured", "actuator_frf", "fit_row",
            "peer_row", "ACTUATOR", "ROBOT_ARM"]
@@ -151,13 +152,12 @@ def peer_row(data, n_sections, method):
     t0 = time.perf_counter()
     try:
         model = make(data, 2 * n_sections)
-        rel = np.abs(data.response / model.frequency_response(data.omega) - 1.0)
+        err = relative_error(model, data)
     except (FreqidError, ValueError, ArithmeticError, np.linalg.LinAlgError) as exc:
         return {"method": method, "n_sections": n_sections, "order": 2 * n_sections,
                 "error": str(exc)}, None
     return {"method": method, "n_sections": n_sections, "order": 2 * n_sections,
-            "max_rel_error": float(np.max(rel)), "rms_rel_error": float(np.sqrt(np.mean(
-                rel ** 2))), "delay": 0.0, "stable": bool(model.is_stable()),
+            "max_rel_error": err.max, "rms_rel_error": err.rms, "delay": 0.0, "stable": bool(model.is_stable()),
             "minimum_phase": bool(model.is_minimum_phase()), "success": None,
             "wall_time": time.perf_counter() - t0}, model
 

@@ -13,6 +13,7 @@ import numpy as np
 
 from .. import plots
 from ..formatting import generated_by_line, json_safe, markdown_table, number
+from ..metrics import relative_error
 from ..report import atomic_write_text, check_out_dir, report_folder
 from .measured import run_measured
 
@@ -37,9 +38,9 @@ def _std(r):
     return float("nan") if v is None else v
 
 
-def _table(ds, scale, unit):
+def _table(ds_rows, scale, unit):
     rows = []
-    for r in ds.rows:
+    for r in ds_rows:
         if "error" in r:
             rows.append((_LABEL[r["method"]], r["order"], "failed: " + r["error"][:60],
                          "", "", "", "", "", ""))
@@ -129,10 +130,7 @@ def render_measured(summary):
 
 
 def _table_from(ds_summary):
-    class _Rows:
-        rows = ds_summary["rows"]
-
-    return _table(_Rows, *_UNITS[ds_summary["name"]])
+    return _table(ds_summary["rows"], *_UNITS[ds_summary["name"]])
 
 
 def _figures(folder, study):
@@ -155,7 +153,7 @@ def _figures(folder, study):
             g = m.frequency_response(w)
             if method == "freqid" or n == max(r["n_sections"] for r in ds.rows):
                 responses[label] = g
-            errors.append({"x": w, "y": np.abs(ds.data.response / g - 1), "label": label,
+            errors.append({"x": w, "y": relative_error(m, ds.data).values, "label": label,
                            "lw": 1.6 if method == "freqid" else 0.9,
                            "ls": "-" if method == "freqid" else ":"})
         fig = plots.bode_curves(w, responses, reference=("data", ds.data.response),
