@@ -1,23 +1,26 @@
 """One stage NLP of the shared-pole fit: variables, exact sparse derivatives, IPOPT (layer L3).
 
-Channel ``c`` is modelled as ``G_c(s) = exp(-h_c s) K_c [1/s] prod_k N_ck(s) / D_k(s)``
-with the denominators ``D_k`` common to all channels. In the package's "dc" gauge
-(:mod:`freqid_casadi.objective`) every factor is ``1 + c1 (s/wr_k) + c2 (s/wr_k)^2``, i.e.
-``1 - c2 x^2 + j c1 x`` at ``s = j w``, ``x = w/wr_k``; ``c >= 0`` is exactly "roots in the
+Channel ``c`` is modelled as
+``G_c(s) = exp(-h_c s) K_c [1/s] prod_k N_ck(s) / D_k(s) prod_j N'_cj(s) / D'_cj(s)``
+with the denominators ``D_k`` common to all channels and ``k_l`` channel sections
+``N'_cj / D'_cj`` (poles and zeros) of each channel's own. In the package's "dc" gauge
+(:mod:`freqid_casadi.objective`) every factor is ``1 + c1 (s/wr) + c2 (s/wr)^2``, i.e.
+``1 - c2 x^2 + j c1 x`` at ``s = j w``, ``x = w/wr``; ``c >= 0`` is exactly "roots in the
 closed left half plane". The relative residual of channel ``c`` at ``w_i`` is::
 
-    r_ci = Q_ci - 1,   Q_ci = Phi_ci exp(j w_i h_c) [j w_i] (v_c / g_c) prod_k D_k / N_ck
+    r_ci = Q_ci - 1,   Q_ci = Phi_ci exp(j w_i h_c) [j w_i] (v_c / g_c) prod D / prod N
 
 with ``v_c = g_c / K_c`` (``g_c`` a reference gain): ``Q`` is linear in ``v``, so a gain of
 either sign (``zeros="free"``) is a smooth variable that can cross zero.
 
 Variables ``z = [shared | own_1 | ... | own_C]``: shared = ``(q2, q1)`` of every section
 (+ the delay with ``delay="shared"``), own_c = ``v_c`` (+ ``h_c``) + ``(p2, p1)`` of every
-numerator section. The cost ``sum_c sum_i w_ci |r_ci|^2`` couples the channels only
-through the shared block, so its Hessian is block-arrowhead; :class:`SharedProblem`
-evaluates its exact gradient and Hessian with numpy (``dQ = Q d log Q``; each factor is
-affine in its two variables) and hands IPOPT only the arrowhead's upper triangle, so the
-work per iteration is linear in the number of channels.
+numerator section + the channel sections' numerators and denominators
+(:meth:`SharedProblem.layout`). The cost ``sum_c sum_i w_ci |r_ci|^2`` couples the
+channels only through the shared block, so its Hessian is block-arrowhead;
+:class:`SharedProblem` evaluates its exact gradient and Hessian with numpy
+(``dQ = Q d log Q``; each factor is affine in its two variables) and hands IPOPT only the
+arrowhead's upper triangle, so the work per iteration is linear in the number of channels.
 """
 
 import time
@@ -44,73 +47,99 @@ class SharedProblem:
     g : ndarray of float, shape (C,)
         Reference gains (K_c = g_c / v_c).
     wr : sequence of float, length N
-        Reference frequency (rad/s) of each section.
+        Reference frequency (rad/s) of each shared section.
     integrator : bool
     delay : {"per-channel", "shared", False}
     free : ndarray of bool, shape (C,)
         Channels whose gain and numerator coefficients are unbounded.
     delay_max : float
         s; h = delay_max * z_h with 0 <= z_h <= 1.
+    wl : array_like of float, shape (C, k), optional
+        Reference frequency (rad/s) of each channel's own (local) sections; default none
+        (k = 0).
     """
 
-    def __init__(self, omega, phi, weights, g, wr, integrator, delay, free, delay_max):
+    def __init__(self, omega, phi, weights, g, wr, integrator, delay, free, delay_max,
+                 wl=None):
         self.omega, self.phi, self.weights, self.g = omega, phi, weights, g
         self.wr = np.asarray(wr, float)
         self.integrator, self.delay, self.free = integrator, delay, np.asarray(free, bool)
         self.delay_max = float(delay_max)
         n, c = self.wr.size, phi.shape[0]
-        self.n_sections, self.n_channels = n, c
+        self.wl = np.zeros((c, 0)) if wl is None else np.asarray(wl, float).reshape(c, -1)
+        k = self.wl.shape[1]
+        self.n_sections, self.n_channels, self.n_local = n, c, k
         self.n_shared = 2 * n + (delay == "shared")
-        self.n_own = 1 + (delay == "per-channel") + 2 * n
+        self._op = 1 + (delay == "per-channel")          # own block: v, (h), p, lp, lq
+        self._olp = self._op + 2 * n
+        self._olq = self._olp + 2 * k
+        self.n_own = self._olq + 2 * k
         self.n_vars = self.n_shared + c * self.n_own
         self._cache = (None, None)
         self._sparsity = None
 
     # ------------------------------------------------------------------ layout
+    def layout(self):
+        """Indices into ``z`` of every block (dict of int arrays): ``q`` (N, 2), ``hs`` (0 or
+        1,) the shared delay, ``v`` (C,), ``h`` (C,) or (0,), ``p`` (C, N, 2), ``lp`` and
+        ``lq`` (C, k, 2) the local sections' numerators and denominators."""
+        n, k, c, ns, no = self.n_sections, self.n_local, self.n_channels, self.n_shared, \
+            self.n_own
+        own = ns + no * np.arange(c)[:, None]                               # (C, 1)
+        return {"q": np.arange(2 * n).reshape(n, 2),
+                "hs": np.arange(2 * n, ns),
+                "v": own[:, 0],
+                "h": (own + 1)[:, 0] if self.delay == "per-channel" else np.zeros(0, int),
+                "p": (own + self._op + np.arange(2 * n)).reshape(c, n, 2),
+                "lp": (own + self._olp + np.arange(2 * k)).reshape(c, k, 2),
+                "lq": (own + self._olq + np.arange(2 * k)).reshape(c, k, 2)}
+
     def bounds(self):
         """(lb, ub), shape (n_vars,): denominators and delays >= 0 (delay <= delay_max);
         gains and numerators >= 0 for minimum-phase channels, free otherwise."""
         lb, ub = np.zeros(self.n_vars), np.full(self.n_vars, np.inf)
-        n2, ns, no = 2 * self.n_sections, self.n_shared, self.n_own
-        if self.delay == "shared":
-            ub[n2] = 1.0
-        for c in range(self.n_channels):
-            o = ns + c * no
-            if self.delay == "per-channel":
-                ub[o + 1] = 1.0
-            if self.free[c]:
-                lb[o] = -np.inf
-                lb[o + no - n2:o + no] = -np.inf
+        idx = self.layout()
+        ub[idx["hs"]] = 1.0
+        ub[idx["h"]] = 1.0
+        for c in np.flatnonzero(self.free):
+            lb[idx["v"][c]] = -np.inf
+            lb[idx["p"][c]] = -np.inf
+            lb[idx["lp"][c]] = -np.inf
         return lb, ub
 
     def split(self, z):
         """(q (N, 2), v (C,), h (C,) in s, p (C, N, 2)) of the variables ``z``."""
         z = np.asarray(z, float)
-        n, n2, ns, no = self.n_sections, 2 * self.n_sections, self.n_shared, self.n_own
-        q = z[:n2].reshape(n, 2)
-        own = z[ns:].reshape(self.n_channels, no)
+        idx = self.layout()
         if self.delay == "shared":
-            h = np.full(self.n_channels, z[n2])
+            h = np.full(self.n_channels, z[idx["hs"][0]])
         elif self.delay == "per-channel":
-            h = own[:, 1].copy()
+            h = z[idx["h"]]
         else:
             h = np.zeros(self.n_channels)
-        p = own[:, no - n2:].reshape(self.n_channels, n, 2)
-        return q, own[:, 0].copy(), h * self.delay_max, p
+        return z[idx["q"]], z[idx["v"]], h * self.delay_max, z[idx["p"]]
 
-    def join(self, q, v, h, p):
-        """Inverse of :meth:`split` (h in s)."""
-        n2, ns = 2 * self.n_sections, self.n_shared
+    def split_local(self, z):
+        """(lp, lq), each (C, k, 2): the local sections' numerator and denominator
+        variables."""
+        z = np.asarray(z, float)
+        idx = self.layout()
+        return z[idx["lp"]], z[idx["lq"]]
+
+    def join(self, q, v, h, p, lp=None, lq=None):
+        """Inverse of :meth:`split` and :meth:`split_local` (h in s; local sections default
+        to factors 1)."""
         z = np.zeros(self.n_vars)
-        z[:n2] = np.ravel(q)
-        if self.delay == "shared":
-            z[n2] = float(np.mean(h)) / self.delay_max
-        own = np.zeros((self.n_channels, self.n_own))
-        own[:, 0] = v
-        if self.delay == "per-channel":
-            own[:, 1] = np.asarray(h) / self.delay_max
-        own[:, self.n_own - n2:] = np.reshape(p, (self.n_channels, -1))
-        z[ns:] = own.ravel()
+        idx = self.layout()
+        z[idx["q"]] = np.reshape(q, (-1, 2))
+        z[idx["hs"]] = float(np.mean(h)) / self.delay_max
+        z[idx["v"]] = v
+        z[idx["h"]] = np.asarray(h, float) / self.delay_max if idx["h"].size else 0.0
+        z[idx["p"]] = np.reshape(p, idx["p"].shape)
+        if lp is not None:
+            z[idx["lp"]] = np.reshape(lp, idx["lp"].shape)
+        if lq is not None:
+            z[idx["lq"]] = np.reshape(lq, idx["lq"].shape)
         return z
 
     # ------------------------------------------------------------------ evaluation
@@ -121,16 +150,22 @@ class SharedProblem:
     def _pieces(self, z, n_points):
         m = self.omega.size if n_points is None else int(n_points)
         q, v, h, p = self.split(z)
+        lp, lq = self.split_local(z)
         w = self.omega[:m]
         x = w[None, :] / self.wr[:, None]                                   # (N, L)
         x2 = x * x
         den = 1.0 - q[:, 0:1] * x2 + 1j * q[:, 1:2] * x                     # (N, L)
         num = 1.0 - p[:, :, 0:1] * x2[None] + 1j * p[:, :, 1:2] * x[None]   # (C, N, L)
+        xl = w[None, None, :] / self.wl[:, :, None]                         # (C, k, L)
+        xl2 = xl * xl
+        lnum = 1.0 - lp[:, :, 0:1] * xl2 + 1j * lp[:, :, 1:2] * xl         # (C, k, L)
+        lden = 1.0 - lq[:, :, 0:1] * xl2 + 1j * lq[:, :, 1:2] * xl
         base = self.phi[:, :m] * np.exp(1j * w[None, :] * h[:, None]) / self.g[:, None]
         if self.integrator:
             base = base * (1j * w)[None, :]
-        P = base * np.prod(den, axis=0)[None, :] / np.prod(num, axis=1)
-        return v[:, None] * P, P, v, x, x2, den, num, w
+        P = base * np.prod(den, axis=0)[None, :] / np.prod(num, axis=1) * \
+            np.prod(lden, axis=1) / np.prod(lnum, axis=1)
+        return v[:, None] * P, P, v, (x, x2, den, num, xl, xl2, lnum, lden), w
 
     def cost(self, z, n_points=None):
         """``sum_c sum_i w_ci |Q_ci - 1|^2`` on the first ``n_points``."""
@@ -143,17 +178,19 @@ class SharedProblem:
         key = (np.asarray(z, float).tobytes(), m)
         if self._cache[0] == key:
             return self._cache[1]
-        Q, P, v, x, x2, den, num, w = self._pieces(z, m)
-        n, c = self.n_sections, self.n_channels
-        cols = [np.broadcast_to(a, (c, a.shape[0], m)) for a in
-                (np.stack([-x2 / den, 1j * x / den], axis=1).reshape(2 * n, m),)]
+        Q, P, v, (x, x2, den, num, xl, xl2, lnum, lden), w = self._pieces(z, m)
+        n, c, k = self.n_sections, self.n_channels, self.n_local
+        cols = [np.broadcast_to(np.stack([-x2 / den, 1j * x / den], axis=1)
+                                .reshape(2 * n, m), (c, 2 * n, m))]
         jw = np.broadcast_to((1j * self.delay_max) * w, (c, 1, m))
         if self.delay == "shared":
             cols.append(jw)
-        cols.append(np.ones((c, 1, m), complex))                          # v (see _scaled)
+        cols.append(np.ones((c, 1, m), complex))                          # v (see _jac)
         if self.delay == "per-channel":
             cols.append(jw)
         cols.append(np.stack([x2[None] / num, -1j * x[None] / num], axis=2).reshape(c, 2 * n, m))
+        cols.append(np.stack([xl2 / lnum, -1j * xl / lnum], axis=2).reshape(c, 2 * k, m))
+        cols.append(np.stack([-xl2 / lden, 1j * xl / lden], axis=2).reshape(c, 2 * k, m))
         E = np.concatenate(cols, axis=1).transpose(0, 2, 1)               # (C, L, nl)
         self._cache = (key, (E, Q, P, v))
         return self._cache[1]
@@ -209,13 +246,16 @@ class SharedProblem:
         return 2.0 * ss, 2.0 * so, 2.0 * oo
 
     def _base_mask(self):
-        """``1 + s_ab`` (see :meth:`_second_order_mask`), shape (nl, nl)."""
-        n, nl = self.n_sections, self.n_shared + self.n_own
+        """``1 + s_ab`` (see :meth:`_second_order_mask`), shape (nl, nl) in the local order
+        (shared, then one channel's own variables)."""
+        nl, ns = self.n_shared + self.n_own, self.n_shared
         base = np.ones((nl, nl))
-        for k in range(n):
-            base[2 * k:2 * k + 2, 2 * k:2 * k + 2] = 0.0
-            o = nl - 2 * n + 2 * k
-            base[o:o + 2, o:o + 2] = 2.0
+        starts = [(2 * k, 0.0) for k in range(self.n_sections)]                  # D_k
+        starts += [(ns + self._op + 2 * k, 2.0) for k in range(self.n_sections)]  # N_ck
+        starts += [(ns + self._olp + 2 * k, 2.0) for k in range(self.n_local)]   # local N
+        starts += [(ns + self._olq + 2 * k, 0.0) for k in range(self.n_local)]   # local D
+        for o, val in starts:
+            base[o:o + 2, o:o + 2] = val
         return base
 
     def _second_order_mask(self, v):
@@ -237,21 +277,24 @@ class SharedProblem:
         import casadi as ca
 
         m = self.omega.size if n_points is None else int(n_points)
-        n, n2, ns, no = self.n_sections, 2 * self.n_sections, self.n_shared, self.n_own
         w = self.omega[:m]
+        idx = self.layout()
         cost = 0
         for c in range(self.n_channels):
-            o = ns + c * no
-            hz = (z[n2] if self.delay == "shared" else z[o + 1]
+            hz = (z[int(idx["hs"][0])] if self.delay == "shared" else z[int(idx["h"][c])]
                   if self.delay == "per-channel" else 0.0)
             ph = self.phi[c, :m] / self.g[c] * ((1j * w) if self.integrator else 1.0)
-            q = _cplx.mul((ph.real * z[o], ph.imag * z[o]),
+            v = z[int(idx["v"][c])]
+            q = _cplx.mul((ph.real * v, ph.imag * v),
                           _cplx.expj(w * self.delay_max * hz, ca.cos, ca.sin))
-            for k in range(n):
-                x = w / self.wr[k]
-                den = (1 - z[2 * k] * x * x, z[2 * k + 1] * x)
-                pk = o + no - n2 + 2 * k
-                num = (1 - z[pk] * x * x, z[pk + 1] * x)
+            pairs = [(self.wr[k], idx["q"][k], idx["p"][c, k])
+                     for k in range(self.n_sections)]
+            pairs += [(self.wl[c, k], idx["lq"][c, k], idx["lp"][c, k])
+                      for k in range(self.n_local)]
+            for wr, iq, ip in pairs:
+                x = w / wr
+                den = (1 - z[int(iq[0])] * x * x, z[int(iq[1])] * x)
+                num = (1 - z[int(ip[0])] * x * x, z[int(ip[1])] * x)
                 q = _cplx.mul(q, _cplx.div(den, num))
             cost = cost + ca.sum1(ca.DM(self.weights[c, :m]) * ((q[0] - 1) ** 2 + q[1] ** 2))
         return cost

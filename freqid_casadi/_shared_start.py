@@ -64,39 +64,46 @@ def _clean(lam):
     return np.concatenate([lam[real].real + 0j, upper, np.conj(upper)])
 
 
-def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10):
-    """Common poles and per-channel residues of ``Phi_c(s) ~ sum_k r_ck / (s - p_k)``.
+def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=None):
+    """Common poles and per-channel residues of ``Phi_c(s) ~ sum_k r_k / (s - p_k)``.
 
     Parameters
     ----------
     omega : ndarray of float, shape (M,), rad/s
     phi : ndarray of complex, shape (C, M)
     n_poles : int
+        Poles relocated by the iterations.
     weights : ndarray of float, shape (C, M), optional
         Multiply the relative row weights ``1/|Phi|`` (as squared-residual weights).
     n_iter : int
+    fixed : ndarray of complex, shape (F,), optional
+        Poles kept as they are (conjugate pairs complete, closed left half plane): in the
+        basis of the fitted function but not in the weight function's, so the iterations
+        relocate only the ``n_poles`` others (a channel's own poles beside shared ones).
 
     Returns
     -------
-    poles : ndarray of complex, shape (n_poles,)
-        Closed left half plane, conjugate pairs complete.
-    residues : ndarray of complex, shape (C, n_poles)
+    poles : ndarray of complex, shape (n_poles + F,)
+        The relocated poles (closed left half plane, conjugate pairs complete), then the
+        fixed ones.
+    residues : ndarray of complex, shape (C, n_poles + F)
     """
     s = 1j * omega
     m = omega.size
     wt = 1.0 / np.abs(phi)
     if weights is not None:
         wt = wt * np.sqrt(weights)
+    fixed = np.zeros(0, complex) if fixed is None else np.asarray(fixed, complex)
     poles = _initial_poles(omega, n_poles)
-    n = n_poles
+    n, nf = n_poles, fixed.size
     for _ in range(n_iter):
-        basis = _basis(s, poles)
-        ones = np.hstack([basis, np.ones((m, 1))])
+        ones = np.hstack([_basis(s, poles), np.ones((m, 1))])
+        basis = np.hstack([_basis(s, fixed), ones[:, :n]]) if nf else ones[:, :n]
         rows = []
         for c in range(phi.shape[0]):
             block = np.hstack([wt[c, :, None] * basis, -(wt[c] * phi[c])[:, None] * ones])
             r = np.linalg.qr(np.vstack([block.real, block.imag]), mode="r")
-            rows.append(r[n:2 * n + 1, n:])
+            rows.append(r[n + nf:2 * n + nf + 1, n + nf:])
         norm = np.sqrt(np.sum((wt * np.abs(phi)) ** 2))
         relax = norm / m * np.real(np.sum(ones, axis=0))
         mat = np.vstack(rows + [relax[None, :]])
@@ -110,8 +117,9 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10):
             dt = 1e-8 if dt >= 0 else -1e-8
         A, b = _realisation(poles)
         poles = _clean(np.linalg.eigvals(A - np.outer(b, ct) / dt))
+    poles = np.concatenate([poles, fixed])
     basis = _basis(s, poles)
-    residues = np.zeros((phi.shape[0], n), complex)
+    residues = np.zeros((phi.shape[0], n + nf), complex)
     order = _column_poles(poles)
     for c in range(phi.shape[0]):
         a = wt[c, :, None] * basis

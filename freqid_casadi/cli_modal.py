@@ -5,9 +5,12 @@ Usage::
     freqid modal FILES... --orders 2:40:2 --out DIR [--force] [--delay per-channel|shared|none]
                  [--zeros minimum-phase|free|LIST] [--integrator] [--freq-tol 0.01]
                  [--damping-tol 0.10] [--min-stable 3] [--max-iter 100]
+                 [--channel-sections K] [--balance-channels]
 
 Reads one FRF per file (:func:`freqid_casadi.load`; all on one omega grid), fits every
-order of ``--orders`` with shared poles (:func:`freqid_casadi.survey.stabilization`) and
+order of ``--orders`` with shared poles (:func:`freqid_casadi.survey.stabilization`; with
+``--channel-sections K`` every channel also has K sections of its own standing in for the
+out-of-band modes, not counted in the order and not in the diagram) and
 writes the report folder ``DIR`` (built in a temporary folder, then moved into place; an
 existing ``DIR`` is refused without ``--force``):
 
@@ -71,6 +74,14 @@ def add_cli(subparsers):
     p.add_argument("--max-iter", type=int, default=100,
                    help="IPOPT iterations per order (twice in the final polish; default "
                         "100: orders above the true one have flat directions)")
+    p.add_argument("--channel-sections", type=int, default=0, metavar="K",
+                   help="sections of each channel's own beside the shared ones, standing in "
+                        "for the modes outside the band as that channel sees them (the "
+                        "upper/lower residuals of modal analysis); their poles are not "
+                        "modes (default 0)")
+    p.add_argument("--balance-channels", action="store_true",
+                   help="reweight so that no channel's max rel. error exceeds that of its "
+                        "own single-channel fit (C extra fits per order)")
     return p
 
 
@@ -103,7 +114,7 @@ def run_cli(args, command):
     args : argparse.Namespace
         The parsed ``freqid modal`` arguments (``files``, ``orders``, ``out``, ``force``,
         ``delay``, ``zeros``, ``integrator``, ``freq_tol``, ``damping_tol``, ``min_stable``,
-        ``max_iter``).
+        ``max_iter``, ``channel_sections``, ``balance_channels``).
     command : str
         The command line, written as the first line of ``summary.md``.
 
@@ -125,10 +136,13 @@ def run_cli(args, command):
     if args.min_stable < 1 or args.max_iter < 1:
         raise OptionError(f"--min-stable and --max-iter must be >= 1, got "
                           f"{args.min_stable}, {args.max_iter}")
+    if args.channel_sections < 0:
+        raise OptionError(f"--channel-sections must be >= 0, got {args.channel_sections}")
     res = stabilization(datas, orders, freq_tol=args.freq_tol, damping_tol=args.damping_tol,
                         min_stable=args.min_stable, delay=delay,
                         zeros=_zeros(args.zeros, len(datas)), integrator=args.integrator,
-                        max_iter=args.max_iter)
+                        max_iter=args.max_iter, channel_sections=args.channel_sections,
+                        balance_channels=args.balance_channels)
     with report_folder(args.out, args.force) as (tmp, path):
         _write_report(res, tmp, names, command)
     print(f"{len(res.modes)} modes selected; report in {path}")
@@ -174,8 +188,23 @@ def _summary(res, names, command):
                       "rms_rel_errors": dict(zip(names, map(float, top.rms_rel_errors))),
                       "delays": dict(zip(names, map(float, top.delays))),
                       "minimum_phase": dict(zip(names, [m.is_minimum_phase()
-                                                        for m in top.models]))},
+                                                        for m in top.models])),
+                      "channel_poles_omega_n": dict(zip(names, [
+                          sorted(float(abs(p)) for p in ps if p.imag >= 0)
+                          for ps in top.channel_poles])),
+                      "single_max_rel_errors": dict(zip(names, map(
+                          float, top.single_max_rel_errors)))},
     }
+
+
+def _own_line(options):
+    k = options.get("channel_sections", 0)
+    text = (f"Each channel also has {k} section(s) of its own (poles not modes, not in the "
+            f"order), standing in for the modes outside the band." if k else "")
+    if options.get("balance_channels"):
+        text += (" Channels reweighted so that none has a larger max rel. error than its own "
+                 "single-channel fit.")
+    return text.strip()
 
 
 def _markdown(s, res, names):
@@ -185,7 +214,8 @@ def _markdown(s, res, names):
              f"{len(names)} channels, orders {s['orders'][0]}..{s['orders'][-1]}; a pole is "
              f"stable when the previous order has one within {100 * s['freq_tol']:g} % in "
              f"frequency (and {100 * s['damping_tol']:g} % in damping); "
-             f"{s['n_modes_selected']} modes selected.", "", "## Selected modes", "",
+             f"{s['n_modes_selected']} modes selected.", _own_line(s["options"]), "",
+             "## Selected modes", "",
              modes_markdown(res.modes, names), "## Fit of each order", "",
              "| order | worst max rel. error | converged | iterations | time (s) |",
              "|---:|---:|---|---:|---:|"]

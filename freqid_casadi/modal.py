@@ -69,13 +69,17 @@ def _residue(model, pole, j):
     return complex(val)
 
 
-def modes_of_models(models):
+def modes_of_models(models, n_shared=None):
     """The underdamped poles of the first model's denominator sections (shared by all
     ``models``) with every model's residue, by increasing frequency.
 
     Parameters
     ----------
     models : sequence of RationalDelayModel (second-order basis, same denominators)
+    n_shared : int, optional
+        Only the first ``n_shared`` sections are shared (the others are each channel's own,
+        :func:`~freqid_casadi.shared.fit_shared`'s channel sections: not modes); default
+        all.
 
     Returns
     -------
@@ -85,7 +89,7 @@ def modes_of_models(models):
     if not models or models[0].structure.basis != "second-order":
         return ()
     out = []
-    for j, (a, zn, wn, b, zd, wd) in enumerate(models[0].sections()):
+    for j, (a, zn, wn, b, zd, wd) in enumerate(models[0].sections()[:n_shared]):
         zeta = zd / np.sqrt(b) if b > 0 else np.inf
         if zeta >= 1.0:                  # real poles (or one at infinity): not a mode
             continue
@@ -112,7 +116,8 @@ def modes(model_or_result):
     if isinstance(model_or_result, RationalDelayModel):
         return modes_of_models([model_or_result])
     if hasattr(model_or_result, "models"):
-        return modes_of_models(model_or_result.models)
+        return modes_of_models(model_or_result.models,
+                               getattr(model_or_result, "n_shared", None))
     if isinstance(getattr(model_or_result, "model", None), RationalDelayModel):
         return modes_of_models([model_or_result.model])
     raise DataError(f"modes() needs a RationalDelayModel, FitResult or SharedFitResult, got "

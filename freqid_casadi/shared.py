@@ -6,18 +6,32 @@ Channel ``c`` (one FRF, e.g. one sensor) is fitted by
 channel's own. The cost is the sum over channels of the relative least-squares error
 ``sum_i w_ci |Phi_ci / G_c(j w_i) - 1|^2``. Every stage is one IPOPT NLP with true bounds
 (:mod:`freqid_casadi._shared_nlp`: exact block-arrowhead Hessian, cost per iteration linear
-in the number of channels). Two starts:
+in the number of channels).
+
+Channel sections (``channel_sections=k``, the counterpart of the "upper and lower
+residuals" of experimental modal analysis, e.g. PolyMAX or sdypy-EMA): each channel's model
+also has k sections of its own, ``N'_cj(s) / D'_cj(s)`` with its own poles and zeros (stable,
+and minimum phase unless the channel's zeros are "free", by the same bounds), standing in
+for what that channel sees of the modes outside the band. They are channel-block variables
+(the Hessian stays block-arrowhead); the channels are coupled only through the shared poles,
+and only those are modes (:attr:`SharedFitResult.modes`, ``poles``).
+
+Two starts (:mod:`freqid_casadi._shared_stages`):
 
 ``"rational"`` (default)
     vector fitting with one common pole set over all channels
-    (:mod:`freqid_casadi._shared_start`), right-half-plane zeros of minimum-phase channels
-    reflected (their group delay moved to the delay), then one IPOPT polish on all data;
+    (:mod:`freqid_casadi._shared_start`), with channel sections one vector fitting per
+    channel for its own poles (the shared ones fixed), right-half-plane zeros of
+    minimum-phase channels reflected (their group delay moved to the delay), then one IPOPT
+    polish on all data;
 ``"sequential"``
     the package's main loop: a pole pair added at the frequency of the largest relative
     error over all channels, the window grown to cover it, all parameters re-fitted,
-    warm-started; a last stage on all data.
+    warm-started; then the channel sections, one per channel and stage, each at the
+    frequency of that channel's largest error; a last stage on all data.
 """
 
+import dataclasses
 import time
 from dataclasses import dataclass, field
 
@@ -28,62 +42,17 @@ from .gauges import dc_to_thesis
 from .errors import DataError, OptionError
 from .resolution import default_delay_max
 from .model import RationalDelayModel, Structure
-from ._shared_nlp import SharedProblem, solve_stage
-from .solvers.common import Status
-from .solvers.ipopt import ipopt_status
-from ._shared_start import channel_zeros, factor_variables, shared_vector_fitting
+from ._shared_nlp import SharedProblem
+from ._shared_stages import (SharedStage, lawson_weights, logger, rational_start,
+                             sequential_start)
 
 __all__ = ["fit_shared", "SharedFitResult", "SharedStage", "DELAYS", "ZEROS", "SHARED_STARTS"]
 
 DELAYS = ("per-channel", "shared", False)
 ZEROS = ("minimum-phase", "free")
 SHARED_STARTS = ("rational", "sequential")
-
-
-@dataclass(frozen=True)
-class SharedStage:
-    """One IPOPT stage of :func:`fit_shared`.
-
-    Attributes
-    ----------
-    stage : int
-        0 gain/delay stage (or the rational start's vector fitting), n the stage that added
-        section n, ``n_sections + 1`` the final all-data stage (the polish of the rational
-        start).
-    n_sections, window : int
-        Sections and number of frequencies (lowest first) fitted.
-    omega_c : float
-        rad/s where the section was placed (nan otherwise).
-    max_rel_error : float
-        Over all channels and points after the stage.
-    nit : int
-        IPOPT iterations (for the rational start's stage 0, status "vector-fitting": the
-        vector-fitting iterations).
-    t_solve, wall_time : float
-        s: the IPOPT solve alone, and the stage with its NLP construction.
-    cpu_solve : float
-        s: CPU time of this process during the IPOPT solve(s) (single-threaded BLAS, so
-        close to the solve's own cost even when other jobs load the machine).
-    status : freqid_casadi.solvers.common.Status
-        Why the stage stopped (COST_TOL: the start was exact to rounding, no solve).
-    solver_status : str
-        IPOPT's return_status ("vector-fitting" for the rational start's stage 0,
-        "start-exact" when no solve was needed).
-    success : bool
-    """
-
-    stage: int
-    n_sections: int
-    window: int
-    omega_c: float
-    max_rel_error: float
-    nit: int
-    t_solve: float
-    wall_time: float
-    status: Status
-    solver_status: str
-    success: bool
-    cpu_solve: float = 0.0
+#: Most reweighted fits of ``balance_channels``.
+BALANCE_ROUNDS = 10
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,11 +62,14 @@ class SharedFitResult:
     Attributes
     ----------
     models : tuple of RationalDelayModel, length C
-        One per channel, all with the same denominator sections (stable by construction);
-        channels fitted with ``zeros="free"`` have ``structure.zeros = "free"`` (and ``gain_sign = -1`` for a negative gain).
+        One per channel, all with the same first N denominator sections (stable by
+        construction), then the channel's own k channel sections (``N + k`` sections in
+        all); channels fitted with ``zeros="free"`` have ``structure.zeros = "free"`` (and
+        ``gain_sign = -1`` for a negative gain).
     datas : tuple of FrequencyData, length C
     poles : ndarray of complex, shape (2N,)
         The shared poles (the integrator's pole at 0 not included), by increasing |p|.
+        rad/s.
     rel_errors : ndarray of float, shape (C, M)
         ``|Phi_c / G_c - 1|`` at every point.
     max_rel_errors, rms_rel_errors : ndarray of float, shape (C,)
@@ -113,6 +85,13 @@ class SharedFitResult:
     zeros : tuple of str
         "minimum-phase" or "free" per channel.
     options : dict
+    channel_poles : tuple of ndarray of complex, length C
+        Each channel's own poles (2k each, rad/s, by increasing |p|) from its channel
+        sections; empty arrays without channel sections. Not modes: they stand in for
+        modes outside the band as that channel sees them.
+    single_max_rel_errors : ndarray of float, shape (C,) or ()
+        With ``balance_channels``: each channel's max relative error in its own
+        single-channel fit (the targets); empty otherwise.
     """
 
     models: tuple
@@ -128,10 +107,22 @@ class SharedFitResult:
     stages: tuple = ()
     zeros: tuple = ()
     options: dict = field(default_factory=dict)
+    channel_poles: tuple = ()
+    single_max_rel_errors: np.ndarray = ()
 
     @property
     def n_channels(self):
         return len(self.models)
+
+    @property
+    def n_shared(self):
+        """Shared sections N (each model has ``N + channel_sections`` sections)."""
+        return int(self.options.get("n_sections", self.models[0].n_sections))
+
+    @property
+    def channel_sections(self):
+        """Sections of each channel's own k (0 without)."""
+        return int(self.options.get("channel_sections", 0))
 
     @property
     def delays(self):
@@ -140,7 +131,8 @@ class SharedFitResult:
 
     def summary(self):
         """One line: channels, sections, worst max/RMS relative error, time, status."""
-        return (f"{self.n_channels} channels, {self.models[0].n_sections} shared sections, "
+        own = (f" + {self.channel_sections} per channel" if self.channel_sections else "")
+        return (f"{self.n_channels} channels, {self.n_shared} shared sections{own}, "
                 f"{len(self.modes)} modes, max rel. error {np.max(self.max_rel_errors):.4g} "
                 f"(worst channel), RMS {np.max(self.rms_rel_errors):.4g}, "
                 f"{self.wall_time:.2f} s, {self.nit} iterations, "
@@ -227,10 +219,14 @@ def _check_datas(datas, weights):
     return datas, omega, np.array([d.response for d in datas]), wts
 
 
-def _check_options(n_sections, delay, zeros, start, n_channels):
+def _check_options(n_sections, delay, zeros, start, n_channels, channel_sections):
     if isinstance(n_sections, bool) or not isinstance(n_sections, (int, np.integer)) \
             or n_sections < 1:
         raise OptionError(f"n_sections must be an integer >= 1, got {n_sections!r}")
+    if isinstance(channel_sections, bool) or \
+            not isinstance(channel_sections, (int, np.integer)) or channel_sections < 0:
+        raise OptionError(f"channel_sections must be an integer >= 0 (sections of each "
+                          f"channel's own beside the shared ones), got {channel_sections!r}")
     if delay not in DELAYS or delay is True:
         raise OptionError(f"delay must be one of {DELAYS}, got {delay!r}")
     zs = [zeros] * n_channels if isinstance(zeros, str) else list(zeros)
@@ -239,12 +235,13 @@ def _check_options(n_sections, delay, zeros, start, n_channels):
                           f"({n_channels}), got {zeros!r}")
     if start not in SHARED_STARTS:
         raise OptionError(f"start must be one of {SHARED_STARTS}, got {start!r}")
-    return int(n_sections), tuple(zs)
+    return int(n_sections), tuple(zs), int(channel_sections)
 
 
 def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
                zeros="minimum-phase", weights=None, start="rational", progress=False,
-               delay_max=None, max_iter=200, n_vf_iter=10):
+               delay_max=None, max_iter=200, n_vf_iter=10, channel_sections=0,
+               balance_channels=False):
     """Fit several FRFs of one structure with one shared set of poles.
 
     Parameters
@@ -261,7 +258,8 @@ def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
     zeros : {"minimum-phase", "free"} or sequence of them, one per channel
         "minimum-phase": gain and numerator coefficients >= 0 (zeros in the closed left
         half plane). "free": unbounded (a non-collocated sensor's right-half-plane zeros or
-        negative gain); such a channel's model has ``structure.zeros = "free"`` (and ``gain_sign = -1`` for a negative gain).
+        negative gain); such a channel's model has ``structure.zeros = "free"`` (and
+        ``gain_sign = -1`` for a negative gain).
     weights : array_like of float, shape (C, M), (M,) or scalar, optional
         Weights of the squared relative residuals, multiplying the datas' own weights.
     start : {"rational", "sequential"}
@@ -273,6 +271,23 @@ def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
         IPOPT iterations per stage (twice that in the final stage).
     n_vf_iter : int
         Vector-fitting iterations of the rational start.
+    channel_sections : int
+        k >= 0 sections of each channel's own (own poles and zeros, stable, minimum phase
+        unless the channel's zeros are "free"), beside the N shared ones: they stand in
+        for the modes outside the band as each channel sees them (the "upper and lower
+        residuals" of modal analysis), so each channel's model has ``N + k`` sections.
+        Their poles are not modes (:attr:`SharedFitResult.channel_poles`). Default 0.
+    balance_channels : bool
+        Make no channel's max relative error exceed that of its own single-channel fit
+        (this function on that channel alone, same options: ``N + k`` sections, its zeros
+        kind; C extra fits, :attr:`SharedFitResult.single_max_rel_errors`): after the fit,
+        the points of the channels that lose are reweighted (Lawson's iteration towards
+        their minimax fit) and the fit repeated with the new weights, at most
+        :data:`BALANCE_ROUNDS` times (each round's stages are appended to ``stages``);
+        errors below 1e-8 count as exact (no loss). A channel is thus held to
+        its own fit's max error at the price of its least-squares optimality (its RMS error
+        grows); without channel sections the shared sections must also stand in for the
+        out-of-band modes and the rounds may not reach every target (the result says).
 
     Returns
     -------
@@ -286,190 +301,80 @@ def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
 
     with _single_threaded_blas():
         return _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start,
-                           progress, delay_max, max_iter, n_vf_iter)
+                           progress, delay_max, max_iter, n_vf_iter, channel_sections,
+                           balance_channels)
 
 
 def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, progress,
-                delay_max, max_iter, n_vf_iter):
+                delay_max, max_iter, n_vf_iter, channel_sections, balance):
     t0 = time.perf_counter()
     datas, omega, phi, wts = _check_datas(datas, weights)
-    n, zs = _check_options(n_sections, delay, zeros, start, len(datas))
+    n, zs, k = _check_options(n_sections, delay, zeros, start, len(datas), channel_sections)
     free = np.array([z == "free" for z in zs])
     dmax = float(delay_max) if delay_max is not None else default_delay_max(omega)
     g = np.abs(phi[:, 0]) * (omega[0] if integrator else 1.0)
-    make = (lambda wr: SharedProblem(omega, phi, wts, g, wr, integrator, delay, free, dmax))
-    log = _logger(progress)
-    if start == "rational":
-        base = phi * (1j * omega) if integrator else phi      # VF fits the rational part
-        prob, z, stages = _rational(make, n, omega, base, wts, free, log, max_iter, n_vf_iter)
-    else:
-        prob, z, stages = _sequential(make, n, omega, wts, log, max_iter)
-    return _result(prob, z, datas, stages, zs, time.perf_counter() - t0,
-                   {"n_sections": n, "integrator": bool(integrator), "delay": delay,
-                    "zeros": list(zs), "start": start, "delay_max": dmax})
 
+    log = logger(progress)
+    base = phi * (1j * omega) if integrator else phi          # VF fits the rational part
 
-def _logger(progress):
-    import sys
+    def run(w):
+        def make(wr, wl):
+            return SharedProblem(omega, phi, w, g, wr, integrator, delay, free, dmax, wl)
+        if start == "rational":
+            return rational_start(make, n, k, omega, base, w, free, log, max_iter, n_vf_iter)
+        return sequential_start(make, n, k, omega, w, log, max_iter)
 
-    def log(rec):
-        if progress:
-            print(f"  stage {rec.stage:2d}: {rec.n_sections} sections, window {rec.window}, "
-                  f"max rel. error {rec.max_rel_error:.3e}, {rec.nit} it, "
-                  f"{rec.wall_time:.2f} s, {rec.solver_status}", file=sys.stderr)
-        return rec
-    return log
-
-
-def _stage(prob, x0, window, stage, omega_c, log, lam=None, max_iter=200):
-    """Solve one stage, keep the better of solution and start; return (z, lam, record)."""
-    t0 = time.perf_counter()
-    x0c = np.clip(x0, *prob.bounds())
-    if np.max(np.abs(prob.ratio(x0c, window) - 1.0)) < 1e-10:
-        # exact to rounding already: IPOPT cannot meet its tolerance on rounding noise
-        res = {"x": x0c, "lam_x": np.zeros_like(x0c), "cost": prob.cost(x0c, window),
-               "nit": 0, "t_solve": 0.0, "c_solve": 0.0, "status": "start-exact",
-               "success": True}
-    else:
-        res = solve_stage(prob, x0, window, lam_x0=lam, max_iter=max_iter)
-        res = _resolve(prob, res, prob.cost(x0c, window), window, max_iter)
-    z, lam_x = res["x"], res["lam_x"]
-    if not res["cost"] <= prob.cost(x0c, window):
-        z, lam_x = x0c, np.zeros_like(x0c)
-    err = float(np.max(np.abs(prob.ratio(z) - 1.0)))
-    first = res["status"].split(";")[0]
-    status = Status.COST_TOL if first == "start-exact" else ipopt_status(first)
-    rec = SharedStage(stage, prob.n_sections, window or prob.omega.size, omega_c, err,
-                      res["nit"], res["t_solve"], time.perf_counter() - t0, status,
-                      res["status"], res["success"], res["c_solve"])
-    return z, lam_x, log(rec)
-
-
-def _resolve(prob, res, cost0, window, max_iter):
-    """One more solve (at most ``max_iter // 4`` iterations) from a converged point whose
-    cost fell below 1e-6 of the start's: IPOPT's objective is scaled by 1/cost(start), so
-    its tolerance was relative to a cost far above the one reached. The stage's success and
-    status stay the first solve's (it met its tolerance); the status notes the polish."""
-    if not (res["success"] and res["cost"] < 1e-6 * cost0
-            and np.max(np.abs(prob.ratio(res["x"], window) - 1.0)) > 1e-10):
-        return res
-    new = solve_stage(prob, res["x"], window, lam_x0=res["lam_x"],
-                      max_iter=max(10, max_iter // 4))
-    out = dict(res, nit=res["nit"] + new["nit"], t_solve=res["t_solve"] + new["t_solve"],
-               c_solve=res["c_solve"] + new["c_solve"],
-               status=f"{res['status']}; rescaled polish: {new['status']}")
-    if new["cost"] < res["cost"]:
-        out.update(x=new["x"], lam_x=new["lam_x"], cost=new["cost"])
-    return out
-
-
-def _sequential(make, n_total, omega, wts, log, max_iter):
-    """The main loop over shared sections. Returns (problem, z, stages)."""
-    m = omega.size
-    prob = make([])
-    c = prob.n_channels
-    z = prob.join(np.zeros((0, 2)), np.ones(c), np.zeros(c), np.zeros((c, 0, 2)))
-    window = min(5, m)
-    z, lam, rec = _stage(prob, z, window, 0, np.nan, log, max_iter=max_iter)
-    stages = [rec]
-    for k in range(1, n_total + 1):
-        err = np.max(np.sqrt(wts) * np.abs(prob.ratio(z) - 1.0), axis=0)
-        idx = int(np.argmax(err))
-        wc = float(omega[idx])
-        window = min(m, max(window, idx + 1, 2 * k + 3))
-        q, v, h, p = prob.split(z)
-        rho = np.abs(prob.ratio(z, idx + 1)[:, idx])
-        zeta0 = _peak_damping(err, idx, omega)
-        zd = zeta0 if rho.max() >= 1 else min(zeta0 / max(rho.max(), 1e-12), 2.0)
-        zn = np.clip(zd * rho, 1e-4, 2.0)
-        prob = make(list(prob.wr) + [wc])
-        q = np.vstack([q, [[1.0, 2 * zd]]])
-        p = np.concatenate([p, np.stack([np.ones(c), 2 * zn], axis=1)[:, None, :]], axis=1)
-        x0 = prob.join(q, v, h, p)
-        lam0 = _extend_lam(prob, lam)
-        z, lam, rec = _stage(prob, x0, window, k, wc, log, lam0, max_iter)
-        stages.append(rec)
-    z, lam, rec = _stage(prob, z, None, n_total + 1, np.nan, log, lam, 2 * max_iter)
-    return prob, z, stages + [rec]
-
-
-def _extend_lam(prob, lam):
-    """Bound multipliers of the previous stage placed into the new layout (new entries 0)."""
-    old_n = prob.n_sections - 1
-    c, ns, no = prob.n_channels, prob.n_shared, prob.n_own
-    out = np.zeros(prob.n_vars)
-    ns_old, no_old = ns - 2, no - 2
-    out[:2 * old_n] = lam[:2 * old_n]
-    out[2 * old_n + 2:ns] = lam[2 * old_n:ns_old]
-    own_old = lam[ns_old:].reshape(c, no_old)
-    own = out[ns:].reshape(c, no)
-    own[:, :no_old] = own_old
-    return out
-
-
-def _peak_damping(err, idx, omega):
-    """Damping from the half-width of the error peak at ``idx`` (as fit's "peak" init)."""
-    half = err[idx] / 2.0
-    lo, hi = idx, idx
-    while lo > 0 and err[lo - 1] > half:
-        lo -= 1
-    while hi < omega.size - 1 and err[hi + 1] > half:
-        hi += 1
-    width = (omega[min(hi + 1, omega.size - 1)] - omega[max(lo - 1, 0)]) / (2 * omega[idx])
-    return float(np.clip(width / 2, 1e-3, 0.5))
-
-
-def _rational(make, n, omega, phi, wts, free, log, max_iter, n_iter):
-    """Shared-pole vector fitting, zeros per channel, then one IPOPT polish on all data."""
-    t0 = time.perf_counter()
-    poles, residues = shared_vector_fitting(omega, phi, 2 * n, wts, n_iter)
-    floor = 1e-6 * omega[0]
-    q, wr = factor_variables(poles, None, floor)
-    prob = make(wr)
-    c = prob.n_channels
-    p = np.zeros((c, n, 2))
-    h = np.zeros(c)
-    for k in range(c):
-        zk = channel_zeros(poles, residues[k])
-        rhp = zk[zk.real > 0]
-        if not free[k]:
-            # an RHP zero z is the all-pass (s - z)/(s + z*) times its reflection; its
-            # low-frequency group delay 2 Re z / |z|^2 goes to the delay
-            h[k] = np.sum(2 * rhp.real / np.abs(rhp) ** 2) if rhp.size else 0.0
-            zk = np.where(zk.real > 0, -np.conj(zk), zk)
-        p[k] = factor_variables(zk, wr, floor)[0]
-    h = np.clip(h, 0.0, prob.delay_max) if prob.delay else np.zeros(c)
-    P = prob.ratio(prob.join(q, np.ones(c), h, p))
-    v = np.sum(wts * P.real, axis=1) / np.sum(wts * np.abs(P) ** 2, axis=1)
-    bad = ~free & (v <= 0)
-    v[bad] = 1.0 / np.median(np.abs(P[bad]), axis=1) if bad.any() else v[bad]
-    z0 = prob.join(q, v, h, p)
-    err = float(np.max(np.abs(prob.ratio(z0) - 1.0)))
-    stages = [log(SharedStage(0, n, omega.size, np.nan, err, n_iter, 0.0,
-                              time.perf_counter() - t0, Status.CONVERGED, "vector-fitting",
-                              True))]
-    z, _, rec = _stage(prob, z0, None, n + 1, np.nan, log, None, 2 * max_iter)
-    return prob, z, stages + [rec]
+    prob, z, _, stages = run(wts)
+    options = {"n_sections": n, "channel_sections": k, "integrator": bool(integrator),
+               "delay": delay, "zeros": list(zs), "start": start, "delay_max": dmax,
+               "balance_channels": bool(balance)}
+    singles = ()
+    if balance:
+        singles = np.array([_fit_shared([d], n, integrator, delay, [z], wts[c], start, False,
+                                        dmax, max_iter, n_vf_iter, k, False)
+                            .max_rel_errors[0] for c, (d, z) in enumerate(zip(datas, zs))])
+        for _ in range(BALANCE_ROUNDS):
+            w = lawson_weights(prob, z, singles)
+            if w is None:
+                break
+            prob, z, _, more = run(w)
+            stages += more
+    res = _result(prob, z, datas, stages, zs, time.perf_counter() - t0, options)
+    return dataclasses.replace(res, single_max_rel_errors=singles) if balance else res
 
 
 def _models(prob, z):
-    """One RationalDelayModel per channel from the variables ``z``."""
+    """One RationalDelayModel per channel from the variables ``z``: the shared sections,
+    then the channel's own."""
     q, v, h, p = prob.split(z)
+    lp, lq = prob.split_local(z)
     models = []
     for c in range(prob.n_channels):
         vc = v[c] if abs(v[c]) > 1e-300 else 1e-300
         gain = prob.g[c] / vc
         secs = []
-        for k, wr in enumerate(prob.wr):
-            a, zn, wn, sn = dc_to_thesis(p[c, k, 0], p[c, k, 1], wr)
-            b, zd, wd, sd = dc_to_thesis(q[k, 0], q[k, 1], wr)
+        pairs = [(p[c, k], q[k], wr) for k, wr in enumerate(prob.wr)]
+        pairs += [(lp[c, k], lq[c, k], wl) for k, wl in enumerate(prob.wl[c])]
+        for num, den, wr in pairs:
+            a, zn, wn, sn = dc_to_thesis(num[0], num[1], wr)
+            b, zd, wd, sd = dc_to_thesis(den[0], den[1], wr)
             gain *= sd / sn
             secs += [a, zn, wn, b, zd, wd]
-        st = Structure(prob.n_sections, prob.integrator, prob.delay is not False,
+        st = Structure(len(pairs), prob.integrator, prob.delay is not False,
                        "second-order", "free" if prob.free[c] else "minimum-phase",
                        1 if gain >= 0 else -1)
         models.append(RationalDelayModel(st, np.array([h[c], abs(gain)] + secs, float)))
     return tuple(models)
+
+
+def _section_poles(model, sections):
+    """Poles (rad/s) of the denominators of ``model``'s sections ``sections`` (a slice), by
+    increasing |p|."""
+    secs = model.sections()[sections]
+    sub = RationalDelayModel(Structure(len(secs), False, False, "second-order", "free"),
+                             np.concatenate([[0.0, 1.0], secs.ravel()]))
+    poles = sub.poles()
+    return poles[np.argsort(np.abs(poles), kind="stable")]
 
 
 def _result(prob, z, datas, stages, zeros, wall, options):
@@ -477,14 +382,13 @@ def _result(prob, z, datas, stages, zeros, wall, options):
 
     models = _models(prob, z)
     rel = np.abs(prob.ratio(z) - 1.0)
-    poles = models[0].poles()
-    if prob.integrator:
-        poles = poles[1:]
-    poles = poles[np.argsort(np.abs(poles), kind="stable")]
+    n = prob.n_sections
     return SharedFitResult(
-        models=models, datas=tuple(datas), poles=poles, rel_errors=rel,
+        models=models, datas=tuple(datas), poles=_section_poles(models[0], slice(0, n)),
+        rel_errors=rel,
         max_rel_errors=np.max(rel, axis=1), rms_rel_errors=np.sqrt(np.mean(rel ** 2, axis=1)),
-        success=bool(stages[-1].success), modes=modes_of_models(models),
+        success=bool(stages[-1].success), modes=modes_of_models(models, n),
         wall_time=wall, nit=int(sum(s.nit for s in stages
                                    if s.solver_status != "vector-fitting")),
-        stages=tuple(stages), zeros=tuple(zeros), options=options)
+        stages=tuple(stages), zeros=tuple(zeros), options=options,
+        channel_poles=tuple(_section_poles(m, slice(n, None)) for m in models))

@@ -153,7 +153,9 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
         predecessors were "stable-frequency-damping" over the last ``min_stable`` orders.
     progress : bool
     **fit_options
-        Passed to :func:`~freqid_casadi.shared.fit_shared` (integrator, delay, zeros, ...).
+        Passed to :func:`~freqid_casadi.shared.fit_shared` (integrator, delay, zeros,
+        channel_sections, balance_channels, ...). With ``channel_sections`` the order counts
+        the shared poles only; each channel's own poles are not in the diagram.
 
     Returns
     -------

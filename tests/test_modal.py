@@ -162,3 +162,34 @@ def test_import_does_not_load_matplotlib():
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, env={**os.environ, "PYTHONPATH": os.getcwd()})
     assert out.stdout.strip() == "False"
+
+
+def test_cli_modal_channel_sections(tmp_path, capsys):
+    files = []
+    for d in _datas(120):
+        path = tmp_path / f"{d.name}.csv"
+        fc.save_csv(d, path)
+        files.append(str(path))
+    out = tmp_path / "rep"
+    argv = ["modal", *files, "--orders", "2,4", "--min-stable", "1", "--out", str(out),
+            "--channel-sections", "1", "--balance-channels"]
+    assert main(argv) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["options"]["channel_sections"] == 1
+    assert summary["options"]["balance_channels"] is True
+    top = summary["top_order"]
+    # order 2: one mode shared, the other in each channel's own section; order 4: both
+    # shared (the own sections are left with nothing to do); selected (stable over the two
+    # orders): the mode shared at order 2, measured 17 rad/s
+    rows = (out / "stabilization.csv").read_text().splitlines()[1:]
+    assert [r.split(",")[0] for r in rows] == ["2", "4", "4"]
+    assert len(summary["modes"]) == 1
+    assert min(abs(summary["modes"][0]["omega_n"] - w) for w in (5.0, 17.0)) < 1e-3
+    assert all(len(v) == 1 for v in top["channel_poles_omega_n"].values())
+    assert all(top["max_rel_errors"][n] <= max(top["single_max_rel_errors"][n], 1e-8)
+               for n in top["max_rel_errors"])          # below 1e-8: exact (both ~1e-13)
+    assert summary["per_order"][0]["nit"] < 400          # no rounds chasing rounding
+    assert "section(s) of its own" in (out / "summary.md").read_text()
+    assert RationalDelayModel.load(out / "model_ch1.json").n_sections == 3
+    assert main([*argv[:-3], "--channel-sections", "-1", "--force"]) == 2
+    assert "--channel-sections" in capsys.readouterr().err

@@ -14,21 +14,23 @@ from freqid_casadi.shared import SharedFitResult, fit_shared
 from freqid_casadi.systems import moheimani_modes
 
 
-def _random_problem(delay, integrator=True, seed=0):
+def _random_problem(delay, integrator=True, seed=0, local=False):
     rng = np.random.default_rng(seed)
     c, m = 3, 30
     w = np.linspace(1.0, 10.0, m)
     phi = rng.normal(size=(c, m)) + 1j * rng.normal(size=(c, m))
+    wl = [[3.0, 8.0], [4.0, 9.0], [6.0, 12.0]] if local else None   # 2 sections per channel
     prob = SharedProblem(w, phi, rng.uniform(0.5, 1.0, (c, m)), np.ones(c), [2.0, 5.0],
-                         integrator, delay, [True, False, True], 0.1)
+                         integrator, delay, [True, False, True], 0.1, wl)
     z = rng.uniform(0.1, 1.0, prob.n_vars)
     z[prob.n_shared] = -0.3                       # a negative gain variable (free channel)
     return prob, z
 
 
+@pytest.mark.parametrize("local", [False, True])
 @pytest.mark.parametrize("delay", ["per-channel", "shared", False])
-def test_gradient_and_hessian_match_finite_differences(delay):
-    prob, z = _random_problem(delay)
+def test_gradient_and_hessian_match_finite_differences(delay, local):
+    prob, z = _random_problem(delay, local=local)
     cost, grad = prob.gradient(z)
     assert cost == pytest.approx(prob.cost(z), rel=1e-14)
     eye = np.eye(prob.n_vars)
@@ -41,11 +43,12 @@ def test_gradient_and_hessian_match_finite_differences(delay):
     assert np.max(np.abs(h - fdh)) < 1e-7 * np.max(np.abs(h))
 
 
+@pytest.mark.parametrize("local", [False, True])
 @pytest.mark.parametrize("delay", ["per-channel", "shared", False])
-def test_casadi_ad_hessian_is_block_arrowhead_and_equals_ours(delay):
+def test_casadi_ad_hessian_is_block_arrowhead_and_equals_ours(delay, local):
     import casadi as ca
 
-    prob, z = _random_problem(delay)
+    prob, z = _random_problem(delay, local=local)
     x = ca.SX.sym("z", prob.n_vars)
     f = prob.casadi_cost(x)
     hess = ca.hessian(f, x)[0]
@@ -64,7 +67,12 @@ def test_casadi_ad_hessian_is_block_arrowhead_and_equals_ours(delay):
     assert np.array_equal(ad_pattern, pattern)
     ns, no = prob.n_shared, prob.n_own
     assert not ad_pattern[ns:ns + no, ns + no:].any()          # channel 1 x channels 2, 3
-
+    if local:                  # the channel sections are channel-block variables
+        lq = prob.layout()["lq"]
+        assert lq.shape == (3, 2, 2) and np.all(lq[0] < ns + no) and np.all(lq[1] >= ns + no)
+        lb = prob.bounds()[0]
+        assert np.all(lb[lq] == 0) and np.all(lb[prob.layout()["lp"][1]] == 0)
+        assert np.all(lb[prob.layout()["lp"][0]] == -np.inf)     # free channel
 
 def test_hessian_nonzeros_grow_linearly_with_channels():
     counts = []
@@ -205,16 +213,80 @@ def test_beam_non_collocated_channels_beat_single_channel_fits(beam_fit):
             assert beam_fit.max_rel_errors[c] < 0.012
 
 
-@pytest.mark.xfail(strict=True, reason=(
-    "measured: collocated channel (r2 = r1 = 0.075 m) max rel. error 0.0248 shared vs "
-    "0.00306 single-channel fc.fit, 6 sections, band 5..500 rad/s: its sixth section is not "
-    "a mode but stands in for modes 6..30 above the band, which the other channels need "
-    "placed elsewhere; with one pole set it is a compromise"))
-def test_beam_collocated_channel_no_worse_than_single_fit(beam_fit):
+def test_beam_six_shared_sections_are_a_compromise(beam_fit):
+    # one pole set for everything: the sixth shared section stands in for modes 6..30 above
+    # the band for all channels at once; measured max rel. errors 0.0248 (collocated; its
+    # own fc.fit at 6 sections: 0.00306), 0.0115, 0.0078, 0.0021, 0.0066
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         single = fc.fit(beam_datas()[0], n_sections=6, delay=False)
-    assert beam_fit.max_rel_errors[0] <= single.max_rel_error
+    assert single.max_rel_error == pytest.approx(0.00306, rel=0.01)
+    assert beam_fit.max_rel_errors[0] > 5 * single.max_rel_error
+
+
+@pytest.fixture(scope="module")
+def beam_own():
+    """5 shared sections (the 5 modes in the band) + 1 section of each channel's own (the
+    out-of-band modes as that channel sees them) = 6 sections per channel."""
+    return fit_shared(beam_datas(), 5, delay=False, zeros=BEAM_ZEROS, channel_sections=1)
+
+
+@pytest.fixture(scope="module")
+def beam_balanced():
+    return fit_shared(beam_datas(), 5, delay=False, zeros=BEAM_ZEROS, channel_sections=1,
+                      balance_channels=True)
+
+
+def _check_beam_modes(res):
+    wi, _ = moheimani_modes(30)
+    found = np.array([m.omega_n for m in res.modes])
+    assert found.size == 5 and len(res.poles) == 10                  # only the shared poles
+    np.testing.assert_allclose(found, wi[:5], rtol=0.005)             # issue 16: 0.5 %
+    np.testing.assert_allclose(found, wi[:5], rtol=1e-4)              # measured <= 1e-5
+    assert all(len(m.residues) == len(SENSORS) for m in res.modes)
+    # each channel's own section sits above the band (measured 596..640 rad/s: mode 6 is
+    # 613) and is not a mode
+    for p in res.channel_poles:
+        assert p.size == 2 and np.all(np.abs(p) > 500.0) and np.all(p.real < 0)
+    assert all(m.n_sections == 6 for m in res.models)
+    assert all(mod.is_stable() for mod in res.models)
+    assert res.models[0].is_minimum_phase()
+
+
+def test_beam_channel_sections_modes_and_errors(beam_own):
+    # the collocated channel's model is in the same class as its own fit (6 minimum-phase
+    # sections), so in least squares it can tie its own fit at best: it cannot, as its 5
+    # in-band poles are shared. Measured max rel. errors 0.003078 (own fit 0.003056, 0.7 %
+    # worse), 0.00548, 0.00070, 0.00061, 0.00179 (vs 0.0248, 0.0115, 0.0078, 0.0021, 0.0066
+    # with 6 shared sections)
+    _check_beam_modes(beam_own)
+    assert beam_own.summary().startswith("5 channels, 5 shared sections + 1 per channel")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        single = fc.fit(beam_datas()[0], n_sections=6, delay=False)
+    assert beam_own.max_rel_errors[0] <= 1.01 * single.max_rel_error
+    assert beam_own.rms_rel_errors[0] <= 1.01 * single.rms_rel_error
+    assert np.all(beam_own.max_rel_errors < 0.006)
+
+
+def test_beam_collocated_channel_no_worse_than_single_fit(beam_balanced):
+    # issue 16: every channel's max rel. error no worse than its own single-channel fit at
+    # the same number of sections per channel: 5 shared + 1 own (balance_channels) vs the
+    # channel alone at 5 + 1 = 6 sections (fit_shared on it; for the collocated channel
+    # also fc.fit at 6 sections, the same model class). Measured ratios 0.38, 0.51, 0.49,
+    # 0.93, 0.85 after 5 reweighted rounds; the price is least-squares optimality: the
+    # collocated channel's RMS error is 1.36x its own fit's.
+    res = beam_balanced
+    _check_beam_modes(res)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        single = fc.fit(beam_datas()[0], n_sections=6, delay=False)
+    assert res.max_rel_errors[0] <= single.max_rel_error
+    assert res.single_max_rel_errors[0] == pytest.approx(single.max_rel_error, rel=1e-3)
+    assert np.all(res.max_rel_errors <= res.single_max_rel_errors)
+    assert res.max_rel_errors[0] < 0.5 * single.max_rel_error          # measured 0.38
+    assert res.rms_rel_errors[0] < 1.5 * single.rms_rel_error          # measured 1.36
+    assert res.options["balance_channels"] and res.options["channel_sections"] == 1
 
 
 # ------------------------------------------------------------------ options, export, errors
@@ -243,6 +315,25 @@ def test_per_channel_delays_and_sequential_start():
         np.testing.assert_allclose(sorted(m.omega_n for m in res.modes), [5.0, 17.0],
                                    rtol=1e-6)
     assert [s.stage for s in res.stages] == [0, 1, 2, 3]
+
+
+@pytest.mark.parametrize("start", ["rational", "sequential"])
+def test_channel_sections_take_what_is_not_shared(start):
+    # 1 shared section + 1 of each channel's own on exact two-mode data: one mode is shared
+    # (the modal table lists it alone), the other is found by each channel's own section
+    from freqid_casadi.modal import modes
+
+    datas = _two_mode_datas()
+    res = fit_shared(datas, 1, delay=False, channel_sections=1, start=start)
+    assert res.success and np.all(res.max_rel_errors < 1e-8)
+    assert len(res.modes) == 1 and len(modes(res)) == 1 and res.poles.size == 2
+    shared = res.modes[0].omega_n
+    other = 17.0 if shared < 10 else 5.0
+    assert min(abs(shared - 5.0), abs(shared - 17.0)) < 1e-6
+    for p in res.channel_poles:
+        np.testing.assert_allclose(np.abs(p), other, rtol=1e-6)
+    assert all(m.n_sections == 2 for m in res.models)
+    assert res.to_control().nstates == 8 and res.channel_sections == 1 and res.n_shared == 1
 
 
 def test_to_control_outputs_every_channel_with_delays():
@@ -285,6 +376,9 @@ def test_input_errors():
         fit_shared(datas, 0)
     with pytest.raises(OptionError, match="start"):
         fit_shared(datas, 2, start="best")
+    for bad in (-1, True, 1.5):
+        with pytest.raises(OptionError, match="channel_sections"):
+            fit_shared(datas, 2, channel_sections=bad)
     with pytest.raises(DataError, match="weights"):
         fit_shared(datas, 2, weights=-np.ones(200))
 
