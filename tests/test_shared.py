@@ -227,8 +227,10 @@ def test_beam_six_shared_sections_are_a_compromise(beam_fit):
 @pytest.fixture(scope="module")
 def beam_own():
     """5 shared sections (the 5 modes in the band) + 1 section of each channel's own (the
-    out-of-band modes as that channel sees them) = 6 sections per channel."""
-    return fit_shared(beam_datas(), 5, delay=False, zeros=BEAM_ZEROS, channel_sections=1)
+    out-of-band modes as that channel sees them) = 6 sections per channel. Its polish needs
+    410 IPOPT iterations (measured), more than the default 2 x 200: max_iter=250."""
+    return fit_shared(beam_datas(), 5, delay=False, zeros=BEAM_ZEROS, channel_sections=1,
+                      max_iter=250)
 
 
 @pytest.fixture(scope="module")
@@ -260,6 +262,7 @@ def test_beam_channel_sections_modes_and_errors(beam_own):
     # worse), 0.00548, 0.00070, 0.00061, 0.00179 (vs 0.0248, 0.0115, 0.0078, 0.0021, 0.0066
     # with 6 shared sections)
     _check_beam_modes(beam_own)
+    assert beam_own.success and beam_own.stages[-1].solver_status == "Solve_Succeeded"
     assert beam_own.summary().startswith("5 channels, 5 shared sections + 1 per channel")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
@@ -275,7 +278,9 @@ def test_beam_collocated_channel_no_worse_than_single_fit(beam_balanced):
     # channel alone at 5 + 1 = 6 sections (fit_shared on it; for the collocated channel
     # also fc.fit at 6 sections, the same model class). Measured ratios 0.38, 0.51, 0.49,
     # 0.93, 0.85 after 5 reweighted rounds; the price is least-squares optimality: the
-    # collocated channel's RMS error is 1.36x its own fit's.
+    # collocated channel's RMS error is 1.36x its own fit's. The reweighted polishes stop at
+    # IPOPT's iteration limit (success False: the best point found; measured the same with
+    # max_iter=250), a limitation stated in the README.
     res = beam_balanced
     _check_beam_modes(res)
     with warnings.catch_warnings():
