@@ -19,20 +19,16 @@ numerator section + the channel sections' numerators and denominators
 (:meth:`SharedProblem.layout`). The cost ``sum_c sum_i w_ci |r_ci|^2`` couples the
 channels only through the shared block, so its Hessian is block-arrowhead;
 :class:`SharedProblem` evaluates its exact gradient and Hessian with numpy
-(``dQ = Q d log Q``; each factor is affine in its two variables) and hands IPOPT only the
-arrowhead's upper triangle, so the work per iteration is linear in the number of channels.
+(``dQ = Q d log Q``; each factor is affine in its two variables);
+:mod:`freqid_casadi._shared_solve` hands IPOPT only the arrowhead's upper triangle, so the
+work per iteration is linear in the number of channels.
 """
-
-import time
 
 import numpy as np
 
 from . import _cplx
-from .solvers.ipopt import ipopt_status
-from .solvers.common import SUCCESS_STATUSES
 
-__all__ = ["SharedProblem", "solve_stage"]
-_EXTRA = {}
+__all__ = ["SharedProblem"]
 
 
 class SharedProblem:
@@ -333,135 +329,3 @@ class SharedProblem:
         h[rows, cols] = self.hessian_values(z, n_points)
         return h + np.triu(h, 1).T
 
-
-def _callbacks():
-    import casadi as ca
-
-    class _Fn(ca.Callback):
-        """A numpy function as a CasADi Function writing into CasADi's buffers."""
-
-        def __init__(self, name, fn, names_in, sp_in, names_out, sp_out, jac=None):
-            ca.Callback.__init__(self)
-            self.fn, self.names_in, self.sp_in = fn, names_in, sp_in
-            self.names_out, self.sp_out = names_out, sp_out
-            self.jac = jac                  # (x -> [gradient]) for CasADi's own AD of f
-            self._jac_fn = None
-            self.construct(name, {})
-
-        def has_jacobian(self):
-            return self.jac is not None
-
-        def get_jacobian(self, name, inames, onames, opts):
-            n = self.sp_in[0].size1()
-            self._jac_fn = _Fn(name, lambda x, out: self.jac(x), inames,
-                               [self.sp_in[0], self.sp_out[0]], onames,
-                               [ca.Sparsity.dense(1, n)])
-            return self._jac_fn
-
-        def get_n_in(self):
-            return len(self.sp_in)
-
-        def get_n_out(self):
-            return len(self.sp_out)
-
-        def get_name_in(self, i):
-            return self.names_in[i]
-
-        def get_name_out(self, i):
-            return self.names_out[i]
-
-        def get_sparsity_in(self, i):
-            return self.sp_in[i]
-
-        def get_sparsity_out(self, i):
-            return self.sp_out[i]
-
-        def has_eval_buffer(self):
-            return True
-
-        def eval_buffer(self, arg, res):
-            args = [None if a is None else np.frombuffer(a, dtype=np.float64).copy()
-                    for a in arg]
-            for buf, val in zip(res, self.fn(*args)):
-                if buf is not None:
-                    np.frombuffer(buf, dtype=np.float64)[:] = val
-            return 0
-
-    return _Fn
-
-
-def solve_stage(problem, x0, n_points=None, *, lam_x0=None, max_iter=200, tol=1e-10):
-    """Minimise the stage cost with IPOPT (CasADi ``nlpsol``), true bounds, exact sparse
-    Hessian.
-
-    Parameters
-    ----------
-    problem : SharedProblem
-    x0 : ndarray of float, shape (n_vars,)
-    n_points : int, optional
-        Fit the first ``n_points`` frequencies (the window); default all.
-    lam_x0 : ndarray, optional
-        Bound multipliers for IPOPT's warm start.
-    max_iter : int
-    tol : float
-
-    Returns
-    -------
-    dict
-        ``x`` (projected on the bounds), ``lam_x``, ``cost``, ``nit``, ``status`` (IPOPT's
-        return_status), ``success``, ``t_solve`` (s, wall), ``c_solve`` (s, CPU time of
-        this process: robust to other jobs on the machine), ``t_build`` (s).
-    """
-    import casadi as ca
-
-    t0 = time.perf_counter()
-    n = problem.n_vars
-    lb, ub = problem.bounds()
-    x0 = np.clip(np.asarray(x0, float), lb, ub)
-    rows, cols, order = problem.hessian_pattern()
-    sp_h = ca.Sparsity.triplet(n, n, rows[order].tolist(), cols[order].tolist())
-    Fn = _callbacks()
-    dense = ca.Sparsity.dense
-    keep = [
-        Fn("f", lambda x: [problem.cost(x, n_points)], ["x"], [dense(n, 1)], ["f"],
-           [dense(1, 1)], jac=lambda x: [problem.gradient(x, n_points)[1]]),
-        Fn("nlp_grad_f", lambda x, p: problem.gradient(x, n_points), ["x", "p"],
-           [dense(n, 1), dense(0, 1)], ["f", "grad_f"], [dense(1, 1), dense(n, 1)]),
-        Fn("nlp_hess_l", lambda x, p, lf, lg: [lf[0] * problem.hessian_values(x, n_points)
-                                               [order]],
-           ["x", "p", "lam_f", "lam_g"], [dense(n, 1), dense(0, 1), dense(1, 1),
-                                          dense(0, 1)], ["hess_gamma_x_x"], [sp_h])]
-    z = ca.MX.sym("z", n)
-    ipopt = {"print_level": 0, "sb": "yes", "max_iter": int(max_iter), "tol": float(tol),
-             "acceptable_tol": 1e-8, "acceptable_iter": 30, "bound_relax_factor": 0.0,
-             "honor_original_bounds": "yes", "bound_push": 1e-9, "bound_frac": 1e-9,
-             "nlp_scaling_method": "none", **_EXTRA}
-    cost0 = problem.cost(x0, n_points)
-    if np.isfinite(cost0) and cost0 > 0:
-        ipopt["obj_scaling_factor"] = 1.0 / cost0
-    args = {"x0": x0, "lbx": lb, "ubx": ub}
-    if lam_x0 is not None:
-        ipopt.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
-                      "warm_start_bound_frac": 1e-9, "warm_start_mult_bound_push": 1e-9,
-                      "mu_init": 1e-6})
-        args["lam_x0"] = np.asarray(lam_x0, float)
-    solver = ca.nlpsol("shared_stage", "ipopt", {"x": z, "f": keep[0](z)},
-                       {"print_time": False, "error_on_fail": False, "grad_f": keep[1],
-                        "hess_lag": keep[2], "ipopt": ipopt})
-    t_build = time.perf_counter() - t0
-    t1, c1 = time.perf_counter(), time.process_time()
-    try:
-        sol = solver(**args)
-        stats = solver.stats()
-        status = str(stats.get("return_status", "unknown"))
-        x = np.clip(np.array(sol["x"], float).ravel(), lb, ub)
-        lam = np.array(sol["lam_x"], float).ravel()
-    except RuntimeError as exc:                       # evaluation error inside CasADi
-        stats, status, x, lam = {}, f"exception: {exc}", x0, np.zeros(n)
-    t_solve, c_solve = time.perf_counter() - t1, time.process_time() - c1
-    cost = problem.cost(x, n_points)
-    if not (np.isfinite(cost) and np.all(np.isfinite(x))):
-        x, cost, status = x0, cost0, "Invalid_Number_Detected"
-    return {"x": x, "lam_x": lam, "cost": cost, "nit": int(stats.get("iter_count", 0)),
-            "status": status, "success": ipopt_status(status) in SUCCESS_STATUSES,
-            "t_solve": t_solve, "c_solve": c_solve, "t_build": t_build}

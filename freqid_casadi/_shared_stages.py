@@ -18,16 +18,22 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._shared_nlp import solve_stage
+from ._shared_nlp import SharedProblem
+from ._shared_solve import solve_stage
+from ._shared_term import SHARED_TERMINATION
 from ._shared_start import channel_zeros, factor_variables, shared_vector_fitting
 from .solvers.common import Status
 from .solvers.ipopt import ipopt_status
+from .solvers.termination import Termination
 
 __all__ = ["SharedStage", "logger", "rational_start", "sequential_start", "lawson_weights",
-           "EXACT"]
+           "lawson_rounds", "EXACT", "ROUND_TERMINATION"]
 
 #: Max relative error below which a channel's fit counts as exact (not beaten by its own).
 EXACT = 1e-8
+#: The looser test ending the intermediate reweighted rounds of :func:`lawson_rounds` (their
+#: weights change again at once); the last round ends by the stages' own test.
+ROUND_TERMINATION = Termination(ftol=1e-8, polish_steps=0)
 
 
 @dataclass(frozen=True)
@@ -61,6 +67,10 @@ class SharedStage:
         IPOPT's return_status ("vector-fitting" for the rational start's stage 0,
         "start-exact" when no solve was needed).
     success : bool
+        IPOPT converged or the stage ended at a relatively stationary point
+        (:mod:`freqid_casadi._shared_term`).
+    message : str
+        Why the stage stopped, with the termination test's numbers.
     """
 
     stage: int
@@ -75,6 +85,7 @@ class SharedStage:
     solver_status: str
     success: bool
     cpu_solve: float = 0.0
+    message: str = ""
 
 
 def logger(progress):
@@ -84,32 +95,36 @@ def logger(progress):
         if progress:
             print(f"  stage {rec.stage:2d}: {rec.n_sections} sections, window {rec.window}, "
                   f"max rel. error {rec.max_rel_error:.3e}, {rec.nit} it, "
-                  f"{rec.wall_time:.2f} s, {rec.solver_status}", file=sys.stderr)
+                  f"{rec.wall_time:.2f} s, {rec.message or rec.solver_status}", file=sys.stderr)
         return rec
     return log
 
 
-def _stage(prob, x0, window, stage, omega_c, log, lam=None, max_iter=200):
-    """Solve one stage, keep the better of solution and start; return (z, lam, record)."""
+def _stage(prob, x0, window, stage, omega_c, log, lam=None, max_iter=200,
+           term=SHARED_TERMINATION):
+    """Solve one stage (``term``: its termination test), keep the better of solution and
+    start; return (z, lam, record)."""
     t0 = time.perf_counter()
     x0c = np.clip(x0, *prob.bounds())
     if np.max(np.abs(prob.ratio(x0c, window) - 1.0)) < 1e-10:
         # exact to rounding already: IPOPT cannot meet its tolerance on rounding noise
         res = {"x": x0c, "lam_x": np.zeros_like(x0c), "cost": prob.cost(x0c, window),
                "nit": 0, "t_solve": 0.0, "c_solve": 0.0, "status": "start-exact",
-               "success": True}
+               "success": True, "stationary": True,
+               "message": "converged: the start is exact to rounding (max rel. error < 1e-10)"}
     else:
-        res = solve_stage(prob, x0, window, lam_x0=lam, max_iter=max_iter)
+        res = solve_stage(prob, x0, window, lam_x0=lam, max_iter=max_iter, termination=term)
         res = _resolve(prob, res, prob.cost(x0c, window), window, max_iter)
     z, lam_x = res["x"], res["lam_x"]
     if not res["cost"] <= prob.cost(x0c, window):
         z, lam_x = x0c, np.zeros_like(x0c)
     err = float(np.max(np.abs(prob.ratio(z) - 1.0)))
     first = res["status"].split(";")[0]
-    status = Status.COST_TOL if first == "start-exact" else ipopt_status(first)
+    status = Status.COST_TOL if first == "start-exact" else \
+        Status.CONVERGED if res["stationary"] else ipopt_status(first)
     rec = SharedStage(stage, prob.n_sections, window or prob.omega.size, omega_c, err,
                       res["nit"], res["t_solve"], time.perf_counter() - t0, status,
-                      res["status"], res["success"], res["c_solve"])
+                      res["status"], res["success"], res["c_solve"], res["message"])
     return z, lam_x, log(rec)
 
 
@@ -118,7 +133,7 @@ def _resolve(prob, res, cost0, window, max_iter):
     cost fell below 1e-6 of the start's: IPOPT's objective is scaled by 1/cost(start), so
     its tolerance was relative to a cost far above the one reached. The stage's success and
     status stay the first solve's (it met its tolerance); the status notes the polish."""
-    if not (res["success"] and res["cost"] < 1e-6 * cost0
+    if not (res["success"] and not res["stationary"] and res["cost"] < 1e-6 * cost0
             and np.max(np.abs(prob.ratio(res["x"], window) - 1.0)) > 1e-10):
         return res
     new = solve_stage(prob, res["x"], window, lam_x0=res["lam_x"],
@@ -127,7 +142,8 @@ def _resolve(prob, res, cost0, window, max_iter):
                c_solve=res["c_solve"] + new["c_solve"],
                status=f"{res['status']}; rescaled polish: {new['status']}")
     if new["cost"] < res["cost"]:
-        out.update(x=new["x"], lam_x=new["lam_x"], cost=new["cost"])
+        out.update(x=new["x"], lam_x=new["lam_x"], cost=new["cost"],
+                   stationary=new["stationary"], message=new["message"])
     return out
 
 
@@ -329,5 +345,50 @@ def lawson_weights(prob, z, targets):
     wts = np.array(prob.weights, float)
     e = err[lose]
     upd = wts[lose] * e / np.sqrt(np.mean(e * e, axis=1, keepdims=True))
-    wts[lose] = upd / np.mean(upd, axis=1, keepdims=True)
+    ratio = np.max(e, axis=1, keepdims=True) / np.maximum(targets[lose], EXACT)[:, None]
+    wts[lose] = upd / np.mean(upd, axis=1, keepdims=True) * \
+        np.mean(wts[lose], axis=1, keepdims=True) * ratio ** 2
     return wts
+
+
+def lawson_rounds(prob, z, lam, targets, log, max_iter, rounds):
+    """Lawson rounds (:func:`lawson_weights`) as warm-started solves of the reweighted
+    problem, the intermediate ones ended by :data:`ROUND_TERMINATION`, then one solve of
+    the last weighted problem to the stages' own test (so the result's success is that of
+    the returned model's problem).
+
+    Parameters
+    ----------
+    prob : SharedProblem
+        The solved problem of the unweighted fit.
+    z, lam : ndarray of float, shape (n_vars,)
+        Its solution and bound multipliers.
+    targets : ndarray of float, shape (C,)
+        Largest acceptable max relative error per channel.
+    log : callable
+    max_iter : int
+        IPOPT iterations per round (twice that in the last solve).
+    rounds : int
+        Most reweighted rounds.
+
+    Returns
+    -------
+    (SharedProblem, ndarray z, list of SharedStage)
+        The last weighted problem, its solution and the rounds' records (stage numbers
+        continue from the fit's final stage, one per round).
+    """
+    stages, no = [], prob.n_sections + prob.n_local + 1
+    for k in range(1, rounds + 1):
+        w = lawson_weights(prob, z, targets)
+        if w is None:
+            break
+        prob = SharedProblem(prob.omega, prob.phi, w, prob.g, prob.wr, prob.integrator,
+                             prob.delay, prob.free, prob.delay_max, prob.wl)
+        z, lam, rec = _stage(prob, z, None, no + k, np.nan, log, lam, 2 * max_iter,
+                             ROUND_TERMINATION)
+        stages.append(rec)
+    if stages:
+        z, lam, rec = _stage(prob, z, None, no + len(stages) + 1, np.nan, log, lam,
+                             2 * max_iter)
+        stages.append(rec)
+    return prob, z, stages

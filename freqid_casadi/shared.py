@@ -43,7 +43,7 @@ from .errors import DataError, OptionError
 from .resolution import default_delay_max
 from .model import RationalDelayModel, Structure
 from ._shared_nlp import SharedProblem
-from ._shared_stages import (SharedStage, lawson_weights, logger, rational_start,
+from ._shared_stages import (SharedStage, lawson_rounds, logger, rational_start,
                              sequential_start)
 
 __all__ = ["fit_shared", "SharedFitResult", "SharedStage", "DELAYS", "ZEROS", "SHARED_STARTS"]
@@ -74,7 +74,11 @@ class SharedFitResult:
         ``|Phi_c / G_c - 1|`` at every point.
     max_rel_errors, rms_rel_errors : ndarray of float, shape (C,)
     success : bool
-        The last IPOPT stage converged.
+        The last IPOPT stage converged: IPOPT met its tolerance or the stage ended at a
+        relatively stationary point (the Gauss-Newton model promises a relative cost
+        decrease of at most 1e-12, :mod:`freqid_casadi._shared_term`); with
+        ``balance_channels`` that stage solves the last reweighted problem, i.e. the one
+        whose solution is returned.
     modes : tuple of freqid_casadi.modal.Mode
         The underdamped shared poles with every channel's residue, by frequency.
     wall_time : float
@@ -92,6 +96,9 @@ class SharedFitResult:
     single_max_rel_errors : ndarray of float, shape (C,) or ()
         With ``balance_channels``: each channel's max relative error in its own
         single-channel fit (the targets); empty otherwise.
+    message : str
+        Why the last stage stopped (with the termination test's numbers) and, with
+        ``balance_channels``, which channels miss their targets.
     """
 
     models: tuple
@@ -109,6 +116,7 @@ class SharedFitResult:
     options: dict = field(default_factory=dict)
     channel_poles: tuple = ()
     single_max_rel_errors: np.ndarray = ()
+    message: str = ""
 
     @property
     def n_channels(self):
@@ -324,7 +332,7 @@ def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, pro
             return rational_start(make, n, k, omega, base, w, free, log, max_iter, n_vf_iter)
         return sequential_start(make, n, k, omega, w, log, max_iter)
 
-    prob, z, _, stages = run(wts)
+    prob, z, lam, stages = run(wts)
     options = {"n_sections": n, "channel_sections": k, "integrator": bool(integrator),
                "delay": delay, "zeros": list(zs), "start": start, "delay_max": dmax,
                "balance_channels": bool(balance)}
@@ -333,14 +341,16 @@ def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, pro
         singles = np.array([_fit_shared([d], n, integrator, delay, [z], wts[c], start, False,
                                         dmax, max_iter, n_vf_iter, k, False)
                             .max_rel_errors[0] for c, (d, z) in enumerate(zip(datas, zs))])
-        for _ in range(BALANCE_ROUNDS):
-            w = lawson_weights(prob, z, singles)
-            if w is None:
-                break
-            prob, z, _, more = run(w)
-            stages += more
+        prob, z, more = lawson_rounds(prob, z, lam, singles, log, max_iter, BALANCE_ROUNDS)
+        stages += more
     res = _result(prob, z, datas, stages, zs, time.perf_counter() - t0, options)
-    return dataclasses.replace(res, single_max_rel_errors=singles) if balance else res
+    if not balance:
+        return res
+    miss = np.flatnonzero(res.max_rel_errors > np.maximum(singles, 1e-8))
+    note = (f"; channels {miss.tolist()} exceed their own fit's max rel. error"
+            if miss.size else "; every channel within its own fit's max rel. error")
+    return dataclasses.replace(res, single_max_rel_errors=singles,
+                               message=res.message + note)
 
 
 def _models(prob, z):
@@ -388,6 +398,7 @@ def _result(prob, z, datas, stages, zeros, wall, options):
         rel_errors=rel,
         max_rel_errors=np.max(rel, axis=1), rms_rel_errors=np.sqrt(np.mean(rel ** 2, axis=1)),
         success=bool(stages[-1].success), modes=modes_of_models(models, n),
+        message=stages[-1].message or stages[-1].solver_status,
         wall_time=wall, nit=int(sum(s.nit for s in stages
                                    if s.solver_status != "vector-fitting")),
         stages=tuple(stages), zeros=tuple(zeros), options=options,
