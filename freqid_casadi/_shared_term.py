@@ -21,7 +21,7 @@ from .solvers.ipopt import ipopt_status
 from .solvers.termination import StageMonitor, Termination, free_variables, \
     relative_stationarity
 
-__all__ = ["SharedMonitor", "blocks", "column_norms", "block_projected_fraction",
+__all__ = ["SharedMonitor", "blocks", "column_norms", "gradient_and_norms", "block_projected_fraction",
            "SHARED_TERMINATION", "verdict"]
 
 #: The shared stages' test: as the single-channel stages' default (ftol 1e-12), without the
@@ -68,12 +68,37 @@ def column_norms(prob, z, n_points=None):
     -------
     ndarray of float, shape (n_vars,)
     """
+    return gradient_and_norms(prob, z, n_points)[2]
+
+
+def gradient_and_norms(prob, z, n_points=None):
+    """Cost, gradient and column norms of the stacked weighted residual from one pass over
+    the channels (what the cosine precheck needs after every iteration).
+
+    Parameters
+    ----------
+    prob : SharedProblem
+    z : ndarray of float, shape (n_vars,)
+    n_points : int, optional
+        The first ``n_points`` frequencies (default all).
+
+    Returns
+    -------
+    (float, ndarray (n_vars,), ndarray (n_vars,))
+        ``||r||^2``, ``2 J^T r`` and ``||J_j||``.
+    """
     m = prob.omega.size if n_points is None else int(n_points)
     E, Q, P, _ = prob._local(z, m)
+    wt = prob.weights[:, :m]
     J = prob._jac(E, Q, P)
-    sq = np.einsum("cl,cla->ca", prob.weights[:, :m], J.real ** 2 + J.imag ** 2)
+    r = Q - 1.0
+    g = 2.0 * np.real(np.einsum("cl,cla->ca", wt * np.conj(r), J))
+    sq = np.einsum("cl,cla->ca", wt, J.real ** 2 + J.imag ** 2)
     ns = prob.n_shared
-    return np.sqrt(np.concatenate([sq[:, :ns].sum(axis=0), sq[:, ns:].ravel()]))
+
+    def stack(a):
+        return np.concatenate([a[:, :ns].sum(axis=0), a[:, ns:].ravel()])
+    return float(np.sum(wt * (r.real ** 2 + r.imag ** 2))), stack(g), np.sqrt(stack(sq))
 
 
 def _unit_basis(a, rcond):
@@ -193,10 +218,9 @@ class SharedMonitor(StageMonitor):
         """(stationary?, cost) at ``x``: the cosine precheck, then the block projection."""
         prob, m, term = self.shared, self.window, self.term
         x = np.clip(np.asarray(x, float), self.problem.lb, self.problem.ub)
-        cost, grad = prob.gradient(x, m)
+        cost, grad, cn = gradient_and_norms(prob, x, m)
         if not (np.isfinite(cost) and np.all(np.isfinite(grad))):
             return False, cost
-        cn = column_norms(prob, x, m)
         norm_r = float(np.sqrt(max(cost, 0.0)))
         free = free_variables(grad, x, self.problem.lb, self.problem.ub, cn, norm_r,
                               0.5 * term.ftol)

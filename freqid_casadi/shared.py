@@ -290,8 +290,10 @@ def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
         (this function on that channel alone, same options: ``N + k`` sections, its zeros
         kind; C extra fits, :attr:`SharedFitResult.single_max_rel_errors`): after the fit,
         the points of the channels that lose are reweighted (Lawson's iteration towards
-        their minimax fit) and the fit repeated with the new weights, at most
-        :data:`BALANCE_ROUNDS` times (each round's stages are appended to ``stages``);
+        their minimax fit, their weight raised) and the fit re-solved from its solution
+        with the new weights, at most :data:`BALANCE_ROUNDS` times, each round ended by a
+        looser test, then the last weighted problem once more to the stages' own test
+        (each round's stage is appended to ``stages``; ``success`` is that last solve's);
         errors below 1e-8 count as exact (no loss). A channel is thus held to
         its own fit's max error at the price of its least-squares optimality (its RMS error
         grows); without channel sections the shared sections must also stand in for the

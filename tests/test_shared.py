@@ -264,6 +264,7 @@ def test_beam_channel_sections_modes_and_errors(beam_own):
     _check_beam_modes(beam_own)
     assert beam_own.success and beam_own.stages[-1].success
     assert beam_own.message.startswith("converged (relative stationarity")
+    assert "after 1 rescaled restarts" in beam_own.stages[-1].solver_status
     assert beam_own.nit <= 400                                          # measured 376
     assert beam_own.max_rel_errors[0] == pytest.approx(0.0030775, rel=1e-4)
     assert beam_own.summary().startswith("5 channels, 5 shared sections + 1 per channel")
@@ -420,7 +421,8 @@ def test_weights_scale_the_channels():
 def test_block_termination_measures_equal_dense_ones(local):
     # the shared stages' test uses the block structure of the stacked weighted Jacobian;
     # the same numbers from the dense Jacobian (solvers.termination.projected_fraction)
-    from freqid_casadi._shared_term import blocks, block_projected_fraction, column_norms
+    from freqid_casadi._shared_term import (blocks, block_projected_fraction, column_norms,
+                                            gradient_and_norms)
     from freqid_casadi.solvers.termination import projected_fraction
 
     rng = np.random.default_rng(3)
@@ -442,8 +444,33 @@ def test_block_termination_measures_equal_dense_ones(local):
     np.testing.assert_allclose(2 * dense.T @ r.ravel(), grad, rtol=1e-10, atol=1e-12)
     np.testing.assert_allclose(column_norms(prob, z), np.linalg.norm(dense, axis=0),
                                rtol=1e-12)
+    c2, g2, _ = gradient_and_norms(prob, z)
+    assert c2 == pytest.approx(cost, rel=1e-13)
+    np.testing.assert_allclose(g2, grad, rtol=1e-12, atol=1e-14)
     free = np.ones(prob.n_vars, bool)
     free[[0, ns + 2]] = False
     want = projected_fraction(r.ravel(), dense, free)
     assert 0.01 < want < 0.999
     assert block_projected_fraction(prob, z, free) == pytest.approx(want, rel=1e-8)
+
+
+def test_solve_stage_stops_at_a_relatively_stationary_point():
+    # noisy two-mode data, 2 shared sections: the solve ends by the scale-free test (or
+    # IPOPT's tolerance), and a solve started at its solution returns it without iterating
+    from freqid_casadi._shared_solve import solve_stage
+
+    datas = _two_mode_datas()
+    rng = np.random.default_rng(5)
+    phi = np.array([d.response for d in datas]) * (1 + 0.01 * rng.normal(size=(2, 200)))
+    prob = SharedProblem(datas[0].omega, phi, np.ones((2, 200)), np.abs(phi[:, 0]),
+                         [5.0, 17.0], False, False, np.array([True, True]), 1.0)
+    z0 = prob.join(np.array([[1.0, 0.05], [1.0, 0.05]]), np.ones(2), np.zeros(2),
+                   np.ones((2, 2, 2)))
+    res = solve_stage(prob, z0)
+    assert res["success"] and res["message"].startswith("converged")
+    assert 0 < res["nit"] < 200 and res["cost"] < 0.1 * prob.cost(z0)     # measured 26 it, 0.04
+    again = solve_stage(prob, res["x"])
+    assert again["nit"] == 0 and again["status"] == "start-stationary" and again["stationary"]
+    assert again["message"].startswith("converged: the start is stationary")
+    off = solve_stage(prob, z0, max_iter=3, termination=None)
+    assert not off["success"] and off["message"].startswith("not converged")
