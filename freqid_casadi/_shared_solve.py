@@ -118,6 +118,7 @@ def solve_stage(problem, x0, n_points=None, *, lam_x0=None, max_iter=200, tol=1e
     x0 = np.clip(np.asarray(x0, float), lb, ub)
     monitor = None if termination is None else SharedMonitor(problem, termination, n_points)
     if monitor is not None and monitor.stationary(x0)[0]:
+        x0 = monitor.point
         return {"x": x0, "lam_x": np.zeros(n) if lam_x0 is None else np.asarray(lam_x0, float),
                 "cost": problem.cost(x0, n_points), "nit": 0, "status": "start-stationary",
                 "success": True, "stationary": True, "t_solve": 0.0, "c_solve": 0.0,
@@ -137,10 +138,13 @@ def solve_stage(problem, x0, n_points=None, *, lam_x0=None, max_iter=200, tol=1e
         # the cost fell RESCALE-fold: IPOPT's barrier parameter (absolute, on the objective
         # scaled by the start cost) now holds variables far off their bounds; restart there
         x0, lam_x0, rescaled = out["x"], out["lam_x"], rescaled + 1
-    if rescaled:
-        out["status"] = f"{out['status']} (after {rescaled} rescaled restarts)"
     out["t_build"] += time.perf_counter() - t0 - out["t_build"] - out["t_solve"]
-    return dict(out, **verdict(monitor, out["x"], out["status"]))
+    out.update(verdict(monitor, out["x"], out["status"]))
+    out["cost"] = problem.cost(out["x"], n_points)
+    if rescaled:
+        note = f" (after {rescaled} rescaled restarts)"
+        out.update(status=out["status"] + note, message=out["message"][:-1] + note + ")")
+    return out
 
 
 def _solve_once(problem, x0, n_points, lam_x0, max_iter, tol, monitor):

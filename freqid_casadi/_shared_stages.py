@@ -120,7 +120,7 @@ def _stage(prob, x0, window, stage, omega_c, log, lam=None, max_iter=200,
     if not res["cost"] <= prob.cost(x0c, window):
         z, lam_x = x0c, np.zeros_like(x0c)
     err = float(np.max(np.abs(prob.ratio(z) - 1.0)))
-    first = res["status"].split(";")[0]
+    first = res["status"].split(";")[0].split(" (after")[0]
     status = Status.COST_TOL if first == "start-exact" else \
         Status.CONVERGED if res["stationary"] else ipopt_status(first)
     rec = SharedStage(stage, prob.n_sections, window or prob.omega.size, omega_c, err,
