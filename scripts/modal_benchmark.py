@@ -75,7 +75,10 @@ def timed_fit(n_channels, repeats=3):
     return {"channels": n_channels, "wall_time": min(walls), "wall_times": walls,
             "nit": polish.nit, "t_per_iteration": min(per_it), "t_per_iteration_all": per_it,
             "cpu_per_iteration": min(cpu_it),
-            "status": polish.solver_status, "success": res.success, "n_modes": len(res.modes),
+            "status": polish.solver_status, "success": res.success,
+            "how": ("converged" if polish.success else "not converged") +
+                   (" (relative stationarity)" if "relative stationarity" in polish.message
+                    else ""), "n_modes": len(res.modes),
             "max_rel_error_worst": float(np.max(res.max_rel_errors)),
             "rms_rel_error_worst": float(np.max(res.rms_rel_errors)),
             "max_freq_error": max(freq_err), "max_zeta_error": max(zeta_err),
@@ -180,7 +183,7 @@ def render(r):
                      f"{1e3 * x['t_per_iteration']:.1f} | {1e3 * x['cpu_per_iteration']:.1f} | "
                      f"{x['max_rel_error_worst']:.3g} | "
                      f"{x['max_freq_error']:.2e} | {x['max_zeta_error']:.2e} | "
-                     f"{x['status']} |")
+                     f"{x.get('how', '')}; IPOPT: {x['status']} |")
     lines += ["", "CPU time of one cost+gradient+Hessian evaluation (median of 20, one "
               "thread): " + ", ".join(
         f"{c} ch. {1e3 * t:.1f} ms" for c, t in r["eval_time"].items()) + ".", "",
