@@ -17,10 +17,12 @@ import numpy as np
 from ._shared_term import SHARED_TERMINATION, SharedMonitor, verdict
 from .solvers.termination import iteration_callback
 
-__all__ = ["solve_stage", "RESCALE"]
+__all__ = ["solve_stage", "RESCALE", "MAX_RESTARTS"]
 _EXTRA = {}
 #: A solve is restarted (objective rescaled) once its cost fell by this factor.
 RESCALE = 1e-2
+#: Most rescaled restarts of one solve (each needs another RESCALE-fold cost decrease).
+MAX_RESTARTS = 20
 
 
 def _callbacks():
@@ -133,7 +135,8 @@ def solve_stage(problem, x0, n_points=None, *, lam_x0=None, max_iter=200, tol=1e
                        c_solve=out["c_solve"] + res["c_solve"],
                        t_build=out["t_build"] + res["t_build"])
         out = res
-        if monitor is None or monitor.reason != "rescale" or out["nit"] >= max_iter:
+        if monitor is None or monitor.reason != "rescale" or out["nit"] >= max_iter or \
+                rescaled >= MAX_RESTARTS:
             break
         # the cost fell RESCALE-fold: IPOPT's barrier parameter (absolute, on the objective
         # scaled by the start cost) now holds variables far off their bounds; restart there
