@@ -22,6 +22,10 @@ on variables ``z`` in a *gauge*, mapped to the thesis's ``beta`` afterwards:
     Hurwitz iff its coefficients are nonnegative), and lets ``p2 -> 0`` represent a zero at
     infinity (relative degree) at a simple bound. ``wr_k`` is a fixed reference frequency
     (the frequency at which the section was inserted), so the variables are O(1).
+    A polish writes overdamped factors in other charts of the same quadratic (monic
+    ``c0 + c1 x + x^2``, unit-linear ``c0 + x + c2 x^2``; ``charts``,
+    :func:`~freqid_casadi.stages.choose_charts`): there a root leaving the band downwards
+    is at finite variables, on the bound ``root_floor``.
 ``"b1"``
     The thesis's parameters with ``b_k = 1`` fixed (SPEC §1's example). One redundant
     direction per section remains (numerator scale against K).
