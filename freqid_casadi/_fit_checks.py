@@ -8,7 +8,8 @@ import math
 import numpy as np
 
 from .data import FrequencyData
-from .diagnostics import check_delay, check_minimum_phase, check_trivial, rhp_zeros_note
+from .diagnostics import (check_delay, check_minimum_phase, check_roots_below_band,
+                          check_trivial, rhp_zeros_note)
 from .errors import DataError, FreqidError, OptionError, StructureError
 from .model import BASES, ZEROS, Structure
 from .resolution import resolution_damping
@@ -109,7 +110,7 @@ def after_fit(model, data, stats, delay_max):
         found += rhp_zeros_note(model)
     else:
         found += check_minimum_phase(model, data, stats.max, stats.rms)
-    return found
+    return found + check_roots_below_band(model, data)
 
 
 def success_of(last, stats):

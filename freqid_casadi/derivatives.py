@@ -57,7 +57,7 @@ def _point_functions(param):
     second = param.structure.basis == "second-order"
     for k in range(param.structure.n_sections):
         v = [z[2 + ns * k + i] for i in range(ns)]
-        num, den = param.gauge_obj.pairs(v, w / wr[k])
+        num, den = param.gauge_obj.pairs(v, w / wr[k], param.chart(k))
         inum, iden = _cplx.inv(num), _cplx.inv(den)
         q = _cplx.mul(q, _cplx.mul(den, inum))
         vv = ca.vertcat(*v)
@@ -159,9 +159,13 @@ class StageFunctions:
         if derivatives == "affine":
             x = omega[None, :] / np.asarray(wr, float).reshape(-1, 1)         # (nsec, M)
             dc = gauge_for("dc", param.structure.basis)
+            chart = (0, 0)
+            if any(map(any, param.charts)):
+                chart = tuple(np.array([c[j] for c in param.charts]).reshape(-1, 1)
+                              for j in (0, 1))
 
             def pair(v):
-                num, den = dc.pairs(v, x)
+                num, den = dc.pairs(v, x, chart)
                 return (_cplx.to_complex(np.broadcast_arrays(*num)),
                         _cplx.to_complex(np.broadcast_arrays(*den)))
 

@@ -25,6 +25,11 @@ Codes
 ``no-better-than-trivial``
     The RMS relative error is near 1: the model explains no more than the infinite-gain
     model (for which ``Phi/G_N - 1 = -1``). Such a fit is never a success.
+``root-below-band``
+    A pole or zero far below the lowest data frequency, which the data cannot tell from
+    one at 0: a pole there stands for an integrator (the fit stops it at the floor of
+    :attr:`~freqid_casadi.options.LoopOptions.root_floor` instead of letting it creep),
+    a zero for a differentiator.
 """
 
 import math
@@ -37,9 +42,14 @@ from .metrics import relative_error
 
 __all__ = ["Diagnostic", "CODES", "TRIVIAL_RMS", "low_frequency_phase", "low_frequency_slope",
            "check_gain_sign",
-           "check_trivial", "check_delay", "check_minimum_phase", "rhp_zeros_note"]
+           "check_trivial", "check_delay", "check_minimum_phase", "rhp_zeros_note",
+           "check_roots_below_band", "BELOW_BAND"]
 
-CODES = ("negative-gain", "non-minimum-phase", "delay-undetermined", "no-better-than-trivial")
+CODES = ("negative-gain", "non-minimum-phase", "delay-undetermined", "no-better-than-trivial",
+         "root-below-band")
+
+#: Fraction of the lowest data frequency below which a root is "far below the band".
+BELOW_BAND = 0.01
 
 #: RMS relative error at or above which a model is "no better than trivial": the
 #: infinite-gain model has RMS exactly 1.
@@ -375,3 +385,42 @@ def rhp_zeros_note(model):
     return (Diagnostic("non-minimum-phase", msg, "info",
                        {"n_rhp_zeros": int(rhp.size),
                         "rhp_zeros": [[float(r.real), float(r.imag)] for r in rhp]}),)
+
+
+def check_roots_below_band(model, data, fraction=BELOW_BAND):
+    """``root-below-band`` records: poles / zeros of P_N with ``|r| < fraction * omega_min``
+    (the integrator's pole, asked for, is not counted).
+
+    Within the band such a pole acts as ``1/s`` (an integrator, with the gain it takes
+    from its partner), such a zero as ``s``: the data ask for a model the fit's structure
+    does not have; the fit keeps the root at its floor (``LoopOptions.root_floor``).
+
+    Parameters
+    ----------
+    model : RationalDelayModel
+    data : FrequencyData
+    fraction : float
+        Default :data:`BELOW_BAND`.
+
+    Returns
+    -------
+    tuple of Diagnostic
+    """
+    if model.n_sections == 0:
+        return ()
+    w_min = float(data.omega[0])
+    found = []
+    for kind, roots, stands in (("pole", model.poles()[int(model.integrator):],
+                                 "an integrator (refit with integrator=True)"),
+                                ("zero", model.zeros(), "a differentiator (a zero at 0)")):
+        low = roots[np.abs(roots) < fraction * w_min]
+        if low.size == 0:
+            continue
+        msg = (f"{low.size} {kind}(s) at |r| = {_freqs(low)} rad/s, far "
+               f"below the lowest data frequency {w_min:.4g} rad/s: the data cannot tell "
+               f"them from 0 and ask for {stands}")
+        found.append(Diagnostic("root-below-band", msg, "warning",
+                                {"kind": kind, "roots": [[float(r.real), float(r.imag)]
+                                                         for r in low],
+                                 "omega_min": w_min, "fraction": float(fraction)}))
+    return tuple(found)

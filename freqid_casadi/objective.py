@@ -22,6 +22,10 @@ on variables ``z`` in a *gauge*, mapped to the thesis's ``beta`` afterwards:
     Hurwitz iff its coefficients are nonnegative), and lets ``p2 -> 0`` represent a zero at
     infinity (relative degree) at a simple bound. ``wr_k`` is a fixed reference frequency
     (the frequency at which the section was inserted), so the variables are O(1).
+    A polish writes overdamped factors in other charts of the same quadratic (monic
+    ``c0 + c1 x + x^2``, unit-linear ``c0 + x + c2 x^2``; ``charts``,
+    :func:`~freqid_casadi.stages.choose_charts`): there a root leaving the band downwards
+    is at finite variables, on the bound ``root_floor``.
 ``"b1"``
     The thesis's parameters with ``b_k = 1`` fixed (SPEC §1's example). One redundant
     direction per section remains (numerator scale against K).
@@ -98,6 +102,17 @@ class Parametrization:
         Upper bound of the delay (s); h = delay_max * z[0] when scaled.
     scaled : bool
         If False, all references are 1 and h = z[0] (bound still ``delay_max``).
+    charts : tuple of (int, int), optional
+        Per section, the charts (:data:`~freqid_casadi.gauges.CHARTS`) of its numerator
+        and denominator: 0 the unit-DC factor ``1 + c1 x + c2 x^2``, 1 the monic factor
+        ``c0 + c1 x + x^2``, 2 the unit-linear factor ``c0 + x + c2 x^2`` (dc gauge,
+        second-order basis, minimum-phase zeros; no damping floor with chart 2); empty:
+        all 0.
+    root_floor : float
+        Lower bound (rad/s, >= 0) of the natural frequency ``wr sqrt(c0)`` of every monic
+        factor and of ``wr c0`` (below its smaller root) of every unit-linear one: a root
+        at 0 (an integrator, or a differentiator in a numerator) stays out of the model
+        class by this margin (0: no bound).
     """
 
     structure: Structure
@@ -106,6 +121,8 @@ class Parametrization:
     gain_ref: float = 1.0
     delay_max: float = 1.0
     scaled: bool = True
+    charts: tuple = ()
+    root_floor: float = 0.0
 
     def __post_init__(self):
         gauge_for(self.gauge, self.structure.basis)          # OptionError if unknown
@@ -116,6 +133,7 @@ class Parametrization:
         object.__setattr__(self, "omega_ref", tuple(float(w) for w in self.omega_ref))
         if not (np.isfinite(self.delay_max) and self.delay_max > 0):
             raise OptionError(f"delay_max must be a finite number > 0 (s), got {self.delay_max}")
+        _check_charts(self)
 
     # ---------------------------------------------------------------- layout
     @property
@@ -154,15 +172,28 @@ class Parametrization:
         ``zeros="free"``), delay <= delay_max, h = 0 if no delay."""
         lb = np.where(self.free_mask(), -np.inf, 0.0)
         ub = np.full(self.n_vars, np.inf)
-        h_ref = self._refs()[0]
+        h_ref, _, wr = self._refs()
         ub[0] = (self.delay_max / h_ref) if self.structure.delay else 0.0
+        for k, chart in enumerate(self.charts):
+            for j in (0, 1):
+                e = self.root_floor / wr[k]
+                if chart[j] == 1:      # c0 of a monic factor: natural frequency >= floor
+                    lb[2 + 4 * k + 2 * j] = e * e
+                elif chart[j] == 2:    # c0 of a unit-linear factor: smaller root >= floor
+                    lb[2 + 4 * k + 2 * j + 1] = e
         return lb, ub
+
+    def chart(self, k):
+        """The (numerator, denominator) charts of section ``k`` (see ``charts``)."""
+        return self.charts[k] if self.charts else (0, 0)
 
     def extend(self, omega_ref_new):
         """The parametrization with one more section at reference ``omega_ref_new``."""
+        charts = self.charts + ((0, 0),) if self.charts else ()
         return Parametrization(self.structure.with_sections(self.structure.n_sections + 1),
                                self.gauge, self.omega_ref + (float(omega_ref_new),),
-                               self.gain_ref, self.delay_max, self.scaled)
+                               self.gain_ref, self.delay_max, self.scaled, charts,
+                               self.root_floor)
 
     def new_section(self, omega_num, zeta_num, omega_den, zeta_den, omega_ref, scale_l=1.0):
         """Variables of a section to append at reference ``omega_ref`` (rad/s) whose
@@ -181,10 +212,9 @@ class Parametrization:
         """Yield (num, den) (re, im)-pair builders per section as functions of w."""
         n = self.section_size
         _, _, wr = self._refs()
-        second = self.structure.basis == "second-order"
         for k in range(self.structure.n_sections):
             v = [z[2 + n * k + i] for i in range(n)]
-            yield k, v, wr[k], second
+            yield k, v, wr[k], self.chart(k)
 
     def ratio(self, z, omega, response_pair):
         """Phi / G_N(j w) as an (re, im) pair; numpy or CasADi.
@@ -204,8 +234,8 @@ class Parametrization:
             q = _cplx.mul(q, (0 * omega, omega))
         q = (q[0] / gain, q[1] / gain)
         gauge = self.gauge_obj
-        for k, v, wr, second in self._sections(z):
-            num, den = gauge.pairs(v, omega / wr)
+        for k, v, wr, chart in self._sections(z):
+            num, den = gauge.pairs(v, omega / wr, chart)
             q = _cplx.mul(q, _cplx.div(den, num))
         return q
 
@@ -221,6 +251,8 @@ class Parametrization:
     def damping_pairs(self):
         """Indices ``(i2, i1)`` of each quadratic's ``(c2, c1)`` variables (dc gauge,
         second-order basis): two per section, numerator then denominator."""
+        if any(2 in c for c in self.charts):
+            raise OptionError("a damping floor needs charts 0 and 1 (not the unit-linear 2)")
         if self.gauge != "dc" or self.structure.basis != "second-order":
             raise OptionError("a damping floor needs the 'dc' gauge and the second-order "
                               f"basis (got gauge {self.gauge!r}, basis "
@@ -270,8 +302,8 @@ class Parametrization:
         gain = k_ref * z[1]
         secs = []
         gauge = self.gauge_obj
-        for k, v, wr, second in self._sections(z):
-            theta, factor = gauge.to_thesis(v, wr)
+        for k, v, wr, chart in self._sections(z):
+            theta, factor = gauge.to_thesis(v, wr, chart)
             if factor is not None:
                 gain *= factor
             secs += theta
@@ -290,12 +322,32 @@ class Parametrization:
         gain = beta[1]
         gauge = self.gauge_obj
         for k in range(self.structure.n_sections):
-            theta, factor = gauge.from_thesis(beta[2 + ss * k: 2 + ss * (k + 1)], wr_all[k], k)
+            theta, factor = gauge.from_thesis(beta[2 + ss * k: 2 + ss * (k + 1)], wr_all[k], k,
+                                              self.chart(k))
             if factor is not None:
                 gain *= factor
             z += theta
         z[1] = gain / k_ref
         return np.array(z, float)
+
+
+def _check_charts(param):
+    """StructureError/OptionError unless ``param.charts`` and ``param.root_floor`` fit."""
+    if not (np.isfinite(param.root_floor) and param.root_floor >= 0):
+        raise OptionError(f"root_floor must be a finite number >= 0 (rad/s), got "
+                          f"{param.root_floor}")
+    charts = tuple(tuple(int(c) for c in ch) for ch in param.charts)
+    object.__setattr__(param, "charts", charts)
+    if not charts:
+        return
+    st = param.structure
+    if len(charts) != st.n_sections or any(len(c) != 2 or set(c) - {0, 1, 2} for c in charts):
+        raise StructureError(f"charts needs one (numerator, denominator) pair of 0/1/2 per "
+                             f"section ({st.n_sections}), got {charts}")
+    if any(map(any, charts)) and (param.gauge != "dc" or st.basis != "second-order"
+                                  or st.zeros != "minimum-phase"):
+        raise OptionError("charts other than 0 need the 'dc' gauge, the second-order basis "
+                          "and minimum-phase zeros")
 
 
 def _trig(z):

@@ -288,6 +288,10 @@ class LoopOptions:
         How the stage derivatives are evaluated (both exact, same results to rounding):
         None picks "affine" (numpy over points x sections; "dc" gauge only) or
         "casadi-map" (CasADi AD of the per-point formula mapped over the points).
+    root_floor : float in [0, 1)
+        Fraction of the lowest data frequency below which a polished overdamped factor's
+        root may not go (:func:`~freqid_casadi.stages.choose_charts`): a pole the data
+        push towards 0 (an integrator) stops there, on a bound, instead of creeping.
     """
 
     gauge: str = "dc"
@@ -298,6 +302,7 @@ class LoopOptions:
     delay_max: float = None
     final_stage: bool = True
     derivatives: str = None
+    root_floor: float = 1e-3
 
     def __post_init__(self):
         owner = type(self).__name__
@@ -310,6 +315,10 @@ class LoopOptions:
         if self.delay_max is not None:
             _real(owner, "delay_max (seconds)", self.delay_max, 0.0)
         _choice(owner, "derivatives", self.derivatives, DERIVATIVES)
+        _real(owner, "root_floor", self.root_floor, 0.0, strict=False)
+        if self.root_floor >= 1:
+            raise _bad(owner, "root_floor", self.root_floor, "a fraction in [0, 1) of the "
+                       "lowest data frequency, e.g. 1e-3")
         if self.derivatives == "affine" and self.gauge != "dc":
             raise OptionError(f"{owner}.derivatives='affine' needs gauge='dc' (got "
                               f"{self.gauge!r}); use derivatives='casadi-map' or None")

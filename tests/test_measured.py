@@ -30,15 +30,24 @@ def test_actuator_two_sections_with_a_delay(study):
     assert row["stable"] and row["minimum_phase"]
 
 
-@pytest.mark.xfail(strict=True, reason="measured: the rational start's final polish stops at "
-                   "its 200-iteration limit, not stationary (max cos(r, J_j) 6e-5): a real "
-                   "pole/zero pair below the band (pole -> 0, zero at 0.03 rad/s; the band "
-                   "starts at 0.77 rad/s) creeps towards the bound; it converges after 1771 "
-                   "iterations with IpoptOptions(final_max_iter=3000), same error 0.0253")
 def test_actuator_two_sections_converges(study):
-    assert _ours(study.actuator, 2)["success"]
+    # was: the polish stopped at its 200-iteration limit while a real pole crept to 0 in
+    # the unit-DC chart (1771 iterations to converge); the monic/unit-linear charts of
+    # stages.choose_charts put its limit at finite variables, on the root floor
+    row = _ours(study.actuator, 2)
+    assert row["success"] is True
+    assert row["max_rel_error"] <= 0.03
+    assert "root-below-band" in [d["code"] for d in row["diagnostics"]]
 
 
+@pytest.mark.xfail(strict=True, reason="measured since the charts (issue 15): converged fits "
+                   "give 7.00 ms at 2 sections (rational start; sequential 9.54) and 9.21 ms "
+                   "at 3 (rational; sequential 9.47); the 6.61 ms at 3 sections before was "
+                   "the rational polish stopped at its 200-iteration limit. Polishing the "
+                   "2-section fit plus one section converges to 3-section optima with delays "
+                   "6.96-15.6 ms within 4 % RMS of each other: at 3 sections the delay trades "
+                   "with zeros above the band and these data do not determine it (its "
+                   "covariance std is 1.2e3 s: the fit reports delay-undetermined)")
 def test_actuator_delays_at_two_and_three_sections_agree(study):
     d2, d3 = _ours(study.actuator, 2)["delay"], _ours(study.actuator, 3)["delay"]
     assert abs(d2 - d3) <= 1e-3

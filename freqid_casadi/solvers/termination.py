@@ -54,6 +54,10 @@ class Termination:
         Relative singular-value cutoff of the column-scaled Jacobian in ``P``.
     polish_steps : int
         Largest number of LM steps tried at a point that fails the test (0: none).
+    onto_bounds : bool
+        At a returned point that fails the test, try it with the variables held just
+        inside a bound put onto it (:meth:`StageMonitor.decide`); used by
+        :func:`~freqid_casadi.stages.polish`, whose optimum may lie on the root floor.
     """
 
     ftol: float = 1e-12
@@ -62,6 +66,7 @@ class Termination:
     stall_ftol: float = 0.0
     rcond: float = 1e-10
     polish_steps: int = 10
+    onto_bounds: bool = False
 
 
 def free_variables(grad, x, lb, ub, col_norms, norm_r, tol=1e-4):
@@ -234,6 +239,39 @@ class StageMonitor:
                            active_mask=find_active_constraints(x, pb.lb, pb.ub, rtol=1e-8),
                            lam_x=lam, solver_status="start stationary")
 
+    def _onto_bounds(self, res):
+        """``res`` with the variables that sit just inside a bound the gradient pushes
+        them against put onto it, if that does not raise the cost.
+
+        An interior-point method stops ``mu / multiplier`` away from an active bound; the
+        test of :func:`free_variables` holds a variable only within ``ftol`` (relative
+        cost) of its bound, which that distance may exceed: the optimum on a bound
+        (e.g. a root at ``root_floor``) would then never be stationary. A variable is
+        moved when the move changes the residual by at most ``sqrt(ftol)`` of its norm
+        (to first order, ``||J_j|| * distance``: the test of :func:`free_variables` with a
+        looser tolerance); the moved point is kept only if its cost is not higher (and,
+        in :meth:`decide`, only if it passes the test).
+        """
+        pb = self.problem
+        x = np.clip(np.asarray(res.x, float), pb.lb, pb.ub)
+        cost, grad = pb.eval_gradient(x)
+        if not np.isfinite(cost) or cost <= 0:
+            return res
+        room = np.sqrt(self.term.ftol * cost)
+        cn = pb.eval_column_norms(x)
+        to_lb = (grad > 0) & (x > pb.lb) & (cn * (x - pb.lb) <= room)
+        to_ub = (grad < 0) & (x < pb.ub) & (cn * (pb.ub - x) <= room)
+        if not (np.any(to_lb) or np.any(to_ub)):
+            return res
+        y = np.where(to_lb, pb.lb, np.where(to_ub, pb.ub, x))
+        c_y = pb.eval_cost(y)
+        if not (np.isfinite(c_y) and c_y <= cost):
+            return res
+        from .common import find_active_constraints
+
+        return dataclasses.replace(res, x=y, cost=c_y, active_mask=find_active_constraints(
+            y, pb.lb, pb.ub, rtol=1e-8))
+
     def decide(self, res):
         """``res`` with the status, success and message of the test at its point, after an
         LM polish (:func:`~.lm_polish.lm_polish`) if the point fails the test.
@@ -249,6 +287,10 @@ class StageMonitor:
         if res.status == Status.ERROR:
             return res
         ok, _ = self.stationary(res.x)
+        if not ok and self.term.onto_bounds:
+            snapped = self._onto_bounds(res)
+            if snapped is not res and self.stationary(snapped.x)[0]:
+                res, ok = snapped, True
         # (the polish keeps only the bounds: not with constraints such as a damping floor)
         if not ok and self.term.polish_steps and self.problem.constraints is None:
             from .lm_polish import lm_polish
