@@ -209,14 +209,16 @@ def stage_record(stage, param, z, data, window, omega_c, res, nit, nfev, wall, k
                        kind=StageKind(kind), message=str(res.message))
 
 
-def _termination(ftol):
+def _termination(ftol, stall=None):
     """The stages' :class:`~freqid_casadi.solvers.termination.Termination` for
-    ``IpoptOptions.ftol`` (0: the test and its polish off)."""
+    ``IpoptOptions.ftol`` (0: the test and its polish off) and the optional stall rule
+    ``stall = (window, ftol)``."""
     from .solvers.termination import Termination
 
+    kw = {} if stall is None else dict(stall_window=int(stall[0]), stall_ftol=float(stall[1]))
     if ftol > 0:
-        return Termination(ftol=float(ftol))
-    return Termination(ftol=0.0, noise_factor=0.0, polish_steps=0)
+        return Termination(ftol=float(ftol), **kw)
+    return Termination(ftol=0.0, noise_factor=0.0, polish_steps=0, **kw)
 
 
 class StageSolver:
@@ -229,9 +231,11 @@ class StageSolver:
     zeta_min : float, optional
         Damping floor imposed as constraints (IPOPT only).
 
-    Calling it, ``solve(param, wdata, x0, lam0, max_iter=None)``, solves the stage on
-    ``wdata`` from ``x0`` (bound multipliers ``lam0`` or None) and returns a
-    :class:`~freqid_casadi.solvers.common.StageResult`.
+    Calling it, ``solve(param, wdata, x0, lam0, max_iter=None, stall=None)``, solves the
+    stage on ``wdata`` from ``x0`` (bound multipliers ``lam0`` or None) and returns a
+    :class:`~freqid_casadi.solvers.common.StageResult`; ``stall = (window, ftol)`` (IPOPT
+    only) also ends the stage when its cost fell by less than the fraction ``ftol`` over
+    ``window`` iterations.
     """
 
     def __init__(self, solver, loop, zeta_min=None):
@@ -239,7 +243,7 @@ class StageSolver:
         self.loop = loop
         self.zeta_min = zeta_min
 
-    def __call__(self, param, wdata, x0, lam0, max_iter=None):
+    def __call__(self, param, wdata, x0, lam0, max_iter=None, stall=None):
         funcs = stage_functions(param, wdata.omega, wdata.response, wdata.weights,
                                 derivatives=self.loop.derivatives)
         lb, ub = param.bounds()
@@ -256,7 +260,7 @@ class StageSolver:
                               hessian=opts.hessian, max_iter=max_iter or opts.max_iter,
                               warm_start=opts.warm_start != "none",
                               ipopt_options=opts.ipopt_dict(),
-                              termination=_termination(opts.ftol))
+                              termination=_termination(opts.ftol, stall))
             if cons is not None:
                 # IPOPT meets g >= 0 to its tolerance; make the floor exact
                 res = dataclasses.replace(res, x=param.project_damping(res.x, self.zeta_min))
