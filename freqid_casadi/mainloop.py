@@ -335,11 +335,9 @@ def _relocate(param, wdata, z_start, lam_start, zeta_min):
     multipliers (the previous ones belong to other sections); else unchanged."""
     from .relocate import relocated_start
 
-    z_rel = relocated_start(param, wdata, z_start)
+    z_rel = relocated_start(param, wdata, z_start, zeta_min)
     if z_rel is None:
         return z_start, lam_start
-    if zeta_min is not None:
-        z_rel = param.project_damping(z_rel, zeta_min)
     return z_rel, np.zeros_like(lam_start)
 
 

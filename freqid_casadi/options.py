@@ -294,7 +294,7 @@ class LoopOptions:
     """
 
     gauge: str = "dc"
-    init: str = "peak"
+    init: str = "relocate"
     scale_l: float = 1.0
     scaled: bool = True
     bound_delay: bool = True

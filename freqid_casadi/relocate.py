@@ -31,7 +31,7 @@ VF_ITERATIONS = 10
 STALL_RULE = (5, 0.05)
 
 
-def relocated_start(param, wdata, z_start):
+def relocated_start(param, wdata, z_start, zeta_min=None):
     """The vector-fit candidate start of a stage, or None if it is not better.
 
     Parameters
@@ -42,12 +42,14 @@ def relocated_start(param, wdata, z_start):
         The stage's window.
     z_start : ndarray of float, shape (param.n_vars,)
         The stage's start with the new section placed ("peak").
+    zeta_min : float, optional
+        Damping floor: the vector fit is projected onto it before the costs are compared.
 
     Returns
     -------
     ndarray of float, shape (param.n_vars,) or None
-        The relocated start (within the bounds) when its stage cost is lower than that of
-        ``z_start``; None otherwise or when the vector fit fails.
+        The relocated start (within the bounds, on the damping floor) when its stage cost
+        is lower than that of ``z_start``; None otherwise or when the vector fit fails.
     """
     from .baselines import vector_fitting
     from .stages import stage_cost
@@ -72,5 +74,7 @@ def relocated_start(param, wdata, z_start):
     z = np.clip(z, lb, ub)
     if not np.all(np.isfinite(z)):
         return None
+    if zeta_min is not None:
+        z = param.project_damping(z, zeta_min)
     cost = stage_cost(param, wdata, z)
     return z if np.isfinite(cost) and cost < stage_cost(param, wdata, z_start) else None

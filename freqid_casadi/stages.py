@@ -347,7 +347,7 @@ def polish_start(model, data, *, loop=None, delay_max=None, zeta_min=None):
 
 
 def polish(model, data, *, method="ipopt", loop=None, delay_max=None, zeta_min=None,
-           max_iter=None):
+           max_iter=None, stall=None):
     """Refit every parameter of ``model`` on all of ``data``, started from ``model``.
 
     One stage NLP on all data (as the main loop's final stage), kept only if it lowers
@@ -370,6 +370,9 @@ def polish(model, data, *, method="ipopt", loop=None, delay_max=None, zeta_min=N
         Damping floor imposed as constraints (IPOPT, dc gauge).
     max_iter : int, optional
         Iteration limit; default the solver options' ``final_max_iter``.
+    stall : (int, float), optional
+        ``(window, ftol)``: also stop when the cost fell by less than the fraction ``ftol``
+        over ``window`` iterations (IPOPT only; :class:`StageSolver`).
 
     Returns
     -------
@@ -389,7 +392,8 @@ def polish(model, data, *, method="ipopt", loop=None, delay_max=None, zeta_min=N
     loop = LoopOptions() if loop is None else loop
     param, z0 = polish_start(model, data, loop=loop, delay_max=delay_max, zeta_min=zeta_min)
     solve = StageSolver(solver, loop, zeta_min)
-    res = solve(param, data, z0, None, max_iter=max_iter or solver.final_max_iter)
+    res = solve(param, data, z0, None, max_iter=max_iter or solver.final_max_iter,
+                **({} if stall is None or solver.method != "ipopt" else {"stall": stall}))
     z, lam, kept = keep_better(param, data, z0, np.zeros_like(z0), res)
     return PolishResult(model=param.to_model(z), param=param, x=z, lam_x=lam, start=z0,
                         result=res, kept=kept)
