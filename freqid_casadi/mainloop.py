@@ -132,10 +132,11 @@ def sequential(ctx, tol):
         lam_start = np.concatenate([lam, np.zeros(new_sec.size)])
         if ctx.zeta_min is not None:
             z_start = new_param.project_damping(z_start, ctx.zeta_min)
-        if init == "relocate":
-            z_start, lam_start = _relocate(new_param, data.window(window), z_start, lam_start,
-                                           ctx.zeta_min)
         param = new_param
+        if init == "relocate":
+            param, z_start, lam_start = _relocate(param, data.window(window), z_start,
+                                                  lam_start, ctx.zeta_min)
+            prev_ext = _convert(new_param, param, prev_ext)
         wdata = data.window(window)
         t0 = time.perf_counter()
         res = solve(param, wdata, z_start, lam_start if warm_start == "primal-dual" else None,
@@ -145,7 +146,7 @@ def sequential(ctx, tol):
         if init != "identity" and _max_window_error(param, wdata, z) >= 1.0:
             # worse than the infinite-gain model (relative error 1) on the window: a local
             # minimum of the peak placement; retry from the thesis's identity section
-            z_id = np.concatenate([z_prev, ident])
+            z_id = _convert(new_param, param, np.concatenate([z_prev, ident]))
             if ctx.zeta_min is not None:
                 z_id = param.project_damping(z_id, ctx.zeta_min)
             res_id = solve(param, wdata, z_id,
@@ -159,8 +160,7 @@ def sequential(ctx, tol):
         callback(records[-1])
 
     # ---- final stage on all data
-    if final_stage and (window < m or records[-1].status in (Status.MAX_ITER,
-                                                             Status.STALLED)):
+    if final_stage and (window < m or not records[-1].success):
         t0 = time.perf_counter()
         res = solve(param, data, z, lam if warm_start == "primal-dual" else None,
                     max_iter=ctx.final_max_iter)
@@ -330,15 +330,21 @@ def _stall_rule(init, solve):
 
 
 def _relocate(param, wdata, z_start, lam_start, zeta_min):
-    """``(z_start, lam_start)`` of a stage with init="relocate": the vector-fit relocation
-    of all sections (:mod:`freqid_casadi.relocate`) when its stage cost is lower, with zero
-    multipliers (the previous ones belong to other sections); else unchanged."""
+    """``(param, z_start, lam_start)`` of a stage with init="relocate": the vector-fit
+    relocation of all sections (:mod:`freqid_casadi.relocate`, its own reference
+    frequencies) when its stage cost is lower, with zero multipliers (the previous ones
+    belong to other sections); else unchanged."""
     from .relocate import relocated_start
 
-    z_rel = relocated_start(param, wdata, z_start, zeta_min)
-    if z_rel is None:
-        return z_start, lam_start
-    return z_rel, np.zeros_like(lam_start)
+    found = relocated_start(param, wdata, z_start, zeta_min)
+    if found is None:
+        return param, z_start, lam_start
+    return found[0], found[1], np.zeros_like(lam_start)
+
+
+def _convert(old, new, z):
+    """The variables in ``new`` of the model of variables ``z`` in ``old``."""
+    return z if new is old else new.from_beta(old.to_beta(z))
 
 
 def _max_window_error(param, data, z):

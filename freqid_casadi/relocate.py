@@ -31,6 +31,19 @@ VF_ITERATIONS = 10
 STALL_RULE = (5, 0.05)
 
 
+def _references(model, omega_min):
+    """Each section's reference frequency (rad/s): its denominator's natural frequency
+    (second order: ``wd / sqrt(b)``; first order: ``b0 / b1``), else ``omega_min``."""
+    refs = []
+    for row in model.sections():
+        if model.structure.basis == "second-order":
+            w = row[5] / np.sqrt(row[3]) if row[3] > 0 else row[5]
+        else:
+            w = row[3] / row[2] if row[2] > 0 else np.nan
+        refs.append(float(w) if np.isfinite(w) and w > 0 else float(omega_min))
+    return tuple(refs)
+
+
 def relocated_start(param, wdata, z_start, zeta_min=None):
     """The vector-fit candidate start of a stage, or None if it is not better.
 
@@ -47,11 +60,14 @@ def relocated_start(param, wdata, z_start, zeta_min=None):
 
     Returns
     -------
-    ndarray of float, shape (param.n_vars,) or None
-        The relocated start (within the bounds, on the damping floor) when its stage cost
-        is lower than that of ``z_start``; None otherwise or when the vector fit fails.
+    (Parametrization, ndarray of float) or None
+        The relocated start: a parametrization like ``param`` whose sections' reference
+        frequencies are the relocated sections' (so the variables stay about 1) and the
+        variables there (within the bounds, on the damping floor), when its stage cost is
+        lower than that of ``z_start``; None otherwise or when the vector fit fails.
     """
     from .baselines import vector_fitting
+    from .objective import Parametrization
     from .stages import stage_cost
     from .start import _start_at
 
@@ -67,14 +83,18 @@ def relocated_start(param, wdata, z_start, zeta_min=None):
                           1e-6 * wdata.omega[0])[0]
         if model is None:
             return None
-        z = param.from_beta(np.asarray(model.beta, float))
+        refs = _references(model, wdata.omega[0]) if param.scaled else param.omega_ref
+        new = Parametrization(st, param.gauge, refs, param.gain_ref, param.delay_max,
+                              param.scaled)
+        z = new.from_beta(np.asarray(model.beta, float))
     except (ValueError, ArithmeticError, np.linalg.LinAlgError, StructureError):
         return None                      # StructureError: a root at s = 0 (dc gauge)
-    lb, ub = param.bounds()
+    lb, ub = new.bounds()
     z = np.clip(z, lb, ub)
     if not np.all(np.isfinite(z)):
         return None
     if zeta_min is not None:
-        z = param.project_damping(z, zeta_min)
-    cost = stage_cost(param, wdata, z)
-    return z if np.isfinite(cost) and cost < stage_cost(param, wdata, z_start) else None
+        z = new.project_damping(z, zeta_min)
+    cost = stage_cost(new, wdata, z)
+    better = np.isfinite(cost) and cost < stage_cost(param, wdata, z_start)
+    return (new, z) if better else None

@@ -292,5 +292,5 @@ def _relocated(model, data, loop, delay_max, zeta_min):
     from .stages import polish_start
 
     param, z0 = polish_start(model, data, loop=loop, delay_max=delay_max, zeta_min=zeta_min)
-    z = relocated_start(param, data, z0, zeta_min)
-    return model if z is None else param.to_model(z)
+    found = relocated_start(param, data, z0, zeta_min)
+    return model if found is None else found[0].to_model(found[1])
