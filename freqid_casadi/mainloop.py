@@ -111,6 +111,7 @@ def sequential(ctx, tol):
     l0 = record.window
     window = l0
     init_z = z.copy()
+    stall = _stall_rule(init, ctx.solve)
 
     # ---- stages 1..N: one section per stage at the largest error
     for n in range(1, st.n_sections + 1):
@@ -131,20 +132,24 @@ def sequential(ctx, tol):
         lam_start = np.concatenate([lam, np.zeros(new_sec.size)])
         if ctx.zeta_min is not None:
             z_start = new_param.project_damping(z_start, ctx.zeta_min)
+        if init == "relocate":
+            z_start, lam_start = _relocate(new_param, data.window(window), z_start, lam_start,
+                                           ctx.zeta_min)
         param = new_param
         wdata = data.window(window)
         t0 = time.perf_counter()
-        res = solve(param, wdata, z_start, lam_start if warm_start == "primal-dual" else None)
+        res = solve(param, wdata, z_start, lam_start if warm_start == "primal-dual" else None,
+                    **stall)
         z, lam, kept = keep_better(param, wdata, z_start, lam_start, res, prev_ext)
         nit, nfev = res.nit, res.nfev
-        if init == "peak" and _max_window_error(param, wdata, z) >= 1.0:
+        if init != "identity" and _max_window_error(param, wdata, z) >= 1.0:
             # worse than the infinite-gain model (relative error 1) on the window: a local
             # minimum of the peak placement; retry from the thesis's identity section
             z_id = np.concatenate([z_prev, ident])
             if ctx.zeta_min is not None:
                 z_id = param.project_damping(z_id, ctx.zeta_min)
             res_id = solve(param, wdata, z_id,
-                           lam_start if warm_start == "primal-dual" else None)
+                           lam_start if warm_start == "primal-dual" else None, **stall)
             nit, nfev = nit + res_id.nit, nfev + res_id.nfev
             if stage_cost(param, wdata, res_id.x) < stage_cost(param, wdata, z):
                 res, z, lam = res_id, res_id.x.copy(), res_id.lam_x.copy()
@@ -154,7 +159,8 @@ def sequential(ctx, tol):
         callback(records[-1])
 
     # ---- final stage on all data
-    if final_stage and (window < m or records[-1].status == Status.MAX_ITER):
+    if final_stage and (window < m or records[-1].status in (Status.MAX_ITER,
+                                                             Status.STALLED)):
         t0 = time.perf_counter()
         res = solve(param, data, z, lam if warm_start == "primal-dual" else None,
                     max_iter=ctx.final_max_iter)
@@ -311,6 +317,28 @@ def _new_section(param, init, scale_l, omega, phi, err, idx, z, old_param):
     else:
         zn, zd = zeta0, min(zeta0 / max(rho, 1e-12), 2.0)
     return param.new_section(omega_c, zn, omega_c, zd, omega_c)
+
+
+def _stall_rule(init, solve):
+    """``{"stall": (window, ftol)}`` for the section stages of init="relocate" with IPOPT
+    (:data:`~freqid_casadi.relocate.STALL_RULE`), else ``{}``."""
+    from .relocate import STALL_RULE
+
+    if init != "relocate" or getattr(getattr(solve, "solver", None), "method", "") != "ipopt":
+        return {}
+    return {"stall": STALL_RULE}
+
+
+def _relocate(param, wdata, z_start, lam_start, zeta_min):
+    """``(z_start, lam_start)`` of a stage with init="relocate": the vector-fit relocation
+    of all sections (:mod:`freqid_casadi.relocate`) when its stage cost is lower, with zero
+    multipliers (the previous ones belong to other sections); else unchanged."""
+    from .relocate import relocated_start
+
+    z_rel = relocated_start(param, wdata, z_start, zeta_min)
+    if z_rel is None:
+        return z_start, lam_start
+    return z_rel, np.zeros_like(lam_start)
 
 
 def _max_window_error(param, data, z):

@@ -34,7 +34,7 @@ WARM_STARTS = ("primal-dual", "primal", "none")
 #: Parametrizations of the sections (:mod:`freqid_casadi.objective`).
 GAUGES = ("dc", "b1", "raw")
 #: Initialisations of a new section.
-INITS = ("peak", "identity")
+INITS = ("peak", "identity", "relocate")
 #: Evaluations of the stage derivatives (None: "affine" for the dc gauge, else "casadi-map").
 DERIVATIVES = (None, "affine", "casadi-map")
 #: Damping of the barrier-LM inner steps.
@@ -267,10 +267,13 @@ class LoopOptions:
     ----------
     gauge : {"dc", "b1", "raw"}
         Parametrization of the sections, see :mod:`freqid_casadi.objective`.
-    init : {"peak", "identity"}
+    init : {"peak", "identity", "relocate"}
         New-section initialisation: "peak" places a pole/zero pair at omega_c whose value
         there reproduces the error peak; "identity" is the thesis's a = b = 1,
-        zeta = 0.5, omega = omega_c (optionally scaled by ``scale_l``).
+        zeta = 0.5, omega = omega_c (optionally scaled by ``scale_l``); "relocate" is
+        "peak" and, when its stage cost is lower, a vector fit of all sections at the
+        current delay (:mod:`freqid_casadi.relocate`), with the section stages ended by a
+        stall rule (the all-data stage runs without it).
     scale_l : float >= 1
         The thesis's l for the identity section (affects only the "raw" gauge).
     scaled : bool
@@ -295,7 +298,7 @@ class LoopOptions:
     """
 
     gauge: str = "dc"
-    init: str = "peak"
+    init: str = "relocate"
     scale_l: float = 1.0
     scaled: bool = True
     bound_delay: bool = True

@@ -209,14 +209,16 @@ def stage_record(stage, param, z, data, window, omega_c, res, nit, nfev, wall, k
                        kind=StageKind(kind), message=str(res.message))
 
 
-def _termination(ftol, onto_bounds=False):
+def _termination(ftol, onto_bounds=False, stall=None):
     """The stages' :class:`~freqid_casadi.solvers.termination.Termination` for
-    ``IpoptOptions.ftol`` (0: the test and its polish off)."""
+    ``IpoptOptions.ftol`` (0: the test and its polish off) and the optional stall rule
+    ``stall = (window, ftol)``."""
     from .solvers.termination import Termination
 
+    kw = {} if stall is None else dict(stall_window=int(stall[0]), stall_ftol=float(stall[1]))
     if ftol > 0:
-        return Termination(ftol=float(ftol), onto_bounds=onto_bounds)
-    return Termination(ftol=0.0, noise_factor=0.0, polish_steps=0)
+        return Termination(ftol=float(ftol), onto_bounds=onto_bounds, **kw)
+    return Termination(ftol=0.0, noise_factor=0.0, polish_steps=0, **kw)
 
 
 class StageSolver:
@@ -231,9 +233,11 @@ class StageSolver:
     onto_bounds : bool
         The termination test's ``onto_bounds`` (:func:`polish`).
 
-    Calling it, ``solve(param, wdata, x0, lam0, max_iter=None)``, solves the stage on
-    ``wdata`` from ``x0`` (bound multipliers ``lam0`` or None) and returns a
-    :class:`~freqid_casadi.solvers.common.StageResult`.
+    Calling it, ``solve(param, wdata, x0, lam0, max_iter=None, stall=None)``, solves the
+    stage on ``wdata`` from ``x0`` (bound multipliers ``lam0`` or None) and returns a
+    :class:`~freqid_casadi.solvers.common.StageResult`; ``stall = (window, ftol)`` (IPOPT
+    only) also ends the stage when its cost fell by less than the fraction ``ftol`` over
+    ``window`` iterations.
     """
 
     def __init__(self, solver, loop, zeta_min=None, onto_bounds=False):
@@ -242,7 +246,7 @@ class StageSolver:
         self.zeta_min = zeta_min
         self.onto_bounds = onto_bounds
 
-    def __call__(self, param, wdata, x0, lam0, max_iter=None):
+    def __call__(self, param, wdata, x0, lam0, max_iter=None, stall=None):
         funcs = stage_functions(param, wdata.omega, wdata.response, wdata.weights,
                                 derivatives=self.loop.derivatives)
         lb, ub = param.bounds()
@@ -259,7 +263,7 @@ class StageSolver:
                               hessian=opts.hessian, max_iter=max_iter or opts.max_iter,
                               warm_start=opts.warm_start != "none",
                               ipopt_options=opts.ipopt_dict(),
-                              termination=_termination(opts.ftol, self.onto_bounds))
+                              termination=_termination(opts.ftol, self.onto_bounds, stall))
             if cons is not None:
                 # IPOPT meets g >= 0 to its tolerance; make the floor exact
                 res = dataclasses.replace(res, x=param.project_damping(res.x, self.zeta_min))
@@ -415,7 +419,7 @@ def _from_a_model(solver):
 
 
 def polish(model, data, *, method="ipopt", loop=None, delay_max=None, zeta_min=None,
-           max_iter=None):
+           max_iter=None, stall=None):
     """Refit every parameter of ``model`` on all of ``data``, started from ``model``.
 
     One stage NLP on all data (as the main loop's final stage), kept only if it lowers
@@ -443,6 +447,9 @@ def polish(model, data, *, method="ipopt", loop=None, delay_max=None, zeta_min=N
         Damping floor imposed as constraints (IPOPT, dc gauge).
     max_iter : int, optional
         Iteration limit; default the solver options' ``final_max_iter``.
+    stall : (int, float), optional
+        ``(window, ftol)``: also stop when the cost fell by less than the fraction ``ftol``
+        over ``window`` iterations (IPOPT only; :class:`StageSolver`).
 
     Returns
     -------
@@ -462,7 +469,8 @@ def polish(model, data, *, method="ipopt", loop=None, delay_max=None, zeta_min=N
     loop = LoopOptions() if loop is None else loop
     param, z0 = polish_start(model, data, loop=loop, delay_max=delay_max, zeta_min=zeta_min)
     solve = StageSolver(solver, loop, zeta_min, onto_bounds=True)
-    res = solve(param, data, z0, None, max_iter=max_iter or solver.final_max_iter)
+    res = solve(param, data, z0, None, max_iter=max_iter or solver.final_max_iter,
+                **({} if stall is None or solver.method != "ipopt" else {"stall": stall}))
     z, lam, kept = keep_better(param, data, z0, np.zeros_like(z0), res)
     return PolishResult(model=param.to_model(z), param=param, x=z, lam_x=lam, start=z0,
                         result=res, kept=kept)

@@ -223,7 +223,8 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
         chain = (best[0], res, best[3], best[1])
         if follows and shown is not None and shown[0].n_sections + 1 == o // per:
             same = _identity_extension(shown[0], data) + (shown[3], "extended")
-            best = same if _better(same[1:3], best[1:3]) else best
+            # the same model plus an identity section: the max error never increases
+            best = same if same[1] < best[1] or _better(same[1:3], best[1:3]) else best
         model, mx, rms, success, start = best
         shown = best
         dense_err = (relative_error(model, dense, g_dense).max
@@ -270,8 +271,26 @@ def _extended(model, res, data, max_iter=EXTEND_MAX_ITER):
 
     ext = _identity_extension(model, data)[0]
     opts = res.options
+    stall = None
+    if opts.loop.init == "relocate":
+        from .relocate import STALL_RULE
+
+        ext = _relocated(ext, data, opts.loop, max(res.delay_max, model.delay), res.zeta_min)
+        stall = STALL_RULE
     pol = polish(ext, data, method=opts.solver, loop=opts.loop,
                  delay_max=max(res.delay_max, model.delay), zeta_min=res.zeta_min,
-                 max_iter=max_iter)
+                 max_iter=max_iter, stall=stall)
     stats = relative_error(pol.model, data)
     return pol.model, float(stats.max), float(stats.rms), bool(pol.result.success)
+
+
+def _relocated(model, data, loop, delay_max, zeta_min):
+    """``model`` or, when its cost on ``data`` is lower, the vector-fit relocation of all
+    its sections at its delay (:func:`~freqid_casadi.relocate.relocated_start`; the
+    sequential loop's init="relocate")."""
+    from .relocate import relocated_start
+    from .stages import polish_start
+
+    param, z0 = polish_start(model, data, loop=loop, delay_max=delay_max, zeta_min=zeta_min)
+    z = relocated_start(param, data, z0, zeta_min)
+    return model if z is None else param.to_model(z)

@@ -201,9 +201,10 @@ def variants(*, delay=True, quick=False):
         ipopt, lm_t, lm_m, b1,
         Variant("gauge-raw-l2", "gauge", "gauge raw, scale_l=2", {"gauge": "raw", "scale_l": 2.0},
                 note="scale_l rescales only the identity initial section; with the default "
-                     "init=peak it has no effect, so this row isolates the gauge."),
+                     "init=relocate it has no effect, so this row isolates the gauge."),
         Variant("warm-none", "warm start", "warm start none", {"warm_start": "none"}),
         Variant("warm-primal", "warm start", "warm start primal", {"warm_start": "primal"}),
+        Variant("init-peak", "init", "init peak (no relocation)", {"init": "peak"}),
         Variant("init-identity", "init", "init identity", {"init": "identity"}),
         Variant("init-identity-raw-l2", "init", "init identity + gauge raw, scale_l=2",
                 {"init": "identity", "gauge": "raw", "scale_l": 2.0},
