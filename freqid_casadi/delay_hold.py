@@ -14,9 +14,9 @@ standard deviation exceeds half its value (the ``delay-undetermined`` test of
 ``n_sections - 1`` (recursively held in turn); if that fit converged with a determined
 positive delay ``h``, the ``n_sections`` fit is repeated with the delay held at ``h``
 (the data multiplied by ``exp(j w h)``, fitted without a delay) and kept when it
-converged with a max relative error within :data:`~freqid_casadi.candidates.NEAR` of
-the free fit's, the rule by which :func:`~freqid_casadi.candidates.choose` calls fits
-equally good. The kept result carries a ``delay-undetermined`` diagnostic that names the
+converged with max and RMS relative errors within
+:data:`~freqid_casadi.candidates.NEAR` of the free fit's (the factor by which
+:func:`~freqid_casadi.candidates.choose` calls fits equally good). The kept result carries a ``delay-undetermined`` diagnostic that names the
 free fit's delay, its std and both fits' errors; ``LoopOptions(hold_delay=False)`` keeps
 the free fit.
 
@@ -112,7 +112,8 @@ def hold_undetermined_delay(result, refit):
     shifted = FrequencyData(data.omega, data.response * np.exp(1j * data.omega * h),
                             data.name, data.weights)
     held = refit(shifted, st.n_sections, False)
-    if not held.success or not held.max_rel_error <= NEAR * result.max_rel_error:
+    if not (held.success and held.max_rel_error <= NEAR * result.max_rel_error
+            and held.rms_rel_error <= NEAR * result.rms_rel_error):
         return result
     beta = np.array(held.model.beta, float)
     beta[0] = h

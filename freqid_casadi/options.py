@@ -299,7 +299,8 @@ class LoopOptions:
         When the fitted delay is undetermined (its standard deviation exceeds half its
         value: it trades against roots above the band), refit with the delay held at the
         value the (N-1)-section fit determines, and keep that fit when it converged within
-        10 % of the free fit's max relative error (:mod:`freqid_casadi.delay_hold`).
+        10 % of the free fit's max and RMS relative errors
+        (:mod:`freqid_casadi.delay_hold`).
     """
 
     gauge: str = "dc"
