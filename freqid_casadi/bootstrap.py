@@ -13,11 +13,16 @@ __all__ = ["bootstrap"]
 
 
 def _refit_fit(data, structure):
-    """Default global refit: freqid_casadi.fit with the same structure, rational start."""
+    """Default global refit: freqid_casadi.fit with the same structure, rational start,
+    the least-squares delay itself (no hold of an undetermined delay at a lower order's:
+    the bootstrap measures the spread of the estimate, and the hold would refit at
+    ``n_sections - 1`` in every replicate)."""
     from .fit import fit   # lazy: fit is imported by the package facade anyway
+    from .options import LoopOptions
 
     return fit(data, n_sections=structure.n_sections, integrator=structure.integrator,
-               delay=structure.delay, basis=structure.basis, start="rational").model
+               delay=structure.delay, basis=structure.basis, start="rational",
+               loop=LoopOptions(hold_delay=False)).model
 
 
 def _replicate(b, seed, par, data, w, u, refit):

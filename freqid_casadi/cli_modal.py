@@ -182,7 +182,8 @@ def _summary(res, names, command):
         "modes": [{"frequency_hz": m.frequency_hz, "omega_n": m.omega_n, "zeta": m.zeta}
                   for m in res.modes],
         "per_order": [{"order": o, "max_rel_error": float(np.max(f.max_rel_errors)),
-                       "success": f.success, "wall_time": f.wall_time, "nit": f.nit}
+                       "success": f.success, "message": f.message,
+                       "wall_time": f.wall_time, "nit": f.nit}
                       for o, f in zip(res.orders, res.fits)],
         "top_order": {"max_rel_errors": dict(zip(names, map(float, top.max_rel_errors))),
                       "rms_rel_errors": dict(zip(names, map(float, top.rms_rel_errors))),
@@ -222,6 +223,7 @@ def _markdown(s, res, names):
     lines += [f"| {r['order']} | {r['max_rel_error']:.3g} | {'yes' if r['success'] else 'no'} "
               f"| {r['nit']} | {r['wall_time']:.2f} |" for r in s["per_order"]]
     lines += ["", f"## Channels at order {s['orders'][-1]}", "",
+              f"How the fit ended: {s['per_order'][-1]['message']}", "",
               "| channel | max rel. error | RMS rel. error | delay (s) | minimum phase |",
               "|---|---:|---:|---:|---|"]
     t = s["top_order"]

@@ -21,6 +21,7 @@ from .candidates import Candidate, choose, zero_delay_run
 from ._fit_checks import (GAIN_SIGNS, after_fit, check_model_class, success_of, validate,
                           zeta_min_of)
 from .data import FrequencyData
+from .delay_hold import hold_undetermined_delay
 from .diagnostics import check_gain_sign
 from .errors import FreqidError, OptionError, ResolutionWarning
 from .mainloop import LoopContext, minimax, rational, sequential
@@ -278,11 +279,24 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         A keyword fit() no longer takes (``gauge=``, ``hessian=``, ...): the message names
         the option object and field it moved to.
     """
+    kw = dict(integrator=integrator, basis=basis, method=method, tol=tol, start=start,
+              objective=objective, min_damping=min_damping, loop=loop, gain_sign=gain_sign,
+              zeros=zeros)
     with _single_threaded_blas():
-        return _fit(data_or_omega, response, n_sections=n_sections, integrator=integrator,
-                    delay=delay, basis=basis, method=method, tol=tol, progress=progress,
-                    weights=weights, start=start, objective=objective,
-                    min_damping=min_damping, loop=loop, gain_sign=gain_sign, zeros=zeros)
+        return _fit_held(data_or_omega, response, n_sections=n_sections, delay=delay,
+                         progress=progress, weights=weights, **kw)
+
+
+def _fit_held(data_or_omega, response, *, progress, weights, **kw):
+    """:func:`_fit`, then :func:`~freqid_casadi.delay_hold.hold_undetermined_delay` (its
+    refits quiet, on the fit's data with its weights, held in turn)."""
+    result = _fit(data_or_omega, response, progress=progress, weights=weights, **kw)
+
+    def refit(data, n_sections, delay):
+        return _fit_held(data, None, progress=False, weights=None,
+                         **dict(kw, n_sections=n_sections, delay=delay))
+
+    return hold_undetermined_delay(result, refit)
 
 
 def _single_threaded_blas():
@@ -415,7 +429,7 @@ def _resolution_check(model, omega):
             "noisy data); inspect FitResult.resolution, refit with min_damping='auto' (a "
             "damping floor from the frequency spacing), remove them with "
             "freqid_casadi.validation.prune_sections, or fit fewer sections",
-            ResolutionWarning, stacklevel=5)
+            ResolutionWarning, stacklevel=6)
     return check
 
 

@@ -295,6 +295,12 @@ class LoopOptions:
         Fraction of the lowest data frequency below which a polished overdamped factor's
         root may not go (:func:`~freqid_casadi.stages.choose_charts`): a pole the data
         push towards 0 (an integrator) stops there, on a bound, instead of creeping.
+    hold_delay : bool
+        When the fitted delay is undetermined (its standard deviation exceeds half its
+        value: it trades against roots above the band), refit with the delay held at the
+        value the (N-1)-section fit determines, and keep that fit when it converged within
+        10 % of the free fit's max and RMS relative errors
+        (:mod:`freqid_casadi.delay_hold`).
     """
 
     gauge: str = "dc"
@@ -306,9 +312,11 @@ class LoopOptions:
     final_stage: bool = True
     derivatives: str = None
     root_floor: float = 1e-3
+    hold_delay: bool = True
 
     def __post_init__(self):
         owner = type(self).__name__
+        _flag(owner, "hold_delay", self.hold_delay)
         _choice(owner, "gauge", self.gauge, GAUGES)
         _choice(owner, "init", self.init, INITS)
         _real(owner, "scale_l", self.scale_l, 1.0, strict=False)

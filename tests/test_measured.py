@@ -40,18 +40,34 @@ def test_actuator_two_sections_converges(study):
     assert "root-below-band" in [d["code"] for d in row["diagnostics"]]
 
 
-@pytest.mark.xfail(strict=True, reason="measured since the charts (issue 15): converged fits "
-                   "give 7.00 ms at 2 sections (rational start; sequential 9.54) and 9.21 ms "
-                   "at 3 (rational; sequential 9.47); the 6.61 ms at 3 sections before was "
-                   "the rational polish stopped at its 200-iteration limit. Polishing the "
-                   "2-section fit plus one section converges to 3-section optima with delays "
-                   "6.96-15.6 ms within 4 % RMS of each other: at 3 sections the delay trades "
-                   "with zeros above the band and these data do not determine it (its "
-                   "covariance std is 1.2e3 s: the fit reports delay-undetermined)")
 def test_actuator_delays_at_two_and_three_sections_agree(study):
-    d2, d3 = _ours(study.actuator, 2)["delay"], _ours(study.actuator, 3)["delay"]
+    # at 3 sections the free fit's delay (9.21 ms, rational start) trades against a zero
+    # pair above the band (covariance std 1.2e3 s; 2-section fit + one section polishes to
+    # optima with 6.96-15.6 ms within 4 % RMS): the fit states it (delay-undetermined) and
+    # holds the delay at the 2-section fit's, kept because it converged within 10 % of the
+    # free fit's max and RMS errors (measured: 0.0298 vs 0.0292, RMS 0.00733 vs 0.00725)
+    two, three = _ours(study.actuator, 2), _ours(study.actuator, 3)
+    assert two["success"] is True and three["success"] is True
+    d2, d3 = two["delay"], three["delay"]
     assert abs(d2 - d3) <= 1e-3
     assert 0.003 < d2 < 0.012                                  # a few milliseconds
+    assert two["delay_std"] < 0.5e-3 and three["delay_std"] < 2e-3
+    assert two["max_rel_error"] <= 0.03
+    (held,) = [d for d in three["diagnostics"] if d["code"] == "delay-undetermined"]
+    assert held["values"]["held_from_n_sections"] == 2
+    assert held["values"]["delay_free_std"] > 1.0              # the free fit's: undetermined
+    assert three["max_rel_error"] <= 1.1 * held["values"]["max_rel_error_free"]
+    assert three["rms_rel_error"] <= 1.1 * held["values"]["rms_rel_error_free"]
+    assert "delay-undetermined" not in [d["code"] for d in two["diagnostics"]]
+
+
+def test_actuator_one_section_delay_absorbs_the_unmodelled_lag(study):
+    # issue 15: "at 1 section the delay may absorb the unmodelled lag: say how much";
+    # measured: 4.71 ms at 1 section, 7.00 ms at 2 (the 1-section model's zero far above
+    # the band, 2.9e3 rad/s, and the missing second pole shift it by -2.3 ms)
+    one, two = _ours(study.actuator, 1), _ours(study.actuator, 2)
+    assert one["success"] is True and one["delay_std"] < 1e-3
+    assert 1.5e-3 < two["delay"] - one["delay"] < 3e-3
 
 
 def test_actuator_beats_the_stable_peers_at_two_sections(study):

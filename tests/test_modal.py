@@ -145,6 +145,9 @@ def test_cli_modal_writes_report_and_refuses_existing_out(tmp_path, capsys):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["n_modes_selected"] == 2
     assert [m["omega_n"] for m in summary["modes"]] == pytest.approx([5.0, 17.0], rel=1e-4)
+    top = summary["per_order"][-1]
+    assert top["success"] and top["message"].startswith("converged")
+    assert f"How the fit ended: {top['message']}" in (out / "summary.md").read_text()
     model = RationalDelayModel.load(out / "model_ch2.json")
     assert model.structure.zeros == "free"
     before = (out / "modes.csv").read_text()
