@@ -8,8 +8,8 @@ of optima (measured on the actuator at 3 sections: optima with delays 6.96-15.6 
 4 % RMS of each other, the free fit's delay std 1.2e3 s from the covariance), so the
 delay would wander with the order although the data have not changed.
 
-:func:`hold_undetermined_delay` states and resolves that case. When the fitted delay's
-standard deviation exceeds half its value (the ``delay-undetermined`` test of
+:func:`hold_undetermined_delay` states and resolves that case. When a converged fit's
+delay has a standard deviation above half its value (the ``delay-undetermined`` test of
 :func:`~freqid_casadi.diagnostics.check_delay`), the same fit is repeated with
 ``n_sections - 1`` (recursively held in turn); if that fit converged with a determined
 positive delay ``h``, the ``n_sections`` fit is repeated with the delay held at ``h``
@@ -101,7 +101,10 @@ def hold_undetermined_delay(result, refit):
     found = undetermined_by_std(result)
     st = result.model.structure
     loop = result.options.loop if result.options is not None else None
-    if found is None or loop is None or not loop.hold_delay or st.n_sections < 2:
+    if (found is None or loop is None or not loop.hold_delay or st.n_sections < 2
+            or not result.success):
+        # a fit that did not converge is not at an optimum: its covariance says nothing
+        # about a valley of optima (example C: 15 s of refits for nothing)
         return result
     with warnings.catch_warnings():         # a fit the user did not ask for: no warnings
         warnings.simplefilter("ignore", ResolutionWarning)

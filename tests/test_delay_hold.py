@@ -85,3 +85,19 @@ def test_no_hold_from_a_lower_fit_without_a_determined_delay(data, free, change)
         free, options=dataclasses.replace(free.options, loop=LoopOptions())), refit)
     assert calls == [(2, True)]                # asked for the lower order, held nothing
     assert held.delay == free.delay and "free delay" not in held.candidate_max_rel_errors
+
+
+def test_a_fit_that_did_not_converge_is_not_held(free):
+    # its covariance is not taken at an optimum; measured on example C (27 sections, not
+    # converged, delay std above half the delay): the refits cost 15 s and held nothing
+    assert free.success and "delay-undetermined" in _codes(free)
+    calls = []
+
+    def refit(d, n, delay):
+        calls.append((n, delay))
+        raise AssertionError("no refit for a fit that did not converge")
+
+    unconverged = dataclasses.replace(
+        free, success=False, options=dataclasses.replace(free.options, loop=LoopOptions()))
+    assert hold_undetermined_delay(unconverged, refit) is unconverged
+    assert calls == []
