@@ -103,8 +103,7 @@ def _start_model(ex, args, data):
 
     delay_max = max(default_delay_max(data.omega), args.delay)
     rs = rational_start(data, fc.Structure(ex.n_sections, ex.integrator, ex.delay),
-                        delay_max=delay_max, delay0=args.delay, max_delay_updates=1,
-                        delay_search=0)
+                        delay_max=delay_max, delay0=args.delay, max_delay_updates=1)
     print(f"vector fit at h = {args.delay:.7g} s: max rel. error {rs.max_rel_error:.3g}")
     return rs.model, delay_max
 

@@ -158,7 +158,7 @@ def test_example_c_has_a_far_better_basin_at_the_systems_delay():
     data = ex.system()
     rs = rational_start(data, fc.Structure(ex.n_sections, ex.integrator, ex.delay),
                         delay_max=default_delay_max(data.omega), delay0=ex.true_delay,
-                        max_delay_updates=1, delay_search=0)
+                        max_delay_updates=1)
     assert rs.max_rel_error < 1e-7              # measured 1.59e-8
     pol = polish(rs.model, data, max_iter=200)
     assert np.max(pol.model.relative_error(data)) < 1e-9      # measured 3.3e-10
