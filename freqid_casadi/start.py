@@ -6,10 +6,8 @@ fitting with pole flipping (:func:`freqid_casadi.baselines.vector_fitting`, rela
 weighting); right-half-plane zeros are reflected to the left half plane (same magnitude,
 the phase difference is left to the delay), poles and zeros are paired into sections
 (sorted by frequency), the gain is fitted in closed form. The delay is then updated from the
-reflected zeros' group delay, a few times; where these updates stall (min-phase sections
-above the band absorb the rest of the delay) a local search of the max relative error over
-the delay follows (steps of 0.1 rad of phase at the highest frequency), and the trial with
-the lowest max relative error wins. The caller then polishes all parameters, delay included, by
+reflected zeros' group delay, a few times, and the trial with the lowest max relative error
+wins. The caller then polishes all parameters, delay included, by
 one IPOPT stage on all data (:func:`freqid_casadi.fit.fit` with ``start="rational"``).
 """
 
@@ -207,49 +205,8 @@ def _start_at(vector_fitting, data, structure, base, h, n_poles, n_iter, floor):
     return model, (err if np.isfinite(err) else np.inf), int(rhp.size), step
 
 
-def _search_delay(trial, h0, err0, step, delay_max, max_evals):
-    """Local 1-D search of the trial error over the delay, started at the best trial.
-
-    Vector fitting's error is erratic in h (a good delay can sit next to a bad one), so the
-    search does not follow a slope: it probes ``h0 +- k step`` for k = 1, 2, 4, 8, then a
-    compass search around the best trial with steps ``step / 2, step / 4, ...`` (kept
-    while it improves). Every trial is recorded by ``trial`` and the best one wins, so the
-    search never returns a worse start than ``(h0, err0)``.
-
-    Parameters
-    ----------
-    trial : callable
-        ``trial(h) -> err``: max relative error (inf when unusable) of the start at delay
-        ``h`` (s); it records its own results.
-    h0, err0 : float
-        Best trial delay (s) so far and its max relative error.
-    step : float
-        Probe step (s), > 0.
-    delay_max : float
-        Largest delay (s) tried.
-    max_evals : int
-        Most trials this search adds.
-    """
-    seen = {h0: err0}
-
-    def probe(h):
-        h = float(np.clip(h, 0.0, delay_max))
-        if h not in seen and len(seen) <= max_evals:
-            seen[h] = trial(h)
-        return seen.get(h, np.inf)
-
-    for sign in (1.0, -1.0):
-        for k in (1, 2, 4, 8):
-            probe(h0 + sign * k * step)
-    d = 0.5 * step
-    while len(seen) <= max_evals and d >= step / 64:
-        best_h = min(seen, key=seen.get)
-        if min(probe(best_h + d), probe(best_h - d)) >= seen[best_h]:
-            d *= 0.5
-
-
 def rational_start(data, structure, *, delay_max, delay0=0.0, max_delay_updates=12,
-                   n_iter=10, delay_search=16):
+                   n_iter=10):
     """Stable, minimum-phase start for all sections at once (see the module docstring).
 
     Parameters
@@ -269,13 +226,6 @@ def rational_start(data, structure, *, delay_max, delay0=0.0, max_delay_updates=
         minimum-phase fit is reached with a tight bracket or a tiny error.
     n_iter : int
         Vector-fitting iterations per trial delay.
-    delay_search : int
-        Most further trials of a local search of the max relative error over the delay
-        around the best trial (:func:`_search_delay`; step 0.1 rad of phase at the highest
-        frequency, ``0.1 / omega[-1]`` s); 0 turns it off. The delay updates stall
-        where right-half-plane zeros no longer stand for the missing delay (min-phase
-        sections above the band absorb it); the search finds the nearby delay at which the
-        data are rational.
 
     Returns
     -------
@@ -290,12 +240,9 @@ def rational_start(data, structure, *, delay_max, delay0=0.0, max_delay_updates=
     floor = 1e-6 * data.omega[0]
     h = float(np.clip(delay0, 0.0, delay_max)) if structure.delay else 0.0
     lo, hi = 0.0, float(delay_max)           # bracket: below lo the fit needs RHP zeros
-    probe_step = 0.1 / float(data.omega[-1])  # 0.1 rad of phase at the highest frequency
     best = None
-    delays, errors, last = [], [], {}
-
-    def trial(h):
-        nonlocal best
+    delays, errors = [], []
+    for _ in range(max_delay_updates if structure.delay else 1):
         try:
             model, err, n_rhp, step = _start_at(vector_fitting, data, structure, base, h,
                                                 n_poles, n_iter, floor)
@@ -305,14 +252,9 @@ def rational_start(data, structure, *, delay_max, delay0=0.0, max_delay_updates=
         errors.append(err)
         if model is not None and (best is None or err < best[2]):
             best = (model, h, err, n_rhp)
-        last.update(n_rhp=n_rhp, step=step)
-        return err
-
-    for _ in range(max_delay_updates if structure.delay else 1):
-        err = trial(h)
-        if last["n_rhp"] > 0:
+        if n_rhp > 0:
             lo = max(lo, h)                  # the delay is too small: RHP zeros model it
-            new_h = h + last["step"]
+            new_h = h + step
             if not lo < new_h < hi:          # the step leaves the bracket: bisect
                 new_h = 0.5 * (lo + hi)
         else:
@@ -320,16 +262,9 @@ def rational_start(data, structure, *, delay_max, delay0=0.0, max_delay_updates=
             new_h = 0.5 * (lo + hi)
             if err < 1e-9 or hi - lo <= 1e-3 * max(hi, 1e-12):
                 break
-        # a step below 1e-4 rad of phase at the top frequency has stalled (the RHP zeros
-        # left are undamped zeros on the wrong side, not a missing delay)
-        if abs(new_h - h) <= (1e-3 * probe_step if delay_search else 1e-12 * max(1.0, h)):
+        if abs(new_h - h) <= 1e-12 * max(1.0, h):
             break
         h = float(new_h)
-    # a tight bracket (a minimum-phase fit just above a delay that needs RHP zeros, or at
-    # h = 0) already pins the delay; otherwise search around the best trial
-    tight = hi - lo <= 1e-3 * max(hi, 1e-12)
-    if structure.delay and delay_search and best is not None and best[2] > 1e-9 and not tight:
-        _search_delay(trial, best[1], best[2], probe_step, float(delay_max), delay_search)
     if best is None:
         raise RationalStartError("the rational start failed (vector fitting gave no usable model); "
                           "use start='sequential'")

@@ -193,29 +193,3 @@ def test_example_b_9_sections_minimax():
     assert res.max_rel_error <= 0.25
     assert res.stages[-1].kept == "minimax"
     assert res.model.is_stable() and res.model.is_minimum_phase()
-
-
-def test_delay_search_finds_a_narrow_basin_and_never_gets_worse():
-    """start._search_delay on an erratic error: a narrow minimum 3 steps above the start,
-    a spike next to it; every trial is recorded and the best is below the start's."""
-    from freqid_casadi.start import _search_delay
-
-    def err(h):
-        spike = 1e3 if abs(h - 0.0355) < 2e-4 else 1.0
-        return spike * (1e-6 + 1e2 * (h - 0.0362) ** 2)
-
-    tried = {}
-
-    def trial(h):
-        tried[h] = err(h)
-        return tried[h]
-
-    _search_delay(trial, 0.035, err(0.035), 4e-4, 0.1, 16)
-    assert 0 < len(tried) <= 16
-    best = min(tried, key=tried.get)
-    assert abs(best - 0.0362) <= 1e-4           # 0.035 + 3 x 4e-4 = 0.0362 found
-    assert tried[best] < 1e-5 < err(0.035)
-    # nothing to gain: the search stays at the start
-    tried.clear()
-    _search_delay(trial, 0.0362, err(0.0362), 4e-4, 0.1, 16)
-    assert min(tried.values()) >= err(0.0362)
