@@ -19,7 +19,7 @@ import numpy as np
 from .solvers.common import SUCCESS_STATUSES, Status
 from .solvers.ipopt import ipopt_status
 from .solvers.termination import StageMonitor, Termination, free_variables, \
-    relative_stationarity
+    moved_onto_bounds, relative_stationarity
 
 __all__ = ["SharedMonitor", "blocks", "column_norms", "gradient_and_norms", "block_projected_fraction",
            "SHARED_TERMINATION", "SNAP", "verdict"]
@@ -248,14 +248,12 @@ class SharedMonitor(StageMonitor):
         the cost; else the arguments unchanged. IPOPT's interior keeps such a variable
         ``~ mu / gradient`` off its bound (measured: a numerator coefficient 6.8e-10 off 0,
         its cosine 2e-3, so the test failed at a point IPOPT called converged); the
-        single-channel stages' LM polish does the same move."""
-        lb, ub = self.problem.lb, self.problem.ub
-        reach = SNAP * np.sqrt(max(cost, 0.0))
-        low = (grad > 0) & (x > lb) & (cn * (x - lb) <= reach)
-        high = (grad < 0) & (x < ub) & (cn * (ub - x) <= reach)
-        if not (low.any() or high.any()):
+        single-channel polish's :meth:`StageMonitor._onto_bounds` makes the same move
+        (:func:`~freqid_casadi.solvers.termination.moved_onto_bounds`)."""
+        xs = moved_onto_bounds(x, grad, cn, self.problem.lb, self.problem.ub,
+                               SNAP * np.sqrt(max(cost, 0.0)))
+        if xs is None:
             return x, cost, grad, cn
-        xs = np.where(low, lb, np.where(high, ub, x))
         c2, g2, n2 = gradient_and_norms(self.shared, xs, self.window)
         if np.isfinite(c2) and c2 <= cost and np.all(np.isfinite(g2)):
             return xs, c2, g2, n2

@@ -111,7 +111,7 @@ def sequential(ctx, tol):
     l0 = record.window
     window = l0
     init_z = z.copy()
-    stall = _stall_rule(init, ctx.solve)
+    stall = _stall_rule(init)
 
     # ---- stages 1..N: one section per stage at the largest error
     for n in range(1, st.n_sections + 1):
@@ -326,14 +326,13 @@ def _new_section(param, init, scale_l, omega, phi, err, idx, z, old_param):
     return param.new_section(omega_c, zn, omega_c, zd, omega_c)
 
 
-def _stall_rule(init, solve):
-    """``{"stall": (window, ftol)}`` for the section stages of init="relocate" with IPOPT
-    (:data:`~freqid_casadi.relocate.STALL_RULE`), else ``{}``."""
+def _stall_rule(init):
+    """``{"stall": (window, ftol)}`` for the section stages of init="relocate"
+    (:data:`~freqid_casadi.relocate.STALL_RULE`; the stage solver applies it with IPOPT
+    only), else ``{}``."""
     from .relocate import STALL_RULE
 
-    if init != "relocate" or getattr(getattr(solve, "solver", None), "method", "") != "ipopt":
-        return {}
-    return {"stall": STALL_RULE}
+    return {"stall": STALL_RULE} if init == "relocate" else {}
 
 
 def _relocate(param, wdata, z_start, lam_start, zeta_min):

@@ -470,7 +470,7 @@ def polish(model, data, *, method="ipopt", loop=None, delay_max=None, zeta_min=N
     param, z0 = polish_start(model, data, loop=loop, delay_max=delay_max, zeta_min=zeta_min)
     solve = StageSolver(solver, loop, zeta_min, onto_bounds=True)
     res = solve(param, data, z0, None, max_iter=max_iter or solver.final_max_iter,
-                **({} if stall is None or solver.method != "ipopt" else {"stall": stall}))
+                stall=stall)
     z, lam, kept = keep_better(param, data, z0, np.zeros_like(z0), res)
     return PolishResult(model=param.to_model(z), param=param, x=z, lam_x=lam, start=z0,
                         result=res, kept=kept)

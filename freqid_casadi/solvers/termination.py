@@ -19,7 +19,7 @@ from .. import _interrupt
 from .common import Status, TERMINATION_MESSAGES
 
 __all__ = ["Termination", "StageMonitor", "free_variables", "relative_stationarity",
-           "projected_fraction"]
+           "projected_fraction", "moved_onto_bounds"]
 
 EPS = float(np.finfo(float).eps)
 
@@ -67,6 +67,33 @@ class Termination:
     rcond: float = 1e-10
     polish_steps: int = 10
     onto_bounds: bool = False
+
+
+def moved_onto_bounds(x, grad, col_norms, lb, ub, reach):
+    """``x`` with every variable that lies within ``reach / ||J_j||`` of a bound the
+    gradient pushes it against put onto that bound, or None when there is none.
+
+    An interior-point method stops ``mu / multiplier`` away from an active bound; moved
+    onto it, the variable changes the residual by at most ``reach`` (to first order).
+
+    Parameters
+    ----------
+    x, grad, col_norms : ndarray of float, shape (n,)
+        The point, the cost's gradient and the Jacobian's column norms ``||J_j||``.
+    lb, ub : ndarray of float, shape (n,)
+        The bounds.
+    reach : float
+        Largest first-order change of the residual (its units) a move may make.
+
+    Returns
+    -------
+    ndarray of float, shape (n,), or None
+    """
+    low = (grad > 0) & (x > lb) & (col_norms * (x - lb) <= reach)
+    high = (grad < 0) & (x < ub) & (col_norms * (ub - x) <= reach)
+    if not (np.any(low) or np.any(high)):
+        return None
+    return np.where(low, lb, np.where(high, ub, x))
 
 
 def free_variables(grad, x, lb, ub, col_norms, norm_r, tol=1e-4):
@@ -257,13 +284,10 @@ class StageMonitor:
         cost, grad = pb.eval_gradient(x)
         if not np.isfinite(cost) or cost <= 0:
             return res
-        room = np.sqrt(self.term.ftol * cost)
-        cn = pb.eval_column_norms(x)
-        to_lb = (grad > 0) & (x > pb.lb) & (cn * (x - pb.lb) <= room)
-        to_ub = (grad < 0) & (x < pb.ub) & (cn * (pb.ub - x) <= room)
-        if not (np.any(to_lb) or np.any(to_ub)):
+        y = moved_onto_bounds(x, grad, pb.eval_column_norms(x), pb.lb, pb.ub,
+                              np.sqrt(self.term.ftol * cost))
+        if y is None:
             return res
-        y = np.where(to_lb, pb.lb, np.where(to_ub, pb.ub, x))
         c_y = pb.eval_cost(y)
         if not (np.isfinite(c_y) and c_y <= cost):
             return res
