@@ -22,6 +22,7 @@ from ._fit_checks import (GAIN_SIGNS, after_fit, check_model_class, success_of, 
                           zeta_min_of)
 from .data import FrequencyData
 from .delay_hold import hold_undetermined_delay
+from .delay_search import delay_search_run
 from .diagnostics import check_gain_sign
 from .errors import FreqidError, OptionError, ResolutionWarning
 from .mainloop import LoopContext, minimax, rational, sequential
@@ -405,12 +406,15 @@ def _run_starts(ctx, start, tol, data):
         zero = zero_delay_run(ctx, cand.run)
         if zero is not None:
             cands.append(Candidate.of(f"{cand.name} at h=0", zero, data))
+        searched = delay_search_run(ctx, cand.run)   # (reports its own records)
+        if searched is not None:
+            cands.append(Candidate.of(f"{cand.name}, delay search", searched, data))
     cand_errors = {c.name: c.max_rel_error for c in cands}
     errors = {k: v for k, v in cand_errors.items() if k in runs}
     kept = choose(cands)
-    won = kept.name.split(" at h=0")[0]
+    won = kept.name.split(" at h=0")[0].split(", delay search")[0]
     param, z, lam, records = kept.run
-    if kept.name != won:
+    if kept.name.endswith(" at h=0"):
         ctx.callback(records[-1])
     return param, z, records, won, errors, cand_errors
 

@@ -205,17 +205,7 @@ def rational(ctx, delay0):
     t0 = time.perf_counter()
     rs = rational_start(data, st, delay_max=ctx.delay_max, delay0=delay0)
     kw = dict(loop=ctx.loop, delay_max=ctx.delay_max, zeta_min=ctx.zeta_min)
-    param, z0 = polish_start(rs.model, data, **kw)
-    lb, ub = param.bounds()
-    n_trials = int(rs.delays.size)
-    res0 = StageResult(x=z0, cost=np.nan, status=Status.CONVERGED,
-                       message="rational start", success=True, nit=n_trials,
-                       nfev=n_trials, wall_time=time.perf_counter() - t0,
-                       active_mask=find_active_constraints(z0, lb, ub),
-                       lam_x=np.zeros_like(z0), solver_status="vector-fitting")
-    records = [stage_record(0, param, z0, data, data.n_points, math.nan, res0, n_trials,
-                            n_trials, time.perf_counter() - t0, Kept.START,
-                            StageKind.RATIONAL_START)]
+    records = [start_record(ctx, rs.model, 0, int(rs.delays.size), "rational start", t0)]
     ctx.callback(records[-1])
     t0 = time.perf_counter()
     pol = polish(rs.model, data, method=ctx.solve.solver, max_iter=ctx.final_max_iter, **kw)
@@ -225,6 +215,21 @@ def rational(ctx, delay0):
                                 pol.kept, StageKind.FINAL))
     ctx.callback(records[-1])
     return pol.param, pol.x, pol.lam_x, records
+
+
+def start_record(ctx, model, stage, n_trials, message, t0):
+    """The record of a vector-fitting start (no solve): ``model`` in the polish's
+    variables, ``n_trials`` vector fits since ``t0`` (``time.perf_counter()``)."""
+    param, z0 = polish_start(model, ctx.data, loop=ctx.loop, delay_max=ctx.delay_max,
+                             zeta_min=ctx.zeta_min)
+    lb, ub = param.bounds()
+    wall = time.perf_counter() - t0
+    res0 = StageResult(x=z0, cost=np.nan, status=Status.CONVERGED, message=message,
+                       success=True, nit=n_trials, nfev=n_trials, wall_time=wall,
+                       active_mask=find_active_constraints(z0, lb, ub),
+                       lam_x=np.zeros_like(z0), solver_status="vector-fitting")
+    return stage_record(stage, param, z0, ctx.data, ctx.data.n_points, math.nan, res0,
+                        n_trials, n_trials, wall, Kept.START, StageKind.RATIONAL_START)
 
 
 #: The p of the minimax polish's p-norm stages.

@@ -301,6 +301,10 @@ class LoopOptions:
         value the (N-1)-section fit determines, and keep that fit when it converged within
         10 % of the free fit's max and RMS relative errors
         (:mod:`freqid_casadi.delay_hold`).
+    delay_search : bool
+        When a fit with a delay did not converge, also try the rational start at the
+        delays around the fitted one, polished, as one more candidate
+        (:mod:`freqid_casadi.delay_search`); the fit keeps it only when it is better.
     """
 
     gauge: str = "dc"
@@ -313,10 +317,12 @@ class LoopOptions:
     derivatives: str = None
     root_floor: float = 1e-3
     hold_delay: bool = True
+    delay_search: bool = True
 
     def __post_init__(self):
         owner = type(self).__name__
         _flag(owner, "hold_delay", self.hold_delay)
+        _flag(owner, "delay_search", self.delay_search)
         _choice(owner, "gauge", self.gauge, GAUGES)
         _choice(owner, "init", self.init, INITS)
         _real(owner, "scale_l", self.scale_l, 1.0, strict=False)

@@ -65,6 +65,7 @@ class StageKind(_ValueEnum):
     RATIONAL_START = "rational-start"    #: the vector-fitting start (no solve)
     MINIMAX = "minimax"                  #: the p-norm continuation of the minimax polish
     ZERO_DELAY = "zero-delay"            #: the same model at h = 0, polished (a candidate)
+    DELAY_SEARCH = "delay-search"        #: a nearby delay's rational start, polished
 
 
 @dataclass(frozen=True)

@@ -93,7 +93,7 @@ def best_of(repeat, name, start="sequential", derivatives=None):
 def fit_costs(name, start="sequential", derivatives=None, ftol=None):
     """One fit of example ``name``; ``ftol=0`` is the behaviour before issue 14 (IPOPT's
     own tolerance only, no relative stationarity test, the loop's init="peak" without the
-    relocation), the convergence baseline."""
+    relocation, no delay search), the convergence baseline."""
     ex = EXAMPLES[name]
     make, n, integ = ex.system, ex.n_sections, ex.integrator
     data = make()
@@ -101,7 +101,8 @@ def fit_costs(name, start="sequential", derivatives=None, ftol=None):
     t0 = time.perf_counter()
     res = fc.fit(data, n_sections=n, integrator=integ, start=start, method=method,
                  loop=fc.LoopOptions(derivatives=derivatives,
-                                     **({"init": "peak"} if ftol == 0 else {})))
+                                     **({"init": "peak", "delay_search": False}
+                                        if ftol == 0 else {})))
     wall = time.perf_counter() - t0
     nit = res.nit
     solver_time = sum(s.wall_time for s in res.stages)
@@ -133,12 +134,13 @@ def fit_costs(name, start="sequential", derivatives=None, ftol=None):
 
 def convergence_table(rows, base):
     """Markdown lines: per fit, iterations, stages ended at their limit, success and error,
-    before issue 14 (``IpoptOptions(ftol=0)``: IPOPT's tolerance only; init="peak") and
-    now."""
+    before issue 14 (``IpoptOptions(ftol=0)``: IPOPT's tolerance only; init="peak", no delay
+    search) and now."""
     out = ["", "## Convergence (issue 14): before -> now, measured in this run", "",
            "Before: `IpoptOptions(ftol=0)` (IPOPT's own tolerance only, as before issue 14) "
-           "and `LoopOptions(init=\"peak\")` (no relocation); now: the default (scale-free "
-           "stationarity test after every iteration, init=\"relocate\"). Internal "
+           "and `LoopOptions(init=\"peak\", delay_search=False)` (no relocation, no delay "
+           "search); now: the default (scale-free stationarity test after every iteration, "
+           "init=\"relocate\", the delay search of an unconverged fit). Internal "
            "scaling and the h = 0 candidate are on in both.", "",
            "| example | start | IPOPT iterations | stages at their limit | success | "
            "max rel. error | delay (s) |", "|---|---|---|---|---|---|---|"]

@@ -9,8 +9,8 @@ of ``sweep(G_A(), orders, integrator=True)``, the machine's load average (the 2-
 machine is shared: times are noisy), the max relative error per order and whether it is
 non-increasing (N+1 sections never worse than N), and, as a baseline measured in the same
 run, the wall time of the same fits one by one with ``IpoptOptions(ftol=0)`` (IPOPT's own
-tolerance only, the stage termination before issue 14), ``LoopOptions(init="peak")`` (no
-relocation) and no extension start. Target: <= 15 s, error non-increasing.
+tolerance only, the stage termination before issue 14), ``LoopOptions(init="peak",
+delay_search=False)`` (no relocation, no delay search) and no extension start. Target: <= 15 s, error non-increasing.
 """
 
 import argparse
@@ -49,7 +49,7 @@ def main(argv=None):
         t0 = time.perf_counter()
         base = [fc.fit(data, n_sections=o // 2, integrator=True,
                        method=fc.IpoptOptions(ftol=0.0),
-                       loop=fc.LoopOptions(init="peak")).max_rel_error for o in orders]
+                       loop=fc.LoopOptions(init="peak", delay_search=False)).max_rel_error for o in orders]
         t_base = time.perf_counter() - t0
         out["baseline"] = {"wall_time": t_base, "max_rel_errors": base,
                            "increases": sum(1 for a, b in zip(base, base[1:]) if b > a),

@@ -276,8 +276,8 @@ class StageMonitor:
         (e.g. a root at ``root_floor``) would then never be stationary. A variable is
         moved when the move changes the residual by at most ``sqrt(ftol)`` of its norm
         (to first order, ``||J_j|| * distance``: the test of :func:`free_variables` with a
-        looser tolerance); the moved point is kept only if its cost is not higher (and,
-        in :meth:`decide`, only if it passes the test).
+        looser tolerance); the moved point is kept only if its cost is not higher beyond
+        the cost's rounding level (and, in :meth:`decide`, only if it passes the test).
         """
         pb = self.problem
         x = np.clip(np.asarray(res.x, float), pb.lb, pb.ub)
@@ -289,7 +289,11 @@ class StageMonitor:
         if y is None:
             return res
         c_y = pb.eval_cost(y)
-        if not (np.isfinite(c_y) and c_y <= cost):
+        # the cost's rounding level: a residual of rms ``rms`` carries errors of about
+        # eps * n each, so the cost is known to ``2 * eps * n / rms`` (relative)
+        rms = np.sqrt(cost / max(self.n_points or 1, 1))
+        slack = 2.0 * self.term.noise_factor * EPS * pb.n / rms
+        if not (np.isfinite(c_y) and c_y <= cost * (1.0 + slack)):
             return res
         from .common import find_active_constraints
 
