@@ -2,7 +2,7 @@
 (layer L4).
 
 A fit of a delayed system can end in a valley where sections above the band stand in for
-part of the delay (measured on example C, tests/test_delay_search.py: both starts end at
+part of the delay (measured on example C, tests/test_relocate.py: both starts end at
 about 0.0260 s against the system's 0.02625 s and creep there for thousands of
 iterations). Vector fitting at a *fixed* trial delay tells the delays apart: its max
 relative error on C is 3.5e-6 at 0.0260 s, 1.3e-4 at 0.0261 s and 1.1e-8 at 0.0262 s

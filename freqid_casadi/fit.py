@@ -92,8 +92,9 @@ class FitResult:
         record of severity "error" makes ``success`` False.
     candidate_max_rel_errors : dict of str to float
         Max relative error of every candidate :func:`fit` chose from: the starts and,
-        with a delay, each start's model at h = 0 ("<start> at h=0"), see
-        :func:`~freqid_casadi.candidates.choose`.
+        with a delay, each start's model at h = 0 ("<start> at h=0") and, for a start
+        that did not converge, its delay search ("<start>, delay search",
+        :mod:`freqid_casadi.delay_search`), see :func:`~freqid_casadi.candidates.choose`.
     message : str
         Why ``success`` is what it is: the final stage's termination (with the relative
         stationarity numbers) or the reason the fit is not a success.

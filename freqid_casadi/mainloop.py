@@ -24,7 +24,7 @@ from .solvers.common import StageResult, Status, find_active_constraints
 from .stages import (Kept, StageKind, model_ratio, polish, polish_start, solver_timing,
                      stage_cost, stage_record, keep_better)
 
-__all__ = ["LoopContext", "sequential", "rational", "minimax", "PNORM_SCHEDULE"]
+__all__ = ["LoopContext", "sequential", "rational", "minimax", "start_record", "PNORM_SCHEDULE"]
 
 @dataclass(frozen=True)
 class LoopContext:
@@ -218,8 +218,26 @@ def rational(ctx, delay0):
 
 
 def start_record(ctx, model, stage, n_trials, message, t0):
-    """The record of a vector-fitting start (no solve): ``model`` in the polish's
-    variables, ``n_trials`` vector fits since ``t0`` (``time.perf_counter()``)."""
+    """The record of a vector-fitting start (no solve).
+
+    Parameters
+    ----------
+    ctx : LoopContext
+    model : RationalDelayModel
+        The start, recorded in the polish's variables (:func:`~.stages.polish_start`).
+    stage : int
+        The record's stage number.
+    n_trials : int
+        Vector fits made (the record's iterations and evaluations).
+    message : str
+    t0 : float
+        ``time.perf_counter()`` when the vector fits began.
+
+    Returns
+    -------
+    StageRecord
+        Of kind ``StageKind.RATIONAL_START``.
+    """
     param, z0 = polish_start(model, ctx.data, loop=ctx.loop, delay_max=ctx.delay_max,
                              zeta_min=ctx.zeta_min)
     lb, ub = param.bounds()

@@ -321,17 +321,31 @@ def _thesis_lines(s):
 
 
 def _stage_lines(stages):
-    """The "Stages" section: one table row per stage of the main loop."""
-    srows = []
+    """The "Stages" section: one table row per stage record (the main loop's stages by
+    number, the others by their kind)."""
+    srows, kinds = [], []
     for r in stages:
-        final = r["stage"] > r["n_sections"]
-        srows.append(("final" if final else number(r["stage"]), number(r["n_sections"]),
-                      number(r["window"]), number(r["omega_c"]), number(r["max_rel_error"]),
-                      number(r["nit"]), number(r["wall_time"]), r["solver_status"]))
-    return ["## Stages", "",
-            "Stage 0 fits the gain and delay; stage N adds section N at omega_c and refits on "
-            "the window (the lowest-frequency points); the last stage refits on all data.",
-            "",
+        kind = r.get("kind", "final" if r["stage"] > r["n_sections"] else "section")
+        label = number(r["stage"]) if kind in ("gain-delay", "section") else kind
+        if label == kind and kind not in kinds:
+            kinds.append(kind)
+        srows.append((label, number(r["n_sections"]), number(r["window"]),
+                      number(r["omega_c"]), number(r["max_rel_error"]), number(r["nit"]),
+                      number(r["wall_time"]), r["solver_status"]))
+    known = {"final": "final: the loop's last stage, on all data",
+             "rational-start": "rational-start: vector fitting of all sections (no solve; "
+                               "its iterations are the trial delays)",
+             "delay-search": "delay-search: the polish of the best nearby delay's vector fit "
+                             "of a fit that did not converge",
+             "zero-delay": "zero-delay: the model at h = 0, polished",
+             "minimax": "minimax: the p-norm continuation of the minimax polish"}
+    parts = [known.get(k, k) for k in kinds]
+    if len(kinds) < len(srows):
+        parts.insert(0, "stage 0 fits the gain and delay; stage N adds section N at omega_c "
+                        "and refits on the window (the lowest-frequency points)")
+    text = "; ".join(parts)
+    text = text[:1].upper() + text[1:] + "."
+    return ["## Stages", "", text, "",
             markdown_table(srows, ("stage", "sections", "window", "omega_c (rad/s)",
                                    "max rel. error (all data)", "iterations", "time (s)",
                                    "solver status"), "rrrrrrrl"), ""]

@@ -61,10 +61,15 @@ def test_a_converged_fit_is_not_searched():
     assert all(s.kind != "delay-search" for s in res.stages)
 
 
-def test_an_unconverged_fit_is_rescued():
+@pytest.fixture(scope="module")
+def rescued():
+    return _fit_a(init="peak")
+
+
+def test_an_unconverged_fit_is_rescued(rescued):
     """A's sequential loop with init="peak" ends at its limits (6.3e-6, not converged); the
     vector fit at a nearby delay, polished, converges to machine precision."""
-    res = _fit_a(init="peak")
+    res = rescued
     before = res.candidate_max_rel_errors["sequential"]
     assert before > 1e-6                                    # measured 6.34e-6
     assert res.max_rel_error < 1e-12                        # measured 1.1e-13
@@ -73,3 +78,13 @@ def test_an_unconverged_fit_is_rescued():
     assert [s.kind for s in res.stages[-2:]] == ["rational-start", "delay-search"]
     assert res.stages[-2].nit <= MAX_TRIALS                 # the probes
     assert res.delay == pytest.approx(EXAMPLES["A"].true_delay, rel=1e-4)
+
+
+def test_the_report_names_the_search_stages(rescued):
+    from freqid_casadi.summary import fit_summary, render_fit_summary
+
+    text = render_fit_summary(fit_summary(rescued, command="test"))
+    rows = [line for line in text.splitlines() if line.startswith("| ")]
+    labels = [line.split("|")[1].strip() for line in rows]
+    assert labels[-3:] == ["final", "rational-start", "delay-search"]
+    assert "delay-search: the polish of the best nearby delay's vector fit" in text
