@@ -82,7 +82,9 @@ def response_band(unc, omega=None, data=None, *, level=0.95):
 
     Notes
     -----
-    With ``g = d ln G_N / d theta`` (free parameters) and ``C`` the covariance:
+    With ``g = d ln G_N / d theta`` (free parameters) and ``C`` the covariance (its
+    ``response_covariance`` when there is one: the response does not move along the
+    directions the data do not determine at all):
     ``var ln|G_N| = Re(g) C Re(g)^T``, ``var phase = Im(g) C Im(g)^T``, ``rel_std^2`` their
     sum.
     """
@@ -97,7 +99,8 @@ def response_band(unc, omega=None, data=None, *, level=0.95):
     if omega.ndim != 1 or omega.size == 0 or not np.all(np.isfinite(omega) & (omega > 0)):
         raise DataError("omega must be a nonempty 1-D array of finite frequencies > 0 (rad/s)")
     free = ~unc.at_bound
-    cov = unc.covariance[np.ix_(free, free)]
+    full = unc.covariance if unc.response_covariance is None else unc.response_covariance
+    cov = full[np.ix_(free, free)]
     _, dlog = _physical.log_response(par, unc.values, omega)
     g = dlog[:, free]
     var_mag = np.einsum("ij,jk,ik->i", g.real, cov, g.real)

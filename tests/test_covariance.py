@@ -384,3 +384,32 @@ def test_fit_report_figures_carry_the_bands(fitted):
     import matplotlib.pyplot as plt
 
     plt.close("all")
+
+
+def test_an_exactly_cancelling_section_is_undetermined_but_leaves_the_band_alone():
+    """A model with a third, exactly cancelling section (pole = zero): the Jacobian has a
+    numerically null direction (condition 1e16). Its parameters are undetermined (huge
+    std); the response does not move along it, so the response band stays at the noise
+    level (leverage <= 1). Inverting the null direction as well (the covariance itself)
+    gives a relative std of 17 (measured), 1.7e7 times the noise."""
+    w = np.logspace(-1, 2, 200)
+    beta = [0.01, 2.0, 1, 0.05, 3.0, 1, 0.02, 30.0, 1, 0.1, 20.0, 1, 0.03, 12.0,
+            1, 0.3, 5.0, 1, 0.3, 5.0]
+    model = fc.RationalDelayModel(fc.Structure(3, False, True), beta)
+    rng = np.random.default_rng(0)
+    noise = rng.standard_normal(w.size) + 1j * rng.standard_normal(w.size)
+    data = fc.FrequencyData(w, model.frequency_response(w) * (1 + 1e-6 * noise))
+    unc = covariance.parameter_uncertainty(model, data)
+    sigma = np.sqrt(unc.sigma2)                                    # measured 1.01e-6
+    assert unc.condition_number > 1e14                             # measured 1.1e16
+    assert unc.std_of("omega_num[3]") > 1e3 * 5.0                  # measured 8.8e8
+    assert unc.std_of("omega_den[2]") < 1e-4 * 12.0                # the others: determined
+    band = bands.response_band(unc, data=data)
+    assert band.rel_std.max() <= 2 * sigma                         # measured 0.95 sigma
+    par = _physical.parametrize(model)
+    free = ~unc.at_bound
+    _, dlog = _physical.log_response(par, unc.values, w)
+    g, cov = dlog[:, free], unc.covariance[np.ix_(free, free)]
+    full = (np.einsum("ij,jk,ik->i", g.real, cov, g.real)
+            + np.einsum("ij,jk,ik->i", g.imag, cov, g.imag))
+    assert np.sqrt(np.abs(full)).max() > 1e3 * sigma               # measured 17
