@@ -407,9 +407,14 @@ def _run_starts(ctx, start, tol, data):
         zero = zero_delay_run(ctx, cand.run)
         if zero is not None:
             cands.append(Candidate.of(f"{cand.name} at h=0", zero, data))
-        searched = delay_search_run(ctx, cand.run)   # (reports its own records)
+    # one delay search, from the candidate the fit would keep when it did not converge
+    # (the starts' delays are close: a search from each would probe the same delays)
+    first = choose(cands) if cands else None
+    if first is not None and not first.success:
+        searched = delay_search_run(ctx, first.run)   # (reports its own records)
         if searched is not None:
-            cands.append(Candidate.of(f"{cand.name}, delay search", searched, data))
+            name = first.name.split(" at h=0")[0]
+            cands.append(Candidate.of(f"{name}, delay search", searched, data))
     cand_errors = {c.name: c.max_rel_error for c in cands}
     errors = {k: v for k, v in cand_errors.items() if k in runs}
     kept = choose(cands)
