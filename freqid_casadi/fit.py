@@ -456,8 +456,11 @@ def _progress_callback(progress):
 
     def write(rec):
         where = "" if math.isnan(rec.omega_c) else f" at {rec.omega_c:.4g} rad/s"
-        label = {StageKind.RATIONAL_START: "rational start", StageKind.MINIMAX: rec.kept,
-                 StageKind.FINAL: "final"}.get(rec.kind, f"stage {rec.stage:2d}")
+        label = {StageKind.RATIONAL_START: ("rational start" if rec.message == "rational start"
+                                            else f"{rec.message} (vector fits)"),
+                 StageKind.MINIMAX: rec.kept, StageKind.FINAL: "final",
+                 StageKind.DELAY_SEARCH: "delay search, polish",
+                 StageKind.ZERO_DELAY: "at h = 0"}.get(rec.kind, f"stage {rec.stage:2d}")
         sys.stderr.write(
             f"{label}: {rec.n_sections:2d} sections{where}, window {rec.window}, "
             f"max rel. error {rec.max_rel_error:.3e} (window {rec.max_rel_error_window:.3e}), "

@@ -88,3 +88,16 @@ def test_the_report_names_the_search_stages(rescued):
     labels = [line.split("|")[1].strip() for line in rows]
     assert labels[-3:] == ["final", "rational-start", "delay-search"]
     assert "delay-search: the polish of the best nearby delay's vector fit" in text
+
+
+def test_progress_names_the_search(capsys):
+    """An exact 2-section model fitted with one IPOPT iteration per stage: the loop does not
+    converge (1.16), the delay search's vector fit is exact (measured 2.7e-14)."""
+    w = np.logspace(-1, 2, 60)
+    beta = [0.01, 3.0, 1, 0.05, 2.0, 1, 0.1, 5.0, 1, 0.02, 20.0, 1, 0.03, 40.0]
+    true = fc.RationalDelayModel(fc.Structure(2, True, True), beta)
+    res = fc.fit(w, true.frequency_response(w), n_sections=2, integrator=True,
+                 method=fc.IpoptOptions(max_iter=1, final_max_iter=1), progress=True)
+    err = capsys.readouterr().err
+    assert res.success and res.max_rel_error < 1e-12
+    assert "delay search (vector fits):" in err and "delay search, polish:" in err
