@@ -83,8 +83,8 @@ def response_band(unc, omega=None, data=None, *, level=0.95):
     Notes
     -----
     With ``g = d ln G_N / d theta`` (free parameters) and ``C`` the covariance (its
-    ``response_covariance`` when there is one: the response does not move along the
-    directions the data do not determine at all):
+    part over the directions the data determine, ``response_factor``, when there is one:
+    the response does not move along the others):
     ``var ln|G_N| = Re(g) C Re(g)^T``, ``var phase = Im(g) C Im(g)^T``, ``rel_std^2`` their
     sum.
     """
@@ -99,12 +99,16 @@ def response_band(unc, omega=None, data=None, *, level=0.95):
     if omega.ndim != 1 or omega.size == 0 or not np.all(np.isfinite(omega) & (omega > 0)):
         raise DataError("omega must be a nonempty 1-D array of finite frequencies > 0 (rad/s)")
     free = ~unc.at_bound
-    full = unc.covariance if unc.response_covariance is None else unc.response_covariance
-    cov = full[np.ix_(free, free)]
     _, dlog = _physical.log_response(par, unc.values, omega)
     g = dlog[:, free]
-    var_mag = np.einsum("ij,jk,ik->i", g.real, cov, g.real)
-    var_ph = np.einsum("ij,jk,ik->i", g.imag, cov, g.imag)
+    if unc.response_factor is not None:
+        f = unc.response_factor[free]
+        var_mag = np.sum((g.real @ f) ** 2, axis=1)
+        var_ph = np.sum((g.imag @ f) ** 2, axis=1)
+    else:
+        cov = unc.covariance[np.ix_(free, free)]
+        var_mag = np.einsum("ij,jk,ik->i", g.real, cov, g.real)
+        var_ph = np.einsum("ij,jk,ik->i", g.imag, cov, g.imag)
     sd_mag, sd_ph = np.sqrt(np.maximum(var_mag, 0)), np.sqrt(np.maximum(var_ph, 0))
     resp = unc.model.frequency_response(omega)
     mag, ph = np.abs(resp), np.unwrap(np.angle(resp))

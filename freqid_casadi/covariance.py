@@ -129,10 +129,12 @@ class ParameterUncertainty:
         "delta" or "bootstrap".
     samples : ndarray of float, shape (n_boot, P) or None
         Bootstrap only: the refitted parameters (NaN rows for failed refits).
-    response_covariance : ndarray of float, shape (P, P) or None
-        Delta method only: ``covariance`` without the directions the data do not
-        determine at all (numerically zero singular values of the Jacobian, along which
-        the response does not move); :func:`~freqid_casadi.bands.response_band` uses it.
+    response_factor : ndarray of float, shape (P, K) or None
+        Delta method only: ``F`` with ``F F^T`` = ``covariance`` without the directions
+        the data do not determine at all (numerically zero singular values of the
+        Jacobian, along which the response does not move); NaN rows at a bound.
+        :func:`~freqid_casadi.bands.response_band` sums squares ``|g F|^2`` (never
+        negative, no cancellation), see :attr:`response_covariance`.
     """
 
     model: RationalDelayModel
@@ -152,7 +154,13 @@ class ParameterUncertainty:
     condition_number: float
     method: str = "delta"
     samples: np.ndarray = None
-    response_covariance: np.ndarray = None
+    response_factor: np.ndarray = None
+
+    @property
+    def response_covariance(self):
+        """``response_factor @ response_factor.T`` (P, P), or None."""
+        f = self.response_factor
+        return None if f is None else f @ f.T
 
     def std_of(self, name):
         """Standard deviation of the parameter ``name`` (NaN at a bound)."""
@@ -246,8 +254,9 @@ def _stack(z):
 
 
 def _inverse(a):
-    """(A^T A)^-1 and its pseudo-inverse over the determined directions, via the SVD of
-    A (2M, p) with unit-norm columns; and the condition.
+    """(A^T A)^-1 and a factor ``F`` (p, k) of its pseudo-inverse over the determined
+    directions (``F F^T``), via the SVD of A (2M, p) with unit-norm columns; and the
+    condition.
 
     The determined directions are those whose singular value exceeds ``eps * max(2M, p)``
     of the largest (numpy.linalg.lstsq's cutoff). Below it a direction is numerically
@@ -263,14 +272,13 @@ def _inverse(a):
     cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
     inv_s = (vt.T / np.where(sv > 0, sv, np.nan) ** 2) @ vt
     keep = sv > np.finfo(float).eps * max(a.shape) * sv[0]
-    det_s = (vt[keep].T / sv[keep] ** 2) @ vt[keep]
-    outer = np.outer(scale, scale)
-    return inv_s / outer, det_s / outer, cond
+    factor = vt[keep].T / sv[keep] / scale[:, None]       # (p, k): det = F F^T
+    return inv_s / np.outer(scale, scale), factor, cond
 
 
 def _covariance(r, jac, w, variance, g_abs2, free):
-    """Free-parameter covariance (p, p), its part over the determined directions (p, p),
-    sigma2, dof, condition (see module notes and :func:`_inverse`)."""
+    """Free-parameter covariance (p, p), a factor (p, k) of its part over the determined
+    directions, sigma2, dof, condition (see module notes and :func:`_inverse`)."""
     sw = np.sqrt(np.concatenate([w, w]))
     a = sw[:, None] * _stack(jac[:, free])
     n_obs = 2 * int(np.count_nonzero(w > 0))
@@ -279,26 +287,28 @@ def _covariance(r, jac, w, variance, g_abs2, free):
         raise DataError(f"{n_obs // 2} weighted points cannot determine "
                         f"{int(np.count_nonzero(free))} parameters; use more data")
     sigma2 = float(np.sum(w * np.abs(r) ** 2) / dof)
-    inv, det, cond = _inverse(a)
+    inv, factor, cond = _inverse(a)
     if variance is None:
-        return sigma2 * inv, sigma2 * det, sigma2, dof, cond
+        return sigma2 * inv, np.sqrt(sigma2) * factor, sigma2, dof, cond
     s = np.concatenate([variance, variance]) / (2 * np.concatenate([g_abs2, g_abs2]))
     meat = (a * (s * sw * sw)[:, None]).T @ a
-    return inv @ meat @ inv, det @ meat @ det, sigma2, dof, cond
+    # det meat det = (det A^T sqrt(D)) (...)^T, det = F F^T
+    sandwich = factor @ ((a @ factor).T * np.sqrt(s) * sw)
+    return inv @ meat @ inv, sandwich, sigma2, dof, cond
 
 
 def _record(model, par, cov_free, free, sigma2, dof, cond, source, method, samples=None,
-            det_free=None):
-    """Assemble a ParameterUncertainty from the free-parameter covariance (and its part
-    over the determined directions, for ``response_covariance``)."""
+            factor_free=None):
+    """Assemble a ParameterUncertainty from the free-parameter covariance (and the factor
+    of its part over the determined directions, ``response_factor``)."""
     p = par.n_params
     cov = np.full((p, p), np.nan)
     cov[np.ix_(free, free)] = cov_free
-    resp_cov = None
-    if det_free is not None:
-        resp_cov = np.full((p, p), np.nan)
-        resp_cov[np.ix_(free, free)] = det_free
-        resp_cov.setflags(write=False)
+    resp = None
+    if factor_free is not None:
+        resp = np.full((p, factor_free.shape[1]), np.nan)
+        resp[free] = factor_free
+        resp.setflags(write=False)
     std = np.sqrt(np.where(np.diag(cov) >= 0, np.diag(cov), np.nan))
     values = np.array(par.theta)
     modes = []
@@ -321,7 +331,7 @@ def _record(model, par, cov_free, free, sigma2, dof, cond, source, method, sampl
         covariance=cov, std=std, delay=model.delay, delay_std=delay_std, gain=gain,
         gain_std=float(abs(gain) * std[ig]), modes=tuple(modes), noise_source=source,
         sigma2=float(sigma2), dof=int(dof), condition_number=float(cond), method=method,
-        samples=samples, response_covariance=resp_cov)
+        samples=samples, response_factor=resp)
 
 
 def parameter_uncertainty(model, data=None, *, weights=None, noise_variance=None,
@@ -369,8 +379,9 @@ def parameter_uncertainty(model, data=None, *, weights=None, noise_variance=None
     r, jac = _residual_jacobian(par, par.theta, data)
     free = ~par.at_bound
     g_abs2 = np.abs(data.response / (1 + r)) ** 2
-    cov, det, sigma2, dof, cond = _covariance(r, jac, w, variance, g_abs2, free)
-    return _record(model, par, cov, free, sigma2, dof, cond, source, "delta", det_free=det)
+    cov, factor, sigma2, dof, cond = _covariance(r, jac, w, variance, g_abs2, free)
+    return _record(model, par, cov, free, sigma2, dof, cond, source, "delta",
+                   factor_free=factor)
 
 
 

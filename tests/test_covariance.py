@@ -406,6 +406,7 @@ def test_an_exactly_cancelling_section_is_undetermined_but_leaves_the_band_alone
     assert unc.std_of("omega_den[2]") < 1e-4 * 12.0                # the others: determined
     band = bands.response_band(unc, data=data)
     assert band.rel_std.max() <= 2 * sigma                         # measured 0.95 sigma
+    assert band.rel_std.min() > 0                                  # sums of squares
     par = _physical.parametrize(model)
     free = ~unc.at_bound
     _, dlog = _physical.log_response(par, unc.values, w)
@@ -413,3 +414,25 @@ def test_an_exactly_cancelling_section_is_undetermined_but_leaves_the_band_alone
     full = (np.einsum("ij,jk,ik->i", g.real, cov, g.real)
             + np.einsum("ij,jk,ik->i", g.imag, cov, g.imag))
     assert np.sqrt(np.abs(full)).max() > 1e3 * sigma               # measured 17
+
+
+@pytest.mark.parametrize("given", [False, True])
+def test_the_band_from_the_factor_equals_the_covariance_band_when_well_conditioned(given):
+    """``response_factor`` (sums of squares) against ``covariance`` (quadratic form) on a
+    well-conditioned 2-section fit, noise from the residuals or given."""
+    w = np.logspace(-1, 2, 120)
+    beta = [0.01, 2.0, 1, 0.05, 3.0, 1, 0.02, 30.0, 1, 0.1, 20.0, 1, 0.03, 12.0]
+    model = fc.RationalDelayModel(fc.Structure(2, False, True), beta)
+    g = model.frequency_response(w)
+    rng = np.random.default_rng(1)
+    data = fc.FrequencyData(w, g * (1 + 1e-3 * (rng.standard_normal(w.size)
+                                                + 1j * rng.standard_normal(w.size))))
+    kw = dict(noise_variance=np.full(w.size, 2e-6) * np.abs(g) ** 2) if given else {}
+    unc = covariance.parameter_uncertainty(model, data, **kw)
+    assert unc.condition_number < 1e6
+    by_factor = bands.response_band(unc, data=data).rel_std
+    by_cov = bands.response_band(dataclasses.replace(unc, response_factor=None),
+                                 data=data).rel_std
+    np.testing.assert_allclose(by_factor, by_cov, rtol=1e-9)
+    np.testing.assert_allclose(unc.response_covariance, unc.covariance,
+                               rtol=1e-6, atol=1e-12 * np.abs(unc.covariance).max())
