@@ -125,12 +125,18 @@ def test_classify_tolerances():
     assert survey._classify(prev, [(102.0, 0.02)], 0.01, 0.10) == ["new"]
 
 
-def test_cli_modal_writes_report_and_refuses_existing_out(tmp_path, capsys):
+def _csv_files(tmp_path):
+    """The two channels of ``_datas(120)`` written as CSV files in ``tmp_path``."""
     files = []
     for d in _datas(120):
         path = tmp_path / f"{d.name}.csv"
         fc.save_csv(d, path)
         files.append(str(path))
+    return files
+
+
+def test_cli_modal_writes_report_and_refuses_existing_out(tmp_path, capsys):
+    files = _csv_files(tmp_path)
     out = tmp_path / "rep"
     argv = ["modal", *files, "--orders", "2:8:2", "--min-stable", "2", "--out", str(out),
             "--zeros", "free"]
@@ -168,11 +174,7 @@ def test_import_does_not_load_matplotlib():
 
 
 def test_cli_modal_channel_sections(tmp_path, capsys):
-    files = []
-    for d in _datas(120):
-        path = tmp_path / f"{d.name}.csv"
-        fc.save_csv(d, path)
-        files.append(str(path))
+    files = _csv_files(tmp_path)
     out = tmp_path / "rep"
     argv = ["modal", *files, "--orders", "2,4", "--min-stable", "1", "--out", str(out),
             "--channel-sections", "1", "--balance-channels"]

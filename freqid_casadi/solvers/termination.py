@@ -19,7 +19,7 @@ from .. import _interrupt
 from .common import Status, TERMINATION_MESSAGES
 
 __all__ = ["Termination", "StageMonitor", "free_variables", "relative_stationarity",
-           "projected_fraction", "moved_onto_bounds"]
+           "projected_fraction", "moved_onto_bounds", "rounding_level"]
 
 EPS = float(np.finfo(float).eps)
 
@@ -147,8 +147,29 @@ def relative_stationarity(grad, col_norms, cost, free, n_points, n_factors):
     if not np.any(use) or norm_r == 0.0:
         return 0.0, np.inf
     cos = np.abs(grad[use]) / (2.0 * col_norms[use] * norm_r)
-    rms = norm_r / np.sqrt(max(n_points, 1))
-    return float(np.max(cos)), float(EPS * n_factors / rms)
+    return float(np.max(cos)), rounding_level(cost, n_points, n_factors)
+
+
+def rounding_level(cost, n_points, n_factors):
+    """``eps * n_factors / rms(r)``: the relative rounding level of a residual whose
+    entries carry errors of about ``eps * n_factors`` each (inf at a zero residual).
+
+    Parameters
+    ----------
+    cost : float
+        ``||r||^2``.
+    n_points : int
+        Number of (complex) residuals.
+    n_factors : int
+        Size of the rounding model.
+
+    Returns
+    -------
+    float
+    """
+    if cost <= 0.0:
+        return np.inf
+    return float(EPS * n_factors / np.sqrt(cost / max(n_points, 1)))
 
 
 def projected_fraction(r, jac, free, rcond=1e-10):
@@ -289,10 +310,8 @@ class StageMonitor:
         if y is None:
             return res
         c_y = pb.eval_cost(y)
-        # the cost's rounding level: a residual of rms ``rms`` carries errors of about
-        # eps * n each, so the cost is known to ``2 * eps * n / rms`` (relative)
-        rms = np.sqrt(cost / max(self.n_points or 1, 1))
-        slack = 2.0 * self.term.noise_factor * EPS * pb.n / rms
+        # the cost is known to twice the residual's rounding level (relative)
+        slack = 2.0 * self.term.noise_factor * rounding_level(cost, self.n_points or 1, pb.n)
         if not (np.isfinite(c_y) and c_y <= cost * (1.0 + slack)):
             return res
         from .common import find_active_constraints
