@@ -80,14 +80,31 @@ def _conclusions(ds):
                    f"{unit}, {'converged' if r['success'] else 'NOT converged'}{cmp}.")
         for d in r.get("diagnostics", ()):
             out.append(f"  {r['n_sections']} section(s), {d['code']}: {d['message']}")
-    determined = [r for r in ours if np.isfinite(_std(r)) and _std(r) <= 0.5 * r["delay"]]
+    determined = [r for r in ours if _delay_determined(r)]
+    rule = ("(converged, std <= half the delay, no delay-undetermined or "
+            "no-better-than-trivial diagnostic)")
     if len(determined) >= 2:
         d = [r["delay"] * scale for r in determined]
-        out.append("Delays the data determine (std <= half the delay): "
+        out.append(f"Delays the data determine {rule}: "
                    + ", ".join(f"{r['n_sections']} section(s) {number(r['delay'] * scale, 4)}"
                                for r in determined)
                    + f" {unit}; spread {number(max(d) - min(d), 3)} {unit}.")
+    elif determined:
+        r = determined[0]
+        out.append(f"Only the {r['n_sections']}-section fit determines the delay {rule}: "
+                   f"{number(r['delay'] * scale, 4)} {unit}.")
+    elif ours:
+        out.append(f"The data determine the delay at none of these orders {rule}.")
     return out
+
+
+def _delay_determined(row):
+    """True if the fit of ``row`` converged, its delay's std is at most half the delay and
+    no diagnostic says the delay is undetermined or the fit explains nothing."""
+    codes = {d["code"] for d in row.get("diagnostics", ())}
+    return (bool(row["success"]) and np.isfinite(_std(row)) and row["delay"] > 0
+            and _std(row) <= 0.5 * row["delay"]
+            and not codes & {"delay-undetermined", "no-better-than-trivial"})
 
 
 def render_measured(summary):
