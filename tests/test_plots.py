@@ -170,3 +170,23 @@ def test_missing_matplotlib_is_a_clear_import_error(monkeypatch, result):
         plots.bode(result)
     with pytest.raises(plots.MatplotlibMissingError):
         plots.pole_zero(result.model)
+
+
+def test_bode_curves_put_every_phase_on_the_reference_branch():
+    # noisy data near -180 deg wrap between +-180; a model's own unwrap starts at +180:
+    # both must be drawn on one branch (the robot arm's figure had them 360 deg apart)
+    from freqid_casadi import plots
+
+    w = np.logspace(-2, 0, 50)
+    model = -1.0 / (1 + 1j * w)                          # phase 180 -> 135 deg
+    rng = np.random.default_rng(0)
+    data = model * np.exp(1j * 0.02 * rng.standard_normal(w.size))
+    data[0] = -abs(data[0]) * np.exp(-0.01j)             # first point just below -180
+    fig = plots.bode_curves(w, {"model": model}, reference=("data", data),
+                            xlabel="omega (rad/sample)")
+    ax_p = fig.axes[1]
+    ref, mod = (line.get_ydata() for line in ax_p.get_lines()[:2])
+    assert np.all(np.abs(np.diff(ref)) < 180)            # the data unwrapped
+    assert np.max(np.abs(mod - ref)) < 10                # the model on the data's branch
+    assert ax_p.get_xlabel() == "omega (rad/sample)"
+    plt.close(fig)

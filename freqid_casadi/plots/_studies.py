@@ -86,7 +86,8 @@ def line_plot(lines, *, xlabel, ylabel, title, xscale="log", yscale="log", hline
     return fig
 
 
-def bode_curves(omega, responses, *, reference=None, title=None, phase_limits=None):
+def bode_curves(omega, responses, *, reference=None, title=None, phase_limits=None,
+                xlabel=None):
     """Magnitude (dB) and phase (degrees) of several complex responses on one grid.
 
     Parameters
@@ -96,11 +97,16 @@ def bode_curves(omega, responses, *, reference=None, title=None, phase_limits=No
     responses : mapping label -> complex array_like, shape (M,)
         The curves, drawn with :func:`line_style` in order; phases unwrapped.
     reference : (str, complex array_like of shape (M,)), optional
-        A curve drawn thick and grey behind the others (e.g. the true system), phase not
-        unwrapped.
+        A curve drawn thick and grey behind the others (e.g. the true system or the
+        data), phase unwrapped; every other curve's unwrapped phase is shifted by the
+        multiple of 360 degrees that puts it nearest the reference's at the lowest
+        frequency, so all curves share one branch.
     title : str, optional
     phase_limits : (float, float), optional
         Limits of the phase axis in degrees.
+    xlabel : str, optional
+        Label of the frequency axis; default "frequency omega (rad/s)" (pass e.g.
+        "(rad/sample)" for normalised frequency).
 
     Returns
     -------
@@ -108,18 +114,24 @@ def bode_curves(omega, responses, *, reference=None, title=None, phase_limits=No
     """
     fig, (ax_m, ax_p) = new_figure(2, 1, figsize=(6.4, 5.6), sharex=True)
     omega = np.asarray(omega, float)
+    ref_phase0 = None
     if reference is not None:
         label, g = reference[0], np.asarray(reference[1])
+        phase = np.unwrap(np.angle(g))
+        ref_phase0 = phase[0]
         ax_m.semilogx(omega, 20 * np.log10(np.abs(g)), "k-", lw=2.4, alpha=0.35, label=label)
-        ax_p.semilogx(omega, np.rad2deg(np.angle(g)), "k-", lw=2.4, alpha=0.35)
+        ax_p.semilogx(omega, np.rad2deg(phase), "k-", lw=2.4, alpha=0.35)
     for k, (label, g) in enumerate(responses.items()):
         g = np.asarray(g)
         st = line_style(k)
+        phase = np.unwrap(np.angle(g))
+        if ref_phase0 is not None:
+            phase = phase + 2 * np.pi * np.round((ref_phase0 - phase[0]) / (2 * np.pi))
         ax_m.semilogx(omega, 20 * np.log10(np.abs(g)), label=label, **st)
-        ax_p.semilogx(omega, np.rad2deg(np.unwrap(np.angle(g))), **st)
+        ax_p.semilogx(omega, np.rad2deg(phase), **st)
     ax_m.set_ylabel("magnitude (dB)")
     ax_p.set_ylabel("phase (degrees)")
-    ax_p.set_xlabel(r"frequency $\omega$ (rad/s)")
+    ax_p.set_xlabel(xlabel or r"frequency $\omega$ (rad/s)")
     if phase_limits is not None:
         ax_p.set_ylim(*phase_limits)
     for ax in (ax_m, ax_p):

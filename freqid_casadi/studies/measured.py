@@ -24,7 +24,7 @@ from ..fit import fit
 from ..metrics import relative_error
 
 __all__ = ["MeasuredStudy", "DataSetStudy", "run_measured", "actuator_frf", "fit_row",
-           "peer_row", "ACTUATOR", "ROBOT_ARM"]
+           "peer_row", "ACTUATOR", "ROBOT_ARM", "DELAY_UNITS"]
 
 #: The actuator's Welch settings and fits: 14 averages of 8192 samples (0.122 Hz bins),
 #: the band where the coherence is >= 0.99 (0.12-20.3 Hz; it drops to 0.96 by 20.8 Hz at
@@ -162,14 +162,20 @@ def peer_row(data, n_sections, method):
             "wall_time": time.perf_counter() - t0}, model
 
 
+#: Delay unit per data set: (scale, unit); the robot arm's frequency is normalised
+#: (rad/sample), so its delay is in samples.
+DELAY_UNITS = {"actuator": (1e3, "ms"), "robot arm": (1.0, "samples")}
+
+
 def _study(name, data, sections, estimate, notes, progress):
     rows, models = [], {}
     for n in sections:
         row, res = fit_row(data, n)
         rows.append(row)
         models[("freqid", n)] = res
+        scale, unit = DELAY_UNITS[name]
         progress(f"{name}: {n} section(s): max {row['max_rel_error']:.4g}, delay "
-                 f"{row['delay'] * 1e3:.3f} ms, success {row['success']}")
+                 f"{row['delay'] * scale:.4g} {unit}, success {row['success']}")
         for method in ("skrf-vector-fitting", "aaa"):
             prow, model = peer_row(data, n, method)
             rows.append(prow)

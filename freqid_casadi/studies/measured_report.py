@@ -15,7 +15,7 @@ from .. import plots
 from ..formatting import generated_by_line, json_safe, markdown_table, number
 from ..metrics import relative_error
 from ..report import atomic_write_text, check_out_dir, report_folder
-from .measured import run_measured
+from .measured import DELAY_UNITS, run_measured
 
 __all__ = ["write_measured_report", "render_measured"]
 
@@ -27,9 +27,7 @@ def _yes(v):
     return "—" if v is None else ("yes" if v else "NO")
 
 
-#: Delay unit per data set: (scale, unit); the robot arm's frequency is normalised
-#: (rad/sample), so its delay is in samples.
-_UNITS = {"actuator": (1e3, "ms"), "robot arm": (1.0, "samples")}
+_UNITS = DELAY_UNITS
 
 
 def _std(r):
@@ -173,11 +171,12 @@ def _figures(folder, study):
             errors.append({"x": w, "y": relative_error(m, ds.data).values, "label": label,
                            "lw": 1.6 if method == "freqid" else 0.9,
                            "ls": "-" if method == "freqid" else ":"})
+        xlabel = (r"frequency $\omega$ (rad/s)" if key == "actuator" else
+                  r"normalised frequency $\omega$ (rad/sample)")
         fig = plots.bode_curves(w, responses, reference=("data", ds.data.response),
-                                title=f"{ds.name}: data and models")
+                                title=f"{ds.name}: data and models", xlabel=xlabel)
         plots.save_figure(fig, os.path.join(folder, f"{key}_bode.png"))
-        fig = plots.line_plot(errors, xlabel="omega (rad/s)" if key == "actuator" else
-                              "omega (rad/sample)", ylabel="|Phi/G_N - 1|",
+        fig = plots.line_plot(errors, xlabel=xlabel, ylabel="|Phi/G_N - 1|",
                               title=f"{ds.name}: relative error", legend_fontsize="x-small")
         plots.save_figure(fig, os.path.join(folder, f"{key}_rel_error.png"))
 
