@@ -190,3 +190,19 @@ def test_bode_curves_put_every_phase_on_the_reference_branch():
     assert np.max(np.abs(mod - ref)) < 10                # the model on the data's branch
     assert ax_p.get_xlabel() == "omega (rad/sample)"
     plt.close(fig)
+
+
+def test_fit_figures_label_their_frequency_unit(result):
+    # the robot arm's figures (normalised frequency) were labelled rad/s
+    from freqid_casadi import plots
+
+    figs = [plots.bode(result, unit="rad/sample"),
+            plots.relative_error(result, unit="rad/sample"),
+            plots.pole_zero(result, unit="rad/sample")]
+    labels = [ax.get_xlabel() for fig in figs for ax in fig.axes]
+    assert labels and all("rad/sample" in lab for lab in labels if lab)
+    assert not any("rad/s)" in lab for lab in labels)
+    assert "rad/s)" in plots.bode(result).axes[1].get_xlabel()      # the default
+    for fig in figs:
+        plt.close(fig)
+    plt.close("all")

@@ -15,7 +15,7 @@ __all__ = ["bode", "relative_error", "pole_zero", "stage_errors", "sweep"]
 
 
 def bode(result_or_data, models=None, *, labels=None, title=None, figsize=None,
-         data_label=None):
+         data_label=None, unit="rad/s"):
     """Bode plot of data (markers) and one or more models (lines), delay included.
 
     Parameters
@@ -33,6 +33,9 @@ def bode(result_or_data, models=None, *, labels=None, title=None, figsize=None,
         Inches (default (6.4, 5.6)).
     data_label : str, optional
         Legend label of the data (default "data" or the data name).
+    unit : str
+        Unit of the frequency axis, "rad/s" (default) or e.g. "rad/sample" for normalised
+        frequency (labels only; the data are plotted as given).
 
     Returns
     -------
@@ -99,7 +102,7 @@ def bode(result_or_data, models=None, *, labels=None, title=None, figsize=None,
 
     ax_mag.set_ylabel("magnitude (dB)")
     ax_ph.set_ylabel("phase (degrees)")
-    ax_ph.set_xlabel(r"frequency $\omega$ (rad/s)")
+    ax_ph.set_xlabel(rf"frequency $\omega$ ({unit})")
     ax_ph.set_xlim(omega[0], omega[-1])
     for ax in (ax_mag, ax_ph):
         finish_axes(ax)
@@ -112,7 +115,8 @@ def bode(result_or_data, models=None, *, labels=None, title=None, figsize=None,
 
 
 def relative_error(results, *, labels=None, title=None, figsize=None, annotate_max=True,
-                   reference=None, reference_label=None, truth=None, dense_factor=10):
+                   reference=None, reference_label=None, truth=None, dense_factor=10,
+                   unit="rad/s"):
     """Relative error ``|(G - G_N)/G_N|`` against frequency on log-log axes.
 
     Parameters
@@ -134,6 +138,8 @@ def relative_error(results, *, labels=None, title=None, figsize=None, annotate_m
         log grid ``dense_factor`` times denser than its data (thin line), the error
         between the samples.
     dense_factor : int
+    unit : str
+        Unit of the frequency axis, "rad/s" (default) or e.g. "rad/sample" (labels only).
 
     Returns
     -------
@@ -163,7 +169,7 @@ def relative_error(results, *, labels=None, title=None, figsize=None, annotate_m
             # keep the label inside the axes: left of the point when it is on the right
             span = math.log(omega[-1] / omega[0]) if omega[-1] > omega[0] else 1.0
             right = math.log(omega[i] / omega[0]) / span > 0.6
-            ax.annotate(f"max {rel[i]:.3g} at {omega[i]:.3g} rad/s", (omega[i], rel[i]),
+            ax.annotate(f"max {rel[i]:.3g} at {omega[i]:.3g} {unit}", (omega[i], rel[i]),
                         xytext=(-4 if right else 4, 4 + 11 * k), textcoords="offset points",
                         ha="right" if right else "left", va="bottom", fontsize="small",
                         color=color)
@@ -171,7 +177,7 @@ def relative_error(results, *, labels=None, title=None, figsize=None, annotate_m
         ax.axhline(float(reference), color="k", ls=":", lw=1.0,
                    label=f"{reference_label or 'reference'} ({float(reference):.4g})")
     ax.margins(x=0.02, y=0.12)           # head room for the max annotations
-    ax.set_xlabel(r"frequency $\omega$ (rad/s)")
+    ax.set_xlabel(rf"frequency $\omega$ ({unit})")
     ax.set_ylabel(r"relative error $|(G - G_N)/G_N|$")
     finish_axes(ax)
     ax.legend(loc="best", fontsize="small", framealpha=0.9)
@@ -186,7 +192,7 @@ def relative_error(results, *, labels=None, title=None, figsize=None, annotate_m
 # ----------------------------------------------------------------------------- poles/zeros
 
 
-def pole_zero(model, *, zoom=None, title=None, figsize=None):
+def pole_zero(model, *, zoom=None, title=None, figsize=None, unit="rad/s"):
     """Pole-zero map of the rational part of a model (the delay has neither).
 
     Parameters
@@ -199,12 +205,14 @@ def pole_zero(model, *, zoom=None, title=None, figsize=None):
         magnitude.
     title : str, optional
     figsize : (float, float), optional
+    unit : str
+        Unit of the axes, "rad/s" (default) or e.g. "rad/sample" (labels only).
 
     Returns
     -------
     matplotlib.figure.Figure
         Poles as ``x``, zeros as ``o``, the integrator's pole at 0 as a filled square,
-        the imaginary axis dashed. Axes in rad/s.
+        the imaginary axis dashed. Axes in ``unit``.
     """
     if _is_result(model):
         model = model.model
@@ -239,13 +247,18 @@ def pole_zero(model, *, zoom=None, title=None, figsize=None):
                 label=f"zeros ({zeros.size})")
         if integ.size:
             ax.plot([0.0], [0.0], "s", color="k", ms=5, label="integrator pole")
-        ax.set_xlabel(r"real part (rad/s)")
-        ax.set_ylabel(r"imaginary part (rad/s)")
+        ax.set_xlabel(f"real part ({unit})")
+        ax.set_ylabel(f"imaginary part ({unit})")
         finish_axes(ax)
+        # wide ranges (a zero far above the band) and tiny real parts: few, short labels
+        from matplotlib.ticker import MaxNLocator
+
+        ax.xaxis.set_major_locator(MaxNLocator(5))
+        ax.ticklabel_format(axis="both", style="sci", scilimits=(-2, 4), useMathText=True)
         if j == 1:
             near = np.concatenate([poles, zeros, integ])
             _pz_limits(ax, near[np.abs(near) <= zoom], zoom)
-            ax.set_title(f"near the origin: |s| ≤ {zoom:.3g} rad/s", fontsize="medium")
+            ax.set_title(f"near the origin: |s| ≤ {zoom:.3g} {unit}", fontsize="medium")
         else:
             allp = np.concatenate([poles, zeros, integ])
             _pz_limits(ax, allp, float(np.max(np.abs(allp.imag))) if allp.size else 1.0)

@@ -79,15 +79,17 @@ def _figures(folder, study):
     res = results[(pick["delay"], pick["n_sections"])]
     label = f"{res.model.n_sections} sections, {'with' if pick['delay'] else 'no'} delay"
     plots.save_figure(plots.bode(data, {label: res.model}, data_label="FRF estimate (-G)",
-                                 title="robot arm (DaISy 96-009): data and model"),
+                                 title="robot arm (DaISy 96-009): data and model",
+                                 unit="rad/sample"),
                       os.path.join(folder, "bode.png"))
     others = {f"{n} sections fitted": results[(pick["delay"], n)]
               for n in sorted({r["n_sections"] for r in rows})}
-    plots.save_figure(plots.relative_error(others, annotate_max=False,
+    plots.save_figure(plots.relative_error(others, annotate_max=False, unit="rad/sample",
                                            title="robot arm: relative error "
                                                  f"({'with' if pick['delay'] else 'no'} delay)"),
                       os.path.join(folder, "rel_error.png"))
-    plots.save_figure(plots.pole_zero(res.model, title=f"robot arm: poles and zeros ({label})"),
+    plots.save_figure(plots.pole_zero(res.model, title=f"robot arm: poles and zeros ({label})",
+                                      unit="rad/sample", zoom="auto"),
                       os.path.join(folder, "pole_zero.png"))
     lines = []
     for delay, marker, ls in ((False, "o", "-"), (True, "s", "--")):
