@@ -14,11 +14,12 @@ import numpy as np
 from .errors import DataError, OptionError
 
 __all__ = ["Column", "Table", "parse_columns", "parse_freq_unit", "read_table",
-           "table_response", "mat_table", "COLUMN_HELP"]
+           "table_response", "COLUMN_HELP"]
 
 _F = r"(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?"
 _NUM = re.compile(rf"[+-]?(?:{_F}|inf|infinity|nan)", re.ASCII | re.IGNORECASE)
 _CPLX = re.compile(rf"[+-]?{_F}(?:[+-](?:{_F})?j)?|[+-]?(?:{_F})?j", re.ASCII)
+_DECIMAL_COMMA = re.compile(r"(?<=\d),(?=\d)", re.ASCII)
 _UNIT_RE = re.compile(r"^(.*?)[\s_]*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
 
 _UNITS = {"": None, "hz": "hz", "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad/s",
@@ -276,10 +277,13 @@ def _default_columns(path, cells):
                 Column("im", None, "imag"))
     if len(cells) == 2 and not _NUM.fullmatch(_clean(cells[1])):
         return Column("freq", None, "frequency"), Column("complex", None, "response")
+    records = (" If it holds time records (input and output samples), estimate the "
+               "frequency response first: freqid frf FILE --out frf.csv (see freqid frf "
+               "--help)." if len(cells) == 2 else "")
     raise DataError(
         f"{path!r} has no header and {len(cells)} columns: cannot tell what they are; pass "
         "columns=... (command line --columns), e.g. columns='f,mag_db,phase_deg', to "
-        f"{COLUMN_HELP}; or add a header line")
+        f"{COLUMN_HELP}; or add a header line.{records}")
 
 
 def _resolve_units(path, cols, freq_unit, header):
@@ -289,7 +293,11 @@ def _resolve_units(path, cols, freq_unit, header):
     if freq.unit is None:
         if freq_unit is None:
             what = (f"unrecognised header {header!r}: column {freq.label!r} has no unit"
-                    if header else "it has no header line")
+                    if header else "it has no header line" + (
+                        "; its columns are read as frequency, real, imaginary unless columns="
+                        "'f,mag_db,phase_deg' (--columns) says otherwise"
+                        if [c.role for c in cols] == ["freq", "re", "im"]
+                        and cols[1].label == "real" else ""))
             raise DataError(
                 f"{path!r}: the frequency unit is unknown ({what}): pass freq_unit='Hz' or "
                 "freq_unit='rad/s' (command line --freq-unit hz|rad/s), or name the column "
@@ -317,18 +325,47 @@ def _parse_cell(table_path, line, col, cell):
     hint = ""
     if "_" in cell or any(ord(ch) > 127 for ch in cell):
         hint = " (only ASCII decimal numbers such as 1.5e-3 are read)"
+    elif "," in cell:
+        hint = (" (decimal commas are read only in a file separated by semicolons or tabs "
+                "with no decimal points; save the file with decimal points)")
     what = "a complex number like 1+2j" if col.role == "complex" else "a number"
     raise DataError(f"{table_path!r} line {line}, column {col.label!r}: {_shown(cell)} is not "
                     f"{what}{hint}")
+
+
+def _decimal_commas(rows, sep):
+    """``rows`` with decimal commas (``0,5``) written as points, when the separator is a
+    semicolon or a tab (a European spreadsheet's export) and no row holding one also holds
+    a point (which would make the comma a thousands separator); else ``rows`` unchanged."""
+    if sep not in (";", "\t"):
+        return rows
+    marked = [bool(_DECIMAL_COMMA.search(text)) for _, text in rows]
+    if not any(marked) or any(m and "." in text for m, (_, text) in zip(marked, rows)):
+        return rows
+    return [(k, _DECIMAL_COMMA.sub(".", text)) for k, text in rows]
+
+
+def _units_row(first, rows, split):
+    """Header cells and rows with a second header line of units (``Hz  dB  deg``, as some
+    acquisition software writes) merged into the header as ``name [unit]``."""
+    units = [_clean(c).strip("[]()").strip().lower() for c in split(rows[1][1])]
+    if len(units) != len(first) or not all(u in _UNITS or u == "-" for u in units) \
+            or all(u in ("", "-") for u in units):
+        return first, rows
+    named = [c if u in ("", "-") else f"{_clean(c)} [{u}]" for c, u in zip(first, units)]
+    return named, rows[:1] + rows[2:]
 
 
 def read_table(path, payload, columns, freq_unit, max_rows):
     """Parse delimited UTF-8 text into a :class:`Table` (see ``loaders.load_text``)."""
     rows = _content(path, _decode(path, payload), max_rows)
     sep = _separator(rows[0][1])
+    rows = _decimal_commas(rows, sep)
     split = _splitter(sep)
     first = split(rows[0][1])
     header = not all(_is_value(c) for c in first)
+    if header and len(rows) > 1:
+        first, rows = _units_row(first, rows, split)
     if columns is not None:
         cols = columns
     elif header:
@@ -397,8 +434,9 @@ def table_response(table):
                         "the frequency unit")
     pos = np.flatnonzero(omega > 0)
     step = np.diff(omega[pos])
-    if np.any(step <= 0):
-        j = int(np.flatnonzero(step <= 0)[0])
+    if np.any(step <= 0) and not np.all(step < 0):       # descending rows: reversed later
+        bad = step == 0 if np.all(step <= 0) else step <= 0      # descending + duplicates
+        j = int(np.flatnonzero(bad)[0])
         i, p = pos[j + 1], pos[j]
         what = "duplicated" if step[j] == 0 else "unsorted"
         raise DataError(
@@ -448,51 +486,3 @@ def _response(table):
         raise DataError(f"{table.at(i)}: magnitude {float(mag[i])!r} with phase "
                         f"{float(v['phase'][i])!r} gives a non-finite response; check the columns")
     return response
-
-
-# --------------------------------------------------------------------------- .mat
-
-def mat_table(path, arrays, columns, freq_unit):
-    """A :class:`Table` from the numeric variables of a ``.mat`` file (see
-    ``loaders.load_mat``)."""
-    named = {}
-    if columns is None:
-        for key, arr in arrays.items():
-            col = recognise(key)
-            if col is not None and col.role != "skip":
-                named[key] = Column(col.role, col.unit, key)
-    cols = tuple(named.values())
-    if named and _layout_problem(cols) is None:
-        vecs = [np.asarray(arrays[k]).reshape(-1) if 1 in np.shape(arrays[k]) or
-                np.ndim(arrays[k]) <= 1 else None for k in named]
-        if any(v is None for v in vecs) or len({v.size for v in vecs}) != 1:
-            raise DataError(f"{path!r}: variables {', '.join(named)} must be vectors of equal "
-                            "length")
-        values = dict(zip((c.role for c in cols), vecs))
-        n = vecs[0].size
-    else:
-        if len(arrays) != 1 or np.ndim(next(iter(arrays.values()))) != 2:
-            raise DataError(
-                f"{path!r}: cannot tell the variables apart (found {', '.join(arrays)}); "
-                "name them omega (rad/s) or freq_hz (Hz) and response (complex), or save "
-                "one N x k matrix and pass columns=...")
-        mat = np.asarray(next(iter(arrays.values())))
-        if mat.shape[0] < mat.shape[1]:
-            mat = mat.T
-        first = [str(x) for x in mat[0]]
-        cols = columns if columns is not None else _default_columns(path, first)
-        if len(cols) != mat.shape[1]:
-            raise DataError(f"{path!r}: the matrix has {mat.shape[1]} columns, columns= "
-                            f"names {len(cols)}")
-        values = {}
-        for j, c in enumerate(cols):
-            if c.role != "skip":
-                col = mat[:, j]
-                values[c.role] = col if c.role == "complex" else np.real(col)
-        n = mat.shape[0]
-    cols = _resolve_units(path, cols, freq_unit, ",".join(named) if named else None)
-    for k, arr in values.items():
-        values[k] = np.asarray(arr, complex if k == "complex" else float)
-    table = Table(path, cols, values, np.arange(1, n + 1), where="row")
-    _check_finite(table)
-    return table
