@@ -1,0 +1,272 @@
+"""Files as instruments and other tools write them, and what a user reads back: decimal commas,
+descending rows, a second header line of units, UFF records and Touchstone parameters from the
+command line, time records without a header, a model file given to ``fc.load``, the help text,
+the report's labels and the README's actuator command (a user-experience audit)."""
+
+import argparse
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import freqid_casadi as fc
+from freqid_casadi import cli, cli_common
+from freqid_casadi.errors import DataError, OptionError
+from freqid_casadi.experiment import dataset_path, load_records_csv
+from freqid_casadi.loaders import DataWarning, load
+from freqid_casadi.summary import fit_summary, render_fit_summary
+
+F_HZ = np.array([0.5, 1.0, 2.5, 4.0, 5.0, 6.5, 9.0, 14.0])
+S = 2j * np.pi * F_HZ
+W1 = 2 * np.pi * 5.0
+RESP = 3.0 * np.exp(-0.002 * S) * W1 ** 2 / (S ** 2 + 2 * 0.05 * W1 * S + W1 ** 2)
+DB = 20 * np.log10(np.abs(RESP))
+DEG = np.degrees(np.angle(RESP))
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def _same(data, rtol=1e-6):
+    np.testing.assert_allclose(data.omega, 2 * np.pi * F_HZ, rtol=1e-12)
+    np.testing.assert_allclose(data.response, RESP, rtol=rtol)
+
+
+def _table(sep, header=("Frequency (Hz)", "Magnitude (dB)", "Phase (deg)"), rows=None):
+    rows = zip(F_HZ, DB, DEG) if rows is None else rows
+    lines = [sep.join(header)] + [sep.join(f"{v:.10f}" for v in r) for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------ decimal commas
+
+@pytest.mark.parametrize("sep", [";", "\t"])
+def test_decimal_commas_of_a_semicolon_or_tab_file_are_read(tmp_path, sep):
+    path = tmp_path / "euro.csv"
+    path.write_text(_table(sep).replace(".", ","), encoding="utf-8")
+    _same(load(path))
+
+
+def test_decimal_comma_next_to_a_point_is_an_error_naming_the_fix(tmp_path):
+    path = tmp_path / "mixed.csv"
+    path.write_text("freq_hz;re;im\n1,5;2.0;3,0\n", encoding="utf-8")
+    with pytest.raises(DataError, match=r"line 2, column 'freq_hz': '1,5' is not a number "
+                                        r"\(decimal commas are read only .*decimal points\)"):
+        load(path)
+
+
+def test_comma_separated_file_keeps_commas_as_separators(tmp_path):
+    path = tmp_path / "plain.csv"
+    path.write_text(_table(","), encoding="utf-8")
+    _same(load(path))
+
+
+# ------------------------------------------------------------------ row order
+
+def test_descending_rows_are_reversed_with_a_note(tmp_path):
+    path = tmp_path / "down.csv"
+    path.write_text(_table(",", rows=list(zip(F_HZ, DB, DEG))[::-1]), encoding="utf-8")
+    with pytest.warns(DataWarning, match="descending frequency order"):
+        _same(load(path))
+    np.savez(tmp_path / "down.npz", omega=2 * np.pi * F_HZ[::-1], response=RESP[::-1])
+    with pytest.warns(DataWarning, match="descending frequency order"):
+        _same(load(tmp_path / "down.npz"), rtol=1e-15)
+
+
+def test_unsorted_or_duplicated_rows_stay_errors(tmp_path):
+    path = tmp_path / "mixed.csv"
+    path.write_text("freq_hz,re,im\n1,1,1\n3,1,1\n2,1,1\n", encoding="utf-8")
+    with pytest.raises(DataError, match=r"line 4: omega must be strictly increasing "
+                                        r"\(unsorted rows\)"):
+        load(path)
+    path.write_text("freq_hz,re,im\n3,1,1\n2,1,1\n2,1,1\n", encoding="utf-8")
+    with pytest.raises(DataError, match=r"line 4: .*\(duplicated rows\)"):
+        load(path)
+
+
+# ------------------------------------------------------------------ headers
+
+def test_second_header_line_of_units_is_read(tmp_path):
+    path = tmp_path / "labview.txt"
+    text = _table("\t", header=("Frequency", "Magnitude", "Phase"))
+    head, body = text.split("\n", 1)
+    path.write_text(f"{head}\nHz\tdB\tdeg\n{body}", encoding="utf-8")
+    _same(load(path))
+
+
+def test_headerless_three_columns_say_how_they_are_read(tmp_path):
+    path = tmp_path / "h.txt"
+    path.write_text("".join(f"{f} {m} {p}\n" for f, m, p in zip(F_HZ, DB, DEG)))
+    with pytest.raises(DataError, match=r"read as frequency, real, imaginary unless "
+                                        r"columns='f,mag_db,phase_deg' \(--columns\)"):
+        load(path)
+
+
+def test_two_numeric_columns_point_to_freqid_frf(tmp_path):
+    path = tmp_path / "records.dat"
+    path.write_text("0.1\t0.2\n0.3\t0.4\n")
+    with pytest.raises(DataError, match=r"time records .*: freqid frf FILE --out frf\.csv"):
+        load(path)
+
+
+def test_model_json_given_to_load_names_the_model_reader(tmp_path):
+    path = tmp_path / "model.json"
+    path.write_text('{\n "format": "freqid_casadi.RationalDelayModel"\n}\n')
+    with pytest.raises(DataError, match=r"RationalDelayModel\.load\(path\)"):
+        load(path)
+
+
+# ------------------------------------------------------------------ command line
+
+def _args(path, *extra):
+    return cli.build_parser().parse_args(["fit", str(path), "--sections", "1", "--out", "r",
+                                          *extra])
+
+
+def _touchstone(tmp_path):
+    path = tmp_path / "dut.s2p"
+    rows = [f"{f!r} 0.1 0 {z.real!r} {z.imag!r} 0 0 0.1 0"
+            for f, z in zip(F_HZ.tolist(), RESP.tolist())]
+    path.write_text("! two-port\n# Hz S RI R 50\n" + "\n".join(rows) + "\n")
+    return path
+
+
+def test_cli_parameter_reads_s21_and_the_default_s11_is_noted(tmp_path):
+    path = _touchstone(tmp_path)
+    _same(cli_common.load_data(_args(path, "--parameter", "S21"), str(path)), rtol=1e-15)
+    with pytest.warns(DataWarning, match=r"read S11, the default, of a 2-port file; pass "
+                                         r"parameter='S21' \(command line --parameter S21\)"):
+        data = load(path)
+    np.testing.assert_array_equal(data.response, 0.1)
+
+
+def test_cli_record_chooses_a_uff_record(tmp_path):
+    pyuff = pytest.importorskip("pyuff")
+    path = tmp_path / "two.uff"
+    uff = pyuff.UFF(str(path))
+    for node, scale in ((1, 1.0), (2, 2.0)):
+        uff.write_sets(pyuff.prepare_58(
+            binary=0, func_type=4, rsp_node=node, rsp_dir=3, ref_node=1, ref_dir=3,
+            data=scale * RESP, x=F_HZ, id1="FRF", abscissa_spacing=0,
+            abscissa_spec_data_type=18, ordinate_spec_data_type=12,
+            orddenom_spec_data_type=13), mode="add")
+    data = cli_common.load_data(_args(path, "--record", "1"), str(path))
+    np.testing.assert_allclose(data.response, 2 * RESP, rtol=1e-6)
+    with pytest.raises(DataError, match=r"record=0\.\.1 to load\(\) \(command line --record K\)"):
+        cli_common.load_data(_args(path), str(path))
+
+
+def test_cli_record_and_parameter_are_refused_for_other_files(tmp_path):
+    path = tmp_path / "d.csv"
+    path.write_text(_table(","))
+    with pytest.raises(OptionError, match="--record chooses a record of a UFF file"):
+        cli_common.load_data(_args(path, "--record", "0"), str(path))
+    with pytest.raises(OptionError, match="--parameter chooses a parameter of a Touchstone"):
+        cli_common.load_data(_args(path, "--parameter", "S21"), str(path))
+    assert cli.main(["fit", str(path), "--sections", "1", "--out", "r", "--record", "-1"]) == 2
+
+
+def test_fit_help_tells_the_formats_and_how_to_declare_units(capsys):
+    assert cli.main(["fit", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    for needed in (".uff/.unv", ".s1p/.s2p", ".mat", "'Frequency (Hz),Magnitude (dB),Phase "
+                   "(deg)'", "--record K", "--parameter S21", "No header: --freq-unit"):
+        assert needed in text, needed
+    assert "(.csv or .npz)" not in text
+
+
+def test_frf_reads_headerless_daisy_records(tmp_path, capsys):
+    n, period = 4 * 64, 64
+    rng = np.random.default_rng(1)
+    u1 = rng.standard_normal(period)
+    u = np.tile(u1, 4)
+    y = 0.5 * u + 0.25 * np.roll(u, 1)                     # periodic: H = 0.5 + 0.25 z^-1
+    path = tmp_path / "arm.dat"
+    path.write_text("".join(f"  {a: .7e}\t  {b: .7e}\t\n" for a, b in zip(u.tolist(), y.tolist())))
+    with pytest.warns(DataWarning, match="no header: column 1 is read as the input u"):
+        uu, yy = load_records_csv(path)
+    np.testing.assert_allclose(uu, u, rtol=1e-7, atol=1e-12)
+    np.testing.assert_allclose(yy, y, rtol=1e-7, atol=1e-12)
+    assert n == u.size
+    out = tmp_path / "frf.csv"
+    assert cli.main(["frf", str(path), "--period", str(period), "--out", str(out)]) == 0
+    printed = capsys.readouterr()
+    assert "no --fs: the omega column is in rad/sample" in printed.out
+    assert "column 1 is read as the input u" in printed.err
+    data = load(out)
+    z = np.exp(1j * data.omega)
+    np.testing.assert_allclose(data.response, 0.5 + 0.25 / z, rtol=1e-6)
+
+
+def test_readme_actuator_command_gives_what_the_readme_says(tmp_path, capsys):
+    text = " ".join(README.read_text(encoding="utf-8").split())
+    m = re.search(r"`(freqid frf 0A\.txt\.xz [^`]*)` gives H1 with coherence ≥ ([0-9.]+) over "
+                  r"([0-9.]+)–([0-9.]+) Hz", text)
+    assert m, "README: the actuator's freqid frf command"
+    argv = m.group(1).split()[1:]
+    argv[1] = dataset_path("actuator/0A.txt.xz")
+    argv[argv.index("--out") + 1] = str(tmp_path / "frf.csv")
+    assert cli.main(argv) == 0
+    printed = capsys.readouterr().out
+    found = re.search(r"([0-9.]+) to ([0-9.]+) Hz .*coherence min ([0-9.]+)", printed)
+    assert found, printed
+    assert abs(float(found.group(1)) - float(m.group(3))) < 0.005
+    assert abs(float(found.group(2)) - float(m.group(4))) < 0.01
+    assert float(found.group(3)) >= float(m.group(2))
+
+
+# ------------------------------------------------------------------ the report
+
+@pytest.fixture(scope="module")
+def one_mode_fit():
+    data = fc.FrequencyData(2 * np.pi * F_HZ, RESP, "one")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fc.fit(data, n_sections=1)
+
+
+def test_report_names_both_gains_the_hz_range_and_the_stage_status(one_mode_fit):
+    s = fit_summary(one_mode_fit, command="freqid fit x --sections 1 --out r")
+    text = render_fit_summary(s)
+    k = re.search(r"\| gain K \(model\.gain, in front of the sections\) \| ([-0-9.e]+) \|", text)
+    g = re.search(r"\| low-frequency gain \(DC gain G\(0\)\) \| ([-0-9.e]+) ± ", text)
+    assert k and g, text
+    assert abs(float(k.group(1)) - one_mode_fit.model.gain) < 1e-5 * abs(one_mode_fit.model.gain)
+    assert abs(float(g.group(1)) - 3.0) < 1e-3                    # the data's G(0) = 3
+    assert "(0.5 to 14 Hz)" in text
+    assert re.search(r"mode 1: omega_n \(rad/s\) \[f_n \(Hz\)\], zeta \| 31\.4\d* ± .* \[5 Hz\]",
+                     text), text
+    assert "User_Requested_Stop" not in text and "| solver status |" not in text
+    assert "stopped by freqid's test" in text or "converged (" in text
+
+
+def test_report_marks_a_parameter_the_data_do_not_determine(one_mode_fit):
+    s = fit_summary(one_mode_fit, command="freqid fit x --sections 1 --out r")
+    mode = s["uncertainty"]["modes"][0]
+    assert "not determined" not in render_fit_summary(s)
+    mode["omega_n_std"] = 2 * mode["omega_n"]
+    text = render_fit_summary(s)
+    assert re.search(r"31\.4\d* ± 62\.8\d* \(not determined\)", text), text
+
+
+def test_cli_weights_reads_the_frf_sidecar(tmp_path, capsys):
+    period, n = 64, 8
+    rng = np.random.default_rng(2)
+    u = np.tile(rng.standard_normal(period), n)
+    y = 0.5 * u + 0.25 * np.roll(u, 1) + 0.01 * rng.standard_normal(u.size)
+    records, frf = tmp_path / "uy.csv", tmp_path / "frf.csv"
+    records.write_text("u,y\n" + "".join(f"{a!r},{b!r}\n" for a, b in zip(u.tolist(), y.tolist())))
+    assert cli.main(["frf", str(records), "--period", str(period), "--fs", "100",
+                     "--out", str(frf)]) == 0
+    stats = tmp_path / "frf.stats.csv"
+    table = np.loadtxt(stats, delimiter=",", skiprows=1)
+    data = cli_common.load_data(_args(frf, "--weights", str(stats)), str(frf))
+    np.testing.assert_array_equal(data.weights, table[:, 4])
+    assert np.ptp(data.weights) > 0
+    assert cli_common.load_data(_args(frf), str(frf)).weights is None
+    other = tmp_path / "other.stats.csv"
+    other.write_text("omega,bin,variance,coherence,weight\n1.0,1,0.1,1,2.0\n")
+    with pytest.raises(DataError, match=r"other\.stats\.csv'.*frequencies are not the data's"):
+        cli_common.load_data(_args(frf, "--weights", str(other)), str(frf))
+    with pytest.raises(DataError, match="needs the columns omega and weight"):
+        cli_common.load_data(_args(frf, "--weights", str(frf)), str(frf))
