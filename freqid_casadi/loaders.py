@@ -160,7 +160,11 @@ def load_text(path, name=None, *, freq_unit=None, columns=None):
 
     Notes
     -----
-    A header is recognised when the first line holds a cell that is not a number. Header
+    A header is recognised when the first line holds a cell that is not a number; a second
+    line of units only (``Hz  dB  deg``) completes it; headerless data take the last comment
+    line before them as header when it names every column (``% f [Hz]  Re  Im``). Decimal
+    commas are read in a semicolon- or tab-separated file without decimal points; rows in
+    descending frequency order are reversed (with a :class:`DataWarning`). Header
     ``omega,real,imag`` and ``omega,magnitude_db,phase_deg`` are the layouts
     :func:`save_csv` and earlier versions wrote. A headerless file with three columns is
     frequency, real, imaginary; with two columns of which the second holds complex

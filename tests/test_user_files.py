@@ -94,6 +94,18 @@ def test_second_header_line_of_units_is_read(tmp_path):
     _same(load(path))
 
 
+@pytest.mark.parametrize("comment", ["% f [Hz]  Re  Im", "# freq_hz\tre\tim"])
+def test_header_in_the_last_comment_line_is_read(tmp_path, comment):
+    path = tmp_path / "analyser.txt"
+    body = "".join(f"{f!r}\t{z.real!r}\t{z.imag!r}\n"
+                   for f, z in zip(F_HZ.tolist(), RESP.tolist()))
+    path.write_text(f"% exported by an analyser\n{comment}\n{body}\n\n", encoding="utf-8")
+    _same(load(path), rtol=1e-15)
+    path.write_text(f"{comment}\n% a remark\n{body}", encoding="utf-8")
+    with pytest.raises(DataError, match="frequency unit is unknown .it has no header line"):
+        load(path)                                 # only the comment right before the data
+
+
 def test_headerless_three_columns_say_how_they_are_read(tmp_path):
     path = tmp_path / "h.txt"
     path.write_text("".join(f"{f} {m} {p}\n" for f, m, p in zip(F_HZ, DB, DEG)))
