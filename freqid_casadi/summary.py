@@ -79,6 +79,7 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
         "gain": float(model.gain),
         "wall_time": float(result.wall_time),
         "success": bool(result.success),
+        "message": str(getattr(result, "message", "") or ""),
         "nit": int(sum(s.nit for s in result.stages)),
         "checks": {
             "stable": model.is_stable(),
@@ -250,7 +251,8 @@ def _overview_rows(s):
         ("gain K (model.gain, in front of the sections)", number(s["gain"], 6)),
         ("wall time", f"{number(s['wall_time'])} s"),
         ("iterations (all stages)", number(s["nit"])),
-        ("success (final stage converged)", "yes" if s["success"] else "NO"),
+        ("success (final stage converged)", ("yes" if s["success"] else "NO") + (
+            f": {md_text(s['message'])}" if s.get("message") and not s["success"] else "")),
         ("P_N stable", _roots_check(ck["stable"], ck["max_pole_real_part"],
                                     ck["min_pole_damping"], "pole") + (
             f", {ck['n_poles_on_axis']} pole(s) on the imaginary axis (undamped, zeta = 0: "

@@ -282,3 +282,12 @@ def test_cli_weights_reads_the_frf_sidecar(tmp_path, capsys):
         cli_common.load_data(_args(frf, "--weights", str(other)), str(frf))
     with pytest.raises(DataError, match="needs the columns omega and weight"):
         cli_common.load_data(_args(frf, "--weights", str(frf)), str(frf))
+
+
+def test_report_says_why_a_fit_did_not_converge(one_mode_fit):
+    s = fit_summary(one_mode_fit, command="freqid fit x --sections 1 --out r")
+    assert s["message"] == one_mode_fit.message
+    s["success"], s["message"] = False, "the final stage did not converge: iteration limit"
+    text = render_fit_summary(s)
+    assert "| success (final stage converged) | NO: the final stage did not converge: " \
+           "iteration limit |" in text
