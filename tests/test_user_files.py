@@ -291,3 +291,23 @@ def test_report_says_why_a_fit_did_not_converge(one_mode_fit):
     text = render_fit_summary(s)
     assert "| success (final stage converged) | NO: the final stage did not converge: " \
            "iteration limit |" in text
+
+
+def test_bode_and_error_figures_have_a_hz_axis(one_mode_fit):
+    pytest.importorskip("matplotlib")
+    import matplotlib.pyplot as plt
+
+    from freqid_casadi import plots
+    try:
+        for fig in (plots.bode(one_mode_fit), plots.relative_error(one_mode_fit)):
+            ax = fig.axes[0]
+            tops = [c for c in ax.child_axes if c.get_xlabel() == "frequency f (Hz)"]
+            assert len(tops) == 1
+            # the top axis maps rad/s to Hz: 2 pi * 5 rad/s is 5 Hz
+            fwd = tops[0]._functions[0]
+            assert fwd(np.array([2 * np.pi * 5.0]))[0] == pytest.approx(5.0, rel=1e-15)
+        notes = [t.get_text() for t in fig.axes[0].texts]
+        i = int(np.argmax(one_mode_fit.rel_error))
+        assert any(f"({one_mode_fit.data.omega[i] / (2 * np.pi):.3g} Hz)" in n for n in notes)
+    finally:
+        plt.close("all")
