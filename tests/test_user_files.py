@@ -311,3 +311,16 @@ def test_bode_and_error_figures_have_a_hz_axis(one_mode_fit):
         assert any(f"({one_mode_fit.data.omega[i] / (2 * np.pi):.3g} Hz)" in n for n in notes)
     finally:
         plt.close("all")
+
+
+def test_batch_names_the_data_files_it_skips(tmp_path):
+    from freqid_casadi.cli_batch import data_files
+
+    (tmp_path / "a.csv").write_text(_table(","))
+    (tmp_path / "b.txt").write_text(_table(","))
+    (tmp_path / "c.uff").write_text("")
+    (tmp_path / "notes.md").write_text("")
+    with pytest.warns(UserWarning, match=r"skipped 2 file\(s\) that freqid batch does not "
+                                         r"read \(only \.csv and \.npz\): b\.txt, c\.uff; fit "
+                                         r"them with freqid fit"):
+        assert [Path(p).name for p in data_files(tmp_path)] == ["a.csv"]
