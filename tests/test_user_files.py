@@ -324,3 +324,25 @@ def test_batch_names_the_data_files_it_skips(tmp_path):
                                          r"read \(only \.csv and \.npz\): b\.txt, c\.uff; fit "
                                          r"them with freqid fit"):
         assert [Path(p).name for p in data_files(tmp_path)] == ["a.csv"]
+
+
+def test_modal_reads_hz_files_and_says_why_no_mode_was_selected(tmp_path, capsys):
+    f = np.linspace(1.0, 12.0, 60)
+    s = 2j * np.pi * f
+    for k, scale in enumerate((1.0, -0.5)):
+        h = scale * W1 ** 2 / (s ** 2 + 2 * 0.05 * W1 * s + W1 ** 2)
+        (tmp_path / f"ch{k}.txt").write_text(
+            "".join(f"{a!r} {z.real!r} {z.imag!r}\n" for a, z in zip(f.tolist(), h.tolist())))
+    files = [str(tmp_path / "ch0.txt"), str(tmp_path / "ch1.txt")]
+    out = str(tmp_path / "m")
+    assert cli.main(["modal", *files, "--orders", "2:4:2", "--out", out]) == 2
+    assert "--freq-unit hz|rad/s" in capsys.readouterr().err
+    assert cli.main(["modal", *files, "--orders", "2:4:2", "--out", out, "--freq-unit", "hz",
+                     "--freq-tol", "1e-14"]) == 0
+    printed = capsys.readouterr().out
+    assert "0 modes selected" in printed
+    assert ("none: a mode is selected when it is stable in frequency and damping at each of "
+            "the last 1 orders (--min-stable 3)") in printed
+    rows = (Path(out) / "stabilization.csv").read_text().splitlines()
+    first = [r.split(",") for r in rows[1:] if r.startswith("2,")]
+    assert len(first) == 1 and float(first[0][1]) == pytest.approx(5.0, rel=0.01)   # Hz
