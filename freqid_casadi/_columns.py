@@ -27,7 +27,7 @@ _IM = {"im", "imag", "imaginary"}
 _MAG = {"mag", "magnitude", "abs", "amplitude", "amp", "gain", "modulus"}
 _PHASE = {"phase", "phi", "arg", "angle", "ph"}
 _COMPLEX = {"complex", "response", "h", "g", "frf", "z"}
-_SKIP = {"skip", "_", "-", "ignore"}
+_SKIP = {"skip", "_", "-", "ignore", "coherence", "coh"}
 _LAYOUTS = ({"freq", "re", "im"}, {"freq", "mag", "phase"}, {"freq", "complex"})
 
 #: How to name columns, quoted in error messages.
@@ -53,7 +53,9 @@ def recognise(label):
     m = _UNIT_RE.match(s)
     if m:
         s, unit = m.group(1).strip(), m.group(2).strip()
-    s = re.sub(r"[\s\-.]+", "_", s).strip("_")
+    elif "/" in s and s.partition("/")[2].replace(" ", "") in _UNITS:    # DIN: "f/Hz"
+        s, _, unit = s.partition("/")
+    s = re.sub(r"_part$", "", re.sub(r"[\s\-.]+", "_", s).strip("_"))   # "real part"
     if not unit:
         for suffix in _SUFFIXES:
             if s.endswith(suffix) and len(s) > len(suffix):
@@ -61,8 +63,10 @@ def recognise(label):
                 break
     unit = unit.replace(" ", "").replace("_", "/") if "/" in unit or unit == "rad_s" \
         else unit.replace(" ", "")
-    if unit not in _UNITS:
-        return None
+    if unit not in _UNITS:       # a physical unit ("Real [g/N]") scales re, im and |H|
+        if s not in _RE | _IM | _COMPLEX | _MAG:
+            return None
+        unit = "db" if unit.startswith("db") else "lin" if s in _MAG else ""
     unit = _UNITS[unit]
     name = label.strip()
     if s in _FREQ and unit in (None, "hz", "rad/s"):

@@ -346,3 +346,25 @@ def test_modal_reads_hz_files_and_says_why_no_mode_was_selected(tmp_path, capsys
     rows = (Path(out) / "stabilization.csv").read_text().splitlines()
     first = [r.split(",") for r in rows[1:] if r.startswith("2,")]
     assert len(first) == 1 and float(first[0][1]) == pytest.approx(5.0, rel=0.01)   # Hz
+
+
+@pytest.mark.parametrize("header", [
+    ("Frequency [Hz]", "Real [g/N]", "Imag [g/N]", "Coherence"),           # Testlab-like
+    ("f/Hz", "Real part", "Imaginary part", "coh"),                        # DIN style
+])
+def test_headers_with_physical_units_din_units_and_coherence(tmp_path, header):
+    path = tmp_path / "frf.csv"
+    rows = zip(F_HZ, RESP.real, RESP.imag, np.ones(F_HZ.size))
+    path.write_text(_table(";", header=header, rows=rows), encoding="utf-8")
+    _same(load(path), rtol=1e-9)
+
+
+def test_magnitude_with_a_physical_unit_is_linear_and_db_re_is_db(tmp_path):
+    path = tmp_path / "frf.csv"
+    mag = np.abs(RESP)
+    path.write_text(_table(",", header=("Freq (Hz)", "Magnitude [m/s^2/N]", "Phase/°"),
+                           rows=zip(F_HZ, mag, DEG)), encoding="utf-8")
+    _same(load(path), rtol=1e-9)
+    path.write_text(_table(",", header=("Freq (Hz)", "Magnitude [dB re 1 m/N]", "Phase/°")),
+                    encoding="utf-8")
+    _same(load(path), rtol=1e-9)
