@@ -287,6 +287,10 @@ def read_table(path, payload, columns, freq_unit, max_rows):
         values = {c.role: fast[:, j] for j, c in enumerate(cols)}
     else:
         values = _slow_values(path, rows, cols, split)
+    dc = values["freq"] == 0      # rows at 0 Hz are dropped later (a DataWarning); their
+    for role, v in values.items():  # response, often -inf dB or NaN there, is not checked
+        if role != "freq" and dc.any():
+            v[dc] = 1.0
     table = Table(path, cols, values, np.array([r[0] for r in rows]))
     _check_finite(table)
     return table

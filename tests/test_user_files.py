@@ -368,3 +368,16 @@ def test_magnitude_with_a_physical_unit_is_linear_and_db_re_is_db(tmp_path):
     path.write_text(_table(",", header=("Freq (Hz)", "Magnitude [dB re 1 m/N]", "Phase/°")),
                     encoding="utf-8")
     _same(load(path), rtol=1e-9)
+
+
+@pytest.mark.parametrize("dc_row", ["0,-inf,0", "0,nan,nan", "0,-Infinity,NaN"])
+def test_a_non_finite_dc_bin_is_dropped_like_any_zero_frequency_row(tmp_path, dc_row):
+    path = tmp_path / "dc.csv"
+    body = _table(",", header=("freq_hz", "mag_db", "phase_deg"))
+    head, rest = body.split("\n", 1)
+    path.write_text(f"{head}\n{dc_row}\n{rest}", encoding="utf-8")
+    with pytest.warns(DataWarning, match=r"dropped 1 row\(s\) at zero frequency \(lines 2\)"):
+        _same(load(path))
+    path.write_text(f"{head}\n{rest}0.7,nan,0\n", encoding="utf-8")
+    with pytest.raises(DataError, match=r"line 10, column 'mag_db': nan is not finite"):
+        load(path)                                   # away from DC it stays an error
