@@ -62,7 +62,8 @@ def add_data_options(parser, records=False):
         parser.add_argument(
             "--weights", metavar="STATS.csv",
             help="weights of the data's frequencies: the <stem>.stats.csv that 'freqid frf' "
-                 "writes beside its FRF (column weight = |H|^2/variance), at the same omega")
+                 "writes beside its FRF (column weight: |H|^2/variance, mean 1), at the same "
+                 "omega")
     return parser
 
 

@@ -3,7 +3,6 @@ descending rows, a second header line of units, UFF records and Touchstone param
 command line, time records without a header, a model file given to ``fc.load``, the help text,
 the report's labels and the README's actuator command (a user-experience audit)."""
 
-import argparse
 import re
 import warnings
 from pathlib import Path
