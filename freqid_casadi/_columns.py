@@ -26,7 +26,7 @@ _RE = {"re", "real"}
 _IM = {"im", "imag", "imaginary"}
 _MAG = {"mag", "magnitude", "abs", "amplitude", "amp", "gain", "modulus"}
 _PHASE = {"phase", "phi", "arg", "angle", "ph"}
-_COMPLEX = {"complex", "response", "h", "g", "frf", "z"}
+_COMPLEX = {"complex", "response", "h", "g", "frf", "z", "h1", "h2", "hv", "txy", "tf"}
 _SKIP = {"skip", "_", "-", "ignore", "coherence", "coh"}
 _LAYOUTS = ({"freq", "re", "im"}, {"freq", "mag", "phase"}, {"freq", "complex"})
 

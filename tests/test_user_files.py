@@ -380,3 +380,11 @@ def test_a_non_finite_dc_bin_is_dropped_like_any_zero_frequency_row(tmp_path, dc
     path.write_text(f"{head}\n{rest}0.7,nan,0\n", encoding="utf-8")
     with pytest.raises(DataError, match=r"line 10, column 'mag_db': nan is not finite"):
         load(path)                                   # away from DC it stays an error
+
+
+@pytest.mark.parametrize("names", [("f_Hz", "H1"), ("f_hz", "txy")])    # tfestimate's output
+def test_mat_file_with_estimator_names(tmp_path, names):
+    scipy_io = pytest.importorskip("scipy.io")
+    path = tmp_path / "est.mat"
+    scipy_io.savemat(path, {names[0]: F_HZ.reshape(-1, 1), names[1]: RESP.reshape(-1, 1)})
+    _same(load(path), rtol=1e-15)
