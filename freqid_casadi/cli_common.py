@@ -14,7 +14,7 @@ import warnings
 import numpy as np
 
 from ._readfile import read_regular_file
-from ._table import _decode
+from ._table import _NUM, _decode
 from .data import FrequencyData
 from .loaders import DataWarning, load
 from .errors import DataError, OptionError
@@ -78,7 +78,8 @@ def _record(text):
 
 
 def load_options(args):
-    """The ``freq_unit`` and ``columns`` keywords of :func:`~freqid_casadi.loaders.load`.
+    """The ``freq_unit`` and ``columns`` keywords of :func:`~freqid_casadi.loaders.load`,
+    and ``record`` and ``parameter`` when given.
 
     Parameters
     ----------
@@ -163,7 +164,10 @@ def with_weights(data, path):
         raise DataError(f"{path!r}: a weights file needs the columns omega and weight (the "
                         "<stem>.stats.csv that freqid frf writes beside its FRF)")
     try:
-        table = np.array([[float(c) for c in t.split(",")] for t in lines[1:]], float)
+        cells = [[c.strip() for c in t.split(",")] for t in lines[1:]]
+        if not all(_NUM.fullmatch(c) for row in cells for c in row):
+            raise ValueError
+        table = np.array(cells, float)
         omega, weight = table[:, head.index("omega")], table[:, head.index("weight")]
     except (ValueError, IndexError):
         raise DataError(f"{path!r}: not a table of numbers under its header; pass the "

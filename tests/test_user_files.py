@@ -281,6 +281,10 @@ def test_cli_weights_reads_the_frf_sidecar(tmp_path, capsys):
         cli_common.load_data(_args(frf, "--weights", str(other)), str(frf))
     with pytest.raises(DataError, match="needs the columns omega and weight"):
         cli_common.load_data(_args(frf, "--weights", str(frf)), str(frf))
+    text = stats.read_text().splitlines()
+    other.write_text("\n".join(text[:2] + [text[2].replace(".", "_", 1)] + text[3:]) + "\n")
+    with pytest.raises(DataError, match="not a table of numbers under its header"):
+        cli_common.load_data(_args(frf, "--weights", str(other)), str(frf))
 
 
 def test_report_says_why_a_fit_did_not_converge(one_mode_fit):
