@@ -113,8 +113,8 @@ def _stem(path):
 
 
 def _finish(path, omega, response, name, weights=None, lines=None):
-    """Drop zero-frequency rows (stated by a DataWarning) and build the FrequencyData; its
-    errors are prefixed by the file name."""
+    """Drop zero-frequency rows and reverse rows in descending frequency order (each stated
+    by a DataWarning) and build the FrequencyData; its errors are prefixed by the file name."""
     omega = np.asarray(omega, float)
     zero = omega == 0
     if zero.any():
@@ -126,6 +126,11 @@ def _finish(path, omega, response, name, weights=None, lines=None):
         keep = ~zero
         omega, response = omega[keep], np.asarray(response)[keep]
         weights = None if weights is None else np.asarray(weights)[keep]
+    if omega.size > 1 and np.all(np.diff(omega) < 0) and np.all(omega > 0):
+        warnings.warn(f"{path!r}: the rows are in descending frequency order; read them in "
+                      "ascending order", DataWarning, stacklevel=3)
+        omega, response = omega[::-1], np.asarray(response)[::-1]
+        weights = None if weights is None else np.asarray(weights)[::-1]
     try:
         return FrequencyData(omega, response, _stem(path) if name is None else name, weights)
     except DataError as exc:

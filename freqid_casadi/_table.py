@@ -1,9 +1,9 @@
-"""Column names, units and the text-table parser behind :mod:`freqid_casadi.loaders` (L1).
+"""The text-table parser behind :mod:`freqid_casadi.loaders` (L1).
 
-A column is named by a role (frequency, real, imaginary, magnitude, phase, complex, skip)
-and a unit. The same vocabulary reads a header line, the ``columns=`` option and the
-variable names of a ``.mat`` file. Numbers are ASCII decimal literals only: Python's
-``float`` would also take ``1_0`` and non-ASCII digits, which a data file never means.
+Columns are named with the vocabulary of :mod:`freqid_casadi._columns` (re-exported here):
+a header line, the ``columns=`` option, the variable names of a ``.mat`` file. Numbers are
+ASCII decimal literals only: Python's ``float`` would also take ``1_0`` and non-ASCII
+digits, which a data file never means.
 """
 
 import re
@@ -11,45 +11,17 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import DataError, OptionError
+from ._columns import (_UNITS, COLUMN_HELP, Column, _layout_problem, parse_columns,
+                       parse_freq_unit, recognise)
+from .errors import DataError
 
 __all__ = ["Column", "Table", "parse_columns", "parse_freq_unit", "read_table",
-           "table_response", "mat_table", "COLUMN_HELP"]
+           "table_response", "COLUMN_HELP"]
 
 _F = r"(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?"
 _NUM = re.compile(rf"[+-]?(?:{_F}|inf|infinity|nan)", re.ASCII | re.IGNORECASE)
 _CPLX = re.compile(rf"[+-]?{_F}(?:[+-](?:{_F})?j)?|[+-]?(?:{_F})?j", re.ASCII)
-_UNIT_RE = re.compile(r"^(.*?)[\s_]*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
-
-_UNITS = {"": None, "hz": "hz", "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad/s",
-          "rad/sec": "rad/s", "radians/s": "rad/s", "db": "db", "deg": "deg",
-          "degree": "deg", "degrees": "deg", "°": "deg", "rad": "rad", "radian": "rad",
-          "radians": "rad", "lin": "lin", "linear": "lin"}
-_SUFFIXES = ("_rad_s", "_rads", "_hz", "_db", "_degrees", "_deg", "_radians", "_rad")
-_FREQ = {"omega": "rad/s", "w": "rad/s", "f": None, "freq": None, "frequency": None,
-         "hz": "hz"}
-_RE = {"re", "real"}
-_IM = {"im", "imag", "imaginary"}
-_MAG = {"mag", "magnitude", "abs", "amplitude", "amp", "gain", "modulus"}
-_PHASE = {"phase", "phi", "arg", "angle", "ph"}
-_COMPLEX = {"complex", "response", "h", "g", "frf", "z"}
-_SKIP = {"skip", "_", "-", "ignore"}
-_LAYOUTS = ({"freq", "re", "im"}, {"freq", "mag", "phase"}, {"freq", "complex"})
-
-#: How to name columns, quoted in error messages.
-COLUMN_HELP = ("name each column: omega or w (rad/s), freq_hz or 'f [Hz]' (Hz), f/freq (unit "
-               "from freq_unit); re, im; mag or mag_db with phase_deg or phase_rad; complex "
-               "(literals like 1+2j); skip")
-
-
-@dataclass(frozen=True)
-class Column:
-    """One column: ``role`` in freq/re/im/mag/phase/complex/skip, its ``unit`` (freq:
-    'hz'/'rad/s'/None, mag: 'lin'/'db', phase: 'deg'/'rad'/None) and its ``label``."""
-
-    role: str
-    unit: str = None
-    label: str = ""
+_DECIMAL_COMMA = re.compile(r"(?<=\d),(?=\d)", re.ASCII)
 
 
 @dataclass
@@ -76,90 +48,6 @@ class Table:
 
     def at(self, i):
         return f"{self.path!r} {self.where} {int(self.rows[i])}"
-
-
-def recognise(label):
-    """The :class:`Column` a header cell or a name stands for, or None if unknown."""
-    s = label.strip().strip("\"'").strip().lower()
-    unit = ""
-    m = _UNIT_RE.match(s)
-    if m:
-        s, unit = m.group(1).strip(), m.group(2).strip()
-    s = re.sub(r"[\s\-.]+", "_", s).strip("_")
-    if not unit:
-        for suffix in _SUFFIXES:
-            if s.endswith(suffix) and len(s) > len(suffix):
-                s, unit = s[:-len(suffix)].rstrip("_"), suffix[1:]
-                break
-    unit = unit.replace(" ", "").replace("_", "/") if "/" in unit or unit == "rad_s" \
-        else unit.replace(" ", "")
-    if unit not in _UNITS:
-        return None
-    unit = _UNITS[unit]
-    name = label.strip()
-    if s in _FREQ and unit in (None, "hz", "rad/s"):
-        return Column("freq", unit or _FREQ[s], name)
-    if s in _SKIP and unit is None:
-        return Column("skip", None, name)
-    if s in _RE | _IM | _COMPLEX and unit is None:
-        return Column("re" if s in _RE else "im" if s in _IM else "complex", None, name)
-    if s == "db" and unit is None or s in _MAG and unit in (None, "db", "lin"):
-        return Column("mag", "db" if s == "db" or unit == "db" else "lin", name)
-    if s in _PHASE and unit in (None, "deg", "rad"):
-        return Column("phase", unit, name)
-    return None
-
-
-def _layout_problem(cols):
-    roles = [c.role for c in cols if c.role != "skip"]
-    if len(set(roles)) != len(roles):
-        dup = next(r for r in roles if roles.count(r) > 1)
-        return f"two columns are {dup!r}"
-    if set(roles) not in _LAYOUTS:
-        return ("the columns must be one frequency and real+imaginary, magnitude+phase or "
-                f"one complex column, got {', '.join(roles) or 'none'}")
-    return None
-
-
-def parse_freq_unit(value):
-    """'hz', 'rad/s' or None from a user's ``freq_unit`` (case-insensitive)."""
-    if value is None:
-        return None
-    text = value.strip().lower().replace(" ", "") if isinstance(value, str) else None
-    unit = {"hz": "hz", "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad/s",
-            "rad/sec": "rad/s"}.get(text)
-    if unit is None:
-        raise OptionError(f"freq_unit must be 'Hz' or 'rad/s', got {value!r}; "
-                          "pass freq_unit='Hz' (or --freq-unit hz) for frequencies in Hz")
-    return unit
-
-
-def parse_columns(columns):
-    """A tuple of :class:`Column` from ``columns=`` (a string or a sequence), or None."""
-    if columns is None:
-        return None
-    if isinstance(columns, tuple) and all(isinstance(c, Column) for c in columns):
-        return columns
-    if isinstance(columns, str):
-        sep = "," if "," in columns else ";" if ";" in columns else None
-        tokens = [t for t in (columns.split(sep) if sep else columns.split())]
-    else:
-        try:
-            tokens = list(columns)
-        except TypeError:
-            raise OptionError(f"columns must be a string like 'f,re,im' or a sequence of "
-                              f"names, got {columns!r}") from None
-    cols = []
-    for tok in tokens:
-        col = recognise(tok) if isinstance(tok, str) else None
-        if col is None:
-            raise OptionError(f"columns: unknown column name {tok!r}; {COLUMN_HELP}")
-        cols.append(col)
-    problem = _layout_problem(cols)
-    if problem:
-        raise OptionError(f"columns={columns!r}: {problem}; e.g. columns='f,re,im' or "
-                          "('freq_hz', 'mag_db', 'phase_deg')")
-    return tuple(cols)
 
 
 # --------------------------------------------------------------------------- text
@@ -237,10 +125,12 @@ def _shown(cell):
 
 
 def _content(path, text, max_rows):
-    rows = []
+    rows, comment = [], None
     for k, line in enumerate(text.split("\n")):
         line = line.rstrip()
-        if line.strip() and not line.lstrip().startswith(("#", "%", "!")):
+        if line.lstrip().startswith(("#", "%", "!")):
+            comment = (k + 1, line.lstrip()[1:].strip()) if not rows else comment
+        elif line.strip():
             rows.append((k + 1, line))
             if len(rows) > max_rows + 1:
                 raise DataError(
@@ -249,7 +139,22 @@ def _content(path, text, max_rows):
     if not rows:
         raise DataError(f"{path!r} is empty: expected a header such as 'omega,real,imag' "
                         "and data rows")
-    return rows
+    return _comment_header(rows, comment)
+
+
+def _comment_header(rows, comment):
+    """``rows`` led by the last comment line before the data when the data have no header
+    and that line names every column (``% f [Hz]  Re  Im``, as analysers write)."""
+    sep = _separator(rows[0][1])
+    first = _splitter(sep)(rows[0][1])
+    if comment is None or not all(_is_value(c) for c in first):
+        return rows
+    cells = _splitter(sep)(comment[1]) if sep and sep in comment[1] else \
+        _split_space(comment[1])
+    cols = [recognise(_clean(c)) for c in cells]
+    if len(cells) != len(first) or None in cols or _layout_problem(cols):
+        return rows
+    return [(comment[0], (sep or " ").join(cells))] + rows
 
 
 def _header_columns(path, cells):
@@ -276,10 +181,13 @@ def _default_columns(path, cells):
                 Column("im", None, "imag"))
     if len(cells) == 2 and not _NUM.fullmatch(_clean(cells[1])):
         return Column("freq", None, "frequency"), Column("complex", None, "response")
+    records = (" If it holds time records (input and output samples), estimate the "
+               "frequency response first: freqid frf FILE --out frf.csv (see freqid frf "
+               "--help)." if len(cells) == 2 else "")
     raise DataError(
         f"{path!r} has no header and {len(cells)} columns: cannot tell what they are; pass "
         "columns=... (command line --columns), e.g. columns='f,mag_db,phase_deg', to "
-        f"{COLUMN_HELP}; or add a header line")
+        f"{COLUMN_HELP}; or add a header line.{records}")
 
 
 def _resolve_units(path, cols, freq_unit, header):
@@ -289,7 +197,11 @@ def _resolve_units(path, cols, freq_unit, header):
     if freq.unit is None:
         if freq_unit is None:
             what = (f"unrecognised header {header!r}: column {freq.label!r} has no unit"
-                    if header else "it has no header line")
+                    if header else "it has no header line" + (
+                        "; its columns are read as frequency, real, imaginary unless columns="
+                        "'f,mag_db,phase_deg' (--columns) says otherwise"
+                        if [c.role for c in cols] == ["freq", "re", "im"]
+                        and cols[1].label == "real" else ""))
             raise DataError(
                 f"{path!r}: the frequency unit is unknown ({what}): pass freq_unit='Hz' or "
                 "freq_unit='rad/s' (command line --freq-unit hz|rad/s), or name the column "
@@ -317,18 +229,47 @@ def _parse_cell(table_path, line, col, cell):
     hint = ""
     if "_" in cell or any(ord(ch) > 127 for ch in cell):
         hint = " (only ASCII decimal numbers such as 1.5e-3 are read)"
+    elif "," in cell:
+        hint = (" (decimal commas are read only in a file separated by semicolons or tabs "
+                "with no decimal points; save the file with decimal points)")
     what = "a complex number like 1+2j" if col.role == "complex" else "a number"
     raise DataError(f"{table_path!r} line {line}, column {col.label!r}: {_shown(cell)} is not "
                     f"{what}{hint}")
+
+
+def _decimal_commas(rows, sep):
+    """``rows`` with decimal commas (``0,5``) written as points, when the separator is a
+    semicolon or a tab (a European spreadsheet's export) and no row holding one also holds
+    a point (which would make the comma a thousands separator); else ``rows`` unchanged."""
+    if sep not in (";", "\t"):
+        return rows
+    marked = [bool(_DECIMAL_COMMA.search(text)) for _, text in rows]
+    if not any(marked) or any(m and "." in text for m, (_, text) in zip(marked, rows)):
+        return rows
+    return [(k, _DECIMAL_COMMA.sub(".", text)) for k, text in rows]
+
+
+def _units_row(first, rows, split):
+    """Header cells and rows with a second header line of units (``Hz  dB  deg``, as some
+    acquisition software writes) merged into the header as ``name [unit]``."""
+    units = [_clean(c).strip("[]()").strip().lower() for c in split(rows[1][1])]
+    if len(units) != len(first) or not all(u in _UNITS or u == "-" for u in units) \
+            or all(u in ("", "-") for u in units):
+        return first, rows
+    named = [c if u in ("", "-") else f"{_clean(c)} [{u}]" for c, u in zip(first, units)]
+    return named, rows[:1] + rows[2:]
 
 
 def read_table(path, payload, columns, freq_unit, max_rows):
     """Parse delimited UTF-8 text into a :class:`Table` (see ``loaders.load_text``)."""
     rows = _content(path, _decode(path, payload), max_rows)
     sep = _separator(rows[0][1])
+    rows = _decimal_commas(rows, sep)
     split = _splitter(sep)
     first = split(rows[0][1])
     header = not all(_is_value(c) for c in first)
+    if header and len(rows) > 1:
+        first, rows = _units_row(first, rows, split)
     if columns is not None:
         cols = columns
     elif header:
@@ -346,6 +287,10 @@ def read_table(path, payload, columns, freq_unit, max_rows):
         values = {c.role: fast[:, j] for j, c in enumerate(cols)}
     else:
         values = _slow_values(path, rows, cols, split)
+    dc = values["freq"] == 0      # rows at 0 Hz are dropped later (a DataWarning); their
+    for role, v in values.items():  # response, often -inf dB or NaN there, is not checked
+        if role != "freq" and dc.any():
+            v[dc] = 1.0
     table = Table(path, cols, values, np.array([r[0] for r in rows]))
     _check_finite(table)
     return table
@@ -397,8 +342,9 @@ def table_response(table):
                         "the frequency unit")
     pos = np.flatnonzero(omega > 0)
     step = np.diff(omega[pos])
-    if np.any(step <= 0):
-        j = int(np.flatnonzero(step <= 0)[0])
+    if np.any(step <= 0) and not np.all(step < 0):       # descending rows: reversed later
+        bad = step == 0 if np.all(step <= 0) else step <= 0      # descending + duplicates
+        j = int(np.flatnonzero(bad)[0])
         i, p = pos[j + 1], pos[j]
         what = "duplicated" if step[j] == 0 else "unsorted"
         raise DataError(
@@ -448,51 +394,3 @@ def _response(table):
         raise DataError(f"{table.at(i)}: magnitude {float(mag[i])!r} with phase "
                         f"{float(v['phase'][i])!r} gives a non-finite response; check the columns")
     return response
-
-
-# --------------------------------------------------------------------------- .mat
-
-def mat_table(path, arrays, columns, freq_unit):
-    """A :class:`Table` from the numeric variables of a ``.mat`` file (see
-    ``loaders.load_mat``)."""
-    named = {}
-    if columns is None:
-        for key, arr in arrays.items():
-            col = recognise(key)
-            if col is not None and col.role != "skip":
-                named[key] = Column(col.role, col.unit, key)
-    cols = tuple(named.values())
-    if named and _layout_problem(cols) is None:
-        vecs = [np.asarray(arrays[k]).reshape(-1) if 1 in np.shape(arrays[k]) or
-                np.ndim(arrays[k]) <= 1 else None for k in named]
-        if any(v is None for v in vecs) or len({v.size for v in vecs}) != 1:
-            raise DataError(f"{path!r}: variables {', '.join(named)} must be vectors of equal "
-                            "length")
-        values = dict(zip((c.role for c in cols), vecs))
-        n = vecs[0].size
-    else:
-        if len(arrays) != 1 or np.ndim(next(iter(arrays.values()))) != 2:
-            raise DataError(
-                f"{path!r}: cannot tell the variables apart (found {', '.join(arrays)}); "
-                "name them omega (rad/s) or freq_hz (Hz) and response (complex), or save "
-                "one N x k matrix and pass columns=...")
-        mat = np.asarray(next(iter(arrays.values())))
-        if mat.shape[0] < mat.shape[1]:
-            mat = mat.T
-        first = [str(x) for x in mat[0]]
-        cols = columns if columns is not None else _default_columns(path, first)
-        if len(cols) != mat.shape[1]:
-            raise DataError(f"{path!r}: the matrix has {mat.shape[1]} columns, columns= "
-                            f"names {len(cols)}")
-        values = {}
-        for j, c in enumerate(cols):
-            if c.role != "skip":
-                col = mat[:, j]
-                values[c.role] = col if c.role == "complex" else np.real(col)
-        n = mat.shape[0]
-    cols = _resolve_units(path, cols, freq_unit, ",".join(named) if named else None)
-    for k, arr in values.items():
-        values[k] = np.asarray(arr, complex if k == "complex" else float)
-    table = Table(path, cols, values, np.arange(1, n + 1), where="row")
-    _check_finite(table)
-    return table

@@ -54,7 +54,7 @@ def load_touchstone(path, name=None, *, parameter=None):
     name : str, optional
     parameter : str, optional
         Which parameter, e.g. ``"S21"`` (the letter must be the file's). Default: ``"11"`` of
-        the file's kind (S11 for S-parameters).
+        the file's kind (S11 for S-parameters; a 2-port file then warns, DataWarning).
 
     Returns
     -------
@@ -112,4 +112,12 @@ def load_touchstone(path, name=None, *, parameter=None):
         i = int(np.flatnonzero(bad)[0])
         raise DataError(f"{path!r} line {rows[i][0]}: the frequency or {which.upper()} is "
                         "outside the floating-point range; check the option line's units")
+    if ports == 2 and parameter is None:
+        import warnings
+
+        from ._readfile import DataWarning
+        warnings.warn(f"{path!r}: read {which.upper()}, the default, of a 2-port file; pass "
+                      f"parameter='{kind.upper()}21' (command line --parameter "
+                      f"{kind.upper()}21) for the transfer from port 1 to port 2",
+                      DataWarning, stacklevel=3)
     return _finish(path, omega, response, name, lines=[r[0] for r in rows])

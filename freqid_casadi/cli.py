@@ -163,11 +163,12 @@ def _add_model_arguments(p, tol=True):
                        help="stop adding sections once the max relative error is below X")
 
 
-def _add_input(p, name, metavar, text):
+def _add_input(p, name, metavar, text, records=False):
     """The positional data input ``name`` and the data-file options (``--freq-unit``,
-    ``--columns``) of a command that reads data (fit, sweep, batch)."""
+    ``--columns``; with ``records`` ``--record``, ``--parameter``) of a command that reads
+    data (fit, sweep, batch)."""
     p.add_argument(name, metavar=metavar, help=text)
-    add_data_options(p)
+    add_data_options(p, records)
 
 
 def _add_example(sub):
@@ -184,12 +185,19 @@ def _add_example(sub):
     return p
 
 
+_FILES = ("Text files: comma, semicolon, tab or space separated; the header names each "
+          "column and its unit: omega (rad/s), freq_hz or 'Frequency (Hz)' (Hz), f/freq "
+          "(unit from --freq-unit); re,im or mag/mag_db with phase_deg/phase_rad; e.g. "
+          "'Frequency (Hz),Magnitude (dB),Phase (deg)'. No header: --freq-unit and, unless "
+          "the columns are frequency,real,imag, --columns.")
+
+
 def _add_fit(sub):
     p = sub.add_parser("fit", help="fit a model to frequency-response data from a file",
                        description="Fit G_N(s) = exp(-hs) K [1/s] P_N(s) to data read from "
-                                   "a CSV (omega,real,imag or omega,magnitude_db,phase_deg) "
-                                   "or .npz file and write a report folder.")
-    _add_input(p, "file", "FILE", "data file (.csv or .npz)")
+                                   "a file and write a report folder. " + _FILES)
+    _add_input(p, "file", "FILE", "data file: text/CSV, .npz, .mat, .uff/.unv, .s1p/.s2p",
+               records=True)
     p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
                    help="number of sections N >= 1")
     _add_model_arguments(p)
@@ -339,9 +347,9 @@ def _add_sweep(sub):
                        description="Fit the data at each order of P_N and write a table "
                                    "(sweep.md, sweep.csv, sweep.json) and a figure of "
                                    "order vs max relative error, delay and time.")
-    _add_input(p, "file", "FILE", "data file (.csv or .npz), or example:A (B, C) for a "
-                                  "built-in example (then the error on a 10x denser grid "
-                                  "is reported too)")
+    _add_input(p, "file", "FILE", "data file (as for 'freqid fit'), or example:A (B, C) for "
+                                  "a built-in example (then the error on a 10x denser grid "
+                                  "is reported too)", records=True)
     p.add_argument("--orders", required=True, metavar="START:STOP:STEP",
                    help="orders of P_N, e.g. 4:40:2 (stop included) or 10,20,34")
     p.add_argument("--target", type=_positive_float, metavar="X",

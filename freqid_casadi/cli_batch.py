@@ -42,6 +42,8 @@ __all__ = ["add_cli", "run_cli", "write_batch_report", "data_files", "BATCH_FILE
 BATCH_FILES = (MARKER, "summary.csv", "summary.md")
 
 _SUFFIXES = (".csv", ".npz")
+#: Data files that ``freqid fit`` reads but batch does not: named in a warning when skipped.
+_OTHER_DATA = (".txt", ".dat", ".tsv", ".mat", ".uff", ".unv", ".s1p", ".s2p")
 
 _COLUMNS = ("file", "name", "status", "n_sections", "order", "max_rel_error",
             "rms_rel_error", "delay", "nit", "wall_time", "error", "model")
@@ -76,7 +78,8 @@ def data_files(folder):
     """Sorted paths of the ``.csv``/``.npz`` regular files directly inside ``folder``.
 
     A symbolic link is followed only if its target lies inside ``folder``; other links,
-    FIFOs, devices and sub-folders are skipped (a ``UserWarning`` names each skipped link).
+    FIFOs, devices and sub-folders are skipped (a ``UserWarning`` names each skipped link,
+    and one names the data files of other formats, ``.txt``, ``.mat``, ``.uff``, ...).
 
     Raises
     ------
@@ -93,7 +96,12 @@ def data_files(folder):
     except OSError as exc:
         raise DataError(f"cannot list {folder!r}: {exc.strerror}") from None
     real_folder = os.path.realpath(folder)
-    paths = []
+    paths, other = [], [n for n in names if n.lower().endswith(_OTHER_DATA)]
+    if other:
+        warnings.warn(f"skipped {len(other)} file(s) that freqid batch does not read (only "
+                      f".csv and .npz): {', '.join(other[:5])}{', ...' if len(other) > 5 else ''}"
+                      "; fit them with freqid fit, or save them as .csv", UserWarning,
+                      stacklevel=2)
     for n in names:
         p = os.path.join(folder, n)
         if not n.lower().endswith(_SUFFIXES):

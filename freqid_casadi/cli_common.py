@@ -11,11 +11,16 @@ import contextlib
 import sys
 import warnings
 
+import numpy as np
+
+from ._readfile import read_regular_file
+from ._table import _NUM, _decode
+from .data import FrequencyData
 from .loaders import DataWarning, load
-from .errors import OptionError
+from .errors import DataError, OptionError
 from ._table import parse_columns
 
-__all__ = ["add_data_options", "load_data", "load_options", "notes_to_stderr"]
+__all__ = ["add_data_options", "load_data", "load_options", "notes_to_stderr", "with_weights"]
 
 
 def _columns(text):
@@ -26,13 +31,16 @@ def _columns(text):
     return text
 
 
-def add_data_options(parser):
+def add_data_options(parser, records=False):
     """Add ``--freq-unit`` and ``--columns`` to ``parser``.
 
     Parameters
     ----------
     parser : argparse.ArgumentParser
         The sub-command's parser; returned for chaining.
+    records : bool
+        Also add ``--record K`` (UFF files with several records), ``--parameter S21``
+        (Touchstone files) and ``--weights STATS.csv``, for commands that read one file.
     """
     parser.add_argument(
         "--freq-unit", choices=("hz", "rad/s"), type=str.lower, metavar="hz|rad/s",
@@ -43,19 +51,47 @@ def add_data_options(parser):
         help="names of the file's columns, e.g. 'f,re,im' or 'freq_hz,mag_db,phase_deg' "
              "(omega/w rad/s, freq_hz Hz, f with --freq-unit; re,im; mag or mag_db with "
              "phase_deg or phase_rad; complex; skip)")
+    if records:
+        parser.add_argument(
+            "--record", type=_record, metavar="K",
+            help="UFF file (.uff/.unv) with several function records: which one (0-based)")
+        parser.add_argument(
+            "--parameter", metavar="S21",
+            help="Touchstone file (.s1p/.s2p): which parameter (default S11; S21 is the "
+                 "transfer from port 1 to port 2)")
+        parser.add_argument(
+            "--weights", metavar="STATS.csv",
+            help="weights of the data's frequencies: the <stem>.stats.csv that 'freqid frf' "
+                 "writes beside its FRF (column weight: |H|^2/variance, mean 1), at the same "
+                 "omega")
     return parser
 
 
+def _record(text):
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be a record number 0, 1, ..., got {text!r}")
+    return value
+
+
 def load_options(args):
-    """The ``freq_unit`` and ``columns`` keywords of :func:`~freqid_casadi.loaders.load`.
+    """The ``freq_unit`` and ``columns`` keywords of :func:`~freqid_casadi.loaders.load`,
+    and ``record`` and ``parameter`` when given.
 
     Parameters
     ----------
     args : argparse.Namespace
         Parsed arguments (absent options count as not given).
     """
-    return dict(freq_unit=getattr(args, "freq_unit", None),
+    opts = dict(freq_unit=getattr(args, "freq_unit", None),
                 columns=getattr(args, "columns", None))
+    for key in ("record", "parameter"):
+        if getattr(args, key, None) is not None:
+            opts[key] = getattr(args, key)
+    return opts
 
 
 @contextlib.contextmanager
@@ -92,6 +128,55 @@ def load_data(args, path):
     DataError, OptionError
         As :func:`freqid_casadi.loaders.load`; no note is printed before an error.
     """
+    opts = load_options(args)
+    lower = str(path).lower()
+    if "record" in opts and not lower.endswith((".uff", ".unv", ".uf")):
+        raise OptionError(f"--record chooses a record of a UFF file (.uff/.unv), not of "
+                          f"{path!r}; drop it")
+    if "parameter" in opts and not lower.endswith((".s1p", ".s2p")):
+        raise OptionError(f"--parameter chooses a parameter of a Touchstone file "
+                          f"(.s1p/.s2p), not of {path!r}; drop it")
     with notes_to_stderr():
-        data = load(path, **load_options(args))
-    return data
+        data = load(path, **opts)
+    weights = getattr(args, "weights", None)
+    return data if weights is None else with_weights(data, weights)
+
+
+def with_weights(data, path):
+    """``data`` with the weights of a ``freqid frf`` sidecar (columns ``omega``, ``weight``).
+
+    Parameters
+    ----------
+    data : FrequencyData
+    path : str
+        The ``<stem>.stats.csv`` file; its omega (rad/s) must be the data's.
+
+    Raises
+    ------
+    DataError
+        Not such a file, or its frequencies are not the data's.
+    """
+    path, payload = read_regular_file(path, "weights file")
+    lines = [t for t in _decode(path, payload).splitlines()
+             if t.strip() and not t.startswith("#")]
+    head = [c.strip().lower() for c in lines[0].split(",")] if lines else []
+    if "omega" not in head or "weight" not in head:
+        raise DataError(f"{path!r}: a weights file needs the columns omega and weight (the "
+                        "<stem>.stats.csv that freqid frf writes beside its FRF)")
+    try:
+        cells = [[c.strip() for c in t.split(",")] for t in lines[1:]]
+        if not all(_NUM.fullmatch(c) for row in cells for c in row):
+            raise ValueError
+        table = np.array(cells, float)
+        omega, weight = table[:, head.index("omega")], table[:, head.index("weight")]
+    except (ValueError, IndexError):
+        raise DataError(f"{path!r}: not a table of numbers under its header; pass the "
+                        "<stem>.stats.csv that freqid frf wrote") from None
+    if omega.shape != data.omega.shape or not np.allclose(omega, data.omega, rtol=1e-12,
+                                                          atol=0):
+        raise DataError(f"{path!r}: its {omega.size} frequencies are not the data's "
+                        f"{data.n_points}; pass the .stats.csv written with this FRF")
+    try:
+        return FrequencyData(data.omega, data.response, data.name, weight)
+    except DataError as exc:
+        raise DataError(f"{path!r}: {exc}") from None

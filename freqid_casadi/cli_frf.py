@@ -244,6 +244,9 @@ def _summary(est, out, sidecar):
         print(f"{d.n_points} excited bins ({int(est.bins[0])}..{int(est.bins[-1])}), "
               f"omega {d.omega[0]:.4g} to {d.omega[-1]:.4g} {unit}, {est.n_periods} period(s) "
               f"averaged")
+    if est.fs is None:
+        print("no --fs: the omega column is in rad/sample, so a fit of it gives the delay in "
+              "samples, not seconds (pass --fs HZ for rad/s)")
     print(f"frf: {os.path.abspath(out)}")
     if sidecar is not None:
         print(f"variance/coherence: {os.path.abspath(sidecar)}")

@@ -2,7 +2,8 @@
 
 Usage::
 
-    freqid modal FILES... --orders 2:40:2 --out DIR [--force] [--delay per-channel|shared|none]
+    freqid modal FILES... --orders 2:40:2 --out DIR [--force] [--freq-unit hz|rad/s]
+                 [--columns LIST] [--delay per-channel|shared|none]
                  [--zeros minimum-phase|free|LIST] [--integrator] [--freq-tol 0.01]
                  [--damping-tol 0.10] [--min-stable 3] [--max-iter 100]
                  [--channel-sections K] [--balance-channels]
@@ -28,6 +29,7 @@ import re
 import numpy as np
 
 from ._io import atomic_write_text
+from .cli_common import add_data_options
 from .errors import OptionError
 
 __all__ = ["add_cli", "run_cli", "NAME"]
@@ -52,8 +54,9 @@ def add_cli(subparsers):
                     "in frequency / stable in frequency and damping, select the stable "
                     "modes and write a report folder.")
     p.add_argument("files", nargs="+", metavar="FILE",
-                   help="FRF files (CSV omega,real,imag or omega,magnitude_db,phase_deg; "
-                        "NPZ)")
+                   help="FRF files (text/CSV, .npz, .mat, .uff/.unv, .s1p/.s2p, read as by "
+                        "'freqid fit'; see its --help for the columns and units)")
+    add_data_options(p)
     p.add_argument("--orders", default="2:40:2", metavar="START:STOP:STEP",
                    help="model orders (number of shared poles, even), stop included, or a "
                         "comma list (default 2:40:2)")
@@ -124,13 +127,13 @@ def run_cli(args, command):
         DataError for unreadable files or different grids, OptionError for bad options or
         an existing ``--out`` without ``--force``.
     """
-    from .loaders import load
+    from .cli_common import load_data
     from .survey import parse_orders, stabilization
     from .report import check_out_dir, report_folder
 
     check_out_dir(args.out, args.force)
     orders = parse_orders(args.orders)
-    datas = [load(f) for f in args.files]
+    datas = [load_data(args, f) for f in args.files]
     names = _channel_names(datas, args.files)
     delay = False if args.delay == "none" else args.delay
     if args.min_stable < 1 or args.max_iter < 1:
@@ -146,6 +149,11 @@ def run_cli(args, command):
     with report_folder(args.out, args.force) as (tmp, path):
         _write_report(res, tmp, names, command)
     print(f"{len(res.modes)} modes selected; report in {path}")
+    if not res.modes:
+        print(f"none: a mode is selected when it is stable in frequency and damping at each "
+              f"of the last {min(args.min_stable, len(orders) - 1)} orders (--min-stable "
+              f"{args.min_stable}); add orders (--orders) or lower --min-stable; "
+              "stabilization.csv has every pole's status")
     return 0
 
 

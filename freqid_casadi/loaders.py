@@ -27,7 +27,9 @@ from ._touchstone import load_touchstone
 from ._uff import load_uff
 from ._readfile import (MAX_ELEMENTS, MAX_FILE_BYTES, MAX_ROWS, DataWarning, _finish,
                         read_regular_file)
-from ._table import mat_table, parse_columns, parse_freq_unit, read_table, table_response
+from ._table import (Column, Table, _check_finite, _default_columns, _layout_problem,
+                     _resolve_units, parse_columns, parse_freq_unit, read_table, recognise,
+                     table_response)
 from .data import FrequencyData
 from .errors import DataError, OptionError
 
@@ -48,7 +50,9 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
     ----------
     path : str or path-like
         ``.npz`` (:func:`load_npz`), ``.mat`` (:func:`load_mat`), ``.uff``/``.unv``
-        (:func:`load_uff`), anything else delimited text (:func:`load_text`).
+        (:func:`load_uff`), ``.s1p``/``.s2p`` (:func:`load_touchstone`), anything else
+        delimited text (:func:`load_text`). A ``.json`` file is refused (a model file is
+        read with ``RationalDelayModel.load``).
     name : str, optional
         Name of the data (default: the file's stem).
     freq_unit : {"Hz", "rad/s"}, optional
@@ -92,13 +96,19 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
         return load_touchstone(path, name, parameter=parameter)
     if lower.endswith(".mat"):
         return load_mat(path, name, freq_unit=freq_unit, columns=cols)
+    if lower.endswith(".json"):
+        raise DataError(f"{os.fspath(path)!r} is JSON, not frequency-response data: a model "
+                        "file that freqid wrote (model.json) is read with "
+                        "freqid_casadi.RationalDelayModel.load(path); data files are text "
+                        "(CSV), .npz, .mat, .uff/.unv or .s1p/.s2p")
     if lower.endswith(_UFF_EXT):
         found = load_uff(path, freq_unit=freq_unit)
         if record is None:
             if len(found) > 1:
                 raise DataError(
                     f"{os.fspath(path)!r} holds {len(found)} frequency-response records: pass "
-                    f"record=0..{len(found) - 1} to load(), or use load_uff() for all of them")
+                    f"record=0..{len(found) - 1} to load() (command line --record K), or use "
+                    "load_uff() for all of them")
             record = 0
         if isinstance(record, bool) or not isinstance(record, int) \
                 or not 0 <= record < len(found):
@@ -150,7 +160,11 @@ def load_text(path, name=None, *, freq_unit=None, columns=None):
 
     Notes
     -----
-    A header is recognised when the first line holds a cell that is not a number. Header
+    A header is recognised when the first line holds a cell that is not a number; a second
+    line of units only (``Hz  dB  deg``) completes it; headerless data take the last comment
+    line before them as header when it names every column (``% f [Hz]  Re  Im``). Decimal
+    commas are read in a semicolon- or tab-separated file without decimal points; rows in
+    descending frequency order are reversed (with a :class:`DataWarning`). Header
     ``omega,real,imag`` and ``omega,magnitude_db,phase_deg`` are the layouts
     :func:`save_csv` and earlier versions wrote. A headerless file with three columns is
     frequency, real, imaginary; with two columns of which the second holds complex
@@ -338,9 +352,57 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None):
         mat = scipy.io.loadmat(io.BytesIO(payload), variable_names=numeric)
     except Exception as exc:
         raise DataError(f"cannot read {path!r} as a MATLAB .mat file ({exc})") from None
-    table = mat_table(path, {k: mat[k] for k in numeric}, columns, freq_unit)
+    table = _mat_table(path, {k: mat[k] for k in numeric}, columns, freq_unit)
     omega, response = table_response(table)
     return _finish(path, omega, response, name)
+
+
+# --------------------------------------------------------------------------- .mat
+
+def _mat_table(path, arrays, columns, freq_unit):
+    """A :class:`Table` from the numeric variables of a ``.mat`` file (see
+    ``loaders.load_mat``)."""
+    named = {}
+    if columns is None:
+        for key, arr in arrays.items():
+            col = recognise(key)
+            if col is not None and col.role != "skip":
+                named[key] = Column(col.role, col.unit, key)
+    cols = tuple(named.values())
+    if named and _layout_problem(cols) is None:
+        vecs = [np.asarray(arrays[k]).reshape(-1) if 1 in np.shape(arrays[k]) or
+                np.ndim(arrays[k]) <= 1 else None for k in named]
+        if any(v is None for v in vecs) or len({v.size for v in vecs}) != 1:
+            raise DataError(f"{path!r}: variables {', '.join(named)} must be vectors of equal "
+                            "length")
+        values = dict(zip((c.role for c in cols), vecs))
+        n = vecs[0].size
+    else:
+        if len(arrays) != 1 or np.ndim(next(iter(arrays.values()))) != 2:
+            raise DataError(
+                f"{path!r}: cannot tell the variables apart (found {', '.join(arrays)}); "
+                "name them omega (rad/s) or freq_hz (Hz) and response (complex), or save "
+                "one N x k matrix and pass columns=...")
+        mat = np.asarray(next(iter(arrays.values())))
+        if mat.shape[0] < mat.shape[1]:
+            mat = mat.T
+        first = [str(x) for x in mat[0]]
+        cols = columns if columns is not None else _default_columns(path, first)
+        if len(cols) != mat.shape[1]:
+            raise DataError(f"{path!r}: the matrix has {mat.shape[1]} columns, columns= "
+                            f"names {len(cols)}")
+        values = {}
+        for j, c in enumerate(cols):
+            if c.role != "skip":
+                col = mat[:, j]
+                values[c.role] = col if c.role == "complex" else np.real(col)
+        n = mat.shape[0]
+    cols = _resolve_units(path, cols, freq_unit, ",".join(named) if named else None)
+    for k, arr in values.items():
+        values[k] = np.asarray(arr, complex if k == "complex" else float)
+    table = Table(path, cols, values, np.arange(1, n + 1), where="row")
+    _check_finite(table)
+    return table
 
 
 # --------------------------------------------------------------------------- writer

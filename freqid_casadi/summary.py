@@ -65,7 +65,9 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
         "command": " ".join(str(command).split()),
         "title": title if title is not None else f"Fit report: {name}",
         "data": {"name": name, "n_points": int(data.n_points),
-                 "omega_min": float(data.omega[0]), "omega_max": float(data.omega[-1])},
+                 "omega_min": float(data.omega[0]), "omega_max": float(data.omega[-1]),
+                 "f_min_hz": float(data.omega[0] / (2 * np.pi)),
+                 "f_max_hz": float(data.omega[-1] / (2 * np.pi))},
         "structure": {"n_sections": st.n_sections, "basis": st.basis,
                       "integrator": st.integrator, "delay": st.delay,
                       "order_rational_part": per * st.n_sections, "order": st.order},
@@ -77,6 +79,7 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
         "gain": float(model.gain),
         "wall_time": float(result.wall_time),
         "success": bool(result.success),
+        "message": str(getattr(result, "message", "") or ""),
         "nit": int(sum(s.nit for s in result.stages)),
         "checks": {
             "stable": model.is_stable(),
@@ -228,7 +231,9 @@ def _overview_rows(s):
     rows = [
         ("command", f"`{s['command']}`"),
         ("data", f"{d['name']}: {d['n_points']} points, {number(d['omega_min'])} to "
-                 f"{number(d['omega_max'])} rad/s"),
+                 f"{number(d['omega_max'])} rad/s" + (
+                     f" ({number(d['f_min_hz'])} to {number(d['f_max_hz'])} Hz)"
+                     if "f_min_hz" in d else "")),
         ("structure", structure),
         ("method", s["method"]),
         ("max relative error", f"{number(s['max_rel_error'])} at "
@@ -243,10 +248,11 @@ def _overview_rows(s):
                                      f"{number(dn['rms_rel_error'])})"))
     rows += [
         ("delay h", f"{number(s['delay'], 6)} s"),
-        ("gain", number(s["gain"], 6)),
+        ("gain K (model.gain, in front of the sections)", number(s["gain"], 6)),
         ("wall time", f"{number(s['wall_time'])} s"),
         ("iterations (all stages)", number(s["nit"])),
-        ("success (final stage converged)", "yes" if s["success"] else "NO"),
+        ("success (final stage converged)", ("yes" if s["success"] else "NO") + (
+            f": {md_text(s['message'])}" if s.get("message") and not s["success"] else "")),
         ("P_N stable", _roots_check(ck["stable"], ck["max_pole_real_part"],
                                     ck["min_pole_damping"], "pole") + (
             f", {ck['n_poles_on_axis']} pole(s) on the imaginary axis (undamped, zeta = 0: "
@@ -279,8 +285,11 @@ def _diagnostic_lines(s):
 
 
 def _pm(value, std, digits=4):
-    return f"{number(value, digits)} ± {number(std)}" if std == std else \
-        f"{number(value, digits)} (at its bound)"
+    """'value ± std', '(not determined)' appended when std > |value|, or '(at its bound)'."""
+    if std != std:
+        return f"{number(value, digits)} (at its bound)"
+    vague = " (not determined)" if std is not None and std > abs(value) else ""
+    return f"{number(value, digits)} ± {number(std)}{vague}"
 
 
 def _uncertainty_lines(s):
@@ -289,13 +298,17 @@ def _uncertainty_lines(s):
     if not u or "error" in u:
         return ([f"Parameter uncertainty: not available ({md_text(u['error'])}).", ""]
                 if u else [])
+    low = "K0 = lim s G(s)" if s["structure"]["integrator"] else "DC gain G(0)"
     rows = [("delay h (s)", _pm(u["delay"], u["delay_std"], 6)),
-            ("gain", _pm(u["gain"], u["gain_std"]))]
-    rows += [(f"mode {k}: omega_n (rad/s), zeta", f"{_pm(m['omega_n'], m['omega_n_std'])}, "
+            (f"low-frequency gain ({low})", _pm(u["gain"], u["gain_std"]))]
+    rows += [(f"mode {k}: omega_n (rad/s) [f_n (Hz)], zeta",
+              f"{_pm(m['omega_n'], m['omega_n_std'])} [{number(m['frequency_hz'])} Hz], "
               f"{_pm(m['zeta'], m['zeta_std'])}") for k, m in enumerate(u["modes"], 1)]
     return ["## What the data determine", "",
             "One standard deviation from the weighted Jacobian at the optimum (delta method; "
-            f"noise variance from the {u['noise_source']}); `FitResult.uncertainty`.", "",
+            f"noise variance from the {u['noise_source']}); `FitResult.uncertainty`. "
+            "\"Not determined\": the std exceeds the value (a pole/zero pair that nearly "
+            "cancels, a mode outside the band, a delay traded against a far zero).", "",
             markdown_table(rows, ("parameter", "value ± std")), ""]
 
 
@@ -320,6 +333,22 @@ def _thesis_lines(s):
     return lines
 
 
+_STATUS_WORDS = {"CONVERGED": "converged", "ACCEPTABLE": "converged (acceptable level)",
+                 "COST_TOL": "converged (cost tolerance)", "MAX_ITER": "iteration limit",
+                 "SMALL_STEP": "step too small", "STALLED": "stalled, not stationary",
+                 "FAILED": "failed", "ERROR": "evaluation error"}
+
+
+def _stage_status(r):
+    """A stage's status in words, with the solver's own status (IPOPT's
+    User_Requested_Stop is freqid's convergence test stopping it)."""
+    solver = str(r.get("solver_status") or "")
+    if solver == "User_Requested_Stop":
+        solver = "stopped by freqid's test"
+    word = _STATUS_WORDS.get(r.get("status"))
+    return f"{word} ({solver})" if word and solver else word or solver
+
+
 def _stage_lines(stages):
     """The "Stages" section: one table row per stage record (the main loop's stages by
     number, the others by their kind)."""
@@ -331,7 +360,7 @@ def _stage_lines(stages):
             kinds.append(kind)
         srows.append((label, number(r["n_sections"]), number(r["window"]),
                       number(r["omega_c"]), number(r["max_rel_error"]), number(r["nit"]),
-                      number(r["wall_time"]), r["solver_status"]))
+                      number(r["wall_time"]), _stage_status(r)))
     known = {"final": "final: the loop's last stage, on all data",
              "rational-start": "rational-start: vector fitting of all sections (no solve; "
                                "its iterations are the trial delays)",
@@ -348,4 +377,4 @@ def _stage_lines(stages):
     return ["## Stages", "", text, "",
             markdown_table(srows, ("stage", "sections", "window", "omega_c (rad/s)",
                                    "max rel. error (all data)", "iterations", "time (s)",
-                                   "solver status"), "rrrrrrrl"), ""]
+                                   "status (solver)"), "rrrrrrrl"), ""]

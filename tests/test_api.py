@@ -200,7 +200,7 @@ LAYERS = {
     "fit": 5, "delay_hold": 5, "validation": 5, "sweep": 5, "batch": 5,
     "report": 6, "summary": 6, "plots": 6,
     "cli": 7, "__main__": 7, "cli_frf": 7, "cli_batch": 7,
-    "loaders": 1, "_readfile": 1, "_table": 1, "_uff": 1, "_touchstone": 1, "cli_common": 7,
+    "loaders": 1, "_readfile": 1, "_table": 1, "_columns": 1, "_uff": 1, "_touchstone": 1, "cli_common": 7,
     "covariance": 5, "bootstrap": 6, "bands": 5, "_physical": 1, "plots_uncertainty": 6,
     "_shared_nlp": 3, "_shared_term": 3, "_shared_solve": 3, "_shared_start": 4, "_shared_stages": 4, "shared": 5, "modal": 5, "survey": 6, "plots_modal": 6,
     "cli_modal": 7, "cli_ablation": 7,

@@ -142,7 +142,7 @@ CASES = [
     Case("csv-nan-cell", "file", DataError, "response must be finite", "re-measure",
          **_text("omega,real,imag\n1,2,3\n2,nan,4\n")),
     Case("csv-unsorted", "file", DataError, "strictly increasing", r"FrequencyData\.sorted",
-         **_text("omega,real,imag\n2,2,3\n1,2,4\n")),
+         **_text("omega,real,imag\n2,2,3\n3,2,4\n1,2,4\n")),
     Case("csv-empty-file", "file", DataError, "is empty", "expected a header",
          **_text("")),
     Case("csv-header-only", "file", DataError, "has a header but no data rows", None,

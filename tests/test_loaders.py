@@ -94,7 +94,8 @@ def test_bom_crlf_comments_quotes_and_skip_column(tmp_path):
 def test_headerless_without_freq_unit_names_the_option(tmp_path):
     path = _write(tmp_path, _rows(F_HZ, RESP.real, RESP.imag, sep=" "), "plain.txt")
     with pytest.raises(DataError, match=r"plain\.txt'.*frequency unit is unknown \(it has no "
-                       r"header line\): pass freq_unit='Hz' or freq_unit='rad/s' \(command "
+                       r"header line; its columns are read as frequency, real, imaginary "
+                       r"unless .*\): pass freq_unit='Hz' or freq_unit='rad/s' \(command "
                        r"line --freq-unit hz\|rad/s\)"):
         load(path)
 
@@ -408,8 +409,10 @@ def test_touchstone_s2p_written_by_scikit_rf(tmp_path, fmt):
     path = tmp_path / "dut.s2p"
     np.testing.assert_allclose(load(path, parameter="S21").response, RESP[:3], rtol=1e-6)
     np.testing.assert_allclose(load(path, parameter="s12").response, 0.05j, rtol=1e-6)
-    np.testing.assert_allclose(load(path).response, 0.1 + 0.2j, rtol=1e-6)      # S11
-    np.testing.assert_allclose(load(path).omega, 2 * np.pi * f, rtol=1e-9)
+    with pytest.warns(DataWarning, match="read S11, the default, of a 2-port file"):
+        default = load(path)
+    np.testing.assert_allclose(default.response, 0.1 + 0.2j, rtol=1e-6)      # S11
+    np.testing.assert_allclose(default.omega, 2 * np.pi * f, rtol=1e-9)
 
 
 def test_touchstone_bad_rows(tmp_path):

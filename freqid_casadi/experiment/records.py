@@ -95,8 +95,10 @@ def _number(path, line, column, cell):
 def load_records_csv(path):
     """Read an input/output record from a CSV file with the header ``u,y``.
 
-    Lines starting with ``#`` are comments; the header is case-insensitive; a UTF-8
-    byte-order mark is accepted.
+    Lines starting with ``#`` or ``%`` are comments; the header is case-insensitive; a UTF-8
+    byte-order mark is accepted. A file without a header (its first line two numbers,
+    comma or whitespace separated, as DaISy's ``.dat`` files) is read as u then y, with a
+    ``DataWarning`` saying so.
 
     Parameters
     ----------
@@ -116,19 +118,28 @@ def load_records_csv(path):
     """
     path, lines = _text_lines(path)
     rows = [(k + 1, t) for k, t in enumerate(lines)
-            if t.strip() and not t.lstrip().startswith("#")]
+            if t.strip() and not t.lstrip().startswith(("#", "%"))]
     if not rows:
         raise DataError(f"{path!r} is empty: expected a header 'u,y' and data rows")
-    head = [h.strip().strip("\"'").lower() for h in rows[0][1].split(",")]
-    if head != ["u", "y"]:
+    sep = "," if "," in rows[0][1] else None
+    head = [h.strip().strip("\"'").lower() for h in rows[0][1].split(sep)]
+    if all(_NUM.fullmatch(h) for h in head):          # no header (DaISy): u then y
+        import warnings
+
+        from ..loaders import DataWarning
+        warnings.warn(f"{path!r} has no header: column 1 is read as the input u, column 2 "
+                      "as the output y (a header line 'u,y' says so)", DataWarning,
+                      stacklevel=2)
+        rows = [(0, "u,y")] + rows
+    elif head != ["u", "y"]:
         raise DataError(
             f"{path!r}: unrecognised header {_shown(rows[0][1].strip())}; the first line must "
-            "be 'u,y' (input, output)")
+            "be 'u,y' (input, output), or the file has no header and two columns, u then y")
     if len(rows) < 2:
         raise DataError(f"{path!r} has a header but no data rows")
     values = np.empty((len(rows) - 1, 2))
     for k, (line, text) in enumerate(rows[1:]):
-        cells = text.split(",")
+        cells = text.split(sep)
         if len(cells) != 2:
             raise DataError(f"{path!r} line {line}: expected 2 columns (u,y), got {len(cells)}")
         values[k, 0] = _number(path, line, "u", cells[0])

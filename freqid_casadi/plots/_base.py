@@ -64,6 +64,27 @@ def finish_axes(ax):
     ax.tick_params(which="both", direction="in", top=True, right=True)
 
 
+def hz_axis(ax):
+    """A top axis in Hz over ``ax``, whose x axis is in rad/s (measurements are in Hz).
+
+    Parameters
+    ----------
+    ax : matplotlib.axes.Axes
+        Its top ticks are replaced by the Hz axis's.
+
+    Returns
+    -------
+    matplotlib.axes.Axes
+        The secondary axis.
+    """
+    two_pi = 2 * math.pi
+    sec = ax.secondary_xaxis("top", functions=(lambda w: w / two_pi, lambda f: f * two_pi))
+    sec.set_xlabel("frequency f (Hz)")
+    sec.tick_params(which="both", direction="in")
+    ax.tick_params(which="both", top=False)
+    return sec
+
+
 # ----------------------------------------------------------------------------- inputs
 
 

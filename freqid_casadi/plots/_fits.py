@@ -9,7 +9,7 @@ from ..errors import OptionError
 from ..metrics import relative_error as relative_error_of
 from ..model import RationalDelayModel
 from ._base import (_dense_grid, _is_result, _label_of, _labelled, _pyplot, finish_axes,
-                    new_figure)
+                    hz_axis, new_figure)
 
 __all__ = ["bode", "relative_error", "pole_zero", "stage_errors", "sweep"]
 
@@ -41,7 +41,7 @@ def bode(result_or_data, models=None, *, labels=None, title=None, figsize=None,
     -------
     matplotlib.figure.Figure
         Two axes sharing the frequency axis: magnitude (dB) and unwrapped phase (degrees)
-        against omega (rad/s, log scale).
+        against omega (rad/s, log scale), with the frequency in Hz on top.
 
     Notes
     -----
@@ -106,6 +106,8 @@ def bode(result_or_data, models=None, *, labels=None, title=None, figsize=None,
     ax_ph.set_xlim(omega[0], omega[-1])
     for ax in (ax_mag, ax_ph):
         finish_axes(ax)
+    if unit == "rad/s":
+        hz_axis(ax_mag)
     ax_mag.legend(loc="best", fontsize="small", framealpha=0.9)
     fig.suptitle(title if title is not None else (data.name or "Bode plot"))
     return fig
@@ -169,7 +171,8 @@ def relative_error(results, *, labels=None, title=None, figsize=None, annotate_m
             # keep the label inside the axes: left of the point when it is on the right
             span = math.log(omega[-1] / omega[0]) if omega[-1] > omega[0] else 1.0
             right = math.log(omega[i] / omega[0]) / span > 0.6
-            ax.annotate(f"max {rel[i]:.3g} at {omega[i]:.3g} {unit}", (omega[i], rel[i]),
+            hz = f" ({omega[i] / (2 * math.pi):.3g} Hz)" if unit == "rad/s" else ""
+            ax.annotate(f"max {rel[i]:.3g} at {omega[i]:.3g} {unit}{hz}", (omega[i], rel[i]),
                         xytext=(-4 if right else 4, 4 + 11 * k), textcoords="offset points",
                         ha="right" if right else "left", va="bottom", fontsize="small",
                         color=color)
@@ -180,6 +183,8 @@ def relative_error(results, *, labels=None, title=None, figsize=None, annotate_m
     ax.set_xlabel(rf"frequency $\omega$ ({unit})")
     ax.set_ylabel(r"relative error $|(G - G_N)/G_N|$")
     finish_axes(ax)
+    if unit == "rad/s":
+        hz_axis(ax)
     ax.legend(loc="best", fontsize="small", framealpha=0.9)
     if title is None:
         names = {getattr(r.data, "name", None) for _, r in pairs}

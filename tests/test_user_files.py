@@ -1,0 +1,394 @@
+"""Files as instruments and other tools write them, and what a user reads back: decimal commas,
+descending rows, a second header line of units, UFF records and Touchstone parameters from the
+command line, time records without a header, a model file given to ``fc.load``, the help text,
+the report's labels and the README's actuator command (a user-experience audit)."""
+
+import re
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+import freqid_casadi as fc
+from freqid_casadi import cli, cli_common
+from freqid_casadi.errors import DataError, OptionError
+from freqid_casadi.experiment import dataset_path, load_records_csv
+from freqid_casadi.loaders import DataWarning, load
+from freqid_casadi.summary import fit_summary, render_fit_summary
+
+F_HZ = np.array([0.5, 1.0, 2.5, 4.0, 5.0, 6.5, 9.0, 14.0])
+S = 2j * np.pi * F_HZ
+W1 = 2 * np.pi * 5.0
+RESP = 3.0 * np.exp(-0.002 * S) * W1 ** 2 / (S ** 2 + 2 * 0.05 * W1 * S + W1 ** 2)
+DB = 20 * np.log10(np.abs(RESP))
+DEG = np.degrees(np.angle(RESP))
+README = Path(__file__).resolve().parents[1] / "README.md"
+
+
+def _same(data, rtol=1e-6):
+    np.testing.assert_allclose(data.omega, 2 * np.pi * F_HZ, rtol=1e-12)
+    np.testing.assert_allclose(data.response, RESP, rtol=rtol)
+
+
+def _table(sep, header=("Frequency (Hz)", "Magnitude (dB)", "Phase (deg)"), rows=None):
+    rows = zip(F_HZ, DB, DEG) if rows is None else rows
+    lines = [sep.join(header)] + [sep.join(f"{v:.10f}" for v in r) for r in rows]
+    return "\n".join(lines) + "\n"
+
+
+# ------------------------------------------------------------------ decimal commas
+
+@pytest.mark.parametrize("sep", [";", "\t"])
+def test_decimal_commas_of_a_semicolon_or_tab_file_are_read(tmp_path, sep):
+    path = tmp_path / "euro.csv"
+    path.write_text(_table(sep).replace(".", ","), encoding="utf-8")
+    _same(load(path))
+
+
+def test_decimal_comma_next_to_a_point_is_an_error_naming_the_fix(tmp_path):
+    path = tmp_path / "mixed.csv"
+    path.write_text("freq_hz;re;im\n1,5;2.0;3,0\n", encoding="utf-8")
+    with pytest.raises(DataError, match=r"line 2, column 'freq_hz': '1,5' is not a number "
+                                        r"\(decimal commas are read only .*decimal points\)"):
+        load(path)
+
+
+def test_comma_separated_file_keeps_commas_as_separators(tmp_path):
+    path = tmp_path / "plain.csv"
+    path.write_text(_table(","), encoding="utf-8")
+    _same(load(path))
+
+
+# ------------------------------------------------------------------ row order
+
+def test_descending_rows_are_reversed_with_a_note(tmp_path):
+    path = tmp_path / "down.csv"
+    path.write_text(_table(",", rows=list(zip(F_HZ, DB, DEG))[::-1]), encoding="utf-8")
+    with pytest.warns(DataWarning, match="descending frequency order"):
+        _same(load(path))
+    np.savez(tmp_path / "down.npz", omega=2 * np.pi * F_HZ[::-1], response=RESP[::-1])
+    with pytest.warns(DataWarning, match="descending frequency order"):
+        _same(load(tmp_path / "down.npz"), rtol=1e-15)
+
+
+def test_unsorted_or_duplicated_rows_stay_errors(tmp_path):
+    path = tmp_path / "mixed.csv"
+    path.write_text("freq_hz,re,im\n1,1,1\n3,1,1\n2,1,1\n", encoding="utf-8")
+    with pytest.raises(DataError, match=r"line 4: omega must be strictly increasing "
+                                        r"\(unsorted rows\)"):
+        load(path)
+    path.write_text("freq_hz,re,im\n3,1,1\n2,1,1\n2,1,1\n", encoding="utf-8")
+    with pytest.raises(DataError, match=r"line 4: .*\(duplicated rows\)"):
+        load(path)
+
+
+# ------------------------------------------------------------------ headers
+
+def test_second_header_line_of_units_is_read(tmp_path):
+    path = tmp_path / "labview.txt"
+    text = _table("\t", header=("Frequency", "Magnitude", "Phase"))
+    head, body = text.split("\n", 1)
+    path.write_text(f"{head}\nHz\tdB\tdeg\n{body}", encoding="utf-8")
+    _same(load(path))
+
+
+@pytest.mark.parametrize("comment", ["% f [Hz]  Re  Im", "# freq_hz\tre\tim"])
+def test_header_in_the_last_comment_line_is_read(tmp_path, comment):
+    path = tmp_path / "analyser.txt"
+    body = "".join(f"{f!r}\t{z.real!r}\t{z.imag!r}\n"
+                   for f, z in zip(F_HZ.tolist(), RESP.tolist()))
+    path.write_text(f"% exported by an analyser\n{comment}\n{body}\n\n", encoding="utf-8")
+    _same(load(path), rtol=1e-15)
+    path.write_text(f"{comment}\n% a remark\n{body}", encoding="utf-8")
+    with pytest.raises(DataError, match="frequency unit is unknown .it has no header line"):
+        load(path)                                 # only the comment right before the data
+
+
+def test_headerless_three_columns_say_how_they_are_read(tmp_path):
+    path = tmp_path / "h.txt"
+    path.write_text("".join(f"{f} {m} {p}\n" for f, m, p in zip(F_HZ, DB, DEG)))
+    with pytest.raises(DataError, match=r"read as frequency, real, imaginary unless "
+                                        r"columns='f,mag_db,phase_deg' \(--columns\)"):
+        load(path)
+
+
+def test_two_numeric_columns_point_to_freqid_frf(tmp_path):
+    path = tmp_path / "records.dat"
+    path.write_text("0.1\t0.2\n0.3\t0.4\n")
+    with pytest.raises(DataError, match=r"time records .*: freqid frf FILE --out frf\.csv"):
+        load(path)
+
+
+def test_model_json_given_to_load_names_the_model_reader(tmp_path):
+    path = tmp_path / "model.json"
+    path.write_text('{\n "format": "freqid_casadi.RationalDelayModel"\n}\n')
+    with pytest.raises(DataError, match=r"RationalDelayModel\.load\(path\)"):
+        load(path)
+
+
+# ------------------------------------------------------------------ command line
+
+def _args(path, *extra):
+    return cli.build_parser().parse_args(["fit", str(path), "--sections", "1", "--out", "r",
+                                          *extra])
+
+
+def _touchstone(tmp_path):
+    path = tmp_path / "dut.s2p"
+    rows = [f"{f!r} 0.1 0 {z.real!r} {z.imag!r} 0 0 0.1 0"
+            for f, z in zip(F_HZ.tolist(), RESP.tolist())]
+    path.write_text("! two-port\n# Hz S RI R 50\n" + "\n".join(rows) + "\n")
+    return path
+
+
+def test_cli_parameter_reads_s21_and_the_default_s11_is_noted(tmp_path):
+    path = _touchstone(tmp_path)
+    _same(cli_common.load_data(_args(path, "--parameter", "S21"), str(path)), rtol=1e-15)
+    with pytest.warns(DataWarning, match=r"read S11, the default, of a 2-port file; pass "
+                                         r"parameter='S21' \(command line --parameter S21\)"):
+        data = load(path)
+    np.testing.assert_array_equal(data.response, 0.1)
+
+
+def test_cli_record_chooses_a_uff_record(tmp_path):
+    pyuff = pytest.importorskip("pyuff")
+    path = tmp_path / "two.uff"
+    uff = pyuff.UFF(str(path))
+    for node, scale in ((1, 1.0), (2, 2.0)):
+        uff.write_sets(pyuff.prepare_58(
+            binary=0, func_type=4, rsp_node=node, rsp_dir=3, ref_node=1, ref_dir=3,
+            data=scale * RESP, x=F_HZ, id1="FRF", abscissa_spacing=0,
+            abscissa_spec_data_type=18, ordinate_spec_data_type=12,
+            orddenom_spec_data_type=13), mode="add")
+    data = cli_common.load_data(_args(path, "--record", "1"), str(path))
+    np.testing.assert_allclose(data.response, 2 * RESP, rtol=1e-6)
+    with pytest.raises(DataError, match=r"record=0\.\.1 to load\(\) \(command line --record K\)"):
+        cli_common.load_data(_args(path), str(path))
+
+
+def test_cli_record_and_parameter_are_refused_for_other_files(tmp_path):
+    path = tmp_path / "d.csv"
+    path.write_text(_table(","))
+    with pytest.raises(OptionError, match="--record chooses a record of a UFF file"):
+        cli_common.load_data(_args(path, "--record", "0"), str(path))
+    with pytest.raises(OptionError, match="--parameter chooses a parameter of a Touchstone"):
+        cli_common.load_data(_args(path, "--parameter", "S21"), str(path))
+    assert cli.main(["fit", str(path), "--sections", "1", "--out", "r", "--record", "-1"]) == 2
+
+
+def test_fit_help_tells_the_formats_and_how_to_declare_units(capsys):
+    assert cli.main(["fit", "--help"]) == 0
+    text = " ".join(capsys.readouterr().out.split())
+    for needed in (".uff/.unv", ".s1p/.s2p", ".mat", "'Frequency (Hz),Magnitude (dB),Phase "
+                   "(deg)'", "--record K", "--parameter S21", "No header: --freq-unit"):
+        assert needed in text, needed
+    assert "(.csv or .npz)" not in text
+
+
+def test_frf_reads_headerless_daisy_records(tmp_path, capsys):
+    n, period = 4 * 64, 64
+    rng = np.random.default_rng(1)
+    u1 = rng.standard_normal(period)
+    u = np.tile(u1, 4)
+    y = 0.5 * u + 0.25 * np.roll(u, 1)                     # periodic: H = 0.5 + 0.25 z^-1
+    path = tmp_path / "arm.dat"
+    path.write_text("".join(f"  {a: .7e}\t  {b: .7e}\t\n" for a, b in zip(u.tolist(), y.tolist())))
+    with pytest.warns(DataWarning, match="no header: column 1 is read as the input u"):
+        uu, yy = load_records_csv(path)
+    np.testing.assert_allclose(uu, u, rtol=1e-7, atol=1e-12)
+    np.testing.assert_allclose(yy, y, rtol=1e-7, atol=1e-12)
+    assert n == u.size
+    out = tmp_path / "frf.csv"
+    assert cli.main(["frf", str(path), "--period", str(period), "--out", str(out)]) == 0
+    printed = capsys.readouterr()
+    assert "no --fs: the omega column is in rad/sample" in printed.out
+    assert "column 1 is read as the input u" in printed.err
+    data = load(out)
+    z = np.exp(1j * data.omega)
+    np.testing.assert_allclose(data.response, 0.5 + 0.25 / z, rtol=1e-6)
+
+
+def test_readme_actuator_command_gives_what_the_readme_says(tmp_path, capsys):
+    text = " ".join(README.read_text(encoding="utf-8").split())
+    m = re.search(r"`(freqid frf 0A\.txt\.xz [^`]*)` gives H1 with coherence ≥ ([0-9.]+) over "
+                  r"([0-9.]+)–([0-9.]+) Hz", text)
+    assert m, "README: the actuator's freqid frf command"
+    argv = m.group(1).split()[1:]
+    argv[1] = dataset_path("actuator/0A.txt.xz")
+    argv[argv.index("--out") + 1] = str(tmp_path / "frf.csv")
+    assert cli.main(argv) == 0
+    printed = capsys.readouterr().out
+    found = re.search(r"([0-9.]+) to ([0-9.]+) Hz .*coherence min ([0-9.]+)", printed)
+    assert found, printed
+    assert abs(float(found.group(1)) - float(m.group(3))) < 0.005
+    assert abs(float(found.group(2)) - float(m.group(4))) < 0.01
+    assert float(found.group(3)) >= float(m.group(2))
+
+
+# ------------------------------------------------------------------ the report
+
+@pytest.fixture(scope="module")
+def one_mode_fit():
+    data = fc.FrequencyData(2 * np.pi * F_HZ, RESP, "one")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fc.fit(data, n_sections=1)
+
+
+def test_report_names_both_gains_the_hz_range_and_the_stage_status(one_mode_fit):
+    s = fit_summary(one_mode_fit, command="freqid fit x --sections 1 --out r")
+    text = render_fit_summary(s)
+    k = re.search(r"\| gain K \(model\.gain, in front of the sections\) \| ([-0-9.e]+) \|", text)
+    g = re.search(r"\| low-frequency gain \(DC gain G\(0\)\) \| ([-0-9.e]+) ± ", text)
+    assert k and g, text
+    assert abs(float(k.group(1)) - one_mode_fit.model.gain) < 1e-5 * abs(one_mode_fit.model.gain)
+    assert abs(float(g.group(1)) - 3.0) < 1e-3                    # the data's G(0) = 3
+    assert "(0.5 to 14 Hz)" in text
+    assert re.search(r"mode 1: omega_n \(rad/s\) \[f_n \(Hz\)\], zeta \| 31\.4\d* ± .* \[5 Hz\]",
+                     text), text
+    assert "User_Requested_Stop" not in text and "| solver status |" not in text
+    assert "stopped by freqid's test" in text or "converged (" in text
+
+
+def test_report_marks_a_parameter_the_data_do_not_determine(one_mode_fit):
+    s = fit_summary(one_mode_fit, command="freqid fit x --sections 1 --out r")
+    mode = s["uncertainty"]["modes"][0]
+    assert "not determined" not in render_fit_summary(s)
+    mode["omega_n_std"] = 2 * mode["omega_n"]
+    text = render_fit_summary(s)
+    assert re.search(r"31\.4\d* ± 62\.8\d* \(not determined\)", text), text
+
+
+def test_cli_weights_reads_the_frf_sidecar(tmp_path, capsys):
+    period, n = 64, 8
+    rng = np.random.default_rng(2)
+    u = np.tile(rng.standard_normal(period), n)
+    y = 0.5 * u + 0.25 * np.roll(u, 1) + 0.01 * rng.standard_normal(u.size)
+    records, frf = tmp_path / "uy.csv", tmp_path / "frf.csv"
+    records.write_text("u,y\n" + "".join(f"{a!r},{b!r}\n" for a, b in zip(u.tolist(), y.tolist())))
+    assert cli.main(["frf", str(records), "--period", str(period), "--fs", "100",
+                     "--out", str(frf)]) == 0
+    stats = tmp_path / "frf.stats.csv"
+    table = np.loadtxt(stats, delimiter=",", skiprows=1)
+    data = cli_common.load_data(_args(frf, "--weights", str(stats)), str(frf))
+    np.testing.assert_array_equal(data.weights, table[:, 4])
+    assert np.ptp(data.weights) > 0
+    assert cli_common.load_data(_args(frf), str(frf)).weights is None
+    other = tmp_path / "other.stats.csv"
+    other.write_text("omega,bin,variance,coherence,weight\n1.0,1,0.1,1,2.0\n")
+    with pytest.raises(DataError, match=r"other\.stats\.csv'.*frequencies are not the data's"):
+        cli_common.load_data(_args(frf, "--weights", str(other)), str(frf))
+    with pytest.raises(DataError, match="needs the columns omega and weight"):
+        cli_common.load_data(_args(frf, "--weights", str(frf)), str(frf))
+    text = stats.read_text().splitlines()
+    other.write_text("\n".join(text[:2] + [text[2].replace(".", "_", 1)] + text[3:]) + "\n")
+    with pytest.raises(DataError, match="not a table of numbers under its header"):
+        cli_common.load_data(_args(frf, "--weights", str(other)), str(frf))
+
+
+def test_report_says_why_a_fit_did_not_converge(one_mode_fit):
+    s = fit_summary(one_mode_fit, command="freqid fit x --sections 1 --out r")
+    assert s["message"] == one_mode_fit.message
+    s["success"], s["message"] = False, "the final stage did not converge: iteration limit"
+    text = render_fit_summary(s)
+    assert "| success (final stage converged) | NO: the final stage did not converge: " \
+           "iteration limit |" in text
+
+
+def test_bode_and_error_figures_have_a_hz_axis(one_mode_fit):
+    pytest.importorskip("matplotlib")
+    import matplotlib.pyplot as plt
+
+    from freqid_casadi import plots
+    try:
+        for fig in (plots.bode(one_mode_fit), plots.relative_error(one_mode_fit)):
+            ax = fig.axes[0]
+            tops = [c for c in ax.child_axes if c.get_xlabel() == "frequency f (Hz)"]
+            assert len(tops) == 1
+            # the top axis maps rad/s to Hz: 2 pi * 5 rad/s is 5 Hz
+            fwd = tops[0]._functions[0]
+            assert fwd(np.array([2 * np.pi * 5.0]))[0] == pytest.approx(5.0, rel=1e-15)
+        notes = [t.get_text() for t in fig.axes[0].texts]
+        i = int(np.argmax(one_mode_fit.rel_error))
+        assert any(f"({one_mode_fit.data.omega[i] / (2 * np.pi):.3g} Hz)" in n for n in notes)
+    finally:
+        plt.close("all")
+
+
+def test_batch_names_the_data_files_it_skips(tmp_path):
+    from freqid_casadi.cli_batch import data_files
+
+    (tmp_path / "a.csv").write_text(_table(","))
+    (tmp_path / "b.txt").write_text(_table(","))
+    (tmp_path / "c.uff").write_text("")
+    (tmp_path / "notes.md").write_text("")
+    with pytest.warns(UserWarning, match=r"skipped 2 file\(s\) that freqid batch does not "
+                                         r"read \(only \.csv and \.npz\): b\.txt, c\.uff; fit "
+                                         r"them with freqid fit"):
+        assert [Path(p).name for p in data_files(tmp_path)] == ["a.csv"]
+
+
+def test_modal_reads_hz_files_and_says_why_no_mode_was_selected(tmp_path, capsys):
+    f = np.linspace(1.0, 12.0, 60)
+    s = 2j * np.pi * f
+    for k, scale in enumerate((1.0, -0.5)):
+        h = scale * W1 ** 2 / (s ** 2 + 2 * 0.05 * W1 * s + W1 ** 2)
+        (tmp_path / f"ch{k}.txt").write_text(
+            "".join(f"{a!r} {z.real!r} {z.imag!r}\n" for a, z in zip(f.tolist(), h.tolist())))
+    files = [str(tmp_path / "ch0.txt"), str(tmp_path / "ch1.txt")]
+    out = str(tmp_path / "m")
+    assert cli.main(["modal", *files, "--orders", "2:4:2", "--out", out]) == 2
+    assert "--freq-unit hz|rad/s" in capsys.readouterr().err
+    assert cli.main(["modal", *files, "--orders", "2:4:2", "--out", out, "--freq-unit", "hz",
+                     "--freq-tol", "1e-14"]) == 0
+    printed = capsys.readouterr().out
+    assert "0 modes selected" in printed
+    assert ("none: a mode is selected when it is stable in frequency and damping at each of "
+            "the last 1 orders (--min-stable 3)") in printed
+    rows = (Path(out) / "stabilization.csv").read_text().splitlines()
+    first = [r.split(",") for r in rows[1:] if r.startswith("2,")]
+    assert len(first) == 1 and float(first[0][1]) == pytest.approx(5.0, rel=0.01)   # Hz
+
+
+@pytest.mark.parametrize("header", [
+    ("Frequency [Hz]", "Real [g/N]", "Imag [g/N]", "Coherence"),           # Testlab-like
+    ("f/Hz", "Real part", "Imaginary part", "coh"),                        # DIN style
+])
+def test_headers_with_physical_units_din_units_and_coherence(tmp_path, header):
+    path = tmp_path / "frf.csv"
+    rows = zip(F_HZ, RESP.real, RESP.imag, np.ones(F_HZ.size))
+    path.write_text(_table(";", header=header, rows=rows), encoding="utf-8")
+    _same(load(path), rtol=1e-9)
+
+
+def test_magnitude_with_a_physical_unit_is_linear_and_db_re_is_db(tmp_path):
+    path = tmp_path / "frf.csv"
+    mag = np.abs(RESP)
+    path.write_text(_table(",", header=("Freq (Hz)", "Magnitude [m/s^2/N]", "Phase/°"),
+                           rows=zip(F_HZ, mag, DEG)), encoding="utf-8")
+    _same(load(path), rtol=1e-9)
+    path.write_text(_table(",", header=("Freq (Hz)", "Magnitude [dB re 1 m/N]", "Phase/°")),
+                    encoding="utf-8")
+    _same(load(path), rtol=1e-9)
+
+
+@pytest.mark.parametrize("dc_row", ["0,-inf,0", "0,nan,nan", "0,-Infinity,NaN"])
+def test_a_non_finite_dc_bin_is_dropped_like_any_zero_frequency_row(tmp_path, dc_row):
+    path = tmp_path / "dc.csv"
+    body = _table(",", header=("freq_hz", "mag_db", "phase_deg"))
+    head, rest = body.split("\n", 1)
+    path.write_text(f"{head}\n{dc_row}\n{rest}", encoding="utf-8")
+    with pytest.warns(DataWarning, match=r"dropped 1 row\(s\) at zero frequency \(lines 2\)"):
+        _same(load(path))
+    path.write_text(f"{head}\n{rest}0.7,nan,0\n", encoding="utf-8")
+    with pytest.raises(DataError, match=r"line 10, column 'mag_db': nan is not finite"):
+        load(path)                                   # away from DC it stays an error
+
+
+@pytest.mark.parametrize("names", [("f_Hz", "H1"), ("f_hz", "txy")])    # tfestimate's output
+def test_mat_file_with_estimator_names(tmp_path, names):
+    scipy_io = pytest.importorskip("scipy.io")
+    path = tmp_path / "est.mat"
+    scipy_io.savemat(path, {names[0]: F_HZ.reshape(-1, 1), names[1]: RESP.reshape(-1, 1)})
+    _same(load(path), rtol=1e-15)
