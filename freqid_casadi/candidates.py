@@ -4,7 +4,9 @@
 delay also tries the same model at ``h = 0`` (the nested model class: a fit with a delay
 must never be worse than the fit without one). :func:`choose` keeps, among the candidates
 within 10 % of the lowest max relative error, a converged one if there is any, and then
-the lowest RMS error.
+the lowest RMS error. With weights, both are of the weighted relative error
+``sqrt(w_i / mean(w)) |r_i|``, the objective's own measure (an unweighted ranking kept an
+unconverged h = 0 candidate over the converged optimum of the weighted fit).
 """
 
 import dataclasses
@@ -38,6 +40,9 @@ class Candidate:
     max_rel_error, rms_rel_error : float
     success : bool
         The candidate's last stage converged.
+    rank_max, rank_rms : float
+        Max and RMS of the weighted relative error ``sqrt(w_i / mean(w)) |r_i|`` (equal
+        to the unweighted ones without weights): what :func:`choose` compares.
     """
 
     name: str
@@ -45,19 +50,28 @@ class Candidate:
     max_rel_error: float
     rms_rel_error: float
     success: bool
+    rank_max: float = math.nan
+    rank_rms: float = math.nan
 
     @classmethod
     def of(cls, name, run, data):
         """The candidate of a loop's ``run`` on ``data``."""
         param, z, _, records = run
         stats = relative_error(param.to_model(z), data)
+        rank_max, rank_rms = float(stats.max), float(stats.rms)
+        if data.weights is not None:
+            w = np.asarray(data.weights, float)
+            e = np.abs(np.asarray(stats.values)) * np.sqrt(w / np.mean(w))
+            rank_max = float(np.max(e)) if e.size else math.nan
+            rank_rms = float(np.sqrt(np.mean(e * e))) if e.size else math.nan
         return cls(name, run, float(stats.max), float(stats.rms),
-                   bool(records[-1].success) if records else False)
+                   bool(records[-1].success) if records else False, rank_max, rank_rms)
 
 
 def choose(candidates):
     """The kept candidate: among those within :data:`NEAR` of the lowest max relative
-    error, the converged ones if any, then the lowest RMS (ties: the first given).
+    error, the converged ones if any, then the lowest RMS (ties: the first given); both
+    weighted when the data have weights (:attr:`Candidate.rank_max`).
 
     Parameters
     ----------
@@ -67,11 +81,15 @@ def choose(candidates):
     -------
     Candidate
     """
-    finite = [c for c in candidates if np.isfinite(c.max_rel_error)] or list(candidates)
-    best = min(c.max_rel_error for c in finite)
-    pool = [c for c in finite if c.max_rel_error <= NEAR * best] or finite
+    def key(c):     # candidates made directly (tests) may lack the weighted numbers
+        return ((c.max_rel_error, c.rms_rel_error) if math.isnan(c.rank_max)
+                else (c.rank_max, c.rank_rms))
+
+    finite = [c for c in candidates if np.isfinite(key(c)[0])] or list(candidates)
+    best = min(key(c)[0] for c in finite)
+    pool = [c for c in finite if key(c)[0] <= NEAR * best] or finite
     pool = [c for c in pool if c.success] or pool
-    return min(pool, key=lambda c: (c.rms_rel_error, candidates.index(c)))
+    return min(pool, key=lambda c: (key(c)[1], candidates.index(c)))
 
 
 def zero_delay_run(ctx, run):

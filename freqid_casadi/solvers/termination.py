@@ -218,6 +218,13 @@ class StageMonitor:
         self.n_points = None         # complex residuals, from the first residual evaluated
         self.cos = self.allowed = self.proj = float("nan")
 
+    def test_text(self):
+        """The termination test's numbers for messages (the projection is computed only
+        when the cosine test passes)."""
+        proj = (f"||P r||/||r|| {self.proj:.2g}" if np.isfinite(self.proj) else
+                "||P r||/||r|| not computed (the cosine test fails first)")
+        return f"max cos(r, J_j) {self.cos:.2g} (allowed {self.allowed:.2g}), {proj}"
+
     def stationary(self, x):
         """(stationary?, cost) at ``x``: the cheap cosine test, then the projection."""
         pb = self.problem
@@ -235,6 +242,7 @@ class StageMonitor:
         cmax, noise = relative_stationarity(grad, cn, cost, free, n_points, pb.n)
         noise *= self.term.noise_factor
         self.cos, self.allowed = cmax, np.sqrt(self.term.ftol) + noise
+        self.proj = float("nan")
         if cmax > self.allowed:
             return False, cost
         r = np.asarray(pb.residual(x), float)
@@ -279,8 +287,7 @@ class StageMonitor:
         pb = self.problem
         x = np.clip(np.asarray(x0, float), pb.lb, pb.ub)
         lam = np.zeros_like(x) if lam_x0 is None else np.asarray(lam_x0, float).copy()
-        test = (f"max cos(r, J_j) {self.cos:.2g} (allowed {self.allowed:.2g}), "
-                f"||P r||/||r|| {self.proj:.2g}")
+        test = self.test_text()
         return StageResult(x=x, cost=pb.eval_cost(x), status=Status.CONVERGED,
                            message=f"converged: the start is stationary ({test})",
                            success=True, nit=0, nfev=1, wall_time=time.perf_counter() - t0,
@@ -349,8 +356,7 @@ class StageMonitor:
                                           nit=res.nit + steps)
                 ok, _ = self.stationary(x)
         ipopt_ok = res.status in (Status.CONVERGED, Status.ACCEPTABLE)
-        test = (f"max cos(r, J_j) {self.cos:.2g} (allowed {self.allowed:.2g}), "
-                f"||P r||/||r|| {self.proj:.2g}")
+        test = self.test_text()
         if ok or ipopt_ok:
             status = res.status if ipopt_ok else Status.CONVERGED
             how = "relative stationarity" if ok else "IPOPT's tolerance"
