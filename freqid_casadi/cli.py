@@ -109,31 +109,35 @@ def _positive_float(text):
 
 #: --flag -> (choices, default, help) of the fit's options that take one of a set of words
 _CHOICE_OPTIONS = {
-    "--method": (METHODS, "ipopt", "stage solver: IPOPT with bounds (default) or the thesis's "
+    "--method": (METHODS, "ipopt", "stage solver: IPOPT with bounds or the thesis's "
                                    "log-barrier Levenberg-Marquardt"),
-    "--start": (STARTS, "sequential", "sequential: the thesis's main loop (default); rational: "
-                                      "vector fitting of all sections then one IPOPT polish; "
-                                      "best: both, the lower max error wins"),
+    "--start": (STARTS, "sequential", "sequential: the thesis's main loop; rational: vector "
+                                      "fitting of all sections then one IPOPT polish; best: "
+                                      "both, a converged model within 10 %% of the lowest max "
+                                      "error wins"),
     "--objective": (OBJECTIVES, "least-squares", "minimax adds a polish of the max relative "
                                                  "error (kept only if it lowers it)"),
-    "--gain-sign": (GAIN_SIGNS, "auto", "sign of the gain (default auto: from the "
+    "--gain-sign": (GAIN_SIGNS, "auto", "sign of the gain (auto: from the "
                                         "low-frequency phase; a sign-inverted system is "
                                         "fitted with a negative gain and said so)"),
-    "--zeros": (ZEROS, "minimum-phase", "minimum-phase (default) or free: zeros anywhere, "
+    "--zeros": (ZEROS, "minimum-phase", "minimum-phase or free: zeros anywhere, "
                                         "poles stable (for excess phase a delay cannot "
                                         "explain)"),
 }
 
 
-def _add_choices(p, *flags):
-    """Add the options ``flags`` of :data:`_CHOICE_OPTIONS` to ``p``, in that order."""
+def _add_choices(p, *flags, defaults=None):
+    """Add the options ``flags`` of :data:`_CHOICE_OPTIONS` to ``p``, in that order;
+    ``defaults`` (flag -> value) overrides their defaults."""
     for flag in flags:
         choices, default, text = _CHOICE_OPTIONS[flag]
-        p.add_argument(flag, choices=choices, default=default, help=text)
+        default = (defaults or {}).get(flag, default)
+        p.add_argument(flag, choices=choices, default=default,
+                       help=f"{text} (default {default})")
 
 
-def _common(p, *, out_required):
-    _add_choices(p, "--method", "--start", "--objective")
+def _common(p, *, out_required, start="sequential"):
+    _add_choices(p, "--method", "--start", "--objective", defaults={"--start": start})
     if out_required:
         p.add_argument("--out", required=True, metavar="DIR",
                        help="report folder to create (must not exist unless --force)")
@@ -206,7 +210,9 @@ def _add_fit(sub):
                    help="floor on the damping ratio of every pole and zero; 'auto' ties it "
                         "to the frequency spacing (for noisy data: no pole/zero pair "
                         "narrower than the spacing)")
-    _common(p, out_required=True)
+    # a user's data: both starts (the sequential loop alone can end in a valley the
+    # rational start avoids, e.g. a zero pair drifting to infinity against the delay)
+    _common(p, out_required=True, start="best")
     return p
 
 
