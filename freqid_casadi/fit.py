@@ -23,6 +23,7 @@ from ._fit_checks import (GAIN_SIGNS, after_fit, check_model_class, success_of, 
 from .data import FrequencyData
 from .delay_hold import hold_undetermined_delay
 from .delay_search import delay_search_run
+from .far_roots import far_root_run
 from .diagnostics import check_gain_sign
 from .errors import FreqidError, OptionError, ResolutionWarning
 from .mainloop import LoopContext, minimax, rational, sequential
@@ -94,7 +95,9 @@ class FitResult:
         Max relative error of every candidate :func:`fit` chose from: the starts and,
         with a delay, each start's model at h = 0 ("<start> at h=0") and, for a start
         that did not converge, its delay search ("<start>, delay search",
-        :mod:`freqid_casadi.delay_search`), see :func:`~freqid_casadi.candidates.choose`.
+        :mod:`freqid_casadi.delay_search`) and its roots far above the band at infinity
+        ("<start>, far roots", :mod:`freqid_casadi.far_roots`), see
+        :func:`~freqid_casadi.candidates.choose`.
     message : str
         Why ``success`` is what it is: the final stage's termination (with the relative
         stationarity numbers) or the reason the fit is not a success.
@@ -407,18 +410,19 @@ def _run_starts(ctx, start, tol, data):
         zero = zero_delay_run(ctx, cand.run)
         if zero is not None:
             cands.append(Candidate.of(f"{cand.name} at h=0", zero, data))
-    # one delay search, from the candidate the fit would keep when it did not converge
-    # (the starts' delays are close: a search from each would probe the same delays)
-    first = choose(cands) if cands else None
-    if first is not None and not first.success:
-        searched = delay_search_run(ctx, first.run)   # (reports its own records)
-        if searched is not None:
-            name = first.name.split(" at h=0")[0]
-            cands.append(Candidate.of(f"{name}, delay search", searched, data))
+    # rescues of an unconverged fit, each from the candidate the fit would then keep (the
+    # starts' delays are close: a delay search from each would probe the same delays)
+    for label, rescue in (("delay search", delay_search_run), ("far roots", far_root_run)):
+        first = choose(cands) if cands else None
+        if first is not None and not first.success:
+            found = rescue(ctx, first.run)             # (reports its own records)
+            if found is not None:
+                name = first.name.split(" at h=0")[0].split(", ")[0]
+                cands.append(Candidate.of(f"{name}, {label}", found, data))
     cand_errors = {c.name: c.max_rel_error for c in cands}
     errors = {k: v for k, v in cand_errors.items() if k in runs}
     kept = choose(cands)
-    won = kept.name.split(" at h=0")[0].split(", delay search")[0]
+    won = kept.name.split(" at h=0")[0].split(", ")[0]
     param, z, lam, records = kept.run
     if kept.name.endswith(" at h=0"):
         ctx.callback(records[-1])
@@ -460,6 +464,7 @@ def _progress_callback(progress):
                                             else f"{rec.message} (vector fits)"),
                  StageKind.MINIMAX: rec.kept, StageKind.FINAL: "final",
                  StageKind.DELAY_SEARCH: "delay search, polish",
+                 StageKind.FAR_ROOTS: "far roots at infinity, polish",
                  StageKind.ZERO_DELAY: "at h = 0"}.get(rec.kind, f"stage {rec.stage:2d}")
         sys.stderr.write(
             f"{label}: {rec.n_sections:2d} sections{where}, window {rec.window}, "

@@ -305,6 +305,10 @@ class LoopOptions:
         When a fit with a delay did not converge, also try the rational start at the
         delays around the fitted one, polished, as one more candidate
         (:mod:`freqid_casadi.delay_search`); the fit keeps it only when it is better.
+    far_roots : bool
+        When a fit with a delay did not converge, also try it with the roots far above
+        the band moved to infinity and their phase into the delay, polished, as one more
+        candidate (:mod:`freqid_casadi.far_roots`); kept only when it is better.
     """
 
     gauge: str = "dc"
@@ -318,11 +322,13 @@ class LoopOptions:
     root_floor: float = 1e-3
     hold_delay: bool = True
     delay_search: bool = True
+    far_roots: bool = True
 
     def __post_init__(self):
         owner = type(self).__name__
         _flag(owner, "hold_delay", self.hold_delay)
         _flag(owner, "delay_search", self.delay_search)
+        _flag(owner, "far_roots", self.far_roots)
         _choice(owner, "gauge", self.gauge, GAUGES)
         _choice(owner, "init", self.init, INITS)
         _real(owner, "scale_l", self.scale_l, 1.0, strict=False)

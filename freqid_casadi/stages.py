@@ -66,6 +66,7 @@ class StageKind(_ValueEnum):
     MINIMAX = "minimax"                  #: the p-norm continuation of the minimax polish
     ZERO_DELAY = "zero-delay"            #: the same model at h = 0, polished (a candidate)
     DELAY_SEARCH = "delay-search"        #: a nearby delay's rational start, polished
+    FAR_ROOTS = "far-roots"              #: roots far above the band at infinity, polished
 
 
 @dataclass(frozen=True)

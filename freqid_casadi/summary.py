@@ -366,6 +366,9 @@ def _stage_lines(stages):
                                "its iterations are the trial delays)",
              "delay-search": "delay-search: the polish of the best nearby delay's vector fit "
                              "of a fit that did not converge",
+             "far-roots": "far-roots: the model with its roots far above the band moved to "
+                          "infinity (their phase into the delay), polished, for a fit that "
+                          "did not converge",
              "zero-delay": "zero-delay: the model at h = 0, polished",
              "minimax": "minimax: the p-norm continuation of the minimax polish"}
     parts = [known.get(k, k) for k in kinds]

@@ -196,7 +196,7 @@ LAYERS = {
     "objective": 2, "resolution": 2, "gauges": 2, "derivatives": 2,
     "solvers": 3,
     "stages": 4, "start": 4, "baselines": 4, "uncertainty": 4, "_weight": 4, "mainloop": 4,
-    "relocate": 4, "diagnostics": 4, "candidates": 4, "delay_search": 4, "_fit_checks": 5,
+    "relocate": 4, "diagnostics": 4, "candidates": 4, "delay_search": 4, "far_roots": 4, "_fit_checks": 5,
     "fit": 5, "delay_hold": 5, "validation": 5, "sweep": 5, "batch": 5,
     "report": 6, "summary": 6, "plots": 6,
     "cli": 7, "__main__": 7, "cli_frf": 7, "cli_batch": 7,
