@@ -231,7 +231,9 @@ def test_csv_header_case_spaces_comments_blank_lines(tmp_path):
     pytest.param("", r"is empty", id="empty-file"),
     pytest.param("# only a comment\n\n", r"is empty", id="comments-only"),
     pytest.param("omega,real,imag\n", r"has a header but no data rows", id="header-only"),
-    pytest.param("omega,real,imag\n2,1,1\n1,1,1\n", r"line 3: omega must be strictly increasing.*1\.0 after 2\.0 on line 2",
+    # (two rows in descending order are a descending file, reversed with a DataWarning)
+    pytest.param("omega,real,imag\n1,1,1\n3,1,1\n2,1,1\n",
+                 r"line 4: omega must be strictly increasing.*2\.0 after 3\.0 on line 3",
                  id="unsorted-rows"),
     pytest.param("omega,real,imag\n1,0,0\n", r"response must be nonzero.*response\[0\]",
                  id="zero-response"),
@@ -297,7 +299,9 @@ def test_npz_missing_arrays(tmp_path, arrays, missing):
 
 def test_npz_invalid_content(tmp_path):
     path = tmp_path / "bad.npz"
-    np.savez(path, omega=OMEGA[::-1], response=RESP)
+    shuffled = OMEGA.copy()
+    shuffled[[1, 2]] = shuffled[[2, 1]]      # (a descending grid is reversed, with a warning)
+    np.savez(path, omega=shuffled, response=RESP)
     with pytest.raises(DataError, match=r"strictly increasing"):
         load_npz(path)
     path.write_text("not a zip file")
