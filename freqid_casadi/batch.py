@@ -13,8 +13,11 @@ optional extra (``pip install freqid_casadi[dask]``).
 """
 
 import inspect
+import numbers
 import os
 from dataclasses import dataclass
+
+import numpy as np
 
 from .data import FrequencyData
 from .loaders import load
@@ -86,7 +89,7 @@ def _check_options(options):
 
 
 def _check_jobs(jobs):
-    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+    if isinstance(jobs, (bool, np.bool_)) or not isinstance(jobs, numbers.Integral) or jobs < 1:
         raise OptionError(f"jobs must be a positive integer (worker processes), got {jobs!r}")
 
 
@@ -159,7 +162,21 @@ def fit_many(datasets, *, jobs=1, scheduler=None, load_options=None, **options):
     """
     _check_options(options)
     _check_jobs(jobs)
-    items = list(datasets)
+    if load_options is not None and not isinstance(load_options, dict):
+        raise OptionError(f"load_options must be a dict of load() keywords or None, got "
+                          f"{load_options!r:.80}")
+    known = set(inspect.signature(load).parameters) - {"path", "name"}
+    unknown = sorted(set(load_options or {}) - known)
+    if unknown:
+        raise OptionError(f"unknown load option(s) {', '.join(map(repr, unknown))}; choose "
+                          f"from {', '.join(sorted(known))}")
+    if isinstance(datasets, (str, os.PathLike, FrequencyData)):
+        datasets = [datasets]
+    try:
+        items = list(datasets)
+    except TypeError:
+        raise DataError(f"datasets must be a list of FrequencyData or file paths, got "
+                        f"{type(datasets).__name__}") from None
     names = [_name_of(k, item)[0] for k, item in enumerate(items)]
     if not items:
         return []
