@@ -16,7 +16,8 @@ from .model import BASES, ZEROS, Structure
 from .resolution import resolution_damping
 
 __all__ = ["GAIN_SIGNS", "validate", "zeta_min_of", "check_model_class", "after_fit",
-           "success_of", "MAX_DECADES", "check_flag", "check_choice", "check_progress", "check_weighted_points"]
+           "success_of", "MAX_DECADES", "check_flag", "check_choice", "check_progress",
+           "check_weighted_points"]
 
 #: Values of ``fit(gain_sign=...)``.
 GAIN_SIGNS = ("auto", "positive", "negative")
