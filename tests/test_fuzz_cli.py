@@ -1,0 +1,151 @@
+"""Adversarial command lines (fuzz pass): what tests/test_hostile.py did not cover yet.
+
+- ``--force`` on a user's folder that holds a copied report: the folder counted as "a
+  report from before the marker" (a ``*.md`` with the generated-by first line) and was
+  deleted with the user's other files in it (``thesis.docx``, ``sub/data.dat``).
+- SIGHUP (the terminal closed) while a report was written left the temporary folder
+  ``.<out>.tmp-*`` behind (the default action kills the process without clean-up).
+- ``freqid frf --fs 1e300`` failed with "no frequency has coherence >= None (highest 0)".
+"""
+
+import hashlib
+import os
+import signal
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from freqid_casadi import _outputs, cli, report
+from freqid_casadi.data import FrequencyData
+from freqid_casadi.loaders import load, save_csv
+from freqid_casadi.model import RationalDelayModel, Structure
+
+ROOT = Path(__file__).resolve().parents[1]
+MODEL = RationalDelayModel(Structure(1), [0.01, 2.0, 1.0, 0.3, 5.0, 1.0, 0.05, 3.0])
+W = np.logspace(-1, 2, 40)
+
+
+def snapshot(root):
+    """{relative path: (kind, digest)} of every entry under ``root``."""
+    out = {}
+    for dirpath, dirnames, filenames in os.walk(root):
+        for name in dirnames + filenames:
+            p = os.path.join(dirpath, name)
+            st = os.lstat(p)
+            rel = os.path.relpath(p, root)
+            if stat.S_ISREG(st.st_mode):
+                with open(p, "rb") as fh:
+                    out[rel] = ("file", hashlib.sha1(fh.read()).hexdigest())
+            else:
+                out[rel] = ("dir" if stat.S_ISDIR(st.st_mode) else "other", None)
+    return out
+
+
+@pytest.fixture
+def ws(tmp_path, monkeypatch):
+    """cwd with plant.csv, a finished report ``rep/`` and a user's folder ``notes/`` that
+    holds a copy of the report's summary.md beside the user's own files."""
+    save_csv(FrequencyData(W, MODEL.frequency_response(W), "plant"), tmp_path / "plant.csv")
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setattr(report, "_write_figures", lambda *a, **k: None, raising=False)
+    assert cli.main(["fit", "plant.csv", "--sections", "1", "--out", "rep", "--quiet"]) == 0
+    notes = tmp_path / "notes"
+    (notes / "sub").mkdir(parents=True)
+    (notes / "summary.md").write_bytes((tmp_path / "rep" / "summary.md").read_bytes())
+    (notes / "thesis.docx").write_text("precious")
+    (notes / "sub" / "data.dat").write_text("measured")
+    return tmp_path
+
+
+def _run(capsys, *argv):
+    code = cli.main(list(argv))
+    return code, capsys.readouterr().err
+
+
+@pytest.mark.parametrize("extra, needle", [
+    ((), "it holds 'sub/data.dat'"),
+    (("sub",), "it holds 'thesis.docx'"),           # sub/ removed: the .docx protects it
+])
+def test_force_keeps_a_users_folder_with_a_copied_report(ws, capsys, extra, needle):
+    for name in extra:
+        for p in (ws / "notes" / name).iterdir():
+            p.unlink()
+        (ws / "notes" / name).rmdir()
+    before = snapshot(ws)
+    code, err = _run(capsys, "fit", "plant.csv", "--sections", "1", "--out", "notes",
+                     "--force", "--quiet")
+    assert code == 2
+    assert err.startswith("error: refusing to replace output folder 'notes': it was not "
+                          "written by freqid") and needle in err, err
+    assert snapshot(ws) == before
+
+
+def test_force_still_replaces_an_old_report_without_the_marker(ws, capsys):
+    legacy = ws / "old_report"
+    legacy.mkdir()
+    for name in ("summary.md", "summary.json", "rel_error.csv"):
+        (legacy / name).write_bytes((ws / "rep" / name).read_bytes())
+    assert _outputs.is_package_folder(legacy)
+    assert not _outputs.is_package_folder(ws / "notes")
+    assert _outputs.foreign_entry(legacy) is None
+    code, err = _run(capsys, "fit", "plant.csv", "--sections", "1", "--out", "old_report",
+                     "--force", "--quiet")
+    assert code == 0, err
+    assert _outputs.MARKER in os.listdir(legacy)
+
+
+_HUNG_UP = """
+import os, signal, sys, time
+from freqid_casadi import cli, report
+signal.signal(signal.SIGHUP, signal.SIG_DFL)       # as in a terminal (not under nohup)
+report._write_figures = lambda *a, **k: None
+
+def hung_up(*a, **k):
+    os.kill(os.getpid(), signal.SIGHUP)
+    time.sleep(5)                                  # the handler raises before this ends
+
+report.render_fit_summary = hung_up
+sys.exit(cli.main(["fit", "plant.csv", "--sections", "1", "--out", "rep", "--force",
+                   "--quiet"]))
+"""
+
+
+def test_sighup_while_writing_keeps_the_old_report(ws):
+    # in a subprocess: before the fix SIGHUP killed the process (and would kill pytest)
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH",
+                                                                               ""))
+    before = snapshot(ws)
+    proc = subprocess.run([sys.executable, "-c", _HUNG_UP], cwd=ws, env=env,
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 129, (proc.returncode, proc.stderr)
+    assert proc.stderr.splitlines() == ["error: interrupted"]
+    assert snapshot(ws) == before                  # old report kept, no .rep.tmp-* left
+
+
+def test_sighup_ignored_by_nohup_stays_ignored(ws, capsys, monkeypatch):
+    old = signal.signal(signal.SIGHUP, signal.SIG_IGN)
+    try:
+        code, err = _run(capsys, "fit", "plant.csv", "--sections", "1", "--out", "rep2",
+                         "--quiet")
+        assert code == 0, err
+        assert signal.getsignal(signal.SIGHUP) is signal.SIG_IGN
+    finally:
+        signal.signal(signal.SIGHUP, old)
+
+
+def test_frf_at_an_extreme_sampling_frequency(ws, capsys):
+    rng = np.random.default_rng(0)
+    u = rng.standard_normal(2048)
+    y = np.convolve(u, [0.5, 0.3, 0.1])[:2048]
+    (ws / "rec.csv").write_text("u,y\n" + "".join(f"{float(a)!r},{float(b)!r}\n"
+                                                   for a, b in zip(u, y)))
+    code, err = _run(capsys, "frf", "rec.csv", "--estimator", "h1", "--fs", "1e300",
+                     "--nperseg", "256", "--out", "frf.csv")
+    assert code == 0, err
+    data = load(ws / "frf.csv")
+    assert data.n_points == 128 and np.all(np.isfinite(data.response))
+    assert data.omega[0] == pytest.approx(2 * np.pi * 1e300 / 256, rel=1e-12)
