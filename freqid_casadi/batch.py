@@ -15,6 +15,7 @@ optional extra (``pip install freqid_casadi[dask]``).
 import inspect
 import numbers
 import os
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -118,6 +119,26 @@ def _fit_one(name, item, options, load_options=None):
     return BatchItem(name, result, None, status, source)
 
 
+def _fit_one_held(name, item, options, load_options=None):
+    """Worker: :func:`_fit_one` with its warnings caught; returns ``(BatchItem, [(category,
+    message), ...])`` so that the caller re-issues them in its own process (a worker
+    process would print them in Python's raw format, beside the command's own lines)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        item = _fit_one(name, item, options, load_options)
+    said = [(w.category, str(w.message)) for w in caught]
+    return item, list(dict.fromkeys(said))
+
+
+def _reissue(held):
+    """The BatchItems of ``held`` (``_fit_one_held`` results), their warnings re-issued here
+    with the dataset's name in front."""
+    for item, said in held:
+        for category, message in said:
+            warnings.warn(f"{item.name}: {message}", category, stacklevel=3)
+    return [item for item, _ in held]
+
+
 def fit_many(datasets, *, jobs=1, scheduler=None, load_options=None, **options):
     """Fit every dataset with the same options, in parallel processes or on a cluster.
 
@@ -181,10 +202,11 @@ def fit_many(datasets, *, jobs=1, scheduler=None, load_options=None, **options):
     if not items:
         return []
     if scheduler is not None:
-        return _run_dask(scheduler, names, items, options, load_options)
+        return _reissue(_run_dask(scheduler, names, items, options, load_options))
     if jobs == 1 or len(items) == 1:
-        return [_fit_one(n, item, options, load_options) for n, item in zip(names, items)]
-    return _run_joblib(jobs, names, items, options, load_options)
+        return _reissue([_fit_one_held(n, item, options, load_options)
+                         for n, item in zip(names, items)])
+    return _reissue(_run_joblib(jobs, names, items, options, load_options))
 
 
 def _run_joblib(jobs, names, items, options, load_options=None):
@@ -197,7 +219,8 @@ def _run_joblib(jobs, names, items, options, load_options=None):
 
     with parallel_config(backend="loky", inner_max_num_threads=1):
         return list(Parallel(n_jobs=min(jobs, len(items)))(
-            delayed(_fit_one)(n, item, options, load_options) for n, item in zip(names, items)))
+            delayed(_fit_one_held)(n, item, options, load_options)
+            for n, item in zip(names, items)))
 
 
 def _run_dask(scheduler, names, items, options, load_options=None):
@@ -216,7 +239,7 @@ def _run_dask(scheduler, names, items, options, load_options=None):
         raise OptionError(f"cannot connect to the Dask scheduler {scheduler!r}: {exc}; check "
                           "the address (e.g. tcp://127.0.0.1:8786)") from None
     try:
-        futures = client.map(_fit_one, names, items, options=options,
+        futures = client.map(_fit_one_held, names, items, options=options,
                              load_options=load_options, pure=False)
         return client.gather(futures)
     finally:

@@ -6,6 +6,9 @@
 - SIGHUP (the terminal closed) while a report was written left the temporary folder
   ``.<out>.tmp-*`` behind (the default action kills the process without clean-up).
 - ``freqid frf --fs 1e300`` failed with "no frequency has coherence >= None (highest 0)".
+- ``freqid frf --force`` overwrote a user's file named like its sidecar ``<stem>.stats.csv``
+  and left an earlier run's sidecar beside an FRF it did not belong to.
+- ``freqid batch --jobs 2`` printed the workers' warnings in Python's raw format.
 """
 
 import hashlib
@@ -149,3 +152,57 @@ def test_frf_at_an_extreme_sampling_frequency(ws, capsys):
     data = load(ws / "frf.csv")
     assert data.n_points == 128 and np.all(np.isfinite(data.response))
     assert data.omega[0] == pytest.approx(2 * np.pi * 1e300 / 256, rel=1e-12)
+
+
+def _records(path, periods):
+    """u,y records of a multisine (bins 1..3) through a first-order lag, 16 samples/period."""
+    n = np.arange(16 * periods)
+    u = sum(np.cos(2 * np.pi * k * n / 16 + k) for k in (1, 2, 3))
+    y = np.zeros_like(u)
+    for i in range(1, u.size):
+        y[i] = 0.7 * y[i - 1] + 0.3 * u[i - 1]
+    path.write_text("u,y\n" + "".join(f"{float(a)!r},{float(b)!r}\n" for a, b in zip(u, y)))
+
+
+def test_frf_force_keeps_a_users_file_named_like_the_sidecar(ws, capsys):
+    # before: --force on mine.csv overwrote the user's mine.stats.csv (never named by them)
+    _records(ws / "rec.csv", 4)
+    (ws / "mine.stats.csv").write_text("my own statistics\n")
+    before = snapshot(ws)
+    code, err = _run(capsys, "frf", "rec.csv", "--period", "16", "--out", "mine.csv",
+                     "--force")
+    assert code == 2
+    assert "refusing to replace 'mine.stats.csv'" in err and "not written by freqid" in err
+    assert snapshot(ws) == before
+
+
+def test_frf_force_removes_its_own_stale_sidecar(ws, capsys):
+    # before: a one-period FRF written over a four-period one kept the old statistics
+    # beside it, which belonged to another estimate
+    _records(ws / "rec.csv", 4)
+    _records(ws / "rec1.csv", 1)
+    assert _run(capsys, "frf", "rec.csv", "--period", "16", "--out", "f.csv")[0] == 0
+    assert (ws / "f.stats.csv").is_file()
+    code, err = _run(capsys, "frf", "rec1.csv", "--period", "16", "--out", "f.csv",
+                     "--force")
+    assert code == 0, err
+    assert (ws / "f.csv").is_file() and not (ws / "f.stats.csv").exists()
+
+
+def test_batch_worker_warnings_are_warning_lines(ws):
+    # before: with --jobs 2 the workers printed Python's raw warnings on stderr
+    # (".../batch.py:111: ResolutionWarning: ...", then the source line)
+    (ws / "in").mkdir()
+    for name in ("p1", "p2"):
+        (ws / "in" / f"{name}.csv").write_bytes((ws / "plant.csv").read_bytes())
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH",
+                                                                               ""),
+               MPLBACKEND="Agg")
+    proc = subprocess.run([sys.executable, "-m", "freqid_casadi", "batch", "in", "--sections",
+                           "3", "--jobs", "2", "--out", "b"], cwd=ws, env=env,
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stderr.splitlines()
+    assert lines and all(x.startswith("warning: ") for x in lines), proc.stderr
+    assert any(x.startswith("warning: p1: the model has") for x in lines), proc.stderr
+    assert "ResolutionWarning" not in proc.stderr and "batch.py" not in proc.stderr
