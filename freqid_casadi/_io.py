@@ -2,6 +2,7 @@
 ``os.replace`` it, so an interrupted run never leaves a partial file; and the escaping of
 user-supplied strings (file names, data names, headers) in Markdown and CSV output."""
 
+import errno
 import os
 import sys
 import tempfile
@@ -15,6 +16,11 @@ def atomic_write_bytes(path, payload):
     """Write ``payload`` (bytes) to ``path`` atomically."""
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path):         # before a temporary file is made in its parent folder
+        raise IsADirectoryError(errno.EISDIR, "is a folder; give a file name inside it",
+                                path)
+    if not os.path.isdir(folder):
+        raise FileNotFoundError(errno.ENOENT, "its folder does not exist", path)
     fd, tmp = tempfile.mkstemp(prefix=".tmp-", dir=folder)
     try:
         with os.fdopen(fd, "wb") as fh:

@@ -69,7 +69,19 @@ def protected_inputs(extra=()):
     return tuple(dict.fromkeys(out))
 
 
+def _force(force):
+    """``force`` as a bool: True/False (numpy's too, 0 and 1); OptionError otherwise (a
+    string such as "no" must not replace a folder)."""
+    if isinstance(force, bool) or type(force).__name__ == "bool_" or (
+            isinstance(force, int) and force in (0, 1)):
+        return bool(force)
+    raise OptionError(f"force must be True or False, got {force!r}")
+
+
 def _blank(out, what):
+    if not isinstance(out, (str, bytes, os.PathLike)):
+        raise OptionError(f"{what} must be a path (str or os.PathLike), got "
+                          f"{type(out).__name__}; give a folder name such as 'fit_report'")
     text = os.fspath(out)
     if isinstance(text, bytes):
         text = os.fsdecode(text)
@@ -179,6 +191,7 @@ def check_out_dir(out_dir, force=False, inputs=()):
         holds an input, or was not written by this package (and is not empty); a missing
         parent folder.
     """
+    force = _force(force)
     text = _blank(out_dir, "output folder (--out)")
     path = os.path.abspath(text)
     real = os.path.realpath(path)
@@ -210,6 +223,7 @@ def check_out_file(out, force=False, inputs=()):
         Blank path; a folder; one of the command's inputs (even with ``force``); an existing
         file without ``force``; an existing non-regular file; a missing parent folder.
     """
+    force = _force(force)
     text = _blank(out, "output file (--out)")
     full = os.path.abspath(text)
     real = os.path.realpath(full)

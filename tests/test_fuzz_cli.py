@@ -9,6 +9,9 @@
 - ``freqid frf --force`` overwrote a user's file named like its sidecar ``<stem>.stats.csv``
   and left an earlier run's sidecar beside an FRF it did not belong to.
 - ``freqid batch --jobs 2`` printed the workers' warnings in Python's raw format.
+- The report API: ``force="no"`` (truthy) replaced a report; ``out_dir=None`` or a
+  result of None raised TypeError/AttributeError; ``model.save(folder)`` made a temporary
+  file in the folder's parent and named it in the error.
 """
 
 import hashlib
@@ -206,3 +209,58 @@ def test_batch_worker_warnings_are_warning_lines(ws):
     assert lines and all(x.startswith("warning: ") for x in lines), proc.stderr
     assert any(x.startswith("warning: p1: the model has") for x in lines), proc.stderr
     assert "ResolutionWarning" not in proc.stderr and "batch.py" not in proc.stderr
+
+
+# ----------------------------------------------------------------------- report API
+@pytest.fixture
+def fitted():
+    import warnings
+
+    import freqid_casadi as fc
+
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return fc.fit(W, MODEL.frequency_response(W), n_sections=1)
+
+
+def test_report_force_must_be_a_bool(ws, fitted):
+    # before: force="no" is truthy and replaced the existing report
+    from freqid_casadi.errors import OptionError
+
+    before = snapshot(ws)
+    with pytest.raises(OptionError, match="force must be True or False, got 'no'"):
+        report.write_fit_report(fitted, "rep", command="x", force="no")
+    assert snapshot(ws) == before
+
+
+@pytest.mark.parametrize("out, needle", [
+    (None, "must be a path .str or os.PathLike., got NoneType"),
+    (3, "must be a path .str or os.PathLike., got int"),
+])
+def test_report_folder_must_be_a_path(ws, fitted, out, needle):
+    # before: TypeError "expected str, bytes or os.PathLike object"
+    from freqid_casadi.errors import OptionError
+
+    with pytest.raises(OptionError, match=needle):
+        report.write_fit_report(fitted, out, command="x")
+
+
+def test_report_of_no_result_is_an_option_error(ws):
+    # before: AttributeError 'NoneType' object has no attribute 'model' / 'as_dict'
+    from freqid_casadi.errors import OptionError
+
+    with pytest.raises(OptionError, match="result must be a FitResult"):
+        report.write_fit_report(None, "r1", command="x")
+    with pytest.raises(OptionError, match="result must be a SweepResult"):
+        report.write_sweep_report(None, "r2", command="x")
+
+
+def test_save_onto_a_folder_names_the_folder_and_makes_no_temporary_file(ws):
+    # before: "[Errno 21] Is a directory: '<parent>/.tmp-xxxx' -> 'rep'", after a temporary
+    # file was created in the parent folder
+    before = snapshot(ws)
+    with pytest.raises(IsADirectoryError, match="is a folder; give a file name inside it"):
+        MODEL.save(ws / "rep")
+    with pytest.raises(FileNotFoundError, match="its folder does not exist"):
+        MODEL.save(ws / "nothere" / "m.json")
+    assert snapshot(ws) == before
