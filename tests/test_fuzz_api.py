@@ -186,3 +186,41 @@ def test_fit_many_arguments_are_checked(args, kw, exc, needle):
 def test_fit_many_takes_a_numpy_job_count():
     items = batch.fit_many([DATA], n_sections=1, jobs=np.int64(1))
     assert items[0].ok and items[0].result.max_rel_error < 1e-10
+
+
+# ----------------------------------------------------------------------- stabilization
+@pytest.mark.parametrize("args, kw, needle", [
+    ([None], {}, "orders must be a sequence of even integers"),
+    ([[2.0]], {}, r"orders must be integers, got \(2\.0,\)"),
+    ([[2]], dict(freq_tol="x"), "freq_tol must be a number, got 'x'"),
+    ([[2]], dict(freq_tol=np.array([0.1, 0.2])), "freq_tol must be a number"),
+    ([[2]], dict(min_stable="x"), "min_stable must be an integer >= 1"),
+    ([[2]], dict(min_stable=0), "min_stable must be an integer >= 1"),
+    ([[2]], dict(min_stable=1.5), "min_stable must be an integer >= 1"),
+])
+def test_stabilization_arguments_are_checked(args, kw, needle):
+    # before: TypeError/ValueError, or min_stable=0 and 1.5 accepted
+    with pytest.raises(OptionError, match=needle):
+        fc.stabilization([DATA], *args, **kw)
+
+
+def test_stabilization_takes_an_order_string():
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = fc.stabilization([DATA], "2:4:2", delay="per-channel")
+    assert res.orders == (2, 4)
+
+
+# ----------------------------------------------------------------------- resolution
+def test_delay_bound_and_damping_floor_of_bad_frequencies():
+    from freqid_casadi.fit import default_delay_max, resolution_damping
+
+    # before: -pi (a negative delay bound) for decreasing omega, NaN for a NaN frequency
+    with pytest.raises(DataError, match="strictly increasing"):
+        default_delay_max([2.0, 1.0])
+    with pytest.raises(DataError, match="finite frequencies"):
+        resolution_damping([1.0, np.nan])
+    with pytest.raises(OptionError, match="fraction must be a finite number > 0"):
+        resolution_damping(W, fraction=-1.0)
+    assert default_delay_max([2.0]) == np.pi / 2.0           # one point: unchanged
+    assert default_delay_max(W) == np.pi / np.max(np.diff(W))
