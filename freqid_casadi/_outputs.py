@@ -209,8 +209,9 @@ def check_out_dir(out_dir, force=False, inputs=()):
         _check_replace(text, real, inputs)
     parent = os.path.dirname(path)
     if not os.path.isdir(parent):
+        what = " (a file has that name)" if os.path.exists(parent) else ""
         raise OptionError(f"cannot create output folder {text!r}: its parent folder "
-                          f"{parent!r} does not exist")
+                          f"{parent!r} does not exist{what}")
     return path
 
 
@@ -243,7 +244,8 @@ def check_out_file(out, force=False, inputs=()):
                               "another --out")
     parent = os.path.dirname(full)
     if not os.path.isdir(parent):
-        raise OptionError(f"cannot write {text!r}: its folder {parent!r} does not exist")
+        what = " (a file has that name)" if os.path.exists(parent) else ""
+        raise OptionError(f"cannot write {text!r}: its folder {parent!r} does not exist{what}")
     return full
 
 

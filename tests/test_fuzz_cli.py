@@ -264,3 +264,17 @@ def test_save_onto_a_folder_names_the_folder_and_makes_no_temporary_file(ws):
     with pytest.raises(FileNotFoundError, match="its folder does not exist"):
         MODEL.save(ws / "nothere" / "m.json")
     assert snapshot(ws) == before
+
+
+@pytest.mark.parametrize("argv", [
+    ("fit", "plant.csv", "--sections", "1", "--out", "plant.csv/rep"),
+    ("frf", "rec.csv", "--period", "16", "--out", "plant.csv/frf.csv"),
+])
+def test_out_under_a_file_says_the_parent_is_a_file(ws, capsys, argv):
+    # before: "its parent folder '.../plant.csv' does not exist", no word of the file
+    _records(ws / "rec.csv", 4)
+    before = snapshot(ws)
+    code, err = _run(capsys, *argv)
+    assert code == 2
+    assert "plant.csv' does not exist (a file has that name)" in err, err
+    assert snapshot(ws) == before
