@@ -322,10 +322,37 @@ def move_into_place(tmp, path, out_dir, force, inputs=()):
     parent, base = os.path.split(path)
     old = tempfile.mkdtemp(prefix=f".{base}.old-", dir=parent)
     os.rmdir(old)
-    os.rename(path, old)
+    with _signals_held():       # a Ctrl-C between the renames would hide the old folder
+        os.rename(path, old)
+        try:
+            os.rename(tmp, path)
+        except BaseException:
+            os.rename(old, path)
+            raise
+        shutil.rmtree(old, ignore_errors=True)
+
+
+@contextlib.contextmanager
+def _signals_held():
+    """SIGINT, SIGTERM and SIGHUP are held while the block runs (main thread only): their
+    Python handlers are replaced by one that records the signal, and the recorded signals
+    are raised again, in order, once the previous handlers are back. (A signal mask would
+    not do: the kernel hands a process signal to any thread that does not block it.)"""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    got = []
+    saved = {}
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        sig = getattr(signal, name, None)
+        handler = None if sig is None else signal.getsignal(sig)
+        if handler is not None and handler is not signal.SIG_IGN:
+            saved[sig] = handler
+            signal.signal(sig, lambda signum, frame: got.append(signum))
     try:
-        os.rename(tmp, path)
-    except BaseException:
-        os.rename(old, path)
-        raise
-    shutil.rmtree(old, ignore_errors=True)
+        yield
+    finally:
+        for sig, handler in saved.items():
+            signal.signal(sig, handler)
+        for sig in got:
+            signal.raise_signal(sig)

@@ -278,3 +278,27 @@ def test_out_under_a_file_says_the_parent_is_a_file(ws, capsys, argv):
     assert code == 2
     assert "plant.csv' does not exist (a file has that name)" in err, err
     assert snapshot(ws) == before
+
+
+def test_ctrl_c_between_the_two_renames_of_force_keeps_a_report_in_place(ws, monkeypatch):
+    # before: a SIGINT right after the old report was moved aside raised before the new one
+    # was renamed into place: 'rep' was gone, the old report hidden in '.rep.old-*'
+    real_rename = os.rename
+    calls = []
+
+    def rename(src, dst):
+        real_rename(src, dst)
+        calls.append(os.path.basename(dst))
+        if len(calls) == 1 and os.path.basename(dst).startswith(".rep.old-"):
+            os.kill(os.getpid(), signal.SIGINT)
+
+    monkeypatch.setattr(_outputs.os, "rename", rename)
+    old = signal.signal(signal.SIGINT, signal.default_int_handler)
+    try:
+        with pytest.raises(KeyboardInterrupt):
+            with _outputs.building("rep", force=True) as (tmp, path):
+                (Path(tmp) / "summary.md").write_text("new report\n")
+    finally:
+        signal.signal(signal.SIGINT, old)
+    assert (ws / "rep" / "summary.md").read_text() == "new report\n"
+    assert [n for n in os.listdir(ws) if n.startswith(".rep.")] == []
