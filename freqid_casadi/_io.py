@@ -95,7 +95,19 @@ def run_holding_warnings(run, *args):
 
 def printable_streams():
     """Let stdout and stderr write any str (lone surrogates of undecodable file names become
-    backslash escapes instead of raising UnicodeEncodeError)."""
+    backslash escapes instead of raising UnicodeEncodeError). A standard stream the process
+    was started without (``>&-``, ``2>&-``) is opened on the null device first: else the
+    first file opened would get its descriptor (and IPOPT's or Python's output with it) and
+    ``sys.stdout`` would be None."""
+    for fd, name in ((1, "stdout"), (2, "stderr")):
+        try:
+            os.fstat(fd)
+        except OSError:
+            null = os.open(os.devnull, os.O_WRONLY)
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
+            setattr(sys, name, open(fd, "w", encoding="utf-8", closefd=False))
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.reconfigure(errors="backslashreplace")

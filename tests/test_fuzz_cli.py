@@ -302,3 +302,32 @@ def test_ctrl_c_between_the_two_renames_of_force_keeps_a_report_in_place(ws, mon
         signal.signal(signal.SIGINT, old)
     assert (ws / "rep" / "summary.md").read_text() == "new report\n"
     assert [n for n in os.listdir(ws) if n.startswith(".rep.")] == []
+
+
+@pytest.mark.parametrize("closed", [1, 2], ids=["stdout-closed", "stderr-closed"])
+def test_a_command_started_without_stdout_or_stderr(ws, closed):
+    # before: stdout closed (cron's '>&-'): AttributeError 'NoneType' object has no
+    # attribute 'flush' and a traceback, exit 1, no report; stderr closed: exit 1, no report
+    env = dict(os.environ, PYTHONPATH=str(ROOT) + os.pathsep + os.environ.get("PYTHONPATH",
+                                                                               ""),
+               MPLBACKEND="Agg")
+    keep = 2 if closed == 1 else 1
+    proc = subprocess.run([sys.executable, "-m", "freqid_casadi", "fit", "plant.csv",
+                           "--sections", "1", "--out", "r", "--progress"], cwd=ws, env=env,
+                          stdout=subprocess.PIPE if keep == 1 else None,
+                          stderr=subprocess.PIPE if keep == 2 else None,
+                          preexec_fn=lambda: os.close(closed), timeout=300)
+    assert proc.returncode == 0
+    said = (proc.stdout if keep == 1 else proc.stderr).decode()
+    assert "Traceback" not in said and "error:" not in said
+    assert (ws / "r" / "summary.md").is_file() and (ws / "r" / "model.json").is_file()
+
+
+def test_ipopt_options_are_checked_without_sys_stdout(monkeypatch):
+    # before: AttributeError 'NoneType' object has no attribute 'flush' (sys.stdout is None
+    # under pythonw or a daemon)
+    from freqid_casadi.options import IpoptOptions
+
+    monkeypatch.setattr(sys, "stdout", None)
+    opts = IpoptOptions(ipopt={"acceptable_iter": 7})
+    assert opts.ipopt_dict() == {"acceptable_iter": 7}
