@@ -49,7 +49,8 @@ from ._shared_nlp import SharedProblem
 from ._shared_stages import (SharedStage, lawson_rounds, logger, rational_start,
                              sequential_start)
 
-__all__ = ["fit_shared", "SharedFitResult", "SharedStage", "DELAYS", "ZEROS", "SHARED_STARTS"]
+__all__ = ["fit_shared", "SharedFitResult", "SharedStage", "DELAYS", "ZEROS", "SHARED_STARTS",
+           "check_largest_order"]
 
 DELAYS = ("per-channel", "shared", False)
 ZEROS = ("minimum-phase", "free")
@@ -247,6 +248,26 @@ def _check_numbers(integrator, delay_max, max_iter, n_vf_iter, progress, balance
         if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) \
                 or value < low:
             raise OptionError(f"{name} must be an integer >= {low}, got {value!r}")
+
+
+def check_largest_order(datas, n_sections, options):
+    """DataError (or OptionError) before a series of fits when ``n_sections`` shared
+    sections with the :func:`fit_shared` ``options`` have more parameters than the data
+    have weighted points (see :func:`~freqid_casadi.survey.stabilization`).
+
+    Parameters
+    ----------
+    datas : sequence of FrequencyData, length C
+        The channels, on one omega grid.
+    n_sections : int
+        The largest number of shared sections of the series.
+    options : dict
+        Keywords of :func:`fit_shared` (``weights``, ``channel_sections``, ``delay``).
+    """
+    wts = _check_datas(datas, options.get("weights"))[3]
+    k = options.get("channel_sections", 0)
+    if isinstance(k, (int, np.integer)) and not isinstance(k, bool) and k >= 0:
+        _check_size(wts, int(n_sections), int(k), options.get("delay", "per-channel"))
 
 
 def _check_size(wts, n, k, delay):

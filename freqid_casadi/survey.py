@@ -184,10 +184,11 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
     -------
     StabilizationResult
     """
-    from .shared import fit_shared
+    from .shared import check_largest_order, fit_shared
 
     orders = _check_orders(orders)
     _check_tolerances(freq_tol, damping_tol, min_stable)
+    check_largest_order(datas, orders[-1] // 2, fit_options)     # before any fit is run
     if not (0 < freq_tol < 1 and 0 < damping_tol < 10):
         raise OptionError(f"freq_tol must be in (0, 1) and damping_tol in (0, 10), got "
                           f"{freq_tol}, {damping_tol}")

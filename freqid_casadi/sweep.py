@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ._fit_checks import validate
 from .data import FrequencyData, dense_grid
 from .errors import DataError, OptionError
 from .fit import fit
@@ -194,6 +195,9 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
     basis = fit_options.get("basis", "second-order")
     per = 2 if basis == "second-order" else 1
     orders = _orders(orders)
+    if orders:                  # the largest order fits the data, before any fit is run
+        validate(data, None, max(orders) // per, basis, None,
+                 fit_options.get("integrator", False), fit_options.get("weights"))
     for o in orders:
         if o % per:
             raise OptionError(f"order {o} is odd: second-order sections give even orders; "

@@ -224,3 +224,25 @@ def test_delay_bound_and_damping_floor_of_bad_frequencies():
         resolution_damping(W, fraction=-1.0)
     assert default_delay_max([2.0]) == np.pi / 2.0           # one point: unchanged
     assert default_delay_max(W) == np.pi / np.max(np.diff(W))
+
+
+# ----------------------------------------------------------------------- series of fits
+def test_sweep_refuses_a_too_large_order_before_fitting_the_others(monkeypatch):
+    # before: orders 2..12 were fitted, then order 14 raised (all that work lost)
+    calls = []
+    real = sweep.fit
+    monkeypatch.setattr(sweep, "fit", lambda *a, **k: calls.append(k) or real(*a, **k))
+    with pytest.raises(DataError, match="too few data points for 7 sections: 40 points"):
+        sweep.sweep(DATA, [2, 4, 6, 8, 10, 12, 14])
+    assert calls == []
+
+
+def test_stabilization_refuses_a_too_large_order_before_fitting_the_others(monkeypatch):
+    from freqid_casadi import shared
+
+    calls = []
+    real = shared.fit_shared
+    monkeypatch.setattr(shared, "fit_shared", lambda *a, **k: calls.append(k) or real(*a, **k))
+    with pytest.raises(DataError, match="too few data points for 14 shared sections"):
+        fc.stabilization([DATA, DATA], "2:28:2")
+    assert calls == []
