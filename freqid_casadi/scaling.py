@@ -16,7 +16,7 @@ import math
 import numpy as np
 
 from .data import FrequencyData
-from .errors import SolverError
+from .errors import DataError, SolverError
 from .model import RationalDelayModel
 
 __all__ = ["reference_scales", "scale_data", "unscale_model", "check_finite_result",
@@ -112,7 +112,16 @@ def scale_data(data, w_ref, g_ref):
     weights = data.weights
     if weights is not None:
         weights = weights / weight_scale(weights)
-    return FrequencyData(data.omega / w_ref, data.response / g_ref, data.name, weights)
+    with np.errstate(under="ignore", over="ignore"):
+        response = data.response / g_ref
+    bad = (response == 0) | ~np.isfinite(response)
+    if bad.any():                   # the message names the user's point, not the scaled one
+        i = int(np.flatnonzero(bad)[0])
+        raise DataError(
+            f"response[{i}]={data.response[i]} at omega={float(data.omega[i])!r} is out of "
+            f"float64's range beside the data's median magnitude {g_ref:.3g} (the fit works "
+            "on the response divided by it); remove that point or re-measure it")
+    return FrequencyData(data.omega / w_ref, response, data.name, weights)
 
 
 def unscale_model(model, w_ref, g_ref):

@@ -246,3 +246,11 @@ def test_stabilization_refuses_a_too_large_order_before_fitting_the_others(monke
     with pytest.raises(DataError, match="too few data points for 14 shared sections"):
         fc.stabilization([DATA, DATA], "2:28:2")
     assert calls == []
+
+
+def test_a_subnormal_response_is_named_as_the_user_gave_it():
+    # before: "response[5]=0 at omega=0.0606..." (the scaled point, which underflowed)
+    r = R.copy()
+    r[5] = 5e-324
+    with pytest.raises(DataError, match=r"response\[5\]=\(?5e-324.* at omega=0\.2"):
+        fc.fit(W, r, n_sections=1)
