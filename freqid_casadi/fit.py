@@ -231,7 +231,10 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
     tol : float, optional
         Stop adding sections once the max relative error over all data is below ``tol``.
     weights : array_like of float, shape (M,), optional
-        Weights of the squared relative residuals (overrides ``data.weights``).
+        Weights of the squared relative residuals (overrides ``data.weights``); only their
+        ratios matter (the fit divides them by a power of two near their mean). At least
+        as many points as parameters need a weight > 0; points of weight 0 below the first
+        weighted one are left out of the loop's windows (their error is still reported).
     start : {"sequential", "rational", "best"}
         "sequential" is the thesis's main loop; "rational" fits all sections at once by
         vector fitting with the delay refined from the right-half-plane zeros
