@@ -4,6 +4,7 @@ floor, the diagnostics of the fitted model and the success rule.
 """
 
 import math
+import numbers
 
 import numpy as np
 
@@ -15,10 +16,13 @@ from .model import BASES, ZEROS, Structure
 from .resolution import resolution_damping
 
 __all__ = ["GAIN_SIGNS", "validate", "zeta_min_of", "check_model_class", "after_fit",
-           "success_of"]
+           "success_of", "MAX_DECADES", "check_flag", "check_choice", "check_progress",
+           "check_weighted_points"]
 
 #: Values of ``fit(gain_sign=...)``.
 GAIN_SIGNS = ("auto", "positive", "negative")
+#: The widest band (decades of omega) :func:`validate` accepts.
+MAX_DECADES = 60
 
 
 def zeta_min_of(min_damping, omega, method, gauge, basis):
@@ -29,7 +33,8 @@ def zeta_min_of(min_damping, omega, method, gauge, basis):
             raise OptionError(f"unknown min_damping {min_damping!r}; use None, 'auto' or a "
                               "number in [0, 1)")
         value = resolution_damping(omega)
-    elif (isinstance(min_damping, bool) or not isinstance(min_damping, (int, float, np.floating))
+    elif (isinstance(min_damping, (bool, np.bool_))
+          or not isinstance(min_damping, numbers.Real)
           or not (0.0 <= float(min_damping) < 1.0)):
         raise OptionError(f"min_damping must be None, 'auto' or a number in [0, 1), got "
                           f"{min_damping!r}")
@@ -44,11 +49,66 @@ def zeta_min_of(min_damping, omega, method, gauge, basis):
     return value
 
 
-def validate(data, response, n_sections, basis, tol, integrator):
+def check_flag(name, value):
+    """``bool(value)`` for True/False (numpy's too, and the integers 0 and 1); an
+    OptionError naming ``name`` otherwise (a string such as "no" is not False)."""
+    if isinstance(value, (bool, np.bool_)) or (isinstance(value, numbers.Integral)
+                                               and value in (0, 1)):
+        return bool(value)
+    raise OptionError(f"{name} must be True or False, got {value!r}; pass {name}=True or "
+                      f"{name}=False")
+
+
+def check_choice(name, value, choices, error=OptionError):
+    """Raise ``error`` unless ``value`` is one of the strings ``choices`` (an array or a
+    list is refused by its type, not compared element-wise)."""
+    if not isinstance(value, str) or value not in choices:
+        raise error(f"unknown {name} {value!r}; choose one of {', '.join(choices)}")
+
+
+def check_progress(progress):
+    """``progress`` of fit: a bool (or None, 0, 1) or a callable; OptionError otherwise."""
+    if progress is None or callable(progress):
+        return progress
+    try:
+        return check_flag("progress", progress)
+    except OptionError:
+        raise OptionError(f"progress must be True, False or a callable taking each "
+                          f"StageRecord, got {progress!r}") from None
+
+
+def check_weighted_points(data, n_params, n_sections):
+    """DataError when fewer points have a weight > 0 than the model has parameters (the
+    fit would be underdetermined: any model through those points is optimal)."""
+    if data.weights is None:
+        return
+    counted = int(np.count_nonzero(data.weights > 0))
+    if counted < n_params:
+        raise DataError(
+            f"too few weighted data points for {n_sections} sections: {counted} points with "
+            f"weight > 0 for {n_params} parameters; use fewer sections or give more points "
+            "a weight > 0")
+
+
+def _check_span(omega):
+    """DataError when the band spans more decades than float64 arithmetic of the model
+    carries (the section factors hold (omega/omega_r)^2 for every omega_r in the band)."""
+    decades = math.log10(omega[-1]) - math.log10(omega[0])
+    if decades > MAX_DECADES:
+        raise DataError(
+            f"omega spans {decades:.0f} decades ({omega[0]:.3g} to {omega[-1]:.3g} rad/s), "
+            f"more than the {MAX_DECADES} the model's float64 arithmetic carries; fit a "
+            "narrower band (e.g. split the data)")
+
+
+def validate(data, response, n_sections, basis, tol, integrator, weights=None):
     if isinstance(data, FrequencyData):
         if response is not None:
             raise DataError("pass either a FrequencyData or (omega, response), not both")
     else:
+        if data is None:
+            raise DataError("the data are missing: call fit(FrequencyData(...), ...) or "
+                            "fit(omega, response, ...)")
         if response is None:
             raise DataError("response is missing: call fit(omega, response, ...) or "
                             "fit(FrequencyData(...), ...)")
@@ -57,10 +117,12 @@ def validate(data, response, n_sections, basis, tol, integrator):
         raise StructureError(f"n_sections must be a positive integer, got {n_sections!r}")
     if n_sections < 1:
         raise StructureError(f"n_sections must be >= 1, got {n_sections}")
-    if basis not in BASES:
-        raise OptionError(f"unknown basis {basis!r}; choose one of {', '.join(BASES)}")
-    if tol is not None and not (isinstance(tol, (int, float)) and math.isfinite(tol) and tol > 0):
+    check_choice("basis", basis, BASES)
+    if tol is not None and not (isinstance(tol, numbers.Real)
+                                and not isinstance(tol, (bool, np.bool_))
+                                and math.isfinite(tol) and tol > 0):
         raise OptionError(f"tol must be a number > 0 (a max relative error), got {tol!r}")
+    _check_span(data.omega)
     structure = Structure(int(n_sections), integrator, True, basis)
     n_params = structure.n_params
     if data.n_points < n_params:
@@ -68,6 +130,9 @@ def validate(data, response, n_sections, basis, tol, integrator):
             f"too few data points for {n_sections} sections: {data.n_points} points for "
             f"{n_params} parameters; use fewer sections (at most "
             f"{max((data.n_points - 2) // structure.section_size, 0)}) or more data")
+    if weights is not None:
+        data = data.with_weights(weights)
+    check_weighted_points(data, n_params, n_sections)
     return data
 
 

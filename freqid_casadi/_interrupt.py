@@ -65,12 +65,17 @@ def _main_thread():
 
 @contextlib.contextmanager
 def handlers():
-    """While the block runs, SIGINT and SIGTERM raise :class:`Interrupted` (or, inside
+    """While the block runs, SIGINT and SIGTERM (and SIGHUP, if it has its default action:
+    the terminal closed; exit status 129) raise :class:`Interrupted` (or, inside
     :func:`guard`, stop the solver first). Previous handlers are restored afterwards."""
     if not _main_thread():
         yield
         return
-    old = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    sigs = [signal.SIGINT, signal.SIGTERM]
+    hup = getattr(signal, "SIGHUP", None)     # a closed terminal; not under nohup (SIG_IGN)
+    if hup is not None and signal.getsignal(hup) is signal.SIG_DFL:
+        sigs.append(hup)
+    old = {s: signal.getsignal(s) for s in sigs}
     for s in old:
         signal.signal(s, _handle)
     try:

@@ -2,6 +2,7 @@
 ``os.replace`` it, so an interrupted run never leaves a partial file; and the escaping of
 user-supplied strings (file names, data names, headers) in Markdown and CSV output."""
 
+import errno
 import os
 import sys
 import tempfile
@@ -15,6 +16,11 @@ def atomic_write_bytes(path, payload):
     """Write ``payload`` (bytes) to ``path`` atomically."""
     path = os.fspath(path)
     folder = os.path.dirname(os.path.abspath(path))
+    if os.path.isdir(path):         # before a temporary file is made in its parent folder
+        raise IsADirectoryError(errno.EISDIR, "is a folder; give a file name inside it",
+                                path)
+    if not os.path.isdir(folder):
+        raise FileNotFoundError(errno.ENOENT, "its folder does not exist", path)
     fd, tmp = tempfile.mkstemp(prefix=".tmp-", dir=folder)
     try:
         with os.fdopen(fd, "wb") as fh:
@@ -89,7 +95,19 @@ def run_holding_warnings(run, *args):
 
 def printable_streams():
     """Let stdout and stderr write any str (lone surrogates of undecodable file names become
-    backslash escapes instead of raising UnicodeEncodeError)."""
+    backslash escapes instead of raising UnicodeEncodeError). A standard stream the process
+    was started without (``>&-``, ``2>&-``) is opened on the null device first: else the
+    first file opened would get its descriptor (and IPOPT's or Python's output with it) and
+    ``sys.stdout`` would be None."""
+    for fd, name in ((1, "stdout"), (2, "stderr")):
+        try:
+            os.fstat(fd)
+        except OSError:
+            null = os.open(os.devnull, os.O_WRONLY)
+            if null != fd:
+                os.dup2(null, fd)
+                os.close(null)
+            setattr(sys, name, open(fd, "w", encoding="utf-8", closefd=False))
     for stream in (sys.stdout, sys.stderr):
         try:
             stream.reconfigure(errors="backslashreplace")

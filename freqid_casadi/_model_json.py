@@ -6,10 +6,10 @@ import re
 
 import numpy as np
 
-from .errors import DataError
+from .errors import DataError, OptionError, StructureError
 
 __all__ = ["checked_fields", "check_nesting", "too_big", "no_constant", "MAX_MODEL_BYTES",
-           "MAX_MODEL_DEPTH"]
+           "MAX_MODEL_DEPTH", "flag", "choice", "real_vector", "pade_order", "pade"]
 
 _SECOND = ("a", "zeta_num", "omega_num", "b", "zeta_den", "omega_den")
 _FIRST = ("a1", "a0", "b1", "b0")
@@ -154,3 +154,58 @@ def _check_beta(st, b):
         if zero.size:
             raise DataError(f"malformed model JSON: section {int(zero[0]) + 1} has an all-zero "
                             f"{what} (0/0 or a pole/zero at every frequency)")
+
+
+# ------------------------------------------------- checks of Structure / RationalDelayModel
+def flag(name, value):
+    """``bool(value)`` for True/False (numpy's too, and the integers 0 and 1), else a
+    StructureError naming ``name`` (a string such as "no" is not False)."""
+    if isinstance(value, (bool, np.bool_)) or (isinstance(value, (int, np.integer))
+                                               and value in (0, 1)):
+        return bool(value)
+    raise StructureError(f"{name} must be True or False, got {value!r}")
+
+
+def choice(name, value, choices):
+    """Raise StructureError unless ``value`` is one of the strings ``choices``."""
+    if not isinstance(value, str) or value not in choices:
+        raise StructureError(f"unknown {name} {value!r}; choose one of {', '.join(choices)}")
+
+
+def real_vector(beta):
+    """``beta`` as a new one-dimensional float array; StructureError for complex values,
+    text or a 2-D array (rather than a silent real part or flattening)."""
+    try:
+        arr = np.asarray(beta)
+        out = np.array(arr, dtype=float, copy=True).reshape(-1) \
+            if not np.iscomplexobj(arr) else None
+    except (TypeError, ValueError) as exc:
+        raise StructureError(f"beta must be an array of real numbers: {exc}") from None
+    if out is None or arr.ndim > 1:
+        raise StructureError(f"beta must be a one-dimensional array of real numbers, got "
+                             f"{'complex values' if out is None else f'shape {arr.shape}'}")
+    return out
+
+
+def pade_order(order):
+    """``order`` of a Pade approximation as an int >= 0, else an OptionError."""
+    if isinstance(order, (bool, np.bool_)) or not isinstance(order, (int, np.integer)) \
+            or order < 0:
+        raise OptionError(f"pade_order must be an integer >= 0 (or None: the delay kept "
+                          f"as the attribute sys.delay), got {order!r}")
+    return int(order)
+
+
+def pade(ct, delay, order):
+    """``ct.pade(delay, order)`` with finite coefficients, else an OptionError (python-control
+    divides by zero above a few hundred)."""
+    try:
+        with np.errstate(all="raise"):
+            num, den = ct.pade(delay, order)
+        ok = np.all(np.isfinite(num)) and np.all(np.isfinite(den))
+    except (ArithmeticError, FloatingPointError, ValueError):
+        ok = False
+    if not ok:
+        raise OptionError(f"pade_order={order} is too high for a finite Pade approximation "
+                          f"of the delay {delay:g} s; use an order below about 20")
+    return num, den

@@ -13,8 +13,12 @@ optional extra (``pip install freqid_casadi[dask]``).
 """
 
 import inspect
+import numbers
 import os
+import warnings
 from dataclasses import dataclass
+
+import numpy as np
 
 from .data import FrequencyData
 from .loaders import load
@@ -86,7 +90,7 @@ def _check_options(options):
 
 
 def _check_jobs(jobs):
-    if isinstance(jobs, bool) or not isinstance(jobs, int) or jobs < 1:
+    if isinstance(jobs, (bool, np.bool_)) or not isinstance(jobs, numbers.Integral) or jobs < 1:
         raise OptionError(f"jobs must be a positive integer (worker processes), got {jobs!r}")
 
 
@@ -113,6 +117,26 @@ def _fit_one(name, item, options, load_options=None):
         return BatchItem(name, None, f"{type(exc).__name__}: {message}", "failed", source)
     status = "converged" if result.success else "not-converged"
     return BatchItem(name, result, None, status, source)
+
+
+def _fit_one_held(name, item, options, load_options=None):
+    """Worker: :func:`_fit_one` with its warnings caught; returns ``(BatchItem, [(category,
+    message), ...])`` so that the caller re-issues them in its own process (a worker
+    process would print them in Python's raw format, beside the command's own lines)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        item = _fit_one(name, item, options, load_options)
+    said = [(w.category, str(w.message)) for w in caught]
+    return item, list(dict.fromkeys(said))
+
+
+def _reissue(held):
+    """The BatchItems of ``held`` (``_fit_one_held`` results), their warnings re-issued here
+    with the dataset's name in front."""
+    for item, said in held:
+        for category, message in said:
+            warnings.warn(f"{item.name}: {message}", category, stacklevel=3)
+    return [item for item, _ in held]
 
 
 def fit_many(datasets, *, jobs=1, scheduler=None, load_options=None, **options):
@@ -159,15 +183,30 @@ def fit_many(datasets, *, jobs=1, scheduler=None, load_options=None, **options):
     """
     _check_options(options)
     _check_jobs(jobs)
-    items = list(datasets)
+    if load_options is not None and not isinstance(load_options, dict):
+        raise OptionError(f"load_options must be a dict of load() keywords or None, got "
+                          f"{load_options!r:.80}")
+    known = set(inspect.signature(load).parameters) - {"path", "name"}
+    unknown = sorted(set(load_options or {}) - known)
+    if unknown:
+        raise OptionError(f"unknown load option(s) {', '.join(map(repr, unknown))}; choose "
+                          f"from {', '.join(sorted(known))}")
+    if isinstance(datasets, (str, os.PathLike, FrequencyData)):
+        datasets = [datasets]
+    try:
+        items = list(datasets)
+    except TypeError:
+        raise DataError(f"datasets must be a list of FrequencyData or file paths, got "
+                        f"{type(datasets).__name__}") from None
     names = [_name_of(k, item)[0] for k, item in enumerate(items)]
     if not items:
         return []
     if scheduler is not None:
-        return _run_dask(scheduler, names, items, options, load_options)
+        return _reissue(_run_dask(scheduler, names, items, options, load_options))
     if jobs == 1 or len(items) == 1:
-        return [_fit_one(n, item, options, load_options) for n, item in zip(names, items)]
-    return _run_joblib(jobs, names, items, options, load_options)
+        return _reissue([_fit_one_held(n, item, options, load_options)
+                         for n, item in zip(names, items)])
+    return _reissue(_run_joblib(jobs, names, items, options, load_options))
 
 
 def _run_joblib(jobs, names, items, options, load_options=None):
@@ -180,7 +219,8 @@ def _run_joblib(jobs, names, items, options, load_options=None):
 
     with parallel_config(backend="loky", inner_max_num_threads=1):
         return list(Parallel(n_jobs=min(jobs, len(items)))(
-            delayed(_fit_one)(n, item, options, load_options) for n, item in zip(names, items)))
+            delayed(_fit_one_held)(n, item, options, load_options)
+            for n, item in zip(names, items)))
 
 
 def _run_dask(scheduler, names, items, options, load_options=None):
@@ -199,7 +239,7 @@ def _run_dask(scheduler, names, items, options, load_options=None):
         raise OptionError(f"cannot connect to the Dask scheduler {scheduler!r}: {exc}; check "
                           "the address (e.g. tcp://127.0.0.1:8786)") from None
     try:
-        futures = client.map(_fit_one, names, items, options=options,
+        futures = client.map(_fit_one_held, names, items, options=options,
                              load_options=load_options, pure=False)
         return client.gather(futures)
     finally:

@@ -163,8 +163,32 @@ def read_records(args):
     return rec.channels[args.input], rec.channels[args.output], rec.fs
 
 
+_STATS_HEADER = "omega,bin,variance,coherence,weight"
+
+
+def _own_sidecar(path):
+    """True if ``path`` is a regular file whose first line is the sidecar's header (one
+    that ``freqid frf`` wrote)."""
+    try:
+        with open(path, "rb") as fh:
+            first = fh.read(len(_STATS_HEADER) + 2)
+    except OSError:
+        return False
+    return os.path.isfile(path) and first.splitlines()[:1] == [_STATS_HEADER.encode()]
+
+
+def _check_sidecar(sidecar, force, records):
+    """The sidecar is never named by the user: with ``force`` it replaces only a sidecar
+    that ``freqid frf`` wrote (a file of the user's with that name is kept)."""
+    _check_target(sidecar, force, records)
+    if os.path.lexists(sidecar) and not _own_sidecar(sidecar):
+        raise OptionError(f"refusing to replace {sidecar!r} (the variance/coherence file "
+                          f"written beside --out): it was not written by freqid frf; move "
+                          "it or choose another --out")
+
+
 def _stats_text(est):
-    lines = ["omega,bin,variance,coherence,weight"]
+    lines = [_STATS_HEADER]
     d = est.data
     for w, k, v, c, wt in zip(d.omega.tolist(), est.bins.tolist(), est.variance.tolist(),
                               est.coherence.tolist(), d.weights.tolist()):
@@ -223,10 +247,15 @@ def run_cli(args, command):
                                min_coherence=getattr(args, "min_coherence", None), name=name)
     sidecar = stats_path(out) if est.variance is not None else None
     if sidecar is not None:
-        _check_target(sidecar, force, args.records)
+        _check_sidecar(sidecar, force, args.records)
+    stale = stats_path(out) if sidecar is None and _own_sidecar(stats_path(out)) else None
+    if stale is not None:      # an earlier run's statistics would not belong to this FRF
+        _check_sidecar(stale, force, args.records)
     save_csv(est.data, out)
     if sidecar is not None:
         atomic_write_text(sidecar, _stats_text(est))
+    if stale is not None:
+        os.remove(stale)
     _summary(est, out, sidecar)
     return 0
 

@@ -120,6 +120,8 @@ class FrequencyData:
 
     def window(self, n_points):
         """The first ``n_points`` samples (lowest frequencies) as a new FrequencyData."""
+        if isinstance(n_points, (bool, np.bool_)) or not isinstance(n_points, (int, np.integer)):
+            raise DataError(f"window length must be an integer, got {n_points!r}")
         n = int(n_points)
         if not 1 <= n <= self.n_points:
             raise DataError(f"window length must be in 1..{self.n_points}, got {n_points}")
@@ -146,7 +148,11 @@ class FrequencyData:
         keep = np.ones(order.size, bool)
         keep[1:] = np.diff(omega[order]) != 0
         idx = order[keep]
-        w = None if weights is None else _as_float_vector(weights, "weights")[idx]
+        w = None if weights is None else _as_float_vector(weights, "weights")
+        if w is not None and w.size != omega.size:
+            raise DataError(f"weights must have one value per frequency: len(weights)={w.size}, "
+                            f"len(omega)={omega.size}")
+        w = None if w is None else w[idx]
         return cls(omega[idx], response[idx], name, w)
 
 

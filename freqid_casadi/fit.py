@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .candidates import Candidate, choose, zero_delay_run
-from ._fit_checks import (GAIN_SIGNS, after_fit, check_model_class, success_of, validate,
-                          zeta_min_of)
+from ._fit_checks import (GAIN_SIGNS, after_fit, check_choice, check_flag, check_model_class,
+                          check_progress, success_of, validate, zeta_min_of)
 from .data import FrequencyData
 from .delay_hold import hold_undetermined_delay
 from .delay_search import delay_search_run
@@ -31,7 +31,8 @@ from .metrics import relative_error
 from .model import RationalDelayModel, Structure
 from .options import (INITS, LEGACY_KEYWORDS, METHODS, WARM_STARTS, FitOptions, LoopOptions,
                       legacy_message, solver_options)
-from .scaling import check_finite_result, reference_scales, scale_data, unscale_model
+from .scaling import (check_finite_result, reference_scales, scale_data, unscale_model,
+                      weighted_span)
 from .resolution import check_resolution, default_delay_max, resolution_damping
 from .stages import Kept, StageKind, StageRecord, StageSolver
 from .start import RationalStartError
@@ -233,7 +234,10 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
     tol : float, optional
         Stop adding sections once the max relative error over all data is below ``tol``.
     weights : array_like of float, shape (M,), optional
-        Weights of the squared relative residuals (overrides ``data.weights``).
+        Weights of the squared relative residuals (overrides ``data.weights``); only their
+        ratios matter (the fit divides them by a power of two near their mean). At least
+        as many points as parameters need a weight > 0; points of weight 0 below the first
+        weighted one are left out of the loop's windows (their error is still reported).
     start : {"sequential", "rational", "best"}
         "sequential" is the thesis's main loop; "rational" fits all sections at once by
         vector fitting with the delay refined from the right-half-plane zeros
@@ -284,6 +288,8 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         A keyword fit() no longer takes (``gauge=``, ``hessian=``, ...): the message names
         the option object and field it moved to.
     """
+    integrator, delay = check_flag("integrator", integrator), check_flag("delay", delay)
+    progress = check_progress(progress)
     kw = dict(integrator=integrator, basis=basis, method=method, tol=tol, start=start,
               objective=objective, min_damping=min_damping, loop=loop, gain_sign=gain_sign,
               zeros=zeros)
@@ -321,14 +327,9 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     if not isinstance(loop, LoopOptions):
         raise OptionError(f"loop must be a LoopOptions or None, got {type(loop).__name__}; "
                           "pass loop=LoopOptions(gauge=..., init=..., ...)")
-    data = validate(data_or_omega, response, n_sections, basis, tol, integrator)
-    if start not in STARTS:
-        raise OptionError(f"unknown start {start!r}; choose one of {', '.join(STARTS)}")
-    if objective not in OBJECTIVES:
-        raise OptionError(f"unknown objective {objective!r}; choose one of "
-                          f"{', '.join(OBJECTIVES)}")
-    if weights is not None:
-        data = data.with_weights(weights)
+    data = validate(data_or_omega, response, n_sections, basis, tol, integrator, weights)
+    check_choice("start", start, STARTS)
+    check_choice("objective", objective, OBJECTIVES)
     check_model_class(gain_sign, zeros, solver.method, loop.gauge, min_damping)
     sign, found = check_gain_sign(data, integrator, gain_sign)
     user_data = data
@@ -338,9 +339,10 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     # O(1) data is fitted bit for bit as given) and map the model back (issue 13 item 3)
     w_ref, g_ref = reference_scales(data)
     data = scale_data(data, w_ref, g_ref)
-    zeta_min = zeta_min_of(min_damping, data.omega, solver.method, loop.gauge, basis)
+    fit_data = weighted_span(data)  # the loop starts at the first point with a weight > 0
+    zeta_min = zeta_min_of(min_damping, fit_data.omega, solver.method, loop.gauge, basis)
     dmax = (float(loop.delay_max) * w_ref if loop.delay_max is not None
-            else default_delay_max(data.omega))
+            else default_delay_max(fit_data.omega))
     user_callback, unscaled = _progress_callback(progress), {}
 
     def callback(rec):              # the user sees (and FitResult keeps) the same records
@@ -348,7 +350,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
         user_callback(unscaled[id(rec)][1])
 
     ctx = LoopContext(
-        data=data, callback=callback,
+        data=fit_data, callback=callback,
         solve=StageSolver(solver, loop, zeta_min),
         structure=Structure(int(n_sections), integrator, delay, basis, zeros), loop=loop,
         warm_start=solver.warm_start, delay_max=dmax, final_max_iter=solver.final_max_iter,
@@ -357,7 +359,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                          delay=bool(delay), basis=basis, method=solver.method, tol=tol,
                          start=start, objective=objective, min_damping=min_damping,
                          solver=solver, loop=loop)
-    param, z, records, won, errors, cand_errors = _run_starts(ctx, start, tol, data)
+    param, z, records, won, errors, cand_errors = _run_starts(ctx, start, tol, fit_data)
     if objective == "minimax":
         z, rec = minimax(ctx, param, z)
         records.append(rec)

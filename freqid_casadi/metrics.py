@@ -62,8 +62,19 @@ def error_stats(values, omega=None):
         raise DataError("no relative-error values: give at least one frequency")
     k = int(np.argmax(values))
     where = float(np.asarray(omega, float)[k]) if omega is not None else float("nan")
-    return ErrorStats(values=values, max=float(np.max(values)),
-                      rms=float(np.sqrt(np.mean(values ** 2))), argmax=k, omega_at_max=where)
+    return ErrorStats(values=values, max=float(np.max(values)), rms=_rms(values), argmax=k,
+                      omega_at_max=where)
+
+
+def _rms(values):
+    """``sqrt(mean(values**2))``, rescaled by the largest value when the squares overflow
+    (values near 1e300) or underflow (near 1e-300)."""
+    with np.errstate(over="ignore", under="ignore"):
+        plain = float(np.sqrt(np.mean(values ** 2)))
+        top = float(np.max(np.abs(values)))
+        if (np.isfinite(plain) and plain > 0) or not 0.0 < top < np.inf:
+            return plain
+        return top * float(np.sqrt(np.mean((values / top) ** 2)))
 
 
 def relative_error(model, data_or_omega, response=None):

@@ -74,15 +74,12 @@ class Structure:
         if n < 0:
             raise StructureError(f"n_sections must be >= 0, got {n}")
         object.__setattr__(self, "n_sections", int(n))
-        if self.basis not in BASES:
-            raise StructureError(
-                f"unknown basis {self.basis!r}; choose one of {', '.join(BASES)}")
-        object.__setattr__(self, "integrator", bool(self.integrator))
-        object.__setattr__(self, "delay", bool(self.delay))
-        if self.zeros not in ZEROS:
-            raise StructureError(
-                f"unknown zeros {self.zeros!r}; choose one of {', '.join(ZEROS)}")
-        if isinstance(self.gain_sign, bool) or self.gain_sign not in (1, -1):
+        _model_json.choice("basis", self.basis, BASES)
+        object.__setattr__(self, "integrator", _model_json.flag("integrator", self.integrator))
+        object.__setattr__(self, "delay", _model_json.flag("delay", self.delay))
+        _model_json.choice("zeros", self.zeros, ZEROS)
+        if isinstance(self.gain_sign, (bool, np.bool_)) or \
+                not isinstance(self.gain_sign, (int, np.integer)) or self.gain_sign not in (1, -1):
             raise StructureError(f"gain_sign must be 1 or -1, got {self.gain_sign!r}")
         object.__setattr__(self, "gain_sign", int(self.gain_sign))
 
@@ -215,8 +212,9 @@ def attach_delay(sys, delay, pade_order=None):
     import control as ct
 
     if pade_order is not None:
+        order = _model_json.pade_order(pade_order)
         if delay > 0:
-            pn, pd = ct.pade(delay, int(pade_order))
+            pn, pd = _model_json.pade(ct, delay, order)
             sys = ct.series(sys, ct.ss(ct.tf(pn, pd)))
         sys.delay = 0.0
     else:
@@ -246,7 +244,7 @@ class RationalDelayModel(DelayedResponse):
     def __post_init__(self):
         if not isinstance(self.structure, Structure):
             raise StructureError("structure must be a Structure")
-        beta = np.array(self.beta, dtype=float, copy=True).reshape(-1)
+        beta = _model_json.real_vector(self.beta)
         if beta.size != self.structure.n_params:
             raise StructureError(
                 f"beta has {beta.size} entries, the structure needs {self.structure.n_params} "

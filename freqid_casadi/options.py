@@ -92,7 +92,8 @@ def _check_ipopt(owner, pairs):
 
     x = ca.MX.sym("x")
     opts = {"ipopt": {"print_level": 0, "sb": "yes", **dict(pairs)}, "print_time": False}
-    sys.stdout.flush()
+    if sys.stdout is not None:              # None without a console (pythonw, daemons)
+        sys.stdout.flush()
     said = io.StringIO()                    # CasADi prints IPOPT's text through sys.stdout
     with tempfile.TemporaryFile() as log, contextlib.redirect_stdout(said):
         saved = os.dup(1)

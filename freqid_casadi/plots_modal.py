@@ -64,7 +64,8 @@ def stabilization_diagram(result, *, title=None, figsize=(8.0, 5.0), log_frequen
     ax.set_ylabel("model order (number of shared poles)")
     ax.set_zorder(ax2.get_zorder() + 1)
     ax.patch.set_visible(False)
-    ax.legend(loc="lower left", fontsize=8, framealpha=0.9)
+    if ax.get_legend_handles_labels()[0]:      # no poles in the band: no empty legend
+        ax.legend(loc="lower left", fontsize=8, framealpha=0.9)
     ax.set_title(title or f"Stabilization diagram ({len(result.modes)} modes selected; "
                  f"tolerances {100 * result.freq_tol:g} % frequency, "
                  f"{100 * result.damping_tol:g} % damping)", fontsize=10)

@@ -29,7 +29,7 @@ import numpy as np
 
 from . import _outputs
 from ._io import atomic_write_text, md_text
-from .errors import FreqidError
+from .errors import FreqidError, OptionError
 from .formatting import csv_text, generated_by_line, json_safe, markdown_table, number
 from .summary import (REPORT_FILES, REPORT_FORMAT, REPORT_VERSION, dense_error, fit_summary,
                       render_fit_summary)
@@ -159,6 +159,9 @@ def write_fit_report(result, out_dir, *, command, force=False, title=None, thesi
     OSError
         If writing fails; nothing is left behind.
     """
+    if not all(hasattr(result, a) for a in ("model", "data", "rel_error", "stages")):
+        raise OptionError(f"result must be a FitResult (from fit), got "
+                          f"{type(result).__name__}")
     path = check_out_dir(out_dir, force)
     summary = fit_summary(result, command=command, title=title, thesis=thesis, truth=truth)
     with report_folder(out_dir, force) as (tmp, _):
@@ -198,6 +201,9 @@ def write_sweep_report(result, out_dir, *, command, force=False):
     str
         The absolute path of the folder.
     """
+    if not (hasattr(result, "rows") and hasattr(result, "as_dict")):
+        raise OptionError(f"result must be a SweepResult (from sweep), got "
+                          f"{type(result).__name__}")
     path = check_out_dir(out_dir, force)
     d = json_safe(result.as_dict())
     d["command"] = command

@@ -259,9 +259,10 @@ def default_delay_max(omega):
     float
         Seconds.
     """
-    omega = np.asarray(omega, float)
-    if omega.size < 2:
+    omega = np.asarray(omega, float).reshape(-1)
+    if omega.size == 1 and math.isfinite(omega[0]) and omega[0] > 0:
         return math.pi / omega[0]
+    omega = frequency_grid(omega)               # DataError: not finite, > 0, increasing
     return math.pi / float(np.max(np.diff(omega)))
 
 
@@ -287,8 +288,13 @@ def resolution_damping(omega, fraction=1.0):
     -------
     float
     """
-    omega = np.asarray(omega, float)
+    omega = np.asarray(omega, float).reshape(-1)
     if omega.size < 2:
         raise DataError("a damping floor from the resolution needs at least 2 frequencies")
+    omega = frequency_grid(omega)               # DataError: not finite, > 0, increasing
+    if isinstance(fraction, (bool, np.bool_)) or not isinstance(fraction, (int, float,
+                                                                       np.floating)) \
+            or not 0 < fraction < math.inf:
+        raise OptionError(f"fraction must be a finite number > 0, got {fraction!r}")
     rel = np.diff(omega) / omega[:-1]
     return 0.5 * float(fraction) * float(np.median(rel))

@@ -16,10 +16,11 @@ import math
 import numpy as np
 
 from .data import FrequencyData
-from .errors import SolverError
+from .errors import DataError, SolverError
 from .model import RationalDelayModel
 
-__all__ = ["reference_scales", "scale_data", "unscale_model", "check_finite_result"]
+__all__ = ["reference_scales", "scale_data", "unscale_model", "check_finite_result",
+           "weight_scale", "weighted_span"]
 
 
 def _pow2(x):
@@ -50,8 +51,51 @@ def reference_scales(data):
         _pow2(2.0 ** max(min(log_g, 1000.0), -1000.0))
 
 
+def weight_scale(weights):
+    """The power of two nearest to the mean of ``weights`` (1.0 for None).
+
+    The weighted least-squares problem does not change when all weights are multiplied by
+    one number, but the solvers' absolute tolerances do: weights of 1e4 (a 1 % noise's
+    1/sigma^2) left a perfect fit "not converged", weights of 1e-200 stopped it at the
+    start. Dividing by this scale makes the mean weight about 1 (unit weights unchanged).
+
+    Parameters
+    ----------
+    weights : ndarray of float, shape (M,), or None
+        Finite, >= 0, not all zero.
+
+    Returns
+    -------
+    float
+    """
+    if weights is None:
+        return 1.0
+    top = float(np.max(weights))
+    return _pow2(top * float(np.mean(weights / top)))     # no overflow of the sum
+
+
+def weighted_span(data):
+    """``data`` from its first point with a weight > 0 on (``data`` itself if that is the
+    first point): points of weight 0 at the low end count in no cost, and the sequential
+    loop's first windows (the lowest frequencies) need a point that counts.
+
+    Parameters
+    ----------
+    data : FrequencyData
+
+    Returns
+    -------
+    FrequencyData
+    """
+    if data.weights is None or data.weights[0] > 0:
+        return data
+    k = int(np.flatnonzero(data.weights > 0)[0])
+    return FrequencyData(data.omega[k:], data.response[k:], data.name, data.weights[k:])
+
+
 def scale_data(data, w_ref, g_ref):
-    """``FrequencyData(omega / w_ref, response / g_ref)`` with the name and weights kept.
+    """``FrequencyData(omega / w_ref, response / g_ref)`` with the name kept and the
+    weights divided by :func:`weight_scale` (mean weight about 1).
 
     Parameters
     ----------
@@ -65,7 +109,19 @@ def scale_data(data, w_ref, g_ref):
     -------
     FrequencyData
     """
-    return FrequencyData(data.omega / w_ref, data.response / g_ref, data.name, data.weights)
+    weights = data.weights
+    if weights is not None:
+        weights = weights / weight_scale(weights)
+    with np.errstate(under="ignore", over="ignore"):
+        response = data.response / g_ref
+    bad = (response == 0) | ~np.isfinite(response)
+    if bad.any():                   # the message names the user's point, not the scaled one
+        i = int(np.flatnonzero(bad)[0])
+        raise DataError(
+            f"response[{i}]={data.response[i]} at omega={float(data.omega[i])!r} is out of "
+            f"float64's range beside the data's median magnitude {g_ref:.3g} (the fit works "
+            "on the response divided by it); remove that point or re-measure it")
+    return FrequencyData(data.omega / w_ref, response, data.name, weights)
 
 
 def unscale_model(model, w_ref, g_ref):

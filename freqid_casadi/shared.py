@@ -32,6 +32,7 @@ Two starts (:mod:`freqid_casadi._shared_stages`):
 """
 
 import dataclasses
+import numbers
 import time
 from dataclasses import dataclass, field
 
@@ -40,13 +41,16 @@ import numpy as np
 from .data import FrequencyData
 from .gauges import dc_to_thesis
 from .errors import DataError, OptionError
+from ._fit_checks import check_flag
 from .resolution import default_delay_max
+from .scaling import weight_scale
 from .model import RationalDelayModel, Structure
 from ._shared_nlp import SharedProblem
 from ._shared_stages import (SharedStage, lawson_rounds, logger, rational_start,
                              sequential_start)
 
-__all__ = ["fit_shared", "SharedFitResult", "SharedStage", "DELAYS", "ZEROS", "SHARED_STARTS"]
+__all__ = ["fit_shared", "SharedFitResult", "SharedStage", "DELAYS", "ZEROS", "SHARED_STARTS",
+           "check_largest_order"]
 
 DELAYS = ("per-channel", "shared", False)
 ZEROS = ("minimum-phase", "free")
@@ -224,7 +228,57 @@ def _check_datas(datas, weights):
             raise DataError(f"weights must be finite, >= 0 and broadcastable to (channels, "
                             f"points) = {wts.shape}, not all zero in a channel")
         wts = wts * w
+    # the problem does not change with a common factor of the weights, the solvers'
+    # absolute tolerances do: mean weight about 1 (a power of two; unit weights unchanged)
+    wts = wts / weight_scale(wts.ravel())
     return datas, omega, np.array([d.response for d in datas]), wts
+
+
+def _check_numbers(integrator, delay_max, max_iter, n_vf_iter, progress, balance):
+    """The scalar options of :func:`fit_shared` (OptionError naming the bad one)."""
+    flags = {"integrator": integrator, "progress": progress, "balance_channels": balance}
+    for name, value in flags.items():
+        check_flag(name, value)
+    if delay_max is not None and (isinstance(delay_max, (bool, np.bool_))
+                                  or not isinstance(delay_max, numbers.Real)
+                                  or not (0 < delay_max < np.inf)):
+        raise OptionError(f"delay_max must be a finite delay > 0 in seconds or None, got "
+                          f"{delay_max!r}")
+    for name, value, low in (("max_iter", max_iter, 1), ("n_vf_iter", n_vf_iter, 0)):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) \
+                or value < low:
+            raise OptionError(f"{name} must be an integer >= {low}, got {value!r}")
+
+
+def check_largest_order(datas, n_sections, options):
+    """DataError (or OptionError) before a series of fits when ``n_sections`` shared
+    sections with the :func:`fit_shared` ``options`` have more parameters than the data
+    have weighted points (see :func:`~freqid_casadi.survey.stabilization`).
+
+    Parameters
+    ----------
+    datas : sequence of FrequencyData, length C
+        The channels, on one omega grid.
+    n_sections : int
+        The largest number of shared sections of the series.
+    options : dict
+        Keywords of :func:`fit_shared` (``weights``, ``channel_sections``, ``delay``).
+    """
+    wts = _check_datas(datas, options.get("weights"))[3]
+    k = options.get("channel_sections", 0)
+    if isinstance(k, (int, np.integer)) and not isinstance(k, bool) and k >= 0:
+        _check_size(wts, int(n_sections), int(k), options.get("delay", "per-channel"))
+
+
+def _check_size(wts, n, k, delay):
+    """DataError when the channels' weighted points are fewer than the variables."""
+    c = wts.shape[0]
+    n_vars = 2 * n + (delay == "shared") + c * (1 + (delay == "per-channel") + 2 * n + 4 * k)
+    counted = int(np.count_nonzero(wts > 0))
+    if counted < n_vars:
+        raise DataError(f"too few data points for {n} shared sections (and {k} per channel): "
+                        f"{counted} weighted points over {c} channels for {n_vars} "
+                        "parameters; use fewer sections or more data")
 
 
 def _check_options(n_sections, delay, zeros, start, n_channels, channel_sections):
@@ -235,13 +289,17 @@ def _check_options(n_sections, delay, zeros, start, n_channels, channel_sections
             not isinstance(channel_sections, (int, np.integer)) or channel_sections < 0:
         raise OptionError(f"channel_sections must be an integer >= 0 (sections of each "
                           f"channel's own beside the shared ones), got {channel_sections!r}")
-    if delay not in DELAYS or delay is True:
+    if not (delay is False or isinstance(delay, str)) or delay not in DELAYS:
         raise OptionError(f"delay must be one of {DELAYS}, got {delay!r}")
-    zs = [zeros] * n_channels if isinstance(zeros, str) else list(zeros)
-    if len(zs) != n_channels or any(z not in ZEROS for z in zs):
+    try:
+        zs = [zeros] * n_channels if isinstance(zeros, str) else list(zeros)
+    except TypeError:
+        zs = None
+    if zs is None or len(zs) != n_channels or \
+            any(not isinstance(z, str) or z not in ZEROS for z in zs):
         raise OptionError(f"zeros must be one of {ZEROS} or a list of them, one per channel "
                           f"({n_channels}), got {zeros!r}")
-    if start not in SHARED_STARTS:
+    if not isinstance(start, str) or start not in SHARED_STARTS:
         raise OptionError(f"start must be one of {SHARED_STARTS}, got {start!r}")
     return int(n_sections), tuple(zs), int(channel_sections)
 
@@ -320,6 +378,8 @@ def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, pro
     t0 = time.perf_counter()
     datas, omega, phi, wts = _check_datas(datas, weights)
     n, zs, k = _check_options(n_sections, delay, zeros, start, len(datas), channel_sections)
+    _check_numbers(integrator, delay_max, max_iter, n_vf_iter, progress, balance)
+    _check_size(wts, n, k, delay)
     free = np.array([z == "free" for z in zs])
     dmax = float(delay_max) if delay_max is not None else default_delay_max(omega)
     g = np.abs(phi[:, 0]) * (omega[0] if integrator else 1.0)

@@ -6,6 +6,7 @@ tolerances 1 % and 10 % by default); the modes that stay stable are selected.
 
 import csv
 import io
+import numbers
 from dataclasses import dataclass
 
 import numpy as np
@@ -98,11 +99,33 @@ def parse_orders(text):
 
 
 def _check_orders(orders):
-    orders = tuple(int(o) for o in orders)
+    if isinstance(orders, str):
+        orders = parse_orders(orders)
+    try:
+        given = tuple(orders)
+    except TypeError:
+        raise OptionError(f"orders must be a sequence of even integers or a string such as "
+                          f"'2:40:2', got {orders!r}") from None
+    if any(isinstance(o, (bool, np.bool_)) or not isinstance(o, (int, np.integer))
+           for o in given):
+        raise OptionError(f"orders must be integers, got {given!r:.80}")
+    orders = tuple(int(o) for o in given)
     if not orders or any(o < 2 or o % 2 for o in orders) or list(orders) != sorted(set(orders)):
         raise OptionError(f"orders must be increasing even numbers >= 2 (the number of "
                           f"shared poles), got {orders}")
     return orders
+
+
+def _check_tolerances(freq_tol, damping_tol, min_stable):
+    """OptionError for tolerances that are not real numbers or a ``min_stable`` that is not
+    an integer >= 1 (their ranges are checked by :func:`stabilization`)."""
+    for name, value in (("freq_tol", freq_tol), ("damping_tol", damping_tol)):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+            raise OptionError(f"{name} must be a number, got {value!r}")
+    if isinstance(min_stable, (bool, np.bool_)) or \
+            not isinstance(min_stable, (int, np.integer)) or min_stable < 1:
+        raise OptionError(f"min_stable must be an integer >= 1 (orders a mode must stay "
+                          f"stable), got {min_stable!r}")
 
 
 def _match(prev, cur, freq_tol, damping_tol):
@@ -161,9 +184,11 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
     -------
     StabilizationResult
     """
-    from .shared import fit_shared
+    from .shared import check_largest_order, fit_shared
 
     orders = _check_orders(orders)
+    _check_tolerances(freq_tol, damping_tol, min_stable)
+    check_largest_order(datas, orders[-1] // 2, fit_options)     # before any fit is run
     if not (0 < freq_tol < 1 and 0 < damping_tol < 10):
         raise OptionError(f"freq_tol must be in (0, 1) and damping_tol in (0, 10), got "
                           f"{freq_tol}, {damping_tol}")

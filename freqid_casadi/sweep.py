@@ -11,14 +11,16 @@ so the start has exactly the previous error) is polished on all data as a second
 the better of the two models is kept, so N+1 sections are never worse than N.
 """
 
+import numbers
 import time
 
 from dataclasses import dataclass
 
 import numpy as np
 
+from ._fit_checks import validate
 from .data import FrequencyData, dense_grid
-from .errors import OptionError
+from .errors import DataError, OptionError
 from .fit import fit
 from .metrics import relative_error
 from .model import RationalDelayModel
@@ -183,14 +185,19 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
     """
     if not isinstance(data, FrequencyData):
         raise OptionError("sweep takes a FrequencyData")
-    if target is not None and not (np.isfinite(target) and target > 0):
+    if target is not None and (isinstance(target, (bool, np.bool_))
+                               or not isinstance(target, numbers.Real)
+                               or not (np.isfinite(target) and target > 0)):
         raise OptionError(f"target must be a number > 0, got {target!r}")
+    if progress is not None and not callable(progress):
+        raise OptionError(f"progress must be None or a callable taking each SweepRow, got "
+                          f"{progress!r}")
     basis = fit_options.get("basis", "second-order")
     per = 2 if basis == "second-order" else 1
-    if hasattr(orders, "__len__"):
-        _count(len(orders))                 # before a range is turned into a list
-    orders = [int(o) for o in orders]
-    _count(len(orders))
+    orders = _orders(orders)
+    if orders:                  # the largest order fits the data, before any fit is run
+        validate(data, None, max(orders) // per, basis, None,
+                 fit_options.get("integrator", False), fit_options.get("weights"))
     for o in orders:
         if o % per:
             raise OptionError(f"order {o} is odd: second-order sections give even orders; "
@@ -198,7 +205,7 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
     dense = None
     if truth is not None:
         dense = dense_grid(data.omega, dense_factor)
-        g_dense = truth(dense)
+        g_dense = _truth_values(truth, dense)
     rows = []
     chain = shown = None        # the continued model, and the last row's (model, max, rms, ok)
     only_ext = incremental and fit_options.get("start", "sequential") == "sequential"
@@ -238,6 +245,40 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
     meeting = [r.order for r in rows if target is not None and r.max_rel_error <= target]
     return SweepResult(rows=tuple(rows), target=target,
                        best_order=min(meeting) if meeting else None, data_name=data.name)
+
+
+def _orders(orders):
+    """The list of int orders of :func:`sweep` (a string is parsed by :func:`parse_orders`);
+    OptionError for anything but integers."""
+    if isinstance(orders, str):
+        return parse_orders(orders)
+    if hasattr(orders, "__len__"):
+        _count(len(orders))                 # before a range is turned into a list
+    try:
+        out = list(orders)
+    except TypeError:
+        raise OptionError(f"orders must be a list of even integers or a string such as "
+                          f"'4:40:2', got {orders!r}") from None
+    _count(len(out))
+    for o in out:
+        if isinstance(o, (bool, np.bool_)) or not isinstance(o, numbers.Integral):
+            raise OptionError(f"orders must be integers, got {o!r} in {orders!r:.80}")
+    return [int(o) for o in out]
+
+
+def _truth_values(truth, dense):
+    """``truth(dense)``, checked: one finite, nonzero complex value per frequency."""
+    try:
+        values = np.asarray(truth(dense), complex)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"truth(omega) must return complex values: {exc}") from None
+    if values.shape != dense.shape or not np.all(np.isfinite(values)) or np.any(values == 0):
+        raise DataError(f"truth(omega) must return one finite, nonzero complex value per "
+                        f"frequency: shape {dense.shape} expected, got {values.shape}"
+                        + ("" if values.shape != dense.shape else
+                           ", with values not finite or zero")
+                        + "; pass a callable such as model.frequency_response")
+    return values
 
 
 def _better(a, b):

@@ -133,7 +133,13 @@ def frf_from_records(u, y, *, fs, estimator="h1", nperseg=None, noverlap=None,
         raise DataError(f"input u is constant (every sample = {u[0]!r}): there is no "
                         "excitation; check that the input channel was recorded")
     u, y, gain = _normalised(u, y)       # spectra of the scaled records; H times gain
-    f, s_uu, s_yy, s_uy = _spectra(u, y, fs, win, nperseg, noverlap, detrend)
+    # the densities are scaled by 1/fs, which under- or overflows at an extreme fs: then
+    # they are computed per sample (fs = 1; h and the coherence are ratios) and f scaled
+    per_sample = not 1e-100 < fs < 1e100
+    f, s_uu, s_yy, s_uy = _spectra(u, y, 1.0 if per_sample else fs, win, nperseg, noverlap,
+                                   detrend)
+    if per_sample:
+        f = f * fs
     n_avg = 1 + (u.size - nperseg) // (nperseg - noverlap)
     bins = np.arange(f.size)
     with np.errstate(all="ignore"):
@@ -146,8 +152,12 @@ def frf_from_records(u, y, *, fs, estimator="h1", nperseg=None, noverlap=None,
     if not keep.any():
         ok = (bins > 0) & np.isfinite(coh)
         best = float(coh[ok].max()) if ok.any() else 0.0
+        if min_coherence is None:
+            raise DataError("no frequency has a finite, nonzero response estimate (the output "
+                            "does not follow the input, or the records' scales are extreme); "
+                            "check the channels and rescale the records")
         raise DataError(
-            f"no frequency has coherence >= {min_coherence} (highest {best:.3g}): the output "
+            f"no frequency has coherence >= {min_coherence} (highest {best:.8g}): the output "
             "does not follow the input; check the channels, lower --min-coherence or use "
             "longer segments")
     h, coh, omega, bins = h[keep], coh[keep], omega[keep], bins[keep]
