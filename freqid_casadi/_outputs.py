@@ -102,13 +102,17 @@ def _inside(child, folder):
 
 
 #: Kinds of file a report from before the marker holds (see :func:`is_package_folder`).
-LEGACY_SUFFIXES = (".md", ".json", ".csv", ".png", ".svg", ".pdf", ".txt")
+LEGACY_SUFFIXES = (".md", ".json", ".csv", ".png", ".svg", ".pdf")
+#: The CSV files reports write: a user's own data (any other .csv) is never a report's.
+LEGACY_CSV = ("rel_error.csv", "stages.csv", "frf.csv", "modes.csv", "stabilization.csv",
+              "summary.csv", "sweep.csv")
 
 
 def foreign_entry(path):
     """The first entry under the folder ``path`` (relative path) that no report writes: not
     a regular file with one of :data:`LEGACY_SUFFIXES` (a symbolic link, another kind of
-    file, a hidden file), or None. A folder is searched recursively."""
+    file, a hidden file, a text file) or a CSV file not named in :data:`LEGACY_CSV` (a
+    user's data), or None. A folder is searched recursively."""
     try:
         entries = sorted(os.scandir(path), key=lambda e: e.name)
     except OSError:
@@ -119,7 +123,8 @@ def foreign_entry(path):
             if inner is not None:
                 return e.name if inner == "." else os.path.join(e.name, inner)
         elif (not e.is_file(follow_symlinks=False) or e.name.startswith(".")
-              or not e.name.lower().endswith(LEGACY_SUFFIXES)):
+              or not e.name.lower().endswith(LEGACY_SUFFIXES)
+              or (e.name.lower().endswith(".csv") and e.name not in LEGACY_CSV)):
             return e.name
     return None
 
