@@ -254,3 +254,13 @@ def test_a_subnormal_response_is_named_as_the_user_gave_it():
     r[5] = 5e-324
     with pytest.raises(DataError, match=r"response\[5\]=\(?5e-324.* at omega=0\.2"):
         fc.fit(W, r, n_sections=1)
+
+
+def test_barrier_lm_without_one_accepted_step_is_not_converged():
+    # a damping of 1e300 makes every step vanish from the start: the outer loop ran out
+    # and the stage said "converged" at its start point (found by the fuzz pass)
+    res = fc.fit(W, R, n_sections=1, method=fc.BarrierLMOptions(tau=1e300))
+    assert not res.success
+    assert res.stages[-1].solver_status == "no_step_accepted"
+    ok = fc.fit(W, R, n_sections=1, method=fc.BarrierLMOptions())
+    assert ok.success and ok.max_rel_error < 1e-9

@@ -374,6 +374,10 @@ def barrier_lm(fun, jac, x0, *, lb=0.0, t0=1.0, t_factor=20.0, t_max=1e12, tau=1
         status, solver_status = Status.ERROR, reason
     elif reason == _MAXITER:
         status, solver_status = Status.MAX_ITER, "inner_max_iter"
+    elif counts["njev"] == 1 and _GTOL not in inner_stop and _FTOL not in inner_stop:
+        # not one step accepted, and no inner solve stopped on its gradient or cost test:
+        # the steps vanished from the start (e.g. a damping tau = 1e300), not an optimum
+        status, solver_status = Status.STALLED, "no_step_accepted"
     else:
         status, solver_status = Status.CONVERGED, "outer_done"
 
