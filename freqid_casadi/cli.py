@@ -35,6 +35,7 @@ from functools import partial
 
 from . import _interrupt, _io, _outputs
 from .cli_common import add_data_options, load_data
+from .cli_common import error_line as _error, os_exit as _os_exit
 from .errors import FreqidError, OptionError, ResolutionWarning
 from .examples import EXAMPLES, FRACTIONAL_SECTIONS
 from .fit import GAIN_SIGNS, METHODS, OBJECTIVES, STARTS, fit
@@ -442,16 +443,6 @@ COMMANDS["modal"] = _plugin("cli_modal")
 # ----------------------------------------------------------------------------- main
 
 
-def _error(message):
-    sys.stderr.write(f"error: {' '.join(str(message).split())}\n")
-    sys.stderr.flush()
-
-
-def _os_message(exc):
-    what = exc.strerror or str(exc)
-    return f"{what}: {exc.filename!r}" if exc.filename else what
-
-
 def main(argv=None):
     """Run the ``freqid`` command line.
 
@@ -484,8 +475,7 @@ def main(argv=None):
         _error(exc)
         return 2
     except OSError as exc:
-        _error(_os_message(exc))
-        return 2
+        return _os_exit(exc)
     except KeyboardInterrupt as exc:
         _error("interrupted")
         return _interrupt.exit_status(exc)

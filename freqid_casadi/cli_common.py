@@ -8,6 +8,7 @@ instead of Python warning text.
 
 import argparse
 import contextlib
+import os
 import sys
 import warnings
 
@@ -20,7 +21,8 @@ from .loaders import DataWarning, load
 from .errors import DataError, OptionError
 from ._table import parse_columns
 
-__all__ = ["add_data_options", "load_data", "load_options", "notes_to_stderr", "with_weights"]
+__all__ = ["add_data_options", "load_data", "load_options", "notes_to_stderr", "with_weights",
+           "error_line", "os_exit"]
 
 
 def _columns(text):
@@ -180,3 +182,38 @@ def with_weights(data, path):
         return FrequencyData(data.omega, data.response, data.name, weight)
     except DataError as exc:
         raise DataError(f"{path!r}: {exc}") from None
+
+
+def error_line(message):
+    """Write ``error: <message>`` (one line) to stderr.
+
+    Parameters
+    ----------
+    message : str or Exception
+        Its whitespace is collapsed to single spaces.
+    """
+    sys.stderr.write(f"error: {' '.join(str(message).split())}\n")
+    sys.stderr.flush()
+
+
+def os_exit(exc):
+    """Exit status of an OSError: the error line and 2, or for a closed pipe (``freqid fit
+    ... | head``) nothing more written and 141 (128 + SIGPIPE, as other tools).
+
+    Parameters
+    ----------
+    exc : OSError
+
+    Returns
+    -------
+    int
+    """
+    if isinstance(exc, BrokenPipeError):
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):
+            pass
+        return 141
+    what = exc.strerror or str(exc)
+    error_line(f"{what}: {exc.filename!r}" if exc.filename else what)
+    return 2

@@ -352,3 +352,23 @@ def test_force_keeps_a_users_csv_or_text_beside_a_copied_report(tmp_path, monkey
     (legacy / "rel_error.csv").write_text("omega,rel\n")
     (legacy / "bode.png").write_bytes(b"\x89PNG")
     assert is_package_folder(legacy)
+
+
+def test_closed_stdout_pipe_is_quiet_and_exits_141(tmp_path):
+    # `freqid fit ... | head -c 0` wrote the report, then "error: Broken pipe", exit 2
+    import subprocess
+    import sys
+
+    from freqid_casadi.cli_common import os_exit
+
+    assert os_exit(FileNotFoundError(2, "No such file or directory", "x.csv")) == 2
+    w = np.logspace(-1, 2, 40)
+    g = 1.0 / (1 + 0.1j * w)
+    np.savetxt(tmp_path / "p.csv", np.column_stack([w, g.real, g.imag]), delimiter=",",
+               header="omega,re,im", comments="")
+    cmd = (f"{sys.executable} -m freqid_casadi fit p.csv --sections 1 --no-delay "
+           "--out rep | head -c 0; echo ${PIPESTATUS[0]}")
+    out = subprocess.run(["bash", "-c", cmd], cwd=tmp_path, capture_output=True, text=True,
+                         env={**os.environ, "PYTHONPATH": os.getcwd()})
+    assert out.stdout.strip() == "141" and "Broken pipe" not in out.stderr
+    assert (tmp_path / "rep" / "summary.md").is_file()
