@@ -11,7 +11,10 @@ import numpy as np
 
 from .errors import DataError, OptionError
 
-__all__ = ["FrequencyData", "dense_grid", "frequency_grid"]
+__all__ = ["FrequencyData", "dense_grid", "frequency_grid", "FREQUENCY_UNITS"]
+
+#: Units of :attr:`FrequencyData.omega`.
+FREQUENCY_UNITS = ("rad/s", "rad/sample")
 
 
 def _first_bad(mask):
@@ -32,6 +35,10 @@ class FrequencyData:
         A label used in reports and plots.
     weights : array_like of float, shape (M,), optional
         Nonnegative weights of the squared relative residuals (default: all 1).
+    unit : {"rad/s", "rad/sample"}
+        Unit of ``omega``: "rad/sample" for a normalised frequency (an FRF estimated
+        without a sampling rate), whose delays are then in samples (:attr:`time_unit`);
+        used in messages and reports, the numbers are the same.
 
     Raises
     ------
@@ -47,8 +54,11 @@ class FrequencyData:
     response: np.ndarray
     name: str = None
     weights: np.ndarray = field(default=None)
+    unit: str = "rad/s"
 
     def __post_init__(self):
+        if not isinstance(self.unit, str) or self.unit not in FREQUENCY_UNITS:
+            raise DataError(f"unit must be one of {FREQUENCY_UNITS}, got {self.unit!r}")
         omega = _as_float_vector(self.omega, "omega")
         response = _as_complex_vector(self.response, "response")
         if omega.size == 0:
@@ -126,11 +136,16 @@ class FrequencyData:
         if not 1 <= n <= self.n_points:
             raise DataError(f"window length must be in 1..{self.n_points}, got {n_points}")
         w = None if self.weights is None else self.weights[:n]
-        return FrequencyData(self.omega[:n], self.response[:n], self.name, w)
+        return FrequencyData(self.omega[:n], self.response[:n], self.name, w, self.unit)
 
     def with_weights(self, weights):
         """A copy with other weights (``None`` for uniform)."""
-        return FrequencyData(self.omega, self.response, self.name, weights)
+        return FrequencyData(self.omega, self.response, self.name, weights, self.unit)
+
+    @property
+    def time_unit(self):
+        """Unit of a delay on this frequency axis: "s" (rad/s) or "samples"."""
+        return "s" if self.unit == "rad/s" else "samples"
 
     @classmethod
     def sorted(cls, omega, response, name=None, weights=None):

@@ -113,7 +113,7 @@ def hold_undetermined_delay(result, refit):
         return result
     h, data = float(lower.model.delay), result.data
     shifted = FrequencyData(data.omega, data.response * np.exp(1j * data.omega * h),
-                            data.name, data.weights)
+                            data.name, data.weights, data.unit)
     held = refit(shifted, st.n_sections, False)
     if not (held.success and held.max_rel_error <= NEAR * result.max_rel_error
             and held.rms_rel_error <= NEAR * result.rms_rel_error):
@@ -127,16 +127,17 @@ def hold_undetermined_delay(result, refit):
 def _held_result(free, held, model, lower, found, extra_time):
     """The FitResult of the held fit on the free fit's data, with its diagnostics."""
     data, h = free.data, model.delay
+    tu = getattr(data, "time_unit", "s")
     stats = relative_error(model, data)
     values = {"delay": h, "delay_max": free.delay_max, "delay_free": free.model.delay,
               "delay_free_std": float(found.values["delay_std"]),
               HELD_FROM: lower.model.n_sections,
               "max_rel_error_free": free.max_rel_error,
               "rms_rel_error_free": free.rms_rel_error}
-    message = (f"the free fit's delay {free.model.delay:.6g} s has a standard deviation of "
-               f"{values['delay_free_std']:.3g} s: at {model.n_sections} sections the data "
+    message = (f"the free fit's delay {free.model.delay:.6g} {tu} has a standard deviation of "
+               f"{values['delay_free_std']:.3g} {tu}: at {model.n_sections} sections the data "
                "do not determine it (it trades against roots above the band); the delay "
-               f"is held at {h:.6g} s, the {lower.model.n_sections}-section fit's (max rel. "
+               f"is held at {h:.6g} {tu}, the {lower.model.n_sections}-section fit's (max rel. "
                f"error {stats.max:.4g}, RMS {stats.rms:.4g}; free {free.max_rel_error:.4g}, "
                f"{free.rms_rel_error:.4g}); LoopOptions(hold_delay=False) keeps the free fit")
     with np.errstate(all="ignore"):
@@ -153,5 +154,5 @@ def _held_result(free, held, model, lower, found, extra_time):
         candidate_max_rel_errors=cands, delay_max=free.delay_max, diagnostics=diags,
         success=held.success and not errors,
         message=(f"{errors[0].code}: {errors[0].message}" if errors else
-                 f"{held.message}; delay held at {h:.6g} s (delay-undetermined)"),
+                 f"{held.message}; delay held at {h:.6g} {tu} (delay-undetermined)"),
         wall_time=free.wall_time + extra_time)

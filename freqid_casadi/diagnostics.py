@@ -88,6 +88,12 @@ class Diagnostic:
         return f"{self.code}: {self.message}"
 
 
+def _units(data):
+    """(frequency unit, delay unit) of ``data``: ("rad/s", "s") unless normalised."""
+    unit = getattr(data, "unit", "rad/s")
+    return unit, ("s" if unit == "rad/s" else "samples")
+
+
 def _low_points(omega, n_min=3, n_max=20, fraction=0.05):
     m = int(np.clip(round(fraction * omega.size), n_min, n_max))
     return min(m, omega.size)
@@ -177,7 +183,8 @@ def check_gain_sign(data, integrator, gain_sign="auto"):
         if not looks_negative:
             return -1, ()
         msg = (f"the low-frequency phase ({what}lowest {values['n_points']} points up to "
-               f"{values['omega_max_used']:.4g} rad/s) is {deg:.1f} deg, near +-180 deg: "
+               f"{values['omega_max_used']:.4g} {_units(data)[0]}) is {deg:.1f} deg, near "
+               "+-180 deg: "
                f"the static gain is negative{origin}; fitted with a negative gain "
                "(gain_sign='auto'; pass gain_sign='positive' to force K > 0)")
         return -1, (Diagnostic("negative-gain", msg, "info", values),)
@@ -253,26 +260,27 @@ def check_delay(model, data, delay_max, rms_rel_error=None, *, delay_std=None, a
         return ()
     h = model.delay
     w_max = float(data.omega[-1])
+    tu = _units(data)[1]
     values = {"delay": h, "delay_max": float(delay_max), "phase_at_omega_max_rad": h * w_max}
     if h >= at_bound * delay_max:
-        msg = (f"the delay {h:.6g} s is at its upper bound pi/max(diff(omega)) = "
-               f"{delay_max:.6g} s: beyond it the phase is ambiguous between samples "
+        msg = (f"the delay {h:.6g} {tu} is at its upper bound pi/max(diff(omega)) = "
+               f"{delay_max:.6g} {tu}: beyond it the phase is ambiguous between samples "
                "(aliased), so the data cannot determine the delay; sample the frequency "
                "axis more densely, or fix the delay (delay=False, or a known value "
                "removed from the data)")
         return (Diagnostic("delay-undetermined", msg, "warning", values),)
     if rms_rel_error is not None and rms_rel_error >= poor_rms and h >= 0.5 * delay_max:
         msg = (f"the fit is poor (RMS relative error {rms_rel_error:.3g}) with the delay "
-               f"{h:.6g} s at {100 * h / delay_max:.0f} % of the largest resolvable delay "
-               f"pi/max(diff(omega)) = {delay_max:.6g} s: the data's delay may be larger "
+               f"{h:.6g} {tu} at {100 * h / delay_max:.0f} % of the largest resolvable "
+               f"delay pi/max(diff(omega)) = {delay_max:.6g} {tu}: the data's delay may be larger "
                "than the frequency spacing can resolve (aliased phase); sample the "
                "frequency axis more densely or remove a known delay from the data")
         values["rms_rel_error"] = float(rms_rel_error)
         return (Diagnostic("delay-undetermined", msg, "warning", values),)
     if delay_std is not None and h > 0 and not delay_std <= 0.5 * h:
         values["delay_std"] = float(delay_std)
-        msg = (f"the delay {h:.6g} s has a standard deviation of {delay_std:.3g} s from the "
-               "fit's parameter covariance: the data do not determine it (it trades "
+        msg = (f"the delay {h:.6g} {tu} has a standard deviation of {delay_std:.3g} {tu} from "
+               "the fit's parameter covariance: the data do not determine it (it trades "
                "against other parameters, typically a zero far above the band); fit fewer "
                "sections, fix the delay, or read it as a lag of the model, not a "
                "measured dead time")
@@ -280,7 +288,7 @@ def check_delay(model, data, delay_max, rms_rel_error=None, *, delay_std=None, a
     scatter = _residual_phase_scatter(model, data)
     values["residual_phase_rms_rad"] = scatter
     if 0 < h * w_max < scatter:
-        msg = (f"the delay {h:.4g} s turns the phase by only {h * w_max:.3g} rad at the "
+        msg = (f"the delay {h:.4g} {tu} turns the phase by only {h * w_max:.3g} rad at the "
                f"highest frequency, less than the residuals' phase scatter ({scatter:.3g} "
                "rad RMS): the data do not determine it")
         return (Diagnostic("delay-undetermined", msg, "warning", values),)
@@ -357,7 +365,7 @@ def check_minimum_phase(model, data, max_rel_error, rms_rel_error, *, ratio=0.5,
               "max_rel_error": float(max_rel_error), "rms_rel_error": float(rms_rel_error)}
     msg = (f"excess phase a delay cannot explain: a stable model of the same order with "
            f"free zeros needs {rhp.size} right-half-plane zero(s) (|z| = {_freqs(rhp)} "
-           f"rad/s) and reaches RMS relative error {vrms:.3g} (max {vmax:.3g}) against "
+           f"{_units(data)[0]}) and reaches RMS relative error {vrms:.3g} (max {vmax:.3g}) against "
            f"{rms_rel_error:.3g} (max {max_rel_error:.3g}) for the minimum-phase fit; "
            "refit with zeros='free' (stable poles, zeros anywhere: the model is then not "
            "minimum phase) or accept the minimum-phase model's error")
@@ -416,8 +424,9 @@ def check_roots_below_band(model, data, fraction=BELOW_BAND):
         low = roots[np.abs(roots) < fraction * w_min]
         if low.size == 0:
             continue
-        msg = (f"{low.size} {kind}(s) at |r| = {_freqs(low)} rad/s, far "
-               f"below the lowest data frequency {w_min:.4g} rad/s: the data cannot tell "
+        fu = _units(data)[0]
+        msg = (f"{low.size} {kind}(s) at |r| = {_freqs(low)} {fu}, far "
+               f"below the lowest data frequency {w_min:.4g} {fu}: the data cannot tell "
                f"them from 0 and ask for {stands}")
         found.append(Diagnostic("root-below-band", msg, "warning",
                                 {"kind": kind, "roots": [[float(r.real), float(r.imag)]

@@ -149,7 +149,7 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
         weights = weights / weights.mean()
     G, variance = _unscale(G, variance, gain)
     omega = 2.0 * np.pi * bins / period * (1.0 if fs is None else fs)
-    data = FrequencyData(omega, G, name, weights)
+    data = FrequencyData(omega, G, name, weights, "rad/s" if fs is not None else "rad/sample")
     return FrfEstimate(data, bins, variance, coherence, n_periods, period, fs,
                        estimator="periodic")
 

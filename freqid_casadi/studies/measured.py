@@ -201,7 +201,7 @@ def run_measured(progress=None):
     band = est.data.omega / (2 * np.pi)
     # the package's measure is the unweighted relative error (the estimate's weights,
     # |H|^2/variance, are an option of fit; here every frequency counts the same)
-    data = FrequencyData(est.data.omega, est.data.response, est.data.name)
+    data = FrequencyData(est.data.omega, est.data.response, est.data.name, unit=est.data.unit)
     act = _study("actuator", data, ACTUATOR["sections"], est,
                  [f"H1 from {ACTUATOR['input']} (commanded) to {ACTUATOR['output']} "
                   f"(measured displacement), Welch nperseg {ACTUATOR['nperseg']} "

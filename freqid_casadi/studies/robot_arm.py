@@ -47,7 +47,8 @@ def arm_data(path=None):
     """
     est = experiment.robot_arm(path)
     d = est.data
-    return est, FrequencyData(d.omega, -d.response, "robot arm, -G (DaISy 96-009)")
+    return est, FrequencyData(d.omega, -d.response, "robot arm, -G (DaISy 96-009)",
+                              unit=d.unit)
 
 
 def low_frequency(est, n=6):

@@ -1,0 +1,33 @@
+"""Normalised frequency (rad/sample): the data say so and the diagnostics use samples."""
+
+import numpy as np
+import pytest
+
+import freqid_casadi as fc
+from freqid_casadi.diagnostics import check_delay, check_roots_below_band
+from freqid_casadi.errors import DataError
+from freqid_casadi.studies.robot_arm import arm_data
+
+
+def test_unit_is_checked_and_kept_by_window_and_weights():
+    w = np.linspace(0.1, 3.0, 20)
+    d = fc.FrequencyData(w, 1 / (1 + 1j * w), unit="rad/sample")
+    assert d.time_unit == "samples" and fc.FrequencyData(w, 1 + 0 * w).time_unit == "s"
+    assert d.window(5).unit == "rad/sample" and d.with_weights(np.ones(20)).unit == d.unit
+    with pytest.raises(DataError, match="unit must be one of"):
+        fc.FrequencyData(w, 1 + 0 * w, unit="Hz")
+
+
+def test_robot_arm_delay_diagnostics_are_in_samples():
+    # the measured report said "the delay 0.322565 s ... 9.23e+04 s" for a delay in samples
+    _, data = arm_data()
+    assert data.unit == "rad/sample"
+    beta = [0.5, 1.0, 1.0, 0.3, 1.0, 1.0, 0.05, 0.5]
+    model = fc.RationalDelayModel(fc.Structure(1, delay=True), beta)
+    (diag,) = check_delay(model, data, delay_max=3.0, delay_std=10.0)
+    assert "0.5 samples" in diag.message and "10 samples" in diag.message
+    assert " s " not in diag.message and "rad/s" not in diag.message
+    low = fc.RationalDelayModel(fc.Structure(1, delay=True),
+                                [0.5, 1.0, 1.0, 0.3, 1e-6, 1.0, 0.05, 0.5])
+    (below,) = check_roots_below_band(low, data)
+    assert "rad/sample" in below.message and "rad/s " not in below.message
