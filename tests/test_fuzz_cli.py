@@ -14,10 +14,8 @@
   file in the folder's parent and named it in the error.
 """
 
-import hashlib
 import os
 import signal
-import stat
 import subprocess
 import sys
 from pathlib import Path
@@ -29,26 +27,11 @@ from freqid_casadi import _outputs, cli, report
 from freqid_casadi.data import FrequencyData
 from freqid_casadi.loaders import load, save_csv
 from freqid_casadi.model import RationalDelayModel, Structure
+from test_hostile import snapshot  # one snapshot of a tree for both files
 
 ROOT = Path(__file__).resolve().parents[1]
 MODEL = RationalDelayModel(Structure(1), [0.01, 2.0, 1.0, 0.3, 5.0, 1.0, 0.05, 3.0])
 W = np.logspace(-1, 2, 40)
-
-
-def snapshot(root):
-    """{relative path: (kind, digest)} of every entry under ``root``."""
-    out = {}
-    for dirpath, dirnames, filenames in os.walk(root):
-        for name in dirnames + filenames:
-            p = os.path.join(dirpath, name)
-            st = os.lstat(p)
-            rel = os.path.relpath(p, root)
-            if stat.S_ISREG(st.st_mode):
-                with open(p, "rb") as fh:
-                    out[rel] = ("file", hashlib.sha1(fh.read()).hexdigest())
-            else:
-                out[rel] = ("dir" if stat.S_ISDIR(st.st_mode) else "other", None)
-    return out
 
 
 @pytest.fixture
