@@ -81,13 +81,15 @@ def _write_figures(result, folder, summary, truth=None):
     from . import plots
 
     t = summary.get("thesis") or {}
-    bode = plots.bode(result)
+    unit = getattr(result.data, "unit", "rad/s")
+    bode = plots.bode(result, unit=unit)
     rel = plots.relative_error(result, reference=t.get("max_rel_error"),
-                               reference_label=t.get("source") or "thesis", truth=truth)
+                               reference_label=t.get("source") or "thesis", truth=truth,
+                               unit=unit)
     _add_bands(result, bode, rel)
     plots.save_figure(bode, os.path.join(folder, "bode.png"))
     plots.save_figure(rel, os.path.join(folder, "rel_error.png"))
-    plots.save_figure(plots.pole_zero(result.model, zoom="auto"),
+    plots.save_figure(plots.pole_zero(result.model, zoom="auto", unit=unit),
                       os.path.join(folder, "pole_zero.png"))
     plots.save_figure(plots.stage_errors({result.method: result}),
                       os.path.join(folder, "stages.png"))

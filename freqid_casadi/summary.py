@@ -66,8 +66,10 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
         "title": title if title is not None else f"Fit report: {name}",
         "data": {"name": name, "n_points": int(data.n_points),
                  "omega_min": float(data.omega[0]), "omega_max": float(data.omega[-1]),
-                 "f_min_hz": float(data.omega[0] / (2 * np.pi)),
-                 "f_max_hz": float(data.omega[-1] / (2 * np.pi))},
+                 "unit": getattr(data, "unit", "rad/s"),
+                 **({"f_min_hz": float(data.omega[0] / (2 * np.pi)),
+                     "f_max_hz": float(data.omega[-1] / (2 * np.pi))}
+                    if getattr(data, "unit", "rad/s") == "rad/s" else {})},
         "structure": {"n_sections": st.n_sections, "basis": st.basis,
                       "integrator": st.integrator, "delay": st.delay,
                       "order_rational_part": per * st.n_sections, "order": st.order},
@@ -202,7 +204,7 @@ def render_fit_summary(summary):
     lines += _diagnostic_lines(s)
     lines += _uncertainty_lines(s)
     lines += _thesis_lines(s)
-    lines += _stage_lines(s["stages"])
+    lines += _stage_lines(s["stages"], _units(s)[0])
     lines += ["## Figures", "",
               "![Bode plot](bode.png)", "",
               "![Relative error](rel_error.png)", "",
@@ -214,16 +216,23 @@ def render_fit_summary(summary):
     return "\n".join(lines)
 
 
-def _roots_check(ok, real_part, damping, what):
+def _units(s):
+    """(frequency unit, delay unit) of a summary: ("rad/s", "s") unless normalised."""
+    unit = s["data"].get("unit", "rad/s")
+    return unit, ("s" if unit == "rad/s" else "samples")
+
+
+def _roots_check(ok, real_part, damping, what, unit="rad/s"):
     """'yes'/'NO' with the largest real part and smallest damping of the poles or zeros."""
     return ("yes" if ok else "NO") + (
-        f" (largest real part of a {what}: {number(real_part)} rad/s, "
+        f" (largest real part of a {what}: {number(real_part)} {unit}, "
         f"smallest damping ratio {number(damping)})" if real_part is not None else "")
 
 
 def _overview_rows(s):
     """(quantity, value) rows of the first table of summary.md."""
     d, st, ck = s["data"], s["structure"], s["checks"]
+    fu, tu = _units(s)
     structure = (f"{st['n_sections']} {st['basis']} sections, "
                  f"{'with' if st['integrator'] else 'no'} integrator, "
                  f"{'with' if st['delay'] else 'no'} delay; order of P_N "
@@ -231,34 +240,34 @@ def _overview_rows(s):
     rows = [
         ("command", f"`{s['command']}`"),
         ("data", f"{d['name']}: {d['n_points']} points, {number(d['omega_min'])} to "
-                 f"{number(d['omega_max'])} rad/s" + (
+                 f"{number(d['omega_max'])} {fu}" + (
                      f" ({number(d['f_min_hz'])} to {number(d['f_max_hz'])} Hz)"
                      if "f_min_hz" in d else "")),
         ("structure", structure),
         ("method", s["method"]),
         ("max relative error", f"{number(s['max_rel_error'])} at "
-                               f"{number(s['omega_at_max_rel_error'])} rad/s"),
+                               f"{number(s['omega_at_max_rel_error'])} {fu}"),
         ("RMS relative error", number(s["rms_rel_error"])),
     ]
     dn = s.get("dense")
     if dn:
         rows.append((f"max relative error between the samples ({dn['factor']}x denser grid, "
                      "true system)", f"{number(dn['max_rel_error'])} at "
-                                     f"{number(dn['omega_at_max_rel_error'])} rad/s (RMS "
+                                     f"{number(dn['omega_at_max_rel_error'])} {fu} (RMS "
                                      f"{number(dn['rms_rel_error'])})"))
     rows += [
-        ("delay h", f"{number(s['delay'], 6)} s"),
+        ("delay h", f"{number(s['delay'], 6)} {tu}"),
         ("gain K (model.gain, in front of the sections)", number(s["gain"], 6)),
         ("wall time", f"{number(s['wall_time'])} s"),
         ("iterations (all stages)", number(s["nit"])),
         ("success (final stage converged)", ("yes" if s["success"] else "NO") + (
             f": {md_text(s['message'])}" if s.get("message") and not s["success"] else "")),
         ("P_N stable", _roots_check(ck["stable"], ck["max_pole_real_part"],
-                                    ck["min_pole_damping"], "pole") + (
+                                    ck["min_pole_damping"], "pole", fu) + (
             f", {ck['n_poles_on_axis']} pole(s) on the imaginary axis (undamped, zeta = 0: "
             "marginally stable)" if ck.get("n_poles_on_axis") else "")),
         ("P_N minimum phase", _roots_check(ck["minimum_phase"], ck["max_zero_real_part"],
-                                           ck["min_zero_damping"], "zero")),
+                                           ck["min_zero_damping"], "zero", fu)),
     ]
     floor = (s.get("options") or {}).get("min_damping")
     if floor is not None:
@@ -299,11 +308,14 @@ def _uncertainty_lines(s):
         return ([f"Parameter uncertainty: not available ({md_text(u['error'])}).", ""]
                 if u else [])
     low = "K0 = lim s G(s)" if s["structure"]["integrator"] else "DC gain G(0)"
-    rows = [("delay h (s)", _pm(u["delay"], u["delay_std"], 6)),
+    fu, tu = _units(s)
+    hz = fu == "rad/s"
+    rows = [(f"delay h ({tu})", _pm(u["delay"], u["delay_std"], 6)),
             (f"low-frequency gain ({low})", _pm(u["gain"], u["gain_std"]))]
-    rows += [(f"mode {k}: omega_n (rad/s) [f_n (Hz)], zeta",
-              f"{_pm(m['omega_n'], m['omega_n_std'])} [{number(m['frequency_hz'])} Hz], "
-              f"{_pm(m['zeta'], m['zeta_std'])}") for k, m in enumerate(u["modes"], 1)]
+    rows += [(f"mode {k}: omega_n ({fu})" + (" [f_n (Hz)]" if hz else "") + ", zeta",
+              f"{_pm(m['omega_n'], m['omega_n_std'])}"
+              + (f" [{number(m['frequency_hz'])} Hz]" if hz else "")
+              + f", {_pm(m['zeta'], m['zeta_std'])}") for k, m in enumerate(u["modes"], 1)]
     return ["## What the data determine", "",
             "One standard deviation from the weighted Jacobian at the optimum (delta method; "
             f"noise variance from the {u['noise_source']}); `FitResult.uncertainty`. "
@@ -349,7 +361,7 @@ def _stage_status(r):
     return f"{word} ({solver})" if word and solver else word or solver
 
 
-def _stage_lines(stages):
+def _stage_lines(stages, unit="rad/s"):
     """The "Stages" section: one table row per stage record (the main loop's stages by
     number, the others by their kind)."""
     srows, kinds = [], []
@@ -378,6 +390,6 @@ def _stage_lines(stages):
     text = "; ".join(parts)
     text = text[:1].upper() + text[1:] + "."
     return ["## Stages", "", text, "",
-            markdown_table(srows, ("stage", "sections", "window", "omega_c (rad/s)",
+            markdown_table(srows, ("stage", "sections", "window", f"omega_c ({unit})",
                                    "max rel. error (all data)", "iterations", "time (s)",
                                    "status (solver)"), "rrrrrrrl"), ""]

@@ -31,3 +31,22 @@ def test_robot_arm_delay_diagnostics_are_in_samples():
                                 [0.5, 1.0, 1.0, 0.3, 1e-6, 1.0, 0.05, 0.5])
     (below,) = check_roots_below_band(low, data)
     assert "rad/sample" in below.message and "rad/s " not in below.message
+
+
+def test_report_of_a_normalised_fit_speaks_rad_per_sample(tmp_path):
+    # summary.md and the figures of a fit to rad/sample data said rad/s, Hz and s
+    import json
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from freqid_casadi.report import write_fit_report
+
+    _, data = arm_data()
+    res = fc.fit(data, n_sections=2, progress=False)
+    write_fit_report(res, tmp_path / "rep", command="test")
+    text = (tmp_path / "rep" / "summary.md").read_text()
+    assert "rad/sample" in text and "samples" in text
+    assert "rad/s " not in text and "rad/s)" not in text and " Hz" not in text
+    js = json.loads((tmp_path / "rep" / "summary.json").read_text())
+    assert js["data"]["unit"] == "rad/sample" and "f_min_hz" not in js["data"]
