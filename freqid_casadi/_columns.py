@@ -16,10 +16,11 @@ __all__ = ["Column", "recognise", "parse_columns", "parse_freq_unit", "COLUMN_HE
 _UNIT_RE = re.compile(r"^(.*?)[\s_]*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
 
 _UNITS = {"": None, "hz": "hz", "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad/s",
+          "rad/sample": "rad/sample",
           "rad/sec": "rad/s", "radians/s": "rad/s", "db": "db", "deg": "deg",
           "degree": "deg", "degrees": "deg", "°": "deg", "rad": "rad", "radian": "rad",
           "radians": "rad", "lin": "lin", "linear": "lin"}
-_SUFFIXES = ("_rad_s", "_rads", "_hz", "_db", "_degrees", "_deg", "_radians", "_rad")
+_SUFFIXES = ("_rad_sample", "_rad_s", "_rads", "_hz", "_db", "_degrees", "_deg", "_radians", "_rad")
 _FREQ = {"omega": "rad/s", "w": "rad/s", "f": None, "freq": None, "frequency": None,
          "hz": "hz"}
 _RE = {"re", "real"}
@@ -61,15 +62,15 @@ def recognise(label):
             if s.endswith(suffix) and len(s) > len(suffix):
                 s, unit = s[:-len(suffix)].rstrip("_"), suffix[1:]
                 break
-    unit = unit.replace(" ", "").replace("_", "/") if "/" in unit or unit == "rad_s" \
-        else unit.replace(" ", "")
+    unit = unit.replace(" ", "").replace("_", "/") if "/" in unit or unit in (
+        "rad_s", "rad_sample") else unit.replace(" ", "")
     if unit not in _UNITS:       # a physical unit ("Real [g/N]") scales re, im and |H|
         if s not in _RE | _IM | _COMPLEX | _MAG:
             return None
         unit = "db" if unit.startswith("db") else "lin" if s in _MAG else ""
     unit = _UNITS[unit]
     name = label.strip()
-    if s in _FREQ and unit in (None, "hz", "rad/s"):
+    if s in _FREQ and unit in (None, "hz", "rad/s", "rad/sample"):
         return Column("freq", unit or _FREQ[s], name)
     if s in _SKIP and unit is None:
         return Column("skip", None, name)

@@ -112,9 +112,10 @@ def _stem(path):
     return stem.encode("utf-8", "backslashreplace").decode("utf-8")
 
 
-def _finish(path, omega, response, name, weights=None, lines=None):
+def _finish(path, omega, response, name, weights=None, lines=None, unit="rad/s"):
     """Drop zero-frequency rows and reverse rows in descending frequency order (each stated
-    by a DataWarning) and build the FrequencyData; its errors are prefixed by the file name."""
+    by a DataWarning) and build the FrequencyData (frequency ``unit``); its errors are
+    prefixed by the file name."""
     omega = np.asarray(omega, float)
     zero = omega == 0
     if zero.any():
@@ -132,6 +133,7 @@ def _finish(path, omega, response, name, weights=None, lines=None):
         omega, response = omega[::-1], np.asarray(response)[::-1]
         weights = None if weights is None else np.asarray(weights)[::-1]
     try:
-        return FrequencyData(omega, response, _stem(path) if name is None else name, weights)
+        return FrequencyData(omega, response, _stem(path) if name is None else name, weights,
+                             unit)
     except DataError as exc:
         raise DataError(f"{path!r}: {exc}") from None

@@ -392,7 +392,8 @@ def _cmd_sweep(args, command):
     def report(row):
         if not args.quiet:
             sys.stderr.write(f"order {row.order}: max rel. error {row.max_rel_error:.3e}, "
-                             f"delay {row.delay:.6g} s, {row.wall_time:.1f} s\n")
+                             f"delay {row.delay:.6g} {data.time_unit}, "
+                             f"{row.wall_time:.1f} s\n")
 
     result = sweep(data, orders, target=args.target, truth=truth, progress=report,
                    integrator=integrator, delay=args.delay, basis=args.basis,

@@ -184,7 +184,8 @@ class FitResult:
         m = self.model
         line = (f"{self.data.name or 'data'}: {m.n_sections} sections (order {m.order}), "
                 f"max rel. error {self.max_rel_error:.4g}, RMS {self.rms_rel_error:.4g}, "
-                f"delay {m.delay:.6g} s, {self.wall_time:.2f} s, method {self.method}, "
+                f"delay {m.delay:.6g} {getattr(self.data, 'time_unit', 's')}, "
+                f"{self.wall_time:.2f} s, method {self.method}, "
                 + ("converged" if self.success else f"NOT converged ({self.message})"))
         return "\n".join([line] + [f"  {d.severity}: {d}" for d in self.diagnostics])
 

@@ -173,7 +173,8 @@ def load_text(path, name=None, *, freq_unit=None, columns=None):
     path, payload = read_regular_file(path)
     table = read_table(path, payload, columns, freq_unit, max_rows=MAX_ROWS)
     omega, response = table_response(table)
-    return _finish(path, omega, response, name, lines=table.lines)
+    unit = "rad/sample" if table.unit("freq") == "rad/sample" else "rad/s"
+    return _finish(path, omega, response, name, lines=table.lines, unit=unit)
 
 
 def load_csv(path, name=None, *, freq_unit=None, columns=None):
@@ -414,11 +415,14 @@ def save_csv(data, path):
     ----------
     data : FrequencyData
     path : str or path-like
-        ``omega`` in rad/s, values with ``repr`` precision (a round trip is bit-exact).
+        ``omega`` in rad/s (the header ``omega [rad/sample]`` for normalised data, which
+        :func:`load` reads back as such), values with ``repr`` precision (a round trip is
+        bit-exact).
     """
     from ._io import atomic_write_text
 
-    lines = ["omega,real,imag"]
+    unit = getattr(data, "unit", "rad/s")
+    lines = ["omega,real,imag" if unit == "rad/s" else f"omega [{unit}],real,imag"]
     lines += [f"{w!r},{z.real!r},{z.imag!r}" for w, z in zip(data.omega.tolist(),
                                                             data.response.tolist())]
     atomic_write_text(path, "\n".join(lines) + "\n")

@@ -50,3 +50,25 @@ def test_report_of_a_normalised_fit_speaks_rad_per_sample(tmp_path):
     assert "rad/s " not in text and "rad/s)" not in text and " Hz" not in text
     js = json.loads((tmp_path / "rep" / "summary.json").read_text())
     assert js["data"]["unit"] == "rad/sample" and "f_min_hz" not in js["data"]
+
+
+def test_frf_csv_without_fs_round_trips_its_unit(tmp_path, capsys):
+    # freqid frf without --fs wrote 'omega,real,imag' in rad/sample, and freqid fit then
+    # read rad/s: its report gave the delay in s
+    from freqid_casadi.cli import main
+    from freqid_casadi.loaders import load, save_csv
+
+    w = np.linspace(0.05, 3.0, 30)
+    d = fc.FrequencyData(w, np.exp(-0.5j * w) / (1 + 1j * w), unit="rad/sample")
+    save_csv(d, tmp_path / "n.csv")
+    assert (tmp_path / "n.csv").read_text().startswith("omega [rad/sample],real,imag\n")
+    back = load(tmp_path / "n.csv")
+    assert back.unit == "rad/sample" and np.array_equal(back.omega, w)
+    save_csv(fc.FrequencyData(w, 1 + 0j * w), tmp_path / "s.csv")
+    assert load(tmp_path / "s.csv").unit == "rad/s"
+    assert main(["fit", str(tmp_path / "n.csv"), "--sections", "1", "--out",
+                 str(tmp_path / "rep"), "--quiet"]) == 0
+    out = capsys.readouterr()
+    import re
+
+    assert re.search(r"delay [0-9.e+-]+ samples, ", out.out + out.err)
