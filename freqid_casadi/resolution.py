@@ -85,11 +85,12 @@ class PairFlag:
     def as_dict(self):
         return {"zero": self.zero.as_dict(), "pole": self.pole.as_dict()}
 
-    def text(self):
-        return (f"zero {self.zero.omega:.4g} rad/s zeta {self.zero.zeta:.2g} (section "
-                f"{self.zero.section}) / pole {self.pole.omega:.4g} rad/s zeta "
+    def text(self, unit="rad/s"):
+        """One line: the zero and the pole (frequencies in ``unit``) and the spacing."""
+        return (f"zero {self.zero.omega:.4g} {unit} zeta {self.zero.zeta:.2g} (section "
+                f"{self.zero.section}) / pole {self.pole.omega:.4g} {unit} zeta "
                 f"{self.pole.zeta:.2g} (section {self.pole.section}), spacing "
-                f"{self.pole.spacing:.3g} rad/s")
+                f"{self.pole.spacing:.3g} {unit}")
 
 
 @dataclass(frozen=True)

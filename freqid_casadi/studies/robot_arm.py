@@ -119,7 +119,7 @@ def scan(data, orders, delays=(False, True), progress=None):
                          "raw_max_rel_error": raw.max_rel_error,
                          "raw_rms_rel_error": raw.rms_rel_error,
                          "removed_pairs": [f.as_dict() for f in pr.removed],
-                         "removed_text": [f.text() for f in pr.removed],
+                         "removed_text": [f.text(data.unit) for f in pr.removed],
                          "n_sections_kept": res.model.n_sections,
                          "resolved_after": pr.check.ok,
                          "max_rel_error": res.max_rel_error,
