@@ -14,6 +14,7 @@ import time
 
 import numpy as np
 
+from . import _interrupt
 from ._shared_term import SHARED_TERMINATION, SharedMonitor, verdict
 from .solvers.termination import iteration_callback
 
@@ -37,7 +38,7 @@ def _callbacks():
             self.names_out, self.sp_out = names_out, sp_out
             self.jac = jac                  # (x -> [gradient]) for CasADi's own AD of f
             self._jac_fn = None
-            self.construct(name, {})
+            _interrupt.construct(self, name)
 
         def has_jacobian(self):
             return self.jac is not None

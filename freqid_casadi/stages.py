@@ -17,6 +17,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import _interrupt
 from .data import FrequencyData
 from .errors import DataError
 from .metrics import error_stats
@@ -249,6 +250,14 @@ class StageSolver:
         self.onto_bounds = onto_bounds
 
     def __call__(self, param, wdata, x0, lam0, max_iter=None, stall=None):
+        # signals deferred while the stage's CasADi expressions and solver are built and
+        # run: a KeyboardInterrupt raised inside CasADi's argument conversion (SWIG calls
+        # back into Python) is swallowed there; IPOPT and the barrier-LM stop at their next
+        # iteration, and Interrupted is raised when the stage returns
+        with _interrupt.guard():
+            return self._solve(param, wdata, x0, lam0, max_iter, stall)
+
+    def _solve(self, param, wdata, x0, lam0, max_iter, stall):
         funcs = stage_functions(param, wdata.omega, wdata.response, wdata.weights,
                                 derivatives=self.loop.derivatives)
         lb, ub = param.bounds()

@@ -7,6 +7,8 @@ residual, with its gradient as Jacobian) read and write CasADi's buffers directl
 
 import numpy as np
 
+from .. import _interrupt
+
 __all__ = []
 
 
@@ -18,7 +20,7 @@ def _grad_f_class(ca):
             ca.Callback.__init__(self)
             self.gradient = gradient
             self.n = n
-            self.construct("nlp_grad_f", {})
+            _interrupt.construct(self, "nlp_grad_f")
 
         def get_n_in(self):
             return 2
@@ -69,7 +71,7 @@ def _hess_class(ca):
             rows, cols = np.triu_indices(n)
             order = np.lexsort((rows, cols))                 # column-major nonzero order
             self.flat = rows[order] * n + cols[order]        # into the row-major Hessian
-            self.construct("nlp_hess_l", {})
+            _interrupt.construct(self, "nlp_hess_l")
 
         def get_n_in(self):
             return 4
@@ -118,7 +120,7 @@ def _cost_class(ca):
             self.cost = cost
             self.grad_cb = grad_cb
             self.n = n
-            self.construct("nlp_f_callback", {})
+            _interrupt.construct(self, "nlp_f_callback")
 
         def get_n_in(self):
             return 1

@@ -251,7 +251,8 @@ def run_nlpsol(name, nlp, opts, x0, lb, ub, *, constrained=False, lam_x0=None,
     t0 = time.perf_counter() if t0 is None else t0
     # one iteration callback: a stage's termination monitor (which also stops on Ctrl-C /
     # SIGTERM), else the interrupt hook alone
-    solver = ca.nlpsol(name, "ipopt", nlp, {**_interrupt.ipopt_callback(nlp), **opts})
+    with _interrupt.guard():        # (CasADi calls the Python callbacks while it builds)
+        solver = ca.nlpsol(name, "ipopt", nlp, {**_interrupt.ipopt_callback(nlp), **opts})
     t_build = time.perf_counter() - t0
     args = {"x0": x0, "lbx": lb, "ubx": ub}
     if constrained:
