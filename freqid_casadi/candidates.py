@@ -16,7 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .metrics import relative_error
+from .metrics import error_stats, relative_error
 from .model import RationalDelayModel
 from .stages import Kept, StageKind, polish, polish_start, stage_record
 
@@ -41,8 +41,10 @@ class Candidate:
     success : bool
         The candidate's last stage converged.
     rank_max, rank_rms : float
-        Max and RMS of the weighted relative error ``sqrt(w_i / mean(w)) |r_i|`` (equal
-        to the unweighted ones without weights): what :func:`choose` compares.
+        Max and RMS of the weighted relative error ``sqrt(w_i / mean(w)) |r_i|``: what
+        :func:`choose` compares (default: the unweighted ones).
+    start : str
+        The start the candidate comes from, "sequential" or "rational" (default ``name``).
     """
 
     name: str
@@ -50,22 +52,28 @@ class Candidate:
     max_rel_error: float
     rms_rel_error: float
     success: bool
-    rank_max: float = math.nan
-    rank_rms: float = math.nan
+    rank_max: float = None
+    rank_rms: float = None
+    start: str = None
+
+    def __post_init__(self):
+        for field_, value in (("rank_max", self.max_rel_error),
+                              ("rank_rms", self.rms_rel_error), ("start", self.name)):
+            if getattr(self, field_) is None:
+                object.__setattr__(self, field_, value)
 
     @classmethod
-    def of(cls, name, run, data):
-        """The candidate of a loop's ``run`` on ``data``."""
+    def of(cls, name, run, data, start=None):
+        """The candidate ``name`` of a loop's ``run`` on ``data``, from ``start``."""
         param, z, _, records = run
         stats = relative_error(param.to_model(z), data)
-        rank_max, rank_rms = float(stats.max), float(stats.rms)
+        rank = stats
         if data.weights is not None:
             w = np.asarray(data.weights, float)
-            e = np.abs(np.asarray(stats.values)) * np.sqrt(w / np.mean(w))
-            rank_max = float(np.max(e)) if e.size else math.nan
-            rank_rms = float(np.sqrt(np.mean(e * e))) if e.size else math.nan
+            rank = error_stats(np.asarray(stats.values) * np.sqrt(w / np.mean(w)))
         return cls(name, run, float(stats.max), float(stats.rms),
-                   bool(records[-1].success) if records else False, rank_max, rank_rms)
+                   bool(records[-1].success) if records else False, float(rank.max),
+                   float(rank.rms), start)
 
 
 def choose(candidates):
@@ -81,15 +89,11 @@ def choose(candidates):
     -------
     Candidate
     """
-    def key(c):     # candidates made directly (tests) may lack the weighted numbers
-        return ((c.max_rel_error, c.rms_rel_error) if math.isnan(c.rank_max)
-                else (c.rank_max, c.rank_rms))
-
-    finite = [c for c in candidates if np.isfinite(key(c)[0])] or list(candidates)
-    best = min(key(c)[0] for c in finite)
-    pool = [c for c in finite if key(c)[0] <= NEAR * best] or finite
+    finite = [c for c in candidates if np.isfinite(c.rank_max)] or list(candidates)
+    best = min(c.rank_max for c in finite)
+    pool = [c for c in finite if c.rank_max <= NEAR * best] or finite
     pool = [c for c in pool if c.success] or pool
-    return min(pool, key=lambda c: (key(c)[1], candidates.index(c)))
+    return min(pool, key=lambda c: (c.rank_rms, candidates.index(c)))
 
 
 def zero_delay_run(ctx, run):

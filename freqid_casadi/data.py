@@ -11,10 +11,12 @@ import numpy as np
 
 from .errors import DataError, OptionError
 
-__all__ = ["FrequencyData", "dense_grid", "frequency_grid", "FREQUENCY_UNITS"]
+__all__ = ["FrequencyData", "dense_grid", "frequency_grid", "FREQUENCY_UNITS", "TIME_UNITS"]
 
 #: Units of :attr:`FrequencyData.omega`.
 FREQUENCY_UNITS = ("rad/s", "rad/sample")
+#: The unit of a delay (:attr:`FrequencyData.time_unit`) on each frequency axis.
+TIME_UNITS = {"rad/s": "s", "rad/sample": "samples"}
 
 
 def _first_bad(mask):
@@ -145,7 +147,7 @@ class FrequencyData:
     @property
     def time_unit(self):
         """Unit of a delay on this frequency axis: "s" (rad/s) or "samples"."""
-        return "s" if self.unit == "rad/s" else "samples"
+        return TIME_UNITS[self.unit]
 
     @classmethod
     def sorted(cls, omega, response, name=None, weights=None):

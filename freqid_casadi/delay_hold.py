@@ -127,7 +127,7 @@ def hold_undetermined_delay(result, refit):
 def _held_result(free, held, model, lower, found, extra_time):
     """The FitResult of the held fit on the free fit's data, with its diagnostics."""
     data, h = free.data, model.delay
-    tu = getattr(data, "time_unit", "s")
+    tu = data.time_unit
     stats = relative_error(model, data)
     values = {"delay": h, "delay_max": free.delay_max, "delay_free": free.model.delay,
               "delay_free_std": float(found.values["delay_std"]),

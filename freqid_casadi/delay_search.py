@@ -14,12 +14,11 @@ delays around the candidate's own, polishes the best trial on all data (one stag
 that converged is never touched, and the search can never make a fit worse.
 """
 
-import math
 import time
 
 import numpy as np
 
-from .stages import StageKind, polish, stage_record
+from .stages import StageKind
 
 __all__ = ["search_delay", "delay_search_run", "PROBE_PHASE", "MAX_TRIALS"]
 
@@ -96,7 +95,7 @@ def delay_search_run(ctx, run):
         ``StageKind.RATIONAL_START`` record (the probes) and a ``StageKind.DELAY_SEARCH``
         record (the polish); None when not tried or when no trial was usable.
     """
-    from .mainloop import start_record
+    from .mainloop import polish_record, start_record
     from .start import RationalStartError, rational_start
 
     param, z, _, records = run
@@ -124,11 +123,5 @@ def delay_search_run(ctx, run):
     stage = st.n_sections + 1
     probes = start_record(ctx, best.model, stage, len(seen), "delay search", t0)
     ctx.callback(probes)
-    t0 = time.perf_counter()
-    pol = polish(best.model, data, method=ctx.solve.solver, max_iter=ctx.final_max_iter,
-                 loop=loop, delay_max=ctx.delay_max, zeta_min=ctx.zeta_min)
-    res = pol.result
-    rec = stage_record(stage, pol.param, pol.x, data, data.n_points, math.nan, res, res.nit,
-                       res.nfev, time.perf_counter() - t0, pol.kept, StageKind.DELAY_SEARCH)
-    ctx.callback(rec)
+    pol, rec = polish_record(ctx, best.model, StageKind.DELAY_SEARCH)
     return pol.param, pol.x, pol.lam_x, list(records) + [probes, rec]

@@ -90,8 +90,7 @@ class Diagnostic:
 
 def _units(data):
     """(frequency unit, delay unit) of ``data``: ("rad/s", "s") unless normalised."""
-    unit = getattr(data, "unit", "rad/s")
-    return unit, ("s" if unit == "rad/s" else "samples")
+    return data.unit, data.time_unit
 
 
 def _low_points(omega, n_min=3, n_max=20, fraction=0.05):

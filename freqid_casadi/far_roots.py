@@ -21,12 +21,11 @@ it only when it is better.
 """
 
 import math
-import time
 
 import numpy as np
 
 from .model import RationalDelayModel
-from .stages import StageKind, polish, stage_record
+from .stages import StageKind
 
 __all__ = ["roots_to_infinity", "far_root_run", "FAR"]
 
@@ -108,12 +107,7 @@ def far_root_run(ctx, run):
     model, moved = roots_to_infinity(param.to_model(z), float(data.omega[-1]))
     if not moved:
         return None
-    t0 = time.perf_counter()
-    pol = polish(model, data, method=ctx.solve.solver, max_iter=ctx.final_max_iter,
-                 loop=loop, delay_max=ctx.delay_max, zeta_min=ctx.zeta_min)
-    res = pol.result
-    rec = stage_record(param.structure.n_sections + 1, pol.param, pol.x, data, data.n_points,
-                       math.nan, res, res.nit, res.nfev, time.perf_counter() - t0, pol.kept,
-                       StageKind.FAR_ROOTS)
-    ctx.callback(rec)
+    from .mainloop import polish_record
+
+    pol, rec = polish_record(ctx, model, StageKind.FAR_ROOTS)
     return pol.param, pol.x, pol.lam_x, list(records) + [rec]

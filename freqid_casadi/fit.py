@@ -184,7 +184,7 @@ class FitResult:
         m = self.model
         line = (f"{self.data.name or 'data'}: {m.n_sections} sections (order {m.order}), "
                 f"max rel. error {self.max_rel_error:.4g}, RMS {self.rms_rel_error:.4g}, "
-                f"delay {m.delay:.6g} {getattr(self.data, 'time_unit', 's')}, "
+                f"delay {m.delay:.6g} {self.data.time_unit}, "
                 f"{self.wall_time:.2f} s, method {self.method}, "
                 + ("converged" if self.success else f"NOT converged ({self.message})"))
         return "\n".join([line] + [f"  {d.severity}: {d}" for d in self.diagnostics])
@@ -412,7 +412,7 @@ def _run_starts(ctx, start, tol, data):
     for cand in list(cands):
         zero = zero_delay_run(ctx, cand.run)
         if zero is not None:
-            cands.append(Candidate.of(f"{cand.name} at h=0", zero, data))
+            cands.append(Candidate.of(f"{cand.name} at h=0", zero, data, cand.start))
     # rescues of an unconverged fit, each from the candidate the fit would then keep (the
     # starts' delays are close: a delay search from each would probe the same delays)
     for label, rescue in (("delay search", delay_search_run), ("far roots", far_root_run)):
@@ -420,12 +420,12 @@ def _run_starts(ctx, start, tol, data):
         if first is not None and not first.success:
             found = rescue(ctx, first.run)             # (reports its own records)
             if found is not None:
-                name = first.name.split(" at h=0")[0].split(", ")[0]
-                cands.append(Candidate.of(f"{name}, {label}", found, data))
+                cands.append(Candidate.of(f"{first.start}, {label}", found, data,
+                                          first.start))
     cand_errors = {c.name: c.max_rel_error for c in cands}
     errors = {k: v for k, v in cand_errors.items() if k in runs}
     kept = choose(cands)
-    won = kept.name.split(" at h=0")[0].split(", ")[0]
+    won = kept.start
     param, z, lam, records = kept.run
     if kept.name.endswith(" at h=0"):
         ctx.callback(records[-1])

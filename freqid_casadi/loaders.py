@@ -421,7 +421,7 @@ def save_csv(data, path):
     """
     from ._io import atomic_write_text
 
-    unit = getattr(data, "unit", "rad/s")
+    unit = data.unit
     lines = ["omega,real,imag" if unit == "rad/s" else f"omega [{unit}],real,imag"]
     lines += [f"{w!r},{z.real!r},{z.imag!r}" for w, z in zip(data.omega.tolist(),
                                                             data.response.tolist())]

@@ -204,17 +204,34 @@ def rational(ctx, delay0):
     data, st = ctx.data, ctx.structure
     t0 = time.perf_counter()
     rs = rational_start(data, st, delay_max=ctx.delay_max, delay0=delay0)
-    kw = dict(loop=ctx.loop, delay_max=ctx.delay_max, zeta_min=ctx.zeta_min)
     records = [start_record(ctx, rs.model, 0, int(rs.delays.size), "rational start", t0)]
     ctx.callback(records[-1])
-    t0 = time.perf_counter()
-    pol = polish(rs.model, data, method=ctx.solve.solver, max_iter=ctx.final_max_iter, **kw)
+    pol, rec = polish_record(ctx, rs.model, StageKind.FINAL)
+    return pol.param, pol.x, pol.lam_x, records + [rec]
+
+
+def polish_record(ctx, model, kind):
+    """Polish ``model`` on all of the fit's data (one stage, the final stage's iteration
+    limit) and report its record (stage ``n_sections + 1``, of kind ``kind``).
+
+    Parameters
+    ----------
+    ctx : LoopContext
+    model : RationalDelayModel
+    kind : StageKind
+
+    Returns
+    -------
+    (PolishResult, StageRecord)
+    """
+    data, t0 = ctx.data, time.perf_counter()
+    pol = polish(model, data, method=ctx.solve.solver, max_iter=ctx.final_max_iter,
+                 loop=ctx.loop, delay_max=ctx.delay_max, zeta_min=ctx.zeta_min)
     res = pol.result
-    records.append(stage_record(st.n_sections + 1, pol.param, pol.x, data, data.n_points,
-                                math.nan, res, res.nit, res.nfev, time.perf_counter() - t0,
-                                pol.kept, StageKind.FINAL))
-    ctx.callback(records[-1])
-    return pol.param, pol.x, pol.lam_x, records
+    rec = stage_record(model.n_sections + 1, pol.param, pol.x, data, data.n_points, math.nan,
+                       res, res.nit, res.nfev, time.perf_counter() - t0, pol.kept, kind)
+    ctx.callback(rec)
+    return pol, rec
 
 
 def start_record(ctx, model, stage, n_trials, message, t0):

@@ -81,7 +81,7 @@ def _write_figures(result, folder, summary, truth=None):
     from . import plots
 
     t = summary.get("thesis") or {}
-    unit = getattr(result.data, "unit", "rad/s")
+    unit = result.data.unit
     bode = plots.bode(result, unit=unit)
     rel = plots.relative_error(result, reference=t.get("max_rel_error"),
                                reference_label=t.get("source") or "thesis", truth=truth,

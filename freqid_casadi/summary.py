@@ -10,7 +10,7 @@ import numpy as np
 
 from . import _outputs
 from ._io import md_text
-from .data import dense_grid
+from .data import TIME_UNITS, dense_grid
 from .errors import FreqidError, OptionError
 from .formatting import generated_by_line, json_safe, markdown_table, number
 from .metrics import relative_error
@@ -66,10 +66,10 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
         "title": title if title is not None else f"Fit report: {name}",
         "data": {"name": name, "n_points": int(data.n_points),
                  "omega_min": float(data.omega[0]), "omega_max": float(data.omega[-1]),
-                 "unit": getattr(data, "unit", "rad/s"),
+                 "unit": data.unit,
                  **({"f_min_hz": float(data.omega[0] / (2 * np.pi)),
                      "f_max_hz": float(data.omega[-1] / (2 * np.pi))}
-                    if getattr(data, "unit", "rad/s") == "rad/s" else {})},
+                    if data.unit == "rad/s" else {})},
         "structure": {"n_sections": st.n_sections, "basis": st.basis,
                       "integrator": st.integrator, "delay": st.delay,
                       "order_rational_part": per * st.n_sections, "order": st.order},
@@ -218,8 +218,8 @@ def render_fit_summary(summary):
 
 def _units(s):
     """(frequency unit, delay unit) of a summary: ("rad/s", "s") unless normalised."""
-    unit = s["data"].get("unit", "rad/s")
-    return unit, ("s" if unit == "rad/s" else "samples")
+    unit = s["data"].get("unit", "rad/s")           # (summaries written before the unit)
+    return unit, TIME_UNITS[unit]
 
 
 def _roots_check(ok, real_part, damping, what, unit="rad/s"):
