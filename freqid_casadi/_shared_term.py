@@ -19,7 +19,7 @@ import numpy as np
 from .solvers.common import SUCCESS_STATUSES, Status
 from .solvers.ipopt import ipopt_status
 from .solvers.termination import StageMonitor, Termination, free_variables, \
-    moved_onto_bounds, relative_stationarity
+    hold_tol, moved_onto_bounds, relative_stationarity, rounding_level
 
 __all__ = ["SharedMonitor", "blocks", "column_norms", "gradient_and_norms", "block_projected_fraction",
            "SHARED_TERMINATION", "SNAP", "verdict"]
@@ -230,17 +230,18 @@ class SharedMonitor(StageMonitor):
         x, cost, grad, cn = self.snap(x, cost, grad, cn)
         self.point = x
         norm_r = float(np.sqrt(max(cost, 0.0)))
+        n_vars = prob.n_shared + prob.n_own
+        noise = term.noise_factor * rounding_level(cost, self.n_points, n_vars)
         free = free_variables(grad, x, self.problem.lb, self.problem.ub, cn, norm_r,
-                              0.5 * term.ftol)
-        cmax, noise = relative_stationarity(grad, cn, cost, free, self.n_points,
-                                            prob.n_shared + prob.n_own)
-        noise *= term.noise_factor
+                              hold_tol(term, noise))
+        cmax, _ = relative_stationarity(grad, cn, cost, free, self.n_points, n_vars)
         self.cos, self.allowed, self.proj = cmax, np.sqrt(term.ftol) + noise, float("nan")
         if cmax > self.allowed:
             return False, cost
         self.evaluations += 1
         self.proj = block_projected_fraction(prob, x, free, m, term.rcond)
-        return self.proj ** 2 <= term.ftol + noise, cost
+        self.proj_allowed = float(np.sqrt(term.ftol + noise))
+        return self.proj <= self.proj_allowed, cost
 
     def snap(self, x, cost, grad, cn):
         """``(x, cost, grad, cn)`` with the variables within ``SNAP * ||r|| / ||J_j||`` of
@@ -258,11 +259,6 @@ class SharedMonitor(StageMonitor):
         if np.isfinite(c2) and c2 <= cost and np.all(np.isfinite(g2)):
             return xs, c2, g2, n2
         return x, cost, grad, cn
-
-    def test_text(self):
-        """The test's numbers at the last point checked (for messages)."""
-        return (f"max cos(r, J_j) {self.cos:.2g} (allowed {self.allowed:.2g}), "
-                f"||P r||/||r|| {self.proj:.2g}")
 
 
 def verdict(monitor, x, status):

@@ -10,7 +10,7 @@ from freqid_casadi.candidates import NEAR, Candidate, choose
 from freqid_casadi.errors import SolverError
 from freqid_casadi.scaling import reference_scales, scale_data, unscale_model
 from freqid_casadi.solvers.common import Status
-from freqid_casadi.solvers.termination import (Termination, free_variables,
+from freqid_casadi.solvers.termination import (Termination, free_variables, hold_tol,
                                                projected_fraction, relative_stationarity)
 from freqid_casadi.sweep import sweep
 
@@ -55,6 +55,25 @@ def test_a_variable_held_at_its_bound_is_not_free():
     lb, ub = np.zeros(3), np.full(3, np.inf)
     free = free_variables(grad, x, lb, ub, np.ones(3), 1.0)
     assert free.tolist() == [False, True, True]
+
+
+def test_a_variable_on_its_bound_to_working_precision_is_held():
+    # example C's endpoint: zero dampings 4e-17 off their bound 0, the gradient pushing
+    # them out; put onto it they change the residual by 2e-5 of its norm, far below its
+    # rounding error (3e-2 of its norm there), but above ftol / 2: counted free, their
+    # cosines (0.13) failed the test at a point that passes it with them held (0.027)
+    grad = np.array([1.0, 1.0, 1.0])
+    x = np.array([4e-17, 4e-17, 0.5])
+    lb, ub = np.zeros(3), np.full(3, np.inf)
+    cn = np.array([71.0, 71.0, 1.0])
+    term = Termination()
+    norm_r = 1.7e-10
+    tight = free_variables(grad, x, lb, ub, cn, norm_r, hold_tol(term, 1e-14))
+    assert tight.tolist() == [True, True, True]
+    noisy = free_variables(grad, x, lb, ub, cn, norm_r, hold_tol(term, 3e-2))
+    assert noisy.tolist() == [False, False, True]
+    assert hold_tol(term, np.inf) == 1.0            # a zero residual: within ||r||
+    assert hold_tol(term, 0.0) == 0.5 * term.ftol
 
 
 # ------------------------------------------------------------------ success flag

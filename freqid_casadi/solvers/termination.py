@@ -19,7 +19,7 @@ from .. import _interrupt
 from .common import Status, TERMINATION_MESSAGES
 
 __all__ = ["Termination", "StageMonitor", "free_variables", "relative_stationarity",
-           "projected_fraction", "moved_onto_bounds", "rounding_level"]
+           "projected_fraction", "moved_onto_bounds", "rounding_level", "hold_tol"]
 
 EPS = float(np.finfo(float).eps)
 
@@ -31,7 +31,7 @@ class Termination:
     A point is *stationary* when the Gauss-Newton model cannot lower the cost by more than
     the fraction ``ftol``: ``||P r||^2 / ||r||^2 <= ftol``, ``P`` the projection onto the
     span of the Jacobian's columns of the free variables (those not held at a bound by the
-    gradient). A cheap necessary condition is checked first at every iteration:
+    gradient, within the tolerance of :func:`hold_tol`). A cheap necessary condition is checked first at every iteration:
     ``max_j cos_j <= sqrt(ftol)``, ``cos_j = |J_j^T r| / (||J_j|| ||r||)`` (MINPACK's
     ``gtol`` measure). Both thresholds are raised by ``noise / rms(r)``, the rounding level
     of a relative residual (``noise_factor * eps * n``, n variables): an exact fit at
@@ -150,6 +150,29 @@ def relative_stationarity(grad, col_norms, cost, free, n_points, n_factors):
     return float(np.max(cos)), rounding_level(cost, n_points, n_factors)
 
 
+def hold_tol(term, noise):
+    """Tolerance of :func:`free_variables` in the termination test: a variable is held at
+    a bound when putting it there changes the residual by at most ``ftol / 2`` of its norm
+    (the cost by at most ``ftol``) or by less than the residual's own rounding error
+    (``noise`` of its norm): such a variable is on the bound to working precision.
+
+    Measured at example C's endpoint: four zeros' dampings 4e-17 off their bound 0, put
+    onto it, change the residual by 2e-5 of its norm, 1e3 times less than its rounding
+    error (3e-2 of its norm there); counted free, their cosines (0.13) failed the test.
+
+    Parameters
+    ----------
+    term : Termination
+    noise : float
+        ``noise_factor * rounding_level`` at the point (relative to ``||r||``).
+
+    Returns
+    -------
+    float
+    """
+    return max(0.5 * term.ftol, min(noise, 1.0))
+
+
 def rounding_level(cost, n_points, n_factors):
     """``eps * n_factors / rms(r)``: the relative rounding level of a residual whose
     entries carry errors of about ``eps * n_factors`` each (inf at a zero residual).
@@ -216,13 +239,18 @@ class StageMonitor:
         self.history = []
         self.reason = None
         self.n_points = None         # complex residuals, from the first residual evaluated
-        self.cos = self.allowed = self.proj = float("nan")
+        self.cos = self.allowed = self.proj = self.proj_allowed = float("nan")
 
     def test_text(self):
         """The termination test's numbers for messages (the projection is computed only
         when the cosine test passes)."""
-        proj = (f"||P r||/||r|| {self.proj:.2g}" if np.isfinite(self.proj) else
-                "||P r||/||r|| not computed (the cosine test fails first)")
+        if not np.isfinite(self.proj):
+            proj = "||P r||/||r|| not computed (the cosine test fails first)"
+        else:
+            proj = f"||P r||/||r|| {self.proj:.2g} (allowed {self.proj_allowed:.2g})"
+            if self.proj > self.proj_allowed:
+                proj += (": the gradient is small, but the Gauss-Newton step promises a "
+                         f"{100 * min(self.proj, 1.0) ** 2:.3g} % lower cost")
         return f"max cos(r, J_j) {self.cos:.2g} (allowed {self.allowed:.2g}), {proj}"
 
     def stationary(self, x):
@@ -234,13 +262,12 @@ class StageMonitor:
             return False, cost
         cn = pb.eval_column_norms(x)
         norm_r = float(np.sqrt(max(cost, 0.0)))
-        # held: putting it onto its bound changes the cost by at most ftol (relative)
-        free = free_variables(grad, x, pb.lb, pb.ub, cn, norm_r, 0.5 * self.term.ftol)
         if self.n_points is None:
             self.n_points = max(np.asarray(pb.residual(x), float).size // 2, 1)
         n_points = self.n_points
-        cmax, noise = relative_stationarity(grad, cn, cost, free, n_points, pb.n)
-        noise *= self.term.noise_factor
+        noise = self.term.noise_factor * rounding_level(cost, n_points, pb.n)
+        free = free_variables(grad, x, pb.lb, pb.ub, cn, norm_r, hold_tol(self.term, noise))
+        cmax, _ = relative_stationarity(grad, cn, cost, free, n_points, pb.n)
         self.cos, self.allowed = cmax, np.sqrt(self.term.ftol) + noise
         self.proj = float("nan")
         if cmax > self.allowed:
@@ -248,7 +275,8 @@ class StageMonitor:
         r = np.asarray(pb.residual(x), float)
         jac = np.asarray(pb.jacobian(x), float)
         self.proj = projected_fraction(r, jac, free, self.term.rcond)
-        return self.proj ** 2 <= self.term.ftol + noise, cost
+        self.proj_allowed = float(np.sqrt(self.term.ftol + noise))
+        return self.proj <= self.proj_allowed, cost
 
     def check(self, x):
         """After an iteration at ``x``: True to stop (stationary or stalled)."""
