@@ -8,8 +8,8 @@ import numpy as np
 
 from .errors import DataError, OptionError, StructureError
 
-__all__ = ["checked_fields", "check_nesting", "too_big", "no_constant", "MAX_MODEL_BYTES",
-           "MAX_MODEL_DEPTH", "flag", "choice", "real_vector", "pade_order", "pade"]
+__all__ = ["all_zero_factor", "checked_fields", "check_nesting", "too_big", "no_constant",
+           "MAX_MODEL_BYTES", "MAX_MODEL_DEPTH", "flag", "choice", "real_vector", "pade_order", "pade"]
 
 _SECOND = ("a", "zeta_num", "omega_num", "b", "zeta_den", "omega_den")
 _FIRST = ("a1", "a0", "b1", "b0")
@@ -142,9 +142,23 @@ def _check_beta(st, b):
     if not st.delay and b[0] != 0:
         raise DataError("malformed model JSON: the structure has no delay but beta[0] = "
                         f"{float(b[0])!r}")
-    theta = b[2:].reshape(st.n_sections, st.section_size)
+    bad = all_zero_factor(st.basis, b[2:].reshape(st.n_sections, st.section_size))
+    if bad is not None:
+        raise DataError(f"malformed model JSON: {bad}")
+
+
+def all_zero_factor(basis, theta):
+    """None, or a text naming the first section whose numerator or denominator has only
+    zero coefficients (the model would be 0 or infinite at every frequency).
+
+    Parameters
+    ----------
+    basis : {"second-order", "first-order"}
+    theta : ndarray of float, shape (n_sections, section_size)
+        The sections' parameters in thesis order.
+    """
     with np.errstate(all="ignore"):
-        if st.basis == "second-order":
+        if basis == "second-order":
             num = np.stack([theta[:, 0], 2 * theta[:, 1] * theta[:, 2], theta[:, 2] ** 2], 1)
             den = np.stack([theta[:, 3], 2 * theta[:, 4] * theta[:, 5], theta[:, 5] ** 2], 1)
         else:
@@ -152,8 +166,9 @@ def _check_beta(st, b):
     for what, c in (("numerator", num), ("denominator", den)):
         zero = np.flatnonzero(~np.any(c != 0, axis=1))
         if zero.size:
-            raise DataError(f"malformed model JSON: section {int(zero[0]) + 1} has an all-zero "
-                            f"{what} (0/0 or a pole/zero at every frequency)")
+            return (f"section {int(zero[0]) + 1} has an all-zero {what} (0/0 or a pole/zero "
+                    "at every frequency)")
+    return None
 
 
 # ------------------------------------------------- checks of Structure / RationalDelayModel

@@ -263,6 +263,9 @@ class RationalDelayModel(DelayedResponse):
             raise StructureError(f"the structure has no delay but beta[0] = {beta[0]}")
         beta.setflags(write=False)
         object.__setattr__(self, "beta", beta)
+        bad = _model_json.all_zero_factor(self.structure.basis, self.sections())
+        if bad is not None:
+            raise StructureError(bad)
 
     def __eq__(self, other):
         return (isinstance(other, RationalDelayModel) and self.structure == other.structure
@@ -309,7 +312,6 @@ class RationalDelayModel(DelayedResponse):
             num, den = section_response(self.structure.basis, omega, theta)
             z = _cplx.mul(z, _cplx.div(num, den))
         return _cplx.to_complex(z)
-
 
     # ------------------------------------------------------------------ poles / zeros
     def _factor_roots(self, which):

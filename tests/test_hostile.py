@@ -48,7 +48,7 @@ import freqid_casadi as fc  # noqa: E402
 from freqid_casadi import _interrupt, _io, _outputs, cli, cli_batch, report  # noqa: E402
 from freqid_casadi.data import FrequencyData  # noqa: E402
 from freqid_casadi.loaders import save_csv  # noqa: E402
-from freqid_casadi.errors import DataError, FreqidError, OptionError  # noqa: E402
+from freqid_casadi.errors import DataError, FreqidError, OptionError, StructureError  # noqa: E402
 from freqid_casadi.model import RationalDelayModel, Structure, _quad_roots  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -647,6 +647,16 @@ def test_model_schema(tmp_path, make, needle):
     assert_untouched_except(tmp_path, before)
 
 
+@pytest.mark.parametrize("idx, needle", [((2, 4), "section 1 has an all-zero numerator"),
+                                         ((5, 7), "section 1 has an all-zero denominator")])
+def test_a_model_built_with_an_all_zero_factor_is_refused(idx, needle):
+    # the JSON loader refused it, the constructor took it (a model 0 or inf everywhere)
+    beta = np.array(_MODEL.beta)
+    beta[list(idx)] = 0.0
+    with pytest.raises(StructureError, match=needle):
+        RationalDelayModel(_MODEL.structure, beta)
+
+
 def test_model_with_a_bom_loads(tmp_path):
     (tmp_path / "m.json").write_bytes(b"\xef\xbb\xbf" + _MODEL.to_json().encode())
     assert RationalDelayModel.load(tmp_path / "m.json") == _MODEL
@@ -1069,3 +1079,44 @@ def test_ctrl_c_while_a_stage_builds_its_casadi_expressions_is_not_lost(python_s
     assert isinstance(info.value, _interrupt.Interrupted) and len(built) == 1
     assert not _interrupt.requested()
     assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def _signal_during(module, name, monkeypatch):
+    """Make ``module.name`` send SIGINT to this process, then do its work; returns the list
+    of its results."""
+    built, real = [], getattr(module, name)
+
+    def build_then_signal(*args, **kwargs):
+        os.kill(os.getpid(), signal.SIGINT)
+        out = real(*args, **kwargs)
+        built.append(out)
+        return out
+
+    monkeypatch.setattr(module, name, build_then_signal)
+    return built
+
+
+def test_ctrl_c_while_a_shared_fit_builds_its_problem_is_not_lost(python_sigint, monkeypatch):
+    # the shared fit built its CasADi problems outside any deferral (session 6's note)
+    from freqid_casadi import shared
+
+    built = _signal_during(shared, "SharedProblem", monkeypatch)
+    w = np.logspace(-1, 2, 40)
+    datas = [FrequencyData(w, g / (1 + 0.1j * w)) for g in (1.0, 2.0)]
+    with pytest.raises(KeyboardInterrupt) as info:
+        fc.fit_shared(datas, n_sections=1)
+    assert isinstance(info.value, _interrupt.Interrupted) and len(built) == 1
+    assert not _interrupt.requested()
+    assert signal.getsignal(signal.SIGINT) is signal.default_int_handler
+
+
+def test_ctrl_c_while_the_minimax_polish_builds_its_functions_is_not_lost(python_sigint,
+                                                                         monkeypatch):
+    from freqid_casadi import mainloop
+
+    built = _signal_during(mainloop, "stage_functions", monkeypatch)
+    w = np.logspace(-1, 2, 40)
+    with pytest.raises(KeyboardInterrupt) as info:
+        fc.fit(w, 1 / (1 + 1j * w), n_sections=1, delay=False, objective="minimax")
+    assert isinstance(info.value, _interrupt.Interrupted) and len(built) == 1
+    assert not _interrupt.requested()
