@@ -18,6 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import _interrupt
 from ._shared_nlp import SharedProblem
 from ._shared_solve import solve_stage
 from ._shared_term import SHARED_TERMINATION
@@ -105,6 +106,11 @@ def _stage(prob, x0, window, stage, omega_c, log, lam=None, max_iter=200,
            term=SHARED_TERMINATION):
     """Solve one stage (``term``: its termination test), keep the better of solution and
     start; return (z, lam, record)."""
+    with _interrupt.guard():        # CasADi expressions: see stages.StageSolver.__call__
+        return _stage_guarded(prob, x0, window, stage, omega_c, log, lam, max_iter, term)
+
+
+def _stage_guarded(prob, x0, window, stage, omega_c, log, lam, max_iter, term):
     t0 = time.perf_counter()
     x0c = np.clip(x0, *prob.bounds())
     if np.max(np.abs(prob.ratio(x0c, window) - 1.0)) < 1e-10:
@@ -388,8 +394,9 @@ def lawson_rounds(prob, z, lam, targets, log, max_iter, rounds):
         w = lawson_weights(prob, z, targets)
         if w is None:
             break
-        prob = SharedProblem(prob.omega, prob.phi, w, prob.g, prob.wr, prob.integrator,
-                             prob.delay, prob.free, prob.delay_max, prob.wl)
+        with _interrupt.guard():
+            prob = SharedProblem(prob.omega, prob.phi, w, prob.g, prob.wr, prob.integrator,
+                                 prob.delay, prob.free, prob.delay_max, prob.wl)
         z, lam, rec = _stage(prob, z, None, no + k, np.nan, log, lam, 2 * max_iter,
                              ROUND_TERMINATION)
         stages.append(rec)

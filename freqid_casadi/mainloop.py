@@ -16,6 +16,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from . import _interrupt
 from .data import FrequencyData
 from .model import Structure
 from .objective import Parametrization, stage_functions
@@ -295,11 +296,12 @@ def minimax(ctx, param, z):
     from .solvers.ipopt import solve_pnorm
 
     data = ctx.data
-    funcs = stage_functions(param, data.omega, data.response, data.weights)
+    with _interrupt.guard():        # CasADi expressions: see stages.StageSolver.__call__
+        funcs = stage_functions(param, data.omega, data.response, data.weights)
+        cons = None
+        if ctx.zeta_min is not None and param.structure.n_sections:
+            cons = param.damping_constraints(ctx.zeta_min)
     lb, ub = param.bounds()
-    cons = None
-    if ctx.zeta_min is not None and param.structure.n_sections:
-        cons = param.damping_constraints(ctx.zeta_min)
 
     def max_err(x):
         return float(np.max(param.to_model(x).relative_error(data)))
@@ -309,7 +311,9 @@ def minimax(ctx, param, z):
     best_x, best_e, best_p = z, before, None
     x, nit, nfev, res = z, 0, 0, None
     for p in PNORM_SCHEDULE:
-        res = solve_pnorm(funcs, x, lb, ub, p, max_iter=ctx.final_max_iter, constraints=cons)
+        with _interrupt.guard():
+            res = solve_pnorm(funcs, x, lb, ub, p, max_iter=ctx.final_max_iter,
+                              constraints=cons)
         nit, nfev = nit + res.nit, nfev + res.nfev
         if res.status == Status.ERROR:
             break

@@ -38,6 +38,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from . import _interrupt
 from .data import FrequencyData
 from .gauges import dc_to_thesis
 from .errors import DataError, OptionError
@@ -389,7 +390,8 @@ def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, pro
 
     def run(w):
         def make(wr, wl):
-            return SharedProblem(omega, phi, w, g, wr, integrator, delay, free, dmax, wl)
+            with _interrupt.guard():    # CasADi expressions: see stages.StageSolver
+                return SharedProblem(omega, phi, w, g, wr, integrator, delay, free, dmax, wl)
         if start == "rational":
             return rational_start(make, n, k, omega, base, w, free, log, max_iter, n_vf_iter)
         return sequential_start(make, n, k, omega, w, log, max_iter)
