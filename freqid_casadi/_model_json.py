@@ -9,7 +9,8 @@ import numpy as np
 from .errors import DataError, OptionError, StructureError
 
 __all__ = ["all_zero_factor", "checked_fields", "check_nesting", "too_big", "no_constant",
-           "MAX_MODEL_BYTES", "MAX_MODEL_DEPTH", "flag", "choice", "real_vector", "pade_order", "pade"]
+           "MAX_MODEL_BYTES", "MAX_MODEL_DEPTH", "flag", "choice", "real_vector", "pade_order",
+           "pade"]
 
 _SECOND = ("a", "zeta_num", "omega_num", "b", "zeta_den", "omega_den")
 _FIRST = ("a1", "a0", "b1", "b0")

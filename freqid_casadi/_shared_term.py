@@ -21,8 +21,8 @@ from .solvers.ipopt import ipopt_status
 from .solvers.termination import StageMonitor, Termination, free_variables, \
     hold_tol, moved_onto_bounds, relative_stationarity, rounding_level
 
-__all__ = ["SharedMonitor", "blocks", "column_norms", "gradient_and_norms", "block_projected_fraction",
-           "SHARED_TERMINATION", "SNAP", "verdict"]
+__all__ = ["SharedMonitor", "blocks", "column_norms", "gradient_and_norms",
+           "block_projected_fraction", "SHARED_TERMINATION", "SNAP", "verdict"]
 
 #: The shared stages' test: as the single-channel stages' default (ftol 1e-12), without the
 #: LM polish (its dense Jacobian is what this module avoids).

@@ -31,11 +31,12 @@ class Termination:
     A point is *stationary* when the Gauss-Newton model cannot lower the cost by more than
     the fraction ``ftol``: ``||P r||^2 / ||r||^2 <= ftol``, ``P`` the projection onto the
     span of the Jacobian's columns of the free variables (those not held at a bound by the
-    gradient, within the tolerance of :func:`hold_tol`). A cheap necessary condition is checked first at every iteration:
-    ``max_j cos_j <= sqrt(ftol)``, ``cos_j = |J_j^T r| / (||J_j|| ||r||)`` (MINPACK's
-    ``gtol`` measure). Both thresholds are raised by ``noise / rms(r)``, the rounding level
-    of a relative residual (``noise_factor * eps * n``, n variables): an exact fit at
-    machine precision is stationary.
+    gradient, within the tolerance of :func:`hold_tol`). A cheap necessary condition is
+    checked first at every iteration: ``max_j cos_j <= sqrt(ftol)``,
+    ``cos_j = |J_j^T r| / (||J_j|| ||r||)`` (MINPACK's ``gtol`` measure). Both thresholds
+    are raised by ``noise / rms(r)``, the rounding level of a relative residual
+    (``noise_factor * eps * n``, n variables): an exact fit at machine precision is
+    stationary.
 
     The stage is *stalled* when the cost fell by less than ``stall_ftol`` (relative) over
     the last ``stall_window`` iterations without being stationary (0: no stall test).
