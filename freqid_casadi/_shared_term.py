@@ -282,7 +282,7 @@ def verdict(monitor, x, status):
     ok = monitor is not None and ipopt_status(status) != Status.ERROR and \
         monitor.stationary(x)[0]
     x = monitor.point if ok else x
-    test = f"{monitor.test_text()}; " if monitor is not None else ""
+    test = f"{monitor.test_text(explain=not (ok or ipopt_ok))}; " if monitor is not None else ""
     if ok or ipopt_ok:
         how = "relative stationarity" if ok else "IPOPT's tolerance"
         msg = f"converged ({how}: {test}{status})"

@@ -76,6 +76,19 @@ def test_a_variable_on_its_bound_to_working_precision_is_held():
     assert hold_tol(term, 0.0) == 0.5 * term.ftol
 
 
+def test_the_message_says_what_a_failed_projection_means_only_when_not_converged():
+    # A at 8 sections: IPOPT's tolerance says converged while ||P r||/||r|| is 0.33; its
+    # message said "converged (IPOPT's tolerance: ... the Gauss-Newton step promises a
+    # 10.7 % lower cost" -- a contradiction a user cannot act on
+    from freqid_casadi.solvers.termination import StageMonitor
+
+    mon = StageMonitor(None, Termination())
+    mon.cos, mon.allowed, mon.proj, mon.proj_allowed = 3e-7, 1e-6, 0.33, 1.5e-5
+    assert "promises a 10.9 % lower cost" in mon.test_text()
+    assert "promises" not in mon.test_text(explain=False)
+    assert "||P r||/||r|| 0.33 (allowed 1.5e-05)" in mon.test_text(explain=False)
+
+
 # ------------------------------------------------------------------ success flag
 def test_exact_fit_at_machine_precision_is_converged_with_a_reason():
     # (the sequential loop ends in a phase-wrapped delay basin on these data, h = 0.145 s,

@@ -242,14 +242,15 @@ class StageMonitor:
         self.n_points = None         # complex residuals, from the first residual evaluated
         self.cos = self.allowed = self.proj = self.proj_allowed = float("nan")
 
-    def test_text(self):
+    def test_text(self, explain=True):
         """The termination test's numbers for messages (the projection is computed only
-        when the cosine test passes)."""
+        when the cosine test passes); ``explain``: say what a failed projection means (not
+        in the message of a stage IPOPT's own tolerance calls converged)."""
         if not np.isfinite(self.proj):
             proj = "||P r||/||r|| not computed (the cosine test fails first)"
         else:
             proj = f"||P r||/||r|| {self.proj:.2g} (allowed {self.proj_allowed:.2g})"
-            if self.proj > self.proj_allowed:
+            if explain and self.proj > self.proj_allowed:
                 proj += (": the gradient is small, but the Gauss-Newton step promises a "
                          f"{100 * min(self.proj, 1.0) ** 2:.3g} % lower cost")
         return f"max cos(r, J_j) {self.cos:.2g} (allowed {self.allowed:.2g}), {proj}"
@@ -385,7 +386,7 @@ class StageMonitor:
                                           nit=res.nit + steps)
                 ok, _ = self.stationary(x)
         ipopt_ok = res.status in (Status.CONVERGED, Status.ACCEPTABLE)
-        test = self.test_text()
+        test = self.test_text(explain=not ok and not ipopt_ok)
         if ok or ipopt_ok:
             status = res.status if ipopt_ok else Status.CONVERGED
             how = "relative stationarity" if ok else "IPOPT's tolerance"
