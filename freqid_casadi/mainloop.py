@@ -171,7 +171,7 @@ def sequential(ctx, tol):
     if final_stage and (window < m or not records[-1].success):
         t0 = time.perf_counter()
         res = solve(param, data, z, lam if warm_start == "primal-dual" else None,
-                    max_iter=ctx.final_max_iter)
+                    max_iter=ctx.final_max_iter, final=True)
         z, lam, kept = keep_better(param, data, z, lam, res)
         records.append(stage_record(param.structure.n_sections + 1, param, z, data, m,
                                     math.nan, res, res.nit, res.nfev,

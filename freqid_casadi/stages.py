@@ -212,15 +212,15 @@ def stage_record(stage, param, z, data, window, omega_c, res, nit, nfev, wall, k
                        kind=StageKind(kind), message=str(res.message))
 
 
-def _termination(ftol, onto_bounds=False, stall=None):
+def _termination(ftol, onto_bounds=False, stall=None, newton=False):
     """The stages' :class:`~freqid_casadi.solvers.termination.Termination` for
-    ``IpoptOptions.ftol`` (0: the test and its polish off) and the optional stall rule
-    ``stall = (window, ftol)``."""
+    ``IpoptOptions.ftol`` (0: the test and its polishes off), the optional stall rule
+    ``stall = (window, ftol)`` and the final stages' Newton polish."""
     from .solvers.termination import Termination
 
     kw = {} if stall is None else dict(stall_window=int(stall[0]), stall_ftol=float(stall[1]))
     if ftol > 0:
-        return Termination(ftol=float(ftol), onto_bounds=onto_bounds, **kw)
+        return Termination(ftol=float(ftol), onto_bounds=onto_bounds, newton=newton, **kw)
     return Termination(ftol=0.0, noise_factor=0.0, polish_steps=0, **kw)
 
 
@@ -236,11 +236,12 @@ class StageSolver:
     onto_bounds : bool
         The termination test's ``onto_bounds`` (:func:`polish`).
 
-    Calling it, ``solve(param, wdata, x0, lam0, max_iter=None, stall=None)``, solves the
-    stage on ``wdata`` from ``x0`` (bound multipliers ``lam0`` or None) and returns a
-    :class:`~freqid_casadi.solvers.common.StageResult`; ``stall = (window, ftol)`` (IPOPT
-    only) also ends the stage when its cost fell by less than the fraction ``ftol`` over
-    ``window`` iterations.
+    Calling it, ``solve(param, wdata, x0, lam0, max_iter=None, stall=None, final=False)``,
+    solves the stage on ``wdata`` from ``x0`` (bound multipliers ``lam0`` or None) and
+    returns a :class:`~freqid_casadi.solvers.common.StageResult`; ``stall = (window,
+    ftol)`` (IPOPT only) also ends the stage when its cost fell by less than the fraction
+    ``ftol`` over ``window`` iterations; ``final`` (a fit's final stage) allows the
+    termination test's Newton polish (``Termination.newton``).
     """
 
     def __init__(self, solver, loop, zeta_min=None, onto_bounds=False):
@@ -249,15 +250,15 @@ class StageSolver:
         self.zeta_min = zeta_min
         self.onto_bounds = onto_bounds
 
-    def __call__(self, param, wdata, x0, lam0, max_iter=None, stall=None):
+    def __call__(self, param, wdata, x0, lam0, max_iter=None, stall=None, final=False):
         # signals deferred while the stage's CasADi expressions and solver are built and
         # run: a KeyboardInterrupt raised inside CasADi's argument conversion (SWIG calls
         # back into Python) is swallowed there; IPOPT and the barrier-LM stop at their next
         # iteration, and Interrupted is raised when the stage returns
         with _interrupt.guard():
-            return self._solve(param, wdata, x0, lam0, max_iter, stall)
+            return self._solve(param, wdata, x0, lam0, max_iter, stall, final)
 
-    def _solve(self, param, wdata, x0, lam0, max_iter, stall):
+    def _solve(self, param, wdata, x0, lam0, max_iter, stall, final):
         funcs = stage_functions(param, wdata.omega, wdata.response, wdata.weights,
                                 derivatives=self.loop.derivatives)
         lb, ub = param.bounds()
@@ -274,7 +275,8 @@ class StageSolver:
                               hessian=opts.hessian, max_iter=max_iter or opts.max_iter,
                               warm_start=opts.warm_start != "none",
                               ipopt_options=opts.ipopt_dict(),
-                              termination=_termination(opts.ftol, self.onto_bounds, stall))
+                              termination=_termination(opts.ftol, self.onto_bounds, stall,
+                                                       final))
             if cons is not None:
                 # IPOPT meets g >= 0 to its tolerance; make the floor exact
                 res = dataclasses.replace(res, x=param.project_damping(res.x, self.zeta_min))
@@ -481,7 +483,7 @@ def polish(model, data, *, method="ipopt", loop=None, delay_max=None, zeta_min=N
     param, z0 = polish_start(model, data, loop=loop, delay_max=delay_max, zeta_min=zeta_min)
     solve = StageSolver(solver, loop, zeta_min, onto_bounds=True)
     res = solve(param, data, z0, None, max_iter=max_iter or solver.final_max_iter,
-                stall=stall)
+                stall=stall, final=stall is None)
     z, lam, kept = keep_better(param, data, z0, np.zeros_like(z0), res)
     return PolishResult(model=param.to_model(z), param=param, x=z, lam_x=lam, start=z0,
                         result=res, kept=kept)

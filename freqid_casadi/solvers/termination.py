@@ -59,6 +59,10 @@ class Termination:
         At a returned point that fails the test, try it with the variables held just
         inside a bound put onto it (:meth:`StageMonitor.decide`); used by
         :func:`~freqid_casadi.stages.polish`, whose optimum may lie on the root floor.
+    newton : bool
+        At a returned point that passes the gradient test but not the projection, try
+        Newton steps with the exact Hessian (:func:`~.lm_polish.newton_polish`), kept only
+        if they reach the test; set for a fit's final stages.
     """
 
     ftol: float = 1e-12
@@ -68,6 +72,7 @@ class Termination:
     rcond: float = 1e-10
     polish_steps: int = 10
     onto_bounds: bool = False
+    newton: bool = False
 
 
 def moved_onto_bounds(x, grad, col_norms, lb, ub, reach):
@@ -255,6 +260,21 @@ class StageMonitor:
                          f"{100 * min(self.proj, 1.0) ** 2:.3g} % lower cost")
         return f"max cos(r, J_j) {self.cos:.2g} (allowed {self.allowed:.2g}), {proj}"
 
+    def _free(self, x, cost, grad, cn):
+        """(free variables, noise) at ``x``: those the test does not hold at a bound."""
+        pb = self.problem
+        if self.n_points is None:
+            self.n_points = max(np.asarray(pb.residual(x), float).size // 2, 1)
+        noise = self.term.noise_factor * rounding_level(cost, self.n_points, pb.n)
+        norm_r = float(np.sqrt(max(cost, 0.0)))
+        return free_variables(grad, x, pb.lb, pb.ub, cn, norm_r,
+                              hold_tol(self.term, noise)), noise
+
+    def free_mask(self, x):
+        """Mask of the variables the test counts as free at ``x``, shape (n,)."""
+        cost, grad = self.problem.eval_gradient(x)
+        return self._free(x, cost, grad, self.problem.eval_column_norms(x))[0]
+
     def stationary(self, x):
         """(stationary?, cost) at ``x``: the cheap cosine test, then the projection."""
         pb = self.problem
@@ -263,12 +283,8 @@ class StageMonitor:
         if not np.isfinite(cost):
             return False, cost
         cn = pb.eval_column_norms(x)
-        norm_r = float(np.sqrt(max(cost, 0.0)))
-        if self.n_points is None:
-            self.n_points = max(np.asarray(pb.residual(x), float).size // 2, 1)
+        free, noise = self._free(x, cost, grad, cn)
         n_points = self.n_points
-        noise = self.term.noise_factor * rounding_level(cost, n_points, pb.n)
-        free = free_variables(grad, x, pb.lb, pb.ub, cn, norm_r, hold_tol(self.term, noise))
         cmax, _ = relative_stationarity(grad, cn, cost, free, n_points, pb.n)
         self.cos, self.allowed = cmax, np.sqrt(self.term.ftol) + noise
         self.proj = float("nan")
@@ -385,6 +401,8 @@ class StageMonitor:
                 res = dataclasses.replace(res, x=x, cost=self.problem.eval_cost(x),
                                           nit=res.nit + steps)
                 ok, _ = self.stationary(x)
+            if not ok and self.term.newton and self.cos <= self.allowed:
+                res, ok = self._newton(res)
         ipopt_ok = res.status in (Status.CONVERGED, Status.ACCEPTABLE)
         test = self.test_text(explain=not ok and not ipopt_ok)
         if ok or ipopt_ok:
@@ -398,6 +416,20 @@ class StageMonitor:
         msg = (f"{TERMINATION_MESSAGES[status]}; not stationary ({test}; "
                f"{res.solver_status})")
         return dataclasses.replace(res, status=status, success=False, message=msg)
+
+    def _newton(self, res):
+        """``(res, ok)`` after Newton steps (:func:`~.lm_polish.newton_polish`) from a point
+        that passes the gradient test but not the projection; the steps are kept only if
+        they end at a point that passes the test."""
+        from .lm_polish import newton_polish
+
+        x, steps = newton_polish(self.problem, res.x, lambda v: self.stationary(v)[0],
+                                 self.term.polish_steps, self.free_mask)
+        if steps and self.stationary(x)[0]:
+            return dataclasses.replace(res, x=x, cost=self.problem.eval_cost(x),
+                                       nit=res.nit + steps), True
+        self.stationary(res.x)                  # (the message's numbers at res.x)
+        return res, False
 
 
 def iteration_callback(monitor, n, ng):
