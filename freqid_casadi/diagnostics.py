@@ -88,11 +88,6 @@ class Diagnostic:
         return f"{self.code}: {self.message}"
 
 
-def _units(data):
-    """(frequency unit, delay unit) of ``data``: ("rad/s", "s") unless normalised."""
-    return data.unit, data.time_unit
-
-
 def _low_points(omega, n_min=3, n_max=20, fraction=0.05):
     m = int(np.clip(round(fraction * omega.size), n_min, n_max))
     return min(m, omega.size)
@@ -182,9 +177,8 @@ def check_gain_sign(data, integrator, gain_sign="auto"):
         if not looks_negative:
             return -1, ()
         msg = (f"the low-frequency phase ({what}lowest {values['n_points']} points up to "
-               f"{values['omega_max_used']:.4g} {_units(data)[0]}) is {deg:.1f} deg, near "
-               "+-180 deg: "
-               f"the static gain is negative{origin}; fitted with a negative gain "
+               f"{values['omega_max_used']:.4g} {data.unit}) is {deg:.1f} deg, near "
+               f"+-180 deg: the static gain is negative{origin}; fitted with a negative gain "
                "(gain_sign='auto'; pass gain_sign='positive' to force K > 0)")
         return -1, (Diagnostic("negative-gain", msg, "info", values),)
     if looks_negative:
@@ -259,7 +253,7 @@ def check_delay(model, data, delay_max, rms_rel_error=None, *, delay_std=None, a
         return ()
     h = model.delay
     w_max = float(data.omega[-1])
-    tu = _units(data)[1]
+    tu = data.time_unit
     values = {"delay": h, "delay_max": float(delay_max), "phase_at_omega_max_rad": h * w_max}
     if h >= at_bound * delay_max:
         msg = (f"the delay {h:.6g} {tu} is at its upper bound pi/max(diff(omega)) = "
@@ -364,7 +358,7 @@ def check_minimum_phase(model, data, max_rel_error, rms_rel_error, *, ratio=0.5,
               "max_rel_error": float(max_rel_error), "rms_rel_error": float(rms_rel_error)}
     msg = (f"excess phase a delay cannot explain: a stable model of the same order with "
            f"free zeros needs {rhp.size} right-half-plane zero(s) (|z| = {_freqs(rhp)} "
-           f"{_units(data)[0]}) and reaches RMS relative error {vrms:.3g} (max {vmax:.3g}) against "
+           f"{data.unit}) and reaches RMS relative error {vrms:.3g} (max {vmax:.3g}) against "
            f"{rms_rel_error:.3g} (max {max_rel_error:.3g}) for the minimum-phase fit; "
            "refit with zeros='free' (stable poles, zeros anywhere: the model is then not "
            "minimum phase) or accept the minimum-phase model's error")
@@ -423,7 +417,7 @@ def check_roots_below_band(model, data, fraction=BELOW_BAND):
         low = roots[np.abs(roots) < fraction * w_min]
         if low.size == 0:
             continue
-        fu = _units(data)[0]
+        fu = data.unit
         msg = (f"{low.size} {kind}(s) at |r| = {_freqs(low)} {fu}, far "
                f"below the lowest data frequency {w_min:.4g} {fu}: the data cannot tell "
                f"them from 0 and ask for {stands}")

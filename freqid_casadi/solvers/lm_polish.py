@@ -64,8 +64,7 @@ def lm_polish(problem, x, is_stationary, max_steps=10, fast=0.5):
         jac = np.asarray(problem.jacobian(x), float)
         g = jac.T @ r
         d2 = np.einsum("ij,ij->j", jac, jac)
-        held = ((x <= lb) & (g > 0)) | ((x >= ub) & (g < 0)) | (lb >= ub) | (d2 <= 0)
-        free = ~held
+        free = _not_held(x, g, lb, ub) & ~(d2 <= 0)
         if not np.any(free):
             break
         a = jac[:, free] / np.sqrt(d2[free])
@@ -111,9 +110,9 @@ def newton_polish(problem, x, is_stationary, max_steps=10, free_mask=None):
     max_steps : int
         Largest number of accepted steps.
     free_mask : callable, optional
-        ``x -> ndarray of bool (n,)``, the variables to move (the termination test's free
-        variables, :meth:`~.termination.StageMonitor.free_mask`); default those not on a
-        bound the gradient pushes them against.
+        ``(x, cost, grad, col_norms) -> ndarray of bool (n,)``, the variables to move (the
+        termination test's free variables, :meth:`~.termination.StageMonitor.free_mask`);
+        default those not on a bound the gradient pushes them against.
 
     Returns
     -------
@@ -145,14 +144,10 @@ def newton_polish(problem, x, is_stationary, max_steps=10, free_mask=None):
 def _newton_step(problem, x, free_mask):
     """The step of :func:`newton_polish` at ``x`` (None: no free variable or no finite
     Hessian)."""
-    lb, ub = problem.lb, problem.ub
-    _, g = problem.eval_gradient(x)
+    cost, g = problem.eval_gradient(x)
     cn = problem.eval_column_norms(x)
-    if free_mask is None:
-        free = ~(((x <= lb) & (g > 0)) | ((x >= ub) & (g < 0)) | (lb >= ub))
-    else:
-        free = np.asarray(free_mask(x), bool)
-    free = free & (cn > 0)
+    free = (_not_held(x, g, problem.lb, problem.ub) if free_mask is None
+            else np.asarray(free_mask(x, cost, g, cn), bool)) & (cn > 0)
     if not np.any(free) or not np.all(np.isfinite(g[free])):
         return None
     d = cn[free]
@@ -167,3 +162,9 @@ def _newton_step(problem, x, free_mask):
     step = np.zeros_like(x)
     step[free] = -(v @ ((v.T @ (g[free] / d)) / np.maximum(np.abs(lam), nu))) / d
     return step
+
+
+def _not_held(x, g, lb, ub):
+    """Mask of the variables not on a bound the gradient ``g`` pushes them against (and
+    not fixed by ``lb == ub``)."""
+    return ~(((x <= lb) & (g > 0)) | ((x >= ub) & (g < 0)) | (lb >= ub))

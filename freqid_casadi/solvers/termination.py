@@ -270,10 +270,10 @@ class StageMonitor:
         return free_variables(grad, x, pb.lb, pb.ub, cn, norm_r,
                               hold_tol(self.term, noise)), noise
 
-    def free_mask(self, x):
-        """Mask of the variables the test counts as free at ``x``, shape (n,)."""
-        cost, grad = self.problem.eval_gradient(x)
-        return self._free(x, cost, grad, self.problem.eval_column_norms(x))[0]
+    def free_mask(self, x, cost, grad, cn):
+        """Mask of the variables the test counts as free at ``x`` (its cost, gradient and
+        column norms given), shape (n,)."""
+        return self._free(x, cost, grad, cn)[0]
 
     def stationary(self, x):
         """(stationary?, cost) at ``x``: the cheap cosine test, then the projection."""
@@ -284,8 +284,7 @@ class StageMonitor:
             return False, cost
         cn = pb.eval_column_norms(x)
         free, noise = self._free(x, cost, grad, cn)
-        n_points = self.n_points
-        cmax, _ = relative_stationarity(grad, cn, cost, free, n_points, pb.n)
+        cmax, _ = relative_stationarity(grad, cn, cost, free, self.n_points, pb.n)
         self.cos, self.allowed = cmax, np.sqrt(self.term.ftol) + noise
         self.proj = float("nan")
         if cmax > self.allowed:
