@@ -2,7 +2,7 @@
 
 Fits ``G_N(s) = exp(-h s) K [1/s] prod_k (a s^2 + 2 zn wn s + wn^2)/(b s^2 + 2 zd wd s + wd^2)``
 to frequency-response samples by minimising the relative error, every stage a CasADi NLP
-with true bounds ``beta >= 0`` solved by IPOPT (see ``SPEC.md``).
+with true bounds ``beta >= 0`` solved by IPOPT (see ``docs/spec.md``).
 
 Quick start::
 
@@ -15,14 +15,14 @@ Importing this package does not import matplotlib (plots are in ``freqid_casadi.
 """
 
 from . import systems
-from .data import FrequencyData
+from .core.data import FrequencyData
 from .errors import DataError, FreqidError, OptionError, SolverError, StructureError
-from .fit import FitResult, StageRecord, fit
-from .loaders import (DataWarning, load, load_csv, load_mat, load_npz, load_text,
+from .fitting.fit import FitResult, StageRecord, fit
+from .io.loaders import (DataWarning, load, load_csv, load_mat, load_npz, load_text,
                       load_touchstone, load_uff, save_csv)
-from .model import RationalDelayModel, Structure
-from .survey import stabilization
-from .shared import SharedFitResult, fit_shared
+from .core.model import RationalDelayModel, Structure
+from .modal.survey import stabilization
+from .modal.shared import SharedFitResult, fit_shared
 from .options import BarrierLMOptions, FitOptions, IpoptOptions, LoopOptions
 
 __all__ = [

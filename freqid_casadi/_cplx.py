@@ -2,7 +2,7 @@
 
 CasADi's symbolic types have no complex dtype, so every formula of the model is written
 once with these helpers and evaluated both on numpy floats and on CasADi symbols
-(STYLE.md §1.2). A pair ``z = (re, im)`` holds the real and imaginary parts; each part may
+(docs/style.md §1.2). A pair ``z = (re, im)`` holds the real and imaginary parts; each part may
 be a Python float, a numpy array or a CasADi expression. Only ``+ - * /``, ``cos`` and
 ``sin`` are used, so broadcasting follows the operands' own rules.
 """

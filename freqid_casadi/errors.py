@@ -36,4 +36,4 @@ class SolverError(FreqidError, RuntimeError):
 class ResolutionWarning(UserWarning):
     """A fitted model has poles/zeros narrower than the data's frequency spacing (features
     between the samples that the data does not determine); see
-    :func:`freqid_casadi.validation.check_resolution`."""
+    :func:`freqid_casadi.fitting.validation.check_resolution`."""

@@ -1,4 +1,4 @@
-"""Option objects of :func:`~freqid_casadi.fit.fit` (layer L1): frozen, self-validating.
+"""Option objects of :func:`~freqid_casadi.fitting.fit.fit` (layer L1): frozen, self-validating.
 
 The solver and loop knobs of the fit live here, each default in one place (the dataclass
 field), each check in ``__post_init__`` raising an :class:`~freqid_casadi.errors.OptionError`
@@ -24,14 +24,14 @@ __all__ = ["IpoptOptions", "BarrierLMOptions", "LoopOptions", "FitOptions", "MET
            "HESSIANS", "WARM_STARTS", "GAUGES", "INITS", "DERIVATIVES", "DAMPING_MODES",
            "LEGACY_KEYWORDS", "solver_options", "options_from_keywords", "legacy_message"]
 
-#: Stage-solver methods of :func:`~freqid_casadi.fit.fit`.
+#: Stage-solver methods of :func:`~freqid_casadi.fitting.fit.fit`.
 METHODS = ("ipopt", "barrier-lm")
 #: Hessians of the IPOPT stage: the exact one (analytic second derivatives of the
 #: residuals), Gauss-Newton ``2 J^T J``, or IPOPT's own limited-memory quasi-Newton.
 HESSIANS = ("exact", "gauss-newton", "limited-memory")
 #: What a stage takes from the previous one: point and bound multipliers, point, nothing.
 WARM_STARTS = ("primal-dual", "primal", "none")
-#: Parametrizations of the sections (:mod:`freqid_casadi.objective`).
+#: Parametrizations of the sections (:mod:`freqid_casadi.core.objective`).
 GAUGES = ("dc", "b1", "raw")
 #: Initialisations of a new section.
 INITS = ("peak", "identity", "relocate")
@@ -267,13 +267,13 @@ class LoopOptions:
     Parameters
     ----------
     gauge : {"dc", "b1", "raw"}
-        Parametrization of the sections, see :mod:`freqid_casadi.objective`.
+        Parametrization of the sections, see :mod:`freqid_casadi.core.objective`.
     init : {"peak", "identity", "relocate"}
         New-section initialisation: "peak" places a pole/zero pair at omega_c whose value
         there reproduces the error peak; "identity" is the thesis's a = b = 1,
         zeta = 0.5, omega = omega_c (optionally scaled by ``scale_l``); "relocate" is
         "peak" and, when its stage cost is lower, a vector fit of all sections at the
-        current delay (:mod:`freqid_casadi.relocate`), with the section stages ended by a
+        current delay (:mod:`freqid_casadi.fitting.relocate`), with the section stages ended by a
         stall rule (the all-data stage runs without it).
     scale_l : float >= 1
         The thesis's l for the identity section (affects only the "raw" gauge).
@@ -283,7 +283,7 @@ class LoopOptions:
     bound_delay : bool
         If False, the delay has no upper bound (for the ablation).
     delay_max : float > 0 or None
-        Upper bound of the delay in seconds; None: :func:`~freqid_casadi.fit.default_delay_max`
+        Upper bound of the delay in seconds; None: :func:`~freqid_casadi.fitting.fit.default_delay_max`
         of the data (the value used is ``FitResult.delay_max``).
     final_stage : bool
         End with a stage on all data (also run after a stage stopped at its iteration
@@ -294,22 +294,22 @@ class LoopOptions:
         "casadi-map" (CasADi AD of the per-point formula mapped over the points).
     root_floor : float in [0, 1)
         Fraction of the lowest data frequency below which a polished overdamped factor's
-        root may not go (:func:`~freqid_casadi.stages.choose_charts`): a pole the data
+        root may not go (:func:`~freqid_casadi.fitting.stages.choose_charts`): a pole the data
         push towards 0 (an integrator) stops there, on a bound, instead of creeping.
     hold_delay : bool
         When the fitted delay is undetermined (its standard deviation exceeds half its
         value: it trades against roots above the band), refit with the delay held at the
         value the (N-1)-section fit determines, and keep that fit when it converged within
         10 % of the free fit's max and RMS relative errors
-        (:mod:`freqid_casadi.delay_hold`).
+        (:mod:`freqid_casadi.fitting.delay_hold`).
     delay_search : bool
         When a fit with a delay did not converge, also try the rational start at the
         delays around the fitted one, polished, as one more candidate
-        (:mod:`freqid_casadi.delay_search`); the fit keeps it only when it is better.
+        (:mod:`freqid_casadi.fitting.delay_search`); the fit keeps it only when it is better.
     far_roots : bool
         When a fit with a delay did not converge, also try it with the roots far above
         the band moved to infinity and their phase into the delay, polished, as one more
-        candidate (:mod:`freqid_casadi.far_roots`); kept only when it is better.
+        candidate (:mod:`freqid_casadi.fitting.far_roots`); kept only when it is better.
     """
 
     gauge: str = "dc"
@@ -350,7 +350,7 @@ class LoopOptions:
 
 @dataclass(frozen=True)
 class FitOptions:
-    """The options one :func:`~freqid_casadi.fit.fit` ran with (``FitResult.options``).
+    """The options one :func:`~freqid_casadi.fitting.fit.fit` ran with (``FitResult.options``).
 
     Parameters
     ----------

@@ -14,7 +14,7 @@ prints one progress line per variant to stderr. Exit codes as ``freqid``: 0 on s
 import shlex
 import sys
 
-from freqid_casadi import cli
+from freqid_casadi.cli import app as cli
 
 
 def main(argv=None):

@@ -15,8 +15,8 @@ smallest order whose max relative error is <= 0.0027 (the thesis's value at orde
 import argparse
 import sys
 
-from freqid_casadi import cli
-from freqid_casadi.examples import EXAMPLES
+from freqid_casadi.cli import app as cli
+from freqid_casadi.systems.examples import EXAMPLES
 
 
 def main(argv=None):

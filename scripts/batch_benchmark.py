@@ -39,8 +39,8 @@ import time
 import numpy as np
 
 import freqid_casadi as fc
-from freqid_casadi._io import atomic_write_text
-from freqid_casadi.report import generated_by_line, markdown_table
+from freqid_casadi._textio import atomic_write_text
+from freqid_casadi.report.folder import generated_by_line, markdown_table
 
 SEED = 8
 N_POINTS = 400
@@ -50,7 +50,8 @@ _BUSY = "x = 0\nfor i in range(15_000_000):\n    x += i\n"
 
 _RUN = """
 import sys
-from freqid_casadi import cli, cli_batch
+from freqid_casadi.cli import app as cli
+from freqid_casadi.cli import batch as cli_batch
 cli.COMMANDS.setdefault("batch", (cli_batch.add_cli, cli_batch.run_cli))
 sys.exit(cli.main(sys.argv[1:]))
 """

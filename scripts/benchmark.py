@@ -25,10 +25,10 @@ import time
 import numpy as np
 
 import freqid_casadi as fc
-from freqid_casadi._io import atomic_write_text
-from freqid_casadi.objective import Parametrization, stage_functions
-from freqid_casadi.examples import EXAMPLES
-from freqid_casadi.report import dense_error
+from freqid_casadi._textio import atomic_write_text
+from freqid_casadi.core.objective import Parametrization, stage_functions
+from freqid_casadi.systems.examples import EXAMPLES
+from freqid_casadi.report.folder import dense_error
 
 
 

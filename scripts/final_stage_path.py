@@ -8,7 +8,7 @@ Usage::
 Fits the example at the thesis's order (``fc.fit``, ``start`` as given), or, with
 ``--delay H``, takes the rational start's vector fit at the single trial delay ``H`` (s),
 and then continues the final stage from that model in ``--chunks`` polishes of
-``--chunk-iter`` IPOPT iterations each (:func:`freqid_casadi.stages.polish`, the rational
+``--chunk-iter`` IPOPT iterations each (:func:`freqid_casadi.fitting.stages.polish`, the rational
 start's last stage). After each chunk it prints the stage cost, the max relative error,
 the delay, the stage's end message and the three sections whose roots moved most (relative
 change of natural frequency or damping ratio). At the end it prints every section's roots
@@ -27,9 +27,9 @@ import warnings
 import numpy as np
 
 import freqid_casadi as fc
-from freqid_casadi.examples import EXAMPLES
-from freqid_casadi.objective import stage_functions
-from freqid_casadi.stages import polish, stage_cost
+from freqid_casadi.systems.examples import EXAMPLES
+from freqid_casadi.core.objective import stage_functions
+from freqid_casadi.fitting.stages import polish, stage_cost
 
 
 def _roots(model):
@@ -98,8 +98,8 @@ def _start_model(ex, args, data):
         print(f"fit(start={args.start!r}): {res.nit} IPOPT its, max rel. error "
               f"{res.max_rel_error:.3g}, delay {res.delay:.7g} s, success {res.success}")
         return res.model, res.delay_max
-    from freqid_casadi.resolution import default_delay_max
-    from freqid_casadi.start import rational_start
+    from freqid_casadi.core.resolution import default_delay_max
+    from freqid_casadi.fitting.start import rational_start
 
     delay_max = max(default_delay_max(data.omega), args.delay)
     rs = rational_start(data, fc.Structure(ex.n_sections, ex.integrator, ex.delay),

@@ -25,10 +25,10 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 import freqid_casadi as fc  # noqa: E402
-from freqid_casadi.formatting import generated_by_line  # noqa: E402
-from freqid_casadi.modal import modes_markdown  # noqa: E402
-from freqid_casadi.survey import stabilization, stabilization_csv  # noqa: E402
-from freqid_casadi.shared import fit_shared  # noqa: E402
+from freqid_casadi.report.formatting import generated_by_line  # noqa: E402
+from freqid_casadi.core.modes import modes_markdown  # noqa: E402
+from freqid_casadi.modal.survey import stabilization, stabilization_csv  # noqa: E402
+from freqid_casadi.modal.shared import fit_shared  # noqa: E402
 from freqid_casadi.systems import moheimani_modes  # noqa: E402
 
 OUT = os.path.join(ROOT, "results", "modal")
@@ -87,8 +87,8 @@ def timed_fit(n_channels, repeats=3):
 
 def eval_time(n_channels, repeats=20):
     """CPU seconds per evaluation of cost+gradient+Hessian (median of ``repeats``)."""
-    from freqid_casadi._shared_nlp import SharedProblem
-    from freqid_casadi.fit import _single_threaded_blas
+    from freqid_casadi.modal._nlp import SharedProblem
+    from freqid_casadi._threads import single_threaded_blas
 
     datas = beam_channels(n_channels)
     phi = np.array([d.response for d in datas])
@@ -99,7 +99,7 @@ def eval_time(n_channels, repeats=20):
     z = prob.join(np.tile([1.0, 0.02], (N_MODES, 1)), np.ones(c), np.zeros(c),
                   np.tile([1.0, 0.02], (c, N_MODES, 1)))
     times = []
-    with _single_threaded_blas():
+    with single_threaded_blas():
         for k in range(repeats):
             z[0] += 1e-9                  # defeat the cache: a new point every time
             t0 = time.process_time()
@@ -143,7 +143,7 @@ def main():
 def stabilization_example():
     """Stabilization diagram of 6 channels (500 points) at orders 12..32."""
     from freqid_casadi.plots import save_figure
-    from freqid_casadi.plots_modal import stabilization_diagram
+    from freqid_casadi.plots.modal import stabilization_diagram
 
     datas = [fc.FrequencyData(d.omega[::2], d.response[::2], d.name)
              for d in beam_channels(6)]

@@ -15,7 +15,7 @@ import shlex
 import sys
 
 from freqid_casadi.errors import FreqidError
-from freqid_casadi.formatting import number
+from freqid_casadi.report.formatting import number
 from freqid_casadi.studies.noisy_report import write_noisy_report
 
 

@@ -14,7 +14,7 @@ when interrupted.
 import shlex
 import sys
 
-from freqid_casadi import cli
+from freqid_casadi.cli import app as cli
 
 
 def main(argv=None):

@@ -19,7 +19,7 @@ import shlex
 import sys
 
 from freqid_casadi.errors import FreqidError
-from freqid_casadi.formatting import number
+from freqid_casadi.report.formatting import number
 from freqid_casadi.studies.robot_arm_report import write_robot_arm_report
 
 

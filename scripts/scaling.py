@@ -6,7 +6,7 @@ Usage::
 
 For example A's system (G_A with integrator and delay) on a log grid of M points from 1e-2
 to 1e3 rad/s, one stage NLP with ``n_sections`` sections (the stage functions of
-:func:`freqid_casadi.objective.stage_functions`, started from the same
+:func:`freqid_casadi.core.objective.stage_functions`, started from the same
 section placement for every M) is solved by
 
 - IPOPT (:func:`freqid_casadi.solvers.ipopt.solve_least_squares`, exact Hessian), and
@@ -58,7 +58,7 @@ TIMEOUT = 300             # s per point
 
 def _stage(n_points, n_sections):
     import freqid_casadi as fc
-    from freqid_casadi.objective import Parametrization
+    from freqid_casadi.core.objective import Parametrization
 
     data = fc.systems.G_A(np.logspace(-2, 3, n_points))
     gain0 = abs(data.response[0]) * data.omega[0]
@@ -93,7 +93,7 @@ def run_point(method, n_points, n_sections):
 
     from threadpoolctl import threadpool_limits
 
-    from freqid_casadi.objective import stage_functions
+    from freqid_casadi.core.objective import stage_functions
 
     rss_base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss
     with threadpool_limits(limits=1, user_api="blas"):      # as fit() runs
@@ -219,7 +219,7 @@ def _plot(rows, path):
 
 def _markdown(command, rows, fits, meta):
     sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    from freqid_casadi.report import generated_by_line, markdown_table
+    from freqid_casadi.report.folder import generated_by_line, markdown_table
 
     def g(x, d=3):
         return "—" if x is None or not np.isfinite(x) else f"{x:.{d}g}"
@@ -313,7 +313,7 @@ def main(argv=None):
                 base_rss_mb=float(np.median(base)) if base else float("nan"))
     os.makedirs(args.out, exist_ok=True)
     sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    from freqid_casadi._io import atomic_write_text
+    from freqid_casadi._textio import atomic_write_text
 
     payload = dict(command=command, meta=meta, exponents=fits, rows=rows,
                    settings=dict(iter_lo=ITER_LO, iter_hi=ITER_HI, delay_max=DELAY_MAX,

@@ -21,8 +21,8 @@ import time
 import warnings
 
 import freqid_casadi as fc
-from freqid_casadi._io import atomic_write_text
-from freqid_casadi.sweep import parse_orders, sweep
+from freqid_casadi._textio import atomic_write_text
+from freqid_casadi.fitting.sweep import parse_orders, sweep
 
 
 def main(argv=None):

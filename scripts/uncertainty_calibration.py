@@ -10,7 +10,7 @@ Usage::
    on 400 log-spaced points over 2..600 rad/s, times ``1 + n_i`` with ``n_i`` complex
    Gaussian of RMS 1 % (``E|n_i|^2 = 1e-4``; replicate r uses seed r). Each replicate is
    refitted with ``freqid_casadi.fit(data, n_sections=2, start="rational")`` and its
-   :func:`freqid_casadi.covariance.parameter_uncertainty` (noise from the residuals)
+   :func:`freqid_casadi.uncertainty.covariance.parameter_uncertainty` (noise from the residuals)
    gives 95 % normal intervals of both natural frequencies, dampings, the delay and the
    gain. Reported: the coverage of the truth, the ratio of the mean reported standard
    deviation to the empirical one over the replicates, the bias; and, on replicate 0, the
@@ -37,14 +37,14 @@ import time
 import numpy as np
 
 from freqid_casadi import plots
-from freqid_casadi.bands import fit_band_weight
-from freqid_casadi.bootstrap import bootstrap
-from freqid_casadi.covariance import parameter_uncertainty
-from freqid_casadi.data import FrequencyData
-from freqid_casadi.fit import fit
-from freqid_casadi.model import RationalDelayModel, Structure
-from freqid_casadi.plots_uncertainty import bode_band, rel_error_band, render_markdown
-from freqid_casadi.report import generated_by_line, markdown_table, report_folder
+from freqid_casadi.uncertainty.bands import fit_band_weight
+from freqid_casadi.fitting.bootstrap import bootstrap
+from freqid_casadi.uncertainty.covariance import parameter_uncertainty
+from freqid_casadi.core.data import FrequencyData
+from freqid_casadi.fitting.fit import fit
+from freqid_casadi.core.model import RationalDelayModel, Structure
+from freqid_casadi.plots.uncertainty import bode_band, rel_error_band, render_markdown
+from freqid_casadi.report.folder import generated_by_line, markdown_table, report_folder
 
 NOISE = 0.01
 LEVEL = 0.95

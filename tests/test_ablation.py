@@ -20,10 +20,12 @@ matplotlib.use("Agg")
 
 import pytest  # noqa: E402
 
-from freqid_casadi import cli, report, systems  # noqa: E402
-from freqid_casadi.examples import EXAMPLES  # noqa: E402
+from freqid_casadi import systems  # noqa: E402
+from freqid_casadi.cli import app as cli  # noqa: E402
+from freqid_casadi.report import folder as report  # noqa: E402
+from freqid_casadi.systems.examples import EXAMPLES  # noqa: E402
 from freqid_casadi.studies import ablation, ablation_report  # noqa: E402
-from freqid_casadi.fit import fit  # noqa: E402
+from freqid_casadi.fitting.fit import fit  # noqa: E402
 from freqid_casadi.options import BarrierLMOptions, IpoptOptions, LoopOptions  # noqa: E402
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "ablation.py"
@@ -111,7 +113,7 @@ def _tables(md):
     return out
 
 
-def _shown(value):
+def shown_cell(value):
     """How the report writes a JSON number: 4 significant digits, ints as they are."""
     if value is None:
         return {"—", "n/a"}
@@ -173,7 +175,7 @@ def test_table_numbers_match_the_json(quick):
                                {"error_ratio": 1.0, "time_ratio": 1.0})    # the default row
                     pairs += [(row[col[h]], abl[k]) for h, k in ABLATION_KEYS.items()]
             for cell, value in pairs:
-                assert cell in _shown(value), (heading, header, row, cell, value)
+                assert cell in shown_cell(value), (heading, header, row, cell, value)
                 if isinstance(value, float) and math.isfinite(value):
                     assert float(cell) == pytest.approx(value, rel=5e-4)
                 checked += 1

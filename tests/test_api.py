@@ -1,6 +1,6 @@
 """Tests of the public API: __all__ and docstrings (after python-control
-``tests/docstrings_test.py``), the layer map of STYLE.md §2, lazy imports, the CLI entry
-point and the names of the public contract."""
+``tests/docstrings_test.py``), lazy imports, the CLI entry point and the names of the
+public contract (the layer map is checked by ``tests/test_layout.py``)."""
 
 import ast
 import dataclasses
@@ -47,7 +47,7 @@ def _source_file(name):
 
 # ------------------------------------------------------------------ __all__ and docstrings
 def test_walk_found_the_package():
-    for expected in ("freqid_casadi.data", "freqid_casadi.solvers.ipopt",
+    for expected in ("freqid_casadi.core.data", "freqid_casadi.solvers.ipopt",
                      "freqid_casadi.baselines.subspace", "freqid_casadi.__main__"):
         assert expected in MODULES
 
@@ -99,18 +99,18 @@ KNOWN_UNDOCUMENTED = {
     "freqid_casadi.reproduce.run_cli": {"args", "command"},
     "freqid_casadi.reproduce.main": {"argv", "prog"},
     "freqid_casadi.reproduce.table_cell": {"value"},
-    "freqid_casadi.report.report_folder": {"out_dir", "force"},
-    "freqid_casadi.report.render_fit_summary": {"summary"},
-    "freqid_casadi.report.generated_by_line": {"command"},
-    "freqid_casadi.report.check_out_dir": {"out_dir", "force"},
+    "freqid_casadi.report.folder.report_folder": {"out_dir", "force"},
+    "freqid_casadi.report.folder.render_fit_summary": {"summary"},
+    "freqid_casadi.report.folder.generated_by_line": {"command"},
+    "freqid_casadi.report.folder.check_out_dir": {"out_dir", "force"},
     "freqid_casadi.systems.sqrt_inverse_at": {"s"},
     "freqid_casadi.systems.G_D_at": {"s"},
     # measured branch (data loaders, experiment, cli_frf); hostile (cli_batch)
-    "freqid_casadi.cli_frf.add_cli": {"subparsers"},
-    "freqid_casadi.cli_frf.stats_path": {"out"},
-    "freqid_casadi.cli_batch.add_cli": {"subparsers"},
-    "freqid_casadi.cli_batch.run_cli": {"args", "command"},
-    "freqid_casadi.cli_batch.data_files": {"folder"},
+    "freqid_casadi.cli.frf.add_cli": {"subparsers"},
+    "freqid_casadi.cli.frf.stats_path": {"out"},
+    "freqid_casadi.cli.batch.add_cli": {"subparsers"},
+    "freqid_casadi.cli.batch.run_cli": {"args", "command"},
+    "freqid_casadi.cli.batch.data_files": {"folder"},
 }
 
 
@@ -165,7 +165,7 @@ def test_parameter_check_has_teeth():
 def test_private_modules_are_importable():
     # private modules need no __all__; they must still import cleanly
     private = [m for m in MODULES if _is_private(m)]
-    assert "freqid_casadi._cplx" in private and "freqid_casadi._io" in private
+    assert "freqid_casadi._cplx" in private and "freqid_casadi._textio" in private
     for name in private:
         importlib.import_module(name)
 
@@ -174,8 +174,8 @@ def test_top_level_reexports():
     for attr in freqid_casadi.__all__:
         assert getattr(freqid_casadi, attr) is not None
     assert freqid_casadi.FrequencyData is importlib.import_module(
-        "freqid_casadi.data").FrequencyData
-    assert freqid_casadi.fit is importlib.import_module("freqid_casadi.fit").fit
+        "freqid_casadi.core.data").FrequencyData
+    assert freqid_casadi.fit is importlib.import_module("freqid_casadi.fitting.fit").fit
 
 
 def test_no_star_imports():
@@ -186,166 +186,6 @@ def test_no_star_imports():
             if isinstance(node, ast.ImportFrom) and any(a.name == "*" for a in node.names):
                 offenders.append(f"{path.relative_to(ROOT)}:{node.lineno}")
     assert not offenders, f"'import *' in {offenders}"
-
-
-# ------------------------------------------------------------------ layer map (STYLE.md §2)
-LAYERS = {
-    "errors": 0, "_cplx": 0, "_io": 0, "_outputs": 0, "_interrupt": 0, "_model_json": 0,
-    "data": 1, "experiment": 1, "model": 1, "systems": 1, "options": 1, "metrics": 1,
-    "scaling": 1,
-    "objective": 2, "resolution": 2, "gauges": 2, "derivatives": 2,
-    "solvers": 3,
-    "stages": 4, "start": 4, "baselines": 4, "uncertainty": 4, "_weight": 4, "mainloop": 4,
-    "relocate": 4, "diagnostics": 4, "candidates": 4, "delay_search": 4, "far_roots": 4, "_fit_checks": 5,
-    "fit": 5, "delay_hold": 5, "validation": 5, "sweep": 5, "batch": 5,
-    "report": 6, "summary": 6, "plots": 6,
-    "cli": 7, "__main__": 7, "cli_frf": 7, "cli_batch": 7,
-    "loaders": 1, "_readfile": 1, "_table": 1, "_columns": 1, "_uff": 1, "_touchstone": 1, "cli_common": 7,
-    "covariance": 5, "bootstrap": 6, "bands": 5, "_physical": 1, "plots_uncertainty": 6,
-    "_shared_nlp": 3, "_shared_term": 3, "_shared_solve": 3, "_shared_start": 4, "_shared_stages": 4, "shared": 5, "modal": 5, "survey": 6, "plots_modal": 6,
-    "cli_modal": 7, "cli_ablation": 7,
-    "studies": 7,      # public API only; beside the CLI, whose ablation and reproduce
-    "formatting": 0, "examples": 1,   # commands run them
-}
-FACADE = 7      # the package itself (``import freqid_casadi`` pulls in fit): top layer
-
-
-def _layer(name):
-    parts = name.split(".")
-    assert parts[0] == PACKAGE
-    if len(parts) == 1:
-        return FACADE
-    if parts[1] not in LAYERS:
-        raise KeyError(f"module {name} is not in the layer map of STYLE.md §2 (LAYERS)")
-    return LAYERS[parts[1]]
-
-
-def _imports(name, source, packages=PACKAGES, modules=frozenset(MODULES)):
-    """(lineno, target module) of every package import in ``source`` (any depth)."""
-    here = name if name in packages else name.rsplit(".", 1)[0]
-    found = []
-    for node in ast.walk(ast.parse(source)):
-        if isinstance(node, ast.Import):
-            found += [(node.lineno, a.name) for a in node.names
-                      if a.name.split(".")[0] == PACKAGE]
-        elif isinstance(node, ast.ImportFrom):
-            if node.level:
-                parts = here.split(".")
-                base = ".".join(parts[:len(parts) - (node.level - 1)])
-                if node.module:
-                    base = f"{base}.{node.module}"
-            else:
-                base = node.module or ""
-            if base.split(".")[0] != PACKAGE:
-                continue
-            for alias in node.names:
-                sub = f"{base}.{alias.name}"
-                found.append((node.lineno, sub if sub in modules else base))
-    return sorted(found, key=lambda item: item[0])
-
-
-def _violations(name, source, **kw):
-    mine = _layer(name)
-    return [f"{name}:{line} imports {target} (layer {_layer(target)} > {mine})"
-            for line, target in _imports(name, source, **kw) if _layer(target) > mine]
-
-
-def test_every_module_is_in_the_layer_map():
-    for name in MODULES:
-        _layer(name)
-
-
-@pytest.mark.parametrize("name", MODULES)
-def test_import_direction(name):
-    source = _source_file(name).read_text(encoding="utf-8")
-    assert not _violations(name, source)
-
-
-def _graph():
-    """Module -> set of package modules it imports (imports inside functions included)."""
-    graph = {}
-    for name in MODULES:
-        source = _source_file(name).read_text(encoding="utf-8")
-        graph[name] = {t for _, t in _imports(name, source) if t != name}
-    return graph
-
-
-def _cycle(graph):
-    """One import cycle of ``graph`` as a list of modules, or None (depth-first search)."""
-    state, stack = {}, []
-
-    def visit(node):
-        state[node] = 1
-        stack.append(node)
-        for nxt in sorted(graph.get(node, ())):
-            if state.get(nxt) == 1:
-                return stack[stack.index(nxt):] + [nxt]
-            if nxt not in state:
-                found = visit(nxt)
-                if found:
-                    return found
-        state[node] = 2
-        stack.pop()
-        return None
-
-    for node in sorted(graph):
-        if node not in state:
-            found = visit(node)
-            if found:
-                return found
-    return None
-
-
-def test_import_graph_is_acyclic():
-    # a package's __init__ re-exports its modules; its modules import siblings, not it
-    graph = {k: {t for t in v if not (k.startswith(t + ".") and t in PACKAGES)}
-             for k, v in _graph().items()}
-    cycle = _cycle(graph)
-    assert cycle is None, "import cycle: " + " -> ".join(cycle)
-
-
-def test_cycle_check_has_teeth():
-    assert _cycle({"a": {"b"}, "b": {"c"}, "c": {"a"}}) == ["a", "b", "c", "a"]
-    assert _cycle({"a": {"b"}, "b": set(), "c": {"a", "b"}}) is None
-    # the cycle this issue removed: fit imported validation lazily, validation imports fit
-    graph = _graph()
-    graph["freqid_casadi.fit"] = graph["freqid_casadi.fit"] | {"freqid_casadi.validation"}
-    assert _cycle(graph) is not None
-
-
-def test_studies_use_only_the_public_api():
-    studies = [m for m in MODULES if m.split(".")[1:2] == ["studies"]]
-    bad = []
-    for name in studies:
-        tree = ast.parse(_source_file(name).read_text(encoding="utf-8"))
-        for node in ast.walk(tree):
-            if isinstance(node, ast.ImportFrom) and node.level and node.level >= 2 or (
-                    isinstance(node, ast.ImportFrom) and (node.module or "").startswith(
-                        PACKAGE)):
-                mod = node.module or ""
-                names = [a.name for a in node.names]
-                if any(p.startswith("_") for p in mod.split(".")) or any(
-                        n.startswith("_") for n in names):
-                    bad.append(f"{name}:{node.lineno}")
-    assert not bad, f"studies import private names: {bad}"
-
-
-def test_import_direction_check_has_teeth():
-    bad = ("from .fit import fit\n"
-           "def f():\n    from . import plots\n    import freqid_casadi.report\n"
-           "from freqid_casadi import FrequencyData\n"
-           "from .errors import DataError\n")
-    found = _violations("freqid_casadi.model", bad)
-    assert [v.split(" imports ")[1].split(" ")[0] for v in found] == [
-        "freqid_casadi.fit", "freqid_casadi.plots", "freqid_casadi.report", "freqid_casadi"]
-    sub = _violations("freqid_casadi.solvers.ipopt",
-                      "from ..objective import x\nfrom .common import y\nfrom ..fit import z\n")
-    assert len(sub) == 1 and "freqid_casadi.fit" in sub[0]
-    # resolved targets of a sub-package module
-    assert _imports("freqid_casadi.baselines.subspace", "from ..data import FrequencyData\n"
-                    "from ._ssmodel import check_order\nfrom .. import _cplx\n") == [
-        (1, "freqid_casadi.data"), (2, "freqid_casadi.baselines._ssmodel"),
-        (3, "freqid_casadi._cplx")]
 
 
 # ------------------------------------------------------------------ lazy imports, CLI

@@ -18,7 +18,8 @@ import numpy as np
 import pytest
 
 import freqid_casadi as fc
-from freqid_casadi import cli, report
+from freqid_casadi.cli import app as cli
+from freqid_casadi.report import folder as report
 from freqid_casadi.errors import DataError, FreqidError, OptionError, StructureError
 
 W = np.logspace(-1, 2, 30)

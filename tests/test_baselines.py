@@ -17,9 +17,9 @@ from freqid_casadi.baselines import (StateSpaceModel, aaa, balanced_truncation,
                                      newton_sqrt, newton_sqrt_polynomials, subspace,
                                      vector_fitting)
 from freqid_casadi.baselines._ssmodel import bilinear_c2d, bilinear_d2c
-from freqid_casadi.data import FrequencyData
+from freqid_casadi.core.data import FrequencyData
 from freqid_casadi.errors import DataError, OptionError, StructureError
-from freqid_casadi.model import RationalDelayModel, Structure
+from freqid_casadi.core.model import RationalDelayModel, Structure
 
 # ----------------------------------------------------------------------------- test systems
 

@@ -1,4 +1,4 @@
-"""Tests of :mod:`freqid_casadi.batch` (fit_many) and the ``freqid batch`` command
+"""Tests of :mod:`freqid_casadi.fitting.batch` (fit_many) and the ``freqid batch`` command
 (issue 8.2, 8.3, 8.5): per-dataset errors, option errors, results independent of the
 number of processes and of the scheduler, atomic output under KeyboardInterrupt."""
 
@@ -11,9 +11,11 @@ import numpy as np
 import pytest
 
 import freqid_casadi as fc
-from freqid_casadi._outputs import MARKER
-from freqid_casadi import batch, cli, cli_batch
-from freqid_casadi.batch import BatchItem, fit_many
+from freqid_casadi.report.outputs import MARKER
+from freqid_casadi.fitting import batch
+from freqid_casadi.cli import app as cli
+from freqid_casadi.cli import batch as cli_batch
+from freqid_casadi.fitting.batch import BatchItem, fit_many
 from freqid_casadi.errors import DataError, OptionError, StructureError
 
 OMEGA = np.logspace(-1, 2, 30)
@@ -26,7 +28,7 @@ OPTIONS = dict(n_sections=1)
 # the same datasets, rebuilt in another interpreter
 _SUBPROCESS = f"""
 import json, numpy as np, freqid_casadi as fc
-from freqid_casadi.batch import fit_many
+from freqid_casadi.fitting.batch import fit_many
 w = np.logspace(-1, 2, 30)
 data = [fc.FrequencyData(w, fc.RationalDelayModel(fc.Structure(1), b).frequency_response(w),
                          f"d{{k}}") for k, b in enumerate({BETAS!r})]

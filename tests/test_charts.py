@@ -8,9 +8,9 @@ import pytest
 
 import freqid_casadi as fc
 from freqid_casadi.errors import OptionError, StructureError
-from freqid_casadi.model import RationalDelayModel, Structure
-from freqid_casadi.objective import Parametrization, StageFunctions
-from freqid_casadi.stages import choose_charts, polish_start
+from freqid_casadi.core.model import RationalDelayModel, Structure
+from freqid_casadi.core.objective import Parametrization, StageFunctions
+from freqid_casadi.fitting.stages import choose_charts, polish_start
 
 OMEGA = np.logspace(-1, 2, 60)                          # rad/s
 CHARTS = ((1, 2), (2, 0), (0, 1))                       # every chart in a numerator and a den

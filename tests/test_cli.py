@@ -12,12 +12,13 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from freqid_casadi._outputs import MARKER  # noqa: E402
-from freqid_casadi import cli, report  # noqa: E402
-from freqid_casadi.data import FrequencyData  # noqa: E402
-from freqid_casadi.loaders import save_csv  # noqa: E402
-from freqid_casadi.fit import fit  # noqa: E402
-from freqid_casadi.model import RationalDelayModel, Structure  # noqa: E402
+from freqid_casadi.report.outputs import MARKER  # noqa: E402
+from freqid_casadi.cli import app as cli  # noqa: E402
+from freqid_casadi.report import folder as report  # noqa: E402
+from freqid_casadi.core.data import FrequencyData  # noqa: E402
+from freqid_casadi.io.loaders import save_csv  # noqa: E402
+from freqid_casadi.fitting.fit import fit  # noqa: E402
+from freqid_casadi.core.model import RationalDelayModel, Structure  # noqa: E402
 
 # a known model: 2 sections, integrator, delay 0.01 s; 60 points from 0.1 to 100 rad/s
 _BETA = [0.01, 4.0, 1, 0.05, 3.0, 1, 0.02, 2.0, 1, 0.03, 30.0, 1, 0.01, 20.0]

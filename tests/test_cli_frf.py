@@ -1,4 +1,4 @@
-"""Tests of the ``freqid frf`` command (freqid_casadi.cli_frf): a synthetic multisine
+"""Tests of the ``freqid frf`` command (freqid_casadi.cli.frf): a synthetic multisine
 through a known discrete-time filter, the sidecar, and bad input as FreqidError."""
 
 import argparse
@@ -11,8 +11,9 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from freqid_casadi import cli, cli_frf
-from freqid_casadi.loaders import load_csv
+from freqid_casadi.cli import app as cli
+from freqid_casadi.cli import frf as cli_frf
+from freqid_casadi.io.loaders import load_csv
 from freqid_casadi.errors import DataError, FreqidError, OptionError
 
 PERIOD = 256

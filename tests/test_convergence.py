@@ -6,13 +6,13 @@ import numpy as np
 import pytest
 
 import freqid_casadi as fc
-from freqid_casadi.candidates import NEAR, Candidate, choose
+from freqid_casadi.fitting.candidates import NEAR, Candidate, choose
 from freqid_casadi.errors import SolverError
-from freqid_casadi.scaling import reference_scales, scale_data, unscale_model
+from freqid_casadi.core.scaling import reference_scales, scale_data, unscale_model
 from freqid_casadi.solvers.common import Status
 from freqid_casadi.solvers.termination import (Termination, free_variables, hold_tol,
                                                projected_fraction, relative_stationarity)
-from freqid_casadi.sweep import sweep
+from freqid_casadi.fitting.sweep import sweep
 
 BETA = [0.01, 3.0, 1, 0.05, 2.0, 1, 0.1, 5.0, 1, 0.02, 20.0, 1, 0.03, 40.0]
 W = np.logspace(-1, 2, 60)

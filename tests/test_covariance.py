@@ -1,4 +1,4 @@
-"""Tests of the parameter uncertainty (freqid_casadi.covariance, bands, plots_uncertainty,
+"""Tests of the parameter uncertainty (freqid_casadi.uncertainty.covariance, bands, plots_uncertainty,
 _physical) and of scripts/uncertainty_calibration.py.
 
 The system is the script's: 2 modes (5 Hz / zeta 0.02, 17 Hz / zeta 0.03), zero pairs at 60
@@ -18,13 +18,16 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import freqid_casadi as fc  # noqa: E402
-from freqid_casadi.bootstrap import bootstrap
-from freqid_casadi import _physical, bands, covariance, plots_uncertainty  # noqa: E402
-from freqid_casadi.data import FrequencyData  # noqa: E402
+from freqid_casadi.fitting.bootstrap import bootstrap
+from freqid_casadi.core import physical as _physical  # noqa: E402
+from freqid_casadi.uncertainty import bands  # noqa: E402
+from freqid_casadi.uncertainty import covariance  # noqa: E402
+from freqid_casadi.plots import uncertainty as plots_uncertainty  # noqa: E402
+from freqid_casadi.core.data import FrequencyData  # noqa: E402
 from freqid_casadi.errors import DataError, OptionError, StructureError  # noqa: E402
 from freqid_casadi.experiment import FrfEstimate  # noqa: E402
-from freqid_casadi.fit import fit  # noqa: E402
-from freqid_casadi.model import RationalDelayModel, Structure  # noqa: E402
+from freqid_casadi.fitting.fit import fit  # noqa: E402
+from freqid_casadi.core.model import RationalDelayModel, Structure  # noqa: E402
 
 SCRIPT = Path(__file__).resolve().parents[1] / "scripts" / "uncertainty_calibration.py"
 
@@ -239,7 +242,7 @@ def test_bad_input(fitted, unc):
 
 def test_with_std_fills_modal_records(unc):
     @dataclasses.dataclass(frozen=True)
-    class Mode:                      # the fields of freqid_casadi.modal.Mode used here
+    class Mode:                      # the fields of freqid_casadi.core.modes.Mode used here
         omega_n: float
         zeta: float
         omega_n_std: float = float("nan")
@@ -373,7 +376,8 @@ def test_fit_report_figures_carry_the_bands(fitted):
     import matplotlib
 
     matplotlib.use("Agg")
-    from freqid_casadi import plots, report
+    from freqid_casadi import plots
+    from freqid_casadi.report import folder as report
 
     bode, rel = plots.bode(fitted), plots.relative_error(fitted)
     report._add_bands(fitted, bode, rel)

@@ -1,4 +1,4 @@
-"""Tests of freqid_casadi.data: FrequencyData validation, windows and the file loaders."""
+"""Tests of freqid_casadi.core.data: FrequencyData validation, windows and the file loaders."""
 
 import dataclasses
 import math
@@ -10,8 +10,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from freqid_casadi.data import FrequencyData
-from freqid_casadi.loaders import load, load_csv, load_npz, save_csv
+from freqid_casadi.core.data import FrequencyData
+from freqid_casadi.io.loaders import load, load_csv, load_npz, save_csv
 from freqid_casadi.errors import DataError, FreqidError
 
 OMEGA = np.array([0.5, 1.0, 2.0, 4.0, 8.0])            # rad/s

@@ -1,4 +1,4 @@
-"""An undetermined delay is held at the lower order's (freqid_casadi.delay_hold, issue 15):
+"""An undetermined delay is held at the lower order's (freqid_casadi.fitting.delay_hold, issue 15):
 a system with a true delay of 5 ms and two sections, fitted with one section too many."""
 
 import dataclasses
@@ -6,8 +6,9 @@ import dataclasses
 import numpy as np
 import pytest
 
-from freqid_casadi import FrequencyData, fit
-from freqid_casadi.delay_hold import hold_undetermined_delay
+from freqid_casadi import FrequencyData
+from freqid_casadi import fit
+from freqid_casadi.fitting.delay_hold import hold_undetermined_delay
 from freqid_casadi.errors import OptionError
 from freqid_casadi.options import LoopOptions
 

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 import freqid_casadi as fc
-from freqid_casadi.delay_search import MAX_TRIALS, search_delay
-from freqid_casadi.examples import EXAMPLES
+from freqid_casadi.fitting.delay_search import MAX_TRIALS, search_delay
+from freqid_casadi.systems.examples import EXAMPLES
 
 pytestmark = pytest.mark.filterwarnings("ignore::freqid_casadi.errors.ResolutionWarning")
 
@@ -81,7 +81,7 @@ def test_an_unconverged_fit_is_rescued(rescued):
 
 
 def test_the_report_names_the_search_stages(rescued):
-    from freqid_casadi.summary import fit_summary, render_fit_summary
+    from freqid_casadi.report.summary import fit_summary, render_fit_summary
 
     text = render_fit_summary(fit_summary(rescued, command="test"))
     rows = [line for line in text.splitlines() if line.startswith("| ")]

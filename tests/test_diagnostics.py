@@ -1,13 +1,13 @@
-"""Diagnostics of data outside the model class (freqid_casadi.diagnostics)."""
+"""Diagnostics of data outside the model class (freqid_casadi.fitting.diagnostics)."""
 
 import math
 
 import numpy as np
 import pytest
 
-from freqid_casadi import diagnostics as dg
-from freqid_casadi.data import FrequencyData
-from freqid_casadi.model import RationalDelayModel, Structure
+from freqid_casadi.fitting import diagnostics as dg
+from freqid_casadi.core.data import FrequencyData
+from freqid_casadi.core.model import RationalDelayModel, Structure
 
 OMEGA = np.logspace(-1, 2, 300)
 S = 1j * OMEGA
@@ -208,8 +208,8 @@ def test_fit_model_class_options_are_checked(kw, match):
 def test_cli_fit_states_the_negative_gain_and_the_free_zeros(tmp_path, monkeypatch, capsys):
     import json
 
-    from freqid_casadi import cli
-    from freqid_casadi.loaders import save_csv
+    from freqid_casadi.cli import app as cli
+    from freqid_casadi.io.loaders import save_csv
 
     monkeypatch.chdir(tmp_path)
     save_csv(FrequencyData(OMEGA, -plant()), "neg.csv")

@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy import signal
 
-from freqid_casadi.data import FrequencyData
+from freqid_casadi.core.data import FrequencyData
 from freqid_casadi.errors import DataError, OptionError
 from freqid_casadi.experiment import (
     FrfEstimate,

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import freqid_casadi as fc
-from freqid_casadi.far_roots import FAR, roots_to_infinity
+from freqid_casadi.fitting.far_roots import FAR, roots_to_infinity
 
 
 def _two_modes(points=300):
@@ -40,7 +40,7 @@ def test_exact_two_mode_data_converge_with_the_sequential_loop():
     assert res.success, res.message
     assert res.max_rel_error < 1e-12
     assert "sequential, far roots" in res.candidate_max_rel_errors
-    assert any(r.kind == fc.stages.StageKind.FAR_ROOTS for r in res.stages)
+    assert any(r.kind == fc.fitting.stages.StageKind.FAR_ROOTS for r in res.stages)
     # without the candidate: a zero pair drifting above the band against the delay
     off = fc.fit(data, n_sections=2, start="sequential",
                  loop=fc.LoopOptions(far_roots=False))

@@ -260,13 +260,13 @@ def test_damping_floor_keeps_a_noisy_fit_right_between_the_samples():
     import warnings
 
     from freqid_casadi.errors import ResolutionWarning
-    from freqid_casadi.validation import dense_grid
+    from freqid_casadi.fitting.validation import dense_grid
 
     clean, noisy, noise = _noisy_a()
     with warnings.catch_warnings():
         warnings.simplefilter("error", ResolutionWarning)
         res = fc.fit(noisy, n_sections=17, integrator=True, min_damping="auto")
-    from freqid_casadi.fit import resolution_damping
+    from freqid_casadi.fitting.fit import resolution_damping
 
     zeta_min = resolution_damping(noisy.omega)
     assert res.zeta_min == zeta_min == pytest.approx(0.01167, rel=1e-3)

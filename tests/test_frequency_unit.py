@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 import freqid_casadi as fc
-from freqid_casadi.diagnostics import check_delay, check_roots_below_band
+from freqid_casadi.fitting.diagnostics import check_delay, check_roots_below_band
 from freqid_casadi.errors import DataError
 from freqid_casadi.studies.robot_arm import arm_data
 
@@ -40,7 +40,7 @@ def test_report_of_a_normalised_fit_speaks_rad_per_sample(tmp_path):
     import matplotlib
 
     matplotlib.use("Agg")
-    from freqid_casadi.report import write_fit_report
+    from freqid_casadi.report.folder import write_fit_report
 
     _, data = arm_data()
     res = fc.fit(data, n_sections=2, progress=False)
@@ -55,8 +55,8 @@ def test_report_of_a_normalised_fit_speaks_rad_per_sample(tmp_path):
 def test_frf_csv_without_fs_round_trips_its_unit(tmp_path, capsys):
     # freqid frf without --fs wrote 'omega,real,imag' in rad/sample, and freqid fit then
     # read rad/s: its report gave the delay in s
-    from freqid_casadi.cli import main
-    from freqid_casadi.loaders import load, save_csv
+    from freqid_casadi.cli.app import main
+    from freqid_casadi.io.loaders import load, save_csv
 
     w = np.linspace(0.05, 3.0, 30)
     d = fc.FrequencyData(w, np.exp(-0.5j * w) / (1 + 1j * w), unit="rad/sample")

@@ -14,10 +14,11 @@ import numpy as np
 import pytest
 
 import freqid_casadi as fc
-from freqid_casadi import batch, sweep
+from freqid_casadi.fitting import batch
+from freqid_casadi.fitting import sweep
 from freqid_casadi.errors import DataError, OptionError
-from freqid_casadi.metrics import error_stats
-from freqid_casadi.model import RationalDelayModel, Structure
+from freqid_casadi.core.metrics import error_stats
+from freqid_casadi.core.model import RationalDelayModel, Structure
 
 W = np.logspace(-1, 2, 40)
 MODEL = RationalDelayModel(Structure(1), [0.01, 2.0, 1.0, 0.3, 5.0, 1.0, 0.05, 3.0])
@@ -213,7 +214,7 @@ def test_stabilization_takes_an_order_string():
 
 # ----------------------------------------------------------------------- resolution
 def test_delay_bound_and_damping_floor_of_bad_frequencies():
-    from freqid_casadi.fit import default_delay_max, resolution_damping
+    from freqid_casadi.fitting.fit import default_delay_max, resolution_damping
 
     # before: -pi (a negative delay bound) for decreasing omega, NaN for a NaN frequency
     with pytest.raises(DataError, match="strictly increasing"):
@@ -238,7 +239,7 @@ def test_sweep_refuses_a_too_large_order_before_fitting_the_others(monkeypatch):
 
 
 def test_stabilization_refuses_a_too_large_order_before_fitting_the_others(monkeypatch):
-    from freqid_casadi import shared
+    from freqid_casadi.modal import shared
 
     calls = []
     real = shared.fit_shared

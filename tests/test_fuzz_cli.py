@@ -23,10 +23,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from freqid_casadi import _outputs, cli, report
-from freqid_casadi.data import FrequencyData
-from freqid_casadi.loaders import load, save_csv
-from freqid_casadi.model import RationalDelayModel, Structure
+from freqid_casadi.report import outputs as _outputs
+from freqid_casadi.cli import app as cli
+from freqid_casadi.report import folder as report
+from freqid_casadi.core.data import FrequencyData
+from freqid_casadi.io.loaders import load, save_csv
+from freqid_casadi.core.model import RationalDelayModel, Structure
 from test_hostile import snapshot  # one snapshot of a tree for both files
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -89,7 +91,8 @@ def test_force_still_replaces_an_old_report_without_the_marker(ws, capsys):
 
 _HUNG_UP = """
 import os, signal, sys, time
-from freqid_casadi import cli, report
+from freqid_casadi.cli import app as cli
+from freqid_casadi.report import folder as report
 signal.signal(signal.SIGHUP, signal.SIG_DFL)       # as in a terminal (not under nohup)
 report._write_figures = lambda *a, **k: None
 
@@ -319,7 +322,7 @@ def test_ipopt_options_are_checked_without_sys_stdout(monkeypatch):
 def test_force_keeps_a_users_csv_or_text_beside_a_copied_report(tmp_path, monkeypatch):
     # an unmarked folder holding a copied report and the user's own data or notes is not
     # a report of ours: --force must refuse it and name the foreign file
-    from freqid_casadi._outputs import is_package_folder, foreign_entry
+    from freqid_casadi.report.outputs import is_package_folder, foreign_entry
 
     for name, text in (("my_measurement.csv", "f,re,im\n1,2,3\n"), ("notes.txt", "mine")):
         folder = tmp_path / name.split(".")[0]
@@ -342,7 +345,7 @@ def test_closed_stdout_pipe_is_quiet_and_exits_141(tmp_path):
     import subprocess
     import sys
 
-    from freqid_casadi.cli_common import os_exit
+    from freqid_casadi.cli.common import os_exit
 
     assert os_exit(FileNotFoundError(2, "No such file or directory", "x.csv")) == 2
     w = np.logspace(-1, 2, 40)

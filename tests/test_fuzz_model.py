@@ -13,10 +13,10 @@ import warnings
 import numpy as np
 import pytest
 
-from freqid_casadi.data import FrequencyData
+from freqid_casadi.core.data import FrequencyData
 from freqid_casadi.errors import DataError, OptionError, StructureError
 from freqid_casadi.experiment import frf_from_records
-from freqid_casadi.model import RationalDelayModel, Structure
+from freqid_casadi.core.model import RationalDelayModel, Structure
 
 BETA = [0.01, 2.0, 1.0, 0.3, 5.0, 1.0, 0.05, 3.0]
 MODEL = RationalDelayModel(Structure(1), BETA)
@@ -113,7 +113,7 @@ def test_stabilization_diagram_without_poles_draws_no_empty_legend():
 
     matplotlib.use("Agg")
     import freqid_casadi as fc
-    from freqid_casadi.plots_modal import stabilization_diagram
+    from freqid_casadi.plots.modal import stabilization_diagram
 
     data = FrequencyData(W, MODEL.frequency_response(W), "plant")
     with warnings.catch_warnings():

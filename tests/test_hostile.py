@@ -45,11 +45,16 @@ import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
 import freqid_casadi as fc  # noqa: E402
-from freqid_casadi import _interrupt, _io, _outputs, cli, cli_batch, report  # noqa: E402
-from freqid_casadi.data import FrequencyData  # noqa: E402
-from freqid_casadi.loaders import save_csv  # noqa: E402
+from freqid_casadi import _interrupt  # noqa: E402
+from freqid_casadi import _textio as _io  # noqa: E402
+from freqid_casadi.report import outputs as _outputs  # noqa: E402
+from freqid_casadi.cli import app as cli  # noqa: E402
+from freqid_casadi.cli import batch as cli_batch  # noqa: E402
+from freqid_casadi.report import folder as report  # noqa: E402
+from freqid_casadi.core.data import FrequencyData  # noqa: E402
+from freqid_casadi.io.loaders import save_csv  # noqa: E402
 from freqid_casadi.errors import DataError, FreqidError, OptionError, StructureError  # noqa: E402
-from freqid_casadi.model import RationalDelayModel, Structure, _quad_roots  # noqa: E402
+from freqid_casadi.core.model import RationalDelayModel, Structure, _quad_roots  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 MARKER = _outputs.MARKER
@@ -712,14 +717,14 @@ def test_sweep_huge_order_range_is_refused_at_once(ws, capsys):
 @pytest.mark.parametrize("spec", ["1_0", "\u0661\u0660", "0:4", "4:2", "", "2:4:0", "a",
                                   "2:999999999999999:2", "2,,4", "-2", "2:4:2:2"])
 def test_parse_orders_rejects(spec):
-    from freqid_casadi.sweep import parse_orders
+    from freqid_casadi.fitting.sweep import parse_orders
 
     with pytest.raises(OptionError, match="orders"):
         parse_orders(spec)
 
 
 def test_sweep_api_counts_a_range_before_listing_it():
-    from freqid_casadi.sweep import sweep
+    from freqid_casadi.fitting.sweep import sweep
 
     with pytest.raises(OptionError, match="orders to fit"):
         sweep(_plant(), range(2, 2 * 10**12, 2))
@@ -789,7 +794,7 @@ def test_fit_legacy_keywords_name_the_option_object(legacy):
 
 @pytest.mark.parametrize("lo", [200, -201, 300, -301])
 def test_uncertainty_weight_at_extreme_frequencies(lo):
-    from freqid_casadi.uncertainty import fit_uncertainty_weight
+    from freqid_casadi.uncertainty.weight import fit_uncertainty_weight
 
     e = 0.1 + 0.05 * np.sin(np.arange(30))
     ref = fit_uncertainty_weight(np.logspace(0, 1, 30), e, order=1)
@@ -801,7 +806,7 @@ def test_uncertainty_weight_at_extreme_frequencies(lo):
 
 
 def test_uncertainty_weight_band_too_wide():
-    from freqid_casadi.uncertainty import fit_uncertainty_weight
+    from freqid_casadi.uncertainty.weight import fit_uncertainty_weight
 
     with pytest.raises(DataError, match="600 decades"):
         fit_uncertainty_weight(np.logspace(-300, 300, 30), np.full(30, 0.1))
@@ -1061,7 +1066,7 @@ def test_ctrl_c_while_a_stage_builds_its_casadi_expressions_is_not_lost(python_s
     # Python, e.g. for an MX's shape) is swallowed there: 3 of 25 Ctrl-C's at random times
     # of a fit of C were lost. Signals are now deferred while a stage is built and solved
     # and raised as Interrupted when it returns; here the signal arrives mid-build.
-    from freqid_casadi import stages
+    from freqid_casadi.fitting import stages
 
     built = []
     real = stages.stage_functions
@@ -1098,7 +1103,7 @@ def _signal_during(module, name, monkeypatch):
 
 def test_ctrl_c_while_a_shared_fit_builds_its_problem_is_not_lost(python_sigint, monkeypatch):
     # the shared fit built its CasADi problems outside any deferral (session 6's note)
-    from freqid_casadi import shared
+    from freqid_casadi.modal import shared
 
     built = _signal_during(shared, "SharedProblem", monkeypatch)
     w = np.logspace(-1, 2, 40)
@@ -1112,7 +1117,7 @@ def test_ctrl_c_while_a_shared_fit_builds_its_problem_is_not_lost(python_sigint,
 
 def test_ctrl_c_while_the_minimax_polish_builds_its_functions_is_not_lost(python_sigint,
                                                                          monkeypatch):
-    from freqid_casadi import mainloop
+    from freqid_casadi.fitting import mainloop
 
     built = _signal_during(mainloop, "stage_functions", monkeypatch)
     w = np.logspace(-1, 2, 40)

@@ -1,4 +1,4 @@
-"""Tests of freqid_casadi.loaders: every format and unit round-trips to the same data, and
+"""Tests of freqid_casadi.io.loaders: every format and unit round-trips to the same data, and
 every bad file is a DataError naming the file, the line or column, and the fix."""
 
 import io
@@ -13,9 +13,10 @@ import pytest
 import scipy.io
 
 import freqid_casadi as fc
-from freqid_casadi import cli, loaders
+from freqid_casadi.cli import app as cli
+from freqid_casadi.io import loaders
 from freqid_casadi.errors import DataError, OptionError
-from freqid_casadi.loaders import DataWarning, load, load_mat, load_npz, load_text, load_uff
+from freqid_casadi.io.loaders import DataWarning, load, load_mat, load_npz, load_text, load_uff
 
 OMEGA = np.array([0.5, 1.25, 3.0, 7.5, 20.0, 64.0])
 RESP = 2.0 * np.exp(-0.01j * OMEGA) / (1 + 1j * OMEGA / 3.0)
@@ -279,7 +280,7 @@ def test_size_and_row_limits(tmp_path, monkeypatch):
     with pytest.raises(DataError, match=r"has more than 3 data rows \(limit "
                        r"freqid_casadi\.loaders\.MAX_ROWS\); thin the data or raise"):
         load(path)
-    from freqid_casadi import _readfile
+    from freqid_casadi.io import _readfile
 
     monkeypatch.setattr(_readfile, "MAX_FILE_BYTES", 50)   # the one every reader uses
     with pytest.raises(DataError, match=r"holds \d+ bytes, above the limit of 50 bytes"):

@@ -8,8 +8,8 @@ import pytest
 
 import freqid_casadi as fc
 from freqid_casadi.errors import DataError, SolverError
-from freqid_casadi.metrics import ErrorStats, error_stats, relative_error
-from freqid_casadi.stages import Kept, StageKind, polish
+from freqid_casadi.core.metrics import ErrorStats, error_stats, relative_error
+from freqid_casadi.fitting.stages import Kept, StageKind, polish
 
 
 def _model():
@@ -75,8 +75,8 @@ def test_stage_enums_compare_and_serialise_as_words():
 
 
 def test_failed_rational_start_is_a_solver_error(monkeypatch):
-    from freqid_casadi import start as start_module
-    from freqid_casadi.start import RationalStartError
+    from freqid_casadi.fitting import start as start_module
+    from freqid_casadi.fitting.start import RationalStartError
 
     def boom(*args, **kwargs):
         raise np.linalg.LinAlgError("no fit")
@@ -91,7 +91,7 @@ def test_failed_rational_start_is_a_solver_error(monkeypatch):
 
 
 def test_fit_many_rejects_old_keywords_before_any_fit():
-    from freqid_casadi.batch import fit_many
+    from freqid_casadi.fitting.batch import fit_many
 
     with pytest.raises(TypeError, match=r"fit_many\(\) no longer takes gauge=; pass "
                                          r"loop=LoopOptions\(gauge='b1'\)"):

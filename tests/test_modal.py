@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 import freqid_casadi as fc
-from freqid_casadi import modal, survey
-from freqid_casadi.cli import main
+from freqid_casadi.core import modes as modal
+from freqid_casadi.modal import survey
+from freqid_casadi.cli.app import main
 from freqid_casadi.errors import DataError, OptionError
-from freqid_casadi.model import RationalDelayModel, Structure
+from freqid_casadi.core.model import RationalDelayModel, Structure
 
 POLES = ((5.0, 0.02), (17.0, 0.03))           # (omega_n rad/s, zeta)
 RESIDUE_SCALE = ((1.0, 2.0), (1.5, -0.5))      # per channel, per mode
@@ -64,7 +65,7 @@ def test_modes_of_fit_result_and_errors():
 
 
 def test_shared_modes_residues_are_the_modal_constants():
-    res = fc.shared.fit_shared(_datas(), 2, delay=False, zeros=["minimum-phase", "free"])
+    res = fc.fit_shared(_datas(), 2, delay=False, zeros=["minimum-phase", "free"])
     assert [m.omega_n for m in res.modes] == pytest.approx([5.0, 17.0], rel=1e-7)
     assert [m.zeta for m in res.modes] == pytest.approx([0.02, 0.03], rel=1e-6)
     for k, (w, z) in enumerate(POLES):
@@ -74,7 +75,7 @@ def test_shared_modes_residues_are_the_modal_constants():
 
 
 def test_csv_and_markdown_writers(tmp_path):
-    res = fc.shared.fit_shared(_datas(), 2, delay=False, zeros="free")
+    res = fc.fit_shared(_datas(), 2, delay=False, zeros="free")
     text = modal.modes_csv(res.modes, ["a", "b"])
     rows = list(csv.reader(io.StringIO(text)))
     assert rows[0][:4] == ["mode", "frequency_hz", "omega_n_rad_s", "zeta"]
@@ -165,8 +166,8 @@ def test_cli_modal_writes_report_and_refuses_existing_out(tmp_path, capsys):
 
 
 def test_import_does_not_load_matplotlib():
-    code = ("import sys, freqid_casadi, freqid_casadi.modal, freqid_casadi.shared, "
-            "freqid_casadi.plots_modal, freqid_casadi.cli_modal; "
+    code = ("import sys, freqid_casadi, freqid_casadi.core.modes, freqid_casadi.modal.shared, "
+            "freqid_casadi.plots.modal, freqid_casadi.cli.modal; "
             "print('matplotlib' in sys.modules)")
     out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                          check=True, env={**os.environ, "PYTHONPATH": os.getcwd()})

@@ -1,4 +1,4 @@
-"""Tests of freqid_casadi.model: Structure, RationalDelayModel, export and JSON."""
+"""Tests of freqid_casadi.core.model: Structure, RationalDelayModel, export and JSON."""
 
 import json
 import math
@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from freqid_casadi.errors import DataError, FreqidError, StructureError
-from freqid_casadi.model import RationalDelayModel, Structure
+from freqid_casadi.core.model import RationalDelayModel, Structure
 
 OMEGA = np.logspace(-2, 3, 201)                         # rad/s
 
@@ -133,7 +133,7 @@ def test_frequency_response_first_order_formula(integrator):
 
 
 def test_relative_error():
-    from freqid_casadi.data import FrequencyData
+    from freqid_casadi.core.data import FrequencyData
 
     m = RationalDelayModel(Structure(2, integrator=True), BETA2)
     g = m.frequency_response(OMEGA)

@@ -1,5 +1,5 @@
-"""Tests of freqid_casadi.objective: the (re, im) objective against plain complex numpy
-(STYLE.md §1.2), the gauge maps, and the stage derivatives against finite differences and
+"""Tests of freqid_casadi.core.objective: the (re, im) objective against plain complex numpy
+(docs/style.md §1.2), the gauge maps, and the stage derivatives against finite differences and
 CasADi's own AD."""
 
 import itertools
@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from freqid_casadi.errors import OptionError, StructureError
-from freqid_casadi.model import BASES, RationalDelayModel, Structure
-from freqid_casadi.objective import (
+from freqid_casadi.core.model import BASES, RationalDelayModel, Structure
+from freqid_casadi.core.objective import (
     GAUGES, Parametrization, StageFunctions, rel_error_stats, relative_residual, stage_functions)
 
 OMEGA = np.logspace(-1, 2, 60)                         # rad/s
@@ -260,7 +260,7 @@ def test_damping_constraints_and_projection():
 def test_pnorm_derivatives_match_casadi_ad(p, gauge):
     """The structured gradient/Hessian of the p-norm stand-in for the max error against
     CasADi's AD of its log-sum-exp form."""
-    from freqid_casadi.objective import PNormFunctions
+    from freqid_casadi.core.objective import PNormFunctions
 
     param = _param(gauge, "second-order", True)
     rng = np.random.default_rng(5)

@@ -12,10 +12,10 @@ import pytest  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 
 from freqid_casadi import plots  # noqa: E402
-from freqid_casadi.data import FrequencyData  # noqa: E402
+from freqid_casadi.core.data import FrequencyData  # noqa: E402
 from freqid_casadi.errors import OptionError  # noqa: E402
-from freqid_casadi.fit import fit  # noqa: E402
-from freqid_casadi.model import RationalDelayModel, Structure  # noqa: E402
+from freqid_casadi.fitting.fit import fit  # noqa: E402
+from freqid_casadi.core.model import RationalDelayModel, Structure  # noqa: E402
 
 # a known 2-section model with integrator and delay, 60 points (fits in about a second)
 _BETA = [0.01, 4.0, 1, 0.05, 3.0, 1, 0.02, 2.0, 1, 0.03, 30.0, 1, 0.01, 20.0]

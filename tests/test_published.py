@@ -9,7 +9,7 @@ reason gives the measured value (SPEC §5).
 import pytest
 
 import freqid_casadi as fc
-from freqid_casadi.examples import EXAMPLES
+from freqid_casadi.systems.examples import EXAMPLES
 
 
 #: The test's own tolerances per example (the structure and the thesis's numbers come from

@@ -55,11 +55,11 @@ import numpy as np
 import pytest
 
 import freqid_casadi as fc
-from freqid_casadi.examples import EXAMPLES
-from freqid_casadi.objective import Parametrization
-from freqid_casadi.relocate import relocated_start
+from freqid_casadi.systems.examples import EXAMPLES
+from freqid_casadi.core.objective import Parametrization
+from freqid_casadi.fitting.relocate import relocated_start
 from freqid_casadi.solvers.common import Status
-from freqid_casadi.stages import stage_cost
+from freqid_casadi.fitting.stages import stage_cost
 
 pytestmark = pytest.mark.filterwarnings("ignore::freqid_casadi.errors.ResolutionWarning")
 
@@ -162,9 +162,9 @@ def test_example_c_rational_is_rescued_by_the_delay_search(fit_c_rational):
 def test_example_c_has_a_far_better_basin_at_the_systems_delay():
     """Why C's xfails above: the fits end at h ~ 0.0260 s; a vector fit at G_C's delay
     polished for 200 iterations is 2500x more accurate (module docstring)."""
-    from freqid_casadi.resolution import default_delay_max
-    from freqid_casadi.stages import polish
-    from freqid_casadi.start import rational_start
+    from freqid_casadi.core.resolution import default_delay_max
+    from freqid_casadi.fitting.stages import polish
+    from freqid_casadi.fitting.start import rational_start
 
     ex = EXAMPLES["C"]
     data = ex.system()

@@ -1,4 +1,4 @@
-"""Tests of freqid_casadi.report: complete report folders or nothing, JSON == Markdown."""
+"""Tests of freqid_casadi.report.folder: complete report folders or nothing, JSON == Markdown."""
 
 import csv
 import json
@@ -15,12 +15,12 @@ matplotlib.use("Agg")
 import numpy as np  # noqa: E402
 import pytest  # noqa: E402
 
-from freqid_casadi._outputs import MARKER
-from freqid_casadi import report  # noqa: E402
-from freqid_casadi.data import FrequencyData  # noqa: E402
+from freqid_casadi.report.outputs import MARKER
+from freqid_casadi.report import folder as report  # noqa: E402
+from freqid_casadi.core.data import FrequencyData  # noqa: E402
 from freqid_casadi.errors import OptionError  # noqa: E402
-from freqid_casadi.fit import fit  # noqa: E402
-from freqid_casadi.model import RationalDelayModel, Structure  # noqa: E402
+from freqid_casadi.fitting.fit import fit  # noqa: E402
+from freqid_casadi.core.model import RationalDelayModel, Structure  # noqa: E402
 
 _BETA = [0.01, 4.0, 1, 0.05, 3.0, 1, 0.02, 2.0, 1, 0.03, 30.0, 1, 0.01, 20.0]
 _THESIS = dict(order=4, max_rel_error=0.2549, delay=0.0106, source="thesis")
@@ -276,7 +276,7 @@ def test_failing_rename_restores_the_old_folder(result, tmp_path, monkeypatch,
 def test_import_does_not_load_matplotlib():
     code = ("import sys\n"
             "import freqid_casadi\n"
-            "import freqid_casadi.plots, freqid_casadi.report, freqid_casadi.cli\n"
+            "import freqid_casadi.plots, freqid_casadi.report.folder, freqid_casadi.cli.app\n"
             "loaded = sorted(m for m in sys.modules if m.split('.')[0] == 'matplotlib')\n"
             "print(loaded)\n"
             "sys.exit(1 if loaded else 0)\n")

@@ -7,9 +7,9 @@ from pathlib import Path
 
 import pytest
 
-from freqid_casadi import cli
+from freqid_casadi.cli import app as cli
 from freqid_casadi.errors import OptionError
-from freqid_casadi.formatting import generated_by_line, number as table_cell
+from freqid_casadi.report.formatting import generated_by_line, number as table_cell
 from freqid_casadi.studies.reproduce import EXAMPLE_NAMES, TABLE_QUANTITIES
 from freqid_casadi.studies.reproduce_report import TABLE_COLUMNS
 from freqid_casadi.studies.reproduce_report import write_reproduce_report as reproduce

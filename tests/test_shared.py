@@ -7,10 +7,10 @@ import numpy as np
 import pytest
 
 import freqid_casadi as fc
-from freqid_casadi._shared_nlp import SharedProblem
+from freqid_casadi.modal._nlp import SharedProblem
 from freqid_casadi.errors import DataError, OptionError
-from freqid_casadi.model import RationalDelayModel
-from freqid_casadi.shared import SharedFitResult, fit_shared
+from freqid_casadi.core.model import RationalDelayModel
+from freqid_casadi.modal.shared import SharedFitResult, fit_shared
 from freqid_casadi.systems import moheimani_modes
 
 
@@ -333,7 +333,7 @@ def test_per_channel_delays_and_sequential_start():
 def test_channel_sections_take_what_is_not_shared(start):
     # 1 shared section + 1 of each channel's own on exact two-mode data: one mode is shared
     # (the modal table lists it alone), the other is found by each channel's own section
-    from freqid_casadi.modal import modes
+    from freqid_casadi.core.modes import modes
 
     datas = _two_mode_datas()
     res = fit_shared(datas, 1, delay=False, channel_sections=1, start=start)
@@ -421,7 +421,7 @@ def test_weights_scale_the_channels():
 def test_block_termination_measures_equal_dense_ones(local):
     # the shared stages' test uses the block structure of the stacked weighted Jacobian;
     # the same numbers from the dense Jacobian (solvers.termination.projected_fraction)
-    from freqid_casadi._shared_term import (blocks, block_projected_fraction, column_norms,
+    from freqid_casadi.solvers.shared_termination import (blocks, block_projected_fraction, column_norms,
                                             gradient_and_norms)
     from freqid_casadi.solvers.termination import projected_fraction
 
@@ -457,7 +457,7 @@ def test_block_termination_measures_equal_dense_ones(local):
 def test_solve_stage_stops_at_a_relatively_stationary_point():
     # noisy two-mode data, 2 shared sections: the solve ends by the scale-free test (or
     # IPOPT's tolerance), and a solve started at its solution returns it without iterating
-    from freqid_casadi._shared_solve import solve_stage
+    from freqid_casadi.solvers.shared_stage import solve_stage
 
     datas = _two_mode_datas()
     rng = np.random.default_rng(5)

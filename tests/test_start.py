@@ -9,8 +9,8 @@ import pytest
 
 import freqid_casadi as fc
 from freqid_casadi.errors import OptionError
-from freqid_casadi.start import rational_start, sections_from_roots
-from freqid_casadi.sweep import parse_orders, sweep
+from freqid_casadi.fitting.start import rational_start, sections_from_roots
+from freqid_casadi.fitting.sweep import parse_orders, sweep
 
 BETA = [0.02, 3.0, 1.0, 0.03, 5.0, 1.0, 0.05, 8.0, 1.0, 0.02, 40.0, 1.0, 0.01, 25.0]
 

@@ -9,7 +9,7 @@ matplotlib.use("Agg")
 import pytest  # noqa: E402
 
 from freqid_casadi.errors import OptionError  # noqa: E402
-from freqid_casadi.formatting import generated_by_line, number  # noqa: E402
+from freqid_casadi.report.formatting import generated_by_line, number  # noqa: E402
 from freqid_casadi.studies.noisy_report import write_noisy_report  # noqa: E402
 
 

@@ -7,7 +7,7 @@ from scipy.signal import argrelmax
 
 from freqid_casadi import systems
 from freqid_casadi.systems import _beams
-from freqid_casadi.data import FrequencyData
+from freqid_casadi.core.data import FrequencyData
 from freqid_casadi.errors import DataError, OptionError
 from freqid_casadi.systems import (
     G_A, G_A_at, G_B, G_B_at, G_C, G_C_at, G_D, G_D_at, moheimani_at, moheimani_beam,
@@ -305,7 +305,7 @@ def test_all_names_have_docstrings():
 
 def test_catalogue_matches_the_systems_and_table_4_1():
     """The example catalogue: the thesis's structures and numbers (SPEC §5)."""
-    from freqid_casadi.examples import EXAMPLES, TABLE_4_1
+    from freqid_casadi.systems.examples import EXAMPLES, TABLE_4_1
 
     assert [(k, e.n_sections, e.integrator, e.order) for k, e in EXAMPLES.items()] == [
         ("A", 17, True, 34), ("B", 9, False, 18), ("C", 27, True, 54),

@@ -1,4 +1,4 @@
-"""Tests of the multiplicative uncertainty weight (freqid_casadi.uncertainty).
+"""Tests of the multiplicative uncertainty weight (freqid_casadi.uncertainty.weight).
 
 The synthetic relative error is a lead ``1e-3 |(1 + jw/10)/(1 + jw/1000)|`` times a ripple
 ``1 + 0.3 sin^2(3 ln w)`` (period ~0.45 decade, which no low-order weight can follow) on 300
@@ -15,10 +15,10 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from freqid_casadi import uncertainty
-from freqid_casadi.data import FrequencyData
+from freqid_casadi.uncertainty import weight as uncertainty
+from freqid_casadi.core.data import FrequencyData
 from freqid_casadi.errors import DataError, OptionError
-from freqid_casadi.uncertainty import (Overbound, WeightResult, WeightSection,
+from freqid_casadi.uncertainty.weight import (Overbound, WeightResult, WeightSection,
                                        fit_uncertainty_weight)
 
 OMEGA = np.logspace(-1, 5, 300)

@@ -12,11 +12,12 @@ import numpy as np
 import pytest
 
 import freqid_casadi as fc
-from freqid_casadi import cli, cli_common
+from freqid_casadi.cli import app as cli
+from freqid_casadi.cli import common as cli_common
 from freqid_casadi.errors import DataError, OptionError
 from freqid_casadi.experiment import dataset_path, load_records_csv
-from freqid_casadi.loaders import DataWarning, load
-from freqid_casadi.summary import fit_summary, render_fit_summary
+from freqid_casadi.io.loaders import DataWarning, load
+from freqid_casadi.report.summary import fit_summary, render_fit_summary
 
 F_HZ = np.array([0.5, 1.0, 2.5, 4.0, 5.0, 6.5, 9.0, 14.0])
 S = 2j * np.pi * F_HZ
@@ -318,7 +319,7 @@ def test_bode_and_error_figures_have_a_hz_axis(one_mode_fit):
 
 
 def test_batch_names_the_data_files_it_skips(tmp_path):
-    from freqid_casadi.cli_batch import data_files
+    from freqid_casadi.cli.batch import data_files
 
     (tmp_path / "a.csv").write_text(_table(","))
     (tmp_path / "b.txt").write_text(_table(","))
@@ -400,7 +401,7 @@ def test_cli_fit_of_exact_two_mode_data_converges_by_default(tmp_path, capsys):
     # zeros (its numerator on the bounds): the sequential loop alone ends at its limit with
     # a zero pair drifting to 1e5 rad/s against the delay (9.3e-10, NOT converged); the
     # CLI's default start="best" also runs the rational start, which is exact
-    from freqid_casadi.cli import main
+    from freqid_casadi.cli.app import main
 
     f = np.linspace(0.5, 30, 300)
     s = 2j * np.pi * f

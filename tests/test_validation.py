@@ -1,12 +1,12 @@
-"""Tests of freqid_casadi.validation: the resolution check and the pruning safeguard."""
+"""Tests of freqid_casadi.fitting.validation: the resolution check and the pruning safeguard."""
 
 import numpy as np
 import pytest
 
-from freqid_casadi.data import FrequencyData
+from freqid_casadi.core.data import FrequencyData
 from freqid_casadi.errors import DataError, OptionError
-from freqid_casadi.model import RationalDelayModel, Structure
-from freqid_casadi.validation import (PairFlag, check_resolution, dense_grid,
+from freqid_casadi.core.model import RationalDelayModel, Structure
+from freqid_casadi.fitting.validation import (PairFlag, check_resolution, dense_grid,
                                       prune_sections)
 
 OMEGA = np.logspace(-1, 2, 120)          # spacing 0.059 * omega

@@ -3,7 +3,7 @@
 import numpy as np
 
 import freqid_casadi as fc
-from freqid_casadi.candidates import Candidate, choose
+from freqid_casadi.fitting.candidates import Candidate, choose
 from freqid_casadi.studies.measured import actuator_frf
 
 
@@ -27,11 +27,11 @@ def test_weighted_actuator_fit_keeps_the_converged_optimum():
     res = fc.fit(data, n_sections=2, delay=True, start="best")
     assert res.success, res.message
     assert 5e-3 < res.model.delay < 1e-2
-    rel = fc.metrics.relative_error(res.model, data).values
+    rel = fc.core.metrics.relative_error(res.model, data).values
     w = data.weights / np.mean(data.weights)
     weighted_max = float(np.max(rel * np.sqrt(w)))
     h0 = fc.fit(data, n_sections=2, delay=False, start="best")
-    rel0 = fc.metrics.relative_error(h0.model, data).values
+    rel0 = fc.core.metrics.relative_error(h0.model, data).values
     assert weighted_max <= float(np.max(rel0 * np.sqrt(w))) * 1.10
 
 

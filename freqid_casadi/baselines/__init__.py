@@ -1,7 +1,7 @@
 """Baseline methods the thesis compares against, and peers (layer L4; SPEC §6).
 
 Every method is a function returning a :class:`StateSpaceModel`, which has the interface of
-:class:`~freqid_casadi.model.RationalDelayModel` (``frequency_response``, ``poles``,
+:class:`~freqid_casadi.core.model.RationalDelayModel` (``frequency_response``, ``poles``,
 ``zeros``, ``is_stable``, ``is_minimum_phase``, ``to_control``, ``order``, ``delay``,
 ``name``):
 

@@ -1,7 +1,7 @@
 """A continuous-time SISO state-space model with the interface of RationalDelayModel.
 
 Every baseline returns a :class:`StateSpaceModel`, so reports can treat the baselines and
-the package's own :class:`~freqid_casadi.model.RationalDelayModel` alike:
+the package's own :class:`~freqid_casadi.core.model.RationalDelayModel` alike:
 ``frequency_response(omega)``, ``poles()``, ``zeros()``, ``is_stable()``,
 ``is_minimum_phase()``, ``to_control()``, ``order``, ``delay``, ``name``.
 
@@ -16,8 +16,8 @@ import numpy as np
 import scipy.linalg
 
 from ..errors import DataError, OptionError, StructureError
-from ..metrics import DelayedResponse
-from ..model import attach_delay
+from ..core.metrics import DelayedResponse
+from ..core.model import attach_delay
 
 __all__ = ["StateSpaceModel", "count_rhp"]
 
@@ -212,7 +212,7 @@ def count_rhp(model, tol=0.0):
     Parameters
     ----------
     model : object with ``poles()`` and ``zeros()``
-        A :class:`StateSpaceModel`, a :class:`~freqid_casadi.model.RationalDelayModel`,
+        A :class:`StateSpaceModel`, a :class:`~freqid_casadi.core.model.RationalDelayModel`,
         or any object with the same two methods.
     tol : float, optional
         A root counts when its real part is > ``tol`` (default 0).

@@ -2,7 +2,7 @@
 
 Used to show how far an identified order can be reduced (thesis figs 4.5, 4.11, 4.16;
 SPEC §6). The Gramians and the balancing are SLICOT's (AB09AD / AB09MD through slycot and
-python-control), never re-derived here (STYLE.md §2).
+python-control), never re-derived here (docs/style.md §2).
 """
 
 import numpy as np

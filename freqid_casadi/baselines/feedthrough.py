@@ -9,7 +9,7 @@ minimising ``||(G - G_N - K) W||_2`` with W an ideal low-pass filter of cut-off 
 import numpy as np
 import scipy.integrate
 
-from ..data import FrequencyData
+from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 from ._ssmodel import StateSpaceModel, check_order
 

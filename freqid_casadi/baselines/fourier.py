@@ -8,7 +8,7 @@ reduce the FIR by balanced truncation (SLICOT) before mapping back to continuous
 
 import numpy as np
 
-from ..data import FrequencyData
+from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 from ._ssmodel import StateSpaceModel, ab09ad, bilinear_d2c, check_order
 from .subspace import default_bilinear_T

@@ -10,7 +10,7 @@ import warnings
 import numpy as np
 import scipy.linalg
 
-from ..data import FrequencyData
+from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 from ._ssmodel import check_order, pair_conjugates, pole_residue_ss
 

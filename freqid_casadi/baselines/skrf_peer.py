@@ -10,7 +10,7 @@ import warnings
 
 import numpy as np
 
-from ..data import FrequencyData
+from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 from ._ssmodel import pole_residue_ss
 

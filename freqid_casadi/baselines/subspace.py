@@ -9,7 +9,7 @@ minimum phase (thesis fig. 4.7).
 import numpy as np
 import scipy.linalg
 
-from ..data import FrequencyData
+from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 from ._ssmodel import StateSpaceModel, bilinear_d2c, check_order
 

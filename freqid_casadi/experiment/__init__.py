@@ -1,7 +1,7 @@
 """From time-domain experiments to frequency-response data (layer L1, SPEC §7, thesis §2.4).
 
 Estimators (each returns a frozen :class:`FrfEstimate` whose ``data`` is a
-:class:`~freqid_casadi.data.FrequencyData` ready for the fitters):
+:class:`~freqid_casadi.core.data.FrequencyData` ready for the fitters):
 
 - :func:`frf_from_periodic`: periodic (multisine) excitation, averaged over whole periods;
 - :func:`frf_stepped_sine`: one record per frequency;

@@ -6,7 +6,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..data import FrequencyData
+from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 
 __all__ = ["FrfEstimate"]

@@ -14,7 +14,7 @@ import numbers
 
 import numpy as np
 
-from ..data import FrequencyData
+from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 from ._common import (_REL_VAR_FLOOR, FrfEstimate, _as_count, _as_fraction, _as_fs, _as_pair,
                       _normalised, _rms)

@@ -3,7 +3,7 @@
 Readers: :func:`load_records_csv` (``u,y`` CSV), :func:`load_daisy` (DaISy whitespace
 columns) and :func:`load_daq_records` (a data-acquisition export: header lines, then sample
 number, time stamp, channels, events; ``.xz`` accepted). They share the bounded, regular-file
-reading of :mod:`freqid_casadi.loaders` and read ASCII decimal numbers only.
+reading of :mod:`freqid_casadi.io.loaders` and read ASCII decimal numbers only.
 
 Data sets shipped in ``freqid_casadi/datasets`` (see :func:`dataset_path`):
 
@@ -20,9 +20,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from .._table import _NUM, _decode, _shown
+from ..io import NUMBER, decode_text, shown_cell
 from ..errors import DataError, OptionError
-from ..loaders import MAX_FILE_BYTES, MAX_ROWS, read_regular_file
+from ..io.loaders import MAX_FILE_BYTES, MAX_ROWS, read_regular_file
 from .periodic import _detect_period, frf_from_periodic
 
 __all__ = ["load_records_csv", "load_daisy", "load_daq_records", "DaqRecords", "robot_arm",
@@ -72,18 +72,18 @@ def _text_lines(path, what="records file"):
             raise DataError(f"{path!r} is not a valid .xz file ({exc})") from None
         if len(payload) > MAX_FILE_BYTES or not dec.eof:
             raise DataError(f"{path!r} decompresses to more than {MAX_FILE_BYTES} bytes "
-                            "(freqid_casadi.loaders.MAX_FILE_BYTES), or is truncated")
-    lines = _decode(path, payload).split("\n")
+                            "(freqid_casadi.io.loaders.MAX_FILE_BYTES), or is truncated")
+    lines = decode_text(path, payload).split("\n")
     if len(lines) > MAX_ROWS + 100:
         raise DataError(f"{path!r} has more than {MAX_ROWS} lines (limit "
-                        "freqid_casadi.loaders.MAX_ROWS); cut the record or raise that limit")
+                        "freqid_casadi.io.loaders.MAX_ROWS); cut the record or raise that limit")
     return path, lines
 
 
 def _number(path, line, column, cell):
     cell = cell.strip()
-    if not _NUM.fullmatch(cell):
-        raise DataError(f"{path!r} line {line}, column {column!r}: {_shown(cell)} is not a "
+    if not NUMBER.fullmatch(cell):
+        raise DataError(f"{path!r} line {line}, column {column!r}: {shown_cell(cell)} is not a "
                         "number (ASCII decimal numbers only); fix or remove that line")
     value = float(cell)
     if not np.isfinite(value):
@@ -123,17 +123,17 @@ def load_records_csv(path):
         raise DataError(f"{path!r} is empty: expected a header 'u,y' and data rows")
     sep = "," if "," in rows[0][1] else None
     head = [h.strip().strip("\"'").lower() for h in rows[0][1].split(sep)]
-    if all(_NUM.fullmatch(h) for h in head):          # no header (DaISy): u then y
+    if all(NUMBER.fullmatch(h) for h in head):          # no header (DaISy): u then y
         import warnings
 
-        from ..loaders import DataWarning
+        from ..io.loaders import DataWarning
         warnings.warn(f"{path!r} has no header: column 1 is read as the input u, column 2 "
                       "as the output y (a header line 'u,y' says so)", DataWarning,
                       stacklevel=2)
         rows = [(0, "u,y")] + rows
     elif head != ["u", "y"]:
         raise DataError(
-            f"{path!r}: unrecognised header {_shown(rows[0][1].strip())}; the first line must "
+            f"{path!r}: unrecognised header {shown_cell(rows[0][1].strip())}; the first line must "
             "be 'u,y' (input, output), or the file has no header and two columns, u then y")
     if len(rows) < 2:
         raise DataError(f"{path!r} has a header but no data rows")
@@ -241,7 +241,7 @@ def _daq_header(path, lines):
         n_head = -1
     if not 2 <= n_head <= min(len(lines), 1000):
         raise DataError(f"{path!r} line 1: expected 'Header Size: N' (a DAQ export with N "
-                        f"header lines), got {_shown(lines[0].strip() if lines else '')}")
+                        f"header lines), got {shown_cell(lines[0].strip() if lines else '')}")
     header = {}
     for text in lines[1:n_head - 1]:
         key, _, value = text.partition(":")
@@ -250,7 +250,7 @@ def _daq_header(path, lines):
     chans = [j for j, c in enumerate(names) if c.upper().startswith("CHANNEL")]
     if not chans or chans != list(range(2, 2 + len(chans))):
         raise DataError(f"{path!r} line {n_head}: expected 'Sample Number, Date/Time, "
-                        f"CHANNEL0, ...', got {_shown(lines[n_head - 1].strip())}")
+                        f"CHANNEL0, ...', got {shown_cell(lines[n_head - 1].strip())}")
     try:
         fs = float(header.get("Sampling Rate", ""))
     except ValueError:

@@ -1,7 +1,7 @@
 """Figures of fits and of the studies' curves (layer L5).
 
 matplotlib is imported inside the functions, never at module import, so ``import
-freqid_casadi`` (and ``import freqid_casadi.plots``) stays free of it (STYLE.md §3). Without
+freqid_casadi`` (and ``import freqid_casadi.plots``) stays free of it (docs/style.md §3). Without
 matplotlib every function raises :class:`MatplotlibMissingError`, an ``ImportError`` that
 says how to install it.
 

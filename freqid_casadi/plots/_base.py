@@ -7,9 +7,9 @@ from collections.abc import Mapping
 
 import numpy as np
 
-from .._io import atomic_write_bytes
+from .._textio import atomic_write_bytes
 from ..errors import FreqidError, OptionError
-from ..model import RationalDelayModel
+from ..core.model import RationalDelayModel
 
 __all__ = ["new_figure", "finish_axes", "save_figure", "MatplotlibMissingError", "DPI"]
 

@@ -4,10 +4,10 @@ import math
 
 import numpy as np
 
-from ..data import FrequencyData, dense_grid
+from ..core.data import FrequencyData, dense_grid
 from ..errors import OptionError
-from ..metrics import relative_error as relative_error_of
-from ..model import RationalDelayModel
+from ..core.metrics import relative_error as relative_error_of
+from ..core.model import RationalDelayModel
 from ._base import (_dense_grid, _is_result, _label_of, _labelled, _pyplot, finish_axes,
                     hz_axis, new_figure)
 
@@ -344,7 +344,7 @@ def sweep(result):
 
     Parameters
     ----------
-    result : freqid_casadi.sweep.SweepResult
+    result : freqid_casadi.fitting.sweep.SweepResult
 
     Returns
     -------

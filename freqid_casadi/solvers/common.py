@@ -211,7 +211,7 @@ class StageProblem:
 
     @classmethod
     def from_stage_functions(cls, funcs, lb, ub, constraints=None):
-        """The problem of an :class:`~freqid_casadi.objective.StageFunctions` (its exact
+        """The problem of an :class:`~freqid_casadi.core.objective.StageFunctions` (its exact
         structured derivatives and its CasADi residual)."""
         return cls(residual=funcs.residual,
                    jacobian=lambda z: funcs.residual_jacobian(z)[1],

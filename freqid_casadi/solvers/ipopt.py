@@ -55,7 +55,7 @@ def ipopt_status(return_status):
 
 def solve_least_squares(funcs, x0, lb, ub, *, constraints=None, **options):
     """:func:`solve_stage` of the problem of an
-    :class:`~freqid_casadi.objective.StageFunctions` with bounds ``lb``, ``ub``.
+    :class:`~freqid_casadi.core.objective.StageFunctions` with bounds ``lb``, ``ub``.
 
     Parameters
     ----------
@@ -311,7 +311,7 @@ def solve_pnorm(funcs, x0, lb, ub, p, *, max_iter=300, tol=1e-10, constraints=No
     each stage started from the last, walks down to the minimax point while every stage
     stays a smooth NLP with true bounds. The objective is the log-sum-exp of the vectorised
     MX residual; its exact gradient and Hessian come from the stage's structured
-    derivatives (:class:`~freqid_casadi.objective.PNormFunctions`) through the same
+    derivatives (:class:`~freqid_casadi.core.objective.PNormFunctions`) through the same
     callbacks as :func:`solve_least_squares`.
 
     Parameters
@@ -340,7 +340,7 @@ def solve_pnorm(funcs, x0, lb, ub, p, *, max_iter=300, tol=1e-10, constraints=No
     s = float(np.max(r0[:m] ** 2 + r0[m:] ** 2))
     if not (np.isfinite(s) and s > 0):
         s = 1.0
-    from ..objective import PNormFunctions
+    from ..core.objective import PNormFunctions
 
     z = ca.MX.sym("z", n)
     r = funcs.r_fun(z)

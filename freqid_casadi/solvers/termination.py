@@ -58,7 +58,7 @@ class Termination:
     onto_bounds : bool
         At a returned point that fails the test, try it with the variables held just
         inside a bound put onto it (:meth:`StageMonitor.decide`); used by
-        :func:`~freqid_casadi.stages.polish`, whose optimum may lie on the root floor.
+        :func:`~freqid_casadi.fitting.stages.polish`, whose optimum may lie on the root floor.
     newton : bool
         At a returned point that passes the gradient test but not the projection, try
         Newton steps with the exact Hessian (:func:`~.lm_polish.newton_polish`), kept only

@@ -1,6 +1,6 @@
 """Ablation study, the experiments: IPOPT vs the thesis's barrier-LM, and IPOPT's options one at a time.
 
-For each example of the catalogue (:data:`freqid_casadi.examples.EXAMPLES`) the study fits
+For each example of the catalogue (:data:`freqid_casadi.systems.examples.EXAMPLES`) the study fits
 
 * the **method comparison** (SPEC §3): IPOPT with true bounds (the package default) against
   the thesis's log-barrier + Levenberg-Marquardt with the faithful ``"thesis"`` damping
@@ -30,8 +30,8 @@ from dataclasses import dataclass, field, fields, replace
 import numpy as np
 
 from ..errors import OptionError
-from ..fit import fit
-from ..formatting import json_safe
+from ..fitting.fit import fit
+from ..report.formatting import json_safe
 from ..options import BarrierLMOptions, IpoptOptions, LoopOptions
 
 __all__ = ["Variant", "AblationResult", "variants", "run_ablation", "time_to_reach",
@@ -112,7 +112,7 @@ class Variant:
     note: str = ""
 
     def fit_options(self):
-        """``{"method": solver options, "loop": LoopOptions}`` for :func:`~freqid_casadi.fit.fit`:
+        """``{"method": solver options, "loop": LoopOptions}`` for :func:`~freqid_casadi.fitting.fit.fit`:
         :data:`DEFAULT_IPOPT` (or :data:`DEFAULT_LM`) and :data:`DEFAULT_LOOP` with this
         variant's changes (``dataclasses.replace``)."""
         changes = dict(self.options)
@@ -358,7 +358,7 @@ def run_ablation(examples, *, quick=False, progress=False):
     Parameters
     ----------
     examples : mapping name -> Example
-        Entries of the catalogue (:data:`freqid_casadi.examples.EXAMPLES`) or
+        Entries of the catalogue (:data:`freqid_casadi.systems.examples.EXAMPLES`) or
         ``dataclasses.replace`` of them: the data (``example.data()``), the structure and
         the thesis's numbers.
     quick : bool

@@ -12,7 +12,7 @@ The folder (:func:`write_ablation_report`)::
 Every number of report.md comes from ablation.json (4 significant digits), and its first
 section ends with conclusions computed from the numbers by :func:`conclusions` (no
 hand-written claims). The folder is built in a temporary sibling folder and renamed into
-place when complete (:func:`freqid_casadi.report.report_folder`).
+place when complete (:func:`freqid_casadi.report.folder.report_folder`).
 """
 
 import json
@@ -21,8 +21,8 @@ import os
 from functools import partial
 
 from .. import plots
-from ..formatting import generated_by_line, markdown_table, number, ratio
-from ..report import atomic_write_text, check_out_dir, report_folder
+from ..report.formatting import generated_by_line, markdown_table, number, ratio
+from ..report.folder import atomic_write_text, check_out_dir, report_folder
 from .thesis_matlab import transcription_lines, transcription_rows
 from .ablation import NEAR_BOUND, run_ablation
 

@@ -18,10 +18,10 @@ import numpy as np
 
 from .. import experiment
 from ..baselines import aaa
-from ..data import FrequencyData
+from ..core.data import FrequencyData
 from ..errors import FreqidError
-from ..fit import fit
-from ..metrics import relative_error
+from ..fitting.fit import fit
+from ..core.metrics import relative_error
 
 __all__ = ["MeasuredStudy", "DataSetStudy", "run_measured", "actuator_frf", "fit_row",
            "peer_row", "ACTUATOR", "ROBOT_ARM", "DELAY_UNITS"]

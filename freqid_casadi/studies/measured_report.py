@@ -12,9 +12,9 @@ import os
 import numpy as np
 
 from .. import plots
-from ..formatting import generated_by_line, json_safe, markdown_table, number
-from ..metrics import relative_error
-from ..report import atomic_write_text, check_out_dir, report_folder
+from ..report.formatting import generated_by_line, json_safe, markdown_table, number
+from ..core.metrics import relative_error
+from ..report.folder import atomic_write_text, check_out_dir, report_folder
 from .measured import DELAY_UNITS, run_measured
 
 __all__ = ["write_measured_report", "render_measured"]

@@ -4,7 +4,7 @@ the samples.
 1. G_A on the thesis's grid (500 points) times ``1 + n_i``, ``n_i`` complex Gaussian with
    RMS 2 % (seed 0); fit at the thesis's order (17 sections, integrator, delay).
 2. Error against the *clean* G_A at the data points and on a 10x denser log grid, before
-   and after the safeguard :func:`freqid_casadi.validation.prune_sections` (removes zero/
+   and after the safeguard :func:`freqid_casadi.fitting.validation.prune_sections` (removes zero/
    pole pairs that nearly cancel and are narrower than the frequency spacing, then refits),
    and of the fit at the same order with the damping floor ``min_damping="auto"`` (no pole
    or zero narrower than the spacing, imposed in every stage NLP).
@@ -21,10 +21,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import systems
-from ..data import FrequencyData, dense_grid
-from ..fit import fit
-from ..metrics import relative_error
-from ..validation import check_resolution, prune_sections
+from ..core.data import FrequencyData, dense_grid
+from ..fitting.fit import fit
+from ..core.metrics import relative_error
+from ..fitting.validation import check_resolution, prune_sections
 
 __all__ = ["run_noisy", "NoisyStudy", "noisy_data", "clean_errors", "study", "SEED", "NOISE",
            "SIGMA_RANGE", "DENSE"]

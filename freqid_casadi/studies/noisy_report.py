@@ -9,8 +9,8 @@ import json
 import os
 
 from .. import plots
-from ..formatting import generated_by_line, json_safe, markdown_table, number
-from ..report import atomic_write_text, check_out_dir, report_folder
+from ..report.formatting import generated_by_line, json_safe, markdown_table, number
+from ..report.folder import atomic_write_text, check_out_dir, report_folder
 from .noisy import DENSE, NOISE, SEED, SIGMA_RANGE, run_noisy
 
 __all__ = ["write_noisy_report", "render_noisy", "weights_effect"]

@@ -22,10 +22,10 @@ import numpy as np
 
 from .. import baselines, systems
 from ..errors import FreqidError, OptionError
-from ..examples import EXAMPLES, FRACTIONAL_SECTIONS, TABLE_4_1
-from ..fit import fit
-from ..metrics import relative_error
-from ..model import RationalDelayModel, Structure
+from ..systems.examples import EXAMPLES, FRACTIONAL_SECTIONS, TABLE_4_1
+from ..fitting.fit import fit
+from ..core.metrics import relative_error
+from ..core.model import RationalDelayModel, Structure
 from ..options import BarrierLMOptions
 
 __all__ = ["run_reproduction", "Reproduction", "RationalExample", "FractionalStudy",
@@ -40,7 +40,7 @@ log = logging.getLogger(__name__)
 EXAMPLE_NAMES = ("A", "B", "C", "fractional", "moheimani")
 
 #: Sections and integrator of our model per example (the thesis's orders of P_N: 34, 18, 54),
-#: from the catalogue :data:`freqid_casadi.examples.EXAMPLES`.
+#: from the catalogue :data:`freqid_casadi.systems.examples.EXAMPLES`.
 ORDERS = {k: (EXAMPLES[k].n_sections, EXAMPLES[k].integrator) for k in ("A", "B", "C")}
 
 #: Thesis Table 4.1 (SPEC §5) as the report's JSON gives it: order of P_N, max rel. error of

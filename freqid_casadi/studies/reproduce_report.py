@@ -12,7 +12,7 @@ and writes::
 The folder is built in a temporary sibling folder and renamed into place when complete, so
 either the whole report exists or nothing does; an existing folder is replaced only with
 ``force=True`` (checked before the fits start, and again before the rename). The command is
-``freqid reproduce`` (:mod:`freqid_casadi.cli`; ``scripts/reproduce_thesis.py`` calls it).
+``freqid reproduce`` (:mod:`freqid_casadi.cli.app`; ``scripts/reproduce_thesis.py`` calls it).
 """
 
 import json
@@ -23,8 +23,8 @@ import time
 import numpy as np
 
 from .. import plots
-from ..formatting import generated_by_line, json_safe, markdown_table, number
-from ..report import atomic_write_text, check_out_dir, report_folder
+from ..report.formatting import generated_by_line, json_safe, markdown_table, number
+from ..report.folder import atomic_write_text, check_out_dir, report_folder
 from .thesis_matlab import transcription_lines, transcription_rows
 from .reproduce import (METHOD_KEYS, NO_DELAY, TABLE_QUANTITIES, THESIS_TABLE_4_1,
                         run_reproduction)
@@ -109,7 +109,7 @@ def render_reproduction(summary):
     Returns
     -------
     str
-        Every number is taken from ``summary`` (:func:`freqid_casadi.formatting.number`).
+        Every number is taken from ``summary`` (:func:`freqid_casadi.report.formatting.number`).
     """
     s = summary
     lines = [generated_by_line(s["command"]), "",

@@ -12,12 +12,12 @@ import dataclasses
 import numpy as np
 
 from .. import experiment
-from ..data import FrequencyData
-from ..fit import fit
-from ..formatting import number
-from ..metrics import relative_error
-from ..uncertainty import fit_uncertainty_weight
-from ..validation import prune_sections
+from ..core.data import FrequencyData
+from ..fitting.fit import fit
+from ..report.formatting import number
+from ..core.metrics import relative_error
+from ..uncertainty.weight import fit_uncertainty_weight
+from ..fitting.validation import prune_sections
 
 __all__ = ["run_robot_arm", "RobotArmStudy", "arm_data", "low_frequency", "scan", "choose",
            "CITATION", "WITHIN", "CRITERION", "WEIGHT_ORDER"]
@@ -81,7 +81,7 @@ def low_frequency(est, n=6):
 def _validated(res):
     """(FitResult of the safeguarded model, PruneResult): near-cancelling pole/zero pairs
     narrower than the bin spacing are removed and the rest refitted
-    (:func:`freqid_casadi.validation.prune_sections`)."""
+    (:func:`freqid_casadi.fitting.validation.prune_sections`)."""
     pr = prune_sections(res)
     if not pr.removed:
         return res, pr

@@ -12,9 +12,9 @@ import os
 import numpy as np
 
 from .. import plots
-from ..loaders import save_csv
-from ..formatting import generated_by_line, json_safe, markdown_table, number
-from ..report import atomic_write_text, check_out_dir, report_folder
+from ..io.loaders import save_csv
+from ..report.formatting import generated_by_line, json_safe, markdown_table, number
+from ..report.folder import atomic_write_text, check_out_dir, report_folder
 from .robot_arm import CITATION, CRITERION, WITHIN, low_frequency, run_robot_arm
 
 __all__ = ["write_robot_arm_report", "render_robot_arm"]

@@ -29,7 +29,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import OptionError, SolverError
-from ..model import RationalDelayModel, Structure
+from ..core.model import RationalDelayModel, Structure
 from ._thesis_matlab_kernels import (
     coeffs_constraint, cost_func, create_jacob, first_factor, gain_ratio, grow_tol1,
     main_loop_continues, matlab_log, matlab_pinv, stage0_residual, stage0_windows,
@@ -402,7 +402,7 @@ def transcription_lines(info, ours=None):
     -------
     list of str
     """
-    from ..formatting import markdown_table, number
+    from ..report.formatting import markdown_table, number
 
     head = ["## The thesis's own MATLAB code (Appendix A, transcribed)", ""]
     if not info:

@@ -2,7 +2,7 @@
 
 Each benchmark has a low-level evaluator at complex ``s`` (``G_A_at``, ``G_B_at``, ...;
 numpy complex in, complex out, same shape) and a function returning
-:class:`~freqid_casadi.data.FrequencyData` on a frequency grid (``G_A``, ``G_B``, ...).
+:class:`~freqid_casadi.core.data.FrequencyData` on a frequency grid (``G_A``, ``G_B``, ...).
 Without ``omega`` the grid is the thesis's: 500 log-spaced points from 1e-2 to 1e3 rad/s
 (:func:`thesis_grid`).
 

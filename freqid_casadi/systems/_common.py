@@ -4,7 +4,7 @@ import math
 
 import numpy as np
 
-from ..data import FrequencyData
+from ..core.data import FrequencyData
 from ..errors import OptionError
 
 __all__ = ["thesis_grid"]

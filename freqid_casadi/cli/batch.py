@@ -1,0 +1,229 @@
+"""The ``freqid batch`` command: fit every data file of a folder (layer L6).
+
+::
+
+    freqid batch DIR --out DIR --sections N [--jobs N] [--scheduler ADDRESS]
+                 [--integrator] [--no-delay] [--basis B] [--method M] [--tol X] [--force]
+
+Every ``.csv`` and ``.npz`` file directly inside ``DIR`` is fitted with the same options by
+:func:`freqid_casadi.fitting.batch.fit_many`. The output folder holds::
+
+    summary.md      first line: the command; one table row per file
+    summary.csv     file, name, status, order, max/RMS relative error, ..., error, model
+    models/<name>.json   the model of every file that was fitted (named in the ``model``
+                    column: the file's stem, or its whole name where stems collide)
+
+It is built in a temporary sibling folder and renamed into place when complete (nothing is
+left behind on an error or Ctrl-C); an existing ``--out`` is refused before any fit unless
+``--force``. Exit code 0 if every file was fitted and converged, 1 if a file failed or did
+not converge (the summary says which), 2 on a usage, option or folder error.
+
+Registered by ``cli.py`` as ``COMMANDS["batch"] = (add_cli, run_cli)``.
+"""
+
+import math
+import os
+import stat
+import warnings
+
+from .common import load_options, notes_to_stderr
+from .._textio import atomic_write_text, csv_row, one_line
+from ..fitting.batch import fit_many
+from .app import _add_input, _add_model_arguments, _positive_int   # the CLI's own helpers
+from ..report.outputs import MARKER
+from ..errors import DataError
+from ..fitting.fit import METHODS
+from ..report.formatting import number as _num
+from ..report.folder import check_out_dir, generated_by_line, markdown_table, report_folder
+
+__all__ = ["add_cli", "run_cli", "write_batch_report", "data_files", "BATCH_FILES"]
+
+#: Files of a batch output folder (besides models/).
+BATCH_FILES = (MARKER, "summary.csv", "summary.md")
+
+_SUFFIXES = (".csv", ".npz")
+#: Data files that ``freqid fit`` reads but batch does not: named in a warning when skipped.
+_OTHER_DATA = (".txt", ".dat", ".tsv", ".mat", ".uff", ".unv", ".s1p", ".s2p")
+
+_COLUMNS = ("file", "name", "status", "n_sections", "order", "max_rel_error",
+            "rms_rel_error", "delay", "nit", "wall_time", "error", "model")
+
+
+def add_cli(subparsers):
+    """Add the ``batch`` subcommand to ``subparsers``; returns its parser."""
+    p = subparsers.add_parser(
+        "batch", help="fit every .csv/.npz file of a folder",
+        description="Fit G_N(s) = exp(-hs) K [1/s] P_N(s) to every .csv and .npz file in a "
+                    "folder with the same options, in parallel processes (--jobs) or on a "
+                    "Dask cluster (--scheduler), and write per-file models and a summary.")
+    _add_input(p, "folder", "DIR", "folder of data files (.csv, .npz)")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="output folder to create (must not exist unless --force)")
+    p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
+                   help="number of sections N >= 1")
+    p.add_argument("--jobs", type=_positive_int, default=1, metavar="N",
+                   help="local worker processes (default 1)")
+    p.add_argument("--scheduler", metavar="ADDRESS",
+                   help="Dask scheduler address (e.g. tcp://127.0.0.1:8786); needs "
+                        "pip install freqid_casadi[dask]")
+    _add_model_arguments(p)
+    p.add_argument("--method", choices=METHODS, default="ipopt",
+                   help="stage solver (default ipopt)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing output folder (after the new one is complete)")
+    return p
+
+
+def data_files(folder):
+    """Sorted paths of the ``.csv``/``.npz`` regular files directly inside ``folder``.
+
+    A symbolic link is followed only if its target lies inside ``folder``; other links,
+    FIFOs, devices and sub-folders are skipped (a ``UserWarning`` names each skipped link,
+    and one names the data files of other formats, ``.txt``, ``.mat``, ``.uff``, ...).
+
+    Raises
+    ------
+    DataError
+        If ``folder`` is missing, not a folder, unreadable or holds no data file.
+    """
+    folder = os.fspath(folder)
+    if not os.path.exists(folder):
+        raise DataError(f"data folder not found: {folder!r}; check the path")
+    if not os.path.isdir(folder):
+        raise DataError(f"{folder!r} is a file, not a folder; use 'freqid fit' for one file")
+    try:
+        names = sorted(os.listdir(folder))
+    except OSError as exc:
+        raise DataError(f"cannot list {folder!r}: {exc.strerror}") from None
+    real_folder = os.path.realpath(folder)
+    paths, other = [], [n for n in names if n.lower().endswith(_OTHER_DATA)]
+    if other:
+        warnings.warn(f"skipped {len(other)} file(s) that freqid batch does not read (only "
+                      f".csv and .npz): {', '.join(other[:5])}{', ...' if len(other) > 5 else ''}"
+                      "; fit them with freqid fit, or save them as .csv", UserWarning,
+                      stacklevel=2)
+    for n in names:
+        p = os.path.join(folder, n)
+        if not n.lower().endswith(_SUFFIXES):
+            continue
+        real = os.path.realpath(p)
+        if os.path.islink(p) and os.path.dirname(real) != real_folder:
+            warnings.warn(f"skipped {n!r}: a symbolic link to {real!r}, outside the data "
+                          "folder", UserWarning, stacklevel=2)
+            continue
+        if stat.S_ISREG(_mode(p)):
+            paths.append(p)
+    if not paths:
+        raise DataError(f"no .csv or .npz files in {folder!r}")
+    return paths
+
+
+def _mode(path):
+    try:
+        return os.stat(path).st_mode
+    except OSError:
+        return 0
+
+
+def _unique_names(paths):
+    """Model file names (without ``.json``), unique even on a case-insensitive file system:
+    the stem, or the whole file name where two stems collide, then ``-2``, ``-3`` ...; a name
+    that is empty or starts with a dot gets a ``data`` prefix."""
+    bases = [os.path.basename(p) for p in paths]
+    names = [os.path.splitext(b)[0] for b in bases]
+    for _ in range(2):          # a.csv, a.npz, a.csv.npz: a, a -> a.csv, a.csv -> a.csv.npz
+        folded = [n.casefold() for n in names]
+        names = [n if folded.count(n.casefold()) == 1 else b for n, b in zip(names, bases)]
+    taken, out = set(), []
+    for name in names:
+        name = name if name and not name.startswith(".") else f"data{name}"
+        candidate, k = name, 1
+        while candidate.casefold() in taken:
+            k += 1
+            candidate = f"{name}-{k}"
+        taken.add(candidate.casefold())
+        out.append(candidate)
+    return out
+
+
+def _row(item, file_name, model_file):
+    r = item.result
+    if r is None:
+        return dict(file=file_name, model=None, name=item.name, status=item.status,
+                    n_sections=None, order=None, max_rel_error=None, rms_rel_error=None,
+                    delay=None, nit=None, wall_time=None, error=item.error)
+    return dict(file=file_name, model=model_file, name=item.name, status=item.status,
+                n_sections=r.model.n_sections, order=r.model.order,
+                max_rel_error=r.max_rel_error, rms_rel_error=r.rms_rel_error,
+                delay=r.model.delay, nit=r.nit, wall_time=r.wall_time, error=None)
+
+
+def _csv_value(v):
+    if isinstance(v, float):
+        return repr(v) if math.isfinite(v) else None
+    return v
+
+
+def write_batch_report(items, files, out_dir, *, command, force=False):
+    """Write the batch output folder (see the module docstring); returns its absolute path.
+
+    Parameters
+    ----------
+    items : list of BatchItem
+    files : list of str
+        The data file of each item (same order).
+    out_dir : str or os.PathLike
+    command : str
+        Named on the first line of summary.md.
+    force : bool
+        Replace an existing ``out_dir`` once the new folder is complete.
+    """
+    path = check_out_dir(out_dir, force)
+    with report_folder(out_dir, force) as (tmp, _):
+        models = os.path.join(tmp, "models")
+        os.mkdir(models)
+        rows = []
+        for item, model_name, f in zip(items, _unique_names(files), files):
+            model_file = f"models/{model_name}.json"
+            if item.result is not None:
+                item.result.model.save(os.path.join(tmp, model_file))
+            rows.append(_row(item, os.path.basename(f), model_file))
+        lines = [csv_row(_COLUMNS)]
+        lines += [csv_row([_csv_value(r[c]) for c in _COLUMNS]) for r in rows]
+        atomic_write_text(os.path.join(tmp, "summary.csv"), "\n".join(lines) + "\n")
+        atomic_write_text(os.path.join(tmp, "summary.md"), _markdown(rows, command))
+    return path
+
+
+def _markdown(rows, command):
+    n_ok = sum(r["status"] == "converged" for r in rows)
+    n_fail = sum(r["status"] == "failed" for r in rows)
+    table = markdown_table(
+        [(r["file"], r["status"], r["order"], _num(r["max_rel_error"]),
+          _num(r["rms_rel_error"]), _num(r["delay"]), r["nit"],
+          _num(r["wall_time"], 3), r["error"], r["model"]) for r in rows],
+        ("file", "status", "order", "max rel. error", "RMS rel. error", "delay (s)",
+         "iterations", "time (s)", "error", "model file"), align="llrrrrrrll")
+    return "\n".join([
+        generated_by_line(command), "", "# Batch fit", "",
+        f"{len(rows)} files: {n_ok} converged, {len(rows) - n_ok - n_fail} not converged, "
+        f"{n_fail} failed.", "", table, ""])
+
+
+def run_cli(args, command):
+    """Run ``freqid batch`` from parsed ``args``; returns the exit code (0, or 1 if a file
+    failed or did not converge). FreqidError/OSError propagate to ``cli.main`` (exit 2)."""
+    files = data_files(args.folder)
+    check_out_dir(args.out, args.force)              # before the (long) fits
+    with notes_to_stderr():                          # zero-frequency rows dropped, ...
+        items = fit_many(files, jobs=args.jobs, scheduler=args.scheduler,
+                         load_options=load_options(args),
+                         n_sections=args.sections, integrator=args.integrator,
+                         delay=args.delay, basis=args.basis, method=args.method, tol=args.tol)
+    path = write_batch_report(items, files, args.out, command=command, force=args.force)
+    n_ok = sum(i.status == "converged" for i in items)
+    for item, f in zip(items, files):
+        what = item.result.summary() if item.result is not None else item.error
+        print(f"{one_line(os.path.basename(f))}: {item.status}: {one_line(what)}")
+    print(f"{n_ok}/{len(items)} converged; report: {path}")
+    return 0 if n_ok == len(items) else 1

@@ -1,0 +1,217 @@
+"""Options shared by every command that reads a data file (layer L6).
+
+:func:`add_data_options` adds ``--freq-unit hz|rad/s`` and ``--columns LIST`` to a parser;
+:func:`load_data` loads a file with them (:func:`freqid_casadi.io.loaders.load`) and prints the
+reader's notes (e.g. rows dropped at zero frequency) as ``note: ...`` lines on stderr
+instead of Python warning text.
+"""
+
+import argparse
+import contextlib
+import os
+import sys
+import warnings
+
+import numpy as np
+
+from ..io import NUMBER, decode_text, parse_columns, read_regular_file
+from ..core.data import FrequencyData
+from ..io.loaders import DataWarning, load
+from ..errors import DataError, OptionError
+
+__all__ = ["add_data_options", "load_data", "load_options", "notes_to_stderr", "with_weights",
+           "error_line", "os_exit"]
+
+
+def _columns(text):
+    try:
+        parse_columns(text)
+    except OptionError as exc:
+        raise argparse.ArgumentTypeError(str(exc).replace("columns", "", 1).lstrip(": "))
+    return text
+
+
+def add_data_options(parser, records=False):
+    """Add ``--freq-unit`` and ``--columns`` to ``parser``.
+
+    Parameters
+    ----------
+    parser : argparse.ArgumentParser
+        The sub-command's parser; returned for chaining.
+    records : bool
+        Also add ``--record K`` (UFF files with several records), ``--parameter S21``
+        (Touchstone files) and ``--weights STATS.csv``, for commands that read one file.
+    """
+    parser.add_argument(
+        "--freq-unit", choices=("hz", "rad/s"), type=str.lower, metavar="hz|rad/s",
+        help="unit of the frequency column when the file does not say it (a headerless "
+             "file, a header 'f' or 'freq')")
+    parser.add_argument(
+        "--columns", type=_columns, metavar="LIST",
+        help="names of the file's columns, e.g. 'f,re,im' or 'freq_hz,mag_db,phase_deg' "
+             "(omega/w rad/s, freq_hz Hz, f with --freq-unit; re,im; mag or mag_db with "
+             "phase_deg or phase_rad; complex; skip)")
+    if records:
+        parser.add_argument(
+            "--record", type=_record, metavar="K",
+            help="UFF file (.uff/.unv) with several function records: which one (0-based)")
+        parser.add_argument(
+            "--parameter", metavar="S21",
+            help="Touchstone file (.s1p/.s2p): which parameter (default S11; S21 is the "
+                 "transfer from port 1 to port 2)")
+        parser.add_argument(
+            "--weights", metavar="STATS.csv",
+            help="weights of the data's frequencies: the <stem>.stats.csv that 'freqid frf' "
+                 "writes beside its FRF (column weight: |H|^2/variance, mean 1), at the same "
+                 "omega")
+    return parser
+
+
+def _record(text):
+    try:
+        value = int(text)
+    except ValueError:
+        value = -1
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"must be a record number 0, 1, ..., got {text!r}")
+    return value
+
+
+def load_options(args):
+    """The ``freq_unit`` and ``columns`` keywords of :func:`~freqid_casadi.io.loaders.load`,
+    and ``record`` and ``parameter`` when given.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments (absent options count as not given).
+    """
+    opts = dict(freq_unit=getattr(args, "freq_unit", None),
+                columns=getattr(args, "columns", None))
+    for key in ("record", "parameter"):
+        if getattr(args, key, None) is not None:
+            opts[key] = getattr(args, key)
+    return opts
+
+
+@contextlib.contextmanager
+def notes_to_stderr():
+    """Within the block, :class:`~freqid_casadi.io.loaders.DataWarning` s are printed as
+    ``note: ...`` lines on stderr after the block succeeds (none if it raises); other
+    warnings are passed on unchanged."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", DataWarning)
+        yield
+    for w in caught:
+        if issubclass(w.category, DataWarning):
+            sys.stderr.write(f"note: {' '.join(str(w.message).split())}\n")
+        else:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+
+
+def load_data(args, path):
+    """Load ``path`` with the options in ``args``; reader notes go to stderr as ``note:``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        Parsed arguments with ``freq_unit`` and ``columns`` (see :func:`load_options`).
+    path : str
+        The data file.
+
+    Returns
+    -------
+    FrequencyData
+
+    Raises
+    ------
+    DataError, OptionError
+        As :func:`freqid_casadi.io.loaders.load`; no note is printed before an error.
+    """
+    opts = load_options(args)
+    lower = str(path).lower()
+    if "record" in opts and not lower.endswith((".uff", ".unv", ".uf")):
+        raise OptionError(f"--record chooses a record of a UFF file (.uff/.unv), not of "
+                          f"{path!r}; drop it")
+    if "parameter" in opts and not lower.endswith((".s1p", ".s2p")):
+        raise OptionError(f"--parameter chooses a parameter of a Touchstone file "
+                          f"(.s1p/.s2p), not of {path!r}; drop it")
+    with notes_to_stderr():
+        data = load(path, **opts)
+    weights = getattr(args, "weights", None)
+    return data if weights is None else with_weights(data, weights)
+
+
+def with_weights(data, path):
+    """``data`` with the weights of a ``freqid frf`` sidecar (columns ``omega``, ``weight``).
+
+    Parameters
+    ----------
+    data : FrequencyData
+    path : str
+        The ``<stem>.stats.csv`` file; its omega (rad/s) must be the data's.
+
+    Raises
+    ------
+    DataError
+        Not such a file, or its frequencies are not the data's.
+    """
+    path, payload = read_regular_file(path, "weights file")
+    lines = [t for t in decode_text(path, payload).splitlines()
+             if t.strip() and not t.startswith("#")]
+    head = [c.strip().lower() for c in lines[0].split(",")] if lines else []
+    if "omega" not in head or "weight" not in head:
+        raise DataError(f"{path!r}: a weights file needs the columns omega and weight (the "
+                        "<stem>.stats.csv that freqid frf writes beside its FRF)")
+    try:
+        cells = [[c.strip() for c in t.split(",")] for t in lines[1:]]
+        if not all(NUMBER.fullmatch(c) for row in cells for c in row):
+            raise ValueError
+        table = np.array(cells, float)
+        omega, weight = table[:, head.index("omega")], table[:, head.index("weight")]
+    except (ValueError, IndexError):
+        raise DataError(f"{path!r}: not a table of numbers under its header; pass the "
+                        "<stem>.stats.csv that freqid frf wrote") from None
+    if omega.shape != data.omega.shape or not np.allclose(omega, data.omega, rtol=1e-12,
+                                                          atol=0):
+        raise DataError(f"{path!r}: its {omega.size} frequencies are not the data's "
+                        f"{data.n_points}; pass the .stats.csv written with this FRF")
+    try:
+        return FrequencyData(data.omega, data.response, data.name, weight)
+    except DataError as exc:
+        raise DataError(f"{path!r}: {exc}") from None
+
+
+def error_line(message):
+    """Write ``error: <message>`` (one line) to stderr.
+
+    Parameters
+    ----------
+    message : str or Exception
+        Its whitespace is collapsed to single spaces.
+    """
+    sys.stderr.write(f"error: {' '.join(str(message).split())}\n")
+    sys.stderr.flush()
+
+
+def os_exit(exc):
+    """Exit status of an OSError: the error line and 2, or for a closed pipe (``freqid fit
+    ... | head``) nothing more written and 141 (128 + SIGPIPE, as other tools).
+
+    Parameters
+    ----------
+    exc : OSError
+
+    Returns
+    -------
+    int
+    """
+    if isinstance(exc, BrokenPipeError):
+        try:
+            os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        except (OSError, ValueError, AttributeError):
+            pass
+        return 141
+    what = exc.strerror or str(exc)
+    error_line(f"{what}: {exc.filename!r}" if exc.filename else what)
+    return 2

@@ -1,0 +1,283 @@
+"""The ``freqid frf`` command: frequency response from time records (layer L6).
+
+Usage::
+
+    freqid frf RECORDS.csv --period N [--fs HZ] [--skip-periods P] --out frf.csv [--force]
+    freqid frf RECORDS --estimator h1|h2 --fs HZ [--nperseg N] [--noverlap N]
+               [--window hann] [--min-coherence X] [--input CH --output CH] --out frf.csv
+
+Reads a two-column ``u,y`` CSV (:func:`freqid_casadi.experiment.load_records_csv`) or a DAQ
+export (:func:`freqid_casadi.experiment.load_daq_records`, channels chosen by ``--input``
+and ``--output``), estimates the frequency response at the excited DFT bins averaged over
+the periods (:func:`freqid_casadi.experiment.frf_from_periodic`, SPEC §7) or by Welch H1/H2
+(:func:`freqid_casadi.experiment.frf_from_records`) and writes
+
+- ``frf.csv``: ``omega,real,imag`` (:func:`freqid_casadi.io.loaders.save_csv`), ready for
+  ``freqid fit``; ``omega`` in rad/s with ``--fs``, else rad/sample;
+- with two or more periods, the sidecar ``frf.stats.csv``:
+  ``omega,bin,variance,coherence,weight`` (variance of the mean over periods, magnitude-
+  squared coherence, and the fitting weight ``|G|^2 / variance`` normalised to mean 1;
+  ``bin`` is the DFT bin of the period or of the Welch segment).
+
+Both files are written atomically (temporary file, then ``os.replace``). This module only
+defines the parser (:func:`add_cli`) and the command (:func:`run_cli`); ``cli.py`` registers
+them. Errors are raised as :class:`~freqid_casadi.errors.FreqidError` for the caller to
+print as ``error: ...``.
+"""
+
+import math
+import os
+
+import numpy as np
+
+from ..report.outputs import check_out_file
+
+from .._textio import atomic_write_text
+from .app import _ASCII_FLOAT, _ASCII_INT, _ascii, _checked   # the CLI's own type helpers
+from ..errors import OptionError
+from ..experiment import (ESTIMATORS, frf_from_periodic, frf_from_records, load_daq_records,
+                         load_records_csv)
+from ..io.loaders import read_regular_file, save_csv
+
+__all__ = ["add_cli", "run_cli", "read_records", "stats_path", "NAME"]
+
+#: Name of the command.
+NAME = "frf"
+
+
+_INT = _ascii(_ASCII_INT, int)          # ASCII decimal numbers only, as the other commands
+_FLOAT = _ascii(_ASCII_FLOAT, float)    # ("1_0" and non-ASCII digits are refused)
+
+
+def _period(text):
+    return _checked(text, _INT, lambda v: v >= 2, "must be an integer >= 2",
+                    lambda v: f"must be an integer >= 2, got {v}")
+
+
+def _count(text):
+    return _checked(text, _INT, lambda v: v >= 0, "must be an integer >= 0",
+                    lambda v: f"must be an integer >= 0, got {v}")
+
+
+def _fs(text):
+    return _checked(text, _FLOAT, lambda v: math.isfinite(v) and v > 0,
+                    "must be a number > 0 (Hz)",
+                    lambda v: f"must be a finite number > 0 (Hz), got {text!r}")
+
+
+def _fraction(text):
+    return _checked(text, _FLOAT, lambda v: 0 <= v < 1, "must be a number in [0, 1)",
+                    lambda v: f"must be a number in [0, 1), got {text!r}")
+
+
+def add_cli(subparsers):
+    """Add the ``frf`` subparser to ``subparsers`` (from ``add_subparsers``); return it."""
+    p = subparsers.add_parser(
+        NAME, help="frequency response from u,y records (periodic, chirp, random)",
+        description="Estimate the frequency response from input/output records and write "
+                    "omega,real,imag CSV for 'freqid fit': averaged over the periods of a "
+                    "periodic excitation (--period, SPEC §7), or Welch H1/H2 for any "
+                    "excitation (--estimator h1|h2). RECORDS is a CSV with the header 'u,y' "
+                    "or a DAQ export ('Header Size: N' first line, .xz accepted; choose "
+                    "--input and --output channels).")
+    p.add_argument("records", metavar="RECORDS", help="u,y CSV or a DAQ export")
+    p.add_argument("--estimator", choices=("periodic",) + ESTIMATORS,
+                   help="periodic (needs --period), h1 (noise on the output) or h2 (noise "
+                        "on the input); default periodic with --period, else h1")
+    p.add_argument("--period", type=_period, metavar="N",
+                   help="samples per period of a periodic excitation")
+    p.add_argument("--fs", type=_fs, metavar="HZ",
+                   help="sampling frequency in Hz (omega in rad/s; required for h1/h2 "
+                        "unless the DAQ header gives it); periodic default: rad/sample")
+    p.add_argument("--skip-periods", type=_count, default=0, metavar="P",
+                   help="leading periods to discard as transient (default 0)")
+    p.add_argument("--nperseg", type=_period, metavar="N",
+                   help="h1/h2: samples per Welch segment (default: largest power of 2 "
+                        "<= N/8)")
+    p.add_argument("--noverlap", type=_count, metavar="N",
+                   help="h1/h2: overlap of the segments (default nperseg/2)")
+    p.add_argument("--window", default="hann", help="h1/h2: scipy window (default hann)")
+    p.add_argument("--min-coherence", type=_fraction, metavar="X",
+                   help="h1/h2: keep only frequencies with coherence >= X (e.g. 0.9)")
+    p.add_argument("--input", metavar="CHANNEL", help="DAQ export: input channel name")
+    p.add_argument("--output", metavar="CHANNEL", help="DAQ export: output channel name")
+    p.add_argument("--out", required=True, metavar="FRF.csv",
+                   help="output CSV (omega,real,imag); with a variance also "
+                        "<stem>.stats.csv")
+    p.add_argument("--force", action="store_true", help="overwrite existing output files")
+    return p
+
+
+def stats_path(out):
+    """Path of the variance/coherence sidecar of ``out``: ``<stem>.stats.csv``."""
+    stem, ext = os.path.splitext(os.fspath(out))
+    return f"{stem}.stats.csv" if ext.lower() == ".csv" else f"{os.fspath(out)}.stats.csv"
+
+
+def _check_target(path, force, records=None):
+    """Output file checks (:func:`freqid_casadi.report.outputs.check_out_file`): never the input
+    ``records``, an existing file only with ``force``, never a folder."""
+    check_out_file(path, force, inputs=() if records is None else (records,))
+
+
+def _is_daq(path):
+    if os.fspath(path).lower().endswith(".xz"):
+        return True
+    _, payload = read_regular_file(path, "records file")
+    return payload.lstrip(b"\xef\xbb\xbf").startswith(b"Header Size")
+
+
+def read_records(args):
+    """Input, output and the sampling rate the file states (or None) for ``args``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed ``freqid frf`` arguments (records path, ``--input``/``--output``).
+
+    Raises
+    ------
+    DataError
+        A bad records file.
+    OptionError
+        A DAQ export without valid ``--input``/``--output`` channels, or ``--fs`` that
+        contradicts its header.
+    """
+    if not _is_daq(args.records):
+        if getattr(args, "input", None) or getattr(args, "output", None):
+            raise OptionError("--input/--output choose channels of a DAQ export; a u,y CSV "
+                              "has its input in column u and its output in column y")
+        u, y = load_records_csv(args.records)
+        return u, y, None
+    rec = load_daq_records(args.records)
+    names = ", ".join(rec.channels)
+    for opt in ("input", "output"):
+        ch = getattr(args, opt, None)
+        if ch not in rec.channels:
+            what = "is required" if ch is None else f"{ch!r} is not a channel"
+            raise OptionError(f"--{opt} {what} for a DAQ export: choose one of {names}")
+    fs = getattr(args, "fs", None)
+    if fs is not None and fs != rec.fs:
+        raise OptionError(f"--fs {fs:g} contradicts the file's sampling rate {rec.fs:g} Hz; "
+                          "drop --fs")
+    return rec.channels[args.input], rec.channels[args.output], rec.fs
+
+
+_STATS_HEADER = "omega,bin,variance,coherence,weight"
+
+
+def _own_sidecar(path):
+    """True if ``path`` is a regular file whose first line is the sidecar's header (one
+    that ``freqid frf`` wrote)."""
+    try:
+        with open(path, "rb") as fh:
+            first = fh.read(len(_STATS_HEADER) + 2)
+    except OSError:
+        return False
+    return os.path.isfile(path) and first.splitlines()[:1] == [_STATS_HEADER.encode()]
+
+
+def _check_sidecar(sidecar, force, records):
+    """The sidecar is never named by the user: with ``force`` it replaces only a sidecar
+    that ``freqid frf`` wrote (a file of the user's with that name is kept)."""
+    _check_target(sidecar, force, records)
+    if os.path.lexists(sidecar) and not _own_sidecar(sidecar):
+        raise OptionError(f"refusing to replace {sidecar!r} (the variance/coherence file "
+                          f"written beside --out): it was not written by freqid frf; move "
+                          "it or choose another --out")
+
+
+def _stats_text(est):
+    lines = [_STATS_HEADER]
+    d = est.data
+    for w, k, v, c, wt in zip(d.omega.tolist(), est.bins.tolist(), est.variance.tolist(),
+                              est.coherence.tolist(), d.weights.tolist()):
+        lines.append(f"{w!r},{int(k)},{v!r},{c!r},{wt!r}")
+    return "\n".join(lines) + "\n"
+
+
+def run_cli(args, command):
+    """Run ``freqid frf`` for the parsed ``args``; return the exit code (0).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        With ``records``, ``out`` and optionally ``estimator``, ``period``, ``fs``,
+        ``skip_periods``, ``nperseg``, ``noverlap``, ``window``, ``min_coherence``,
+        ``input``, ``output`` and ``force`` (absent ones take their defaults).
+    command : str
+        The command line (unused in the CSV files, which have fixed headers).
+
+    Returns
+    -------
+    int
+        0.
+
+    Raises
+    ------
+    FreqidError
+        DataError for bad records (see :func:`~freqid_casadi.experiment.frf_from_periodic`),
+        OptionError for an existing output without ``--force`` or a missing folder.
+    """
+    force = bool(getattr(args, "force", False))
+    out = args.out
+    _check_target(out, force, args.records)
+    estimator = getattr(args, "estimator", None)
+    period = getattr(args, "period", None)
+    if estimator is None:
+        estimator = "periodic" if period is not None else "h1"
+    if estimator == "periodic" and period is None:
+        raise OptionError("--estimator periodic needs --period N (samples per period); for "
+                          "a chirp or random test use --estimator h1")
+    if estimator != "periodic" and period is not None:
+        raise OptionError(f"--period is for a periodic excitation, not --estimator {estimator}")
+    u, y, fs_file = read_records(args)
+    fs = getattr(args, "fs", None) or fs_file
+    name = os.path.splitext(os.path.basename(os.fspath(args.records)))[0]
+    if estimator == "periodic":
+        est = frf_from_periodic(u, y, period, fs=fs,
+                                skip_periods=getattr(args, "skip_periods", 0) or 0, name=name)
+    else:
+        if fs is None:
+            raise OptionError(f"--estimator {estimator} needs --fs HZ (the sampling frequency)")
+        est = frf_from_records(u, y, fs=fs, estimator=estimator,
+                               nperseg=getattr(args, "nperseg", None),
+                               noverlap=getattr(args, "noverlap", None),
+                               window=getattr(args, "window", "hann"),
+                               min_coherence=getattr(args, "min_coherence", None), name=name)
+    sidecar = stats_path(out) if est.variance is not None else None
+    if sidecar is not None:
+        _check_sidecar(sidecar, force, args.records)
+    stale = stats_path(out) if sidecar is None and _own_sidecar(stats_path(out)) else None
+    if stale is not None:      # an earlier run's statistics would not belong to this FRF
+        _check_sidecar(stale, force, args.records)
+    save_csv(est.data, out)
+    if sidecar is not None:
+        atomic_write_text(sidecar, _stats_text(est))
+    if stale is not None:
+        os.remove(stale)
+    _summary(est, out, sidecar)
+    return 0
+
+
+def _summary(est, out, sidecar):
+    unit = "rad/s" if est.fs is not None else "rad/sample"
+    d = est.data
+    if est.n_averages is not None:
+        c = est.coherence
+        print(f"{d.n_points} frequencies, {d.omega[0] / 2 / math.pi:.4g} to "
+              f"{d.omega[-1] / 2 / math.pi:.4g} Hz ({est.estimator.upper()}, {est.n_averages} "
+              f"segments of {est.nperseg} samples); coherence min {c.min():.3f}, median "
+              f"{float(np.median(c)):.3f}")
+    else:
+        print(f"{d.n_points} excited bins ({int(est.bins[0])}..{int(est.bins[-1])}), "
+              f"omega {d.omega[0]:.4g} to {d.omega[-1]:.4g} {unit}, {est.n_periods} period(s) "
+              f"averaged")
+    if est.fs is None:
+        print("no --fs: the omega column is in rad/sample, so a fit of it gives the delay in "
+              "samples, not seconds (pass --fs HZ for rad/s)")
+    print(f"frf: {os.path.abspath(out)}")
+    if sidecar is not None:
+        print(f"variance/coherence: {os.path.abspath(sidecar)}")
+    else:
+        print("one period: no variance or coherence estimate (record >= 2 periods)")

@@ -1,0 +1,243 @@
+"""The ``freqid modal`` command: shared poles, stabilization diagram, modal table (layer L6).
+
+Usage::
+
+    freqid modal FILES... --orders 2:40:2 --out DIR [--force] [--freq-unit hz|rad/s]
+                 [--columns LIST] [--delay per-channel|shared|none]
+                 [--zeros minimum-phase|free|LIST] [--integrator] [--freq-tol 0.01]
+                 [--damping-tol 0.10] [--min-stable 3] [--max-iter 100]
+                 [--channel-sections K] [--balance-channels]
+
+Reads one FRF per file (:func:`freqid_casadi.load`; all on one omega grid), fits every
+order of ``--orders`` with shared poles (:func:`freqid_casadi.modal.survey.stabilization`; with
+``--channel-sections K`` every channel also has K sections of its own standing in for the
+out-of-band modes, not counted in the order and not in the diagram) and
+writes the report folder ``DIR`` (built in a temporary folder, then moved into place; an
+existing ``DIR`` is refused without ``--force``):
+
+- ``summary.md`` (first line: the command), ``summary.json``;
+- ``modes.csv``, ``modes.md``: the automatically selected modes (frequency, damping, each
+  channel's residue), from the highest order's fit;
+- ``stabilization.csv``, ``stabilization.png``: every pole of every order with its status;
+- ``bode_<channel>.png``, ``model_<channel>.json``: data and model of the highest order.
+"""
+
+import json
+import os
+import re
+
+import numpy as np
+
+from .._textio import atomic_write_text
+from .common import add_data_options
+from ..errors import OptionError
+
+__all__ = ["add_cli", "run_cli", "NAME"]
+
+#: Name of the command.
+NAME = "modal"
+
+
+def add_cli(subparsers):
+    """Add the ``modal`` subparser to ``subparsers``; return it.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The ``freqid`` command's subparsers.
+    """
+    p = subparsers.add_parser(
+        NAME, help="many FRFs of one structure: shared poles, stabilization diagram, "
+                   "modal table",
+        description="Fit several FRFs (one file each, same frequency grid) with one shared "
+                    "set of poles at every order of --orders, mark each pole new / stable "
+                    "in frequency / stable in frequency and damping, select the stable "
+                    "modes and write a report folder.")
+    p.add_argument("files", nargs="+", metavar="FILE",
+                   help="FRF files (text/CSV, .npz, .mat, .uff/.unv, .s1p/.s2p, read as by "
+                        "'freqid fit'; see its --help for the columns and units)")
+    add_data_options(p)
+    p.add_argument("--orders", default="2:40:2", metavar="START:STOP:STEP",
+                   help="model orders (number of shared poles, even), stop included, or a "
+                        "comma list (default 2:40:2)")
+    p.add_argument("--out", required=True, metavar="DIR", help="report folder to create")
+    p.add_argument("--force", action="store_true", help="replace an existing DIR")
+    p.add_argument("--delay", default="none", choices=["per-channel", "shared", "none"],
+                   help="delays: one per channel, one for all, or none (default none)")
+    p.add_argument("--zeros", default="minimum-phase", metavar="KIND[,KIND...]",
+                   help="minimum-phase (default) or free (right-half-plane zeros allowed, "
+                        "for non-collocated sensors); one value or one per file")
+    p.add_argument("--integrator", action="store_true", help="a factor 1/s in every channel")
+    p.add_argument("--freq-tol", type=float, default=0.01,
+                   help="relative frequency tolerance of a stable pole (default 0.01)")
+    p.add_argument("--damping-tol", type=float, default=0.10,
+                   help="relative damping tolerance of a stable pole (default 0.10)")
+    p.add_argument("--min-stable", type=int, default=3,
+                   help="orders a selected mode must have stayed stable (default 3)")
+    p.add_argument("--max-iter", type=int, default=100,
+                   help="IPOPT iterations per order (twice in the final polish; default "
+                        "100: orders above the true one have flat directions)")
+    p.add_argument("--channel-sections", type=int, default=0, metavar="K",
+                   help="sections of each channel's own beside the shared ones, standing in "
+                        "for the modes outside the band as that channel sees them (the "
+                        "upper/lower residuals of modal analysis); their poles are not "
+                        "modes (default 0)")
+    p.add_argument("--balance-channels", action="store_true",
+                   help="reweight so that no channel's max rel. error exceeds that of its "
+                        "own single-channel fit (C extra fits per order)")
+    return p
+
+
+def _channel_names(datas, files):
+    names, seen = [], set()
+    for k, (d, f) in enumerate(zip(datas, files)):
+        base = d.name or os.path.splitext(os.path.basename(f))[0] or f"ch{k + 1}"
+        base = re.sub(r"[^A-Za-z0-9_.=-]+", "_", base).strip("._") or f"ch{k + 1}"
+        name = base if base not in seen else f"{base}_{k + 1}"
+        seen.add(name)
+        names.append(name)
+    return names
+
+
+def _zeros(text, n):
+    kinds = [t.strip() for t in str(text).split(",")]
+    if len(kinds) == 1:
+        kinds = kinds * n
+    if len(kinds) != n or any(k not in ("minimum-phase", "free") for k in kinds):
+        raise OptionError(f"--zeros must be minimum-phase or free, once or once per file "
+                          f"({n}), got {text!r}")
+    return kinds
+
+
+def run_cli(args, command):
+    """Run ``freqid modal`` for the parsed ``args``; return 0.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed ``freqid modal`` arguments (``files``, ``orders``, ``out``, ``force``,
+        ``delay``, ``zeros``, ``integrator``, ``freq_tol``, ``damping_tol``, ``min_stable``,
+        ``max_iter``, ``channel_sections``, ``balance_channels``).
+    command : str
+        The command line, written as the first line of ``summary.md``.
+
+    Raises
+    ------
+    FreqidError
+        DataError for unreadable files or different grids, OptionError for bad options or
+        an existing ``--out`` without ``--force``.
+    """
+    from .common import load_data
+    from ..modal.survey import parse_orders, stabilization
+    from ..report.folder import check_out_dir, report_folder
+
+    check_out_dir(args.out, args.force)
+    orders = parse_orders(args.orders)
+    datas = [load_data(args, f) for f in args.files]
+    names = _channel_names(datas, args.files)
+    delay = False if args.delay == "none" else args.delay
+    if args.min_stable < 1 or args.max_iter < 1:
+        raise OptionError(f"--min-stable and --max-iter must be >= 1, got "
+                          f"{args.min_stable}, {args.max_iter}")
+    if args.channel_sections < 0:
+        raise OptionError(f"--channel-sections must be >= 0, got {args.channel_sections}")
+    res = stabilization(datas, orders, freq_tol=args.freq_tol, damping_tol=args.damping_tol,
+                        min_stable=args.min_stable, delay=delay,
+                        zeros=_zeros(args.zeros, len(datas)), integrator=args.integrator,
+                        max_iter=args.max_iter, channel_sections=args.channel_sections,
+                        balance_channels=args.balance_channels)
+    with report_folder(args.out, args.force) as (tmp, path):
+        _write_report(res, tmp, names, command)
+    print(f"{len(res.modes)} modes selected; report in {path}")
+    if not res.modes:
+        print(f"none: a mode is selected when it is stable in frequency and damping at each "
+              f"of the last {min(args.min_stable, len(orders) - 1)} orders (--min-stable "
+              f"{args.min_stable}); add orders (--orders) or lower --min-stable; "
+              "stabilization.csv has every pole's status")
+    return 0
+
+
+def _write_report(res, folder, names, command):
+    from ..core.modes import modes_csv, modes_markdown
+    from ..modal.survey import stabilization_csv
+    from ..plots import bode, save_figure
+    from ..plots.modal import stabilization_diagram
+
+    top = res.fits[-1]
+    join = os.path.join
+    atomic_write_text(join(folder, "modes.csv"), modes_csv(res.modes, names))
+    atomic_write_text(join(folder, "modes.md"), modes_markdown(res.modes, names))
+    atomic_write_text(join(folder, "stabilization.csv"), stabilization_csv(res))
+    save_figure(stabilization_diagram(res), join(folder, "stabilization.png"))
+    for name, data, model in zip(names, top.datas, top.models):
+        model.save(join(folder, f"model_{name}.json"))
+        save_figure(bode(data, models={f"order {res.orders[-1]}": model},
+                         title=f"{name}: data and shared-pole model"),
+                    join(folder, f"bode_{name}.png"))
+    summary = _summary(res, names, command)
+    atomic_write_text(join(folder, "summary.json"),
+                      json.dumps(summary, indent=1, allow_nan=False) + "\n")
+    atomic_write_text(join(folder, "summary.md"), _markdown(summary, res, names))
+
+
+def _summary(res, names, command):
+    top = res.fits[-1]
+    return {
+        "command": command, "orders": list(res.orders), "channels": names,
+        "freq_tol": res.freq_tol, "damping_tol": res.damping_tol,
+        "options": {k: v for k, v in top.options.items()},
+        "n_modes_selected": len(res.modes),
+        "modes": [{"frequency_hz": m.frequency_hz, "omega_n": m.omega_n, "zeta": m.zeta}
+                  for m in res.modes],
+        "per_order": [{"order": o, "max_rel_error": float(np.max(f.max_rel_errors)),
+                       "success": f.success, "message": f.message,
+                       "wall_time": f.wall_time, "nit": f.nit}
+                      for o, f in zip(res.orders, res.fits)],
+        "top_order": {"max_rel_errors": dict(zip(names, map(float, top.max_rel_errors))),
+                      "rms_rel_errors": dict(zip(names, map(float, top.rms_rel_errors))),
+                      "delays": dict(zip(names, map(float, top.delays))),
+                      "minimum_phase": dict(zip(names, [m.is_minimum_phase()
+                                                        for m in top.models])),
+                      "channel_poles_omega_n": dict(zip(names, [
+                          sorted(float(abs(p)) for p in ps if p.imag >= 0)
+                          for ps in top.channel_poles])),
+                      "single_max_rel_errors": dict(zip(names, map(
+                          float, top.single_max_rel_errors)))},
+    }
+
+
+def _own_line(options):
+    k = options.get("channel_sections", 0)
+    text = (f"Each channel also has {k} section(s) of its own (poles not modes, not in the "
+            f"order), standing in for the modes outside the band." if k else "")
+    if options.get("balance_channels"):
+        text += (" Channels reweighted so that none has a larger max rel. error than its own "
+                 "single-channel fit.")
+    return text.strip()
+
+
+def _markdown(s, res, names):
+    from ..core.modes import modes_markdown
+
+    lines = [f"`{s['command']}`", "", "# Modal analysis: shared poles", "",
+             f"{len(names)} channels, orders {s['orders'][0]}..{s['orders'][-1]}; a pole is "
+             f"stable when the previous order has one within {100 * s['freq_tol']:g} % in "
+             f"frequency (and {100 * s['damping_tol']:g} % in damping); "
+             f"{s['n_modes_selected']} modes selected.", _own_line(s["options"]), "",
+             "## Selected modes", "",
+             modes_markdown(res.modes, names), "## Fit of each order", "",
+             "| order | worst max rel. error | converged | iterations | time (s) |",
+             "|---:|---:|---|---:|---:|"]
+    lines += [f"| {r['order']} | {r['max_rel_error']:.3g} | {'yes' if r['success'] else 'no'} "
+              f"| {r['nit']} | {r['wall_time']:.2f} |" for r in s["per_order"]]
+    lines += ["", f"## Channels at order {s['orders'][-1]}", "",
+              f"How the fit ended: {s['per_order'][-1]['message']}", "",
+              "| channel | max rel. error | RMS rel. error | delay (s) | minimum phase |",
+              "|---|---:|---:|---:|---|"]
+    t = s["top_order"]
+    lines += [f"| {n} | {t['max_rel_errors'][n]:.3g} | {t['rms_rel_errors'][n]:.3g} | "
+              f"{t['delays'][n]:.6g} | {'yes' if t['minimum_phase'][n] else 'no'} |"
+              for n in names]
+    lines += ["", "Files: modes.csv/.md, stabilization.csv/.png, bode_<channel>.png, "
+              "model_<channel>.json, summary.json."]
+    return "\n".join(lines) + "\n"

@@ -1,0 +1,255 @@
+"""Frequency-response data: validation and windows (layer L1; file readers in loaders.py).
+
+:class:`FrequencyData` is the one container every fitter takes. It is frozen and its arrays
+are read-only, so a window or a result can share them safely.
+"""
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import DataError, OptionError
+
+__all__ = ["FrequencyData", "dense_grid", "frequency_grid", "FREQUENCY_UNITS", "TIME_UNITS"]
+
+#: Units of :attr:`FrequencyData.omega`.
+FREQUENCY_UNITS = ("rad/s", "rad/sample")
+#: The unit of a delay (:attr:`FrequencyData.time_unit`) on each frequency axis.
+TIME_UNITS = {"rad/s": "s", "rad/sample": "samples"}
+
+
+def _first_bad(mask):
+    return int(np.flatnonzero(mask)[0])
+
+
+@dataclass(frozen=True)
+class FrequencyData:
+    """Samples ``response[i] = G(j*omega[i])`` of a frequency response.
+
+    Parameters
+    ----------
+    omega : array_like of float, shape (M,)
+        Angular frequencies in rad/s: finite, > 0 and strictly increasing.
+    response : array_like of complex, shape (M,)
+        Complex frequency response at ``omega``: finite and nonzero.
+    name : str, optional
+        A label used in reports and plots.
+    weights : array_like of float, shape (M,), optional
+        Nonnegative weights of the squared relative residuals (default: all 1).
+    unit : {"rad/s", "rad/sample"}
+        Unit of ``omega``: "rad/sample" for a normalised frequency (an FRF estimated
+        without a sampling rate), whose delays are then in samples (:attr:`time_unit`);
+        used in messages and reports, the numbers are the same.
+
+    Raises
+    ------
+    DataError
+        Naming the offending index and value and the fix, for any violation above.
+
+    Notes
+    -----
+    Use :meth:`sorted` to sort and de-duplicate raw data before construction.
+    """
+
+    omega: np.ndarray
+    response: np.ndarray
+    name: str = None
+    weights: np.ndarray = field(default=None)
+    unit: str = "rad/s"
+
+    def __post_init__(self):
+        if not isinstance(self.unit, str) or self.unit not in FREQUENCY_UNITS:
+            raise DataError(f"unit must be one of {FREQUENCY_UNITS}, got {self.unit!r}")
+        omega = _as_float_vector(self.omega, "omega")
+        response = _as_complex_vector(self.response, "response")
+        if omega.size == 0:
+            raise DataError("omega is empty: give at least a few frequency points")
+        if response.size != omega.size:
+            raise DataError(
+                f"omega and response must have equal lengths: len(omega)={omega.size}, "
+                f"len(response)={response.size}; pass one response value per frequency")
+        bad = ~np.isfinite(omega)
+        if bad.any():
+            i = _first_bad(bad)
+            raise DataError(f"omega must be finite: omega[{i}]={float(omega[i])}; remove that point")
+        bad = omega <= 0
+        if bad.any():
+            i = _first_bad(bad)
+            raise DataError(
+                f"omega must be > 0 (rad/s): omega[{i}]={float(omega[i])}; drop the zero/negative "
+                "frequencies (the DC value is not used, an integrator is a model option)")
+        d = np.diff(omega)
+        bad = d <= 0
+        if bad.any():
+            i = _first_bad(bad) + 1
+            what = "duplicated" if d[i - 1] == 0 else "strictly increasing"
+            raise DataError(
+                f"omega must be strictly increasing ({what} value): omega[{i}]="
+                f"{float(omega[i])!r} <= omega[{i - 1}]={float(omega[i - 1])!r}; use "
+                "FrequencyData.sorted(omega, response)")
+        bad = ~np.isfinite(response)
+        if bad.any():
+            i = _first_bad(bad)
+            raise DataError(
+                f"response must be finite: response[{i}]={response[i]} at omega={float(omega[i])}; "
+                "remove or re-measure that point")
+        bad = response == 0
+        if bad.any():
+            i = _first_bad(bad)
+            raise DataError(
+                f"response must be nonzero (the relative error divides by it): response[{i}]=0 "
+                f"at omega={float(omega[i])}; remove that point")
+        weights = self.weights
+        if weights is not None:
+            weights = _as_float_vector(weights, "weights")
+            if weights.size != omega.size:
+                raise DataError(
+                    f"weights must have one value per frequency: len(weights)={weights.size}, "
+                    f"len(omega)={omega.size}")
+            bad = ~np.isfinite(weights) | (weights < 0)
+            if bad.any():
+                i = _first_bad(bad)
+                raise DataError(f"weights must be finite and >= 0: weights[{i}]={float(weights[i])}")
+            if not np.any(weights > 0):
+                raise DataError("weights are all zero: at least one point must count")
+            weights.setflags(write=False)
+        omega.setflags(write=False)
+        response.setflags(write=False)
+        object.__setattr__(self, "omega", omega)
+        object.__setattr__(self, "response", response)
+        object.__setattr__(self, "weights", weights)
+        if self.name is not None and not isinstance(self.name, str):
+            raise DataError(f"name must be a string or None, got {type(self.name).__name__}")
+
+    def __len__(self):
+        return self.omega.size
+
+    @property
+    def n_points(self):
+        """Number of frequency points M."""
+        return self.omega.size
+
+    def window(self, n_points):
+        """The first ``n_points`` samples (lowest frequencies) as a new FrequencyData."""
+        if isinstance(n_points, (bool, np.bool_)) or not isinstance(n_points, (int, np.integer)):
+            raise DataError(f"window length must be an integer, got {n_points!r}")
+        n = int(n_points)
+        if not 1 <= n <= self.n_points:
+            raise DataError(f"window length must be in 1..{self.n_points}, got {n_points}")
+        w = None if self.weights is None else self.weights[:n]
+        return FrequencyData(self.omega[:n], self.response[:n], self.name, w, self.unit)
+
+    def with_weights(self, weights):
+        """A copy with other weights (``None`` for uniform)."""
+        return FrequencyData(self.omega, self.response, self.name, weights, self.unit)
+
+    @property
+    def time_unit(self):
+        """Unit of a delay on this frequency axis: "s" (rad/s) or "samples"."""
+        return TIME_UNITS[self.unit]
+
+    @classmethod
+    def sorted(cls, omega, response, name=None, weights=None):
+        """Build from unsorted data: sort by omega and drop exact duplicate frequencies.
+
+        Duplicates keep their first occurrence in the input order.
+        """
+        omega = _as_float_vector(omega, "omega")
+        response = _as_complex_vector(response, "response")
+        if omega.size != response.size:
+            raise DataError(
+                f"omega and response must have equal lengths: len(omega)={omega.size}, "
+                f"len(response)={response.size}")
+        order = np.argsort(omega, kind="stable")
+        keep = np.ones(order.size, bool)
+        keep[1:] = np.diff(omega[order]) != 0
+        idx = order[keep]
+        w = None if weights is None else _as_float_vector(weights, "weights")
+        if w is not None and w.size != omega.size:
+            raise DataError(f"weights must have one value per frequency: len(weights)={w.size}, "
+                            f"len(omega)={omega.size}")
+        w = None if w is None else w[idx]
+        return cls(omega[idx], response[idx], name, w)
+
+
+def _as_float_vector(x, name):
+    try:
+        is_complex = np.iscomplexobj(np.asarray(x))
+    except (TypeError, ValueError):
+        is_complex = False
+    if is_complex:
+        raise DataError(f"{name} must be real, got complex values; pass the magnitude or "
+                        "real part, or the complex data as 'response'")
+    return _as_vector(x, name, float, "numbers")
+
+
+def _as_complex_vector(x, name):
+    return _as_vector(x, name, complex, "complex numbers")
+
+
+def _as_vector(x, name, dtype, what):
+    """A one-dimensional copy of ``x`` as ``dtype`` (a scalar or a row/column counts as a
+    vector); DataError naming ``name`` otherwise (``what``: the expected elements)."""
+    try:
+        arr = np.array(x, dtype=dtype, copy=True)
+    except (TypeError, ValueError) as exc:
+        raise DataError(f"{name} must be an array of {what}: {exc}") from None
+    if arr.ndim != 1:
+        arr = arr.reshape(-1) if arr.ndim == 0 or max(arr.shape) == arr.size else arr
+    if arr.ndim != 1:
+        raise DataError(f"{name} must be one-dimensional, got shape {np.shape(x)}")
+    return arr
+
+
+# --------------------------------------------------------------------------- grids
+def frequency_grid(omega):
+    """The frequencies of ``omega`` (FrequencyData or array) as a checked float array.
+
+    Parameters
+    ----------
+    omega : FrequencyData or array_like of float, shape (M,)
+
+    Returns
+    -------
+    ndarray of float, shape (M,)
+
+    Raises
+    ------
+    DataError
+        Fewer than 2 values, a value not finite or <= 0, or not strictly increasing.
+    """
+    if isinstance(omega, FrequencyData):
+        return omega.omega
+    w = np.asarray(omega, float).reshape(-1)
+    if w.size < 2 or not np.all(np.isfinite(w)) or np.any(w <= 0) or np.any(np.diff(w) <= 0):
+        raise DataError("omega must hold >= 2 finite frequencies > 0 (rad/s), strictly "
+                        "increasing; use FrequencyData.sorted()")
+    return w
+
+
+def dense_grid(omega, factor=10):
+    """A log-spaced grid with ``factor`` x as many points over the range of ``omega``.
+
+    Parameters
+    ----------
+    omega : FrequencyData or array_like of float, shape (M,)
+        rad/s, >= 2 finite values > 0, strictly increasing.
+    factor : int
+        >= 1.
+
+    Returns
+    -------
+    ndarray of float, shape (factor * M,)
+
+    Raises
+    ------
+    DataError
+        Bad ``omega``.
+    OptionError
+        Bad ``factor``.
+    """
+    w = frequency_grid(omega)
+    if isinstance(factor, bool) or not isinstance(factor, (int, np.integer)) or factor < 1:
+        raise OptionError(f"factor must be an integer >= 1, got {factor!r}")
+    return np.logspace(math.log10(w[0]), math.log10(w[-1]), int(factor) * w.size)

@@ -1,0 +1,455 @@
+"""Exact stage derivatives from the model's product structure (layer L2).
+
+:class:`StageFunctions` gives a stage's residual, cost, Jacobian, gradient and exact Hessian
+(numpy over points x sections in the dc gauge, or CasADi's AD of the per-point formula
+mapped over the points), and :class:`PNormFunctions` those of the minimax polish's p-norm
+objective; :func:`stage_functions` builds one. The formula of a section is the gauge's
+(:mod:`freqid_casadi.core.gauges`); the parametrization is
+:class:`~freqid_casadi.core.objective.Parametrization`.
+"""
+
+import numpy as np
+
+from .. import _cplx
+from ..errors import OptionError, StructureError
+from .gauges import gauge_for
+
+__all__ = ["StageFunctions", "PNormFunctions", "stage_functions"]
+
+
+def _point_functions(param):
+    """Per-point SX Function of one stage (inputs z, omega, phi_re, phi_im, sqrt_w).
+
+    ``derivative_point`` -> r (2,), sq (2,), Ld (2, n), Ln (2, n), T2 (2, N ns^2):
+    the pieces of the exact derivatives, using the product structure of the model. With
+    ``q = Phi e^{j w h} [j w] / K prod_k den_k/num_k`` and ``r = sqrt_w (q - 1)``:
+
+    - ``dr/dv = sqrt_w q dlog(q)/dv`` with ``dlog q = Ld - Ln``, where ``Ld`` holds the
+      log-derivatives of the delay factor, the gain and each ``den_k`` and ``Ln`` those of
+      each ``num_k`` (``(d num/dv)/num``, from CasADi's AD of the section formula);
+    - ``d2 log q`` is ``Ln Ln^T - Ld Ld^T`` within each section's block, plus
+      ``(d2 den/den - d2 num/num)`` (``T2``; structurally zero in the dc gauge), plus
+      ``1/z_K^2`` for the gain.
+
+    Each formula is still written once (:meth:`~freqid_casadi.core.gauges.Gauge.pairs`); assembling ``J`` and the
+    Hessian from these pieces costs O(n) per point plus dense products done by BLAS
+    (:class:`StageFunctions`), instead of AD through the whole product chain.
+    """
+    import casadi as ca
+
+    n = param.n_vars
+    z = ca.SX.sym("z", n)
+    w = ca.SX.sym("omega")
+    phi = (ca.SX.sym("phi_re"), ca.SX.sym("phi_im"))
+    sw = ca.SX.sym("sqrt_w")
+    inputs = [z, w, phi[0], phi[1], sw]
+    names = ["z", "omega", "phi_re", "phi_im", "sqrt_w"]
+
+    h_ref, k_ref, wr = param._refs()
+    q = _cplx.mul(phi, (ca.cos(w * h_ref * z[0]), ca.sin(w * h_ref * z[0])))
+    if param.structure.integrator:
+        q = _cplx.mul(q, (0, w))
+    q = (q[0] / (k_ref * z[1]), q[1] / (k_ref * z[1]))
+    ld = [(0, w * h_ref), (-1 / z[1], 0)]
+    ln = [(0, 0), (0, 0)]
+    t2 = []
+    ns = param.section_size
+    second = param.structure.basis == "second-order"
+    for k in range(param.structure.n_sections):
+        v = [z[2 + ns * k + i] for i in range(ns)]
+        num, den = param.gauge_obj.pairs(v, w / wr[k], param.chart(k))
+        inum, iden = _cplx.inv(num), _cplx.inv(den)
+        q = _cplx.mul(q, _cplx.mul(den, inum))
+        vv = ca.vertcat(*v)
+        d_num = (ca.jacobian(num[0], vv), ca.jacobian(num[1], vv))
+        d_den = (ca.jacobian(den[0], vv), ca.jacobian(den[1], vv))
+        for i in range(ns):
+            ld.append(_cplx.mul((d_den[0][i], d_den[1][i]), iden))
+            ln.append(_cplx.mul((d_num[0][i], d_num[1][i]), inum))
+        h_num = (ca.hessian(num[0], vv)[0], ca.hessian(num[1], vv)[0])
+        h_den = (ca.hessian(den[0], vv)[0], ca.hessian(den[1], vv)[0])
+        for a in range(ns):
+            for b in range(ns):
+                x1 = _cplx.mul((h_den[0][a, b], h_den[1][a, b]), iden)
+                x2 = _cplx.mul((h_num[0][a, b], h_num[1][a, b]), inum)
+                t2.append((x1[0] - x2[0], x1[1] - x2[1]))
+    sq = (q[0] * sw, q[1] * sw)
+    row = lambda pairs, part: ca.horzcat(*[p[part] for p in pairs])  # noqa: E731
+    outs = [ca.vertcat(sq[0] - sw, sq[1]), ca.vertcat(*sq),
+            ca.vertcat(row(ld, 0), row(ld, 1)), ca.vertcat(row(ln, 0), row(ln, 1)),
+            ca.vertcat(row(t2, 0), row(t2, 1)) if t2 else ca.SX(2, 0)]
+    return ca.Function("derivative_point", inputs, outs, names,
+                       ["r", "sq", "Ld", "Ln", "T2"])
+
+
+class StageFunctions:
+    """Residual, Jacobian and Hessian of one stage's objective, built once per stage.
+
+    ``cost(z) = ||r(z)||^2`` with ``r`` the stacked weighted residual ``[Re; Im]`` (2M,).
+
+    Two evaluation paths, both exact and built from the one formula of
+    :meth:`Parametrization.residual_pair` / :meth:`~freqid_casadi.core.gauges.Gauge.pairs`:
+
+    - ``r_fun`` — the residual as a CasADi MX expression *vectorised over the points*
+      (each operation is one C loop over M values), which is the NLP's objective;
+    - the derivative pieces ``q``, ``L = dlog q/dz`` (and per-section ``dlog num``,
+      ``dlog den``), from which ``J``, the gradient and the exact Hessian are assembled with
+      dense BLAS products (:meth:`gradient`, :meth:`hessian`). In the "dc" gauge every
+      section factor is *affine* in its variables, so its derivative along variable ``i``
+      is the formula evaluated at the unit vector ``e_i`` minus its value at 0 — exact,
+      computed once per stage, and the pieces are evaluated by numpy over
+      (sections x points) arrays. The "b1"/"raw" gauges (polynomial in the variables) use
+      CasADi's AD of the per-point section formula, mapped over the points
+      (:func:`_point_functions`).
+
+    Parameters
+    ----------
+    param : Parametrization
+    omega : ndarray of float, shape (M,)
+        The stage's frequencies, rad/s.
+    response : ndarray of complex, shape (M,)
+        The data ``Phi`` at ``omega``.
+    weights : ndarray of float, shape (M,), optional
+        Weights of the squared relative residuals.
+    derivatives : {None, "affine", "casadi-map"}
+        None picks "affine" for the dc gauge, else "casadi-map".
+
+    Attributes
+    ----------
+    param : Parametrization
+    n_points : int
+    r_fun : casadi.Function
+        ``z (n,) -> r (2M,)``, symbolic (the NLP's objective is ``sumsqr(r_fun(z))``).
+    derivatives : {"affine", "casadi-map"}
+        Which derivative path is used (see above).
+    """
+
+    def __init__(self, param, omega, response, weights=None, derivatives=None):
+        import casadi as ca
+
+        self.param = param
+        omega = np.asarray(omega, float)
+        resp = np.asarray(response, complex)
+        m = omega.size
+        n = param.n_vars
+        self.n_points = m
+        self._sw = np.ones(m) if weights is None else np.sqrt(np.asarray(weights, float))
+        # the NLP's objective: one MX expression over all points (vectorised C loops)
+        z = ca.MX.sym("z", n)
+        row = lambda a: ca.DM(np.asarray(a, float).reshape(1, -1))  # noqa: E731
+        re, im = param.residual_pair(z, row(omega), (row(resp.real), row(resp.imag)),
+                                     row(self._sw))
+        self.r_fun = ca.Function("residual", [z], [ca.vertcat(ca.transpose(re),
+                                                              ca.transpose(im))],
+                                 ["z"], ["r"])
+        if derivatives is None:
+            derivatives = "affine" if param.gauge == "dc" else "casadi-map"
+        if derivatives not in ("affine", "casadi-map"):
+            raise OptionError(f"unknown derivatives {derivatives!r}; choose 'affine' or "
+                              "'casadi-map'")
+        if derivatives == "affine" and param.gauge != "dc":
+            raise OptionError("derivatives='affine' needs the 'dc' gauge (its sections are "
+                              "affine in the variables); use 'casadi-map'")
+        self.derivatives = derivatives
+        self._key = None
+        nsec, ns = param.structure.n_sections, param.section_size
+        h_ref, k_ref, wr = param._refs()
+        self._q0 = self._sw * resp * (1j * omega if param.structure.integrator else 1.0)
+        self._dlog_delay = 1j * omega * h_ref
+        if derivatives == "affine":
+            x = omega[None, :] / np.asarray(wr, float).reshape(-1, 1)         # (nsec, M)
+            dc = gauge_for("dc", param.structure.basis)
+            chart = (0, 0)
+            if any(map(any, param.charts)):
+                chart = tuple(np.array([c[j] for c in param.charts]).reshape(-1, 1)
+                              for j in (0, 1))
+
+            def pair(v):
+                num, den = dc.pairs(v, x, chart)
+                return (_cplx.to_complex(np.broadcast_arrays(*num)),
+                        _cplx.to_complex(np.broadcast_arrays(*den)))
+
+            zero = [np.zeros((nsec, 1))] * ns
+            n0, d0 = pair(zero)
+            steps = [pair([np.ones((nsec, 1)) if j == i else zero[j] for j in range(ns)])
+                     for i in range(ns)]
+            # an affine factor is f(v) = f(0) + sum_i v_i (f(e_i) - f(0)) exactly
+            dnum = [s_[0] - n0 for s_ in steps]
+            dden = [s_[1] - d0 for s_ in steps]
+            self._idx_num = [i for i in range(ns) if np.any(dnum[i] != 0)]
+            self._idx_den = [i for i in range(ns) if np.any(dden[i] != 0)]
+            if nsec and sorted(self._idx_num + self._idx_den) != list(range(ns)):
+                raise StructureError("internal: each dc-gauge variable must enter exactly "
+                                     "one of a section's numerator and denominator")
+            self._n0, self._d0 = n0, d0
+            if nsec:
+                # (nsec, k, M), the numerator's negated: dlog q = dlog den - dlog num
+                self._neg_dnum_t = -np.stack([dnum[i] for i in self._idx_num], axis=1)
+                self._dden_t = np.stack([dden[i] for i in self._idx_den], axis=1)
+            self._sl_num, self._sl_den = _as_slice(self._idx_num), _as_slice(self._idx_den)
+            self._lg = np.empty((n, m), complex)
+        else:
+            d_point = _point_functions(param)
+            data = [omega.reshape(1, -1), resp.real.reshape(1, -1), resp.imag.reshape(1, -1),
+                    self._sw.reshape(1, -1)]
+            zz = ca.repmat(z, 1, m)
+            outs = d_point.map(m, "serial")(zz, *data)
+            self.d_fun = ca.Function("derivatives", [z], [ca.densify(o) for o in outs],
+                                     ["z"], ["r", "sq", "Ld", "Ln", "T2"])
+            self.n_t2 = int(d_point.size2_out(4))
+            # zero-copy evaluation: CasADi writes straight into these numpy buffers
+            self._zbuf = np.zeros(n)
+            self._outs = [np.zeros(2 * c) for c in (m, m, n * m, n * m, self.n_t2 * m)]
+            self._buf, self._trigger = self.d_fun.buffer()
+            self._buf.set_arg(0, memoryview(self._zbuf))
+            for i, out in enumerate(self._outs):
+                self._buf.set_res(i, memoryview(out))
+
+    # ------------------------------------------------------------------ evaluation
+    def residual(self, z):
+        """Stacked residual ``[Re r; Im r]``, ndarray (2M,)."""
+        return self.r_fun(np.asarray(z, float)).full().reshape(-1)
+
+    def cost(self, z):
+        r = self.residual(z)
+        return float(r @ r)
+
+    def _eval(self, z):
+        """Derivative pieces at ``z`` (cached on the bytes of ``z``):
+
+        ``_r`` (M,) complex residual, ``_sq`` (M,) = sqrt_w q, ``_L`` (n, M) = dlog q/dz,
+        ``_blk``: per-section ``(indices, dlog factor/dv (nsec, len(indices), M), sign)``
+        (the numerator's entries may be negated: only their products are used)
+        for the numerators (+1) and denominators (-1), and
+        ``_t2`` (M, nsec ns^2) second-derivative terms or None.
+        """
+        z = np.asarray(z, float).reshape(-1)
+        key = z.tobytes()
+        if key == self._key:
+            return self
+        if self.derivatives == "affine":
+            self._eval_affine(z)
+        else:
+            self._eval_casadi(z)
+        self._z = z
+        self._key = key
+        return self
+
+    def _eval_affine(self, z):
+        param = self.param
+        m = self.n_points
+        nsec, ns = param.structure.n_sections, param.section_size
+        h_ref, k_ref, _ = param._refs()
+        q = self._q0 * np.exp(self._dlog_delay * z[0]) / (k_ref * z[1])
+        lg = self._lg
+        lg[0] = self._dlog_delay
+        lg[1] = -1.0 / z[1]
+        self._blk = []
+        if nsec:
+            v = z[2:].reshape(nsec, ns)
+            vn = v[:, self._idx_num, None]                                  # (nsec, kn, 1)
+            vd = v[:, self._idx_den, None]
+            inum = 1.0 / (self._n0 - np.sum(vn * self._neg_dnum_t, axis=1))  # (nsec, M)
+            iden = 1.0 / (self._d0 + np.sum(vd * self._dden_t, axis=1))
+            q = q * np.prod(inum / iden, axis=0)
+            # dlog q/dv straight into L's rows: -dnum/num and +dden/den, (nsec, k, M) views
+            sec = lg[2:].reshape(nsec, ns, m)
+            ln = _product_into(self._neg_dnum_t, inum[:, None, :], sec, self._sl_num)
+            ld = _product_into(self._dden_t, iden[:, None, :], sec, self._sl_den)
+            # the blocks need products of two log-derivatives: the sign of -dnum cancels
+            self._blk = [(self._idx_num, ln, 1.0), (self._idx_den, ld, -1.0)]
+        self._sq = q
+        self._r = q - self._sw
+        self._L, self._t2 = lg, None
+
+    def _eval_casadi(self, z):
+        param = self.param
+        m, n = self.n_points, param.n_vars
+        nsec, ns = param.structure.n_sections, param.section_size
+        self._zbuf[:] = z
+        self._trigger()
+        # a (2, K) output in column-major order is K interleaved (re, im) pairs; the
+        # mapped (2, n) blocks come side by side, so (2, n*M) -> complex (M, n)
+        r, sq, ld, ln, t2 = (o.view(complex) for o in self._outs)
+        self._r, self._sq = r.copy(), sq.copy()
+        ld, ln = ld.reshape(m, n), ln.reshape(m, n)
+        self._L = np.ascontiguousarray((ld - ln).T)
+        sln = np.ascontiguousarray(ln[:, 2:].reshape(m, nsec, ns).transpose(1, 2, 0))
+        sld = np.ascontiguousarray(ld[:, 2:].reshape(m, nsec, ns).transpose(1, 2, 0))
+        full = list(range(ns))
+        self._blk = [] if not nsec else [(full, sln, 1.0), (full, sld, -1.0)]
+        self._t2 = t2.reshape(m, self.n_t2).copy() if self.n_t2 else None
+
+    def column_norms(self, z):
+        """``||J_j||``, ndarray (n,): the 2-norms of the Jacobian's columns (the square
+        root of the Gauss-Newton diagonal), O(n M) from the cached pieces.
+
+        Parameters
+        ----------
+        z : ndarray of float, shape (n,)
+
+        Returns
+        -------
+        ndarray of float, shape (n,)
+        """
+        self._eval(z)
+        a = self._sq.real ** 2 + self._sq.imag ** 2
+        return np.sqrt((self._L.real ** 2 + self._L.imag ** 2) @ a)
+
+    def residual_jacobian(self, z):
+        """``(r (2M,), J (2M, n))`` with ``J = dr/dz`` stacked ``[Re; Im]``."""
+        self._eval(z)
+        jc = self._L.T * self._sq[:, None]                           # complex J (M, n)
+        return (np.concatenate([self._r.real, self._r.imag]),
+                np.vstack([jc.real, jc.imag]))
+
+    def gradient(self, z):
+        """``(cost, grad)`` with ``grad = 2 J^T r = 2 Re(L c)``, ``c = conj(r) sqrt_w q``."""
+        self._eval(z)
+        r = self._r
+        cc = self._sq.conj() * r                                     # conj(c)
+        # Re(L c) = Lr cr - Li ci: one product over the interleaved (re, im) views
+        grad = 2.0 * (self._L.view(float) @ cc.view(float))
+        return float(np.vdot(r, r).real), grad
+
+    def hessian(self, z, exact=True, point_weights=None):
+        """Hessian of the cost, (n, n); with ``point_weights`` (M,) the Hessian of
+        ``sum_i point_weights_i |r_i|^2`` instead.
+
+        ``2 Re(J^H J)`` (Gauss-Newton) plus, if ``exact``,
+        ``2 Re sum_i c_i (L_i L_i^T + d2 log q_i)`` with ``c_i = conj(r_i) sqrt_w_i q_i``.
+        The first two terms are one real product over the interleaved (re, im) parts:
+        ``Re sum_i (a_i conj(L_i) + c_i L_i) L_i^T = [Lr Li] [Yr Yi]^T`` with
+        ``Y = a L + conj(c L)``, ``a = |sqrt_w q|^2``; ``d2 log q`` is block diagonal
+        (per section ``Ln Ln^T - Ld Ld^T + T2``, and ``1/z_K^2`` for the gain).
+        """
+        self._eval(z)
+        lg = self._L
+        a = self._sq.real ** 2 + self._sq.imag ** 2                   # |sqrt_w q|^2
+        c = np.conj(self._r) * self._sq
+        if point_weights is not None:
+            a, c = a * point_weights, c * point_weights
+        if not exact:
+            y = lg * a
+        else:
+            y = lg * a
+            y += np.conj(lg * c)
+        h = lg.view(float) @ y.view(float).T
+        h = (h + h.T) / 2.0
+        if exact:
+            nsec, ns = self.param.structure.n_sections, self.param.section_size
+            if nsec:
+                # per-section blocks sum_i c_i (ln ln^T - ld ld^T), over the variables each
+                # factor depends on: (nsec, k, k) products contracted with c
+                blocks = np.zeros((nsec, ns, ns))
+                for idx, s_, sign in self._blk:
+                    pk = (s_[:, :, None] * s_[:, None, :]) @ c            # (nsec, k, k)
+                    blocks[:, np.ix_(idx, idx)[0], np.ix_(idx, idx)[1]] += sign * pk.real
+                if self._t2 is not None:
+                    blocks = blocks + (c @ self._t2).real.reshape(nsec, ns, ns)
+                diag = np.arange(nsec)
+                hv = h[2:, 2:].reshape(nsec, ns, nsec, ns)        # a view: h is C-ordered
+                hv[diag, :, diag, :] += blocks
+            h[1, 1] += np.sum(c).real / self._z[1] ** 2
+        return 2.0 * h
+
+
+class PNormFunctions:
+    """The p-norm stand-in for the largest squared relative residual,
+    ``F(z) = (1/p) log sum_i (e_i/s)^(p/2)`` with ``e_i = |r_i|^2``, and its exact gradient
+    and Hessian from a stage's :class:`StageFunctions` (same interface: ``param``,
+    ``gradient``, ``hessian``).
+
+    With softmax weights ``w_i = (e_i/s)^(p/2) / sum_j (e_j/s)^(p/2)`` and ``u_i = w_i/e_i``:
+    ``grad F = 1/2 sum_i u_i grad e_i`` and
+    ``hess F = 1/2 sum_i u_i hess e_i + 1/2 (p/2 - 1) sum_i (u_i/e_i) grad e_i grad e_i^T
+    - p grad F grad F^T``, where ``sum_i u_i hess e_i`` is the stage Hessian with point
+    weights ``u`` and ``grad e_i = 2 Re(c_i L_i)``: about the cost of one least-squares
+    Hessian, instead of AD through the log-sum-exp.
+
+    Parameters
+    ----------
+    funcs : StageFunctions
+    p : float >= 2
+    s : float > 0
+        Scale of ``e`` (the largest ``e_i`` at the start), so the terms are O(1).
+    """
+
+    def __init__(self, funcs, p, s):
+        self.funcs = funcs
+        self.param = funcs.param
+        self.n_points = funcs.n_points
+        self.p = float(p)
+        self.s = float(s)
+        self._key, self._cached = None, None
+
+    def _parts(self, z):
+        """(F, grad F, u, u/e, grad e) at ``z``, cached: IPOPT asks for the gradient and
+        the Hessian at the same point."""
+        key = np.asarray(z, float).tobytes()
+        if key != self._key:
+            self._cached, self._key = self._compute(z), key
+        return self._cached
+
+    def _compute(self, z):
+        f = self.funcs
+        f._eval(z)
+        e = np.maximum(f._r.real ** 2 + f._r.imag ** 2, 1e-300)
+        le = np.log(e)
+        t = 0.5 * self.p * (le - np.log(self.s))
+        lse = float(np.max(t) + np.log(np.sum(np.exp(t - np.max(t)))))
+        lw = t - lse                                                 # log softmax weights
+        u = np.exp(lw - le)                                          # w_i / e_i
+        c = np.conj(f._r) * f._sq
+        ge = 2.0 * (f._L.real * c.real - f._L.imag * c.imag)         # grad e_i, (n, M)
+        grad = 0.5 * (ge @ u)
+        return lse / self.p, grad, u, np.exp(lw - 2.0 * le), ge
+
+    def gradient(self, z):
+        """``(F, grad F)``."""
+        value, grad, *_ = self._parts(z)
+        return value, grad
+
+    def hessian(self, z, exact=True):
+        """Exact Hessian of ``F`` (n, n); ``exact=False`` drops the residuals' second
+        derivatives inside ``hess e_i`` (Gauss-Newton-like)."""
+        _, grad, u, beta, ge = self._parts(z)
+        h = 0.5 * self.funcs.hessian(z, exact=exact, point_weights=u)
+        h += 0.5 * (0.5 * self.p - 1.0) * ((ge * beta) @ ge.T)
+        h -= self.p * np.outer(grad, grad)
+        return (h + h.T) / 2.0
+
+
+def _as_slice(idx):
+    """A slice for a run of consecutive indices (a view when indexing), else the list."""
+    if idx and list(idx) == list(range(idx[0], idx[-1] + 1)):
+        return slice(idx[0], idx[-1] + 1)
+    return list(idx)
+
+
+def _product_into(a, b, sec, sl):
+    """``a * b`` written into ``sec[:, sl]``; returns the written block (a view if ``sl`` is
+    a slice)."""
+    if isinstance(sl, slice):
+        out = sec[:, sl]
+        np.multiply(a, b, out=out)
+        return out
+    out = a * b
+    sec[:, sl] = out
+    return out
+
+
+def stage_functions(param, omega, response, weights=None, derivatives=None):
+    """Build the :class:`StageFunctions` of one stage (once per stage).
+
+    Parameters
+    ----------
+    param : Parametrization
+    omega, response, weights, derivatives
+        As :class:`StageFunctions`.
+
+    Returns
+    -------
+    StageFunctions
+    """
+    return StageFunctions(param, omega, response, weights, derivatives)

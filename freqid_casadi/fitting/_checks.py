@@ -1,0 +1,174 @@
+"""Checks of :func:`freqid_casadi.fitting.fit.fit` before and after the solves (layer L5, private):
+the data and options at the entry point, the model class (gain sign, zeros), the damping
+floor, the diagnostics of the fitted model and the success rule.
+"""
+
+import math
+import numbers
+
+import numpy as np
+
+from ..core.data import FrequencyData
+from .diagnostics import (check_delay, check_minimum_phase, check_roots_below_band,
+                          check_trivial, rhp_zeros_note)
+from ..errors import DataError, FreqidError, OptionError, StructureError
+from ..core.model import BASES, ZEROS, Structure
+from ..core.resolution import resolution_damping
+from .._validate import check_choice, check_flag
+
+__all__ = ["GAIN_SIGNS", "validate", "zeta_min_of", "check_model_class", "after_fit",
+           "success_of", "MAX_DECADES", "check_progress",
+           "check_weighted_points"]
+
+#: Values of ``fit(gain_sign=...)``.
+GAIN_SIGNS = ("auto", "positive", "negative")
+#: The widest band (decades of omega) :func:`validate` accepts.
+MAX_DECADES = 60
+
+
+def zeta_min_of(min_damping, omega, method, gauge, basis):
+    if min_damping is None:
+        return None
+    if isinstance(min_damping, str):
+        if min_damping != "auto":
+            raise OptionError(f"unknown min_damping {min_damping!r}; use None, 'auto' or a "
+                              "number in [0, 1)")
+        value = resolution_damping(omega)
+    elif (isinstance(min_damping, (bool, np.bool_))
+          or not isinstance(min_damping, numbers.Real)
+          or not (0.0 <= float(min_damping) < 1.0)):
+        raise OptionError(f"min_damping must be None, 'auto' or a number in [0, 1), got "
+                          f"{min_damping!r}")
+    else:
+        value = float(min_damping)
+    if method != "ipopt":
+        raise OptionError("min_damping needs method='ipopt' (the barrier-LM method has "
+                          "bounds only)")
+    if gauge != "dc" or basis != "second-order":
+        raise OptionError("min_damping needs gauge='dc' and basis='second-order' (first-order "
+                          "sections have real roots and are never narrow)")
+    return value
+
+
+def check_progress(progress):
+    """``progress`` of fit: a bool (or None, 0, 1) or a callable; OptionError otherwise."""
+    if progress is None or callable(progress):
+        return progress
+    try:
+        return check_flag("progress", progress)
+    except OptionError:
+        raise OptionError(f"progress must be True, False or a callable taking each "
+                          f"StageRecord, got {progress!r}") from None
+
+
+def check_weighted_points(data, n_params, n_sections):
+    """DataError when fewer points have a weight > 0 than the model has parameters (the
+    fit would be underdetermined: any model through those points is optimal)."""
+    if data.weights is None:
+        return
+    counted = int(np.count_nonzero(data.weights > 0))
+    if counted < n_params:
+        raise DataError(
+            f"too few weighted data points for {n_sections} sections: {counted} points with "
+            f"weight > 0 for {n_params} parameters; use fewer sections or give more points "
+            "a weight > 0")
+
+
+def _check_span(omega):
+    """DataError when the band spans more decades than float64 arithmetic of the model
+    carries (the section factors hold (omega/omega_r)^2 for every omega_r in the band)."""
+    decades = math.log10(omega[-1]) - math.log10(omega[0])
+    if decades > MAX_DECADES:
+        raise DataError(
+            f"omega spans {decades:.0f} decades ({omega[0]:.3g} to {omega[-1]:.3g} rad/s), "
+            f"more than the {MAX_DECADES} the model's float64 arithmetic carries; fit a "
+            "narrower band (e.g. split the data)")
+
+
+def validate(data, response, n_sections, basis, tol, integrator, weights=None):
+    if isinstance(data, FrequencyData):
+        if response is not None:
+            raise DataError("pass either a FrequencyData or (omega, response), not both")
+    else:
+        if data is None:
+            raise DataError("the data are missing: call fit(FrequencyData(...), ...) or "
+                            "fit(omega, response, ...)")
+        if response is None:
+            raise DataError("response is missing: call fit(omega, response, ...) or "
+                            "fit(FrequencyData(...), ...)")
+        data = FrequencyData(data, response)
+    if isinstance(n_sections, bool) or not isinstance(n_sections, (int, np.integer)):
+        raise StructureError(f"n_sections must be a positive integer, got {n_sections!r}")
+    if n_sections < 1:
+        raise StructureError(f"n_sections must be >= 1, got {n_sections}")
+    check_choice("basis", basis, BASES)
+    if tol is not None and not (isinstance(tol, numbers.Real)
+                                and not isinstance(tol, (bool, np.bool_))
+                                and math.isfinite(tol) and tol > 0):
+        raise OptionError(f"tol must be a number > 0 (a max relative error), got {tol!r}")
+    _check_span(data.omega)
+    structure = Structure(int(n_sections), integrator, True, basis)
+    n_params = structure.n_params
+    if data.n_points < n_params:
+        raise DataError(
+            f"too few data points for {n_sections} sections: {data.n_points} points for "
+            f"{n_params} parameters; use fewer sections (at most "
+            f"{max((data.n_points - 2) // structure.section_size, 0)}) or more data")
+    if weights is not None:
+        data = data.with_weights(weights)
+    check_weighted_points(data, n_params, n_sections)
+    return data
+
+
+def check_model_class(gain_sign, zeros, method, gauge, min_damping):
+    if not isinstance(gain_sign, str) or gain_sign not in GAIN_SIGNS:
+        raise OptionError(f"unknown gain_sign {gain_sign!r}; choose one of "
+                          f"{', '.join(GAIN_SIGNS)}")
+    if not isinstance(zeros, str) or zeros not in ZEROS:
+        raise OptionError(f"unknown zeros {zeros!r}; choose one of {', '.join(ZEROS)}")
+    if zeros == "free":
+        if method != "ipopt":
+            raise OptionError("zeros='free' needs method='ipopt' (the barrier-LM method "
+                              "keeps every parameter inside its log barrier, beta > 0)")
+        if gauge != "dc":
+            raise OptionError(f"zeros='free' needs LoopOptions(gauge='dc'), got {gauge!r}")
+        if min_damping is not None:
+            raise OptionError("zeros='free' takes no min_damping (the damping floor is "
+                              "written for minimum-phase factors); drop one of them")
+
+
+def _delay_std(model, data, delay_max):
+    """The delay's standard deviation from the parameter covariance, or None."""
+    if not model.structure.delay or model.delay <= 0 or model.delay >= 0.98 * delay_max:
+        return None
+    from ..uncertainty.covariance import parameter_uncertainty
+
+    try:
+        std = parameter_uncertainty(model, data, weights=data.weights).delay_std
+    except (FreqidError, np.linalg.LinAlgError, ArithmeticError):
+        return None
+    return float(std) if math.isfinite(std) else None
+
+
+def after_fit(model, data, stats, delay_max):
+    """Diagnostics of the fitted model on the user's data (see :mod:`.diagnostics`)."""
+    found = check_trivial(stats.max, stats.rms)
+    found += check_delay(model, data, delay_max, stats.rms,
+                         delay_std=_delay_std(model, data, delay_max))
+    if model.structure.zeros == "free":
+        found += rhp_zeros_note(model)
+    else:
+        found += check_minimum_phase(model, data, stats.max, stats.rms)
+    return found + check_roots_below_band(model, data)
+
+
+def success_of(last, stats):
+    """``(success, message)`` of a fit from its last stage record and its error."""
+    if not stats.rms < 1.0:
+        return False, (f"RMS relative error {stats.rms:.3g} >= 1: no better than an "
+                       "infinite-gain model (a stationary point at infinity); try "
+                       "start='rational', another structure or fewer sections")
+    if last.success:
+        return True, last.message or "converged"
+    return False, (f"the final stage did not converge: {last.message or last.solver_status}"
+                   f" (stage {last.stage}, {last.nit} iterations)")

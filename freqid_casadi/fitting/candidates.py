@@ -1,0 +1,136 @@
+"""Which of several fitted models a fit keeps (layer L4).
+
+``fit(start="best")`` runs the sequential loop and the rational start; every fit with a
+delay also tries the same model at ``h = 0`` (the nested model class: a fit with a delay
+must never be worse than the fit without one). :func:`choose` keeps, among the candidates
+within 10 % of the lowest max relative error, a converged one if there is any, and then
+the lowest RMS error. With weights, both are of the weighted relative error
+``sqrt(w_i / mean(w)) |r_i|``, the objective's own measure (an unweighted ranking kept an
+unconverged h = 0 candidate over the converged optimum of the weighted fit).
+"""
+
+import dataclasses
+import math
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.metrics import error_stats, relative_error
+from ..core.model import RationalDelayModel
+from .stages import Kept, StageKind, polish, polish_start, stage_record
+
+__all__ = ["Candidate", "choose", "zero_delay_run", "NEAR"]
+
+#: Candidates whose max relative error is within this factor of the lowest are compared
+#: by convergence, then RMS.
+NEAR = 1.10
+
+
+@dataclass(frozen=True, eq=False)
+class Candidate:
+    """One fitted model a fit may keep.
+
+    Attributes
+    ----------
+    name : str
+        "sequential", "rational" or "<start> at h=0".
+    run : tuple
+        ``(param, z, lam, records)`` as the loops return them.
+    max_rel_error, rms_rel_error : float
+    success : bool
+        The candidate's last stage converged.
+    rank_max, rank_rms : float
+        Max and RMS of the weighted relative error ``sqrt(w_i / mean(w)) |r_i|``: what
+        :func:`choose` compares (default: the unweighted ones).
+    start : str
+        The start the candidate comes from, "sequential" or "rational" (default ``name``).
+    """
+
+    name: str
+    run: tuple
+    max_rel_error: float
+    rms_rel_error: float
+    success: bool
+    rank_max: float = None
+    rank_rms: float = None
+    start: str = None
+
+    def __post_init__(self):
+        for field_, value in (("rank_max", self.max_rel_error),
+                              ("rank_rms", self.rms_rel_error), ("start", self.name)):
+            if getattr(self, field_) is None:
+                object.__setattr__(self, field_, value)
+
+    @classmethod
+    def of(cls, name, run, data, start=None):
+        """The candidate ``name`` of a loop's ``run`` on ``data``, from ``start``."""
+        param, z, _, records = run
+        stats = relative_error(param.to_model(z), data)
+        rank = stats
+        if data.weights is not None:
+            w = np.asarray(data.weights, float)
+            rank = error_stats(np.asarray(stats.values) * np.sqrt(w / np.mean(w)))
+        return cls(name, run, float(stats.max), float(stats.rms),
+                   bool(records[-1].success) if records else False, float(rank.max),
+                   float(rank.rms), start)
+
+
+def choose(candidates):
+    """The kept candidate: among those within :data:`NEAR` of the lowest max relative
+    error, the converged ones if any, then the lowest RMS (ties: the first given); both
+    weighted when the data have weights (:attr:`Candidate.rank_max`).
+
+    Parameters
+    ----------
+    candidates : list of Candidate
+
+    Returns
+    -------
+    Candidate
+    """
+    finite = [c for c in candidates if np.isfinite(c.rank_max)] or list(candidates)
+    best = min(c.rank_max for c in finite)
+    pool = [c for c in finite if c.rank_max <= NEAR * best] or finite
+    pool = [c for c in pool if c.success] or pool
+    return min(pool, key=lambda c: (c.rank_rms, candidates.index(c)))
+
+
+def zero_delay_run(ctx, run):
+    """The candidate "the same fit at h = 0": the model of ``run`` with its delay removed,
+    polished on all data without a delay (one stage), in ``run``'s structure (h = 0).
+
+    Tried for every structure with a delay unless ``LoopOptions.final_stage`` is False (the
+    candidate is a stage on all data): a phase-wrapped delay (e.g. 0.14 s where
+    the data have none, measured in tests/test_convergence.py) is a local minimum the
+    h = 0 model escapes.
+
+    Parameters
+    ----------
+    ctx : mainloop.LoopContext
+    run : tuple
+        ``(param, z, lam, records)``.
+
+    Returns
+    -------
+    tuple or None
+        The candidate's ``(param, z, lam, records)`` (records end with a
+        ``StageKind.ZERO_DELAY`` record), or None when not tried.
+    """
+    param, z, _, records = run
+    st, data = param.structure, ctx.data
+    beta = np.array(param.to_beta(z), float)
+    if not st.delay or not ctx.loop.final_stage:
+        return None
+    t0 = time.perf_counter()
+    beta[0] = 0.0
+    st0 = dataclasses.replace(st, delay=False)
+    pol = polish(RationalDelayModel(st0, beta), data, method=ctx.solve.solver, loop=ctx.loop,
+                 delay_max=ctx.delay_max, zeta_min=ctx.zeta_min, max_iter=ctx.final_max_iter)
+    model = RationalDelayModel(st, pol.model.beta)
+    p1, z1 = polish_start(model, data, loop=ctx.loop, delay_max=ctx.delay_max,
+                          zeta_min=ctx.zeta_min)
+    rec = stage_record(st.n_sections + 1, p1, z1, data, data.n_points, math.nan, pol.result,
+                       pol.result.nit, pol.result.nfev, time.perf_counter() - t0,
+                       Kept(pol.kept), StageKind.ZERO_DELAY)
+    return p1, z1, np.zeros_like(z1), list(records) + [rec]

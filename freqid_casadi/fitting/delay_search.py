@@ -1,0 +1,127 @@
+"""One more candidate for a fit that did not converge: the rational start at nearby delays
+(layer L4).
+
+A fit of a delayed system can end in a valley where sections above the band stand in for
+part of the delay (measured on example C, tests/test_relocate.py: both starts end at
+about 0.0260 s against the system's 0.02625 s and creep there for thousands of
+iterations). Vector fitting at a *fixed* trial delay tells the delays apart: its max
+relative error on C is 3.5e-6 at 0.0260 s, 1.3e-4 at 0.0261 s and 1.1e-8 at 0.0262 s
+(erratic in the delay, so a search must probe rather than follow a slope). For a candidate
+whose last stage did not converge, :func:`delay_search_run` probes the vector fit at
+delays around the candidate's own, polishes the best trial on all data (one stage, as
+``start="rational"``) and offers the result as one more candidate to
+:func:`~freqid_casadi.fitting.candidates.choose`, which keeps it only when it is better: a fit
+that converged is never touched, and the search can never make a fit worse.
+"""
+
+import time
+
+import numpy as np
+
+from .stages import StageKind
+
+__all__ = ["search_delay", "delay_search_run", "PROBE_PHASE", "MAX_TRIALS"]
+
+#: Probe step, in rad of phase at the highest frequency (``PROBE_PHASE / omega[-1]`` s).
+PROBE_PHASE = 0.1
+#: Most vector fits one search makes.
+MAX_TRIALS = 17
+
+
+def search_delay(trial, h0, step, delay_max, max_trials=MAX_TRIALS):
+    """Local search of ``trial(h)`` (an error, inf when unusable) over the delay.
+
+    Probes ``h0 +- k step`` for k = 1, 2, 4, 8, then a compass search around the best
+    probe with steps ``step / 2, step / 4, ...`` (halved when neither side improves).
+
+    Parameters
+    ----------
+    trial : callable
+        ``h -> float``.
+    h0 : float
+        Start (s); probed first.
+    step : float
+        Probe step (s), > 0.
+    delay_max : float
+        Probes are clipped into ``[0, delay_max]`` (s).
+    max_trials : int
+        Most calls of ``trial``.
+
+    Returns
+    -------
+    dict
+        ``{h: trial(h)}`` of every probe.
+    """
+    seen = {}
+
+    def probe(h):
+        h = float(np.clip(h, 0.0, delay_max))
+        if h not in seen and len(seen) < max_trials:
+            seen[h] = float(trial(h))
+        return seen.get(h, np.inf)
+
+    probe(h0)
+    for sign in (1.0, -1.0):
+        for k in (1, 2, 4, 8):
+            probe(h0 + sign * k * step)
+    d = 0.5 * step
+    while len(seen) < max_trials and d >= step / 64:
+        best = min(seen, key=seen.get)
+        if min(probe(best + d), probe(best - d)) >= seen[best]:
+            d *= 0.5
+    return seen
+
+
+def delay_search_run(ctx, run):
+    """The candidate "the rational start at the best nearby delay" of an unconverged run.
+
+    Tried when ``run``'s last stage did not converge, its structure has a delay and
+    ``LoopOptions.delay_search`` and ``final_stage`` are on. The vector fit
+    (:func:`~freqid_casadi.fitting.start.rational_start` at one fixed delay per trial) is probed
+    around ``run``'s delay in steps of :data:`PROBE_PHASE` rad of phase at the highest
+    frequency (:func:`search_delay`); the trial with the lowest max relative error is
+    polished on all data by one stage (:func:`~freqid_casadi.fitting.stages.polish`).
+
+    Parameters
+    ----------
+    ctx : mainloop.LoopContext
+    run : tuple
+        ``(param, z, lam, records)``.
+
+    Returns
+    -------
+    tuple or None
+        ``(param, z, lam, records)``: ``run``'s records followed by a
+        ``StageKind.RATIONAL_START`` record (the probes) and a ``StageKind.DELAY_SEARCH``
+        record (the polish); None when not tried or when no trial was usable.
+    """
+    from .mainloop import polish_record, start_record
+    from .start import RationalStartError, rational_start
+
+    param, z, _, records = run
+    st, data, loop = param.structure, ctx.data, ctx.loop
+    if (not st.delay or not loop.final_stage or not loop.delay_search
+            or not records or records[-1].success):
+        return None
+    t0 = time.perf_counter()
+    starts = {}
+
+    def trial(h):
+        try:
+            rs = rational_start(data, st, delay_max=ctx.delay_max, delay0=h,
+                                max_delay_updates=1)
+        except RationalStartError:
+            return np.inf
+        starts[h] = rs
+        return rs.max_rel_error
+
+    h0 = float(param.to_model(z).delay)
+    seen = search_delay(trial, h0, PROBE_PHASE / float(data.omega[-1]), ctx.delay_max)
+    if not starts:
+        return None
+    best = starts[min(starts, key=lambda h: starts[h].max_rel_error)]
+    stage = st.n_sections + 1
+    probes = start_record(ctx, best.model, stage, len(seen), "delay search", t0)
+    ctx.callback(probes)
+    pol, rec = polish_record(ctx, best.model, StageKind.DELAY_SEARCH)
+    return pol.param, pol.x, pol.lam_x, list(records) + [probes, rec]

@@ -1,0 +1,428 @@
+"""What the data say about the model class, before and after a fit (layer L4).
+
+The package fits ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` with P_N stable and (by default)
+minimum phase and K > 0. Measured data can lie outside that class: a sign-inverted
+sensor (phase near +-180 deg at low frequency), non-collocated sensors or an accelerance
+with right-half-plane zeros, a delay larger than the frequency spacing can resolve. A fit
+then returns its best effort, which may explain nothing. Each check here turns such a
+finding into a :class:`Diagnostic` record (``code``, ``message``, ``values``) that
+:func:`freqid_casadi.fit` stores in ``FitResult.diagnostics`` and the CLI prints.
+
+Codes
+-----
+``negative-gain``
+    The low-frequency phase (integrator removed) is near +-180 deg: the static gain is
+    negative. With ``gain_sign="auto"`` the fit uses a negative gain and says so.
+``non-minimum-phase``
+    Excess phase that a delay cannot explain: a stable rational fit of the same order with
+    free zeros (vector fitting at the fitted delay) needs right-half-plane zeros and is
+    much more accurate than the minimum-phase fit. With ``zeros="free"`` the record states
+    the fitted model's right-half-plane zeros instead.
+``delay-undetermined``
+    The delay sits at its upper bound pi / max(diff(omega)) (beyond it the phase is
+    ambiguous between samples: aliased), or its phase ``h * omega_max`` is below the
+    phase scatter of the residuals (the data do not resolve it).
+``no-better-than-trivial``
+    The RMS relative error is near 1: the model explains no more than the infinite-gain
+    model (for which ``Phi/G_N - 1 = -1``). Such a fit is never a success.
+``root-below-band``
+    A pole or zero far below the lowest data frequency, which the data cannot tell from
+    one at 0: a pole there stands for an integrator (the fit stops it at the floor of
+    :attr:`~freqid_casadi.options.LoopOptions.root_floor` instead of letting it creep),
+    a zero for a differentiator.
+"""
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..core.data import FrequencyData
+from ..core.metrics import relative_error
+
+__all__ = ["Diagnostic", "CODES", "TRIVIAL_RMS", "low_frequency_phase", "low_frequency_slope",
+           "check_gain_sign",
+           "check_trivial", "check_delay", "check_minimum_phase", "rhp_zeros_note",
+           "check_roots_below_band", "BELOW_BAND"]
+
+CODES = ("negative-gain", "non-minimum-phase", "delay-undetermined", "no-better-than-trivial",
+         "root-below-band")
+
+#: Fraction of the lowest data frequency below which a root is "far below the band".
+BELOW_BAND = 0.01
+
+#: RMS relative error at or above which a model is "no better than trivial": the
+#: infinite-gain model has RMS exactly 1.
+TRIVIAL_RMS = 0.75
+
+
+@dataclass(frozen=True)
+class Diagnostic:
+    """One finding about the data or the fitted model.
+
+    Attributes
+    ----------
+    code : str
+        One of :data:`CODES`.
+    message : str
+        One or two sentences with the numbers and what to do.
+    severity : {"info", "warning", "error"}
+        "error": the result does not represent the data (``success`` is False);
+        "warning": the result is usable but outside what was asked or assumed;
+        "info": a choice the fit made for the user (e.g. a negative gain).
+    values : dict
+        The numbers behind the message (floats, ints, lists), for reports and JSON.
+    """
+
+    code: str
+    message: str
+    severity: str = "warning"
+    values: dict = field(default_factory=dict)
+
+    def as_dict(self):
+        """Plain-JSON form."""
+        return {"code": self.code, "severity": self.severity, "message": self.message,
+                "values": dict(self.values)}
+
+    def __str__(self):
+        return f"{self.code}: {self.message}"
+
+
+def _low_points(omega, n_min=3, n_max=20, fraction=0.05):
+    m = int(np.clip(round(fraction * omega.size), n_min, n_max))
+    return min(m, omega.size)
+
+
+def low_frequency_phase(data, integrator):
+    """Phase (rad) of the data's static part at the lowest frequencies.
+
+    The integrator's -90 deg is removed (the response is multiplied by ``j omega``); the
+    phase is the angle of the mean unit phasor over the lowest 5 % of the points (3 to 20
+    points), so single noisy samples and the small low-frequency delay phase do not decide.
+
+    Parameters
+    ----------
+    data : FrequencyData
+    integrator : bool
+
+    Returns
+    -------
+    float
+        In (-pi, pi]; near 0 for a positive static gain, near +-pi for a negative one.
+    """
+    m = _low_points(data.omega)
+    g = data.response[:m]
+    if integrator:
+        g = g * 1j * data.omega[:m]
+    unit = np.exp(1j * np.angle(g))       # no division: subnormal or huge responses
+    return float(np.angle(np.mean(unit)))
+
+
+def low_frequency_slope(data, integrator):
+    """Log-log slope of |G| (integrator removed) over the lowest points (as
+    :func:`low_frequency_phase`): about 0 for a static gain, +k for k zeros at the origin
+    (e.g. +2 for an accelerance of a free or lightly supported structure).
+
+    Parameters
+    ----------
+    data : FrequencyData
+    integrator : bool
+
+    Returns
+    -------
+    float
+        d log|G| / d log omega (nan with fewer than 2 distinct points).
+    """
+    m = max(_low_points(data.omega), 2)
+    if data.omega.size < 2:
+        return float("nan")
+    log_w = np.log(data.omega[:m])
+    with np.errstate(divide="ignore"):      # logs: no overflow at extreme scales
+        log_g = np.log(np.abs(data.response[:m])) + (log_w if integrator else 0.0)
+    return float(np.polyfit(log_w, log_g, 1)[0])
+
+
+def check_gain_sign(data, integrator, gain_sign="auto"):
+    """The gain sign to fit, and the record that says why.
+
+    Parameters
+    ----------
+    data : FrequencyData
+    integrator : bool
+    gain_sign : {"auto", "positive", "negative"}
+        "auto" takes the sign of the low-frequency response (phase within 90 deg of 0:
+        positive; of 180 deg: negative).
+
+    Returns
+    -------
+    sign : int
+        +1 or -1.
+    diagnostics : tuple of Diagnostic
+        A ``negative-gain`` record when the data look sign-inverted: "info" when the fit
+        uses the negative gain, "warning" when ``gain_sign="positive"`` forces the other.
+    """
+    phase = low_frequency_phase(data, integrator)
+    looks_negative = abs(phase) > math.pi / 2
+    deg = math.degrees(phase)
+    slope = low_frequency_slope(data, integrator)
+    values = {"low_frequency_phase_deg": deg, "n_points": _low_points(data.omega),
+              "omega_max_used": float(data.omega[_low_points(data.omega) - 1]),
+              "low_frequency_slope": slope}
+    origin = (f" (the magnitude rises as omega^{slope:.1f} there: part of this phase comes "
+              "from zeros at the origin, as in an accelerance, which the unit-DC factors "
+              "can only approach; dividing the data by (j omega)^k before fitting is the "
+              "cleaner model)" if abs(slope) > 0.5 else "")
+    what = "with the integrator removed, " if integrator else ""
+    if gain_sign == "negative" or (gain_sign == "auto" and looks_negative):
+        if not looks_negative:
+            return -1, ()
+        msg = (f"the low-frequency phase ({what}lowest {values['n_points']} points up to "
+               f"{values['omega_max_used']:.4g} {data.unit}) is {deg:.1f} deg, near "
+               f"+-180 deg: the static gain is negative{origin}; fitted with a negative gain "
+               "(gain_sign='auto'; pass gain_sign='positive' to force K > 0)")
+        return -1, (Diagnostic("negative-gain", msg, "info", values),)
+    if looks_negative:
+        msg = (f"the low-frequency phase ({what}lowest points) is {deg:.1f} deg, near "
+               "+-180 deg: the data look sign-inverted but gain_sign='positive' forces "
+               "K > 0, so the fit must explain a 180 deg phase it cannot; use "
+               "gain_sign='auto' or 'negative'")
+        return 1, (Diagnostic("negative-gain", msg, "warning", values),)
+    return 1, ()
+
+
+def check_trivial(max_rel_error, rms_rel_error, threshold=TRIVIAL_RMS):
+    """A ``no-better-than-trivial`` record if the RMS relative error is >= ``threshold``.
+
+    The infinite-gain model has ``Phi/G_N - 1 = -1`` at every point (RMS exactly 1); a
+    model near it explains nothing, whatever the optimiser's status.
+
+    Parameters
+    ----------
+    max_rel_error, rms_rel_error : float
+        The fit's errors (a NaN counts as trivial).
+    threshold : float
+        Default :data:`TRIVIAL_RMS`.
+
+    Returns
+    -------
+    tuple of Diagnostic
+    """
+    if not (rms_rel_error >= threshold) and math.isfinite(rms_rel_error):
+        return ()
+    msg = (f"RMS relative error {rms_rel_error:.3g} (max {max_rel_error:.3g}) is near 1, "
+           "the error of the trivial infinite-gain model: the model explains (almost) "
+           "nothing of the data; see the other diagnostics for why (sign, non-minimum "
+           "phase, delay), or check the data (units, columns, which channel is the input)")
+    return (Diagnostic("no-better-than-trivial", msg, "error",
+                       {"rms_rel_error": float(rms_rel_error),
+                        "max_rel_error": float(max_rel_error), "threshold": threshold}),)
+
+
+def _residual_phase_scatter(model, data):
+    ratio = data.response / model.frequency_response(data.omega)
+    return float(np.sqrt(np.mean(np.angle(ratio) ** 2)))
+
+
+def check_delay(model, data, delay_max, rms_rel_error=None, *, delay_std=None, at_bound=0.98,
+                poor_rms=0.3):
+    """``delay-undetermined`` records for a fitted model with a delay.
+
+    Parameters
+    ----------
+    model : RationalDelayModel
+    data : FrequencyData
+    delay_max : float
+        The delay's upper bound (s), normally ``pi / max(diff(omega))``.
+    rms_rel_error : float, optional
+        The fit's RMS relative error: a poor fit (>= ``poor_rms``) with the delay in the
+        upper half of its range is flagged too (a delay beyond the bound, aliased).
+    delay_std : float, optional
+        The delay's standard deviation (s) from the fit's parameter covariance
+        (:mod:`freqid_casadi.uncertainty.covariance`): a delay whose std exceeds half its value is not
+        determined by the data (typically traded against a zero far above the band).
+    at_bound : float
+        Fraction of ``delay_max`` from which the delay counts as at its bound.
+    poor_rms : float
+        RMS relative error from which a fit counts as poor.
+
+    Returns
+    -------
+    tuple of Diagnostic
+    """
+    if not model.structure.delay:
+        return ()
+    h = model.delay
+    w_max = float(data.omega[-1])
+    tu = data.time_unit
+    values = {"delay": h, "delay_max": float(delay_max), "phase_at_omega_max_rad": h * w_max}
+    if h >= at_bound * delay_max:
+        msg = (f"the delay {h:.6g} {tu} is at its upper bound pi/max(diff(omega)) = "
+               f"{delay_max:.6g} {tu}: beyond it the phase is ambiguous between samples "
+               "(aliased), so the data cannot determine the delay; sample the frequency "
+               "axis more densely, or fix the delay (delay=False, or a known value "
+               "removed from the data)")
+        return (Diagnostic("delay-undetermined", msg, "warning", values),)
+    if rms_rel_error is not None and rms_rel_error >= poor_rms and h >= 0.5 * delay_max:
+        msg = (f"the fit is poor (RMS relative error {rms_rel_error:.3g}) with the delay "
+               f"{h:.6g} {tu} at {100 * h / delay_max:.0f} % of the largest resolvable "
+               f"delay pi/max(diff(omega)) = {delay_max:.6g} {tu}: the data's delay may be larger "
+               "than the frequency spacing can resolve (aliased phase); sample the "
+               "frequency axis more densely or remove a known delay from the data")
+        values["rms_rel_error"] = float(rms_rel_error)
+        return (Diagnostic("delay-undetermined", msg, "warning", values),)
+    if delay_std is not None and h > 0 and not delay_std <= 0.5 * h:
+        values["delay_std"] = float(delay_std)
+        msg = (f"the delay {h:.6g} {tu} has a standard deviation of {delay_std:.3g} {tu} from "
+               "the fit's parameter covariance: the data do not determine it (it trades "
+               "against other parameters, typically a zero far above the band); fit fewer "
+               "sections, fix the delay, or read it as a lag of the model, not a "
+               "measured dead time")
+        return (Diagnostic("delay-undetermined", msg, "warning", values),)
+    scatter = _residual_phase_scatter(model, data)
+    values["residual_phase_rms_rad"] = scatter
+    if 0 < h * w_max < scatter:
+        msg = (f"the delay {h:.4g} {tu} turns the phase by only {h * w_max:.3g} rad at the "
+               f"highest frequency, less than the residuals' phase scatter ({scatter:.3g} "
+               "rad RMS): the data do not determine it")
+        return (Diagnostic("delay-undetermined", msg, "warning", values),)
+    return ()
+
+
+def _vf_free_zeros(data, model, n_poles):
+    """Vector fit with stable poles and free zeros of the data with the model's delay and
+    integrator removed; returns (max, rms relative error, RHP zeros) or None."""
+    from ..baselines import vector_fitting
+
+    s = 1j * data.omega
+    base = data.response * np.exp(s * model.delay)
+    if model.integrator:
+        base = base * s
+    try:
+        target = FrequencyData(data.omega, base)
+        vf = vector_fitting(target, n_poles, n_iter=10, enforce_stable_poles=True)
+        err = relative_error(vf, target)
+        zeros = np.asarray(vf.zeros(), complex)
+    except (ValueError, ArithmeticError, np.linalg.LinAlgError):
+        return None
+    if not np.all(np.isfinite(err.values)):
+        return None
+    zeros = zeros[np.isfinite(zeros)]
+    # right-half-plane zeros beyond the band act like a delay there (their phase is nearly
+    # linear in omega below |z|): only those inside the band are excess phase
+    rhp = zeros[(zeros.real > 0) & (np.abs(zeros) <= data.omega[-1])]
+    return err.max, err.rms, rhp
+
+
+def _freqs(roots):
+    return ", ".join(f"{abs(r):.4g}" for r in sorted(roots, key=abs)
+                     if r.imag >= 0)
+
+
+def check_minimum_phase(model, data, max_rel_error, rms_rel_error, *, ratio=0.5,
+                        floor=0.02):
+    """``non-minimum-phase`` record: excess phase a delay cannot explain.
+
+    A stable rational model of the same order with free zeros (relaxed vector fitting
+    with pole flipping, at the fitted delay) is compared with the minimum-phase fit. If it
+    needs right-half-plane zeros inside the band (``|z| <= omega_max``; zeros beyond it
+    act like a delay there) and reaches an RMS relative error below ``ratio`` times
+    the fit's (and the fit's RMS is above ``floor``), the data have excess phase.
+
+    Parameters
+    ----------
+    model : RationalDelayModel
+        The minimum-phase fit.
+    data : FrequencyData
+    max_rel_error, rms_rel_error : float
+        The fit's errors on ``data``.
+    ratio, floor : float
+        The free-zeros fit must reach ``ratio`` times the fit's RMS, and the fit's RMS must
+        be at least ``floor``, for the record.
+
+    Returns
+    -------
+    tuple of Diagnostic
+    """
+    if rms_rel_error < floor or model.n_sections == 0:
+        return ()
+    per = 2 if model.structure.basis == "second-order" else 1
+    vf = _vf_free_zeros(data, model, per * model.n_sections)
+    if vf is None:
+        return ()
+    vmax, vrms, rhp = vf
+    if rhp.size == 0 or not vrms < ratio * rms_rel_error:
+        return ()
+    values = {"n_rhp_zeros": int(rhp.size), "rhp_zeros": [[float(z.real), float(z.imag)]
+                                                          for z in rhp],
+              "free_zeros_max_rel_error": vmax, "free_zeros_rms_rel_error": vrms,
+              "max_rel_error": float(max_rel_error), "rms_rel_error": float(rms_rel_error)}
+    msg = (f"excess phase a delay cannot explain: a stable model of the same order with "
+           f"free zeros needs {rhp.size} right-half-plane zero(s) (|z| = {_freqs(rhp)} "
+           f"{data.unit}) and reaches RMS relative error {vrms:.3g} (max {vmax:.3g}) against "
+           f"{rms_rel_error:.3g} (max {max_rel_error:.3g}) for the minimum-phase fit; "
+           "refit with zeros='free' (stable poles, zeros anywhere: the model is then not "
+           "minimum phase) or accept the minimum-phase model's error")
+    return (Diagnostic("non-minimum-phase", msg, "warning", values),)
+
+
+def rhp_zeros_note(model):
+    """``non-minimum-phase`` "info" record for a model fitted with ``zeros="free"`` that
+    has right-half-plane zeros (empty if it has none).
+
+    Parameters
+    ----------
+    model : RationalDelayModel
+
+    Returns
+    -------
+    tuple of Diagnostic
+    """
+    z = model.zeros()
+    rhp = z[z.real > 0]
+    if rhp.size == 0:
+        return ()
+    msg = (f"the model is not minimum phase (zeros='free'): {rhp.size} right-half-plane "
+           f"zero(s), |z| = {_freqs(rhp)} rad/s; its poles are stable")
+    return (Diagnostic("non-minimum-phase", msg, "info",
+                       {"n_rhp_zeros": int(rhp.size),
+                        "rhp_zeros": [[float(r.real), float(r.imag)] for r in rhp]}),)
+
+
+def check_roots_below_band(model, data, fraction=BELOW_BAND):
+    """``root-below-band`` records: poles / zeros of P_N with ``|r| < fraction * omega_min``
+    (the integrator's pole, asked for, is not counted).
+
+    Within the band such a pole acts as ``1/s`` (an integrator, with the gain it takes
+    from its partner), such a zero as ``s``: the data ask for a model the fit's structure
+    does not have; the fit keeps the root at its floor (``LoopOptions.root_floor``).
+
+    Parameters
+    ----------
+    model : RationalDelayModel
+    data : FrequencyData
+    fraction : float
+        Default :data:`BELOW_BAND`.
+
+    Returns
+    -------
+    tuple of Diagnostic
+    """
+    if model.n_sections == 0:
+        return ()
+    w_min = float(data.omega[0])
+    found = []
+    for kind, roots, stands in (("pole", model.poles()[int(model.integrator):],
+                                 "an integrator (refit with integrator=True)"),
+                                ("zero", model.zeros(), "a differentiator (a zero at 0)")):
+        low = roots[np.abs(roots) < fraction * w_min]
+        if low.size == 0:
+            continue
+        fu = data.unit
+        msg = (f"{low.size} {kind}(s) at |r| = {_freqs(low)} {fu}, far "
+               f"below the lowest data frequency {w_min:.4g} {fu}: the data cannot tell "
+               f"them from 0 and ask for {stands}")
+        found.append(Diagnostic("root-below-band", msg, "warning",
+                                {"kind": kind, "roots": [[float(r.real), float(r.imag)]
+                                                         for r in low],
+                                 "omega_min": w_min, "fraction": float(fraction)}))
+    return tuple(found)

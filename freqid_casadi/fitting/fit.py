@@ -1,0 +1,473 @@
+"""The public :func:`fit` and its :class:`FitResult` (layer L5).
+
+:func:`fit` checks the data and options, runs the starts (:mod:`freqid_casadi.fitting.mainloop`:
+the thesis's sequential main loop, SPEC §2, and/or the rational start), keeps the better,
+optionally polishes the max error, and checks the model against the frequency resolution
+(:mod:`freqid_casadi.core.resolution`). Every stage is one NLP (:mod:`freqid_casadi.fitting.stages`,
+:mod:`freqid_casadi.solvers`).
+"""
+
+import dataclasses
+import functools
+import math
+import sys
+import time
+import warnings
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .candidates import Candidate, choose, zero_delay_run
+from ._checks import (GAIN_SIGNS, after_fit, check_model_class, check_progress, success_of,
+                      validate, zeta_min_of)
+from .._validate import check_choice, check_flag
+from ..core.data import FrequencyData
+from .delay_hold import hold_undetermined_delay
+from .delay_search import delay_search_run
+from .far_roots import far_root_run
+from .diagnostics import check_gain_sign
+from ..errors import FreqidError, OptionError, ResolutionWarning
+from .mainloop import LoopContext, minimax, rational, sequential
+from ..core.metrics import relative_error
+from ..core.model import RationalDelayModel, Structure
+from ..options import (INITS, LEGACY_KEYWORDS, METHODS, WARM_STARTS, FitOptions, LoopOptions,
+                      legacy_message, solver_options)
+from ..core.scaling import (check_finite_result, reference_scales, scale_data, unscale_model,
+                      weighted_span)
+from ..core.resolution import check_resolution, default_delay_max, resolution_damping
+from .._threads import single_threaded_blas
+from .stages import Kept, StageKind, StageRecord, StageSolver
+from .start import RationalStartError
+
+__all__ = ["fit", "FitResult", "StageRecord", "Kept", "StageKind", "METHODS", "INITS",
+           "WARM_STARTS", "STARTS", "OBJECTIVES", "GAIN_SIGNS", "default_delay_max",
+           "resolution_damping"]
+
+STARTS = ("sequential", "rational", "best")
+OBJECTIVES = ("least-squares", "minimax")
+
+
+@dataclass(frozen=True, eq=False)
+class FitResult:
+    """Result of :func:`fit`.
+
+    Attributes
+    ----------
+    model : RationalDelayModel
+        The fitted model (stable and minimum phase by construction: beta >= 0).
+    stages : tuple of StageRecord
+    data : FrequencyData
+    rel_error : ndarray of float, shape (M,)
+        |(Phi - G_N)/G_N| at every data point.
+    max_rel_error, rms_rel_error : float
+    success : bool
+        True when the final model is at a (local) optimum within tolerance: the final
+        all-data stage converged (IPOPT's tolerance, or the scale-free relative
+        stationarity test of :mod:`freqid_casadi.solvers.termination`, which a fit at
+        machine precision passes) and the model is better than an infinite gain (RMS
+        relative error < 1). ``message`` says why not.
+    wall_time : float
+        Seconds for the whole fit.
+    method : str
+        "ipopt" or "barrier-lm" (the type of ``options.solver``).
+    options : FitOptions
+        The options the fit ran with: fit's keywords and the typed ``solver``
+        (IpoptOptions or BarrierLMOptions) and ``loop`` (LoopOptions) objects.
+    start : str
+        Which start produced the model ("sequential" or "rational").
+    objective : str
+        "least-squares", or "minimax" if the max-error polish (p-norm continuation) ran.
+    resolution : freqid_casadi.core.resolution.ResolutionCheck or None
+        The model checked against the data's frequency spacing (None for the first-order
+        basis, whose real roots are never narrow); when ``resolution.ok`` is False,
+        :func:`fit` also issued a :class:`~freqid_casadi.errors.ResolutionWarning`.
+    start_max_rel_errors : dict of str to float
+        Max relative error over all data of the model of each start that ran
+        ("sequential", "rational"), before the minimax polish.
+    delay_max : float
+        Upper bound of the delay used (s): ``LoopOptions.delay_max`` or
+        :func:`default_delay_max` of the data.
+    zeta_min : float or None
+        The damping floor used (``min_damping`` resolved; None without one).
+    diagnostics : tuple of Diagnostic
+        What the checks before and after the fit found about the data and the model
+        class (:mod:`freqid_casadi.fitting.diagnostics`): ``negative-gain``,
+        ``non-minimum-phase``, ``delay-undetermined``, ``no-better-than-trivial``. A
+        record of severity "error" makes ``success`` False.
+    candidate_max_rel_errors : dict of str to float
+        Max relative error of every candidate :func:`fit` chose from: the starts and,
+        with a delay, each start's model at h = 0 ("<start> at h=0") and, for a start
+        that did not converge, its delay search ("<start>, delay search",
+        :mod:`freqid_casadi.fitting.delay_search`) and its roots far above the band at infinity
+        ("<start>, far roots", :mod:`freqid_casadi.fitting.far_roots`), see
+        :func:`~freqid_casadi.fitting.candidates.choose`.
+    message : str
+        Why ``success`` is what it is: the final stage's termination (with the relative
+        stationarity numbers) or the reason the fit is not a success.
+    """
+
+    model: RationalDelayModel
+    stages: tuple
+    data: FrequencyData
+    rel_error: np.ndarray
+    max_rel_error: float
+    rms_rel_error: float
+    success: bool
+    wall_time: float
+    method: str
+    options: FitOptions = None
+    start: str = "sequential"
+    objective: str = "least-squares"
+    resolution: object = None
+    start_max_rel_errors: dict = field(default_factory=dict)
+    candidate_max_rel_errors: dict = field(default_factory=dict)
+    delay_max: float = math.nan
+    zeta_min: float = None
+    diagnostics: tuple = ()
+    message: str = ""
+
+    @property
+    def delay(self):
+        return self.model.delay
+
+    def options_dict(self):
+        """Flat dict of the options (:meth:`FitOptions.as_dict`) with the values the fit
+        used: ``delay_max`` and ``min_damping`` resolved, ``start_max_rel_errors`` and
+        ``start_used``; for reports and JSON."""
+        out = self.options.as_dict() if self.options is not None else {}
+        out.update(delay_max=self.delay_max, min_damping=self.zeta_min,
+                   start_max_rel_errors=dict(self.start_max_rel_errors),
+                   start_used=self.start)
+        return out
+
+    @functools.cached_property
+    def uncertainty(self):
+        """How well the data determine the model: the covariance of its physical
+        parameters (delay, log gain, each factor's natural frequency and damping) from the
+        weighted Jacobian of the relative residual at the optimum, with the noise variance
+        from the residuals (or the data's weights), propagated to every mode, the gain and
+        the delay (``delay_std``, ``gain_std``, ``modes[k].omega_n_std``, ``zeta_std``);
+        parameters at a bound are reported as at the bound. Computed on first access
+        (:func:`freqid_casadi.uncertainty.covariance.parameter_uncertainty`).
+
+        Returns
+        -------
+        freqid_casadi.uncertainty.covariance.ParameterUncertainty
+        """
+        from ..uncertainty.covariance import parameter_uncertainty
+
+        return parameter_uncertainty(self)
+
+    @property
+    def nit(self):
+        """IPOPT/LM iterations summed over all stages."""
+        return int(sum(s.nit for s in self.stages))
+
+    def modes(self):
+        """The model's modes (:func:`freqid_casadi.core.modes.modes`): tuple of Mode, one residue
+        each, by increasing frequency, with ``omega_n_std`` and ``zeta_std`` from
+        :attr:`uncertainty` (None where the covariance cannot be formed).
+
+        Returns
+        -------
+        tuple of freqid_casadi.core.modes.Mode
+        """
+        from ..uncertainty.covariance import with_std
+        from ..core.modes import modes
+
+        found = modes(self.model)
+        try:
+            return with_std(found, self.uncertainty)
+        except (FreqidError, np.linalg.LinAlgError, ArithmeticError):
+            return found
+
+    def summary(self):
+        """One line (and one more per diagnostic): errors, delay, time, status."""
+        m = self.model
+        line = (f"{self.data.name or 'data'}: {m.n_sections} sections (order {m.order}), "
+                f"max rel. error {self.max_rel_error:.4g}, RMS {self.rms_rel_error:.4g}, "
+                f"delay {m.delay:.6g} {self.data.time_unit}, "
+                f"{self.wall_time:.2f} s, method {self.method}, "
+                + ("converged" if self.success else f"NOT converged ({self.message})"))
+        return "\n".join([line] + [f"  {d.severity}: {d}" for d in self.diagnostics])
+
+
+def _reject_old_keywords(function):
+    """Wrap ``function`` so that a keyword it no longer takes raises a TypeError naming
+    the option object it moved to (:data:`~freqid_casadi.options.LEGACY_KEYWORDS`);
+    ``__wrapped__`` keeps the real signature for :func:`inspect.signature`."""
+
+    @functools.wraps(function)
+    def wrapper(*args, **kwargs):
+        for name in kwargs:
+            if name in LEGACY_KEYWORDS:
+                raise TypeError(legacy_message(function.__name__, name, kwargs[name]))
+        return function(*args, **kwargs)
+
+    return wrapper
+
+
+@_reject_old_keywords
+def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=True,
+        basis="second-order", method="ipopt", tol=None, weights=None, start="sequential",
+        objective="least-squares", min_damping=None, progress=False, loop=None,
+        gain_sign="auto", zeros="minimum-phase"):
+    """Fit ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` to frequency-response data.
+
+    Parameters
+    ----------
+    data_or_omega : FrequencyData or array_like of float, shape (M,)
+        The data, or the frequencies in rad/s (then ``response`` is required).
+    response : array_like of complex, shape (M,), optional
+        G(j omega) when ``data_or_omega`` is the frequency array.
+    n_sections : int
+        Number of sections N >= 1 (order 2N, or 2N+1 with the integrator; N with the
+        first-order basis).
+    integrator : bool
+        Include the factor K0/s.
+    delay : bool
+        Fit a delay h >= 0 (else h = 0).
+    basis : {"second-order", "first-order"}
+    method : {"ipopt", "barrier-lm"} or IpoptOptions or BarrierLMOptions
+        The stage solver: IPOPT with true bounds (the package's method) or the thesis's
+        log-barrier + Levenberg-Marquardt (SPEC §3). A string means that method's default
+        options; an option object (:mod:`freqid_casadi.options`) selects the method by its
+        type and carries its knobs (Hessian, warm start, iteration limits, extra IPOPT or
+        LM options).
+    tol : float, optional
+        Stop adding sections once the max relative error over all data is below ``tol``.
+    weights : array_like of float, shape (M,), optional
+        Weights of the squared relative residuals (overrides ``data.weights``); only their
+        ratios matter (the fit divides them by a power of two near their mean). At least
+        as many points as parameters need a weight > 0; points of weight 0 below the first
+        weighted one are left out of the loop's windows (their error is still reported).
+    start : {"sequential", "rational", "best"}
+        "sequential" is the thesis's main loop; "rational" fits all sections at once by
+        vector fitting with the delay refined from the right-half-plane zeros
+        (:mod:`freqid_casadi.fitting.start`), then polishes everything by one IPOPT stage on all
+        data; "best" runs both and keeps, among the models within 10 % of the lowest max
+        relative error, a converged one if any, then the lower RMS error
+        (:func:`~freqid_casadi.fitting.candidates.choose`; ``FitResult.start`` says which won).
+        With a delay, every start also tries the same model at h = 0, polished without
+        the delay, so a fit with a delay is never worse than that fit at h = 0.
+    objective : {"least-squares", "minimax"}
+        "minimax" adds a polish of the max relative error: a continuation in p of the
+        p-norm of the residuals (p = 4 ... 1024, :data:`PNORM_SCHEDULE`), each stage an
+        IPOPT NLP with true bounds; kept only if it lowers the max relative error (and the
+        start is below 1).
+    min_damping : {None, "auto"} or float
+        A floor on the damping ratio of every pole and zero, imposed as constraints of each
+        stage NLP (``c1^2 >= 4 zeta_min^2 c2`` per quadratic; dc gauge, second-order
+        basis, IPOPT). "auto" ties it to the data's frequency resolution
+        (:func:`resolution_damping`): no pole or zero narrower than the local spacing, so
+        a pole/zero pair cannot fit noise at one sample and be wrong between samples. For
+        noisy data (it biases lightly damped modes narrower than the spacing); the value
+        used is ``FitResult.zeta_min``.
+    progress : bool or callable
+        True writes a line per stage to stderr; a callable receives each StageRecord.
+    loop : LoopOptions, optional
+        Knobs of the main loop (gauge, new-section init, scaling, delay bound, final
+        stage, derivative evaluation); default ``LoopOptions()``.
+    gain_sign : {"auto", "positive", "negative"}
+        Sign of the gain K. "auto" takes it from the data's low-frequency phase
+        (integrator removed): near +-180 deg means a negative static gain (a sign-inverted
+        sensor or transmissibility), fitted as ``-(fit of -Phi)`` and stated by a
+        ``negative-gain`` diagnostic.
+    zeros : {"minimum-phase", "free"}
+        "minimum-phase" (the thesis's class): every zero in the closed left half plane.
+        "free": the numerators are unbounded (zeros anywhere, e.g. non-collocated sensors
+        or accelerances whose excess phase no delay explains), the poles stay stable by
+        their bounds; needs the IPOPT method, the dc gauge and no damping floor.
+
+    Returns
+    -------
+    FitResult
+
+    Raises
+    ------
+    DataError, StructureError, OptionError
+        Bad data or options (checked before any solve).
+    TypeError
+        A keyword fit() no longer takes (``gauge=``, ``hessian=``, ...): the message names
+        the option object and field it moved to.
+    """
+    integrator, delay = check_flag("integrator", integrator), check_flag("delay", delay)
+    progress = check_progress(progress)
+    kw = dict(integrator=integrator, basis=basis, method=method, tol=tol, start=start,
+              objective=objective, min_damping=min_damping, loop=loop, gain_sign=gain_sign,
+              zeros=zeros)
+    with single_threaded_blas():
+        return _fit_held(data_or_omega, response, n_sections=n_sections, delay=delay,
+                         progress=progress, weights=weights, **kw)
+
+
+def _fit_held(data_or_omega, response, *, progress, weights, **kw):
+    """:func:`_fit`, then :func:`~freqid_casadi.fitting.delay_hold.hold_undetermined_delay` (its
+    refits quiet, on the fit's data with its weights, held in turn)."""
+    result = _fit(data_or_omega, response, progress=progress, weights=weights, **kw)
+
+    def refit(data, n_sections, delay):
+        return _fit_held(data, None, progress=False, weights=None,
+                         **dict(kw, n_sections=n_sections, delay=delay))
+
+    return hold_undetermined_delay(result, refit)
+
+
+def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, method, tol,
+         progress, weights, start, objective, min_damping, loop, gain_sign, zeros):
+    t_start = time.perf_counter()
+    solver = solver_options(method)
+    loop = LoopOptions() if loop is None else loop
+    if not isinstance(loop, LoopOptions):
+        raise OptionError(f"loop must be a LoopOptions or None, got {type(loop).__name__}; "
+                          "pass loop=LoopOptions(gauge=..., init=..., ...)")
+    data = validate(data_or_omega, response, n_sections, basis, tol, integrator, weights)
+    check_choice("start", start, STARTS)
+    check_choice("objective", objective, OBJECTIVES)
+    check_model_class(gain_sign, zeros, solver.method, loop.gauge, min_damping)
+    sign, found = check_gain_sign(data, integrator, gain_sign)
+    user_data = data
+    if sign == -1:                  # a negative gain: fit -Phi, the model gets gain_sign -1
+        data = FrequencyData(data.omega, -data.response, data.name, data.weights)
+    # the problem is scale free: fit omega / w_ref and response / g_ref (powers of two, so
+    # O(1) data is fitted bit for bit as given) and map the model back (issue 13 item 3)
+    w_ref, g_ref = reference_scales(data)
+    data = scale_data(data, w_ref, g_ref)
+    fit_data = weighted_span(data)  # the loop starts at the first point with a weight > 0
+    zeta_min = zeta_min_of(min_damping, fit_data.omega, solver.method, loop.gauge, basis)
+    dmax = (float(loop.delay_max) * w_ref if loop.delay_max is not None
+            else default_delay_max(fit_data.omega))
+    user_callback, unscaled = _progress_callback(progress), {}
+
+    def callback(rec):              # the user sees (and FitResult keeps) the same records
+        unscaled[id(rec)] = (rec, _unscale_record(rec, w_ref))
+        user_callback(unscaled[id(rec)][1])
+
+    ctx = LoopContext(
+        data=fit_data, callback=callback,
+        solve=StageSolver(solver, loop, zeta_min),
+        structure=Structure(int(n_sections), integrator, delay, basis, zeros), loop=loop,
+        warm_start=solver.warm_start, delay_max=dmax, final_max_iter=solver.final_max_iter,
+        zeta_min=zeta_min)
+    options = FitOptions(n_sections=int(n_sections), integrator=bool(integrator),
+                         delay=bool(delay), basis=basis, method=solver.method, tol=tol,
+                         start=start, objective=objective, min_damping=min_damping,
+                         solver=solver, loop=loop)
+    param, z, records, won, errors, cand_errors = _run_starts(ctx, start, tol, fit_data)
+    if objective == "minimax":
+        z, rec = minimax(ctx, param, z)
+        records.append(rec)
+    model_scaled = param.to_model(z)
+    stats = relative_error(model_scaled, data)
+    check_finite_result(model_scaled.structure, model_scaled.beta, stats.values)
+    model = unscale_model(model_scaled, w_ref, g_ref)
+    if sign == -1:
+        model = RationalDelayModel(dataclasses.replace(model.structure, gain_sign=-1),
+                                   model.beta)
+    records = [unscaled[id(r)][1] if id(r) in unscaled else _unscale_record(r, w_ref)
+               for r in records]
+    data = user_data       # stats stay those of the scaled problem (the same numbers, and
+                           # no overflow of the model at the user's extreme omega)
+    final = [r for r in records if r.kept != Kept.MINIMAX_REJECTED
+             and r.kind != StageKind.RATIONAL_START] or records
+    check = _resolution_check(model, data.omega)
+    with np.errstate(all="ignore"):     # extreme user scales: a check may give up, not warn
+        found += after_fit(model, data, stats, dmax / w_ref)
+    success, message = success_of(final[-1], stats)
+    errors_found = [d for d in found if d.severity == "error"]
+    if success and errors_found:
+        success, message = False, f"{errors_found[0].code}: {errors_found[0].message}"
+    return FitResult(model=model, stages=tuple(records), data=data, rel_error=stats.values,
+                     max_rel_error=stats.max, rms_rel_error=stats.rms,
+                     success=success, message=message, wall_time=time.perf_counter() - t_start,
+                     method=solver.method, options=options, start=won, objective=objective,
+                     resolution=check, start_max_rel_errors=errors,
+                     candidate_max_rel_errors=cand_errors, delay_max=dmax / w_ref,
+                     zeta_min=zeta_min, diagnostics=found)
+
+
+def _run_starts(ctx, start, tol, data):
+    """Run the starts ``start`` asks for and keep one (:func:`candidates.choose`, the h = 0
+    model of each start a candidate too); returns ``(param, z, records, won, errors,
+    cand_errors)``."""
+    runs = {}
+    if start in ("sequential", "best"):
+        runs["sequential"] = sequential(ctx, tol)
+    if start in ("rational", "best"):
+        # the delay update of the rational start only sees a delay that is too small (it
+        # shows as right-half-plane zeros), so it always starts from h = 0
+        try:
+            runs["rational"] = rational(ctx, 0.0)
+        except RationalStartError:
+            if start == "rational":
+                raise
+    cands = [Candidate.of(name, run, data) for name, run in runs.items()]
+    for cand in list(cands):
+        zero = zero_delay_run(ctx, cand.run)
+        if zero is not None:
+            cands.append(Candidate.of(f"{cand.name} at h=0", zero, data, cand.start))
+    # rescues of an unconverged fit, each from the candidate the fit would then keep (the
+    # starts' delays are close: a delay search from each would probe the same delays)
+    for label, rescue in (("delay search", delay_search_run), ("far roots", far_root_run)):
+        first = choose(cands) if cands else None
+        if first is not None and not first.success:
+            found = rescue(ctx, first.run)             # (reports its own records)
+            if found is not None:
+                cands.append(Candidate.of(f"{first.start}, {label}", found, data,
+                                          first.start))
+    cand_errors = {c.name: c.max_rel_error for c in cands}
+    errors = {k: v for k, v in cand_errors.items() if k in runs}
+    kept = choose(cands)
+    won = kept.start
+    param, z, lam, records = kept.run
+    if kept.name.endswith(" at h=0"):
+        ctx.callback(records[-1])
+    return param, z, records, won, errors, cand_errors
+
+
+def _resolution_check(model, omega):
+    """The model checked against the frequency spacing (None for first-order sections,
+    whose real roots are never narrow), with a ResolutionWarning when it fails."""
+    if model.structure.basis != "second-order" or not model.n_sections:
+        return None
+    check = check_resolution(model, omega)
+    if not check.ok:
+        warnings.warn(
+            f"the model has {len(check.flags)} near-cancelling pole/zero pair(s) and "
+            f"{len(check.unresolved)} pole(s)/zero(s) narrower than the frequency spacing: "
+            "features between the samples that the data does not determine (typical of "
+            "noisy data); inspect FitResult.resolution, refit with min_damping='auto' (a "
+            "damping floor from the frequency spacing), remove them with "
+            "freqid_casadi.fitting.validation.prune_sections, or fit fewer sections",
+            ResolutionWarning, stacklevel=6)
+    return check
+
+
+def _unscale_record(rec, w_ref):
+    """A stage record of the scaled problem in the user's units (rad/s, s)."""
+    return dataclasses.replace(rec, omega_c=rec.omega_c * w_ref, delay=rec.delay / w_ref)
+
+
+def _progress_callback(progress):
+    if callable(progress):
+        return progress
+    if not progress:
+        return lambda rec: None
+
+    def write(rec):
+        where = "" if math.isnan(rec.omega_c) else f" at {rec.omega_c:.4g} rad/s"
+        label = {StageKind.RATIONAL_START: ("rational start" if rec.message == "rational start"
+                                            else f"{rec.message} (vector fits)"),
+                 StageKind.MINIMAX: rec.kept, StageKind.FINAL: "final",
+                 StageKind.DELAY_SEARCH: "delay search, polish",
+                 StageKind.FAR_ROOTS: "far roots at infinity, polish",
+                 StageKind.ZERO_DELAY: "at h = 0"}.get(rec.kind, f"stage {rec.stage:2d}")
+        sys.stderr.write(
+            f"{label}: {rec.n_sections:2d} sections{where}, window {rec.window}, "
+            f"max rel. error {rec.max_rel_error:.3e} (window {rec.max_rel_error_window:.3e}), "
+            f"{rec.nit} it, {rec.wall_time:.2f} s, {rec.solver_status}\n")
+        sys.stderr.flush()
+
+    return write
+
+

@@ -1,0 +1,273 @@
+"""A global start for the fit: a linear-algebra rational fit turned into sections (layer L4).
+
+The sequential loop of the thesis stops far from what its model structure can do. This
+start fits all sections at once: for a trial delay, the data with the integrator and the delay removed, ``Phi(jw) * [jw] * exp(jwh)``, is fitted by relaxed vector
+fitting with pole flipping (:func:`freqid_casadi.baselines.vector_fitting`, relative
+weighting); right-half-plane zeros are reflected to the left half plane (same magnitude,
+the phase difference is left to the delay), poles and zeros are paired into sections
+(sorted by frequency), the gain is fitted in closed form. The delay is then updated from the
+reflected zeros' group delay, a few times, and the trial with the lowest max relative error
+wins. The caller then polishes all parameters, delay included, by
+one IPOPT stage on all data (:func:`freqid_casadi.fitting.fit.fit` with ``start="rational"``).
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core.data import FrequencyData
+from ..errors import OptionError, SolverError
+from ..core.model import RationalDelayModel
+
+__all__ = ["RationalStart", "RationalStartError", "rational_start", "sections_from_roots"]
+
+
+class RationalStartError(SolverError):
+    """Vector fitting gave no usable model at any trial delay (fit's ``start="best"``
+    then keeps the sequential start; ``start="rational"`` raises it)."""
+
+
+@dataclass(frozen=True)
+class RationalStart:
+    """The start found by :func:`rational_start`.
+
+    Attributes
+    ----------
+    model : RationalDelayModel
+        Stable, minimum-phase start (beta >= 0).
+    delay : float
+        The chosen trial delay (s).
+    max_rel_error : float
+        Of ``model`` on the data.
+    delays, errors : ndarray of float, shape (n_delays,)
+        The scanned delays (s) and the max relative error of each start.
+    n_rhp_zeros_reflected : int
+        Right-half-plane zeros of the chosen vector fit that were reflected.
+    """
+
+    model: RationalDelayModel
+    delay: float
+    max_rel_error: float
+    delays: np.ndarray
+    errors: np.ndarray
+    n_rhp_zeros_reflected: int
+
+
+def _quadratics(roots, n_factors, floor):
+    """Split roots (closed LHP) into ``n_factors`` factors, each given as (c2, c1, c0) of
+    ``c2 s^2 + c1 s + c0`` with c >= 0, at most two roots each, sorted by |root|."""
+    roots = np.asarray(roots, complex)
+    cplx = roots[roots.imag > 1e-12 * np.maximum(1.0, np.abs(roots))]
+    real = np.sort(-np.abs(roots[np.abs(roots.imag) <= 1e-12 * np.maximum(1.0, np.abs(roots))]
+                           .real))[::-1]
+    factors = []
+    for r in cplx:                                     # one of each conjugate pair
+        w = max(abs(r), floor)
+        factors.append((abs(r), (1.0, max(-2 * r.real, 0.0), w * w)))
+    real = [min(r, -floor) for r in real]              # closed LHP, away from 0
+    for k in range(0, len(real) - 1, 2):
+        r1, r2 = real[k], real[k + 1]
+        factors.append((np.sqrt(r1 * r2), (1.0, -(r1 + r2), r1 * r2)))
+    if len(real) % 2:
+        r = real[-1]
+        factors.append((abs(r), (0.0, 1.0, -r)))        # s + |r|
+    factors.sort(key=lambda f: f[0])
+    while len(factors) < n_factors:
+        factors.append((np.inf, (0.0, 0.0, 1.0)))       # constant 1: roots at infinity
+    if len(factors) > n_factors:                         # too many roots: merge is wrong;
+        raise OptionError(f"{len(factors)} factors for {n_factors} sections")  # pragma: no cover
+    return [f[1] for f in factors]
+
+
+def _free_quadratics(roots, n_factors, floor):
+    """As :func:`_quadratics` for roots anywhere (free zeros): real ``(c2, c1, c0)`` with
+    ``c0 > 0`` (a factor with a negative constant term is negated; the gain absorbs the
+    sign), real roots paired in order of magnitude whatever their signs."""
+    roots = np.asarray(roots, complex)
+    tol = 1e-12 * np.maximum(1.0, np.abs(roots))
+    factors = [(abs(r), (1.0, -2 * r.real, max(abs(r), floor) ** 2))
+               for r in roots[roots.imag > tol]]
+    real = roots[np.abs(roots.imag) <= tol].real
+    real = real[np.argsort(np.abs(real))]
+    real = [np.copysign(max(abs(r), floor), r if r != 0 else -1.0) for r in real]
+    for k in range(0, len(real) - 1, 2):
+        r1, r2 = real[k], real[k + 1]
+        c = (1.0, -(r1 + r2), r1 * r2)
+        factors.append((np.sqrt(abs(r1 * r2)), c if c[2] > 0 else tuple(-x for x in c)))
+    if len(real) % 2:
+        r = real[-1]
+        factors.append((abs(r), (0.0, 1.0, -r) if r < 0 else (0.0, -1.0, r)))
+    factors.sort(key=lambda f: f[0])
+    while len(factors) < n_factors:
+        factors.append((np.inf, (0.0, 0.0, 1.0)))
+    if len(factors) > n_factors:                          # pragma: no cover
+        raise RationalStartError(f"{len(factors)} factors for {n_factors} sections")
+    return [f[1] for f in factors]
+
+
+def _theta(c2, c1, c0):
+    """Thesis (a, zeta, omega) and scale s with ``c2 s^2 + c1 s + c0 = (a s^2 + 2 zeta omega
+    s + omega^2) * s_scale``... returned as (a, zeta, omega, scale)."""
+    omega = np.sqrt(c0)
+    scale = 1.0                                        # c0 = omega^2 exactly
+    return c2, c1 / (2 * omega), omega, scale
+
+
+def sections_from_roots(poles, zeros, n_sections, *, basis="second-order", floor=1e-9,
+                        free_zeros=False):
+    """Section parameters (thesis order) whose roots are ``poles`` and ``zeros``.
+
+    Roots must already be in the closed left half plane (``zeros`` anywhere with
+    ``free_zeros``); they are paired by frequency.
+
+    Parameters
+    ----------
+    poles, zeros : array_like of complex
+        The roots (closed left half plane).
+    n_sections : int
+    basis : {"second-order", "first-order"}
+    floor : float
+        Smallest root magnitude used (rad/s): roots at 0 are moved to ``floor``.
+    free_zeros : bool
+        Zeros anywhere (second-order basis): numerators may have negative ``a`` or
+        ``zeta_num`` (a model structure with ``zeros="free"``).
+
+    Returns
+    -------
+    theta : ndarray, shape (n_sections, 6) or (n_sections, 4)
+    scale : float
+        ``prod num_k / prod den_k`` equals ``scale * prod (s - z)/(s - p)`` up to the
+        leading coefficients; the caller fits the gain anyway.
+    """
+    if basis == "second-order":
+        dens = _quadratics(poles, n_sections, floor)
+        nums = (_free_quadratics if free_zeros else _quadratics)(zeros, n_sections, floor)
+        rows = []
+        for (n2, n1, n0), (d2, d1, d0) in zip(nums, dens):
+            a, zn, wn, _ = _theta(n2, n1, n0)
+            b, zd, wd, _ = _theta(d2, d1, d0)
+            rows.append([a, zn, wn, b, zd, wd])
+        return np.array(rows), 1.0
+    p = np.sort(np.abs(np.asarray(poles, complex).real))
+    z = np.sort(np.abs(np.asarray(zeros, complex).real))
+    rows = []
+    for k in range(n_sections):
+        pk = max(p[k], floor) if k < p.size else None
+        zk = max(z[k], floor) if k < z.size else None
+        rows.append([1.0 if zk else 0.0, zk or 1.0, 1.0 if pk else 0.0, pk or 1.0])
+    return np.array(rows), 1.0
+
+
+def _fit_gain(model_unit, omega, target):
+    """Gain K > 0 minimising sum |target/(K P) - 1|^2 (closed form in 1/K)."""
+    u = target / model_unit.rational_response(omega)
+    c = float(np.sum(u.real) / np.sum(np.abs(u) ** 2))
+    return 1.0 / c if c > 0 else float(np.median(np.abs(u)))
+
+
+def _start_at(vector_fitting, data, structure, base, h, n_poles, n_iter, floor):
+    """Vector fit at trial delay h -> (model, max rel. error, rhp zeros, group-delay step)."""
+    omega, phi = data.omega, data.response
+    s = 1j * omega
+    vf = vector_fitting(FrequencyData(omega, base * np.exp(s * h)), n_poles, n_iter=n_iter,
+                        enforce_stable_poles=True)
+    poles = vf.poles()
+    d = float(np.squeeze(vf.D))
+    scale = float(np.max(np.abs(base)))
+    if abs(d) > 1e-10 * scale:
+        # zeros of C (sI - A)^-1 B + D: eig(A - B C / D), exact for a biproper SISO fit and
+        # much faster than the general pencil (SLICOT AB08ND)
+        zeros = np.linalg.eigvals(np.asarray(vf.A) - np.outer(vf.B, vf.C) / d)
+    else:
+        zeros = vf.zeros()
+    zeros = zeros[np.isfinite(zeros)]
+    free = structure.zeros == "free"
+    # with free zeros only the right-half-plane zeros beyond the band stand for a delay
+    # (their phase is nearly linear in omega there); those inside are kept as zeros
+    rhp_mask = (zeros.real > 0) & ((np.abs(zeros) > omega[-1]) if free else True)
+    rhp = zeros[rhp_mask]
+    # each RHP zero z contributes the all-pass (s - z)/(s + conj z), whose group delay at
+    # low frequency is 2 Re z / |z|^2: the delay the fit is missing
+    step = float(np.sum(2 * rhp.real / np.abs(rhp) ** 2))
+    poles = np.where(poles.real > 0, -poles.conj(), poles)
+    zeros = np.where(rhp_mask, -zeros.conj(), zeros)
+    zeros = zeros[np.argsort(np.abs(zeros))][:n_poles]
+    theta, _ = sections_from_roots(poles, zeros, structure.n_sections,
+                                   basis=structure.basis, floor=floor,
+                                   free_zeros=free and structure.basis == "second-order")
+    beta = np.concatenate([[h, 1.0], theta.ravel()])
+    gain = _fit_gain(RationalDelayModel(structure, beta), omega, phi * np.exp(s * h))
+    if not (np.isfinite(gain) and gain > 0):
+        return None, np.inf, rhp.size, step
+    beta[1] = gain
+    model = RationalDelayModel(structure, beta)
+    err = float(np.max(model.relative_error(data)))
+    return model, (err if np.isfinite(err) else np.inf), int(rhp.size), step
+
+
+def rational_start(data, structure, *, delay_max, delay0=0.0, max_delay_updates=12,
+                   n_iter=10):
+    """Stable, minimum-phase start for all sections at once (see the module docstring).
+
+    Parameters
+    ----------
+    data : FrequencyData
+    structure : Structure
+        Number of sections, basis, integrator and delay of the model to start.
+    delay_max : float
+        Largest delay (s) tried.
+    delay0 : float
+        First trial delay (s), e.g. the sequential loop's estimate.
+    max_delay_updates : int
+        Delay updates ``h <- h + sum_{RHP zeros} 2 Re z/|z|^2``: a delay missing from the
+        data's phase is fitted by right-half-plane zeros, whose low-frequency group delay
+        estimates it. The updates are safeguarded by a bracket (a fit with RHP zeros means
+        the delay is too small; bisection when a step leaves the bracket) and stop when a
+        minimum-phase fit is reached with a tight bracket or a tiny error.
+    n_iter : int
+        Vector-fitting iterations per trial delay.
+
+    Returns
+    -------
+    RationalStart
+        The best (lowest max relative error) of the trial delays.
+    """
+    from ..baselines import vector_fitting
+
+    s = 1j * data.omega
+    base = data.response * s if structure.integrator else data.response
+    n_poles = structure.n_sections * (2 if structure.basis == "second-order" else 1)
+    floor = 1e-6 * data.omega[0]
+    h = float(np.clip(delay0, 0.0, delay_max)) if structure.delay else 0.0
+    lo, hi = 0.0, float(delay_max)           # bracket: below lo the fit needs RHP zeros
+    best = None
+    delays, errors = [], []
+    for _ in range(max_delay_updates if structure.delay else 1):
+        try:
+            model, err, n_rhp, step = _start_at(vector_fitting, data, structure, base, h,
+                                                n_poles, n_iter, floor)
+        except (ValueError, np.linalg.LinAlgError, ArithmeticError):
+            model, err, n_rhp, step = None, np.inf, 1, 0.0
+        delays.append(h)
+        errors.append(err)
+        if model is not None and (best is None or err < best[2]):
+            best = (model, h, err, n_rhp)
+        if n_rhp > 0:
+            lo = max(lo, h)                  # the delay is too small: RHP zeros model it
+            new_h = h + step
+            if not lo < new_h < hi:          # the step leaves the bracket: bisect
+                new_h = 0.5 * (lo + hi)
+        else:
+            hi = min(hi, h)                  # minimum phase already: not too small
+            new_h = 0.5 * (lo + hi)
+            if err < 1e-9 or hi - lo <= 1e-3 * max(hi, 1e-12):
+                break
+        if abs(new_h - h) <= 1e-12 * max(1.0, h):
+            break
+        h = float(new_h)
+    if best is None:
+        raise RationalStartError("the rational start failed (vector fitting gave no usable model); "
+                          "use start='sequential'")
+    return RationalStart(model=best[0], delay=float(best[1]), max_rel_error=best[2],
+                         delays=np.asarray(delays, float), errors=np.asarray(errors, float),
+                         n_rhp_zeros_reflected=best[3])

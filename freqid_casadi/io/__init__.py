@@ -1,0 +1,12 @@
+"""Every reader and writer of frequency-response data (layer 2).
+
+:mod:`.loaders` holds the public readers (:func:`~.loaders.load` dispatches on the file's
+suffix: text tables, ``.npz``, ``.mat``, UFF 58, Touchstone) and :func:`~.loaders.save_csv`.
+The text primitives below are shared with the time-record readers of
+:mod:`freqid_casadi.experiment` and the command line, which parse their own tables.
+"""
+
+from ._readfile import read_regular_file
+from ._table import NUMBER, decode_text, parse_columns, shown_cell
+
+__all__ = ["read_regular_file", "NUMBER", "decode_text", "parse_columns", "shown_cell"]

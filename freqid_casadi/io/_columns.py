@@ -1,0 +1,135 @@
+"""The column vocabulary of text tables, ``columns=`` and ``.mat`` variables (layer L1).
+
+A column is named by a role (frequency, real, imaginary, magnitude, phase, complex, skip)
+and a unit: :func:`recognise` reads one header cell or name, :func:`parse_columns` a user's
+``columns=``, :func:`parse_freq_unit` a user's ``freq_unit``. Used by
+:mod:`freqid_casadi.io._table` (the text parser) and :mod:`freqid_casadi.io.loaders`.
+"""
+
+import re
+from dataclasses import dataclass
+
+from ..errors import OptionError
+
+__all__ = ["Column", "recognise", "parse_columns", "parse_freq_unit", "COLUMN_HELP"]
+
+_UNIT_RE = re.compile(r"^(.*?)[\s_]*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
+
+_UNITS = {"": None, "hz": "hz", "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad/s",
+          "rad/sample": "rad/sample",
+          "rad/sec": "rad/s", "radians/s": "rad/s", "db": "db", "deg": "deg",
+          "degree": "deg", "degrees": "deg", "°": "deg", "rad": "rad", "radian": "rad",
+          "radians": "rad", "lin": "lin", "linear": "lin"}
+_SUFFIXES = ("_rad_sample", "_rad_s", "_rads", "_hz", "_db", "_degrees", "_deg", "_radians", "_rad")
+_FREQ = {"omega": "rad/s", "w": "rad/s", "f": None, "freq": None, "frequency": None,
+         "hz": "hz"}
+_RE = {"re", "real"}
+_IM = {"im", "imag", "imaginary"}
+_MAG = {"mag", "magnitude", "abs", "amplitude", "amp", "gain", "modulus"}
+_PHASE = {"phase", "phi", "arg", "angle", "ph"}
+_COMPLEX = {"complex", "response", "h", "g", "frf", "z", "h1", "h2", "hv", "txy", "tf"}
+_SKIP = {"skip", "_", "-", "ignore", "coherence", "coh"}
+_LAYOUTS = ({"freq", "re", "im"}, {"freq", "mag", "phase"}, {"freq", "complex"})
+
+#: How to name columns, quoted in error messages.
+COLUMN_HELP = ("name each column: omega or w (rad/s), freq_hz or 'f [Hz]' (Hz), f/freq (unit "
+               "from freq_unit); re, im; mag or mag_db with phase_deg or phase_rad; complex "
+               "(literals like 1+2j); skip")
+
+
+@dataclass(frozen=True)
+class Column:
+    """One column: ``role`` in freq/re/im/mag/phase/complex/skip, its ``unit`` (freq:
+    'hz'/'rad/s'/None, mag: 'lin'/'db', phase: 'deg'/'rad'/None) and its ``label``."""
+
+    role: str
+    unit: str = None
+    label: str = ""
+
+
+def recognise(label):
+    """The :class:`Column` a header cell or a name stands for, or None if unknown."""
+    s = label.strip().strip("\"'").strip().lower()
+    unit = ""
+    m = _UNIT_RE.match(s)
+    if m:
+        s, unit = m.group(1).strip(), m.group(2).strip()
+    elif "/" in s and s.partition("/")[2].replace(" ", "") in _UNITS:    # DIN: "f/Hz"
+        s, _, unit = s.partition("/")
+    s = re.sub(r"_part$", "", re.sub(r"[\s\-.]+", "_", s).strip("_"))   # "real part"
+    if not unit:
+        for suffix in _SUFFIXES:
+            if s.endswith(suffix) and len(s) > len(suffix):
+                s, unit = s[:-len(suffix)].rstrip("_"), suffix[1:]
+                break
+    unit = unit.replace(" ", "").replace("_", "/") if "/" in unit or unit in (
+        "rad_s", "rad_sample") else unit.replace(" ", "")
+    if unit not in _UNITS:       # a physical unit ("Real [g/N]") scales re, im and |H|
+        if s not in _RE | _IM | _COMPLEX | _MAG:
+            return None
+        unit = "db" if unit.startswith("db") else "lin" if s in _MAG else ""
+    unit = _UNITS[unit]
+    name = label.strip()
+    if s in _FREQ and unit in (None, "hz", "rad/s", "rad/sample"):
+        return Column("freq", unit or _FREQ[s], name)
+    if s in _SKIP and unit is None:
+        return Column("skip", None, name)
+    if s in _RE | _IM | _COMPLEX and unit is None:
+        return Column("re" if s in _RE else "im" if s in _IM else "complex", None, name)
+    if s == "db" and unit is None or s in _MAG and unit in (None, "db", "lin"):
+        return Column("mag", "db" if s == "db" or unit == "db" else "lin", name)
+    if s in _PHASE and unit in (None, "deg", "rad"):
+        return Column("phase", unit, name)
+    return None
+
+
+def _layout_problem(cols):
+    roles = [c.role for c in cols if c.role != "skip"]
+    if len(set(roles)) != len(roles):
+        dup = next(r for r in roles if roles.count(r) > 1)
+        return f"two columns are {dup!r}"
+    if set(roles) not in _LAYOUTS:
+        return ("the columns must be one frequency and real+imaginary, magnitude+phase or "
+                f"one complex column, got {', '.join(roles) or 'none'}")
+    return None
+
+
+def parse_freq_unit(value):
+    """'hz', 'rad/s' or None from a user's ``freq_unit`` (case-insensitive)."""
+    if value is None:
+        return None
+    text = value.strip().lower().replace(" ", "") if isinstance(value, str) else None
+    unit = {"hz": "hz", "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad/s",
+            "rad/sec": "rad/s"}.get(text)
+    if unit is None:
+        raise OptionError(f"freq_unit must be 'Hz' or 'rad/s', got {value!r}; "
+                          "pass freq_unit='Hz' (or --freq-unit hz) for frequencies in Hz")
+    return unit
+
+
+def parse_columns(columns):
+    """A tuple of :class:`Column` from ``columns=`` (a string or a sequence), or None."""
+    if columns is None:
+        return None
+    if isinstance(columns, tuple) and all(isinstance(c, Column) for c in columns):
+        return columns
+    if isinstance(columns, str):
+        sep = "," if "," in columns else ";" if ";" in columns else None
+        tokens = [t for t in (columns.split(sep) if sep else columns.split())]
+    else:
+        try:
+            tokens = list(columns)
+        except TypeError:
+            raise OptionError(f"columns must be a string like 'f,re,im' or a sequence of "
+                              f"names, got {columns!r}") from None
+    cols = []
+    for tok in tokens:
+        col = recognise(tok) if isinstance(tok, str) else None
+        if col is None:
+            raise OptionError(f"columns: unknown column name {tok!r}; {COLUMN_HELP}")
+        cols.append(col)
+    problem = _layout_problem(cols)
+    if problem:
+        raise OptionError(f"columns={columns!r}: {problem}; e.g. columns='f,re,im' or "
+                          "('freq_hz', 'mag_db', 'phase_deg')")
+    return tuple(cols)

@@ -1,0 +1,139 @@
+"""Reading one regular file safely, and turning columns into FrequencyData (layer L1).
+
+Shared by every reader (:mod:`freqid_casadi.io.loaders`, the UFF and Touchstone readers): a
+path is opened only if it is a regular file within the size limit (a FIFO, a device or a
+folder is refused before any read, so nothing hangs), and rows at zero frequency are
+dropped with a stated :class:`DataWarning`.
+"""
+
+import os
+import stat
+import warnings
+
+import numpy as np
+
+from ..core.data import FrequencyData
+from ..errors import DataError
+
+__all__ = ["DataWarning", "read_regular_file", "MAX_FILE_BYTES", "MAX_ROWS", "MAX_ELEMENTS"]
+
+#: Largest file any reader accepts, in bytes.
+MAX_FILE_BYTES = 256 * 2 ** 20
+#: Most data rows a text reader accepts.
+MAX_ROWS = 5_000_000
+#: Most elements of one array in an ``.npz`` or ``.mat`` file.
+MAX_ELEMENTS = 50_000_000
+
+
+class DataWarning(UserWarning):
+    """A reader changed the data in a stated way (e.g. dropped rows at zero frequency)."""
+
+
+# --------------------------------------------------------------------------- files
+
+def _check_file(path):
+    """The path as str, after the checks that need no read (exists, not a folder, readable)."""
+    try:
+        path = os.fspath(path)
+    except TypeError:
+        raise DataError(f"path must be a file name, got {type(path).__name__}") from None
+    if not isinstance(path, str):
+        path = os.fsdecode(path)
+    if not path.strip():
+        raise DataError(f"data file name is empty ({path!r}); give the path of the file")
+    if not os.path.exists(path):
+        raise DataError(f"data file not found: {path!r}; check the path")
+    if os.path.isdir(path):
+        raise DataError(f"{path!r} is a directory, not a data file; name the file inside it")
+    if not os.access(path, os.R_OK):
+        raise DataError(f"data file {path!r} is not readable; check its permissions")
+    return path
+
+
+def _kind_of(mode):
+    kinds = {stat.S_IFIFO: "a FIFO (named pipe)", stat.S_IFCHR: "a character device",
+             stat.S_IFBLK: "a block device", stat.S_IFSOCK: "a socket",
+             stat.S_IFDIR: "a directory"}
+    return kinds.get(stat.S_IFMT(mode), "not a regular file")
+
+
+def read_regular_file(path, what="data file"):
+    """Read a whole regular file, bounded by :data:`MAX_FILE_BYTES`.
+
+    Parameters
+    ----------
+    path : str or path-like
+    what : str
+        How the file is called in messages.
+
+    Returns
+    -------
+    path : str
+    payload : bytes
+
+    Raises
+    ------
+    DataError
+        Missing or unreadable file; a folder, FIFO, device or socket (refused before any
+        read: opened non-blocking and checked with ``fstat``); a file above the size limit.
+    """
+    path = _check_file(path)
+    try:
+        fd = os.open(path, os.O_RDONLY | getattr(os, "O_NONBLOCK", 0))
+    except OSError as exc:
+        raise DataError(f"cannot open {what} {path!r}: {exc.strerror}; check the path") \
+            from None
+    with os.fdopen(fd, "rb") as fh:
+        info = os.fstat(fh.fileno())
+        if not stat.S_ISREG(info.st_mode):
+            raise DataError(f"{what} {path!r} is {_kind_of(info.st_mode)}, not a regular "
+                            "file; save the data to a file and give its path")
+        if info.st_size > MAX_FILE_BYTES:
+            raise DataError(_too_big(path, what, info.st_size))
+        try:
+            payload = fh.read(MAX_FILE_BYTES + 1)
+        except OSError as exc:
+            raise DataError(f"cannot read {what} {path!r}: {exc.strerror}") from None
+    if len(payload) > MAX_FILE_BYTES:
+        raise DataError(_too_big(path, what, len(payload)))
+    return path, payload
+
+
+def _too_big(path, what, size):
+    return (f"{what} {path!r} holds {size} bytes, above the limit of {MAX_FILE_BYTES} bytes "
+            "(freqid_casadi.io.loaders.MAX_FILE_BYTES); thin the data or raise that limit")
+
+
+def _stem(path):
+    """The file's name without folder and extension, the data's default name; bytes that
+    are not UTF-8 (surrogates from os.fsdecode) are written as ``\\udcff`` escapes, so the
+    name can be printed, drawn and written into reports."""
+    stem = os.path.splitext(os.path.basename(path))[0]
+    return stem.encode("utf-8", "backslashreplace").decode("utf-8")
+
+
+def _finish(path, omega, response, name, weights=None, lines=None, unit="rad/s"):
+    """Drop zero-frequency rows and reverse rows in descending frequency order (each stated
+    by a DataWarning) and build the FrequencyData (frequency ``unit``); its errors are
+    prefixed by the file name."""
+    omega = np.asarray(omega, float)
+    zero = omega == 0
+    if zero.any():
+        where = (f"lines {', '.join(str(lines[i]) for i in np.flatnonzero(zero)[:5])}"
+                 if lines is not None else f"index {int(np.flatnonzero(zero)[0])}")
+        warnings.warn(f"{path!r}: dropped {int(zero.sum())} row(s) at zero frequency ({where}): "
+                      "the fit uses omega > 0 only (an integrator is a model option)",
+                      DataWarning, stacklevel=3)
+        keep = ~zero
+        omega, response = omega[keep], np.asarray(response)[keep]
+        weights = None if weights is None else np.asarray(weights)[keep]
+    if omega.size > 1 and np.all(np.diff(omega) < 0) and np.all(omega > 0):
+        warnings.warn(f"{path!r}: the rows are in descending frequency order; read them in "
+                      "ascending order", DataWarning, stacklevel=3)
+        omega, response = omega[::-1], np.asarray(response)[::-1]
+        weights = None if weights is None else np.asarray(weights)[::-1]
+    try:
+        return FrequencyData(omega, response, _stem(path) if name is None else name, weights,
+                             unit)
+    except DataError as exc:
+        raise DataError(f"{path!r}: {exc}") from None

@@ -1,0 +1,399 @@
+"""The text-table parser behind :mod:`freqid_casadi.io.loaders` (L1).
+
+Columns are named with the vocabulary of :mod:`freqid_casadi.io._columns` (re-exported here):
+a header line, the ``columns=`` option, the variable names of a ``.mat`` file. Numbers are
+ASCII decimal literals only: Python's ``float`` would also take ``1_0`` and non-ASCII
+digits, which a data file never means.
+"""
+
+import re
+from dataclasses import dataclass
+
+import numpy as np
+
+from ._columns import (_UNITS, COLUMN_HELP, Column, _layout_problem, parse_columns,
+                       parse_freq_unit, recognise)
+from ..errors import DataError
+
+__all__ = ["Column", "Table", "parse_columns", "parse_freq_unit", "read_table",
+           "table_response", "COLUMN_HELP"]
+
+_F = r"(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?"
+NUMBER = re.compile(rf"[+-]?(?:{_F}|inf|infinity|nan)", re.ASCII | re.IGNORECASE)
+_CPLX = re.compile(rf"[+-]?{_F}(?:[+-](?:{_F})?j)?|[+-]?(?:{_F})?j", re.ASCII)
+_DECIMAL_COMMA = re.compile(r"(?<=\d),(?=\d)", re.ASCII)
+
+
+@dataclass
+class Table:
+    """Parsed columns: ``values[role]`` (float, or complex for 'complex'), ``rows`` the file
+    line (or matrix row) of each sample, ``where`` 'line' or 'row'."""
+
+    path: str
+    columns: tuple
+    values: dict
+    rows: np.ndarray
+    where: str = "line"
+
+    @property
+    def lines(self):
+        """File line of every row (None for a matrix)."""
+        return self.rows if self.where == "line" else None
+
+    def label(self, role):
+        return next(c.label for c in self.columns if c.role == role)
+
+    def unit(self, role):
+        return next(c.unit for c in self.columns if c.role == role)
+
+    def at(self, i):
+        return f"{self.path!r} {self.where} {int(self.rows[i])}"
+
+
+# --------------------------------------------------------------------------- text
+
+def decode_text(path, payload):
+    """The text of a file's bytes ``payload`` (UTF-8, a leading byte-order mark dropped);
+    a DataError naming ``path`` for binary data or bytes that are not UTF-8."""
+    if b"\x00" in payload:
+        raise DataError(f"{path!r} is not a text CSV file (not UTF-8): it holds NUL bytes "
+                        "(binary data); export the data as UTF-8 text")
+    try:
+        text = payload.decode("utf-8")
+    except UnicodeDecodeError as exc:
+        line = payload[:exc.start].count(b"\n") + 1
+        raise DataError(
+            f"{path!r} is not a text CSV file (not UTF-8): byte 0x{payload[exc.start]:02x} "
+            f"on line {line} is not UTF-8; save the file as UTF-8 text") from None
+    return text[1:] if text.startswith("\ufeff") else text
+
+
+def _separator(first):
+    return next((sep for sep in (";", "\t", ",") if sep in first), None)
+
+
+def _splitter(sep):
+    if sep is None:
+        return _split_space
+    return lambda line: [c.strip() for c in line.split(sep)]
+
+
+def _fast_values(rows, cols, sep):
+    """All cells as floats, shape (rows, columns), when every row is plain numbers (one regex
+    per row, C-speed conversion); None otherwise (the slow path then names the bad cell)."""
+    if any(c.role in ("complex", "skip") for c in cols):
+        return None
+    num = r"[ \t]*[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?[ \t]*"
+    gap = r"[ \t]+" if sep is None else re.escape(sep)
+    row = re.compile(rf"{num}(?:{gap}{num}){{{len(cols) - 1}}}", re.ASCII)
+    if not all(row.fullmatch(text) for _, text in rows):
+        return None
+    joined = "\n".join(text for _, text in rows)
+    cells = (joined if sep is None else joined.replace(sep, " ")).split()
+    return np.array(cells, dtype=float).reshape(len(rows), len(cols))
+
+
+def _split_space(line):
+    out = []
+    for tok in line.split():
+        if out and tok[:1] in "[(" and not _is_value(tok):
+            out[-1] = f"{out[-1]} {tok}"
+        else:
+            out.append(tok)
+    return out
+
+
+def _clean(cell):
+    cell = cell.strip()
+    if len(cell) >= 2 and cell[0] == cell[-1] and cell[0] in "\"'":
+        cell = cell[1:-1].strip()
+    return cell
+
+
+def _complex_text(cell):
+    s = cell.replace(" ", "")
+    if s.startswith("(") and s.endswith(")"):
+        s = s[1:-1]
+    return s[:-1] + "j" if s.endswith("i") else s
+
+
+def _is_value(cell):
+    cell = _clean(cell)
+    return bool(NUMBER.fullmatch(cell) or _CPLX.fullmatch(_complex_text(cell)))
+
+
+def shown_cell(cell):
+    """``repr`` of a table cell for an error message, cut to 40 characters."""
+    return repr(cell if len(cell) <= 40 else cell[:37] + "...")
+
+
+def _content(path, text, max_rows):
+    rows, comment = [], None
+    for k, line in enumerate(text.split("\n")):
+        line = line.rstrip()
+        if line.lstrip().startswith(("#", "%", "!")):
+            comment = (k + 1, line.lstrip()[1:].strip()) if not rows else comment
+        elif line.strip():
+            rows.append((k + 1, line))
+            if len(rows) > max_rows + 1:
+                raise DataError(
+                    f"{path!r} has more than {max_rows} data rows (limit "
+                    "freqid_casadi.io.loaders.MAX_ROWS); thin the data or raise that limit")
+    if not rows:
+        raise DataError(f"{path!r} is empty: expected a header such as 'omega,real,imag' "
+                        "and data rows")
+    return _comment_header(rows, comment)
+
+
+def _comment_header(rows, comment):
+    """``rows`` led by the last comment line before the data when the data have no header
+    and that line names every column (``% f [Hz]  Re  Im``, as analysers write)."""
+    sep = _separator(rows[0][1])
+    first = _splitter(sep)(rows[0][1])
+    if comment is None or not all(_is_value(c) for c in first):
+        return rows
+    cells = _splitter(sep)(comment[1]) if sep and sep in comment[1] else \
+        _split_space(comment[1])
+    cols = [recognise(_clean(c)) for c in cells]
+    if len(cells) != len(first) or None in cols or _layout_problem(cols):
+        return rows
+    return [(comment[0], (sep or " ").join(cells))] + rows
+
+
+def _header_columns(path, cells):
+    cols = [recognise(_clean(c)) for c in cells]
+    problem = None
+    if any(c is None for c in cols):
+        bad = cells[[c is None for c in cols].index(True)]
+        problem = f"column {_clean(bad)!r} is not a known name"
+    else:
+        problem = _layout_problem(cols)
+    if problem:
+        raise DataError(
+            f"{path!r}: unrecognised header {','.join(_clean(c) for c in cells)!r} "
+            f"({problem}); the first line must be 'omega,real,imag' or "
+            "'omega,magnitude_db,phase_deg' (rad/s), or another layout such as "
+            "'freq_hz,mag_db,phase_deg'; or pass columns=... (command line --columns) to "
+            f"{COLUMN_HELP}")
+    return tuple(cols)
+
+
+def _default_columns(path, cells):
+    if len(cells) == 3:
+        return (Column("freq", None, "frequency"), Column("re", None, "real"),
+                Column("im", None, "imag"))
+    if len(cells) == 2 and not NUMBER.fullmatch(_clean(cells[1])):
+        return Column("freq", None, "frequency"), Column("complex", None, "response")
+    records = (" If it holds time records (input and output samples), estimate the "
+               "frequency response first: freqid frf FILE --out frf.csv (see freqid frf "
+               "--help)." if len(cells) == 2 else "")
+    raise DataError(
+        f"{path!r} has no header and {len(cells)} columns: cannot tell what they are; pass "
+        "columns=... (command line --columns), e.g. columns='f,mag_db,phase_deg', to "
+        f"{COLUMN_HELP}; or add a header line.{records}")
+
+
+def _resolve_units(path, cols, freq_unit, header):
+    """Columns with the frequency unit filled in from ``freq_unit``; ``header`` is the
+    header's text (None for a headerless file or a matrix)."""
+    freq = next(c for c in cols if c.role == "freq")
+    if freq.unit is None:
+        if freq_unit is None:
+            what = (f"unrecognised header {header!r}: column {freq.label!r} has no unit"
+                    if header else "it has no header line" + (
+                        "; its columns are read as frequency, real, imaginary unless columns="
+                        "'f,mag_db,phase_deg' (--columns) says otherwise"
+                        if [c.role for c in cols] == ["freq", "re", "im"]
+                        and cols[1].label == "real" else ""))
+            raise DataError(
+                f"{path!r}: the frequency unit is unknown ({what}): pass freq_unit='Hz' or "
+                "freq_unit='rad/s' (command line --freq-unit hz|rad/s), or name the column "
+                "'omega' (rad/s) or 'freq_hz' / 'f [Hz]' (Hz) in a header")
+        freq_unit_col = Column("freq", freq_unit, freq.label)
+        cols = tuple(freq_unit_col if c is freq else c for c in cols)
+    elif freq_unit is not None and freq_unit != freq.unit:
+        raise DataError(f"{path!r}: freq_unit={freq_unit!r} contradicts column {freq.label!r} "
+                        f"({freq.unit}); drop freq_unit or fix the header")
+    phase = [c for c in cols if c.role == "phase"]
+    if phase and phase[0].unit is None:
+        raise DataError(f"{path!r}: phase column {phase[0].label!r} does not give its unit; "
+                        "name it phase_deg or phase_rad (or 'phase [deg]'), or pass columns=")
+    return cols
+
+
+def _parse_cell(table_path, line, col, cell):
+    cell = _clean(cell)
+    if col.role == "complex":
+        text = _complex_text(cell)
+        if _CPLX.fullmatch(text):
+            return complex(text)
+    elif NUMBER.fullmatch(cell):
+        return float(cell)
+    hint = ""
+    if "_" in cell or any(ord(ch) > 127 for ch in cell):
+        hint = " (only ASCII decimal numbers such as 1.5e-3 are read)"
+    elif "," in cell:
+        hint = (" (decimal commas are read only in a file separated by semicolons or tabs "
+                "with no decimal points; save the file with decimal points)")
+    what = "a complex number like 1+2j" if col.role == "complex" else "a number"
+    raise DataError(f"{table_path!r} line {line}, column {col.label!r}: {shown_cell(cell)} is not "
+                    f"{what}{hint}")
+
+
+def _decimal_commas(rows, sep):
+    """``rows`` with decimal commas (``0,5``) written as points, when the separator is a
+    semicolon or a tab (a European spreadsheet's export) and no row holding one also holds
+    a point (which would make the comma a thousands separator); else ``rows`` unchanged."""
+    if sep not in (";", "\t"):
+        return rows
+    marked = [bool(_DECIMAL_COMMA.search(text)) for _, text in rows]
+    if not any(marked) or any(m and "." in text for m, (_, text) in zip(marked, rows)):
+        return rows
+    return [(k, _DECIMAL_COMMA.sub(".", text)) for k, text in rows]
+
+
+def _units_row(first, rows, split):
+    """Header cells and rows with a second header line of units (``Hz  dB  deg``, as some
+    acquisition software writes) merged into the header as ``name [unit]``."""
+    units = [_clean(c).strip("[]()").strip().lower() for c in split(rows[1][1])]
+    if len(units) != len(first) or not all(u in _UNITS or u == "-" for u in units) \
+            or all(u in ("", "-") for u in units):
+        return first, rows
+    named = [c if u in ("", "-") else f"{_clean(c)} [{u}]" for c, u in zip(first, units)]
+    return named, rows[:1] + rows[2:]
+
+
+def read_table(path, payload, columns, freq_unit, max_rows):
+    """Parse delimited UTF-8 text into a :class:`Table` (see ``loaders.load_text``)."""
+    rows = _content(path, decode_text(path, payload), max_rows)
+    sep = _separator(rows[0][1])
+    rows = _decimal_commas(rows, sep)
+    split = _splitter(sep)
+    first = split(rows[0][1])
+    header = not all(_is_value(c) for c in first)
+    if header and len(rows) > 1:
+        first, rows = _units_row(first, rows, split)
+    if columns is not None:
+        cols = columns
+    elif header:
+        cols = _header_columns(path, first)
+    else:
+        cols = _default_columns(path, first)
+    if header:
+        rows = rows[1:]
+        if not rows:
+            raise DataError(f"{path!r} has a header but no data rows")
+    cols = _resolve_units(path, cols, freq_unit,
+                          ",".join(_clean(c) for c in first) if header else None)
+    fast = _fast_values(rows, cols, sep)
+    if fast is not None:
+        values = {c.role: fast[:, j] for j, c in enumerate(cols)}
+    else:
+        values = _slow_values(path, rows, cols, split)
+    dc = values["freq"] == 0      # rows at 0 Hz are dropped later (a DataWarning); their
+    for role, v in values.items():  # response, often -inf dB or NaN there, is not checked
+        if role != "freq" and dc.any():
+            v[dc] = 1.0
+    table = Table(path, cols, values, np.array([r[0] for r in rows]))
+    _check_finite(table)
+    return table
+
+
+def _slow_values(path, rows, cols, split):
+    labels = ",".join(c.label for c in cols)
+    values = {c.role: [] for c in cols if c.role != "skip"}
+    for line, text in rows:
+        cells = split(text)
+        if len(cells) != len(cols):
+            raise DataError(f"{path!r} line {line}: expected {len(cols)} columns ({labels}), "
+                            f"got {len(cells)}")
+        for col, cell in zip(cols, cells):
+            if col.role != "skip":
+                values[col.role].append(_parse_cell(path, line, col, cell))
+    return {k: np.array(v, complex if k == "complex" else float) for k, v in values.items()}
+
+
+def _check_finite(table):
+    for col in table.columns:
+        if col.role == "skip":
+            continue
+        bad = ~np.isfinite(table.values[col.role])
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            what = "omega" if col.role == "freq" else "response"
+            raise DataError(
+                f"{table.at(i)}, column {col.label!r}: {table.values[col.role][i].item()!r} is not "
+                f"finite: {what} must be finite; remove or re-measure that point")
+
+
+# --------------------------------------------------------------------------- response
+
+def table_response(table):
+    """``omega`` (rad/s) and the complex response of a :class:`Table`, with checks that
+    name the line: negative or unsorted frequencies, dB overflow, zero responses."""
+    f = table.values["freq"]
+    neg = f < 0
+    if neg.any():
+        i = int(np.flatnonzero(neg)[0])
+        raise DataError(f"{table.at(i)}, column {table.label('freq')!r}: frequency {float(f[i])!r} "
+                        "is negative; give frequencies >= 0 (omega must be > 0)")
+    with np.errstate(over="ignore"):
+        omega = 2 * np.pi * f if table.unit("freq") == "hz" else f
+    if not np.all(np.isfinite(omega)):
+        i = int(np.flatnonzero(~np.isfinite(omega))[0])
+        raise DataError(f"{table.at(i)}: frequency {float(f[i])!r} Hz overflows in rad/s; check "
+                        "the frequency unit")
+    pos = np.flatnonzero(omega > 0)
+    step = np.diff(omega[pos])
+    if np.any(step <= 0) and not np.all(step < 0):       # descending rows: reversed later
+        bad = step == 0 if np.all(step <= 0) else step <= 0      # descending + duplicates
+        j = int(np.flatnonzero(bad)[0])
+        i, p = pos[j + 1], pos[j]
+        what = "duplicated" if step[j] == 0 else "unsorted"
+        raise DataError(
+            f"{table.at(i)}: omega must be strictly increasing ({what} rows): {float(f[i])!r} "
+            f"after {float(f[p])!r} on {table.where} {int(table.rows[p])}; sort the file by "
+            "frequency and drop duplicates (FrequencyData.sorted does both)")
+    response = _response(table)
+    zero = response == 0
+    if zero.any():
+        i = int(np.flatnonzero(zero)[0])
+        raise DataError(
+            f"{table.at(i)}: response must be nonzero (the relative error divides by it): "
+            f"response[{i}]=0 at omega={float(omega[i])!r}; remove that point")
+    return omega, response
+
+
+def _response(table):
+    v = table.values
+    if "complex" in v:
+        return v["complex"]
+    if "re" in v:
+        response = np.empty(v["re"].size, complex)       # keeps signed zeros (not re + 1j*im)
+        response.real, response.imag = v["re"], v["im"]
+        return response
+    mag = v["mag"]
+    if table.unit("mag") == "db":
+        with np.errstate(over="ignore", under="ignore"):
+            mag = 10.0 ** (mag / 20.0)
+        bad = ~np.isfinite(mag) | (mag == 0)
+        if bad.any():
+            i = int(np.flatnonzero(bad)[0])
+            raise DataError(
+                f"{table.at(i)}, column {table.label('mag')!r}: {float(v['mag'][i])!r} dB is "
+                "outside the range of floating point (|G| = 10^(dB/20) is "
+                f"{'infinite' if mag[i] else 'zero'}); check that the column is in dB")
+    elif np.any(mag < 0):
+        i = int(np.flatnonzero(mag < 0)[0])
+        raise DataError(f"{table.at(i)}, column {table.label('mag')!r}: magnitude "
+                        f"{float(mag[i])!r} is negative; give |G| >= 0 (a sign belongs in the "
+                        "phase)")
+    phase = v["phase"] if table.unit("phase") == "rad" else np.deg2rad(v["phase"])
+    with np.errstate(over="ignore", invalid="ignore"):
+        response = mag * np.exp(1j * phase)
+    bad = ~np.isfinite(response)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise DataError(f"{table.at(i)}: magnitude {float(mag[i])!r} with phase "
+                        f"{float(v['phase'][i])!r} gives a non-finite response; check the columns")
+    return response

@@ -1,0 +1,429 @@
+"""File readers for frequency-response data (layer L1).
+
+:func:`load` picks the reader by the file's extension: ``.npz`` :func:`load_npz`, ``.mat``
+:func:`load_mat` (scipy.io), ``.uff``/``.unv`` :func:`load_uff` (UFF 58/58b via pyuff, extra
+``[uff]``), ``.s1p``/``.s2p`` :func:`load_touchstone`, anything else :func:`load_text` (CSV,
+semicolons, tabs or spaces).
+
+Every reader returns a validated :class:`~freqid_casadi.core.data.FrequencyData` with ``omega``
+in rad/s (``load_uff`` returns a tuple, one per record). Rows at zero frequency are dropped
+and stated by a :class:`DataWarning` (the fit uses omega > 0; an integrator is a model
+option). Every reader error is a :class:`~freqid_casadi.errors.DataError` naming the file,
+the line and column where there is one, and the fix.
+
+Bounded input: only regular files are read (a FIFO, a device or a folder is refused before
+any read), at most :data:`MAX_FILE_BYTES` bytes, :data:`MAX_ROWS` data rows and
+:data:`MAX_ELEMENTS` array elements (``.npz``/``.mat`` headers are checked before
+allocating). Raise these module constants to read larger files.
+"""
+
+import io
+import os
+import zipfile
+
+import numpy as np
+
+from ._touchstone import load_touchstone
+from ._uff import load_uff
+from ._readfile import (MAX_ELEMENTS, MAX_FILE_BYTES, MAX_ROWS, DataWarning, _finish,
+                        read_regular_file)
+from ._table import (Column, Table, _check_finite, _default_columns, _layout_problem,
+                     _resolve_units, parse_columns, parse_freq_unit, read_table, recognise,
+                     table_response)
+from ..core.data import FrequencyData
+from ..errors import DataError, OptionError
+
+__all__ = ["load", "load_text", "load_csv", "load_npz", "load_mat", "load_uff",
+           "load_touchstone", "save_csv",
+           "read_regular_file", "DataWarning", "MAX_FILE_BYTES", "MAX_ROWS", "MAX_ELEMENTS"]
+
+
+_UFF_EXT = (".uff", ".unv", ".uf")
+
+
+# --------------------------------------------------------------------------- dispatch
+
+def load(path, name=None, *, freq_unit=None, columns=None, record=None, parameter=None):
+    """Load frequency-response data from a file, the reader chosen by its extension.
+
+    Parameters
+    ----------
+    path : str or path-like
+        ``.npz`` (:func:`load_npz`), ``.mat`` (:func:`load_mat`), ``.uff``/``.unv``
+        (:func:`load_uff`), ``.s1p``/``.s2p`` (:func:`load_touchstone`), anything else
+        delimited text (:func:`load_text`). A ``.json`` file is refused (a model file is
+        read with ``RationalDelayModel.load``).
+    name : str, optional
+        Name of the data (default: the file's stem).
+    freq_unit : {"Hz", "rad/s"}, optional
+        Unit of the frequency column when the file does not say it (a headerless text file,
+        a header ``f``/``freq``); also accepted when the file says the same. Case-insensitive.
+    columns : str or sequence of str, optional
+        Names of the columns of a text file or of a ``.mat`` matrix, e.g. ``"f,re,im"`` or
+        ``("freq_hz", "mag_db", "phase_deg")``; see :func:`load_text`.
+    record : int, optional
+        For a UFF file with several function records: which one (0-based).
+    parameter : str, optional
+        For a Touchstone ``.s1p``/``.s2p`` file: which parameter (default S11), e.g. "S21".
+
+    Returns
+    -------
+    FrequencyData
+        Always one data set (a UFF file with several records needs ``record=``, or
+        :func:`load_uff` for all of them).
+
+    Raises
+    ------
+    DataError
+        Anything wrong with the file, naming the file, line, column and fix.
+    OptionError
+        An invalid ``freq_unit`` or ``columns``.
+
+    Warns
+    -----
+    DataWarning
+        Rows at zero frequency were dropped.
+    """
+    freq_unit = parse_freq_unit(freq_unit)
+    cols = parse_columns(columns)
+    lower = os.fspath(path).lower() if isinstance(path, (str, os.PathLike)) else ""
+    if lower.endswith(".npz"):
+        return load_npz(path, name, freq_unit=freq_unit)
+    if lower.endswith((".s1p", ".s2p")):
+        if freq_unit is not None or cols is not None:
+            raise OptionError("freq_unit and columns do not apply to Touchstone files (the "
+                              "option line gives the units); drop them")
+        return load_touchstone(path, name, parameter=parameter)
+    if lower.endswith(".mat"):
+        return load_mat(path, name, freq_unit=freq_unit, columns=cols)
+    if lower.endswith(".json"):
+        raise DataError(f"{os.fspath(path)!r} is JSON, not frequency-response data: a model "
+                        "file that freqid wrote (model.json) is read with "
+                        "freqid_casadi.RationalDelayModel.load(path); data files are text "
+                        "(CSV), .npz, .mat, .uff/.unv or .s1p/.s2p")
+    if lower.endswith(_UFF_EXT):
+        found = load_uff(path, freq_unit=freq_unit)
+        if record is None:
+            if len(found) > 1:
+                raise DataError(
+                    f"{os.fspath(path)!r} holds {len(found)} frequency-response records: pass "
+                    f"record=0..{len(found) - 1} to load() (command line --record K), or use "
+                    "load_uff() for all of them")
+            record = 0
+        if isinstance(record, bool) or not isinstance(record, int) \
+                or not 0 <= record < len(found):
+            raise DataError(f"record={record!r} is out of range: {os.fspath(path)!r} holds "
+                            f"{len(found)} record(s), numbered 0..{len(found) - 1}")
+        data = found[record]
+        return data if name is None else FrequencyData(data.omega, data.response, name)
+    return load_text(path, name, freq_unit=freq_unit, columns=cols)
+
+
+def load_text(path, name=None, *, freq_unit=None, columns=None):
+    """Read frequency-response data from delimited text.
+
+    Parameters
+    ----------
+    path : str or path-like
+        UTF-8 text (a leading byte-order mark is accepted). Separator: semicolon, tab,
+        comma or whitespace, taken from the first non-comment line. Lines starting with
+        ``#``, ``%`` or ``!`` and blank lines are skipped.
+    name : str, optional
+        Name of the data (default: the file's stem).
+    freq_unit : {"Hz", "rad/s"}, optional
+        Unit of the frequency column when the file does not give it.
+    columns : str or sequence of str, optional
+        One name per column, overriding a header (which is then skipped). Names
+        (case-insensitive; a unit may follow in brackets, ``"f [Hz]"``, or as a suffix,
+        ``freq_hz``):
+
+        - frequency: ``omega``, ``w`` (rad/s); ``f_hz``, ``freq_hz``, ``hz`` (Hz);
+          ``f``, ``freq``, ``frequency`` (unit from ``freq_unit``);
+        - ``re``/``real`` with ``im``/``imag``; ``mag`` (linear) or ``mag_db``/``db`` with
+          ``phase_deg`` or ``phase_rad``; or one complex column ``complex``/``response``/
+          ``h``/``g`` holding literals ``1+2j``, ``(1+2j)`` or ``1+2i``;
+        - ``skip`` for a column to ignore.
+
+    Returns
+    -------
+    FrequencyData
+        The data rows (``omega`` in rad/s, rows at zero frequency dropped), named
+        ``name`` or the file's stem.
+
+    Raises
+    ------
+    DataError
+        Not UTF-8, binary, empty, no data rows, unknown header, a headerless file without
+        ``freq_unit``, wrong column count, a cell that is not an ASCII decimal number
+        (``1_0`` and non-ASCII digits are refused), non-finite values, dB values that
+        overflow, negative or unsorted frequencies, zero responses.
+
+    Notes
+    -----
+    A header is recognised when the first line holds a cell that is not a number; a second
+    line of units only (``Hz  dB  deg``) completes it; headerless data take the last comment
+    line before them as header when it names every column (``% f [Hz]  Re  Im``). Decimal
+    commas are read in a semicolon- or tab-separated file without decimal points; rows in
+    descending frequency order are reversed (with a :class:`DataWarning`). Header
+    ``omega,real,imag`` and ``omega,magnitude_db,phase_deg`` are the layouts
+    :func:`save_csv` and earlier versions wrote. A headerless file with three columns is
+    frequency, real, imaginary; with two columns of which the second holds complex
+    literals, frequency and response.
+    """
+    path, payload = read_regular_file(path)
+    table = read_table(path, payload, columns, freq_unit, max_rows=MAX_ROWS)
+    omega, response = table_response(table)
+    unit = "rad/sample" if table.unit("freq") == "rad/sample" else "rad/s"
+    return _finish(path, omega, response, name, lines=table.lines, unit=unit)
+
+
+def load_csv(path, name=None, *, freq_unit=None, columns=None):
+    """Read a CSV (or any delimited text) file: the same as :func:`load_text`.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    name : str, optional
+    freq_unit : {"hz", "rad/s"}, optional
+    columns : str or sequence of str, optional
+        As :func:`load_text`.
+    """
+    return load_text(path, name, freq_unit=freq_unit, columns=columns)
+
+
+# --------------------------------------------------------------------------- npz
+
+_SAVEZ = "np.savez(path, omega=omega, response=response)"
+
+
+def _npz_headers(path, payload):
+    """Shape and dtype of every member, read from the .npy headers before any allocation."""
+    found = {}
+    with zipfile.ZipFile(io.BytesIO(payload)) as zf:
+        for info in zf.infolist():
+            key = info.filename[:-4] if info.filename.endswith(".npy") else info.filename
+            with zf.open(info) as fh:
+                version = np.lib.format.read_magic(fh)
+                if version == (1, 0):
+                    shape, _, dtype = np.lib.format.read_array_header_1_0(fh)
+                else:
+                    shape, _, dtype = np.lib.format.read_array_header_2_0(fh)
+            n = 1
+            for d in shape:
+                n *= int(d)
+            if n > MAX_ELEMENTS:
+                raise DataError(
+                    f"{path!r}: array {key!r} claims shape {shape} ({n} elements), above the "
+                    f"limit of {MAX_ELEMENTS} (freqid_casadi.io.loaders.MAX_ELEMENTS); the file "
+                    "is damaged or not frequency-response data")
+            if n * dtype.itemsize > info.file_size:
+                raise DataError(f"{path!r}: array {key!r} is truncated (its header claims "
+                                f"{n} elements of {dtype}); save the file again with {_SAVEZ}")
+            found[key] = (shape, dtype)
+    return found
+
+
+def _check_dtype(path, key, dtype, complex_ok):
+    unit = " (rad/s)" if key == "omega" else ""
+    if dtype.kind == "c" and not complex_ok:
+        raise DataError(f"{path!r}: array {key!r} has dtype {dtype}: {key} must be real{unit}; "
+                        f"save it as floats with {_SAVEZ}")
+    if dtype.kind not in "iufc":
+        what = "datetimes" if dtype.kind in "Mm" else f"dtype {dtype}"
+        raise DataError(f"{path!r}: array {key!r} holds {what}: {key} must be an array of "
+                        f"numbers{unit}; save plain floats with {_SAVEZ}")
+
+
+def load_npz(path, name=None, *, freq_unit=None):
+    """Read data from a NumPy ``.npz`` archive.
+
+    Parameters
+    ----------
+    path : str or path-like
+        Arrays ``omega`` (rad/s; or ``freq_hz`` in Hz), ``response`` (complex) and
+        optionally ``weights``.
+    name : str, optional
+    freq_unit : {"Hz", "rad/s"}, optional
+        Unit of the array ``omega`` when it is not in rad/s ("Hz": multiplied by 2 pi).
+
+    Returns
+    -------
+    FrequencyData
+        The arrays ``omega`` (in rad/s), ``response`` and ``weights`` (if the archive
+        holds it), named ``name`` or the file's stem.
+
+    Raises
+    ------
+    DataError
+        A file that is not an .npz archive (or is a single-array .npy), missing arrays,
+        headers claiming more than :data:`MAX_ELEMENTS` elements (checked before reading
+        the data), non-numeric or datetime dtypes, and any violation of FrequencyData.
+    """
+    freq_unit = parse_freq_unit(freq_unit)
+    path, payload = read_regular_file(path)
+    if payload.startswith(b"\x93NUMPY"):
+        raise DataError(f"{path!r} holds a single array (.npy), not an .npz archive; save "
+                        f"with {_SAVEZ}")
+    try:
+        headers = _npz_headers(path, payload)
+        keys = set(headers)
+        freq_key = "omega" if "omega" in keys or "freq_hz" not in keys else "freq_hz"
+        missing = {freq_key, "response"} - keys
+        if missing:
+            raise DataError(f"{path!r} lacks array(s) {sorted(missing)}; save with {_SAVEZ}")
+        for key, complex_ok in ((freq_key, False), ("response", True), ("weights", False)):
+            if key in headers:
+                _check_dtype(path, key, headers[key][1], complex_ok)
+        with np.load(io.BytesIO(payload), allow_pickle=False) as npz:
+            omega, response = npz[freq_key], npz["response"]
+            weights = npz["weights"] if "weights" in keys else None
+    except DataError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile) as exc:
+        raise DataError(f"cannot read {path!r} as .npz ({exc}); save it with {_SAVEZ}") \
+            from None
+    if freq_key == "freq_hz" and freq_unit == "rad/s":
+        raise DataError(f"{path!r}: array 'freq_hz' is in Hz, but freq_unit='rad/s'; drop "
+                        "freq_unit or rename the array")
+    if freq_key == "freq_hz" or freq_unit == "hz":
+        omega = 2 * np.pi * np.asarray(omega, float)
+    return _finish(path, omega, response, name, weights)
+
+
+# --------------------------------------------------------------------------- mat
+
+def load_mat(path, name=None, *, freq_unit=None, columns=None):
+    """Read data from a MATLAB ``.mat`` file (v4 to v7.2, via ``scipy.io.loadmat``).
+
+    Parameters
+    ----------
+    path : str or path-like
+    name : str, optional
+    freq_unit : {"Hz", "rad/s"}, optional
+        As for :func:`load_text`.
+    columns : str or sequence of str, optional
+        Names of the columns of the single numeric matrix (N x k, or k x N) the file holds.
+
+    Returns
+    -------
+    FrequencyData
+        The matched variables or matrix columns (``omega`` in rad/s), named ``name`` or
+        the file's stem.
+
+    Raises
+    ------
+    DataError
+        Not a MATLAB file, v7.3 (HDF5), arrays above :data:`MAX_ELEMENTS` (from the
+        headers, before reading), no recognisable variables, bad values.
+
+    Notes
+    -----
+    Variables are matched by name with the vocabulary of :func:`load_text` (``omega``,
+    ``w``, ``freq_hz``, ``f`` + ``freq_unit``; ``response``/``h``/``g``/``frf`` complex,
+    ``re``/``im``, ``mag_db``/``phase_deg``, ...). Without such names, a single numeric
+    matrix is read like a headerless text table (``columns`` names its columns).
+    """
+    import scipy.io
+
+    freq_unit = parse_freq_unit(freq_unit)
+    columns = parse_columns(columns)
+    path, payload = read_regular_file(path)
+    try:
+        info = scipy.io.whosmat(io.BytesIO(payload))
+    except NotImplementedError:
+        raise DataError(f"{path!r} is a MATLAB v7.3 (HDF5) file; save it with "
+                        "save(..., '-v7') or export the arrays to CSV") from None
+    except Exception as exc:            # scipy raises ValueError, TypeError, ... on garbage
+        raise DataError(f"cannot read {path!r} as a MATLAB .mat file ({exc}); save the "
+                        "arrays with save(..., '-v7')") from None
+    numeric = []
+    for var, shape, cls in info:
+        n = int(np.prod([int(d) for d in shape], dtype=object)) if shape else 1
+        if n > MAX_ELEMENTS:
+            raise DataError(f"{path!r}: variable {var!r} claims shape {shape} ({n} elements), "
+                            f"above the limit of {MAX_ELEMENTS}; the file is damaged or too "
+                            "large (freqid_casadi.io.loaders.MAX_ELEMENTS)")
+        if cls in ("double", "single", "int8", "uint8", "int16", "uint16", "int32",
+                   "uint32", "int64", "uint64"):
+            numeric.append(var)
+    if not numeric:
+        raise DataError(f"{path!r} holds no numeric variables; save omega and response "
+                        "as numeric arrays")
+    try:
+        mat = scipy.io.loadmat(io.BytesIO(payload), variable_names=numeric)
+    except Exception as exc:
+        raise DataError(f"cannot read {path!r} as a MATLAB .mat file ({exc})") from None
+    table = _mat_table(path, {k: mat[k] for k in numeric}, columns, freq_unit)
+    omega, response = table_response(table)
+    return _finish(path, omega, response, name)
+
+
+# --------------------------------------------------------------------------- .mat
+
+def _mat_table(path, arrays, columns, freq_unit):
+    """A :class:`Table` from the numeric variables of a ``.mat`` file (see
+    ``loaders.load_mat``)."""
+    named = {}
+    if columns is None:
+        for key, arr in arrays.items():
+            col = recognise(key)
+            if col is not None and col.role != "skip":
+                named[key] = Column(col.role, col.unit, key)
+    cols = tuple(named.values())
+    if named and _layout_problem(cols) is None:
+        vecs = [np.asarray(arrays[k]).reshape(-1) if 1 in np.shape(arrays[k]) or
+                np.ndim(arrays[k]) <= 1 else None for k in named]
+        if any(v is None for v in vecs) or len({v.size for v in vecs}) != 1:
+            raise DataError(f"{path!r}: variables {', '.join(named)} must be vectors of equal "
+                            "length")
+        values = dict(zip((c.role for c in cols), vecs))
+        n = vecs[0].size
+    else:
+        if len(arrays) != 1 or np.ndim(next(iter(arrays.values()))) != 2:
+            raise DataError(
+                f"{path!r}: cannot tell the variables apart (found {', '.join(arrays)}); "
+                "name them omega (rad/s) or freq_hz (Hz) and response (complex), or save "
+                "one N x k matrix and pass columns=...")
+        mat = np.asarray(next(iter(arrays.values())))
+        if mat.shape[0] < mat.shape[1]:
+            mat = mat.T
+        first = [str(x) for x in mat[0]]
+        cols = columns if columns is not None else _default_columns(path, first)
+        if len(cols) != mat.shape[1]:
+            raise DataError(f"{path!r}: the matrix has {mat.shape[1]} columns, columns= "
+                            f"names {len(cols)}")
+        values = {}
+        for j, c in enumerate(cols):
+            if c.role != "skip":
+                col = mat[:, j]
+                values[c.role] = col if c.role == "complex" else np.real(col)
+        n = mat.shape[0]
+    cols = _resolve_units(path, cols, freq_unit, ",".join(named) if named else None)
+    for k, arr in values.items():
+        values[k] = np.asarray(arr, complex if k == "complex" else float)
+    table = Table(path, cols, values, np.arange(1, n + 1), where="row")
+    _check_finite(table)
+    return table
+
+
+# --------------------------------------------------------------------------- writer
+
+def save_csv(data, path):
+    """Write data as ``omega,real,imag`` CSV (atomic: temporary file then rename).
+
+    Parameters
+    ----------
+    data : FrequencyData
+    path : str or path-like
+        ``omega`` in rad/s (the header ``omega [rad/sample]`` for normalised data, which
+        :func:`load` reads back as such), values with ``repr`` precision (a round trip is
+        bit-exact).
+    """
+    from .._textio import atomic_write_text
+
+    unit = data.unit
+    lines = ["omega,real,imag" if unit == "rad/s" else f"omega [{unit}],real,imag"]
+    lines += [f"{w!r},{z.real!r},{z.imag!r}" for w, z in zip(data.omega.tolist(),
+                                                            data.response.tolist())]
+    atomic_write_text(path, "\n".join(lines) + "\n")
+

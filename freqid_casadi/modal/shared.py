@@ -1,0 +1,469 @@
+"""Many FRFs of one structure with one set of poles: :func:`fit_shared` (layer L4).
+
+Channel ``c`` (one FRF, e.g. one sensor) is fitted by
+``G_c(s) = exp(-h_c s) K_c [1/s] prod_k N_ck(s) / D_k(s)``: the denominator sections
+``D_k`` (the structure's poles) are shared, the numerator sections, gains and delays are the
+channel's own. The cost is the sum over channels of the relative least-squares error
+``sum_i w_ci |Phi_ci / G_c(j w_i) - 1|^2``. Every stage is one IPOPT NLP with true bounds
+(:mod:`freqid_casadi.modal._nlp`: exact block-arrowhead Hessian, cost per iteration linear
+in the number of channels).
+
+Channel sections (``channel_sections=k``, the counterpart of the "upper and lower
+residuals" of experimental modal analysis, e.g. PolyMAX or sdypy-EMA): each channel's model
+also has k sections of its own, ``N'_cj(s) / D'_cj(s)`` with its own poles and zeros (stable,
+and minimum phase unless the channel's zeros are "free", by the same bounds), standing in
+for what that channel sees of the modes outside the band. They are channel-block variables
+(the Hessian stays block-arrowhead); the channels are coupled only through the shared poles,
+and only those are modes (:attr:`SharedFitResult.modes`, ``poles``).
+
+Two starts (:mod:`freqid_casadi.modal._stages`):
+
+``"rational"`` (default)
+    vector fitting with one common pole set over all channels
+    (:mod:`freqid_casadi.modal._start`), with channel sections one vector fitting per
+    channel for its own poles (the shared ones fixed), right-half-plane zeros of
+    minimum-phase channels reflected (their group delay moved to the delay), then one IPOPT
+    polish on all data;
+``"sequential"``
+    the package's main loop: a pole pair added at the frequency of the largest relative
+    error over all channels, the window grown to cover it, all parameters re-fitted,
+    warm-started; then the channel sections, one per channel and stage, each at the
+    frequency of that channel's largest error; a last stage on all data.
+"""
+
+import dataclasses
+import numbers
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from .. import _interrupt
+from ..core.data import FrequencyData
+from ..core.gauges import dc_to_thesis
+from ..errors import DataError, OptionError
+from .._validate import check_flag
+from ..core.resolution import default_delay_max
+from ..core.scaling import weight_scale
+from ..core.model import RationalDelayModel, Structure
+from ._nlp import SharedProblem
+from ._stages import (SharedStage, lawson_rounds, logger, rational_start,
+                             sequential_start)
+
+__all__ = ["fit_shared", "SharedFitResult", "SharedStage", "DELAYS", "ZEROS", "SHARED_STARTS",
+           "check_largest_order"]
+
+DELAYS = ("per-channel", "shared", False)
+ZEROS = ("minimum-phase", "free")
+SHARED_STARTS = ("rational", "sequential")
+#: Most reweighted fits of ``balance_channels``.
+BALANCE_ROUNDS = 10
+
+
+@dataclass(frozen=True, eq=False)
+class SharedFitResult:
+    """Result of :func:`fit_shared`.
+
+    Attributes
+    ----------
+    models : tuple of RationalDelayModel, length C
+        One per channel, all with the same first N denominator sections (stable by
+        construction), then the channel's own k channel sections (``N + k`` sections in
+        all); channels fitted with ``zeros="free"`` have ``structure.zeros = "free"`` (and
+        ``gain_sign = -1`` for a negative gain).
+    datas : tuple of FrequencyData, length C
+    poles : ndarray of complex, shape (2N,)
+        The shared poles (the integrator's pole at 0 not included), by increasing |p|.
+        rad/s.
+    rel_errors : ndarray of float, shape (C, M)
+        ``|Phi_c / G_c - 1|`` at every point.
+    max_rel_errors, rms_rel_errors : ndarray of float, shape (C,)
+    success : bool
+        The last IPOPT stage converged: IPOPT met its tolerance or the stage ended at a
+        relatively stationary point (the Gauss-Newton model promises a relative cost
+        decrease of at most 1e-12, :mod:`freqid_casadi.solvers.shared_termination`); with
+        ``balance_channels`` that stage solves the last reweighted problem, i.e. the one
+        whose solution is returned.
+    modes : tuple of freqid_casadi.core.modes.Mode
+        The underdamped shared poles with every channel's residue, by frequency.
+    wall_time : float
+        s.
+    nit : int
+        IPOPT iterations over all stages.
+    stages : tuple of SharedStage
+    zeros : tuple of str
+        "minimum-phase" or "free" per channel.
+    options : dict
+    channel_poles : tuple of ndarray of complex, length C
+        Each channel's own poles (2k each, rad/s, by increasing |p|) from its channel
+        sections; empty arrays without channel sections. Not modes: they stand in for
+        modes outside the band as that channel sees them.
+    single_max_rel_errors : ndarray of float, shape (C,) or ()
+        With ``balance_channels``: each channel's max relative error in its own
+        single-channel fit (the targets); empty otherwise.
+    message : str
+        Why the last stage stopped (with the termination test's numbers) and, with
+        ``balance_channels``, which channels miss their targets.
+    """
+
+    models: tuple
+    datas: tuple
+    poles: np.ndarray
+    rel_errors: np.ndarray
+    max_rel_errors: np.ndarray
+    rms_rel_errors: np.ndarray
+    success: bool
+    modes: tuple
+    wall_time: float
+    nit: int
+    stages: tuple = ()
+    zeros: tuple = ()
+    options: dict = field(default_factory=dict)
+    channel_poles: tuple = ()
+    single_max_rel_errors: np.ndarray = ()
+    message: str = ""
+
+    @property
+    def n_channels(self):
+        return len(self.models)
+
+    @property
+    def n_shared(self):
+        """Shared sections N (each model has ``N + channel_sections`` sections)."""
+        return int(self.options.get("n_sections", self.models[0].n_sections))
+
+    @property
+    def channel_sections(self):
+        """Sections of each channel's own k (0 without)."""
+        return int(self.options.get("channel_sections", 0))
+
+    @property
+    def delays(self):
+        """Per-channel delays (s), shape (C,)."""
+        return np.array([m.delay for m in self.models])
+
+    def summary(self):
+        """One line: channels, sections, worst max/RMS relative error, time, status."""
+        own = (f" + {self.channel_sections} per channel" if self.channel_sections else "")
+        return (f"{self.n_channels} channels, {self.n_shared} shared sections{own}, "
+                f"{len(self.modes)} modes, max rel. error {np.max(self.max_rel_errors):.4g} "
+                f"(worst channel), RMS {np.max(self.rms_rel_errors):.4g}, "
+                f"{self.wall_time:.2f} s, {self.nit} iterations, "
+                f"{'converged' if self.success else 'NOT converged'}")
+
+    def to_control(self, pade_order=None, references=None):
+        """python-control ``StateSpace``: every channel an output.
+
+        Parameters
+        ----------
+        pade_order : int, optional
+            Include each channel's delay as a Padé approximation of that order; otherwise
+            the delays are left out and stated in the attribute ``output_delays`` (s, one
+            per output).
+        references : sequence of hashable, length C, optional
+            The input (exciter) of each channel; channels with the same reference share an
+            input. Default: one input for all channels.
+
+        Returns
+        -------
+        control.StateSpace
+            Block-diagonal realisation of the channels' section series (each channel keeps
+            its own copy of the shared poles: not minimal, but exact), C outputs, one input
+            per distinct reference (in order of first appearance, attribute
+            ``input_references``); ``output_delays`` holds the delays still to apply.
+        """
+        import control as ct
+
+        refs = [0] * self.n_channels if references is None else list(references)
+        if len(refs) != self.n_channels:
+            raise OptionError(f"references needs one entry per channel ({self.n_channels}), "
+                              f"got {len(refs)}")
+        inputs = list(dict.fromkeys(refs))
+        parts = [m.to_control(pade_order) for m in self.models]
+        n = sum(p.nstates for p in parts)
+        A = np.zeros((n, n))
+        B = np.zeros((n, len(inputs)))
+        C = np.zeros((self.n_channels, n))
+        D = np.zeros((self.n_channels, len(inputs)))
+        k = 0
+        for c, p in enumerate(parts):
+            j = inputs.index(refs[c])
+            ns = p.nstates
+            A[k:k + ns, k:k + ns] = p.A
+            B[k:k + ns, j] = np.ravel(p.B)
+            C[c, k:k + ns] = np.ravel(p.C)
+            D[c, j] = float(np.ravel(p.D)[0])
+            k += ns
+        sys = ct.ss(A, B, C, D)
+        sys.output_delays = np.array([getattr(p, "delay", 0.0) for p in parts], float)
+        sys.input_references = tuple(inputs)
+        return sys
+
+
+def _check_datas(datas, weights):
+    if isinstance(datas, FrequencyData):
+        datas = [datas]
+    datas = list(datas) if datas is not None else []
+    if not datas or not all(isinstance(d, FrequencyData) for d in datas):
+        raise DataError("datas must be a non-empty sequence of FrequencyData (one per "
+                        "channel); read files with freqid_casadi.load")
+    omega = datas[0].omega
+    for c, d in enumerate(datas[1:], 1):
+        if d.n_points != omega.size or not np.array_equal(d.omega, omega):
+            raise DataError(
+                f"channel {c} ({d.name or 'unnamed'}) is not on the omega grid of channel 0: "
+                f"{d.n_points} points from {d.omega[0]:.6g} to {d.omega[-1]:.6g} rad/s vs "
+                f"{omega.size} from {omega[0]:.6g} to {omega[-1]:.6g}; interpolate or "
+                "measure all channels on one grid")
+    wts = np.ones((len(datas), omega.size))
+    for c, d in enumerate(datas):
+        if d.weights is not None:
+            wts[c] = d.weights
+    if weights is not None:
+        try:
+            w = np.broadcast_to(np.asarray(weights, float), wts.shape)
+        except (ValueError, TypeError):
+            w = None
+        if w is None or not np.all(np.isfinite(w)) or np.any(w < 0) or \
+                np.any(np.sum(w, axis=1) <= 0):
+            raise DataError(f"weights must be finite, >= 0 and broadcastable to (channels, "
+                            f"points) = {wts.shape}, not all zero in a channel")
+        wts = wts * w
+    # the problem does not change with a common factor of the weights, the solvers'
+    # absolute tolerances do: mean weight about 1 (a power of two; unit weights unchanged)
+    wts = wts / weight_scale(wts.ravel())
+    return datas, omega, np.array([d.response for d in datas]), wts
+
+
+def _check_numbers(integrator, delay_max, max_iter, n_vf_iter, progress, balance):
+    """The scalar options of :func:`fit_shared` (OptionError naming the bad one)."""
+    flags = {"integrator": integrator, "progress": progress, "balance_channels": balance}
+    for name, value in flags.items():
+        check_flag(name, value)
+    if delay_max is not None and (isinstance(delay_max, (bool, np.bool_))
+                                  or not isinstance(delay_max, numbers.Real)
+                                  or not (0 < delay_max < np.inf)):
+        raise OptionError(f"delay_max must be a finite delay > 0 in seconds or None, got "
+                          f"{delay_max!r}")
+    for name, value, low in (("max_iter", max_iter, 1), ("n_vf_iter", n_vf_iter, 0)):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) \
+                or value < low:
+            raise OptionError(f"{name} must be an integer >= {low}, got {value!r}")
+
+
+def check_largest_order(datas, n_sections, options):
+    """DataError (or OptionError) before a series of fits when ``n_sections`` shared
+    sections with the :func:`fit_shared` ``options`` have more parameters than the data
+    have weighted points (see :func:`~freqid_casadi.modal.survey.stabilization`).
+
+    Parameters
+    ----------
+    datas : sequence of FrequencyData, length C
+        The channels, on one omega grid.
+    n_sections : int
+        The largest number of shared sections of the series.
+    options : dict
+        Keywords of :func:`fit_shared` (``weights``, ``channel_sections``, ``delay``).
+    """
+    wts = _check_datas(datas, options.get("weights"))[3]
+    k = options.get("channel_sections", 0)
+    if isinstance(k, (int, np.integer)) and not isinstance(k, bool) and k >= 0:
+        _check_size(wts, int(n_sections), int(k), options.get("delay", "per-channel"))
+
+
+def _check_size(wts, n, k, delay):
+    """DataError when the channels' weighted points are fewer than the variables."""
+    c = wts.shape[0]
+    n_vars = 2 * n + (delay == "shared") + c * (1 + (delay == "per-channel") + 2 * n + 4 * k)
+    counted = int(np.count_nonzero(wts > 0))
+    if counted < n_vars:
+        raise DataError(f"too few data points for {n} shared sections (and {k} per channel): "
+                        f"{counted} weighted points over {c} channels for {n_vars} "
+                        "parameters; use fewer sections or more data")
+
+
+def _check_options(n_sections, delay, zeros, start, n_channels, channel_sections):
+    if isinstance(n_sections, bool) or not isinstance(n_sections, (int, np.integer)) \
+            or n_sections < 1:
+        raise OptionError(f"n_sections must be an integer >= 1, got {n_sections!r}")
+    if isinstance(channel_sections, bool) or \
+            not isinstance(channel_sections, (int, np.integer)) or channel_sections < 0:
+        raise OptionError(f"channel_sections must be an integer >= 0 (sections of each "
+                          f"channel's own beside the shared ones), got {channel_sections!r}")
+    if not (delay is False or isinstance(delay, str)) or delay not in DELAYS:
+        raise OptionError(f"delay must be one of {DELAYS}, got {delay!r}")
+    try:
+        zs = [zeros] * n_channels if isinstance(zeros, str) else list(zeros)
+    except TypeError:
+        zs = None
+    if zs is None or len(zs) != n_channels or \
+            any(not isinstance(z, str) or z not in ZEROS for z in zs):
+        raise OptionError(f"zeros must be one of {ZEROS} or a list of them, one per channel "
+                          f"({n_channels}), got {zeros!r}")
+    if not isinstance(start, str) or start not in SHARED_STARTS:
+        raise OptionError(f"start must be one of {SHARED_STARTS}, got {start!r}")
+    return int(n_sections), tuple(zs), int(channel_sections)
+
+
+def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
+               zeros="minimum-phase", weights=None, start="rational", progress=False,
+               delay_max=None, max_iter=200, n_vf_iter=10, channel_sections=0,
+               balance_channels=False):
+    """Fit several FRFs of one structure with one shared set of poles.
+
+    Parameters
+    ----------
+    datas : sequence of FrequencyData, length C
+        One FRF per channel, all on the same omega grid (rad/s), else DataError.
+    n_sections : int
+        Shared denominator sections N (2N poles); every channel also gets N numerator
+        sections.
+    integrator : bool
+        A factor 1/s in every channel.
+    delay : {"per-channel", "shared", False}
+        One delay per channel, one for all, or none.
+    zeros : {"minimum-phase", "free"} or sequence of them, one per channel
+        "minimum-phase": gain and numerator coefficients >= 0 (zeros in the closed left
+        half plane). "free": unbounded (a non-collocated sensor's right-half-plane zeros or
+        negative gain); such a channel's model has ``structure.zeros = "free"`` (and
+        ``gain_sign = -1`` for a negative gain).
+    weights : array_like of float, shape (C, M), (M,) or scalar, optional
+        Weights of the squared relative residuals, multiplying the datas' own weights.
+    start : {"rational", "sequential"}
+    progress : bool
+        Print one line per stage to stderr.
+    delay_max : float, optional
+        Largest delay (s); default :func:`~freqid_casadi.fitting.fit.default_delay_max`.
+    max_iter : int
+        IPOPT iterations per stage (twice that in the final stage).
+    n_vf_iter : int
+        Vector-fitting iterations of the rational start.
+    channel_sections : int
+        k >= 0 sections of each channel's own (own poles and zeros, stable, minimum phase
+        unless the channel's zeros are "free"), beside the N shared ones: they stand in
+        for the modes outside the band as each channel sees them (the "upper and lower
+        residuals" of modal analysis), so each channel's model has ``N + k`` sections.
+        Their poles are not modes (:attr:`SharedFitResult.channel_poles`). Default 0.
+    balance_channels : bool
+        Make no channel's max relative error exceed that of its own single-channel fit
+        (this function on that channel alone, same options: ``N + k`` sections, its zeros
+        kind; C extra fits, :attr:`SharedFitResult.single_max_rel_errors`): after the fit,
+        the points of the channels that lose are reweighted (Lawson's iteration towards
+        their minimax fit, their weight raised) and the fit re-solved from its solution
+        with the new weights, at most :data:`BALANCE_ROUNDS` times, each round ended by a
+        looser test, then the last weighted problem once more to the stages' own test
+        (each round's stage is appended to ``stages``; ``success`` is that last solve's);
+        errors below 1e-8 count as exact (no loss). A channel is thus held to
+        its own fit's max error at the price of its least-squares optimality (its RMS error
+        grows); without channel sections the shared sections must also stand in for the
+        out-of-band modes and the rounds may not reach every target (the result says).
+
+    Returns
+    -------
+    SharedFitResult
+
+    Raises
+    ------
+    DataError, OptionError
+    """
+    from .._threads import single_threaded_blas
+
+    with single_threaded_blas():
+        return _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start,
+                           progress, delay_max, max_iter, n_vf_iter, channel_sections,
+                           balance_channels)
+
+
+def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, progress,
+                delay_max, max_iter, n_vf_iter, channel_sections, balance):
+    t0 = time.perf_counter()
+    datas, omega, phi, wts = _check_datas(datas, weights)
+    n, zs, k = _check_options(n_sections, delay, zeros, start, len(datas), channel_sections)
+    _check_numbers(integrator, delay_max, max_iter, n_vf_iter, progress, balance)
+    _check_size(wts, n, k, delay)
+    free = np.array([z == "free" for z in zs])
+    dmax = float(delay_max) if delay_max is not None else default_delay_max(omega)
+    g = np.abs(phi[:, 0]) * (omega[0] if integrator else 1.0)
+
+    log = logger(progress)
+    base = phi * (1j * omega) if integrator else phi          # VF fits the rational part
+
+    def run(w):
+        def make(wr, wl):
+            with _interrupt.guard():    # CasADi expressions: see stages.StageSolver
+                return SharedProblem(omega, phi, w, g, wr, integrator, delay, free, dmax, wl)
+        if start == "rational":
+            return rational_start(make, n, k, omega, base, w, free, log, max_iter, n_vf_iter)
+        return sequential_start(make, n, k, omega, w, log, max_iter)
+
+    prob, z, lam, stages = run(wts)
+    options = {"n_sections": n, "channel_sections": k, "integrator": bool(integrator),
+               "delay": delay, "zeros": list(zs), "start": start, "delay_max": dmax,
+               "balance_channels": bool(balance)}
+    singles = ()
+    if balance:
+        singles = np.array([_fit_shared([d], n, integrator, delay, [z], wts[c], start, False,
+                                        dmax, max_iter, n_vf_iter, k, False)
+                            .max_rel_errors[0] for c, (d, z) in enumerate(zip(datas, zs))])
+        prob, z, more = lawson_rounds(prob, z, lam, singles, log, max_iter, BALANCE_ROUNDS)
+        stages += more
+    res = _result(prob, z, datas, stages, zs, time.perf_counter() - t0, options)
+    if not balance:
+        return res
+    miss = np.flatnonzero(res.max_rel_errors > np.maximum(singles, 1e-8))
+    note = (f"; channels {miss.tolist()} exceed their own fit's max rel. error"
+            if miss.size else "; every channel within its own fit's max rel. error")
+    return dataclasses.replace(res, single_max_rel_errors=singles,
+                               message=res.message + note)
+
+
+def _models(prob, z):
+    """One RationalDelayModel per channel from the variables ``z``: the shared sections,
+    then the channel's own."""
+    q, v, h, p = prob.split(z)
+    lp, lq = prob.split_local(z)
+    models = []
+    for c in range(prob.n_channels):
+        vc = v[c] if abs(v[c]) > 1e-300 else 1e-300
+        gain = prob.g[c] / vc
+        secs = []
+        pairs = [(p[c, k], q[k], wr) for k, wr in enumerate(prob.wr)]
+        pairs += [(lp[c, k], lq[c, k], wl) for k, wl in enumerate(prob.wl[c])]
+        for num, den, wr in pairs:
+            a, zn, wn, sn = dc_to_thesis(num[0], num[1], wr)
+            b, zd, wd, sd = dc_to_thesis(den[0], den[1], wr)
+            gain *= sd / sn
+            secs += [a, zn, wn, b, zd, wd]
+        st = Structure(len(pairs), prob.integrator, prob.delay is not False,
+                       "second-order", "free" if prob.free[c] else "minimum-phase",
+                       1 if gain >= 0 else -1)
+        models.append(RationalDelayModel(st, np.array([h[c], abs(gain)] + secs, float)))
+    return tuple(models)
+
+
+def _section_poles(model, sections):
+    """Poles (rad/s) of the denominators of ``model``'s sections ``sections`` (a slice), by
+    increasing |p|."""
+    secs = model.sections()[sections]
+    sub = RationalDelayModel(Structure(len(secs), False, False, "second-order", "free"),
+                             np.concatenate([[0.0, 1.0], secs.ravel()]))
+    poles = sub.poles()
+    return poles[np.argsort(np.abs(poles), kind="stable")]
+
+
+def _result(prob, z, datas, stages, zeros, wall, options):
+    from ..core.modes import modes_of_models
+
+    models = _models(prob, z)
+    rel = np.abs(prob.ratio(z) - 1.0)
+    n = prob.n_sections
+    return SharedFitResult(
+        models=models, datas=tuple(datas), poles=_section_poles(models[0], slice(0, n)),
+        rel_errors=rel,
+        max_rel_errors=np.max(rel, axis=1), rms_rel_errors=np.sqrt(np.mean(rel ** 2, axis=1)),
+        success=bool(stages[-1].success), modes=modes_of_models(models, n),
+        message=stages[-1].message or stages[-1].solver_status,
+        wall_time=wall, nit=int(sum(s.nit for s in stages
+                                   if s.solver_status != "vector-fitting")),
+        stages=tuple(stages), zeros=tuple(zeros), options=options,
+        channel_poles=tuple(_section_poles(m, slice(n, None)) for m in models))

@@ -1,0 +1,249 @@
+"""The stabilization diagram of a modal survey (layer L6): fit a range of orders with one
+shared set of poles (:func:`freqid_casadi.fit_shared`) and mark every pole as new, stable in
+frequency, or stable in frequency and damping against the previous order (SDynPy's
+tolerances 1 % and 10 % by default); the modes that stay stable are selected.
+"""
+
+import csv
+import io
+import numbers
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import OptionError
+
+__all__ = ["StabilizationPole", "StabilizationResult", "parse_orders", "stabilization",
+           "stabilization_csv"]
+
+
+@dataclass(frozen=True)
+class StabilizationPole:
+    """A pole of one order.
+
+    Attributes
+    ----------
+    order : int
+        Number of poles of the fit.
+    omega_n : float
+        Natural frequency (rad/s).
+    frequency_hz : float
+        ``omega_n / (2 pi)``.
+    zeta : float
+        Damping ratio.
+    status : str
+        One of :data:`freqid_casadi.core.modes.STATUSES`.
+    """
+
+    order: int
+    omega_n: float
+    frequency_hz: float
+    zeta: float
+    status: str
+
+
+@dataclass(frozen=True, eq=False)
+class StabilizationResult:
+    """Result of :func:`stabilization`.
+
+    Attributes
+    ----------
+    orders : tuple of int
+        Model orders (number of shared poles, 2 x sections).
+    poles : tuple of StabilizationPole
+        Every underdamped pole of every order.
+    modes : tuple of Mode
+        The automatically selected physical modes (see :func:`stabilization`), taken from
+        the highest order's fit.
+    fits : tuple of SharedFitResult
+        One per order.
+    freq_tol, damping_tol : float
+    omega : ndarray of float, shape (M,)
+        rad/s.
+    summed_magnitude : ndarray of float, shape (M,)
+        ``sum_c |Phi_c|`` (the curve the diagram is drawn over).
+    """
+
+    orders: tuple
+    poles: tuple
+    modes: tuple
+    fits: tuple
+    freq_tol: float
+    damping_tol: float
+    omega: np.ndarray
+    summed_magnitude: np.ndarray
+
+    def poles_of(self, order):
+        """The StabilizationPoles of one order."""
+        return tuple(p for p in self.poles if p.order == order)
+
+
+def parse_orders(text):
+    """``"2:40:2"`` (start:stop:step, stop included) or ``"4,8,12"`` -> tuple of even ints.
+
+    Parameters
+    ----------
+    text : str
+    """
+    try:
+        if ":" in str(text):
+            parts = [int(t) for t in str(text).split(":")]
+            start, stop = parts[0], parts[1]
+            step = parts[2] if len(parts) > 2 else 2
+            orders = tuple(range(start, stop + 1, step))
+        else:
+            orders = tuple(int(t) for t in str(text).split(","))
+    except (ValueError, IndexError):
+        raise OptionError(f"orders must look like 2:40:2 or 4,8,12, got {text!r}") from None
+    return _check_orders(orders)
+
+
+def _check_orders(orders):
+    if isinstance(orders, str):
+        orders = parse_orders(orders)
+    try:
+        given = tuple(orders)
+    except TypeError:
+        raise OptionError(f"orders must be a sequence of even integers or a string such as "
+                          f"'2:40:2', got {orders!r}") from None
+    if any(isinstance(o, (bool, np.bool_)) or not isinstance(o, (int, np.integer))
+           for o in given):
+        raise OptionError(f"orders must be integers, got {given!r:.80}")
+    orders = tuple(int(o) for o in given)
+    if not orders or any(o < 2 or o % 2 for o in orders) or list(orders) != sorted(set(orders)):
+        raise OptionError(f"orders must be increasing even numbers >= 2 (the number of "
+                          f"shared poles), got {orders}")
+    return orders
+
+
+def _check_tolerances(freq_tol, damping_tol, min_stable):
+    """OptionError for tolerances that are not real numbers or a ``min_stable`` that is not
+    an integer >= 1 (their ranges are checked by :func:`stabilization`)."""
+    for name, value in (("freq_tol", freq_tol), ("damping_tol", damping_tol)):
+        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Real):
+            raise OptionError(f"{name} must be a number, got {value!r}")
+    if isinstance(min_stable, (bool, np.bool_)) or \
+            not isinstance(min_stable, (int, np.integer)) or min_stable < 1:
+        raise OptionError(f"min_stable must be an integer >= 1 (orders a mode must stay "
+                          f"stable), got {min_stable!r}")
+
+
+def _match(prev, cur, freq_tol, damping_tol):
+    """Status of each (omega_n, zeta) of ``cur`` against the poles of ``prev`` and the index
+    of its match in ``prev`` (or None). One-to-one: the closest pairs (relative frequency
+    distance) are matched first, so a spurious pole beside a physical one stays "new"."""
+    pairs = sorted((abs(pw - w) / w, i, j) for i, (w, _) in enumerate(cur)
+                   for j, (pw, _) in enumerate(prev))
+    match, used = [None] * len(cur), set()
+    for dist, i, j in pairs:
+        if dist <= freq_tol and match[i] is None and j not in used:
+            match[i] = j
+            used.add(j)
+    status = []
+    for i, (w, z) in enumerate(cur):
+        if match[i] is None:
+            status.append("new")
+        elif abs(prev[match[i]][1] - z) <= damping_tol * max(z, 1e-12):
+            status.append("stable-frequency-damping")
+        else:
+            status.append("stable-frequency")
+    return status, match
+
+
+def _classify(prev, cur, freq_tol, damping_tol):
+    """Statuses of :func:`_match`."""
+    return _match(prev, cur, freq_tol, damping_tol)[0]
+
+
+def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, damping_tol=0.10,
+                  min_stable=3, progress=False, **fit_options):
+    """Stabilization diagram: shared-pole fits of a range of orders.
+
+    Parameters
+    ----------
+    datas : sequence of FrequencyData
+        As :func:`~freqid_casadi.modal.shared.fit_shared`.
+    orders : sequence of int
+        Even model orders (number of poles) ``2 n_sections``, increasing.
+    freq_tol : float
+        A pole is stable in frequency when a pole of the previous order lies within
+        ``freq_tol`` (relative, default 1 %).
+    damping_tol : float
+        ... and stable in damping when that pole's damping ratio is within ``damping_tol``
+        (relative, default 10 %).
+    min_stable : int
+        A pole of the highest order is selected as a physical mode when it and its
+        predecessors were "stable-frequency-damping" over the last ``min_stable`` orders.
+    progress : bool
+    **fit_options
+        Passed to :func:`~freqid_casadi.modal.shared.fit_shared` (integrator, delay, zeros,
+        channel_sections, balance_channels, ...). With ``channel_sections`` the order counts
+        the shared poles only; each channel's own poles are not in the diagram.
+
+    Returns
+    -------
+    StabilizationResult
+    """
+    from .shared import check_largest_order, fit_shared
+
+    orders = _check_orders(orders)
+    _check_tolerances(freq_tol, damping_tol, min_stable)
+    check_largest_order(datas, orders[-1] // 2, fit_options)     # before any fit is run
+    if not (0 < freq_tol < 1 and 0 < damping_tol < 10):
+        raise OptionError(f"freq_tol must be in (0, 1) and damping_tol in (0, 10), got "
+                          f"{freq_tol}, {damping_tol}")
+    fits, poles, prev, history = [], [], [], []
+    for order in orders:
+        res = fit_shared(datas, order // 2, **fit_options)
+        fits.append(res)
+        cur = [(m.omega_n, m.zeta) for m in res.modes]
+        status, match = _match(prev, cur, freq_tol, damping_tol)
+        history.append((status, match))
+        poles += [StabilizationPole(order, w, w / (2 * np.pi), z, s)
+                  for (w, z), s in zip(cur, status)]
+        if progress:
+            import sys
+            print(f"  order {order}: {len(cur)} modes, "
+                  f"{status.count('stable-frequency-damping')} stable", file=sys.stderr)
+        prev = cur
+    selected = _select(fits[-1].modes, history, min_stable)
+    d0 = fits[0].datas
+    return StabilizationResult(
+        orders=orders, poles=tuple(poles), modes=selected, fits=tuple(fits),
+        freq_tol=float(freq_tol), damping_tol=float(damping_tol), omega=d0[0].omega,
+        summed_magnitude=np.sum([np.abs(d.response) for d in d0], axis=0))
+
+
+def _select(last, history, min_stable):
+    """Modes of the highest order whose chain of matched predecessors was "stable-frequency-
+    damping" at each of the last ``min_stable`` orders."""
+    k = min(int(min_stable), len(history) - 1)
+    keep = []
+    for i, mode in enumerate(last):
+        idx, ok = i, True
+        for status, match in history[::-1][:k]:
+            if status[idx] != "stable-frequency-damping":
+                ok = False
+                break
+            idx = match[idx]
+        if ok:
+            keep.append(mode)
+    return tuple(keep)
+
+
+def stabilization_csv(result):
+    """CSV text: order, frequency_hz, omega_n, zeta, status, selected (one row per pole).
+
+    Parameters
+    ----------
+    result : StabilizationResult
+    """
+    chosen = {m.omega_n for m in result.modes}
+    top = result.orders[-1]
+    buf = io.StringIO()
+    w = csv.writer(buf, lineterminator="\n")
+    w.writerow(["order", "frequency_hz", "omega_n_rad_s", "zeta", "status", "selected"])
+    for p in result.poles:
+        w.writerow([p.order, repr(p.frequency_hz), repr(p.omega_n), repr(p.zeta), p.status,
+                    int(p.order == top and p.omega_n in chosen)])
+    return buf.getvalue()

@@ -1,0 +1,213 @@
+"""IPOPT on one stage of the shared-pole fit (layer L3).
+
+:func:`solve_stage` minimises :class:`~freqid_casadi.modal._nlp.SharedProblem`'s cost with
+true bounds and its exact sparse (block-arrowhead) Hessian, and ends the solve at a
+relatively stationary point (:class:`~freqid_casadi.solvers.shared_termination.SharedMonitor`, checked
+after every IPOPT iteration). IPOPT's objective is scaled by the start cost, and its barrier
+parameter is absolute in those units: once the cost has fallen by :data:`RESCALE` the
+barrier holds variables whose optimum is on a bound far off it (measured on the beam's
+5 + 1 polish: an own section's numerator damping held at 5e-3 for 270 iterations while the
+cost stayed 5.6e-5 above its optimum), so the solve is restarted there, warm, rescaled.
+"""
+
+import time
+
+import numpy as np
+
+from .. import _interrupt
+from .shared_termination import SHARED_TERMINATION, SharedMonitor, verdict
+from .termination import iteration_callback
+
+__all__ = ["solve_stage", "RESCALE", "MAX_RESTARTS"]
+_EXTRA = {}
+#: A solve is restarted (objective rescaled) once its cost fell by this factor.
+RESCALE = 1e-2
+#: Most rescaled restarts of one solve (each needs another RESCALE-fold cost decrease).
+MAX_RESTARTS = 20
+
+
+def _callbacks():
+    import casadi as ca
+
+    class _Fn(ca.Callback):
+        """A numpy function as a CasADi Function writing into CasADi's buffers."""
+
+        def __init__(self, name, fn, names_in, sp_in, names_out, sp_out, jac=None):
+            ca.Callback.__init__(self)
+            self.fn, self.names_in, self.sp_in = fn, names_in, sp_in
+            self.names_out, self.sp_out = names_out, sp_out
+            self.jac = jac                  # (x -> [gradient]) for CasADi's own AD of f
+            self._jac_fn = None
+            _interrupt.construct(self, name)
+
+        def has_jacobian(self):
+            return self.jac is not None
+
+        def get_jacobian(self, name, inames, onames, opts):
+            n = self.sp_in[0].size1()
+            self._jac_fn = _Fn(name, lambda x, out: self.jac(x), inames,
+                               [self.sp_in[0], self.sp_out[0]], onames,
+                               [ca.Sparsity.dense(1, n)])
+            return self._jac_fn
+
+        def get_n_in(self):
+            return len(self.sp_in)
+
+        def get_n_out(self):
+            return len(self.sp_out)
+
+        def get_name_in(self, i):
+            return self.names_in[i]
+
+        def get_name_out(self, i):
+            return self.names_out[i]
+
+        def get_sparsity_in(self, i):
+            return self.sp_in[i]
+
+        def get_sparsity_out(self, i):
+            return self.sp_out[i]
+
+        def has_eval_buffer(self):
+            return True
+
+        def eval_buffer(self, arg, res):
+            args = [None if a is None else np.frombuffer(a, dtype=np.float64).copy()
+                    for a in arg]
+            for buf, val in zip(res, self.fn(*args)):
+                if buf is not None:
+                    np.frombuffer(buf, dtype=np.float64)[:] = val
+            return 0
+
+    return _Fn
+
+
+def solve_stage(problem, x0, n_points=None, *, lam_x0=None, max_iter=200, tol=1e-10,
+                termination=SHARED_TERMINATION):
+    """Minimise the stage cost with IPOPT (CasADi ``nlpsol``), true bounds, exact sparse
+    Hessian; stop at a relatively stationary point
+    (:class:`~freqid_casadi.solvers.shared_termination.SharedMonitor`).
+
+    Parameters
+    ----------
+    problem : SharedProblem
+    x0 : ndarray of float, shape (n_vars,)
+    n_points : int, optional
+        Fit the first ``n_points`` frequencies (the window); default all.
+    lam_x0 : ndarray, optional
+        Bound multipliers for IPOPT's warm start.
+    max_iter : int
+        A safety net: the test stops the solve at a relatively stationary point.
+    tol : float
+        IPOPT's ``tol`` on the objective scaled by 1 / (start cost).
+    termination : Termination or None
+        The scale-free test checked after every iteration and at the returned point
+        (:mod:`~freqid_casadi.solvers.termination`); None: IPOPT's own status only.
+
+    Returns
+    -------
+    dict
+        ``x`` (projected on the bounds), ``lam_x``, ``cost``, ``nit``, ``status`` (IPOPT's
+        return_status, "start-stationary" when the start passed the test), ``success``
+        (IPOPT converged or the point passes the test), ``stationary`` (the test passed),
+        ``message`` (why, with the test's numbers), ``t_solve`` (s, wall), ``c_solve`` (s,
+        CPU time of this process: robust to other jobs on the machine), ``t_build`` (s).
+    """
+    import casadi as ca
+
+    t0 = time.perf_counter()
+    n = problem.n_vars
+    lb, ub = problem.bounds()
+    x0 = np.clip(np.asarray(x0, float), lb, ub)
+    monitor = None if termination is None else SharedMonitor(problem, termination, n_points)
+    if monitor is not None and monitor.stationary(x0)[0]:
+        x0 = monitor.point
+        return {"x": x0, "lam_x": np.zeros(n) if lam_x0 is None else np.asarray(lam_x0, float),
+                "cost": problem.cost(x0, n_points), "nit": 0, "status": "start-stationary",
+                "success": True, "stationary": True, "t_solve": 0.0, "c_solve": 0.0,
+                "t_build": time.perf_counter() - t0,
+                "message": f"converged: the start is stationary ({monitor.test_text()})"}
+    out, rescaled = None, 0
+    while True:
+        left = int(max_iter) - (out["nit"] if out else 0)
+        res = _solve_once(problem, x0, n_points, lam_x0, left, tol, monitor)
+        if out is not None:
+            res.update(nit=out["nit"] + res["nit"], t_solve=out["t_solve"] + res["t_solve"],
+                       c_solve=out["c_solve"] + res["c_solve"],
+                       t_build=out["t_build"] + res["t_build"])
+        out = res
+        if monitor is None or monitor.reason != "rescale" or out["nit"] >= max_iter or \
+                rescaled >= MAX_RESTARTS:
+            break
+        # the cost fell RESCALE-fold: IPOPT's barrier parameter (absolute, on the objective
+        # scaled by the start cost) now holds variables far off their bounds; restart there
+        x0, lam_x0, rescaled = out["x"], out["lam_x"], rescaled + 1
+    out["t_build"] += time.perf_counter() - t0 - out["t_build"] - out["t_solve"]
+    out.update(verdict(monitor, out["x"], out["status"]))
+    out["cost"] = problem.cost(out["x"], n_points)
+    if rescaled:
+        note = f" (after {rescaled} rescaled restarts)"
+        out.update(status=out["status"] + note, message=out["message"][:-1] + note + ")")
+    return out
+
+
+def _solve_once(problem, x0, n_points, lam_x0, max_iter, tol, monitor):
+    """One IPOPT solve from ``x0`` with the objective scaled by 1 / cost(x0) (see
+    :func:`solve_stage`; ``monitor`` may stop it, and is armed to stop it once the cost
+    has fallen :data:`RESCALE`-fold)."""
+    import casadi as ca
+
+    t0 = time.perf_counter()
+    n = problem.n_vars
+    lb, ub = problem.bounds()
+    rows, cols, order = problem.hessian_pattern()
+    sp_h = ca.Sparsity.triplet(n, n, rows[order].tolist(), cols[order].tolist())
+    Fn = _callbacks()
+    dense = ca.Sparsity.dense
+    keep = [
+        Fn("f", lambda x: [problem.cost(x, n_points)], ["x"], [dense(n, 1)], ["f"],
+           [dense(1, 1)], jac=lambda x: [problem.gradient(x, n_points)[1]]),
+        Fn("nlp_grad_f", lambda x, p: problem.gradient(x, n_points), ["x", "p"],
+           [dense(n, 1), dense(0, 1)], ["f", "grad_f"], [dense(1, 1), dense(n, 1)]),
+        Fn("nlp_hess_l", lambda x, p, lf, lg: [lf[0] * problem.hessian_values(x, n_points)
+                                               [order]],
+           ["x", "p", "lam_f", "lam_g"], [dense(n, 1), dense(0, 1), dense(1, 1),
+                                          dense(0, 1)], ["hess_gamma_x_x"], [sp_h])]
+    z = ca.MX.sym("z", n)
+    ipopt = {"print_level": 0, "sb": "yes", "max_iter": int(max_iter), "tol": float(tol),
+             "acceptable_tol": 1e-8, "acceptable_iter": 30, "bound_relax_factor": 0.0,
+             "honor_original_bounds": "yes", "bound_push": 1e-9, "bound_frac": 1e-9,
+             "nlp_scaling_method": "none", **_EXTRA}
+    cost0 = problem.cost(x0, n_points)
+    if np.isfinite(cost0) and cost0 > 0:
+        ipopt["obj_scaling_factor"] = 1.0 / cost0
+    args = {"x0": x0, "lbx": lb, "ubx": ub}
+    if lam_x0 is not None:
+        ipopt.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
+                      "warm_start_bound_frac": 1e-9, "warm_start_mult_bound_push": 1e-9,
+                      "mu_init": 1e-6})
+        args["lam_x0"] = np.asarray(lam_x0, float)
+    opts = {"print_time": False, "error_on_fail": False, "grad_f": keep[1],
+            "hess_lag": keep[2], "ipopt": ipopt}
+    if monitor is not None:
+        monitor.arm(RESCALE * cost0)
+        keep.append(iteration_callback(monitor, n, 0))
+        opts["iteration_callback"] = keep[-1]
+    solver = ca.nlpsol("shared_stage", "ipopt", {"x": z, "f": keep[0](z)}, opts)
+    t_build = time.perf_counter() - t0
+    t1, c1 = time.perf_counter(), time.process_time()
+    try:
+        sol = solver(**args)
+        stats = solver.stats()
+        status = str(stats.get("return_status", "unknown"))
+        x = np.clip(np.array(sol["x"], float).ravel(), lb, ub)
+        lam = np.array(sol["lam_x"], float).ravel()
+    except RuntimeError as exc:                       # evaluation error inside CasADi
+        stats, status, x, lam = {}, f"exception: {exc}", x0, np.zeros(n)
+    t_solve, c_solve = time.perf_counter() - t1, time.process_time() - c1
+    cost = problem.cost(x, n_points)
+    if not (np.isfinite(cost) and np.all(np.isfinite(x))):
+        x, cost, status = x0, cost0, "Invalid_Number_Detected"
+    return {"x": x, "lam_x": lam, "cost": cost, "nit": int(stats.get("iter_count", 0)),
+            "status": status, "t_solve": t_solve, "c_solve": c_solve, "t_build": t_build}
+

@@ -1,0 +1,414 @@
+"""How well the data determine a fitted model: parameter covariance, bands, bootstrap (L4).
+
+The fit minimises ``sum_i w_i |r_i|^2`` over the relative residuals
+``r_i = Phi_i / G_N(j w_i) - 1`` (stacked as 2M real numbers). Near the optimum the
+estimate is linear in the noise (delta method), so with ``J = d[Re r; Im r]/d theta`` in
+the physical parameters of :mod:`freqid_casadi.core.physical` (delay, log gain, natural
+frequency and damping of every quadratic factor, root of every first-order one)::
+
+    Cov(theta) = sigma^2 (J^T W J)^-1                       noise from the residuals
+    sigma^2    = sum_i w_i |r_i|^2 / (2 M - p)              (per real component)
+    Cov(theta) = (J^T W J)^-1 J^T W S W J (J^T W J)^-1      noise variance S given
+
+(``S`` the variance of each real component of ``r``: ``E|Phi - G|^2 / (2 |G_N|^2)``; with
+``W = S^-1`` the sandwich is ``(J^T W J)^-1``). Parameters at a bound (a damping of 0 or at
+the fit's floor, a delay of 0, a missing coefficient) are excluded from the inversion and
+reported with ``at_bound`` True and a NaN standard deviation: the data do not make them
+known exactly, the bound does. The derivatives of ``ln G_N`` are analytic; the columns are
+scaled to unit norm before the inversion (an SVD, whose condition number is reported).
+
+:func:`bootstrap` gives the same record from a residual bootstrap (joblib-parallel);
+:mod:`freqid_casadi.uncertainty.bands` the delta-method band of the response and of the relative error.
+"""
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..core import physical as _physical
+from ..core.data import FrequencyData
+from ..errors import DataError, OptionError, StructureError
+from ..core.model import RationalDelayModel
+
+__all__ = ["ModeEstimate", "ParameterUncertainty", "parameter_uncertainty",
+           "with_std", "NOISE_SOURCES"]
+
+#: Values of ``ParameterUncertainty.noise_source``.
+NOISE_SOURCES = ("residuals", "given", "data", "bootstrap")
+
+
+def z_quantile(level, dist="normal", dof=None):
+    """Two-sided quantile of the normal (or Student t with ``dof``) distribution."""
+    if not (isinstance(level, (int, float)) and 0 < level < 1):
+        raise OptionError(f"level must be in (0, 1), got {level!r}; e.g. 0.95")
+    from scipy import stats
+
+    q = 0.5 + level / 2
+    if dist == "normal":
+        return float(stats.norm.ppf(q))
+    if dist == "t":
+        return float(stats.t.ppf(q, max(int(dof or 1), 1)))
+    raise OptionError(f"unknown dist {dist!r}; choose 'normal' or 't'")
+
+
+@dataclass(frozen=True)
+class ModeEstimate:
+    """Natural frequency and damping of one lightly damped pole pair, with their spread.
+
+    Attributes
+    ----------
+    section : int
+        Section (1-based) of the model whose denominator holds the pole pair.
+    omega_n, omega_n_std : float
+        Natural frequency and its standard deviation, rad/s.
+    frequency_hz, frequency_hz_std : float
+        The same in Hz.
+    zeta, zeta_std : float
+        Damping ratio (< 1) and its standard deviation; ``zeta_std`` is NaN when the
+        damping is at its bound (``zeta_at_bound``).
+    zeta_at_bound : bool
+    """
+
+    section: int
+    omega_n: float
+    omega_n_std: float
+    frequency_hz: float
+    frequency_hz_std: float
+    zeta: float
+    zeta_std: float
+    zeta_at_bound: bool = False
+
+    def interval(self, level=0.95):
+        """Normal confidence intervals ``{"omega_n": (lo, hi), "zeta": (lo, hi)}``."""
+        z = z_quantile(level)
+        return {"omega_n": (self.omega_n - z * self.omega_n_std,
+                            self.omega_n + z * self.omega_n_std),
+                "zeta": (self.zeta - z * self.zeta_std, self.zeta + z * self.zeta_std)}
+
+
+@dataclass(frozen=True, eq=False)
+class ParameterUncertainty:
+    """Covariance of a fitted model's physical parameters and what follows from it.
+
+    Attributes
+    ----------
+    model : RationalDelayModel
+        The model it describes.
+    param_names : tuple of str, length P
+        See :mod:`freqid_casadi.core.physical` (``delay``, ``log_gain``, ``omega_den[k]``,
+        ``zeta_den[k]``, ``omega_num[k]``, ...).
+    values : ndarray of float, shape (P,)
+        The parameter values (s, ln gain, rad/s, 1).
+    at_bound : ndarray of bool, shape (P,)
+        Parameters at a bound, excluded from the inversion.
+    covariance : ndarray of float, shape (P, P)
+        NaN in the rows and columns of parameters at a bound.
+    std : ndarray of float, shape (P,)
+        Square root of the diagonal (NaN at a bound).
+    delay, delay_std : float
+        Delay and its standard deviation, s (NaN std without a delay or at its bound).
+    gain, gain_std : float
+        Gain ``g`` (lowest coefficient of ``K [1/s] P_N``: DC gain, K0 with an integrator;
+        signed)
+        and its standard deviation ``g * std(log_gain)``.
+    modes : tuple of ModeEstimate
+        Every denominator quadratic with ``zeta < 1``, by increasing ``omega_n``.
+    noise_source : str
+        "residuals" (``sigma2`` estimated from the weighted residuals), "given" (the
+        ``noise_variance`` argument), "data" (``FrfEstimate.variance``) or "bootstrap"
+        (empirical covariance of refits).
+    sigma2 : float
+        ``sum w_i |r_i|^2 / (2 M - p)``: the residual variance per real component (always
+        computed; the covariance uses it when ``noise_source == "residuals"``).
+    dof : int
+        Degrees of freedom ``2 M - p`` (points with nonzero weight, free parameters).
+    condition_number : float
+        Of the column-scaled weighted Jacobian (large: parameters nearly redundant).
+    method : str
+        "delta" or "bootstrap".
+    samples : ndarray of float, shape (n_boot, P) or None
+        Bootstrap only: the refitted parameters (NaN rows for failed refits).
+    response_factor : ndarray of float, shape (P, K) or None
+        Delta method only: ``F`` with ``F F^T`` = ``covariance`` without the directions
+        the data do not determine at all (numerically zero singular values of the
+        Jacobian, along which the response does not move); NaN rows at a bound.
+        :func:`~freqid_casadi.uncertainty.bands.response_band` sums squares ``|g F|^2`` (never
+        negative, no cancellation), see :attr:`response_covariance`.
+    """
+
+    model: RationalDelayModel
+    param_names: tuple
+    values: np.ndarray
+    at_bound: np.ndarray
+    covariance: np.ndarray
+    std: np.ndarray
+    delay: float
+    delay_std: float
+    gain: float
+    gain_std: float
+    modes: tuple
+    noise_source: str
+    sigma2: float
+    dof: int
+    condition_number: float
+    method: str = "delta"
+    samples: np.ndarray = None
+    response_factor: np.ndarray = None
+
+    @property
+    def response_covariance(self):
+        """``response_factor @ response_factor.T`` (P, P), or None."""
+        f = self.response_factor
+        return None if f is None else f @ f.T
+
+    def std_of(self, name):
+        """Standard deviation of the parameter ``name`` (NaN at a bound)."""
+        return float(self.std[self._index(name)])
+
+    def _index(self, name):
+        try:
+            return self.param_names.index(name)
+        except ValueError:
+            raise OptionError(f"unknown parameter {name!r}; choose one of "
+                              f"{', '.join(self.param_names)}") from None
+
+    def interval(self, name, level=0.95, dist="normal"):
+        """Confidence interval ``(lo, hi)`` of one parameter.
+
+        Parameters
+        ----------
+        name : str
+            One of :attr:`param_names`.
+        level : float
+            Confidence level in (0, 1).
+        dist : {"normal", "t"}
+            Normal quantile, or Student t with :attr:`dof` degrees of freedom.
+        """
+        i = self._index(name)
+        z = z_quantile(level, dist, self.dof)
+        return (float(self.values[i] - z * self.std[i]), float(self.values[i] + z * self.std[i]))
+
+    def to_dict(self):
+        """JSON-ready dict: names, values, at_bound, covariance (NaN as None), noise info."""
+        def clean(a):
+            return [None if not np.isfinite(v) else float(v) for v in np.ravel(a)]
+
+        p = len(self.param_names)
+        return {"method": self.method, "noise_source": self.noise_source,
+                "sigma2": self.sigma2, "dof": self.dof, "param_names": list(self.param_names),
+                "values": clean(self.values), "at_bound": [bool(b) for b in self.at_bound],
+                "covariance": [clean(self.covariance[i]) for i in range(p)],
+                "delay_std": clean([self.delay_std])[0], "gain": self.gain,
+                "gain_std": clean([self.gain_std])[0]}
+
+    def intervals(self, level=0.95, dist="normal"):
+        """``{name: (lo, hi)}`` for every parameter (NaN bounds at a bound)."""
+        return {n: self.interval(n, level, dist) for n in self.param_names}
+
+
+# --------------------------------------------------------------------------- inputs
+
+def covariance_inputs(model, data, weights, noise_variance, bound_tol):
+    """Model, FrequencyData, weights (M,), absolute noise variance or None, source, par."""
+    zeta_floor, delay_max, source, variance = 0.0, None, "residuals", None
+    if hasattr(model, "model") and hasattr(model, "rel_error"):          # a FitResult
+        opts = model.options_dict() if hasattr(model, "options_dict") else {}
+        zeta_floor = float(opts.get("min_damping") or 0.0)
+        delay_max = opts.get("delay_max") if opts.get("bound_delay", True) else None
+        data = model.data if data is None else data
+        model = model.model
+    if not isinstance(model, RationalDelayModel):
+        raise StructureError(f"model must be a RationalDelayModel or FitResult, got "
+                             f"{type(model).__name__}")
+    if hasattr(data, "data") and hasattr(data, "variance"):              # an FrfEstimate
+        variance, data = data.variance, data.data
+        source = "data" if variance is not None else source
+    if not isinstance(data, FrequencyData):
+        raise DataError(f"data must be a FrequencyData or FrfEstimate, got "
+                        f"{type(data).__name__}; pass the data the model was fitted to")
+    m = data.n_points
+    w = weights if weights is not None else data.weights
+    w = np.ones(m) if w is None else data.with_weights(w).weights
+    if noise_variance is not None:
+        variance, source = noise_variance, "given"
+    if variance is not None:
+        variance = np.broadcast_to(np.asarray(variance, dtype=float), (m,)).copy()
+        if not np.all(np.isfinite(variance) & (variance > 0)):
+            raise DataError("noise_variance must be finite and > 0 (E|Phi - G|^2 per point, "
+                            "scalar or shape (M,))")
+    par = _physical.parametrize(model, float(data.omega[-1]), zeta_floor=zeta_floor,
+                                delay_max=delay_max, bound_tol=bound_tol)
+    return model, data, np.asarray(w, dtype=float), variance, source, par
+
+
+def residual_jacobian(par, theta, data):
+    """Relative residual r (M,) complex and its Jacobian d r / d theta (M, P) complex."""
+    log_g, d_log_g = _physical.log_response(par, theta, data.omega)
+    ratio = data.response * np.exp(-log_g)
+    return ratio - 1.0, -ratio[:, None] * d_log_g
+
+
+def _stack(z):
+    return np.concatenate([z.real, z.imag], axis=0)
+
+
+def _inverse(a):
+    """(A^T A)^-1 and a factor ``F`` (p, k) of its pseudo-inverse over the determined
+    directions (``F F^T``), via the SVD of A (2M, p) with unit-norm columns; and the
+    condition.
+
+    The determined directions are those whose singular value exceeds ``eps * max(2M, p)``
+    of the largest (numpy.linalg.lstsq's cutoff). Below it a direction is numerically
+    null (e.g. an exactly cancelling pole/zero pair, or a zero at infinity against the
+    delay): the parameters' variances keep it (huge: the data do not determine them), the
+    response's leave it out (the response does not move along it; inverted, rounding
+    times 1e32 made example C's response band 1e6 times wider than ``sigma^2 *
+    leverage``, its bound at the data frequencies).
+    """
+    scale = np.linalg.norm(a, axis=0)
+    scale[scale == 0] = 1.0
+    _, sv, vt = np.linalg.svd(a / scale, full_matrices=False)
+    cond = float(sv[0] / sv[-1]) if sv[-1] > 0 else math.inf
+    inv_s = (vt.T / np.where(sv > 0, sv, np.nan) ** 2) @ vt
+    keep = sv > np.finfo(float).eps * max(a.shape) * sv[0]
+    factor = vt[keep].T / sv[keep] / scale[:, None]       # (p, k): det = F F^T
+    return inv_s / np.outer(scale, scale), factor, cond
+
+
+def _covariance(r, jac, w, variance, g_abs2, free):
+    """Free-parameter covariance (p, p), a factor (p, k) of its part over the determined
+    directions, sigma2, dof, condition (see module notes and :func:`_inverse`)."""
+    sw = np.sqrt(np.concatenate([w, w]))
+    a = sw[:, None] * _stack(jac[:, free])
+    n_obs = 2 * int(np.count_nonzero(w > 0))
+    dof = n_obs - int(np.count_nonzero(free))
+    if dof <= 0:
+        raise DataError(f"{n_obs // 2} weighted points cannot determine "
+                        f"{int(np.count_nonzero(free))} parameters; use more data")
+    sigma2 = float(np.sum(w * np.abs(r) ** 2) / dof)
+    inv, factor, cond = _inverse(a)
+    if variance is None:
+        return sigma2 * inv, np.sqrt(sigma2) * factor, sigma2, dof, cond
+    s = np.concatenate([variance, variance]) / (2 * np.concatenate([g_abs2, g_abs2]))
+    meat = (a * (s * sw * sw)[:, None]).T @ a
+    # det meat det = (det A^T sqrt(D)) (...)^T, det = F F^T
+    sandwich = factor @ ((a @ factor).T * np.sqrt(s) * sw)
+    return inv @ meat @ inv, sandwich, sigma2, dof, cond
+
+
+def covariance_record(model, par, cov_free, free, sigma2, dof, cond, source, method, samples=None,
+            factor_free=None):
+    """Assemble a ParameterUncertainty from the free-parameter covariance (and the factor
+    of its part over the determined directions, ``response_factor``)."""
+    p = par.n_params
+    cov = np.full((p, p), np.nan)
+    cov[np.ix_(free, free)] = cov_free
+    resp = None
+    if factor_free is not None:
+        resp = np.full((p, factor_free.shape[1]), np.nan)
+        resp[free] = factor_free
+        resp.setflags(write=False)
+    std = np.sqrt(np.where(np.diag(cov) >= 0, np.diag(cov), np.nan))
+    values = np.array(par.theta)
+    modes = []
+    for f in par.factors:
+        if f.sign < 0 and f.kind == _physical.QUADRATIC and values[f.slots[1]] < 1:
+            iw, iz = f.slots
+            modes.append(ModeEstimate(
+                section=f.section, omega_n=float(values[iw]), omega_n_std=float(std[iw]),
+                frequency_hz=float(values[iw] / (2 * np.pi)),
+                frequency_hz_std=float(std[iw] / (2 * np.pi)), zeta=float(values[iz]),
+                zeta_std=float(std[iz]), zeta_at_bound=bool(par.at_bound[iz])))
+    modes.sort(key=lambda m: m.omega_n)
+    ig = par.index("log_gain")
+    gain = float(model.structure.gain_sign * np.exp(values[ig]))   # signed, like model.gain
+    delay_std = float(std[0]) if par.structure.delay else math.nan
+    for arr in (values, cov, std):
+        arr.setflags(write=False)
+    return ParameterUncertainty(
+        model=model, param_names=par.names, values=values, at_bound=np.array(par.at_bound),
+        covariance=cov, std=std, delay=model.delay, delay_std=delay_std, gain=gain,
+        gain_std=float(abs(gain) * std[ig]), modes=tuple(modes), noise_source=source,
+        sigma2=float(sigma2), dof=int(dof), condition_number=float(cond), method=method,
+        samples=samples, response_factor=resp)
+
+
+def parameter_uncertainty(model, data=None, *, weights=None, noise_variance=None,
+                          bound_tol=1e-8):
+    """Delta-method covariance of a fitted model's physical parameters.
+
+    Parameters
+    ----------
+    model : RationalDelayModel or FitResult
+        The fitted model; a FitResult also gives the data, its weights and the fit's
+        bounds (damping floor ``min_damping``, ``delay_max``).
+    data : FrequencyData or FrfEstimate, optional
+        The data the model was fitted to (M points); an FrfEstimate with ``variance``
+        supplies the noise variance. Required with a bare model.
+    weights : array_like of float, shape (M,), optional
+        The fit's weights of the squared relative residuals (default ``data.weights`` or 1).
+    noise_variance : float or array_like of float, shape (M,), optional
+        Variance ``E|Phi_i - G(j w_i)|^2`` of the complex data (response units squared);
+        overrides the data's. Without any, it is estimated from the residuals.
+    bound_tol : float
+        Relative tolerance for a parameter to count as at its bound.
+
+    Returns
+    -------
+    ParameterUncertainty
+        ``noise_source`` says where the noise level came from.
+
+    Raises
+    ------
+    DataError
+        Data of the wrong type, bad weights or variance, fewer observations than
+        parameters.
+    StructureError
+        Not a model, or a section with a zero numerator or denominator.
+
+    Notes
+    -----
+    See the module notes for the formulas. The delta method is first order: it is
+    accurate when the standard deviations are small against the parameters (a damping
+    known to 30 % of itself or a mode narrower than the frequency spacing are beyond it;
+    compare with :func:`bootstrap`).
+    """
+    model, data, w, variance, source, par = covariance_inputs(model, data, weights, noise_variance,
+                                                    bound_tol)
+    r, jac = residual_jacobian(par, par.theta, data)
+    free = ~par.at_bound
+    g_abs2 = np.abs(data.response / (1 + r)) ** 2
+    cov, factor, sigma2, dof, cond = _covariance(r, jac, w, variance, g_abs2, free)
+    return covariance_record(model, par, cov, free, sigma2, dof, cond, source, "delta",
+                   factor_free=factor)
+
+
+
+def with_std(modes, unc, rtol=1e-6):
+    """Copies of modal records with ``omega_n_std`` and ``zeta_std`` filled from ``unc``.
+
+    Parameters
+    ----------
+    modes : sequence of frozen dataclasses
+        Records with fields ``omega_n`` (rad/s), ``zeta``, ``omega_n_std`` and ``zeta_std``
+        (e.g. ``freqid_casadi.core.modes.Mode``) of the model ``unc`` describes.
+    unc : ParameterUncertainty
+    rtol : float
+        Relative tolerance of the match of ``omega_n`` with a mode of ``unc``.
+
+    Returns
+    -------
+    list
+        ``dataclasses.replace`` of each record; records without a matching pole pair
+        (e.g. overdamped) keep their values.
+    """
+    import dataclasses
+
+    out = []
+    for rec in modes:
+        match = [m for m in unc.modes if abs(m.omega_n - rec.omega_n) <= rtol * m.omega_n
+                 and abs(m.zeta - rec.zeta) <= max(rtol, 1e-9)]
+        out.append(dataclasses.replace(rec, omega_n_std=match[0].omega_n_std,
+                                       zeta_std=match[0].zeta_std) if match else rec)
+    return out

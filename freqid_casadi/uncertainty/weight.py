@@ -1,0 +1,499 @@
+"""A multiplicative uncertainty weight W(s) bounding a relative-error curve (layer L4).
+
+Given the relative error of a fitted model, ``e_i = |Phi_i / G_N(j w_i) - 1|``
+(``FitResult.rel_error``), the true plant lies in the multiplicative set
+``G = G_N (1 + W Delta)``, ``|Delta| <= 1``, at the measured frequencies whenever
+``|W(j w_i)| >= e_i``. :func:`fit_uncertainty_weight` finds a low-order, stable and
+minimum-phase ``W`` with that property at *every* data point, as tight as possible, for use
+as the uncertainty weight in ``control.mixsyn`` / ``control.hinfsyn``.
+
+Weight structure
+----------------
+``W(s) = k * prod_j S_j(s)`` with ``order // 2`` second-order sections and, for an odd order,
+one first-order section, each normalised to unit DC gain::
+
+    S_j(s) = (1 + 2 zn s/wn + (s/wn)^2) / (1 + 2 zd s/wd + (s/wd)^2)     (second order)
+    S_j(s) = (1 + s/wn) / (1 + s/wd)                                      (first order)
+
+Every section is biproper, so ``W`` is proper with ``W(inf)`` finite. The corner frequencies
+``wn, wd > 0`` and dampings ``zn, zd >= min_damping > 0`` put every pole and zero strictly in
+the open left half plane (a monic quadratic with positive coefficients is Hurwitz), so these
+simple bounds are the whole stability / minimum-phase constraint (as ``beta >= 0`` in
+:mod:`freqid_casadi.core.model`).
+
+The NLP (solved by IPOPT through CasADi)
+----------------------------------------
+Variables, scaled to about 1 (docs/style.md §8)::
+
+    kappa = ln(k / k_ref),  k_ref = (1 + margin) max_i e_i
+    d     = log10(w / w_c),  w_c = sqrt(w_1 w_M)       for every corner frequency
+    zeta                                                for every damping
+
+with the bounds (``lbx``/``ubx``) ``d in [log10(w_1/100/w_c), log10(100 w_M/w_c)]`` (corners
+beyond two decades outside the data have no effect on it) and
+``zeta in [min_damping, MAX_DAMPING]``. With ``L_i = ln|W(j w_i)|`` (built from (re, im)
+pairs, docs/style.md §1.2) and ``b_i = ln((1 + margin) e_i)``::
+
+    minimise    (1/M) sum_i (L_i - b_i)                 mean overbound in nepers
+    subject to  g_i = 2 (L_i - b_i) >= 0,  i = 1..M     |W| >= (1 + margin) e_i
+
+The objective is linear in ``ln|W|``: the mean log-ratio (an L1 fit from above), which
+weights every point equally, i.e. equally per decade on a log-spaced grid, and is not
+dominated by the few points where ``W`` must lie far above ``e`` (dips of ``e``, zeros).
+
+Starts. The orders ``1..order`` are solved in turn, each from two starts whose gain is
+raised to feasibility (``W = k_ref`` alone, order 0, is feasible and is the closed-form
+order-0 answer):
+
+* *fresh*: the data range is cut into ``n`` stretches of equal total variation of the
+  smoothed ``ln e``; each section is centred on its stretch with the stretch's net rise of
+  ``e`` as its high/low-frequency gain ratio (identity sections for a flat ``e``);
+* *ladder*: the best weight of the order below plus one real pole/zero pair (appended as a
+  first-order section, or merged with the first-order section into a second-order one),
+  chosen by a numpy grid search (3 points per decade over the corner bounds) of the
+  objective. The grid contains the cancelling pair, so this start is never worse than the
+  order below; if IPOPT ends above it, the start is kept.
+
+The best result by the objective is returned; hence the objective, and the mean overbound
+in dB, does not increase with the order (up to rounding).
+
+Verification. IPOPT's constraint tolerance can leave ``|W(j w_i)|`` a hair below
+``(1 + margin) e_i``. After the solve the bound is checked in numpy at every point and, if
+violated, ``k`` is multiplied by the largest ratio (``WeightResult.gain_correction``), so the
+returned weight satisfies ``|W(j w_i)| >= (1 + margin) e_i`` exactly in floating point.
+
+Zeros in ``e`` are floored at ``1e-16 max e`` before taking logs; floored points still count
+in the objective but are excluded from :class:`Overbound` (their ratio is meaningless).
+
+Implementation note: docs/style.md §2 reserves ``nlpsol`` for ``solvers/ipopt.py``; the small
+constrained NLP here is built in :func:`_solve` and run by
+:func:`~freqid_casadi.solvers.ipopt.run_nlpsol`, the wrapper every IPOPT solve goes through
+(status, projection onto the bounds, evaluation errors).
+
+Plotting (not in this module; see :mod:`freqid_casadi.plots`): on log-log axes, the
+data ``e_i`` (markers) and ``(1 + margin) e_i``, ``|W(j w)|`` on a dense grid spanning the
+data and a decade beyond (``WeightResult.frequency_response``), the pole and zero corner
+frequencies as vertical lines, and in a second panel the overbound ``20 log10(|W|/e)`` dB at
+the data points (never below ``20 log10(1 + margin)``).
+"""
+
+import math
+from typing import NamedTuple
+
+import numpy as np
+
+from .. import _cplx
+from ._weight import (_GRID_PER_DECADE, _LN10, CORNER_DECADES, E_FLOOR, MAX_DAMPING,
+                      Overbound, WeightResult, WeightSection, _factor, _real_pair_section,
+                      _response, _section_log_abs2, frequency_scale, rescaled)
+from ..errors import DataError, OptionError
+from ..solvers.common import SUCCESS_STATUSES, TERMINATION_MESSAGES, Status
+from ..solvers.ipopt import run_nlpsol
+
+__all__ = ["fit_uncertainty_weight", "WeightResult", "WeightSection", "Overbound",
+           "MAX_DAMPING", "CORNER_DECADES", "E_FLOOR"]
+
+# ---------------------------------------------------------------------------- validation
+def _vector(x, name):
+    try:
+        arr = np.asarray(x, dtype=float)
+    except (TypeError, ValueError):
+        raise DataError(f"{name} must be an array of real numbers, got {type(x).__name__}"
+                        ) from None
+    if arr.ndim != 1:
+        raise DataError(f"{name} must be one-dimensional, got shape {arr.shape}")
+    return arr
+
+
+def _validate(result_or_omega, rel_error, order, margin, max_iter, min_damping):
+    if hasattr(result_or_omega, "rel_error") and hasattr(result_or_omega, "data"):
+        if rel_error is not None:
+            raise DataError("pass either a FitResult or (omega, rel_error), not both")
+        omega = _vector(result_or_omega.data.omega, "result.data.omega")
+        e = _vector(result_or_omega.rel_error, "result.rel_error")
+        e_name = "result.rel_error"
+    else:
+        if rel_error is None:
+            raise DataError("rel_error is missing: call fit_uncertainty_weight(omega, "
+                            "rel_error, ...) or fit_uncertainty_weight(fit_result, ...)")
+        omega = _vector(result_or_omega, "omega")
+        e = _vector(rel_error, "rel_error")
+        e_name = "rel_error"
+    if omega.size == 0:
+        raise DataError("omega is empty: give at least one frequency point")
+    if e.size != omega.size:
+        raise DataError(f"omega and {e_name} must have equal lengths: len(omega)={omega.size}, "
+                        f"len({e_name})={e.size}; pass one relative error per frequency")
+    bad = ~np.isfinite(omega) | (omega <= 0)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise DataError(f"omega must be finite and > 0 (rad/s): omega[{i}]={omega[i]}; "
+                        "drop that point")
+    d = np.diff(omega)
+    if np.any(d <= 0):
+        i = int(np.flatnonzero(d <= 0)[0]) + 1
+        raise DataError(f"omega must be strictly increasing: omega[{i}]={omega[i]!r} <= "
+                        f"omega[{i - 1}]={omega[i - 1]!r}; sort and de-duplicate the points")
+    bad = ~np.isfinite(e)
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise DataError(f"{e_name} must be finite: {e_name}[{i}]={e[i]}; remove that point")
+    bad = e < 0
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise DataError(f"{e_name} must be >= 0 (a modulus |Phi/G_N - 1|): "
+                        f"{e_name}[{i}]={e[i]}; pass the absolute relative error")
+    if not np.any(e > 0):
+        raise DataError(f"{e_name} is zero at every point: there is no error to bound "
+                        "(the weight would be W = 0)")
+    if isinstance(order, bool) or not isinstance(order, (int, np.integer)):
+        raise OptionError(f"order must be an integer >= 0, got {order!r}")
+    if order < 0:
+        raise OptionError(f"order must be >= 0 (0 = constant weight), got {order}")
+    n_vars = 1 + 2 * int(order)
+    if omega.size < n_vars:
+        raise DataError(f"too few points for order {order}: {omega.size} points for "
+                        f"{n_vars} parameters; use order <= {(omega.size - 1) // 2}")
+    if (isinstance(margin, bool) or not isinstance(margin, (int, float, np.floating))
+            or not math.isfinite(margin) or margin < 0):
+        raise OptionError(f"margin must be a finite number >= 0 (relative, 0.1 = 10%), "
+                          f"got {margin!r}")
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
+        raise OptionError(f"max_iter must be an integer >= 1, got {max_iter!r}")
+    if (isinstance(min_damping, bool) or not isinstance(min_damping, (int, float, np.floating))
+            or not (0 < min_damping < MAX_DAMPING)):
+        raise OptionError(f"min_damping must be a number in (0, {MAX_DAMPING}), "
+                          f"got {min_damping!r}")
+    return omega, e
+
+
+# ---------------------------------------------------------------------------- problem
+class _Problem:
+    """Data, scaling and bounds shared by every solve (one order per ``kinds``)."""
+
+    def __init__(self, omega, e, margin, min_damping):
+        self.omega = omega
+        self.e = e
+        self.e_floored = np.maximum(e, E_FLOOR * float(np.max(e)))
+        self.floored = e < E_FLOOR * float(np.max(e))
+        self.need = (1.0 + margin) * e                                # unfloored bound
+        self.log_need = np.log1p(margin) + np.log(self.e_floored)    # b_i
+        self.log_k_ref = float(np.max(self.log_need))
+        self.omega_c = math.sqrt(omega[0] * omega[-1])
+        self.x = omega / self.omega_c                                 # scaled frequency
+        self.d_lo = math.log10(omega[0] / self.omega_c) - CORNER_DECADES
+        self.d_hi = math.log10(omega[-1] / self.omega_c) + CORNER_DECADES
+        self.min_damping = float(min_damping)
+
+    # sections <-> scaled variables (without kappa)
+    def pack(self, sections):
+        z = []
+        for s in sections:
+            dn = math.log10(s.omega_num / self.omega_c)
+            dd = math.log10(s.omega_den / self.omega_c)
+            if s.order == 2:
+                z += [dn, s.zeta_num, dd, s.zeta_den]
+            else:
+                z += [dn, dd]
+        return np.array(z, dtype=float)
+
+    def unpack(self, z, kinds):
+        sections, i = [], 0
+        for second in kinds:
+            if second:
+                dn, zn, dd, zd = (float(v) for v in z[i:i + 4])
+                i += 4
+            else:
+                (dn, dd), zn, zd = (float(v) for v in z[i:i + 2]), None, None
+                i += 2
+            sections.append(WeightSection(self.omega_c * 10.0 ** dn,
+                                          self.omega_c * 10.0 ** dd, zn, zd))
+        return tuple(sections)
+
+    def bounds(self, kinds):
+        lb, ub = [-np.inf], [np.inf]                  # kappa is free
+        for second in kinds:
+            if second:
+                lb += [self.d_lo, self.min_damping, self.d_lo, self.min_damping]
+                ub += [self.d_hi, MAX_DAMPING, self.d_hi, MAX_DAMPING]
+            else:
+                lb += [self.d_lo, self.d_lo]
+                ub += [self.d_hi, self.d_hi]
+        return np.array(lb), np.array(ub)
+
+    def sections_log_abs2(self, x, z, kinds, exp, log):
+        """``sum_j ln|S_j(j w_i)|^2`` at scaled frequencies ``x = omega / omega_c`` from the
+        scaled variables ``z`` (without kappa); numpy or CasADi."""
+        total, i = 0, 0
+        for second in kinds:
+            if second:
+                dn, zn, dd, zd = z[i], z[i + 1], z[i + 2], z[i + 3]
+                i += 4
+            else:
+                dn, dd, zn, zd = z[i], z[i + 1], None, None
+                i += 2
+            y_num = x * exp(-_LN10 * dn)
+            y_den = x * exp(-_LN10 * dd)
+            total = total + _section_log_abs2(y_num, zn, y_den, zd, log)
+        return total
+
+    def feasible_kappa(self, zs, kinds):
+        """Smallest kappa making the start feasible."""
+        s = self.sections_log_abs2(self.x, zs, kinds, np.exp, np.log) if kinds else 0.0
+        return float(np.max(self.log_need - self.log_k_ref - 0.5 * s))
+
+
+def _kinds(order):
+    return (True,) * (order // 2) + (False,) * (order % 2)
+
+
+def _solve(prob, kinds, z_sections, max_iter, verbose):
+    """One IPOPT solve from the sections' scaled variables ``z_sections``.
+
+    Returns ``(x, status, return_status, nit)`` with ``x = [kappa, z...]`` inside the bounds.
+    """
+    import casadi as ca
+
+    lb, ub = prob.bounds(kinds)
+    zs0 = np.clip(z_sections, lb[1:], ub[1:])
+    x0 = np.concatenate([[prob.feasible_kappa(zs0, kinds)], zs0])
+    n = x0.size
+    z = ca.SX.sym("z", n)
+    x = ca.DM(prob.x)
+    c = ca.DM(2.0 * (prob.log_need - prob.log_k_ref))
+    s = prob.sections_log_abs2(x, [z[i] for i in range(1, n)], kinds, ca.exp, ca.log)
+    g = 2.0 * z[0] + s - c                              # 2 (L_i - b_i)
+    g_fun = ca.Function("weight_log_margin", [z], [g], ["z"], ["g"])
+    f = 0.5 * ca.sum1(g) / prob.omega.size              # mean (L_i - b_i), nepers
+    opts = {
+        "print_time": False,
+        "error_on_fail": False,
+        "ipopt": {
+            "print_level": 5 if verbose else 0,
+            "sb": "yes",
+            "max_iter": int(max_iter),
+            "tol": 1e-9,
+            # stop once the objective has stalled at a feasible point: over-parametrised
+            # weights (a cancelling pole/zero pair) otherwise crawl to max_iter
+            "acceptable_tol": 1.0,
+            "acceptable_iter": 10,
+            "acceptable_obj_change_tol": 1e-6,
+            "acceptable_constr_viol_tol": 1e-5,
+            "constr_viol_tol": 1e-10,
+            "mu_strategy": "adaptive",
+        },
+    }
+    res = run_nlpsol("uncertainty_weight", {"x": z, "f": f, "g": g_fun(z)}, opts, x0, lb, ub,
+                     constrained=True)[0]
+    return res.x, res.status, res.solver_status, res.nit
+
+
+def _finish(prob, kappa, sections):
+    """Gain from kappa, then the numpy feasibility check and correction.
+
+    The check uses ``|W(j w_i)|`` exactly as :meth:`WeightResult.frequency_response`
+    computes it and ``need_i = (1 + margin) * e_i``, so the returned bound holds bit for bit.
+    """
+    gain0 = math.exp(prob.log_k_ref + kappa)
+    gain = gain0
+    mag = np.abs(_response(gain, sections, prob.omega))
+    ratio = float(np.max(prob.need / mag))
+    while ratio > 1.0:           # a second pass only to absorb rounding of gain * ratio
+        gain = gain * ratio * (1.0 + 4.0 * np.finfo(float).eps)
+        mag = np.abs(_response(gain, sections, prob.omega))
+        ratio = float(np.max(prob.need / mag))
+    objective = float(np.mean(np.log(mag) - prob.log_need))
+    return gain, mag, gain / gain0, objective
+
+
+def _smoothed_log_e(prob):
+    """ln e (floored at 1e-6 max e) smoothed by a moving average over M/10 points."""
+    le = np.log(np.maximum(prob.e, 1e-6 * float(np.max(prob.e))))
+    m = le.size
+    width = max(1, m // 10)
+    if width > 1:
+        kernel = np.ones(width) / width
+        le = np.convolve(np.pad(le, (width // 2, width - 1 - width // 2), mode="edge"),
+                         kernel, mode="valid")
+    return le
+
+
+def _shaped_start(prob, kinds):
+    """One section per stretch of equal total variation of the smoothed ln e.
+
+    Section j covers the frequencies where the total variation of the smoothed ``ln e``
+    goes from ``j/n`` to ``(j+1)/n`` of its total; it is centred (geometrically) there and
+    its high/low-frequency gain ratio equals the net rise ``R`` of ``e`` over the stretch
+    (first order: ``w_den / w_num = R``; second order: ``sqrt(R)``, ``zeta = 1``). A flat
+    ``e`` gives identity sections spread evenly over the data range.
+    """
+    n = len(kinds)
+    if n == 0:
+        return ()
+    le = _smoothed_log_e(prob)
+    logw = np.log(prob.omega)
+    tv = np.concatenate([[0.0], np.cumsum(np.abs(np.diff(le)))])
+    edges = np.arange(n + 1) / n
+    if tv[-1] <= 1e-9:
+        w_edges = logw[0] + edges * (logw[-1] - logw[0])
+    else:
+        w_edges = np.interp(edges * tv[-1], tv, logw)
+    sections = []
+    for j, second in enumerate(kinds):
+        centre = 0.5 * (w_edges[j] + w_edges[j + 1])
+        rise = float(np.interp(w_edges[j + 1], logw, le) - np.interp(w_edges[j], logw, le))
+        half = 0.5 * rise / (2.0 if second else 1.0)          # ln of sqrt(w_den / w_num)
+        half = float(np.clip(half, -_LN10 * CORNER_DECADES, _LN10 * CORNER_DECADES))
+        wn, wd = math.exp(centre - half), math.exp(centre + half)
+        sections.append(WeightSection(wn, wd, 1.0, 1.0) if second else WeightSection(wn, wd))
+    return tuple(sections)
+
+
+def _ladder_start(prob, sections, order):
+    """Sections of order ``order`` from the best ``sections`` of order - 1 (grid search).
+
+    Odd ``order``: a first-order section ``(1 + s/z)/(1 + s/p)`` is appended. Even: the
+    first-order section ``(z0, p0)`` becomes a second-order one with zeros ``{z0, z}`` and
+    poles ``{p0, p}``. ``(z, p)`` is the best pair on a log grid of GRID_PER_DECADE points per
+    decade over the corner bounds, judged by the objective after raising the gain to
+    feasibility (a cheap numpy search; ``z = p`` keeps the previous weight, so the start is
+    never worse than the order below).
+    """
+    seconds = tuple(s for s in sections if s.order == 2)
+    first = [s for s in sections if s.order == 1]
+    n_grid = int(round((prob.d_hi - prob.d_lo) * _GRID_PER_DECADE)) + 1
+    grid = prob.omega_c * 10.0 ** np.linspace(prob.d_lo, prob.d_hi, n_grid)
+    y = prob.omega[None, :] / grid[:, None]                          # (G, M)
+    if order % 2 == 1:
+        background = seconds + tuple(first)
+        zeta_num = zeta_den = None
+        y_num = y_den = y
+    else:
+        background = seconds
+        z0, p0 = first[0].omega_num, first[0].omega_den
+        wn, zeta_num = _real_pair_section(z0, grid)
+        wd, zeta_den = _real_pair_section(p0, grid)
+        y_num = prob.omega[None, :] / wn[:, None]
+        y_den = prob.omega[None, :] / wd[:, None]
+        zeta_num, zeta_den = zeta_num[:, None], zeta_den[:, None]
+    log_num = 0.5 * np.log(_cplx.abs2(_factor(y_num, zeta_num)))    # (G, M)
+    log_den = 0.5 * np.log(_cplx.abs2(_factor(y_den, zeta_den)))
+    base = np.log(np.abs(_response(1.0, background, prob.omega))) - prob.log_need
+    objective = np.empty((n_grid, n_grid))
+    for i in range(n_grid):                    # rows: zeros; columns: poles
+        r = base + log_num[i][None, :] - log_den                     # (G, M) = L - b - ln k
+        objective[i] = np.max(-r, axis=1) + np.mean(r, axis=1)
+    i, j = np.unravel_index(int(np.argmin(objective)), objective.shape)
+    if order % 2 == 1:
+        return background + (WeightSection(float(grid[i]), float(grid[j])),)
+    return background + (WeightSection(float(wn[i]), float(wd[j]),
+                                       float(zeta_num[i, 0]), float(zeta_den[j, 0])),)
+
+
+class _Candidate(NamedTuple):
+    objective: float
+    gain: float
+    sections: tuple
+    magnitude: np.ndarray
+    correction: float
+    status: Status
+    message: str
+
+
+def _candidate(prob, kappa, sections, status, message):
+    gain, mag, correction, objective = _finish(prob, kappa, sections)
+    return _Candidate(objective, gain, tuple(sections), mag, correction, status, message)
+
+
+def _overbound(prob, mag):
+    keep = ~prob.floored
+    db = 20.0 * np.log10(mag[keep] / prob.e[keep])
+    return Overbound(float(np.mean(db)), float(np.max(db)), float(np.min(db)))
+
+
+# ---------------------------------------------------------------------------- public
+def fit_uncertainty_weight(result_or_omega, rel_error=None, *, order=2, margin=0.0,
+                           min_damping=0.2, max_iter=500, verbose=False):
+    """Fit a stable, minimum-phase weight ``W(s)`` with ``|W(j w_i)| >= (1 + margin) e_i``.
+
+    Parameters
+    ----------
+    result_or_omega : FitResult or array_like of float, shape (M,)
+        A fit result (its ``data.omega`` and ``rel_error`` are used), or the frequencies in
+        rad/s, finite, > 0 and strictly increasing (then ``rel_error`` is required).
+    rel_error : array_like of float, shape (M,), optional
+        The relative error ``e_i = |Phi_i / G_N(j w_i) - 1| >= 0`` (finite, not all zero).
+    order : int
+        McMillan degree of ``W`` (>= 0): ``order // 2`` second-order sections and one
+        first-order section if odd; 0 gives the constant ``W = (1 + margin) max e``.
+    margin : float
+        Relative safety margin >= 0: the bound is ``(1 + margin) e_i`` (0.1 = 10 %).
+    min_damping : float
+        Lower bound of the dampings of second-order sections (keeps ``W`` free of sharp
+        resonances and notches between the data points), in (0, MAX_DAMPING).
+    max_iter : int
+        IPOPT iteration limit per solve.
+    verbose : bool
+        Let IPOPT print its log.
+
+    Returns
+    -------
+    WeightResult
+        The bound holds at every data point even if IPOPT did not converge
+        (``success=False``); see the module notes for the formulation.
+
+    Raises
+    ------
+    DataError
+        Bad ``omega``/``rel_error`` (length mismatch, NaN, negative, all zero, unsorted).
+    OptionError
+        Bad ``order``, ``margin``, ``min_damping`` or ``max_iter``.
+
+    Notes
+    -----
+    Minimises the mean log-ratio ``mean_i ln(|W(j w_i)| / ((1 + margin) e_i))`` subject to
+    ``ln|W(j w_i)|^2 >= 2 ln((1 + margin) e_i)`` at every point, over the gain, corner
+    frequencies and dampings (bounds as ``lbx``/``ubx``). The orders ``1..order`` are solved
+    in turn (each from a fresh start and from the best weight of the order below), so
+    ``objective`` does not increase with ``order`` (up to rounding).
+    """
+    omega, e = _validate(result_or_omega, rel_error, order, margin, max_iter, min_damping)
+    order = int(order)
+    scale = frequency_scale(omega)              # solve at omega / scale, rescale after
+    prob = _Problem(omega / scale, e, float(margin), min_damping)
+
+    # order 0 is closed form: W = max (1 + margin) e (verified like any other weight)
+    best = _candidate(prob, 0.0, (), Status.CONVERGED, "closed form (constant weight)")
+    nit = 0
+    for n in range(1, order + 1):
+        kinds = _kinds(n)
+        best_n = None
+        for label, start in (("fresh", _shaped_start(prob, kinds)),
+                             ("ladder", _ladder_start(prob, best.sections, n))):
+            xs, st, ipopt_msg, it = _solve(prob, kinds, prob.pack(start), max_iter, verbose)
+            nit += it
+            msg = f"{TERMINATION_MESSAGES[st]} (IPOPT: {ipopt_msg}; {label} start)"
+            cand = _candidate(prob, float(xs[0]), prob.unpack(xs[1:], kinds), st, msg)
+            if label == "ladder":
+                # the ladder start is never worse than the order below; keep it if IPOPT
+                # ended above it (as fit.py keeps a stage's start)
+                kappa0 = prob.feasible_kappa(prob.pack(start), kinds)
+                kept = _candidate(prob, kappa0, start, st, msg + ", kept the start")
+                if kept.objective < cand.objective:
+                    cand = kept
+            if best_n is None or cand.objective < best_n.objective:
+                best_n = cand
+        best = best_n
+
+    mag = best.magnitude
+    mag.setflags(write=False)
+    om = omega.copy()
+    om.setflags(write=False)
+    ee = e.copy()
+    ee.setflags(write=False)
+    return WeightResult(
+        omega=om, rel_error=ee, magnitude=mag, gain=float(best.gain),
+        sections=rescaled(best.sections, scale), order=order, overbound=_overbound(prob, mag),
+        margin=float(margin), gain_correction=float(best.correction),
+        objective=float(best.objective), status=best.status, message=best.message,
+        success=best.status in SUCCESS_STATUSES, nit=int(nit))
