@@ -278,7 +278,7 @@ def test_size_and_row_limits(tmp_path, monkeypatch):
     path = _write(tmp_path, "omega,real,imag\n" + _rows(OMEGA, RESP.real, RESP.imag))
     monkeypatch.setattr(loaders, "MAX_ROWS", 3)
     with pytest.raises(DataError, match=r"has more than 3 data rows \(limit "
-                       r"freqid_casadi\.loaders\.MAX_ROWS\); thin the data or raise"):
+                       r"freqid_casadi\.io\.loaders\.MAX_ROWS\); thin the data or raise"):
         load(path)
     from freqid_casadi.io import _readfile
 
