@@ -90,30 +90,6 @@ def test_public_name_has_docstring(module, attr):
     assert _own_doc(obj), f"{module}.{attr} has no docstring"
 
 
-#: Parameters of other helpers' modules not yet documented (owner in the comment); a name
-#: added here must be documented, not listed. The test fails on any other undocumented one.
-KNOWN_UNDOCUMENTED = {
-    # studies branch (ablation, reproduce, report, systems)
-    "freqid_casadi.ablation.render_ablation": {"summary"},
-    "freqid_casadi.reproduce.add_cli": {"subparsers"},
-    "freqid_casadi.reproduce.run_cli": {"args", "command"},
-    "freqid_casadi.reproduce.main": {"argv", "prog"},
-    "freqid_casadi.reproduce.table_cell": {"value"},
-    "freqid_casadi.report.folder.report_folder": {"out_dir", "force"},
-    "freqid_casadi.report.folder.render_fit_summary": {"summary"},
-    "freqid_casadi.report.folder.generated_by_line": {"command"},
-    "freqid_casadi.report.folder.check_out_dir": {"out_dir", "force"},
-    "freqid_casadi.systems.sqrt_inverse_at": {"s"},
-    "freqid_casadi.systems.G_D_at": {"s"},
-    # measured branch (data loaders, experiment, cli_frf); hostile (cli_batch)
-    "freqid_casadi.cli.frf.add_cli": {"subparsers"},
-    "freqid_casadi.cli.frf.stats_path": {"out"},
-    "freqid_casadi.cli.batch.add_cli": {"subparsers"},
-    "freqid_casadi.cli.batch.run_cli": {"args", "command"},
-    "freqid_casadi.cli.batch.data_files": {"folder"},
-}
-
-
 def _documents(doc, name):
     """``doc`` has a numpydoc entry for ``name`` ("name : type", "a, name : type" or a
     bare "name" line), in Parameters, Other Parameters or (dataclasses) Attributes."""
@@ -149,12 +125,9 @@ def test_every_parameter_is_documented(module, attr):
     doc = inspect.getdoc(obj) or ""
     if inspect.isclass(obj) and not dataclasses.is_dataclass(obj):
         doc += "\n" + (inspect.getdoc(obj.__init__) or "")
-    known = KNOWN_UNDOCUMENTED.get(f"{module}.{attr}", set())
     missing = [p for p in sig.parameters if p not in ("self", "cls")
-               and not _documents(doc, p) and p not in known]
+               and not _documents(doc, p)]
     assert not missing, f"{module}.{attr}: parameters {missing} are not documented"
-    still = [p for p in known if _documents(doc, p)]
-    assert not still, f"{module}.{attr}: {still} are documented now; drop them from KNOWN"
 
 
 def test_parameter_check_has_teeth():

@@ -1,4 +1,4 @@
-"""Malformed input through the API and the CLI (issue 8.1): one table of cases.
+"""Malformed input through the API and the CLI: one table of cases.
 
 Every case raises a typed :class:`~freqid_casadi.errors.FreqidError` from the API, and the
 same input through ``freqid fit`` prints one ``error: ...`` line and exits 2. The message

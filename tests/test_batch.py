@@ -1,6 +1,5 @@
-"""Tests of :mod:`freqid_casadi.fitting.batch` (fit_many) and the ``freqid batch`` command
-(issue 8.2, 8.3, 8.5): per-dataset errors, option errors, results independent of the
-number of processes and of the scheduler, atomic output under KeyboardInterrupt."""
+"""Tests of :mod:`freqid_casadi.fitting.batch` (fit_many) and the ``freqid batch`` command:
+per-dataset errors, option errors, results independent of the number of processes and of the scheduler, atomic output under KeyboardInterrupt."""
 
 import json
 import os

@@ -1,4 +1,4 @@
-"""The charts of the dc gauge's quadratic factors (issue 15's creeping root): the formula
+"""The charts of the dc gauge's quadratic factors (a creeping root): the formula
 against complex numpy, the maps to and from the thesis's parameters, the derivatives of
 both evaluation paths, the root floor, the chart choice and a fit whose optimum pushes a
 pole below the band."""

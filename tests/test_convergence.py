@@ -92,7 +92,7 @@ def test_the_message_says_what_a_failed_projection_means_only_when_not_converged
 # ------------------------------------------------------------------ success flag
 def test_exact_fit_at_machine_precision_is_converged_with_a_reason():
     # (the sequential loop ends in a phase-wrapped delay basin on these data, h = 0.145 s,
-    # max rel. error 1.30, also at b24cee6 before issue 14; the rational start is exact)
+    # max rel. error 1.30; the rational start is exact)
     model, g = _exact()
     res = fc.fit(W, g, n_sections=2, integrator=True, start="rational")
     assert res.max_rel_error < 1e-10

@@ -1,4 +1,4 @@
-"""An undetermined delay is held at the lower order's (freqid_casadi.fitting.delay_hold, issue 15):
+"""An undetermined delay is held at the lower order's (freqid_casadi.fitting.delay_hold):
 a system with a true delay of 5 ms and two sections, fitted with one section too many."""
 
 import dataclasses

@@ -1,4 +1,4 @@
-"""The delay search of a fit that did not converge (freqid_casadi/delay_search.py, issue 14).
+"""The delay search of a fit that did not converge (freqid_casadi/fitting/delay_search.py).
 
 Example C's measurements are in tests/test_relocate.py (rational 8.3e-7 -> 6.1e-11, sequential
 9.2e-7 -> 1.1e-10). Here: the search itself, when it runs, and a fit it rescues.

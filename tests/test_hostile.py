@@ -1,4 +1,4 @@
-"""Hostile-input matrix (issue 13): careless and hostile inputs never lose a user's file,
+"""Hostile-input matrix: careless and hostile inputs never lose a user's file,
 never hang, never print a traceback and never return garbage silently.
 
 Every case is independent and time-bounded (subprocesses have timeouts; in-process cases are
@@ -13,8 +13,8 @@ before and after). Families:
 - bounded: order ranges, option validation, extreme frequencies of the uncertainty weight
 - messages: one ``error:`` line, warnings only after success, Markdown/CSV escaping
 - stability: undamped modes (poles on the imaginary axis) and the meaning of is_stable
-- readers: hostile data files (these depend on the reader hardening of branch ``measured``)
-- finite: extreme scales (these depend on the internal scaling of branch ``conv``)
+- readers: hostile data files
+- finite: extreme scales
 
 Run ``pytest tests/test_hostile.py --collect-only -q`` for the case count per family (the
 test names start with the family's subject).
@@ -1102,7 +1102,7 @@ def _signal_during(module, name, monkeypatch):
 
 
 def test_ctrl_c_while_a_shared_fit_builds_its_problem_is_not_lost(python_sigint, monkeypatch):
-    # the shared fit built its CasADi problems outside any deferral (session 6's note)
+    # the shared fit built its CasADi problems outside any deferral
     from freqid_casadi.modal import shared
 
     built = _signal_during(shared, "SharedProblem", monkeypatch)

@@ -1,4 +1,4 @@
-"""The measured-data study (issue 15): the actuator from its raw records and the robot arm,
+"""The measured-data study: the actuator from its raw records and the robot arm,
 with the package's data only (no ../shared)."""
 
 import numpy as np
@@ -62,7 +62,7 @@ def test_actuator_delays_at_two_and_three_sections_agree(study):
 
 
 def test_actuator_one_section_delay_absorbs_the_unmodelled_lag(study):
-    # issue 15: "at 1 section the delay may absorb the unmodelled lag: say how much";
+    # "at 1 section the delay may absorb the unmodelled lag: say how much";
     # measured: 4.71 ms at 1 section, 7.00 ms at 2 (the 1-section model's zero far above
     # the band, 2.9e3 rad/s, and the missing second pole shift it by -2.3 ms)
     one, two = _ours(study.actuator, 1), _ours(study.actuator, 2)

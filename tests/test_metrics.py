@@ -1,5 +1,5 @@
 """Tests of metrics.relative_error, stages.polish, the enums of StageRecord and the typed
-failure of the rational start (issue 12)."""
+failure of the rational start."""
 
 import json
 

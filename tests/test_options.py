@@ -15,7 +15,7 @@ from freqid_casadi.options import (LEGACY_KEYWORDS, BarrierLMOptions, IpoptOptio
 
 def test_fit_signature_is_small_and_explicit():
     params = inspect.signature(fc.fit).parameters
-    assert len(params) <= 16           # issue 12: at most 16 (gain_sign, zeros came after)
+    assert len(params) <= 16           # a small signature: at most 16 keywords
     assert not any(p.kind == p.VAR_KEYWORD for p in params.values())
     assert "loop" in params and "solver" not in params
     assert not set(params) & set(LEGACY_KEYWORDS)
@@ -126,7 +126,7 @@ def test_fit_records_typed_options_and_computed_numbers():
 
 
 def test_final_stage_false_runs_no_final_stage():
-    """Defect of issue 12: ``final_stage and window < m or status == MAX_ITER`` ran a
+    """A defect: ``final_stage and window < m or status == MAX_ITER`` ran a
     final stage with final_stage=False after a stage that hit its iteration limit."""
     data = fc.systems.G_A().window(200)
     res = fc.fit(data, n_sections=3, integrator=True, method=IpoptOptions(max_iter=1),

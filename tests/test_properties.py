@@ -1,4 +1,4 @@
-"""Property-based tests (issue 8.1): loaders never crash on any input, round trips are
+"""Property-based tests: loaders never crash on any input, round trips are
 exact, and ``fit`` on random small valid problems returns a finite model whose ``success``
 is honest. Bounded: a fixed number of examples, no deadline, derandomised (deterministic)."""
 

@@ -1,7 +1,7 @@
-"""The sequential loop's init="relocate" (issue 14: the main loop must converge).
+"""The sequential loop's init="relocate": the main loop must converge.
 
-Session 7 (termination.hold_tol holds the undamped zeros' dampings, 4e-17 off their bound,
-as on it): C's endpoints pass the gradient test and fail the projection test (the
+With termination.hold_tol (the undamped zeros' dampings, 4e-17 off their bound, count as
+on it), C's endpoints pass the gradient test and fail the projection test (the
 Gauss-Newton step promises the whole residual); 2000 more IPOPT iterations from the
 sequential fit's endpoint reach 8.0e-11 with max cos 0.00086 and ||P r||/||r|| 0.997.
 
@@ -10,8 +10,7 @@ stages at their limit, max rel. error 6.34e-6, success False with init="peak"; 1
 iterations, no stage at its limit, 4.8e-14, success True with init="relocate" (the
 default).
 
-Example C does not converge with either start (issue 14's last gap; measured on branch
-cfinal, 2-core VM, with ``python scripts/final_stage_path.py [--start sequential]
+Example C does not converge with either start (measured on a 2-core VM with ``python scripts/final_stage_path.py [--start sequential]
 [--delay H] --chunks N --chunk-iter K``). Both fits end in a basin whose delay is too small
 (rational 0.026004 s, sequential 0.025947 s; G_C's delay is 0.02625 s), and their final
 stage creeps towards the system's delay along an interior valley, not towards a boundary

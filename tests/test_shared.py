@@ -243,7 +243,7 @@ def _check_beam_modes(res):
     wi, _ = moheimani_modes(30)
     found = np.array([m.omega_n for m in res.modes])
     assert found.size == 5 and len(res.poles) == 10                  # only the shared poles
-    np.testing.assert_allclose(found, wi[:5], rtol=0.005)             # issue 16: 0.5 %
+    np.testing.assert_allclose(found, wi[:5], rtol=0.005)             # 0.5 %
     np.testing.assert_allclose(found, wi[:5], rtol=1e-4)              # measured <= 1e-5
     assert all(len(m.residues) == len(SENSORS) for m in res.modes)
     # each channel's own section sits above the band (measured 596..640 rad/s: mode 6 is
@@ -277,7 +277,7 @@ def test_beam_channel_sections_modes_and_errors(beam_own):
 
 
 def test_beam_collocated_channel_no_worse_than_single_fit(beam_balanced):
-    # issue 16: every channel's max rel. error no worse than its own single-channel fit at
+    # every channel's max rel. error no worse than its own single-channel fit at
     # the same number of sections per channel: 5 shared + 1 own (balance_channels) vs the
     # channel alone at 5 + 1 = 6 sections (fit_shared on it; for the collocated channel
     # also fc.fit at 6 sections, the same model class). Measured ratios 0.39, 0.51, 0.49,

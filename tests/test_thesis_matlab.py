@@ -1,4 +1,4 @@
-"""Tests of the transcription of the thesis's MATLAB code (Appendix A, issue 18).
+"""Tests of the transcription of the thesis's MATLAB code (Appendix A).
 
 * create_jacob.m against finite differences of its own residuals: every column, with the
   places where it is not ``-d eps_p/d beta`` asserted (not skipped);

@@ -50,7 +50,13 @@ _COLUMNS = ("file", "name", "status", "n_sections", "order", "max_rel_error",
 
 
 def add_cli(subparsers):
-    """Add the ``batch`` subcommand to ``subparsers``; returns its parser."""
+    """Add the ``batch`` subcommand to ``subparsers``; returns its parser.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The result of ``ArgumentParser.add_subparsers``.
+    """
     p = subparsers.add_parser(
         "batch", help="fit every .csv/.npz file of a folder",
         description="Fit G_N(s) = exp(-hs) K [1/s] P_N(s) to every .csv and .npz file in a "
@@ -80,6 +86,11 @@ def data_files(folder):
     A symbolic link is followed only if its target lies inside ``folder``; other links,
     FIFOs, devices and sub-folders are skipped (a ``UserWarning`` names each skipped link,
     and one names the data files of other formats, ``.txt``, ``.mat``, ``.uff``, ...).
+
+    Parameters
+    ----------
+    folder : str or path-like
+        The folder to list.
 
     Raises
     ------
@@ -212,7 +223,15 @@ def _markdown(rows, command):
 
 def run_cli(args, command):
     """Run ``freqid batch`` from parsed ``args``; returns the exit code (0, or 1 if a file
-    failed or did not converge). FreqidError/OSError propagate to ``cli.main`` (exit 2)."""
+    failed or did not converge). FreqidError/OSError propagate to ``cli.main`` (exit 2).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed ``freqid batch`` arguments.
+    command : str
+        The command line, named on the report's first line.
+    """
     files = data_files(args.folder)
     check_out_dir(args.out, args.force)              # before the (long) fits
     with notes_to_stderr():                          # zero-frequency rows dropped, ...

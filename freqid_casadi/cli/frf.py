@@ -71,7 +71,13 @@ def _fraction(text):
 
 
 def add_cli(subparsers):
-    """Add the ``frf`` subparser to ``subparsers`` (from ``add_subparsers``); return it."""
+    """Add the ``frf`` subparser to ``subparsers`` (from ``add_subparsers``); return it.
+
+    Parameters
+    ----------
+    subparsers : argparse._SubParsersAction
+        The result of ``ArgumentParser.add_subparsers``.
+    """
     p = subparsers.add_parser(
         NAME, help="frequency response from u,y records (periodic, chirp, random)",
         description="Estimate the frequency response from input/output records and write "
@@ -109,7 +115,13 @@ def add_cli(subparsers):
 
 
 def stats_path(out):
-    """Path of the variance/coherence sidecar of ``out``: ``<stem>.stats.csv``."""
+    """Path of the variance/coherence sidecar of ``out``: ``<stem>.stats.csv``.
+
+    Parameters
+    ----------
+    out : str or path-like
+        The CSV file the FRF is written to.
+    """
     stem, ext = os.path.splitext(os.fspath(out))
     return f"{stem}.stats.csv" if ext.lower() == ".csv" else f"{os.fspath(out)}.stats.csv"
 

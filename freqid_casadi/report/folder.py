@@ -48,6 +48,13 @@ def check_out_dir(out_dir, force=False):
     (:func:`freqid_casadi.report.outputs.check_out_dir`: ``force`` replaces only a folder this
     package wrote, never the current folder, a parent of it or a folder holding an input).
 
+    Parameters
+    ----------
+    out_dir : str or path-like
+        The folder to write.
+    force : bool, optional
+        Replace a folder this package wrote (default False).
+
     Raises
     ------
     OptionError
@@ -118,6 +125,13 @@ def report_folder(out_dir, force=False):
     normally the folder gets the usual permissions and is renamed to ``path`` (with
     ``force`` an existing folder is replaced only then); on any exception, including
     KeyboardInterrupt, ``tmp`` is removed and nothing is left behind.
+
+    Parameters
+    ----------
+    out_dir : str or path-like
+        The folder to write.
+    force : bool, optional
+        Replace a folder this package wrote (default False).
 
     Raises
     ------
