@@ -21,9 +21,10 @@ import freqid_casadi as fc
 from freqid_casadi.cli import app as cli
 from freqid_casadi.report import folder as report
 from freqid_casadi.errors import DataError, FreqidError, OptionError, StructureError
+from conftest import first_order_response  # noqa: E402
 
 W = np.logspace(-1, 2, 30)
-RESP = 2.0 * np.exp(-0.01j * W) / (1 + 1j * W / 3.0)     # valid data: gain, delay, one pole
+RESP = first_order_response(W)     # valid data: gain, delay, one pole
 
 
 def _with(arr, idx, value, dtype=float):

@@ -19,9 +19,10 @@ from freqid_casadi.fitting import sweep
 from freqid_casadi.errors import DataError, OptionError
 from freqid_casadi.core.metrics import error_stats
 from freqid_casadi.core.model import RationalDelayModel, Structure
+from conftest import one_section_model  # noqa: E402
 
 W = np.logspace(-1, 2, 40)
-MODEL = RationalDelayModel(Structure(1), [0.01, 2.0, 1.0, 0.3, 5.0, 1.0, 0.05, 3.0])
+MODEL = one_section_model()
 R = MODEL.frequency_response(W)
 DATA = fc.FrequencyData(W, R, "plant")
 

@@ -30,9 +30,10 @@ from freqid_casadi.core.data import FrequencyData
 from freqid_casadi.io.loaders import load, save_csv
 from freqid_casadi.core.model import RationalDelayModel, Structure
 from test_hostile import snapshot  # one snapshot of a tree for both files
+from conftest import one_section_model  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
-MODEL = RationalDelayModel(Structure(1), [0.01, 2.0, 1.0, 0.3, 5.0, 1.0, 0.05, 3.0])
+MODEL = one_section_model()
 W = np.logspace(-1, 2, 40)
 
 

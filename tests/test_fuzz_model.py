@@ -17,8 +17,9 @@ from freqid_casadi.core.data import FrequencyData
 from freqid_casadi.errors import DataError, OptionError, StructureError
 from freqid_casadi.experiment import frf_from_records
 from freqid_casadi.core.model import RationalDelayModel, Structure
+from conftest import ONE_SECTION_BETA  # noqa: E402
 
-BETA = [0.01, 2.0, 1.0, 0.3, 5.0, 1.0, 0.05, 3.0]
+BETA = ONE_SECTION_BETA
 MODEL = RationalDelayModel(Structure(1), BETA)
 W = np.logspace(-1, 2, 40)
 

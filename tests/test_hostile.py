@@ -55,13 +55,14 @@ from freqid_casadi.core.data import FrequencyData  # noqa: E402
 from freqid_casadi.io.loaders import save_csv  # noqa: E402
 from freqid_casadi.errors import DataError, FreqidError, OptionError, StructureError  # noqa: E402
 from freqid_casadi.core.model import RationalDelayModel, Structure, _quad_roots  # noqa: E402
+from conftest import one_section_model  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]
 MARKER = _outputs.MARKER
 
 # a small known plant: one lightly damped section, delay 0.01 s, 40 points, 0.1..100 rad/s
 _OMEGA = np.logspace(-1, 2, 40)
-_MODEL = RationalDelayModel(Structure(1), [0.01, 2.0, 1.0, 0.3, 5.0, 1.0, 0.05, 3.0])
+_MODEL = one_section_model()
 
 
 def _plant(omega=_OMEGA, name="plant"):

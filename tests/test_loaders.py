@@ -17,9 +17,10 @@ from freqid_casadi.cli import app as cli
 from freqid_casadi.io import loaders
 from freqid_casadi.errors import DataError, OptionError
 from freqid_casadi.io.loaders import DataWarning, load, load_mat, load_npz, load_text, load_uff
+from conftest import first_order_response  # noqa: E402
 
 OMEGA = np.array([0.5, 1.25, 3.0, 7.5, 20.0, 64.0])
-RESP = 2.0 * np.exp(-0.01j * OMEGA) / (1 + 1j * OMEGA / 3.0)
+RESP = first_order_response(OMEGA)
 F_HZ = OMEGA / (2 * np.pi)
 DB = 20 * np.log10(np.abs(RESP))
 DEG = np.degrees(np.angle(RESP))
@@ -347,7 +348,7 @@ def test_bad_options_are_option_errors(tmp_path):
 def test_cli_fit_reads_hz_text_with_freq_unit_and_columns(tmp_path, monkeypatch, capsys):
     monkeypatch.chdir(tmp_path)
     w = np.logspace(-1, 2, 20)
-    g = 2.0 * np.exp(-0.01j * w) / (1 + 1j * w / 3.0)
+    g = first_order_response(w)
     rows = _rows(np.r_[0.0, w / (2 * np.pi)], np.r_[2.0, 20 * np.log10(np.abs(g))],
                  np.r_[0.0, np.degrees(np.angle(g))], sep="\t")
     _write(tmp_path, rows, "m.txt")
@@ -432,7 +433,7 @@ def test_cli_batch_passes_freq_unit_and_prints_notes(tmp_path, monkeypatch, caps
     monkeypatch.chdir(tmp_path)
     (tmp_path / "in").mkdir()
     w = np.logspace(-1, 2, 20)
-    g = 2.0 * np.exp(-0.01j * w) / (1 + 1j * w / 3.0)
+    g = first_order_response(w)
     _write(tmp_path / "in", _rows(np.r_[0.0, w / (2 * np.pi)], np.r_[2.0, g.real],
                                   np.r_[0.0, g.imag]), "hz.csv")
     code = cli.main(["batch", "in", "--out", "rep", "--sections", "1", "--freq-unit", "hz"])

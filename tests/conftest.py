@@ -1,0 +1,59 @@
+"""Shared plants and fixtures of the test suite.
+
+The plants many test files fit or read are built here once (a newcomer adds a test by
+asking for a fixture, not by writing a plant again):
+
+- ``one_section_model``: G(s) = 2 e^{-0.01 s} (s^2 + 2·0.3·5 s + 25) / (s^2 + 2·0.05·3 s + 9)
+  (a :class:`~freqid_casadi.RationalDelayModel` with one section and a 10 ms delay).
+- ``first_order_response(omega)``: 2 e^{-0.01 j omega} / (1 + j omega / 3).
+- ``example_data(name)``: the benchmark systems A, B and C of docs/spec.md §4, 500 points.
+
+Figures are closed after every test (after python-control's ``conftest.py::mplcleanup``).
+"""
+
+import sys
+
+import numpy as np
+import pytest
+
+import freqid_casadi as fc
+
+#: beta of the one-section plant (delay, gain, then a, zeta_n, omega_n, b, zeta_d, omega_d)
+ONE_SECTION_BETA = [0.01, 2.0, 1.0, 0.3, 5.0, 1.0, 0.05, 3.0]
+
+
+def one_section_model():
+    """The one-section plant with a 10 ms delay (a fresh RationalDelayModel)."""
+    return fc.RationalDelayModel(fc.Structure(1), ONE_SECTION_BETA)
+
+
+def first_order_response(omega):
+    """2 e^{-0.01 j omega} / (1 + j omega / 3): gain, a 10 ms delay and one real pole."""
+    omega = np.asarray(omega, dtype=float)
+    return 2.0 * np.exp(-0.01j * omega) / (1 + 1j * omega / 3.0)
+
+
+@pytest.fixture(name="one_section_model")
+def _one_section_model():
+    return one_section_model()
+
+
+@pytest.fixture(scope="session")
+def example_data():
+    """``example_data("A")``: the benchmark system's FrequencyData (cached per session)."""
+    cache = {}
+
+    def get(name):
+        if name not in cache:
+            cache[name] = getattr(fc.systems, f"G_{name}")()
+        return cache[name]
+
+    return get
+
+
+@pytest.fixture(autouse=True)
+def _close_figures():
+    yield
+    plt = sys.modules.get("matplotlib.pyplot")
+    if plt is not None:
+        plt.close("all")
