@@ -62,7 +62,7 @@ def test_processes_and_a_fresh_interpreter_give_identical_json(serial):
     """Determinism across processes: joblib workers and a new interpreter reproduce the
     serial model JSON byte for byte."""
     pytest.importorskip("joblib", reason="joblib not installed (needed for jobs > 1)")
-    parallel = fit_many(_datasets(), jobs=2, **OPTIONS)
+    parallel = fit_many(_datasets(), n_jobs=2, **OPTIONS)
     assert _jsons(parallel) == _jsons(serial)
     out = subprocess.run([sys.executable, "-c", _SUBPROCESS], capture_output=True,
                          text=True, check=True, timeout=120).stdout
@@ -98,8 +98,10 @@ def test_a_failing_dataset_is_reported_not_fatal(tmp_path):
 
 
 @pytest.mark.parametrize("kwargs, exc, match", [
-    (dict(n_sections=1, jobs=0), OptionError, "jobs must be a positive integer"),
-    (dict(n_sections=1, jobs=1.5), OptionError, "jobs must be a positive integer"),
+    (dict(n_sections=1, n_jobs=0), OptionError, "n_jobs must be a positive integer"),
+    (dict(n_sections=1, n_jobs=1.5), OptionError, "n_jobs must be a positive integer"),
+    (dict(n_sections=1, jobs=2), TypeError, "takes n_jobs=, not jobs="),
+    (dict(n_sections=1, progress="bar"), OptionError, "progress must be True, False"),
     (dict(n_sections=1, sections=2), OptionError, "unknown fit option.*'sections'"),
     (dict(), OptionError, "n_sections is missing"),
     (dict(n_sections=1, basis="cubic"), OptionError, "unknown basis 'cubic'"),
@@ -110,6 +112,15 @@ def test_a_failing_dataset_is_reported_not_fatal(tmp_path):
 def test_option_errors_are_raised_once(kwargs, exc, match):
     with pytest.raises(exc, match=match):
         fit_many(_datasets()[:2], **kwargs)
+
+
+def test_progress_receives_every_item_in_order(capsys):
+    seen = []
+    items = fit_many(_datasets()[:3], progress=seen.append, **OPTIONS)
+    assert seen == items
+    fit_many(_datasets()[:2], progress="lines", **OPTIONS)
+    lines = capsys.readouterr().err.strip().splitlines()
+    assert len(lines) == 2 and "max rel. error" in lines[0]
 
 
 def test_bad_dataset_type():

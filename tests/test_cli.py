@@ -187,7 +187,8 @@ def test_progress_flags(workdir, capsys, fake_fit, fast_figures):
                "--progress")[0] == 0
     assert run(capsys, "fit", "plant.csv", "--sections", "2", "--out", "r3",
                "--quiet")[0] == 0
-    assert [kw["progress"] for _, kw in fake_fit] == [False, True, False]
+    # default: a bar on a terminal, silent in a pipe; --progress: a line per stage always
+    assert [kw["progress"] for _, kw in fake_fit] == [True, "lines", False]
 
 
 def test_fit_options_are_passed(workdir, capsys, fake_fit, fast_figures):

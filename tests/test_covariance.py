@@ -440,3 +440,15 @@ def test_the_band_from_the_factor_equals_the_covariance_band_when_well_condition
     np.testing.assert_allclose(by_factor, by_cov, rtol=1e-9)
     np.testing.assert_allclose(unc.response_covariance, unc.covariance,
                                rtol=1e-6, atol=1e-12 * np.abs(unc.covariance).max())
+
+
+def test_bootstrap_progress_receives_every_replicate():
+    from freqid_casadi.fitting.bootstrap import bootstrap
+
+    model = fc.RationalDelayModel(fc.Structure(1), [0.01, 2.0, 1.0, 0.3, 5.0, 1.0, 0.05, 3.0])
+    w = np.logspace(-0.5, 1.5, 60)
+    rng = np.random.default_rng(3)
+    g = model.frequency_response(w) * (1 + 0.01 * rng.standard_normal(60))
+    seen = []
+    rec = bootstrap(model, fc.FrequencyData(w, g), n_boot=5, progress=seen.append)
+    assert len(seen) == 5 and np.array_equal(np.array(seen), rec.samples)

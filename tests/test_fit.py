@@ -169,12 +169,36 @@ def test_progress_callback_gets_every_stage():
     assert seen == list(res.stages)
 
 
-def test_progress_true_writes_one_line_per_stage(capsys):
+def test_progress_lines_writes_one_line_per_stage(capsys):
     _, data = two_section_data(n_points=80)
-    res = fc.fit(data, n_sections=2, integrator=True, progress=True)
+    res = fc.fit(data, n_sections=2, integrator=True, progress="lines")
     err = capsys.readouterr().err.strip().splitlines()
     assert len(err) == len(res.stages)
     assert "max rel. error" in err[-1]
+
+
+def test_progress_true_is_silent_off_a_terminal(capsys):
+    _, data = two_section_data(n_points=80)
+    fc.fit(data, n_sections=2, integrator=True, progress=True)
+    assert capsys.readouterr().err == ""
+
+
+def test_progress_true_draws_a_bar_on_a_terminal(monkeypatch, capsys):
+    import sys
+
+    monkeypatch.setattr(sys.stderr, "isatty", lambda: True, raising=False)
+    _, data = two_section_data(n_points=80)
+    res = fc.fit(data, n_sections=2, integrator=True, progress=True)
+    err = capsys.readouterr().err
+    assert "max rel. error" in err and f"{len(res.stages)}stage" in err.replace(" ", "")
+
+
+@pytest.mark.parametrize("bad", ["yes", 2, 0.5, [True]])
+def test_progress_refuses_other_values(bad):
+    _, data = two_section_data(n_points=40)
+    with pytest.raises(fc.OptionError, match="progress must be True, False, 'lines' or a "
+                       "callable"):
+        fc.fit(data, n_sections=1, progress=bad)
 
 
 def test_returned_beta_is_exactly_feasible_for_light_damping():

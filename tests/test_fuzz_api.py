@@ -42,9 +42,9 @@ def _fit(**kw):
     (dict(basis=np.array(["a", "b"])), OptionError, "unknown basis array"),
     (dict(start=np.array([1, 2])), OptionError, "unknown start array"),
     (dict(objective=np.array([1, 2])), OptionError, "unknown objective array"),
-    (dict(progress=np.array([1, 2])), OptionError, "progress must be True, False or a "
-                                                   "callable"),
-    (dict(progress="yes"), OptionError, "progress must be True, False or a callable"),
+    (dict(progress=np.array([1, 2])), OptionError, "progress must be True, False, 'lines' or "
+                                                   "a callable"),
+    (dict(progress="yes"), OptionError, "progress must be True, False, 'lines' or a callable"),
     (dict(tol=True), OptionError, "tol must be a number > 0"),
 ], ids=lambda v: str(v)[:40] if isinstance(v, dict) else None)
 def test_fit_option_of_a_wrong_type_is_an_option_error(kw, exc, needle):
@@ -159,7 +159,7 @@ def test_fit_shared_weights_of_any_scale():
     ([[2.5]], {}, OptionError, r"orders must be integers, got 2\.5"),
     ([[2]], dict(target="x"), OptionError, "target must be a number > 0"),
     ([[2]], dict(target=np.array([1, 2])), OptionError, "target must be a number > 0"),
-    ([[2]], dict(progress="x"), OptionError, "progress must be None or a callable"),
+    ([[2]], dict(progress="x"), OptionError, "progress must be True, False, 'lines' or a callable"),
     ([[2]], dict(truth=lambda w: w * np.nan), DataError, "truth.omega. must return one "
                                                          "finite"),
 ])
@@ -186,7 +186,7 @@ def test_fit_many_arguments_are_checked(args, kw, exc, needle):
 
 
 def test_fit_many_takes_a_numpy_job_count():
-    items = batch.fit_many([DATA], n_sections=1, jobs=np.int64(1))
+    items = batch.fit_many([DATA], n_sections=1, n_jobs=np.int64(1))
     assert items[0].ok and items[0].result.max_rel_error < 1e-10
 
 

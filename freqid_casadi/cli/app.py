@@ -284,7 +284,7 @@ def build_parser():
 
 
 def _progress(args):
-    return sys.stderr.isatty() if args.progress is None else bool(args.progress)
+    return True if args.progress is None else ("lines" if args.progress else False)
 
 
 # a number in the console tables: "-" when missing

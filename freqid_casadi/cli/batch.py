@@ -235,7 +235,7 @@ def run_cli(args, command):
     files = data_files(args.folder)
     check_out_dir(args.out, args.force)              # before the (long) fits
     with notes_to_stderr():                          # zero-frequency rows dropped, ...
-        items = fit_many(files, jobs=args.jobs, scheduler=args.scheduler,
+        items = fit_many(files, n_jobs=args.jobs, scheduler=args.scheduler,
                          load_options=load_options(args),
                          n_sections=args.sections, integrator=args.integrator,
                          delay=args.delay, basis=args.basis, method=args.method, tol=args.tol)

@@ -17,7 +17,7 @@ from ..core.resolution import resolution_damping
 from .._validate import check_choice, check_flag
 
 __all__ = ["GAIN_SIGNS", "validate", "zeta_min_of", "check_model_class", "after_fit",
-           "success_of", "MAX_DECADES", "check_progress",
+           "success_of", "MAX_DECADES",
            "check_weighted_points"]
 
 #: Values of ``fit(gain_sign=...)``.
@@ -48,17 +48,6 @@ def zeta_min_of(min_damping, omega, method, gauge, basis):
         raise OptionError("min_damping needs gauge='dc' and basis='second-order' (first-order "
                           "sections have real roots and are never narrow)")
     return value
-
-
-def check_progress(progress):
-    """``progress`` of fit: a bool (or None, 0, 1) or a callable; OptionError otherwise."""
-    if progress is None or callable(progress):
-        return progress
-    try:
-        return check_flag("progress", progress)
-    except OptionError:
-        raise OptionError(f"progress must be True, False or a callable taking each "
-                          f"StageRecord, got {progress!r}") from None
 
 
 def check_weighted_points(data, n_params, n_sections):

@@ -26,6 +26,7 @@ from ..errors import DataError, OptionError, StructureError
 from .fit import FitResult, fit
 from ..core.model import BASES, Structure
 from ..options import LEGACY_KEYWORDS, LoopOptions, legacy_message, solver_options
+from .._progress import channel, check_progress
 
 __all__ = ["fit_many", "BatchItem", "BATCH_STATUSES"]
 
@@ -89,9 +90,11 @@ def _check_options(options):
         raise OptionError(f"loop must be a LoopOptions, got {type(options['loop']).__name__}")
 
 
-def _check_jobs(jobs):
-    if isinstance(jobs, (bool, np.bool_)) or not isinstance(jobs, numbers.Integral) or jobs < 1:
-        raise OptionError(f"jobs must be a positive integer (worker processes), got {jobs!r}")
+def _check_jobs(n_jobs):
+    if isinstance(n_jobs, (bool, np.bool_)) or not isinstance(n_jobs, numbers.Integral) \
+            or n_jobs < 1:
+        raise OptionError(f"n_jobs must be a positive integer (worker processes), got "
+                          f"{n_jobs!r}")
 
 
 def _name_of(k, item):
@@ -139,7 +142,8 @@ def _reissue(held):
     return [item for item, _ in held]
 
 
-def fit_many(datasets, *, jobs=1, scheduler=None, load_options=None, **options):
+def fit_many(datasets, *, n_jobs=1, scheduler=None, load_options=None, progress=False,
+             **options):
     """Fit every dataset with the same options, in parallel processes or on a cluster.
 
     Parameters
@@ -147,7 +151,7 @@ def fit_many(datasets, *, jobs=1, scheduler=None, load_options=None, **options):
     datasets : iterable of FrequencyData or str or os.PathLike
         The data, or paths of ``.csv``/``.npz`` files (loaded in the worker, so a bad file
         is reported like a failed fit).
-    jobs : int
+    n_jobs : int
         Local worker processes (joblib ``loky`` backend); 1 fits in this process.
         Ignored when ``scheduler`` is given.
     scheduler : str or distributed.Client, optional
@@ -156,6 +160,9 @@ def fit_many(datasets, *, jobs=1, scheduler=None, load_options=None, **options):
     load_options : dict, optional
         Keywords of :func:`freqid_casadi.io.loaders.load` for the file paths (``freq_unit``,
         ``columns``).
+    progress : bool, "lines" or callable, optional
+        True draws a bar on a terminal (silent otherwise), "lines" writes a line per
+        dataset to stderr, a callable receives each :class:`BatchItem` as it is done.
     **options
         Keyword arguments of :func:`freqid_casadi.fitting.fit.fit` (``n_sections`` is required).
 
@@ -167,7 +174,8 @@ def fit_many(datasets, *, jobs=1, scheduler=None, load_options=None, **options):
     Raises
     ------
     TypeError
-        A keyword fit() no longer takes (the message names its option object).
+        A keyword fit() no longer takes (the message names its option object), or
+        ``jobs=`` (now ``n_jobs=``).
     OptionError
         Unknown or invalid options, bad ``jobs``, or ``scheduler`` given but Dask is not
         installed.
@@ -178,11 +186,16 @@ def fit_many(datasets, *, jobs=1, scheduler=None, load_options=None, **options):
 
     Notes
     -----
-    Results do not depend on ``jobs`` or the scheduler: each fit is deterministic and runs
+    Results do not depend on ``n_jobs`` or the scheduler: each fit is deterministic and runs
     with single-threaded BLAS, so the model JSON equals that of a serial run.
     """
+    if "jobs" in options:
+        raise TypeError("fit_many() takes n_jobs=, not jobs= (one spelling for the number of "
+                        "worker processes across the package); pass n_jobs="
+                        f"{options['jobs']!r}")
     _check_options(options)
-    _check_jobs(jobs)
+    _check_jobs(n_jobs)
+    progress = check_progress(progress, "each BatchItem")
     if load_options is not None and not isinstance(load_options, dict):
         raise OptionError(f"load_options must be a dict of load() keywords or None, got "
                           f"{load_options!r:.80}")
@@ -201,26 +214,42 @@ def fit_many(datasets, *, jobs=1, scheduler=None, load_options=None, **options):
     names = [_name_of(k, item)[0] for k, item in enumerate(items)]
     if not items:
         return []
-    if scheduler is not None:
-        return _reissue(_run_dask(scheduler, names, items, options, load_options))
-    if jobs == 1 or len(items) == 1:
-        return _reissue([_fit_one_held(n, item, options, load_options)
-                         for n, item in zip(names, items)])
-    return _reissue(_run_joblib(jobs, names, items, options, load_options))
+    with channel(progress, _item_line, total=len(items), unit="file") as emit:
+        if scheduler is not None:
+            held = _run_dask(scheduler, names, items, options, load_options)
+        elif n_jobs == 1 or len(items) == 1:
+            held = (_fit_one_held(n, item, options, load_options)
+                    for n, item in zip(names, items))
+        else:
+            held = _run_joblib(n_jobs, names, items, options, load_options)
+        done = []
+        for pair in held:                    # in input order, each as soon as it is done
+            done.append(pair)
+            emit(pair[0])
+    return _reissue(done)
 
 
-def _run_joblib(jobs, names, items, options, load_options=None):
+def _item_line(item):
+    """One line of text for a finished dataset (``progress="lines"``)."""
+    if item.result is None:
+        return f"{item.name}: {item.status} ({item.error})"
+    return (f"{item.name}: {item.status}, max rel. error {item.result.max_rel_error:.3e}, "
+            f"{item.result.wall_time:.1f} s")
+
+
+def _run_joblib(n_jobs, names, items, options, load_options=None):
     try:
         from joblib import Parallel, delayed
     except ImportError:
-        raise OptionError("jobs > 1 needs joblib: pip install joblib (or use jobs=1)") from None
+        raise OptionError("n_jobs > 1 needs joblib: pip install joblib (or use n_jobs=1)") \
+            from None
     # inner_max_num_threads=1: BLAS/OpenMP at one thread per worker (fit also enforces it)
     from joblib import parallel_config
 
     with parallel_config(backend="loky", inner_max_num_threads=1):
-        return list(Parallel(n_jobs=min(jobs, len(items)))(
+        yield from Parallel(n_jobs=min(n_jobs, len(items)), return_as="generator")(
             delayed(_fit_one_held)(n, item, options, load_options)
-            for n, item in zip(names, items)))
+            for n, item in zip(names, items))
 
 
 def _run_dask(scheduler, names, items, options, load_options=None):

@@ -5,7 +5,9 @@
 import numpy as np
 
 from ..core import physical as _physical
-from ..uncertainty.covariance import covariance_inputs, covariance_record, residual_jacobian, parameter_uncertainty
+from .._progress import channel, check_progress
+from ..uncertainty.covariance import (covariance_inputs, covariance_record,
+                                      parameter_uncertainty, residual_jacobian)
 from ..core.data import FrequencyData
 from ..errors import OptionError
 
@@ -47,8 +49,15 @@ def _replicate(b, seed, par, data, w, u, refit):
     return np.full(par.n_params, np.nan) if theta is None else theta
 
 
+def _replicate_line(row):
+    """One line of text for a finished replicate (``progress="lines"``)."""
+    row = np.asarray(row, dtype=float)
+    return ("refit failed" if not np.all(np.isfinite(row)) else
+            f"refit done: {row.size} parameters")
+
+
 def bootstrap(model, data=None, *, n_boot=200, seed=0, n_jobs=1, refit=None, weights=None,
-              bound_tol=1e-8):
+              bound_tol=1e-8, progress=False):
     """Residual bootstrap of a fitted model's physical parameters.
 
     Each replicate adds the standardised weighted residuals, resampled with replacement,
@@ -77,6 +86,11 @@ def bootstrap(model, data=None, *, n_boot=200, seed=0, n_jobs=1, refit=None, wei
         As in :func:`parameter_uncertainty`.
     bound_tol : float
 
+    progress : bool, "lines" or callable, optional
+        True draws a bar on a terminal (silent otherwise), "lines" writes a line per
+        replicate to stderr, a callable receives each replicate's parameter vector
+        (ndarray, NaN where the refit failed).
+
     Returns
     -------
     ParameterUncertainty
@@ -99,13 +113,16 @@ def bootstrap(model, data=None, *, n_boot=200, seed=0, n_jobs=1, refit=None, wei
     r, _ = residual_jacobian(par, par.theta, data)
     pos = w > 0
     u = np.sqrt(w[pos]) * r[pos] * np.sqrt((2 * pos.sum()) / base.dof)
+    progress = check_progress(progress, "each replicate's parameters")
     if n_jobs == 1:
-        rows = [_replicate(b, seed, par, data, w, u, refit) for b in range(n_boot)]
+        rows = (_replicate(b, seed, par, data, w, u, refit) for b in range(n_boot))
     else:
         from joblib import Parallel, delayed
 
-        rows = Parallel(n_jobs=n_jobs)(delayed(_replicate)(b, seed, par, data, w, u, refit)
-                                       for b in range(n_boot))
+        rows = Parallel(n_jobs=n_jobs, return_as="generator")(
+            delayed(_replicate)(b, seed, par, data, w, u, refit) for b in range(n_boot))
+    with channel(progress, _replicate_line, total=n_boot, unit="refit") as emit:
+        rows = [emit(row) or row for row in rows]
     samples = np.array(rows)
     ok = np.all(np.isfinite(samples[:, ~par.at_bound]), axis=1)
     if ok.sum() < 2:

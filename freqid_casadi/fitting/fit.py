@@ -10,7 +10,6 @@ optionally polishes the max error, and checks the model against the frequency re
 import dataclasses
 import functools
 import math
-import sys
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -18,8 +17,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .candidates import Candidate, choose, zero_delay_run
-from ._checks import (GAIN_SIGNS, after_fit, check_model_class, check_progress, success_of,
-                      validate, zeta_min_of)
+from ._checks import (GAIN_SIGNS, after_fit, check_model_class, success_of, validate,
+                      zeta_min_of)
 from .._validate import check_choice, check_flag
 from ..core.data import FrequencyData
 from .delay_hold import hold_undetermined_delay
@@ -35,6 +34,7 @@ from ..options import (INITS, LEGACY_KEYWORDS, METHODS, WARM_STARTS, FitOptions,
 from ..core.scaling import (check_finite_result, reference_scales, scale_data, unscale_model,
                       weighted_span)
 from ..core.resolution import check_resolution, default_delay_max, resolution_damping
+from .._progress import channel, check_progress
 from .._threads import single_threaded_blas
 from .stages import Kept, StageKind, StageRecord, StageSolver
 from .start import RationalStartError
@@ -263,8 +263,10 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         a pole/zero pair cannot fit noise at one sample and be wrong between samples. For
         noisy data (it biases lightly damped modes narrower than the spacing); the value
         used is ``FitResult.zeta_min``.
-    progress : bool or callable
-        True writes a line per stage to stderr; a callable receives each StageRecord.
+    progress : bool, "lines" or callable
+        True draws a progress bar on a terminal and is silent otherwise; "lines" writes one
+        line per stage to stderr; a callable receives each StageRecord (the same channel as
+        fit_shared, sweep, stabilization, fit_many and bootstrap).
     loop : LoopOptions, optional
         Knobs of the main loop (gauge, new-section init, scaling, delay bound, final
         stage, derivative evaluation); default ``LoopOptions()``.
@@ -292,13 +294,13 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         the option object and field it moved to.
     """
     integrator, delay = check_flag("integrator", integrator), check_flag("delay", delay)
-    progress = check_progress(progress)
+    progress = check_progress(progress, "each StageRecord")
     kw = dict(integrator=integrator, basis=basis, method=method, tol=tol, start=start,
               objective=objective, min_damping=min_damping, loop=loop, gain_sign=gain_sign,
               zeros=zeros)
-    with single_threaded_blas():
+    with single_threaded_blas(), channel(progress, _stage_line) as emit:
         return _fit_held(data_or_omega, response, n_sections=n_sections, delay=delay,
-                         progress=progress, weights=weights, **kw)
+                         progress=emit, weights=weights, **kw)
 
 
 def _fit_held(data_or_omega, response, *, progress, weights, **kw):
@@ -337,7 +339,8 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     zeta_min = zeta_min_of(min_damping, fit_data.omega, solver.method, loop.gauge, basis)
     dmax = (float(loop.delay_max) * w_ref if loop.delay_max is not None
             else default_delay_max(fit_data.omega))
-    user_callback, unscaled = _progress_callback(progress), {}
+    user_callback = progress if callable(progress) else (lambda rec: None)
+    unscaled = {}
 
     def callback(rec):              # the user sees (and FitResult keeps) the same records
         unscaled[id(rec)] = (rec, _unscale_record(rec, w_ref))
@@ -448,26 +451,17 @@ def _unscale_record(rec, w_ref):
     return dataclasses.replace(rec, omega_c=rec.omega_c * w_ref, delay=rec.delay / w_ref)
 
 
-def _progress_callback(progress):
-    if callable(progress):
-        return progress
-    if not progress:
-        return lambda rec: None
-
-    def write(rec):
-        where = "" if math.isnan(rec.omega_c) else f" at {rec.omega_c:.4g} rad/s"
-        label = {StageKind.RATIONAL_START: ("rational start" if rec.message == "rational start"
-                                            else f"{rec.message} (vector fits)"),
-                 StageKind.MINIMAX: rec.kept, StageKind.FINAL: "final",
-                 StageKind.DELAY_SEARCH: "delay search, polish",
-                 StageKind.FAR_ROOTS: "far roots at infinity, polish",
-                 StageKind.ZERO_DELAY: "at h = 0"}.get(rec.kind, f"stage {rec.stage:2d}")
-        sys.stderr.write(
-            f"{label}: {rec.n_sections:2d} sections{where}, window {rec.window}, "
+def _stage_line(rec):
+    """One line of text for a stage record (``progress="lines"`` and the bar's summary)."""
+    where = "" if math.isnan(rec.omega_c) else f" at {rec.omega_c:.4g} rad/s"
+    label = {StageKind.RATIONAL_START: ("rational start" if rec.message == "rational start"
+                                        else f"{rec.message} (vector fits)"),
+             StageKind.MINIMAX: rec.kept, StageKind.FINAL: "final",
+             StageKind.DELAY_SEARCH: "delay search, polish",
+             StageKind.FAR_ROOTS: "far roots at infinity, polish",
+             StageKind.ZERO_DELAY: "at h = 0"}.get(rec.kind, f"stage {rec.stage:2d}")
+    return (f"{label}: {rec.n_sections:2d} sections{where}, window {rec.window}, "
             f"max rel. error {rec.max_rel_error:.3e} (window {rec.max_rel_error_window:.3e}), "
-            f"{rec.nit} it, {rec.wall_time:.2f} s, {rec.solver_status}\n")
-        sys.stderr.flush()
-
-    return write
+            f"{rec.nit} it, {rec.wall_time:.2f} s, {rec.solver_status}")
 
 

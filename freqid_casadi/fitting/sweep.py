@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._checks import validate
+from .._progress import channel, check_progress
 from ..core.data import FrequencyData, dense_grid
 from ..errors import DataError, OptionError
 from .fit import fit
@@ -150,7 +151,7 @@ def parse_orders(spec):
                           "integers (e.g. 4:40:2), or a comma-separated list") from None
 
 
-def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=None,
+def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=False,
           incremental=True, **fit_options):
     """Fit ``data`` at each order in ``orders``.
 
@@ -166,8 +167,9 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
         a log grid ``dense_factor`` times denser than the data.
     dense_factor : int
         Points of the dense grid per data point (:func:`~freqid_casadi.core.data.dense_grid`).
-    progress : callable, optional
-        Called with each :class:`SweepRow` as it is done.
+    progress : bool, "lines" or callable, optional
+        True draws a bar on a terminal (silent otherwise), "lines" writes a line per order
+        to stderr, a callable receives each :class:`SweepRow` as it is done.
     incremental : bool
         With the sequential start (the default), an order one section above the previous
         is fitted only from the previous order's model with one more section at its
@@ -189,9 +191,7 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
                                or not isinstance(target, numbers.Real)
                                or not (np.isfinite(target) and target > 0)):
         raise OptionError(f"target must be a number > 0, got {target!r}")
-    if progress is not None and not callable(progress):
-        raise OptionError(f"progress must be None or a callable taking each SweepRow, got "
-                          f"{progress!r}")
+    progress = check_progress(progress, "each SweepRow")
     basis = fit_options.get("basis", "second-order")
     per = 2 if basis == "second-order" else 1
     orders = _orders(orders)
@@ -209,42 +209,48 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=No
     rows = []
     chain = shown = None        # the continued model, and the last row's (model, max, rms, ok)
     only_ext = incremental and fit_options.get("start", "sequential") == "sequential"
-    for o in orders:
-        t0 = time.perf_counter()
-        follows = chain is not None and chain[0].n_sections + 1 == o // per
-        cand = []
-        # a previous model no better than an infinite gain (max error >= 1) is a poor start
-        if not (follows and only_ext and chain[3] < 1.0):
-            res = fit(data, n_sections=o // per, **fit_options)
-            cand.append((res.model, res.max_rel_error, res.rms_rel_error, res.success,
-                         res.start))
-        else:
-            res = chain[1]
-        if follows:
-            cand.append(_extended(chain[0], res, data,
-                                  None if only_ext else EXTEND_MAX_ITER) + ("extended",))
-        best = cand[0]
-        for c in cand[1:]:
-            best = c if _better(c[1:3], best[1:3]) else best
-        # the sequential loop continues from its best model; the row never gets worse
-        chain = (best[0], res, best[3], best[1])
-        if follows and shown is not None and shown[0].n_sections + 1 == o // per:
-            same = _identity_extension(shown[0], data) + (shown[3], "extended")
-            # the same model plus an identity section: the max error never increases
-            best = same if same[1] < best[1] or _better(same[1:3], best[1:3]) else best
-        model, mx, rms, success, start = best
-        shown = best
-        dense_err = (relative_error(model, dense, g_dense).max
-                     if dense is not None else float("nan"))
-        row = SweepRow(order=o, n_sections=o // per, max_rel_error=mx, rms_rel_error=rms,
-                       max_rel_error_dense=dense_err, delay=model.delay,
-                       wall_time=time.perf_counter() - t0, success=success, start=start)
-        rows.append(row)
-        if progress is not None:
-            progress(row)
+    with channel(progress, _row_line, total=len(orders), unit="order") as emit:
+        for o in orders:
+            t0 = time.perf_counter()
+            follows = chain is not None and chain[0].n_sections + 1 == o // per
+            cand = []
+            # a previous model no better than an infinite gain (max error >= 1) is a poor start
+            if not (follows and only_ext and chain[3] < 1.0):
+                res = fit(data, n_sections=o // per, **fit_options)
+                cand.append((res.model, res.max_rel_error, res.rms_rel_error, res.success,
+                             res.start))
+            else:
+                res = chain[1]
+            if follows:
+                cand.append(_extended(chain[0], res, data,
+                                      None if only_ext else EXTEND_MAX_ITER) + ("extended",))
+            best = cand[0]
+            for c in cand[1:]:
+                best = c if _better(c[1:3], best[1:3]) else best
+            # the sequential loop continues from its best model; the row never gets worse
+            chain = (best[0], res, best[3], best[1])
+            if follows and shown is not None and shown[0].n_sections + 1 == o // per:
+                same = _identity_extension(shown[0], data) + (shown[3], "extended")
+                # the same model plus an identity section: the max error never increases
+                best = same if same[1] < best[1] or _better(same[1:3], best[1:3]) else best
+            model, mx, rms, success, start = best
+            shown = best
+            dense_err = (relative_error(model, dense, g_dense).max
+                         if dense is not None else float("nan"))
+            row = SweepRow(order=o, n_sections=o // per, max_rel_error=mx, rms_rel_error=rms,
+                           max_rel_error_dense=dense_err, delay=model.delay,
+                           wall_time=time.perf_counter() - t0, success=success, start=start)
+            rows.append(row)
+            emit(row)
     meeting = [r.order for r in rows if target is not None and r.max_rel_error <= target]
     return SweepResult(rows=tuple(rows), target=target,
                        best_order=min(meeting) if meeting else None, data_name=data.name)
+
+
+def _row_line(row):
+    """One line of text for a sweep row (``progress="lines"`` and the bar's summary)."""
+    return (f"order {row.order}: max rel. error {row.max_rel_error:.3e}, delay "
+            f"{row.delay:.6g}, {row.wall_time:.1f} s")
 
 
 def _orders(orders):
