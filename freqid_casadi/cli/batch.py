@@ -67,8 +67,8 @@ def add_cli(subparsers):
                    help="output folder to create (must not exist unless --force)")
     p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
                    help="number of sections N >= 1")
-    p.add_argument("--jobs", type=_positive_int, default=1, metavar="N",
-                   help="local worker processes (default 1)")
+    p.add_argument("--jobs", "--n-jobs", dest="jobs", type=_positive_int, default=1,
+                   metavar="N", help="local worker processes (default 1; n_jobs of fit_many)")
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="Dask scheduler address (e.g. tcp://127.0.0.1:8786); needs "
                         "pip install freqid_casadi[dask]")
