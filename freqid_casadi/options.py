@@ -18,6 +18,7 @@ import math
 import numbers
 from dataclasses import dataclass, fields
 
+from ._validate import check_choice, check_flag
 from .errors import OptionError
 
 __all__ = ["IpoptOptions", "BarrierLMOptions", "LoopOptions", "FitOptions", "METHODS",
@@ -46,9 +47,9 @@ def _bad(owner, name, value, requirement):
 
 
 def _choice(owner, name, value, choices):
-    if not any(value is c or (isinstance(value, str) and value == c) for c in choices):
-        raise OptionError(f"unknown {name} {value!r}: {owner}.{name} must be one of "
-                          + ", ".join(map(repr, choices)))
+    if value is None and None in choices:
+        return
+    check_choice(name, value, [c for c in choices if c is not None], owner=owner)
 
 
 def _int_at_least(owner, name, value, low):
@@ -67,9 +68,11 @@ def _real(owner, name, value, low=None, strict=True, allow_inf=False):
         raise _bad(owner, name, value, f"a finite real number{where}")
 
 
-def _flag(owner, name, value):
-    if not isinstance(value, bool):
-        raise _bad(owner, name, value, "True or False")
+def _flags(obj, *names):
+    """Each field ``names`` of the frozen ``obj`` as a bool (:func:`check_flag`'s rule)."""
+    for name in names:
+        value = check_flag(name, getattr(obj, name))
+        object.__setattr__(obj, name, value)
 
 
 _IPOPT_OK = set()          # option sets that IPOPT accepted (a probe costs ~2 ms)
@@ -327,15 +330,11 @@ class LoopOptions:
 
     def __post_init__(self):
         owner = type(self).__name__
-        _flag(owner, "hold_delay", self.hold_delay)
-        _flag(owner, "delay_search", self.delay_search)
-        _flag(owner, "far_roots", self.far_roots)
+        _flags(self, "hold_delay", "delay_search", "far_roots", "scaled", "bound_delay",
+               "final_stage")
         _choice(owner, "gauge", self.gauge, GAUGES)
         _choice(owner, "init", self.init, INITS)
         _real(owner, "scale_l", self.scale_l, 1.0, strict=False)
-        _flag(owner, "scaled", self.scaled)
-        _flag(owner, "bound_delay", self.bound_delay)
-        _flag(owner, "final_stage", self.final_stage)
         if self.delay_max is not None:
             _real(owner, "delay_max (seconds)", self.delay_max, 0.0)
         _choice(owner, "derivatives", self.derivatives, DERIVATIVES)

@@ -59,7 +59,7 @@ def test_every_old_keyword_is_rejected_before_any_work():
     (LoopOptions, {"gauge": "b2"}, "unknown gauge 'b2'"),
     (LoopOptions, {"init": "random"}, "unknown init"),
     (LoopOptions, {"scale_l": 0.5}, r"scale_l must be a finite real number >= 1"),
-    (LoopOptions, {"scaled": 1}, "scaled must be True or False"),
+    (LoopOptions, {"scaled": "yes"}, "scaled must be True or False"),
     (LoopOptions, {"delay_max": 0.0}, r"delay_max \(seconds\) must be a finite real number > 0"),
     (LoopOptions, {"delay_max": -1.0}, "got -1.0"),
     (LoopOptions, {"derivatives": "fd"}, "unknown derivatives 'fd'"),
@@ -133,3 +133,13 @@ def test_final_stage_false_runs_no_final_stage():
                  loop=LoopOptions(final_stage=False))
     assert res.stages[-2].status.name == "MAX_ITER" or res.stages[-1].status.name == "MAX_ITER"
     assert max(s.stage for s in res.stages) == 3
+
+
+def test_flags_follow_one_rule_everywhere():
+    # fit(integrator=1) was accepted while LoopOptions(scaled=1) raised: one rule now
+    assert LoopOptions(scaled=1, final_stage=np.False_).scaled is True
+    assert LoopOptions(final_stage=np.False_).final_stage is False
+    for bad in ("no", 2, None, 0.5):
+        with pytest.raises(OptionError, match="scaled must be True or False, got .*; pass "
+                           "scaled=True or scaled=False"):
+            LoopOptions(scaled=bad)

@@ -6,6 +6,7 @@ import re
 
 import numpy as np
 
+from .._validate import check_choice, check_flag
 from ..errors import DataError, OptionError, StructureError
 
 __all__ = ["all_zero_factor", "checked_fields", "check_nesting", "too_big", "no_constant",
@@ -174,18 +175,13 @@ def all_zero_factor(basis, theta):
 
 # ------------------------------------------------- checks of Structure / RationalDelayModel
 def flag(name, value):
-    """``bool(value)`` for True/False (numpy's too, and the integers 0 and 1), else a
-    StructureError naming ``name`` (a string such as "no" is not False)."""
-    if isinstance(value, (bool, np.bool_)) or (isinstance(value, (int, np.integer))
-                                               and value in (0, 1)):
-        return bool(value)
-    raise StructureError(f"{name} must be True or False, got {value!r}")
+    """``bool(value)`` by :func:`freqid_casadi._validate.check_flag`, a StructureError."""
+    return check_flag(name, value, StructureError)
 
 
 def choice(name, value, choices):
-    """Raise StructureError unless ``value`` is one of the strings ``choices``."""
-    if not isinstance(value, str) or value not in choices:
-        raise StructureError(f"unknown {name} {value!r}; choose one of {', '.join(choices)}")
+    """:func:`freqid_casadi._validate.check_choice` with a StructureError."""
+    check_choice(name, value, choices, StructureError)
 
 
 def real_vector(beta):
