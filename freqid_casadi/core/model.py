@@ -15,16 +15,16 @@ of P_N in the closed left half plane.
 
 import json
 import os
+import re
 import stat
 from dataclasses import dataclass
 
 import numpy as np
 
 from .. import _cplx
-from . import _model_json
-from ._model_json import MAX_MODEL_BYTES, MAX_MODEL_DEPTH
 from .._textio import atomic_write_text
-from ..errors import DataError, StructureError
+from .._validate import check_choice, check_flag
+from ..errors import DataError, OptionError, StructureError
 from .metrics import DelayedResponse
 
 __all__ = ["Structure", "RationalDelayModel", "section_response", "attach_delay", "BASES",
@@ -36,6 +36,10 @@ FORMAT_VERSION = 1
 
 _SECOND_NAMES = ("a", "zeta_num", "omega_num", "b", "zeta_den", "omega_den")
 _FIRST_NAMES = ("a1", "a0", "b1", "b0")
+#: Largest model file :meth:`RationalDelayModel.load` reads (bytes).
+MAX_MODEL_BYTES = 16 * 2**20
+#: Deepest nesting of arrays/objects accepted in a model file (the schema needs 2).
+MAX_MODEL_DEPTH = 16
 
 
 @dataclass(frozen=True)
@@ -75,10 +79,10 @@ class Structure:
         if n < 0:
             raise StructureError(f"n_sections must be >= 0, got {n}")
         object.__setattr__(self, "n_sections", int(n))
-        _model_json.choice("basis", self.basis, BASES)
-        object.__setattr__(self, "integrator", _model_json.flag("integrator", self.integrator))
-        object.__setattr__(self, "delay", _model_json.flag("delay", self.delay))
-        _model_json.choice("zeros", self.zeros, ZEROS)
+        _choice("basis", self.basis, BASES)
+        object.__setattr__(self, "integrator", _flag("integrator", self.integrator))
+        object.__setattr__(self, "delay", _flag("delay", self.delay))
+        _choice("zeros", self.zeros, ZEROS)
         if isinstance(self.gain_sign, (bool, np.bool_)) or \
                 not isinstance(self.gain_sign, (int, np.integer)) or self.gain_sign not in (1, -1):
             raise StructureError(f"gain_sign must be 1 or -1, got {self.gain_sign!r}")
@@ -213,9 +217,9 @@ def attach_delay(sys, delay, pade_order=None):
     import control as ct
 
     if pade_order is not None:
-        order = _model_json.pade_order(pade_order)
+        order = _pade_order(pade_order)
         if delay > 0:
-            pn, pd = _model_json.pade(ct, delay, order)
+            pn, pd = _pade(ct, delay, order)
             sys = ct.series(sys, ct.ss(ct.tf(pn, pd)))
         sys.delay = 0.0
     else:
@@ -245,7 +249,7 @@ class RationalDelayModel(DelayedResponse):
     def __post_init__(self):
         if not isinstance(self.structure, Structure):
             raise StructureError("structure must be a Structure")
-        beta = _model_json.real_vector(self.beta)
+        beta = _real_vector(self.beta)
         if beta.size != self.structure.n_params:
             raise StructureError(
                 f"beta has {beta.size} entries, the structure needs {self.structure.n_params} "
@@ -264,7 +268,7 @@ class RationalDelayModel(DelayedResponse):
             raise StructureError(f"the structure has no delay but beta[0] = {beta[0]}")
         beta.setflags(write=False)
         object.__setattr__(self, "beta", beta)
-        bad = _model_json.all_zero_factor(self.structure.basis, self.sections())
+        bad = _all_zero_factor(self.structure.basis, self.sections())
         if bad is not None:
             raise StructureError(bad)
 
@@ -427,7 +431,7 @@ class RationalDelayModel(DelayedResponse):
             If a field is missing, unknown, of the wrong type or length, not finite,
             negative, or if a section's numerator or denominator is identically zero.
         """
-        n, integrator, delay, basis, beta, zeros, sign = _model_json.checked_fields(
+        n, integrator, delay, basis, beta, zeros, sign = _checked_fields(
             d, BASES, FORMAT_VERSION)
         return cls(Structure(n, integrator, delay, basis, zeros, sign), beta)
 
@@ -436,7 +440,7 @@ class RationalDelayModel(DelayedResponse):
         """The model in the JSON ``text`` (str or bytes; see :meth:`load` for the checks)."""
         if isinstance(text, (bytes, bytearray)):
             if len(text) > MAX_MODEL_BYTES:
-                raise DataError(_model_json.too_big(len(text)))
+                raise DataError(_too_big(len(text)))
             try:
                 text = bytes(text).decode("utf-8-sig")       # a BOM is tolerated
             except UnicodeDecodeError:
@@ -444,10 +448,10 @@ class RationalDelayModel(DelayedResponse):
         if not isinstance(text, str):
             raise DataError(f"model JSON must be text, got {type(text).__name__}")
         if len(text) > MAX_MODEL_BYTES:
-            raise DataError(_model_json.too_big(len(text)))
-        _model_json.check_nesting(text)
+            raise DataError(_too_big(len(text)))
+        _check_nesting(text)
         try:
-            d = json.loads(text, parse_constant=_model_json.no_constant)
+            d = json.loads(text, parse_constant=_no_constant)
         except (ValueError, RecursionError) as exc:   # JSONDecodeError, 5000-digit ints
             if isinstance(exc, DataError):
                 raise
@@ -483,7 +487,7 @@ class RationalDelayModel(DelayedResponse):
                                 "file (a folder, FIFO or device); give a .json file")
             if st.st_size > MAX_MODEL_BYTES:
                 raise DataError(f"model file {os.fspath(path)!r}: "
-                                + _model_json.too_big(st.st_size))
+                                + _too_big(st.st_size))
             with open(path, "rb") as fh:
                 payload = fh.read(MAX_MODEL_BYTES + 1)
         except OSError as exc:
@@ -499,3 +503,211 @@ class RationalDelayModel(DelayedResponse):
         s = self.structure
         return (f"RationalDelayModel(n_sections={s.n_sections}, basis={s.basis!r}, "
                 f"integrator={s.integrator}, delay={self.delay:.6g}, gain={self.gain:.6g})")
+
+
+# ----------------------------------------------------------------------------------------
+# The model-file schema (the checks of from_dict and from_json, field by field, and a
+# nesting-depth check of the raw JSON text made before json.loads, whose recursion fails
+# on deeply nested input) and the validators of Structure and RationalDelayModel.
+
+
+
+class _Shape:
+    """n_sections, delay and basis of a model dict (what the checks need of Structure)."""
+
+    def __init__(self, n_sections, delay, basis, zeros="minimum-phase"):
+        self.n_sections, self.delay, self.basis, self.zeros = n_sections, delay, basis, zeros
+        self.section_size = 6 if basis == "second-order" else 4
+        self.n_params = 2 + self.section_size * n_sections
+
+    def param_names(self):
+        names = ["delay", "gain"]
+        per = _SECOND_NAMES if self.basis == "second-order" else _FIRST_NAMES
+        for k in range(1, self.n_sections + 1):
+            names += [f"{p}[{k}]" for p in per]
+        return names
+
+
+
+_FORMAT = "freqid_casadi.RationalDelayModel"
+_TOP_KEYS = {"format", "version", "structure", "param_names", "beta"}
+_STRUCTURE_KEYS = {"n_sections", "integrator", "delay", "basis", "zeros", "gain_sign"}
+_STRING = re.compile(r'"(?:[^"\\]|\\.)*"')
+
+
+def _too_big(n):
+    return (f"model JSON has {n} bytes, more than the limit of {MAX_MODEL_BYTES}; "
+            "is it really a model file?")
+
+
+def _no_constant(name):
+    raise DataError(f"model JSON contains {name}; every number must be finite")
+
+
+def _check_nesting(text):
+    """Raise DataError if arrays/objects nest deeper than MAX_MODEL_DEPTH (before json.loads,
+    whose recursion would fail on deeply nested input)."""
+    bare = _STRING.sub('""', text)
+    code = np.frombuffer(bare.encode("utf-8", "replace"), dtype=np.uint8)
+    step = np.zeros(code.size, dtype=np.int64)
+    step[(code == ord("[")) | (code == ord("{"))] = 1
+    step[(code == ord("]")) | (code == ord("}"))] = -1
+    depth = int(np.max(np.cumsum(step), initial=0))
+    if depth > MAX_MODEL_DEPTH:
+        raise DataError(f"model JSON nests {depth} levels deep (at most {MAX_MODEL_DEPTH}); "
+                        "not a model file")
+
+
+def _field(d, key, types, what):
+    if key not in d:
+        raise DataError(f"malformed model JSON: missing field {key!r} ({what})")
+    v = d[key]
+    if isinstance(v, bool) and bool not in types or not isinstance(v, types):
+        raise DataError(f"malformed model JSON: field {key!r} must be {what}, got {v!r:.80}")
+    return v
+
+
+def _checked_fields(d, bases, version_read):
+    """``(n_sections, integrator, delay, basis, beta, zeros, gain_sign)`` of a model dict,
+    checked against the schema (see ``RationalDelayModel.load``); ``beta`` is a float
+    ndarray. ``zeros`` and ``gain_sign`` are optional structure fields (written only when
+    not "minimum-phase" / 1)."""
+    if not isinstance(d, dict):
+        raise DataError(f"malformed model JSON: it must be an object, got {type(d).__name__}")
+    if d.get("format") != _FORMAT:
+        raise DataError(f"not a freqid_casadi model ('format' must be {_FORMAT!r})")
+    version = _field(d, "version", (int,), "an integer")
+    if version != version_read:
+        raise DataError(f"malformed model JSON: version {version!r} is not supported (this "
+                        f"freqid_casadi reads version {version_read}); upgrade freqid_casadi")
+    unknown = sorted(map(str, set(d) - _TOP_KEYS))
+    if unknown:
+        raise DataError("malformed model JSON: unknown field(s) "
+                        f"{', '.join(map(repr, unknown))}")
+    sd = _field(d, "structure", (dict,), "an object")
+    unknown = sorted(map(str, set(sd) - _STRUCTURE_KEYS))
+    if unknown:
+        raise DataError("malformed model JSON: unknown structure field(s) "
+                        f"{', '.join(map(repr, unknown))}")
+    n = _field(sd, "n_sections", (int,), "an integer >= 0")
+    sd = {"integrator": False, "delay": True, "basis": bases[0], **sd}   # defaults
+    flags = [_field(sd, k, (bool,), "true or false (a JSON boolean, not a string)")
+             for k in ("integrator", "delay")]
+    basis = _field(sd, "basis", (str,), f"one of {', '.join(bases)}")
+    if n < 0 or basis not in bases:
+        raise DataError(f"malformed model JSON: n_sections must be >= 0 and basis one of "
+                        f"{', '.join(bases)}; got {n} and {basis!r:.40}")
+    zeros = _field(sd, "zeros", (str,), f"one of {', '.join(ZEROS)}") if "zeros" in sd \
+        else ZEROS[0]
+    sign = _field(sd, "gain_sign", (int,), "1 or -1") if "gain_sign" in sd else 1
+    if zeros not in ZEROS or sign not in (1, -1):
+        raise DataError(f"malformed model JSON: zeros must be one of {', '.join(ZEROS)} and "
+                        f"gain_sign 1 or -1; got {zeros!r:.40} and {sign!r}")
+    st = _Shape(n, flags[1], basis, zeros)
+    beta = _field(d, "beta", (list,), "a list of numbers")
+    if len(beta) != st.n_params:
+        raise DataError(f"malformed model JSON: beta has {len(beta)} entries, the structure needs "
+                        f"{st.n_params}")
+    if "param_names" in d and d["param_names"] != st.param_names():
+        raise DataError("malformed model JSON: param_names do not match the structure")
+    bad = [k for k, v in enumerate(beta)
+           if isinstance(v, bool) or not isinstance(v, (int, float))]
+    if bad:
+        raise DataError(f"malformed model JSON: beta[{bad[0]}] must be a number, got "
+                        f"{beta[bad[0]]!r:.40}")
+    with np.errstate(all="ignore"):
+        b = np.array([float(v) for v in beta], dtype=float)
+    _check_beta(st, b)
+    return n, flags[0], flags[1], basis, b, zeros, sign
+
+
+def _check_beta(st, b):
+    free = np.zeros(b.size, bool)
+    if st.zeros == "free":              # numerators (a, zeta_num / a1, a0) may be negative
+        for k in range(st.n_sections):
+            free[2 + st.section_size * k: 4 + st.section_size * k] = True
+    bad = np.flatnonzero(~np.isfinite(b) | ((b < 0) & ~free))
+    if bad.size:
+        k = int(bad[0])
+        raise DataError(f"malformed model JSON: beta[{k}] ({st.param_names()[k]}) = "
+                        f"{float(b[k])!r} must be finite and >= 0")
+    if not st.delay and b[0] != 0:
+        raise DataError("malformed model JSON: the structure has no delay but beta[0] = "
+                        f"{float(b[0])!r}")
+    bad = _all_zero_factor(st.basis, b[2:].reshape(st.n_sections, st.section_size))
+    if bad is not None:
+        raise DataError(f"malformed model JSON: {bad}")
+
+
+def _all_zero_factor(basis, theta):
+    """None, or a text naming the first section whose numerator or denominator has only
+    zero coefficients (the model would be 0 or infinite at every frequency).
+
+    Parameters
+    ----------
+    basis : {"second-order", "first-order"}
+    theta : ndarray of float, shape (n_sections, section_size)
+        The sections' parameters in thesis order.
+    """
+    with np.errstate(all="ignore"):
+        if basis == "second-order":
+            num = np.stack([theta[:, 0], 2 * theta[:, 1] * theta[:, 2], theta[:, 2] ** 2], 1)
+            den = np.stack([theta[:, 3], 2 * theta[:, 4] * theta[:, 5], theta[:, 5] ** 2], 1)
+        else:
+            num, den = theta[:, :2], theta[:, 2:]
+    for what, c in (("numerator", num), ("denominator", den)):
+        zero = np.flatnonzero(~np.any(c != 0, axis=1))
+        if zero.size:
+            return (f"section {int(zero[0]) + 1} has an all-zero {what} (0/0 or a pole/zero "
+                    "at every frequency)")
+    return None
+
+
+# ------------------------------------------------- checks of Structure / RationalDelayModel
+def _flag(name, value):
+    """``bool(value)`` by :func:`freqid_casadi._validate.check_flag`, a StructureError."""
+    return check_flag(name, value, StructureError)
+
+
+def _choice(name, value, choices):
+    """:func:`freqid_casadi._validate.check_choice` with a StructureError."""
+    check_choice(name, value, choices, StructureError)
+
+
+def _real_vector(beta):
+    """``beta`` as a new one-dimensional float array; StructureError for complex values,
+    text or a 2-D array (rather than a silent real part or flattening)."""
+    try:
+        arr = np.asarray(beta)
+        out = np.array(arr, dtype=float, copy=True).reshape(-1) \
+            if not np.iscomplexobj(arr) else None
+    except (TypeError, ValueError) as exc:
+        raise StructureError(f"beta must be an array of real numbers: {exc}") from None
+    if out is None or arr.ndim > 1:
+        raise StructureError(f"beta must be a one-dimensional array of real numbers, got "
+                             f"{'complex values' if out is None else f'shape {arr.shape}'}")
+    return out
+
+
+def _pade_order(order):
+    """``order`` of a Pade approximation as an int >= 0, else an OptionError."""
+    if isinstance(order, (bool, np.bool_)) or not isinstance(order, (int, np.integer)) \
+            or order < 0:
+        raise OptionError(f"_pade_order must be an integer >= 0 (or None: the delay kept "
+                          f"as the attribute sys.delay), got {order!r}")
+    return int(order)
+
+
+def _pade(ct, delay, order):
+    """``ct.pade(delay, order)`` with finite coefficients, else an OptionError (python-control
+    divides by zero above a few hundred)."""
+    try:
+        with np.errstate(all="raise"):
+            num, den = ct.pade(delay, order)
+        ok = np.all(np.isfinite(num)) and np.all(np.isfinite(den))
+    except (ArithmeticError, FloatingPointError, ValueError):
+        ok = False
+    if not ok:
+        raise OptionError(f"_pade_order={order} is too high for a finite Pade approximation "
+                          f"of the delay {delay:g} s; use an order below about 20")
+    return num, den
