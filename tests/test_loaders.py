@@ -325,8 +325,9 @@ def test_bad_cells_are_data_errors_with_line_and_column_and_no_warning(tmp_path,
 
 def test_non_utf8_and_binary(tmp_path):
     path = _write(tmp_path, b"omega,real,imag\n1,2,3\n2,\xff,3\n")
-    with pytest.raises(DataError, match=r"not a text CSV file \(not UTF-8\): byte 0xff on line "
-                       r"3 is not UTF-8; save the file as UTF-8"):
+    with pytest.warns(DataWarning, match=r"is not UTF-8 \(byte 0xff on line 3\): read as "
+                      r"Windows-1252"), pytest.raises(
+            DataError, match=r"line 3, column 'real': '\xff' is not a number \(only ASCII"):
         load(path)
     with pytest.raises(DataError, match="holds NUL bytes"):
         load(_write(tmp_path, b"omega,real,imag\n1,2\x00,3\n"))
