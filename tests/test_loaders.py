@@ -278,7 +278,7 @@ def test_size_and_row_limits(tmp_path, monkeypatch):
     path = _write(tmp_path, "omega,real,imag\n" + _rows(OMEGA, RESP.real, RESP.imag))
     monkeypatch.setattr(loaders, "MAX_ROWS", 3)
     with pytest.raises(DataError, match=r"has more than 3 data rows \(limit "
-                       r"freqid_casadi\.loaders\.MAX_ROWS\); thin the data or raise"):
+                       r"freqid_casadi\.io\.loaders\.MAX_ROWS\); thin the data or raise"):
         load(path)
     from freqid_casadi.io import _readfile
 
@@ -418,7 +418,8 @@ def test_touchstone_s2p_written_by_scikit_rf(tmp_path, fmt):
 
 
 def test_touchstone_bad_rows(tmp_path):
-    with pytest.raises(DataError, match=r"line 3: expected 9 numbers for a 2-port row, got 3"):
+    with pytest.raises(DataError, match=r"hold 3 numbers, not a multiple of 9 \(1 frequency "
+                       r"\+ 4 pairs\); the record that starts on line 3 is incomplete"):
         load(_write(tmp_path, "# Hz S RI R 50\n! c\n1 2 3\n", "x.s2p"))
     with pytest.raises(DataError, match=r"line 2: '1_0' is not a number"):
         load(_write(tmp_path, "# Hz S RI R 50\n1 1_0 3\n", "x.s1p"))

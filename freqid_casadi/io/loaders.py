@@ -2,8 +2,8 @@
 
 :func:`load` picks the reader by the file's extension: ``.npz`` :func:`load_npz`, ``.mat``
 :func:`load_mat` (scipy.io), ``.uff``/``.unv`` :func:`load_uff` (UFF 58/58b via pyuff, extra
-``[uff]``), ``.s1p``/``.s2p`` :func:`load_touchstone`, anything else :func:`load_text` (CSV,
-semicolons, tabs or spaces).
+``[uff]``), Touchstone ``.sNp``/``.ts`` :func:`load_touchstone`, anything else
+:func:`load_text` (CSV, semicolons, tabs or spaces).
 
 Every reader returns a validated :class:`~freqid_casadi.core.data.FrequencyData` with ``omega``
 in rad/s (``load_uff`` returns a tuple, one per record). Rows at zero frequency are dropped
@@ -23,10 +23,10 @@ import zipfile
 
 import numpy as np
 
-from ._touchstone import load_touchstone
+from ._touchstone import is_touchstone, load_touchstone
 from ._uff import load_uff
 from ._readfile import (MAX_ELEMENTS, MAX_FILE_BYTES, MAX_ROWS, DataWarning, _finish,
-                        read_regular_file)
+                        parse_band, read_regular_file)
 from ._table import (Column, Table, _check_finite, _default_columns, _layout_problem,
                      _resolve_units, parse_columns, parse_freq_unit, read_table, recognise,
                      table_response)
@@ -34,7 +34,7 @@ from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 
 __all__ = ["load", "load_text", "load_csv", "load_npz", "load_mat", "load_uff",
-           "load_touchstone", "save_csv",
+           "load_touchstone", "is_touchstone", "parse_band", "save_csv",
            "read_regular_file", "DataWarning", "MAX_FILE_BYTES", "MAX_ROWS", "MAX_ELEMENTS"]
 
 
@@ -43,15 +43,16 @@ _UFF_EXT = (".uff", ".unv", ".uf")
 
 # --------------------------------------------------------------------------- dispatch
 
-def load(path, name=None, *, freq_unit=None, columns=None, record=None, parameter=None):
+def load(path, name=None, *, freq_unit=None, columns=None, record=None, parameter=None,
+         band=None):
     """Load frequency-response data from a file, the reader chosen by its extension.
 
     Parameters
     ----------
     path : str or path-like
         ``.npz`` (:func:`load_npz`), ``.mat`` (:func:`load_mat`), ``.uff``/``.unv``
-        (:func:`load_uff`), ``.s1p``/``.s2p`` (:func:`load_touchstone`), anything else
-        delimited text (:func:`load_text`). A ``.json`` file is refused (a model file is
+        (:func:`load_uff`), Touchstone ``.s1p`` ... ``.sNp`` or ``.ts``
+        (:func:`load_touchstone`), anything else delimited text (:func:`load_text`). A ``.json`` file is refused (a model file is
         read with ``RationalDelayModel.load``).
     name : str, optional
         Name of the data (default: the file's stem).
@@ -64,7 +65,12 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
     record : int, optional
         For a UFF file with several function records: which one (0-based).
     parameter : str, optional
-        For a Touchstone ``.s1p``/``.s2p`` file: which parameter (default S11), e.g. "S21".
+        For a Touchstone file (``.sNp`` of any number of ports, or a Touchstone 2.0
+        ``.ts``): which parameter (default S11), e.g. "S21".
+    band : (float, float), optional
+        Keep only the points with ``lo <= f <= hi``, in the file's frequency unit (Hz for a
+        header ``Frequency (Hz)`` or a unit line ``Hz``, rad/s for ``omega``, the option
+        line's unit for Touchstone); a DataWarning says how many were dropped.
 
     Returns
     -------
@@ -86,23 +92,24 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
     """
     freq_unit = parse_freq_unit(freq_unit)
     cols = parse_columns(columns)
+    band = parse_band(band)
     lower = os.fspath(path).lower() if isinstance(path, (str, os.PathLike)) else ""
     if lower.endswith(".npz"):
-        return load_npz(path, name, freq_unit=freq_unit)
-    if lower.endswith((".s1p", ".s2p")):
+        return load_npz(path, name, freq_unit=freq_unit, band=band)
+    if is_touchstone(lower):
         if freq_unit is not None or cols is not None:
             raise OptionError("freq_unit and columns do not apply to Touchstone files (the "
                               "option line gives the units); drop them")
-        return load_touchstone(path, name, parameter=parameter)
+        return load_touchstone(path, name, parameter=parameter, band=band)
     if lower.endswith(".mat"):
-        return load_mat(path, name, freq_unit=freq_unit, columns=cols)
+        return load_mat(path, name, freq_unit=freq_unit, columns=cols, band=band)
     if lower.endswith(".json"):
         raise DataError(f"{os.fspath(path)!r} is JSON, not frequency-response data: a model "
                         "file that freqid wrote (model.json) is read with "
                         "freqid_casadi.RationalDelayModel.load(path); data files are text "
-                        "(CSV), .npz, .mat, .uff/.unv or .s1p/.s2p")
+                        "(CSV), .npz, .mat, .uff/.unv or Touchstone .sNp/.ts")
     if lower.endswith(_UFF_EXT):
-        found = load_uff(path, freq_unit=freq_unit)
+        found = load_uff(path, freq_unit=freq_unit, band=band)
         if record is None:
             if len(found) > 1:
                 raise DataError(
@@ -116,10 +123,10 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
                             f"{len(found)} record(s), numbered 0..{len(found) - 1}")
         data = found[record]
         return data if name is None else FrequencyData(data.omega, data.response, name)
-    return load_text(path, name, freq_unit=freq_unit, columns=cols)
+    return load_text(path, name, freq_unit=freq_unit, columns=cols, band=band)
 
 
-def load_text(path, name=None, *, freq_unit=None, columns=None):
+def load_text(path, name=None, *, freq_unit=None, columns=None, band=None):
     """Read frequency-response data from delimited text.
 
     Parameters
@@ -143,6 +150,8 @@ def load_text(path, name=None, *, freq_unit=None, columns=None):
           ``phase_deg`` or ``phase_rad``; or one complex column ``complex``/``response``/
           ``h``/``g`` holding literals ``1+2j``, ``(1+2j)`` or ``1+2i``;
         - ``skip`` for a column to ignore.
+    band : (float, float), optional
+        Keep only the rows with ``lo <= f <= hi`` in the file's frequency unit.
 
     Returns
     -------
@@ -170,14 +179,23 @@ def load_text(path, name=None, *, freq_unit=None, columns=None):
     frequency, real, imaginary; with two columns of which the second holds complex
     literals, frequency and response.
     """
+    band = parse_band(band)
     path, payload = read_regular_file(path)
-    table = read_table(path, payload, columns, freq_unit, max_rows=MAX_ROWS)
+    table = read_table(path, payload, parse_columns(columns), parse_freq_unit(freq_unit),
+                       max_rows=MAX_ROWS)
     omega, response = table_response(table)
     unit = "rad/sample" if table.unit("freq") == "rad/sample" else "rad/s"
-    return _finish(path, omega, response, name, lines=table.lines, unit=unit)
+    return _finish(path, omega, response, name, lines=table.lines, unit=unit, band=band,
+                   **_band_unit(table.unit("freq")))
 
 
-def load_csv(path, name=None, *, freq_unit=None, columns=None):
+def _band_unit(unit):
+    """``scale`` and ``file_unit`` keywords of ``_finish`` for a table's frequency unit."""
+    return ({"scale": 2 * np.pi, "file_unit": "Hz"} if unit == "hz" else
+            {"scale": 1.0, "file_unit": unit})
+
+
+def load_csv(path, name=None, *, freq_unit=None, columns=None, band=None):
     """Read a CSV (or any delimited text) file: the same as :func:`load_text`.
 
     Parameters
@@ -187,8 +205,10 @@ def load_csv(path, name=None, *, freq_unit=None, columns=None):
     freq_unit : {"hz", "rad/s"}, optional
     columns : str or sequence of str, optional
         As :func:`load_text`.
+    band : (float, float), optional
+        As :func:`load_text`.
     """
-    return load_text(path, name, freq_unit=freq_unit, columns=columns)
+    return load_text(path, name, freq_unit=freq_unit, columns=columns, band=band)
 
 
 # --------------------------------------------------------------------------- npz
@@ -234,7 +254,7 @@ def _check_dtype(path, key, dtype, complex_ok):
                         f"numbers{unit}; save plain floats with {_SAVEZ}")
 
 
-def load_npz(path, name=None, *, freq_unit=None):
+def load_npz(path, name=None, *, freq_unit=None, band=None):
     """Read data from a NumPy ``.npz`` archive.
 
     Parameters
@@ -245,6 +265,9 @@ def load_npz(path, name=None, *, freq_unit=None):
     name : str, optional
     freq_unit : {"Hz", "rad/s"}, optional
         Unit of the array ``omega`` when it is not in rad/s ("Hz": multiplied by 2 pi).
+    band : (float, float), optional
+        Keep only the points with ``lo <= f <= hi`` (Hz for ``freq_hz`` or
+        ``freq_unit="Hz"``, else rad/s).
 
     Returns
     -------
@@ -260,6 +283,7 @@ def load_npz(path, name=None, *, freq_unit=None):
         the data), non-numeric or datetime dtypes, and any violation of FrequencyData.
     """
     freq_unit = parse_freq_unit(freq_unit)
+    band = parse_band(band)
     path, payload = read_regular_file(path)
     if payload.startswith(b"\x93NUMPY"):
         raise DataError(f"{path!r} holds a single array (.npy), not an .npz archive; save "
@@ -285,14 +309,16 @@ def load_npz(path, name=None, *, freq_unit=None):
     if freq_key == "freq_hz" and freq_unit == "rad/s":
         raise DataError(f"{path!r}: array 'freq_hz' is in Hz, but freq_unit='rad/s'; drop "
                         "freq_unit or rename the array")
-    if freq_key == "freq_hz" or freq_unit == "hz":
+    hz = freq_key == "freq_hz" or freq_unit == "hz"
+    if hz:
         omega = 2 * np.pi * np.asarray(omega, float)
-    return _finish(path, omega, response, name, weights)
+    return _finish(path, omega, response, name, weights, band=band,
+                   **_band_unit("hz" if hz else "rad/s"))
 
 
 # --------------------------------------------------------------------------- mat
 
-def load_mat(path, name=None, *, freq_unit=None, columns=None):
+def load_mat(path, name=None, *, freq_unit=None, columns=None, band=None):
     """Read data from a MATLAB ``.mat`` file (v4 to v7.2, via ``scipy.io.loadmat``).
 
     Parameters
@@ -303,6 +329,8 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None):
         As for :func:`load_text`.
     columns : str or sequence of str, optional
         Names of the columns of the single numeric matrix (N x k, or k x N) the file holds.
+    band : (float, float), optional
+        As :func:`load_text`.
 
     Returns
     -------
@@ -355,7 +383,7 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None):
         raise DataError(f"cannot read {path!r} as a MATLAB .mat file ({exc})") from None
     table = _mat_table(path, {k: mat[k] for k in numeric}, columns, freq_unit)
     omega, response = table_response(table)
-    return _finish(path, omega, response, name)
+    return _finish(path, omega, response, name, band=band, **_band_unit(table.unit("freq")))
 
 
 # --------------------------------------------------------------------------- .mat
