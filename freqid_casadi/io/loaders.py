@@ -23,6 +23,7 @@ import zipfile
 
 import numpy as np
 
+from ._mat import read_mat_arrays, records_hint
 from ._touchstone import is_touchstone, load_touchstone
 from ._uff import load_uff
 from ._readfile import (MAX_ELEMENTS, MAX_FILE_BYTES, MAX_ROWS, DataWarning, _finish,
@@ -346,42 +347,21 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None, band=None):
 
     Notes
     -----
-    Variables are matched by name with the vocabulary of :func:`load_text` (``omega``,
-    ``w``, ``freq_hz``, ``f`` + ``freq_unit``; ``response``/``h``/``g``/``frf`` complex,
-    ``re``/``im``, ``mag_db``/``phase_deg``, ...). Without such names, a single numeric
-    matrix is read like a headerless text table (``columns`` names its columns).
+    Variables, and the fields of structs (``frf.freq_hz``, ``frf.response``), are matched
+    by name with the vocabulary of :func:`load_text` (``omega``, ``w``, ``freq_hz``, ``f`` +
+    ``freq_unit``; ``response``/``h``/``g``/``frf`` complex, ``re``/``im``,
+    ``mag_db``/``phase_deg``, ...). Without such names, a single numeric matrix is read like
+    a headerless text table (``columns`` names its columns). A file of time records (two or
+    more real vectors of one length) is refused with the command that reads it:
+    ``freqid frf FILE --u NAME --y NAME``
+    (:func:`freqid_casadi.experiment.load_records_mat`).
     """
-    import scipy.io
-
     freq_unit = parse_freq_unit(freq_unit)
     columns = parse_columns(columns)
+    band = parse_band(band)
     path, payload = read_regular_file(path)
-    try:
-        info = scipy.io.whosmat(io.BytesIO(payload))
-    except NotImplementedError:
-        raise DataError(f"{path!r} is a MATLAB v7.3 (HDF5) file; save it with "
-                        "save(..., '-v7') or export the arrays to CSV") from None
-    except Exception as exc:            # scipy raises ValueError, TypeError, ... on garbage
-        raise DataError(f"cannot read {path!r} as a MATLAB .mat file ({exc}); save the "
-                        "arrays with save(..., '-v7')") from None
-    numeric = []
-    for var, shape, cls in info:
-        n = int(np.prod([int(d) for d in shape], dtype=object)) if shape else 1
-        if n > MAX_ELEMENTS:
-            raise DataError(f"{path!r}: variable {var!r} claims shape {shape} ({n} elements), "
-                            f"above the limit of {MAX_ELEMENTS}; the file is damaged or too "
-                            "large (freqid_casadi.io.loaders.MAX_ELEMENTS)")
-        if cls in ("double", "single", "int8", "uint8", "int16", "uint16", "int32",
-                   "uint32", "int64", "uint64"):
-            numeric.append(var)
-    if not numeric:
-        raise DataError(f"{path!r} holds no numeric variables; save omega and response "
-                        "as numeric arrays")
-    try:
-        mat = scipy.io.loadmat(io.BytesIO(payload), variable_names=numeric)
-    except Exception as exc:
-        raise DataError(f"cannot read {path!r} as a MATLAB .mat file ({exc})") from None
-    table = _mat_table(path, {k: mat[k] for k in numeric}, columns, freq_unit)
+    arrays = read_mat_arrays(path, payload, MAX_ELEMENTS)
+    table = _mat_table(path, arrays, columns, freq_unit)
     omega, response = table_response(table)
     return _finish(path, omega, response, name, band=band, **_band_unit(table.unit("freq")))
 
@@ -394,7 +374,7 @@ def _mat_table(path, arrays, columns, freq_unit):
     named = {}
     if columns is None:
         for key, arr in arrays.items():
-            col = recognise(key)
+            col = recognise(key.rsplit(".", 1)[-1])
             if col is not None and col.role != "skip":
                 named[key] = Column(col.role, col.unit, key)
     cols = tuple(named.values())
@@ -407,6 +387,9 @@ def _mat_table(path, arrays, columns, freq_unit):
         values = dict(zip((c.role for c in cols), vecs))
         n = vecs[0].size
     else:
+        hint = records_hint(path, arrays) if columns is None and not named else None
+        if hint:
+            raise DataError(hint)
         if len(arrays) != 1 or np.ndim(next(iter(arrays.values()))) != 2:
             raise DataError(
                 f"{path!r}: cannot tell the variables apart (found {', '.join(arrays)}); "
