@@ -12,9 +12,10 @@ export (:func:`freqid_casadi.experiment.load_daq_records`, channels chosen by ``
 and ``--output``) or a MATLAB file of time records
 (:func:`freqid_casadi.experiment.load_records_mat`, variables or struct fields chosen by
 ``--u`` and ``--y``; ``--reference`` names the generated excitation, whose lines are the
-excited ones), keeps the frequencies in ``--band`` (Hz with a sampling rate), estimates the frequency response at the excited DFT bins averaged over
+excited ones), estimates the frequency response at the excited DFT bins averaged over
 the periods (:func:`freqid_casadi.experiment.frf_from_periodic`, SPEC §7) or by Welch H1/H2
-(:func:`freqid_casadi.experiment.frf_from_records`) and writes
+(:func:`freqid_casadi.experiment.frf_from_records`), keeps the frequencies in ``--band``
+(Hz with a sampling rate) and writes
 
 - ``frf.csv``: ``omega,real,imag`` (:func:`freqid_casadi.io.loaders.save_csv`), ready for
   ``freqid fit``; ``omega`` in rad/s with ``--fs``, else rad/sample;

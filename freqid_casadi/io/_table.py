@@ -355,6 +355,8 @@ def _units_row(first, rows, split):
 
 #: Lines searched for the start of the data (the longest preamble read).
 _PREAMBLE_LINES = 200
+#: Lines between a header and its data (a unit line, ``Units:``, a blank-ish line).
+_HEADER_GAP = 6
 _FREQ_UNITS = {"hz": "hz", "rad/s": "rad/s", "rad/sec": "rad/s", "rads": "rad/s"}
 _META = re.compile(r"^[^,;\t]{1,60}?\s*[:=]")
 
@@ -445,13 +447,16 @@ def _preamble(path, rows, columns):
         return rows
     sep = _separator(rows[i][1])
     ncols = len(_row_cells(rows[i][1]))
-    h = next((k for k in range(i - 1, max(-1, i - 5), -1)
+    h = next((k for k in range(i - 1, max(-1, i - 1 - _HEADER_GAP), -1)
               if _header_at(rows[k][1], sep, ncols)), None)
     if h is None or columns is not None:
         if i > 1 and columns is not None or _metadata(rows[:i]):
             _note_preamble(path, rows[:i], "the data")
             return rows[i:]
-        return rows
+        k = next((k for k in range(i - 1, 0, -1)          # the header's error names it
+                  if len(_row_cells(rows[k][1])) == ncols and not _unit_line(rows[k][1])),
+                 0)
+        return rows[k:]
     if h == 0 and i == 1:
         return rows
     between = rows[h + 1:i]

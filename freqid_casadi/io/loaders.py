@@ -53,8 +53,8 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
     path : str or path-like
         ``.npz`` (:func:`load_npz`), ``.mat`` (:func:`load_mat`), ``.uff``/``.unv``
         (:func:`load_uff`), Touchstone ``.s1p`` ... ``.sNp`` or ``.ts``
-        (:func:`load_touchstone`), anything else delimited text (:func:`load_text`). A ``.json`` file is refused (a model file is
-        read with ``RationalDelayModel.load``).
+        (:func:`load_touchstone`), anything else delimited text (:func:`load_text`). A
+        ``.json`` file is refused (a model file is read with ``RationalDelayModel.load``).
     name : str, optional
         Name of the data (default: the file's stem).
     freq_unit : {"Hz", "rad/s"}, optional
