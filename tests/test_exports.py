@@ -42,7 +42,7 @@ def _load(path, **kw):
     return data, notes
 
 
-def _signalcalc(encoding="cp1252", sep="\t", marker=False, eol="\r\n"):
+def _signalcalc(encoding="cp1252", sep="\t", marker=False, eol="\r\n", unit_sep=None):
     """A single-channel SignalCalc ASCII export (preamble, header, unit line, data)."""
     head = ["Data Physics SignalCalc Mobilyzer", "Title:\tFree-free beam, roving hammer",
             "Date:\t03/12/2019 14:02:11", "Units: Ratio", "Channel 1:\tAccel 3Z (m/s²)",
@@ -50,16 +50,17 @@ def _signalcalc(encoding="cp1252", sep="\t", marker=False, eol="\r\n"):
             "Resolution:\t1.25 Hz", ""]
     header = sep.join(("Frequency", "Real", "Imaginary"))
     units = ["Units:"] if marker else []
-    text = eol.join(head + [header] + units + [f"Hz{sep}(m/s²)(N)", ""])
+    unit_sep = sep if unit_sep is None else unit_sep
+    text = eol.join(head + [header] + units + [f"Hz{unit_sep}(m/s²)(N)", ""])
     text += _rows(sep, (F, H.real, H.imag), eol)
     return text.encode(encoding)
 
 
-@pytest.mark.parametrize("sep", ["\t", ",", " "])
+@pytest.mark.parametrize("sep,unit_sep", [("\t", None), (",", None), (" ", None), (",", " ")])
 @pytest.mark.parametrize("marker", [False, True])
-def test_signalcalc_export_in_windows_1252_is_read_as_written(tmp_path, sep, marker):
+def test_signalcalc_export_in_windows_1252_is_read_as_written(tmp_path, sep, unit_sep, marker):
     path = tmp_path / "H_3Z_1Z.txt"
-    path.write_bytes(_signalcalc(sep=sep, marker=marker))
+    path.write_bytes(_signalcalc(sep=sep, marker=marker, unit_sep=unit_sep))
     data, notes = _load(path)
     np.testing.assert_array_equal(data.omega, 2 * np.pi * F[1:])      # Hz from the unit line
     np.testing.assert_array_equal(data.response, H[1:])
