@@ -407,3 +407,12 @@ def test_freqid_frf_reads_mat_records_by_name_with_reference_and_band(tmp_path, 
         csv = tmp_path / "uy.csv"
         csv.write_text("u,y\n" + _rows(",", (u, y)))
         cli_frf.read_excitation(argparse.Namespace(records=str(csv), u="x", y=None))
+
+
+def test_header_with_its_unit_line_alone_needs_no_note(tmp_path):
+    path = tmp_path / "short.csv"
+    path.write_text("Frequency,Real,Imaginary\nHz (m/s²)(N)\n" + _rows(",", (F[1:], H.real[1:],
+                                                                          H.imag[1:])))
+    data, notes = _load(path)
+    np.testing.assert_array_equal(data.omega, 2 * np.pi * F[1:])
+    assert notes == []

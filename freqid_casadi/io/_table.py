@@ -463,10 +463,10 @@ def _preamble(path, rows, columns):
     if not all(_META.match(t) or _unit_line(t) for _, t in between):
         return rows              # the rows under the header are bad data: say so there
     cells = _with_units(_header_at(rows[h][1], sep, ncols), between)
-    if h:
+    if h:                     # (a header with its unit line alone is the file's own layout)
         _note_preamble(path, rows[:h], f"the header on line {rows[h][0]}")
-    if between:
-        _note_units(path, between, cells)
+        if between:
+            _note_units(path, between, cells)
     return [(rows[h][0], (sep or " ").join(cells))] + rows[i:]
 
 
