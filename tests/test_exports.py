@@ -416,3 +416,12 @@ def test_header_with_its_unit_line_alone_needs_no_note(tmp_path):
     data, notes = _load(path)
     np.testing.assert_array_equal(data.omega, 2 * np.pi * F[1:])
     assert notes == []
+
+
+def test_touchstone_mixed_mode_is_refused(tmp_path):
+    text, _ = _v2(2, "Full", "12_21")
+    path = tmp_path / "mm.ts"
+    path.write_text(text.replace("[Network Data]", "[Mixed-Mode Order] D2,1 C2,1\n"
+                                 "[Network Data]"))
+    with pytest.raises(DataError, match=r"mixed-mode parameters .* are not read"):
+        fc.load(path, parameter="S21")

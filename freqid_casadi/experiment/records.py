@@ -1,8 +1,9 @@
 """Time-record files and the shipped measured data sets (layer L1).
 
 Readers: :func:`load_records_csv` (``u,y`` CSV), :func:`load_daisy` (DaISy whitespace
-columns) and :func:`load_daq_records` (a data-acquisition export: header lines, then sample
-number, time stamp, channels, events; ``.xz`` accepted). They share the bounded, regular-file
+columns), :func:`load_daq_records` (a data-acquisition export: header lines, then sample
+number, time stamp, channels, events; ``.xz`` accepted) and :func:`load_records_mat`
+(MATLAB variables or struct fields by name). They share the bounded, regular-file
 reading of :mod:`freqid_casadi.io.loaders` and read ASCII decimal numbers only.
 
 Data sets shipped in ``freqid_casadi/datasets`` (see :func:`dataset_path`):

@@ -229,6 +229,10 @@ def load_touchstone(path, name=None, *, parameter=None, band=None):
                         f"{two_port!r} is not Full/Lower/Upper / 12_21/21_12")
     if not lines:
         raise DataError(f"{path!r} holds no data rows")
+    if "mixed-mode order" in keywords:
+        raise DataError(f"{path!r} line {keywords['mixed-mode order'][1]}: mixed-mode "
+                        "parameters ([Mixed-Mode Order]) are not read; export single-ended "
+                        "S-parameters")
     i, j = _which(parameter, kind, ports)
     order = _order(ports, matrix, two_port)
     if version.startswith("1"):
