@@ -425,3 +425,17 @@ def test_touchstone_mixed_mode_is_refused(tmp_path):
                                  "[Network Data]"))
     with pytest.raises(DataError, match=r"mixed-mode parameters .* are not read"):
         fc.load(path, parameter="S21")
+
+
+def test_mat_struct_and_cell_arrays_are_flattened_by_path(tmp_path):
+    from freqid_casadi.io import read_mat_arrays
+
+    cells = np.empty(2, dtype=object)
+    cells[0], cells[1] = np.arange(20.0), np.arange(30.0)
+    path = tmp_path / "nested.mat"
+    scipy.io.savemat(path, {"cel": cells, "S": np.array([{"a": np.ones(3)}, {"a": np.zeros(3)}],
+                                                       dtype=object), "name": "text"})
+    arrays = read_mat_arrays(str(path), path.read_bytes(), 10 ** 6)
+    assert {k: v.shape for k, v in arrays.items()} == {
+        "cel{1}": (20,), "cel{2}": (30,), "S(1).a": (3,), "S(2).a": (3,)}
+    np.testing.assert_array_equal(arrays["cel{2}"], np.arange(30.0))

@@ -1,8 +1,9 @@
 """The numeric variables of a MATLAB ``.mat`` file, structs flattened (layer L1).
 
 :func:`read_mat_arrays` reads a MATLAB v4 to v7.2 file (``scipy.io.loadmat``) into a dict
-of numeric arrays named by their MATLAB path: ``u``, ``meas.input``, ``run(2).y`` (structs
-and struct arrays flattened; strings, cells of strings and other classes left out).
+of numeric arrays named by their MATLAB path: ``u``, ``meas.input``, ``run(2).y``,
+``runs{3}`` (structs, struct arrays and cell arrays flattened; strings and other classes
+left out).
 :func:`records_hint` tells whether such a file holds time records rather than a frequency
 response. Used by :func:`freqid_casadi.io.loaders.load_mat` and the time-record reader
 :func:`freqid_casadi.experiment.load_records_mat`.
@@ -48,9 +49,14 @@ def _flatten(prefix, value, out):
     elif isinstance(value, (list, tuple)) or (isinstance(value, np.ndarray)
                                               and value.dtype == object):
         items = list(value) if not isinstance(value, np.ndarray) else list(value.ravel())
-        if all(isinstance(v, dict) for v in items):
-            for k, item in enumerate(items):
-                _flatten(f"{prefix}({k + 1})", item, out)
+        if items and all(isinstance(v, (int, float, complex, np.number))
+                         and not isinstance(v, bool) for v in items):
+            out[prefix] = np.array(value, complex if any(
+                isinstance(v, (complex, np.complexfloating)) for v in items) else float)
+            return
+        struct = all(isinstance(v, dict) for v in items)      # else a cell array
+        for k, item in enumerate(items):
+            _flatten(f"{prefix}({k + 1})" if struct else f"{prefix}{{{k + 1}}}", item, out)
     elif isinstance(value, (int, float, complex, np.number)) and not isinstance(value, bool):
         out[prefix] = np.asarray(value)
     elif isinstance(value, np.ndarray) and value.dtype.kind in "iufc" and value.size:
