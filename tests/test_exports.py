@@ -51,7 +51,8 @@ def _signalcalc(encoding="cp1252", sep="\t", marker=False, eol="\r\n", unit_sep=
     header = sep.join(("Frequency", "Real", "Imaginary"))
     units = ["Units:"] if marker else []
     unit_sep = sep if unit_sep is None else unit_sep
-    text = eol.join(head + [header] + units + [f"Hz{unit_sep}(m/s²)(N)", ""])
+    rule = ["-" * 40] if marker else []          # a one-cell line before the data
+    text = eol.join(head + [header] + units + [f"Hz{unit_sep}(m/s²)(N)"] + rule + [""])
     text += _rows(sep, (F, H.real, H.imag), eol)
     return text.encode(encoding)
 

@@ -460,7 +460,8 @@ def _preamble(path, rows, columns):
     if h == 0 and i == 1:
         return rows
     between = rows[h + 1:i]
-    if not all(_META.match(t) or _unit_line(t) for _, t in between):
+    if not all(_META.match(t) or _unit_line(t) or len(_row_cells(t)) == 1
+               for _, t in between):
         return rows              # the rows under the header are bad data: say so there
     cells = _with_units(_header_at(rows[h][1], sep, ncols), between)
     if h:                     # (a header with its unit line alone is the file's own layout)
