@@ -440,3 +440,13 @@ def test_mat_struct_and_cell_arrays_are_flattened_by_path(tmp_path):
     assert {k: v.shape for k, v in arrays.items()} == {
         "cel{1}": (20,), "cel{2}": (30,), "S(1).a": (3,), "S(2).a": (3,)}
     np.testing.assert_array_equal(arrays["cel{2}"], np.arange(30.0))
+
+
+def test_tab_header_of_multiword_names_over_space_separated_data(tmp_path):
+    path = tmp_path / "ws.txt"
+    path.write_text("Title: roving hammer\nFrequency (Hz)\tReal Part\tImaginary Part\n" +
+                    _rows("  ", (F[1:], H.real[1:], H.imag[1:])))
+    data, notes = _load(path)
+    np.testing.assert_array_equal(data.omega, 2 * np.pi * F[1:])
+    np.testing.assert_array_equal(data.response, H[1:])
+    assert len(notes) == 1 and "skipped 1 line(s) of metadata" in notes[0]

@@ -468,6 +468,8 @@ def _preamble(path, rows, columns):
         _note_preamble(path, rows[:h], f"the header on line {rows[h][0]}")
         if between:
             _note_units(path, between, cells)
+    if sep is None:            # whitespace-separated data: keep 'Real Part' one cell
+        cells = ["_".join(c.split()) for c in cells]
     return [(rows[h][0], (sep or " ").join(cells))] + rows[i:]
 
 
