@@ -450,3 +450,20 @@ def test_tab_header_of_multiword_names_over_space_separated_data(tmp_path):
     np.testing.assert_array_equal(data.omega, 2 * np.pi * F[1:])
     np.testing.assert_array_equal(data.response, H[1:])
     assert len(notes) == 1 and "skipped 1 line(s) of metadata" in notes[0]
+
+
+def test_mat_read_falls_back_when_scipy_cannot_simplify(tmp_path, monkeypatch):
+    u, y, r, _ = _multisine()
+    path = tmp_path / "rec.mat"
+    scipy.io.savemat(path, {"test": {"force": u, "acc": y, "Fs": 2048.0}})
+    real = scipy.io.loadmat
+
+    def loadmat(*args, **kw):
+        if kw.get("simplify_cells"):
+            raise TypeError("'NoneType' object is not iterable")   # as on the file
+        return real(*args, **kw)
+
+    monkeypatch.setattr(scipy.io, "loadmat", loadmat)
+    rec = load_records_mat(path)
+    assert rec.fs == 2048.0 and list(rec.channels) == ["test.force", "test.acc"]
+    np.testing.assert_array_equal(rec.channels["test.force"], u)

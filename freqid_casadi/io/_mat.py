@@ -43,6 +43,8 @@ def _whos(path, payload, max_elements):
 
 
 def _flatten(prefix, value, out):
+    if hasattr(value, "_fieldnames"):           # scipy's mat_struct (struct_as_record=False)
+        value = {name: getattr(value, name) for name in value._fieldnames}
     if isinstance(value, dict):
         for key, item in value.items():
             _flatten(f"{prefix}.{key}" if prefix else key, item, out)
@@ -54,7 +56,7 @@ def _flatten(prefix, value, out):
             out[prefix] = np.array(value, complex if any(
                 isinstance(v, (complex, np.complexfloating)) for v in items) else float)
             return
-        struct = all(isinstance(v, dict) for v in items)      # else a cell array
+        struct = all(isinstance(v, dict) or hasattr(v, "_fieldnames") for v in items)
         for k, item in enumerate(items):
             _flatten(f"{prefix}({k + 1})" if struct else f"{prefix}{{{k + 1}}}", item, out)
     elif isinstance(value, (int, float, complex, np.number)) and not isinstance(value, bool):
@@ -88,14 +90,19 @@ def read_mat_arrays(path, payload, max_elements):
     import scipy.io
 
     _whos(path, payload, max_elements)
-    try:
-        mat = scipy.io.loadmat(io.BytesIO(payload), simplify_cells=True)
-    except NotImplementedError:
-        raise DataError(f"{path!r} is a MATLAB v7.3 (HDF5) file; save it with "
-                        "save(..., '-v7') or export the arrays to CSV") from None
-    except Exception as exc:             # scipy raises many types on garbage
-        raise DataError(f"cannot read {path!r} as a MATLAB .mat file ({exc}); save the "
-                        "arrays with save(..., '-v7')") from None
+    mat = None
+    for kw in (dict(simplify_cells=True), dict(squeeze_me=True, struct_as_record=False)):
+        try:                             # the second reading where the first trips on a
+            mat = scipy.io.loadmat(io.BytesIO(payload), **kw)    # class it cannot simplify
+            break
+        except NotImplementedError:
+            raise DataError(f"{path!r} is a MATLAB v7.3 (HDF5) file; save it with "
+                            "save(..., '-v7') or export the arrays to CSV") from None
+        except Exception as exc:         # scipy raises many types on garbage
+            error = exc
+    if mat is None:
+        raise DataError(f"cannot read {path!r} as a MATLAB .mat file ({error}); save the "
+                        "arrays with save(..., '-v7')")
     out = {}
     for key, value in mat.items():
         if not key.startswith("__"):
