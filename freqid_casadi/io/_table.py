@@ -6,13 +6,16 @@ ASCII decimal literals only: Python's ``float`` would also take ``1_0`` and non-
 digits, which a data file never means.
 """
 
+import codecs
 import re
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from ._columns import (_UNITS, COLUMN_HELP, Column, _layout_problem, parse_columns,
                        parse_freq_unit, recognise)
+from ._readfile import DataWarning
 from ..errors import DataError
 
 __all__ = ["Column", "Table", "parse_columns", "parse_freq_unit", "read_table",
@@ -59,8 +62,6 @@ _DECLARED = re.compile(rb"(?:encoding|charset|code[ _-]?page)\s*[:=]?\s*[\"']?"
 def _declared(payload):
     """The codec a file's first lines declare (``encoding: latin-1``, ``charset=cp1252``,
     ``Codepage: 1252``), as a Python codec name, or None."""
-    import codecs
-
     m = _DECLARED.search(payload[:4096])
     if m is None:
         return None
@@ -124,10 +125,6 @@ def decode_text(path, payload):
 
 
 def _fallback(path, payload, exc):
-    import warnings
-
-    from ._readfile import DataWarning
-
     line = payload[:exc.start].count(b"\n") + 1
     declared = _declared(payload)
     tried = [c for c in (declared, "cp1252", "latin-1") if c]
@@ -484,10 +481,6 @@ def _unit_line(text):
 
 
 def _note_preamble(path, skipped, what):
-    import warnings
-
-    from ._readfile import DataWarning
-
     first = " ".join(skipped[0][1].split())
     warnings.warn(f"{path!r}: skipped {len(skipped)} line(s) of metadata before {what} "
                   f"(lines {skipped[0][0]}-{skipped[-1][0]}, the first {shown_cell(first)})",
@@ -495,10 +488,6 @@ def _note_preamble(path, skipped, what):
 
 
 def _note_units(path, between, cells):
-    import warnings
-
-    from ._readfile import DataWarning
-
     lines = ", ".join(str(k) for k, _ in between)
     warnings.warn(f"{path!r}: read the units of line(s) {lines} into the header: "
                   f"{', '.join(cells)}", DataWarning, stacklevel=5)
