@@ -133,9 +133,12 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None):
     Parameters
     ----------
     path : str or path-like
-        UTF-8 text (a leading byte-order mark is accepted). Separator: semicolon, tab,
-        comma or whitespace, taken from the first non-comment line. Lines starting with
-        ``#``, ``%`` or ``!`` and blank lines are skipped.
+        Text in UTF-8 (a leading byte-order mark is accepted), UTF-16 with a byte-order
+        mark, the encoding the file declares (``# encoding: ...``), else Windows-1252 /
+        Latin-1 (a fallback is stated by a DataWarning). Separator: semicolon, tab, comma
+        or whitespace, taken from the data rows. Lines starting with ``#``, ``%`` or ``!``
+        and blank lines are skipped; metadata lines before the header (an analyser's
+        preamble) are skipped with a DataWarning.
     name : str, optional
         Name of the data (default: the file's stem).
     freq_unit : {"Hz", "rad/s"}, optional
@@ -163,7 +166,7 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None):
     Raises
     ------
     DataError
-        Not UTF-8, binary, empty, no data rows, unknown header, a headerless file without
+        Binary (NUL bytes), empty, no data rows, unknown header, a headerless file without
         ``freq_unit``, wrong column count, a cell that is not an ASCII decimal number
         (``1_0`` and non-ASCII digits are refused), non-finite values, dB values that
         overflow, negative or unsorted frequencies, zero responses.
@@ -171,7 +174,11 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None):
     Notes
     -----
     A header is recognised when the first line holds a cell that is not a number; a second
-    line of units only (``Hz  dB  deg``) completes it; headerless data take the last comment
+    line of units only (``Hz  dB  deg``) completes it. Above the data (the first three rows
+    of numbers) the nearest line that names every column is the header; the lines before
+    it are a preamble (``Units: Ratio``, channel lines, as SignalCalc exports) and a line
+    between it and the data whose first word is a frequency unit (``Hz  (m/s²)(N)``) gives
+    the units; headerless data take the last comment
     line before them as header when it names every column (``% f [Hz]  Re  Im``). Decimal
     commas are read in a semicolon- or tab-separated file without decimal points; rows in
     descending frequency order are reversed (with a :class:`DataWarning`). Header
