@@ -398,7 +398,7 @@ def test_freqid_frf_reads_mat_records_by_name_with_reference_and_band(tmp_path, 
     f = lines * 2048.0 / 256
     np.testing.assert_allclose(data.omega, 2 * np.pi * f[(f >= 50) & (f <= 300)], rtol=1e-12)
     np.testing.assert_allclose(data.response, 0.8 * np.exp(-2j * np.pi * lines[
-        (f >= 50) & (f <= 300)] * 2 / 256), atol=0.05)
+        (f >= 50) & (f <= 300)] * 2 / 256), atol=0.05)     # measured 0.015 (Welch noise)
     assert "band 50:300 Hz: kept" in text
     code = fc.cli.main(["frf", str(path), "--period", "256", "--out", str(out), "--force"])
     err = capsys.readouterr().err
