@@ -467,3 +467,16 @@ def test_mat_read_falls_back_when_scipy_cannot_simplify(tmp_path, monkeypatch):
     rec = load_records_mat(path)
     assert rec.fs == 2048.0 and list(rec.channels) == ["test.force", "test.acc"]
     np.testing.assert_array_equal(rec.channels["test.force"], u)
+
+
+def test_closing_lines_after_the_data_are_skipped_with_a_note(tmp_path):
+    path = tmp_path / "foot.csv"
+    path.write_text("Frequency (Hz),Real,Imag\n" + _rows(",", (F[1:], H.real[1:], H.imag[1:])) +
+                    "[END]\nTotal points: 5\n")
+    data, notes = _load(path)
+    np.testing.assert_array_equal(data.response, H[1:])
+    assert notes == ["'%s': skipped 2 line(s) after the data (lines 7-8, the first '[END]')"
+                     % path]
+    path.write_text("f_hz,re,im\n1,2,3\n2,3,4\ngarbage 5 6\n")         # not a closing line
+    with pytest.raises(DataError, match="line 4"):
+        fc.load(path)

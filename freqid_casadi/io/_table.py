@@ -470,6 +470,25 @@ def _preamble(path, rows, columns):
     return [(rows[h][0], (sep or " ").join(cells))] + rows[i:]
 
 
+_END = re.compile(r"^\s*(?:\[.*\]|\**\s*end\b.*|[^,;\t\d.+-][^,;\t]{0,59}?\s*[:=].*)$",
+                  re.IGNORECASE)
+
+
+def _footer(path, rows):
+    """``rows`` without up to 5 closing lines after the data that are no data (``[End]``,
+    ``End of data``, ``Key: value``), stated by a DataWarning."""
+    n = len(rows)
+    k = n
+    while k > 1 and n - k < 5 and _END.match(rows[k - 1][1]):
+        k -= 1
+    if k == n or not all(_is_value(c) for c in _row_cells(rows[k - 1][1])):
+        return rows
+    warnings.warn(f"{path!r}: skipped {n - k} line(s) after the data (lines "
+                  f"{rows[k][0]}-{rows[-1][0]}, the first {shown_cell(rows[k][1].strip())})",
+                  DataWarning, stacklevel=5)
+    return rows[:k]
+
+
 def _metadata(rows):
     """True if every row is a ``Key: value`` / ``Key = value`` line or a single cell."""
     return all(_META.match(t) or len(_row_cells(t)) == 1 for _, t in rows)
@@ -495,7 +514,8 @@ def _note_units(path, between, cells):
 
 def read_table(path, payload, columns, freq_unit, max_rows):
     """Parse delimited UTF-8 text into a :class:`Table` (see ``loaders.load_text``)."""
-    rows = _preamble(path, _content(path, decode_text(path, payload), max_rows), columns)
+    rows = _footer(path, _preamble(path, _content(path, decode_text(path, payload),
+                                                  max_rows), columns))
     sep = _separator(rows[0][1])
     rows = _decimal_commas(rows, sep)
     split = _splitter(sep)
