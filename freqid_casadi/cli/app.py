@@ -202,7 +202,8 @@ def _add_fit(sub):
     p = sub.add_parser("fit", help="fit a model to frequency-response data from a file",
                        description="Fit G_N(s) = exp(-hs) K [1/s] P_N(s) to data read from "
                                    "a file and write a report folder. " + _FILES)
-    _add_input(p, "file", "FILE", "data file: text/CSV, .npz, .mat, .uff/.unv, .s1p/.s2p",
+    _add_input(p, "file", "FILE",
+               "data file: text/CSV, .npz, .mat, .uff/.unv, Touchstone .s1p/.s2p/.../.sNp or .ts",
                records=True)
     p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
                    help="number of sections N >= 1")

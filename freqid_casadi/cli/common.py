@@ -1,6 +1,7 @@
 """Options shared by every command that reads a data file (layer L6).
 
-:func:`add_data_options` adds ``--freq-unit hz|rad/s`` and ``--columns LIST`` to a parser;
+:func:`add_data_options` adds ``--freq-unit hz|rad/s``, ``--columns LIST`` and ``--band LO:HI``
+to a parser;
 :func:`load_data` loads a file with them (:func:`freqid_casadi.io.loaders.load`) and prints the
 reader's notes (e.g. rows dropped at zero frequency) as ``note: ...`` lines on stderr
 instead of Python warning text.
@@ -16,11 +17,11 @@ import numpy as np
 
 from ..io import NUMBER, decode_text, parse_columns, read_regular_file
 from ..core.data import FrequencyData
-from ..io.loaders import DataWarning, load
+from ..io.loaders import DataWarning, is_touchstone, load
 from ..errors import DataError, OptionError
 
-__all__ = ["add_data_options", "load_data", "load_options", "notes_to_stderr", "with_weights",
-           "error_line", "os_exit"]
+__all__ = ["add_data_options", "parse_band_text", "load_data", "load_options",
+           "notes_to_stderr", "with_weights", "error_line", "os_exit"]
 
 
 def _columns(text):
@@ -31,8 +32,35 @@ def _columns(text):
     return text
 
 
+def parse_band_text(text):
+    """``(lo, hi)`` from ``LO:HI`` (the ``--band`` option), e.g. ``65:1000``.
+
+    Parameters
+    ----------
+    text : str
+
+    Returns
+    -------
+    tuple of float
+
+    Raises
+    ------
+    argparse.ArgumentTypeError
+        Not two ASCII numbers ``0 <= LO < HI`` separated by a colon.
+    """
+    lo, sep, hi = str(text).partition(":")
+    if not sep or not NUMBER.fullmatch(lo.strip()) or not NUMBER.fullmatch(hi.strip()):
+        raise argparse.ArgumentTypeError(f"must be LO:HI in the file's frequency unit, e.g. "
+                                         f"65:1000, got {text!r}")
+    band = float(lo), float(hi)
+    if not (np.isfinite(band).all() and 0 <= band[0] < band[1]):
+        raise argparse.ArgumentTypeError(f"must be LO:HI with 0 <= LO < HI (finite), got "
+                                         f"{text!r}")
+    return band
+
+
 def add_data_options(parser, records=False):
-    """Add ``--freq-unit`` and ``--columns`` to ``parser``.
+    """Add ``--freq-unit``, ``--columns`` and ``--band`` to ``parser``.
 
     Parameters
     ----------
@@ -51,14 +79,20 @@ def add_data_options(parser, records=False):
         help="names of the file's columns, e.g. 'f,re,im' or 'freq_hz,mag_db,phase_deg' "
              "(omega/w rad/s, freq_hz Hz, f with --freq-unit; re,im; mag or mag_db with "
              "phase_deg or phase_rad; complex; skip)")
+    parser.add_argument(
+        "--band", type=parse_band_text, metavar="LO:HI",
+        help="keep only the frequencies LO <= f <= HI, in the file's frequency unit (Hz for "
+             "'Frequency (Hz)' or a unit line 'Hz', rad/s for omega, GHz/MHz/... for "
+             "Touchstone); a note says how many points were dropped")
     if records:
         parser.add_argument(
             "--record", type=_record, metavar="K",
             help="UFF file (.uff/.unv) with several function records: which one (0-based)")
         parser.add_argument(
             "--parameter", metavar="S21",
-            help="Touchstone file (.s1p/.s2p): which parameter (default S11; S21 is the "
-                 "transfer from port 1 to port 2)")
+            help="Touchstone file (.s1p, .s2p, ..., .sNp, or version 2 .ts): which "
+                 "parameter (default S11; S21 is the transfer from port 1 to port 2; S10,11 "
+                 "for ten and more ports)")
         parser.add_argument(
             "--weights", metavar="STATS.csv",
             help="weights of the data's frequencies: the <stem>.stats.csv that 'freqid frf' "
@@ -79,7 +113,7 @@ def _record(text):
 
 def load_options(args):
     """The ``freq_unit`` and ``columns`` keywords of :func:`~freqid_casadi.io.loaders.load`,
-    and ``record`` and ``parameter`` when given.
+    and ``record``, ``parameter`` and ``band`` when given.
 
     Parameters
     ----------
@@ -88,7 +122,7 @@ def load_options(args):
     """
     opts = dict(freq_unit=getattr(args, "freq_unit", None),
                 columns=getattr(args, "columns", None))
-    for key in ("record", "parameter"):
+    for key in ("record", "parameter", "band"):
         if getattr(args, key, None) is not None:
             opts[key] = getattr(args, key)
     return opts
@@ -133,9 +167,9 @@ def load_data(args, path):
     if "record" in opts and not lower.endswith((".uff", ".unv", ".uf")):
         raise OptionError(f"--record chooses a record of a UFF file (.uff/.unv), not of "
                           f"{path!r}; drop it")
-    if "parameter" in opts and not lower.endswith((".s1p", ".s2p")):
+    if "parameter" in opts and not is_touchstone(lower):
         raise OptionError(f"--parameter chooses a parameter of a Touchstone file "
-                          f"(.s1p/.s2p), not of {path!r}; drop it")
+                          f"(.s1p, .s2p, ..., .sNp, .ts), not of {path!r}; drop it")
     with notes_to_stderr():
         data = load(path, **opts)
     weights = getattr(args, "weights", None)

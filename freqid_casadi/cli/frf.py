@@ -5,12 +5,17 @@ Usage::
     freqid frf RECORDS.csv --period N [--fs HZ] [--skip-periods P] --out frf.csv [--force]
     freqid frf RECORDS --estimator h1|h2 --fs HZ [--nperseg N] [--noverlap N]
                [--window hann] [--min-coherence X] [--input CH --output CH] --out frf.csv
+    freqid frf REC.mat --u NAME --y NAME [--reference NAME] [--band LO:HI] ... --out frf.csv
 
-Reads a two-column ``u,y`` CSV (:func:`freqid_casadi.experiment.load_records_csv`) or a DAQ
+Reads a two-column ``u,y`` CSV (:func:`freqid_casadi.experiment.load_records_csv`), a DAQ
 export (:func:`freqid_casadi.experiment.load_daq_records`, channels chosen by ``--input``
-and ``--output``), estimates the frequency response at the excited DFT bins averaged over
+and ``--output``) or a MATLAB file of time records
+(:func:`freqid_casadi.experiment.load_records_mat`, variables or struct fields chosen by
+``--u`` and ``--y``; ``--reference`` names the generated excitation, whose lines are the
+excited ones), estimates the frequency response at the excited DFT bins averaged over
 the periods (:func:`freqid_casadi.experiment.frf_from_periodic`, SPEC §7) or by Welch H1/H2
-(:func:`freqid_casadi.experiment.frf_from_records`) and writes
+(:func:`freqid_casadi.experiment.frf_from_records`), keeps the frequencies in ``--band``
+(Hz with a sampling rate) and writes
 
 - ``frf.csv``: ``omega,real,imag`` (:func:`freqid_casadi.io.loaders.save_csv`), ready for
   ``freqid fit``; ``omega`` in rad/s with ``--fs``, else rad/sample;
@@ -36,10 +41,11 @@ from .._textio import atomic_write_text
 from .app import _ASCII_FLOAT, _ASCII_INT, _ascii, _checked   # the CLI's own type helpers
 from ..errors import OptionError
 from ..experiment import (ESTIMATORS, frf_from_periodic, frf_from_records, load_daq_records,
-                         load_records_csv)
+                         load_records_csv, load_records_mat)
+from .common import parse_band_text
 from ..io.loaders import read_regular_file, save_csv
 
-__all__ = ["add_cli", "run_cli", "read_records", "stats_path", "NAME"]
+__all__ = ["add_cli", "run_cli", "read_records", "read_excitation", "stats_path", "NAME"]
 
 #: Name of the command.
 NAME = "frf"
@@ -85,8 +91,9 @@ def add_cli(subparsers):
                     "periodic excitation (--period, SPEC §7), or Welch H1/H2 for any "
                     "excitation (--estimator h1|h2). RECORDS is a CSV with the header 'u,y' "
                     "or a DAQ export ('Header Size: N' first line, .xz accepted; choose "
-                    "--input and --output channels).")
-    p.add_argument("records", metavar="RECORDS", help="u,y CSV or a DAQ export")
+                    "--input and --output channels), or a MATLAB .mat file of time records "
+                    "(choose --u and --y variables).")
+    p.add_argument("records", metavar="RECORDS", help="u,y CSV, a DAQ export or a .mat file")
     p.add_argument("--estimator", choices=("periodic",) + ESTIMATORS,
                    help="periodic (needs --period), h1 (noise on the output) or h2 (noise "
                         "on the input); default periodic with --period, else h1")
@@ -107,6 +114,17 @@ def add_cli(subparsers):
                    help="h1/h2: keep only frequencies with coherence >= X (e.g. 0.9)")
     p.add_argument("--input", metavar="CHANNEL", help="DAQ export: input channel name")
     p.add_argument("--output", metavar="CHANNEL", help="DAQ export: output channel name")
+    p.add_argument("--u", metavar="NAME",
+                   help=".mat file: the input record's variable (e.g. u or meas.force)")
+    p.add_argument("--y", metavar="NAME",
+                   help=".mat file: the output record's variable (e.g. y or meas.acc)")
+    p.add_argument("--reference", metavar="NAME",
+                   help=".mat variable or DAQ channel of the generated excitation: only the "
+                        "lines it excites are kept (a measured input holds noise at the "
+                        "others)")
+    p.add_argument("--band", type=parse_band_text, metavar="LO:HI",
+                   help="keep only the frequencies LO <= f <= HI (Hz with a sampling rate, "
+                        "else rad/sample)")
     p.add_argument("--out", required=True, metavar="FRF.csv",
                    help="output CSV (omega,real,imag); with a variance also "
                         "<stem>.stats.csv")
@@ -139,6 +157,74 @@ def _is_daq(path):
     return payload.lstrip(b"\xef\xbb\xbf").startswith(b"Header Size")
 
 
+def _is_mat(path):
+    return os.fspath(path).lower().endswith(".mat")
+
+
+def _mat_records(args):
+    """Input, output, sampling rate (or None) and reference (or None) of a ``.mat`` file."""
+    rec = load_records_mat(args.records)
+    names = ", ".join(rec.channels)
+    chosen = []
+    for opt, alias, default in (("u", "input", "u"), ("y", "output", "y")):
+        name = getattr(args, opt, None) or getattr(args, alias, None)
+        if name is None and default in rec.channels:
+            name = default
+        if name not in rec.channels:
+            what = (f"is required: name the {alias} record's variable" if name is None
+                    else f"{name!r} is not a time record of the file")
+            raise OptionError(f"--{opt} {what}; the records are {names} (e.g. freqid frf "
+                              f"FILE --u NAME --y NAME)")
+        chosen.append(rec.channels[name])
+    ref = getattr(args, "reference", None)
+    if ref is not None and ref not in rec.channels:
+        raise OptionError(f"--reference {ref!r} is not a time record of the file; the "
+                          f"records are {names}")
+    fs = getattr(args, "fs", None)
+    if fs is not None and rec.fs is not None and fs != rec.fs:
+        raise OptionError(f"--fs {fs:g} contradicts the file's sampling rate {rec.fs:g} Hz; "
+                          "drop --fs")
+    return chosen[0], chosen[1], rec.fs, None if ref is None else rec.channels[ref]
+
+
+def read_excitation(args):
+    """Input, output, the sampling rate the file states (or None) and the reference
+    record (``--reference``, or None) for ``args``.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        The parsed ``freqid frf`` arguments.
+
+    Raises
+    ------
+    DataError
+        A bad records file.
+    OptionError
+        Channels or variables that are not in the file, options that do not apply.
+    """
+    if _is_mat(args.records):
+        return _mat_records(args)
+    for opt in ("u", "y"):
+        if getattr(args, opt, None):
+            raise OptionError(f"--{opt} names a variable of a .mat file; a u,y CSV has its "
+                              "input in column u and its output in column y, a DAQ export "
+                              "takes --input/--output")
+    ref = getattr(args, "reference", None)
+    if ref is not None and not _is_daq(args.records):
+        raise OptionError("--reference names a .mat variable or a DAQ channel; a u,y CSV "
+                          "has no reference column (use --band, or --period for a periodic "
+                          "excitation, whose excited lines come from u)")
+    u, y, fs = read_records(args)
+    if ref is None:
+        return u, y, fs, None
+    rec = load_daq_records(args.records)
+    if ref not in rec.channels:
+        raise OptionError(f"--reference {ref!r} is not a channel: choose one of "
+                          f"{', '.join(rec.channels)}")
+    return u, y, fs, rec.channels[ref]
+
+
 def read_records(args):
     """Input, output and the sampling rate the file states (or None) for ``args``.
 
@@ -155,6 +241,8 @@ def read_records(args):
         A DAQ export without valid ``--input``/``--output`` channels, or ``--fs`` that
         contradicts its header.
     """
+    if _is_mat(args.records):
+        return _mat_records(args)[:3]
     if not _is_daq(args.records):
         if getattr(args, "input", None) or getattr(args, "output", None):
             raise OptionError("--input/--output choose channels of a DAQ export; a u,y CSV "
@@ -243,12 +331,13 @@ def run_cli(args, command):
                           "a chirp or random test use --estimator h1")
     if estimator != "periodic" and period is not None:
         raise OptionError(f"--period is for a periodic excitation, not --estimator {estimator}")
-    u, y, fs_file = read_records(args)
+    u, y, fs_file, ref = read_excitation(args)
     fs = getattr(args, "fs", None) or fs_file
     name = os.path.splitext(os.path.basename(os.fspath(args.records)))[0]
     if estimator == "periodic":
         est = frf_from_periodic(u, y, period, fs=fs,
-                                skip_periods=getattr(args, "skip_periods", 0) or 0, name=name)
+                                skip_periods=getattr(args, "skip_periods", 0) or 0, name=name,
+                                reference=ref)
     else:
         if fs is None:
             raise OptionError(f"--estimator {estimator} needs --fs HZ (the sampling frequency)")
@@ -256,7 +345,9 @@ def run_cli(args, command):
                                nperseg=getattr(args, "nperseg", None),
                                noverlap=getattr(args, "noverlap", None),
                                window=getattr(args, "window", "hann"),
-                               min_coherence=getattr(args, "min_coherence", None), name=name)
+                               min_coherence=getattr(args, "min_coherence", None), name=name,
+                               reference=ref)
+    est = _in_band(est, getattr(args, "band", None))
     sidecar = stats_path(out) if est.variance is not None else None
     if sidecar is not None:
         _check_sidecar(sidecar, force, args.records)
@@ -270,6 +361,23 @@ def run_cli(args, command):
         os.remove(stale)
     _summary(est, out, sidecar)
     return 0
+
+
+def _in_band(est, band):
+    """``est`` at the frequencies in ``band`` (Hz with a sampling rate, else rad/sample),
+    the points dropped said on stdout."""
+    if band is None:
+        return est
+    f = est.data.omega / (2 * math.pi) if est.fs is not None else est.data.omega
+    unit = "Hz" if est.fs is not None else "rad/sample"
+    keep = (f >= band[0]) & (f <= band[1])
+    if not keep.any():
+        raise OptionError(f"--band {band[0]:g}:{band[1]:g} {unit} holds none of the "
+                          f"estimate's frequencies ({f[0]:.4g} to {f[-1]:.4g} {unit}); widen it")
+    if not keep.all():
+        print(f"band {band[0]:g}:{band[1]:g} {unit}: kept {int(keep.sum())} of {keep.size} "
+              f"frequencies")
+    return est.subset(keep)
 
 
 def _summary(est, out, sidecar):

@@ -73,6 +73,35 @@ class FrfEstimate:
                 value.setflags(write=False)
                 object.__setattr__(self, name, value)
 
+    def subset(self, keep):
+        """The estimate at the frequencies ``keep`` selects (weights renormalised to mean 1).
+
+        Parameters
+        ----------
+        keep : array_like of bool, shape (M,)
+
+        Returns
+        -------
+        FrfEstimate
+
+        Raises
+        ------
+        DataError
+            ``keep`` selects no frequency.
+        """
+        import dataclasses
+
+        keep = np.asarray(keep, bool)
+        if not keep.any():
+            raise DataError("no frequency of the estimate is left (the band or the "
+                            "excitation selects none); widen the band or check the reference")
+        d = self.data
+        w = None if d.weights is None else d.weights[keep] / d.weights[keep].mean()
+        data = FrequencyData(d.omega[keep], d.response[keep], d.name, w, d.unit)
+        pick = {n: None if getattr(self, n) is None else getattr(self, n)[keep]
+                for n in ("bins", "variance", "coherence")}
+        return dataclasses.replace(self, data=data, **pick)
+
 
 # --------------------------------------------------------------------------- validation
 

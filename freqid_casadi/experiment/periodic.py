@@ -24,7 +24,7 @@ __all__ = ["frf_from_periodic", "frf_stepped_sine"]
 # --------------------------------------------------------------------------- periodic
 
 def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, threshold=1e-2,
-                      allow_partial=False, periodic_rtol=0.2, name=None):
+                      allow_partial=False, periodic_rtol=0.2, name=None, reference=None):
     """Frequency response from a periodic (multisine) experiment, averaged over periods.
 
     Parameters
@@ -37,9 +37,12 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
         Sampling frequency in Hz. None (default): normalised frequency, ``omega`` in
         rad/sample.
     bins : array_like of int, optional
-        DFT bins ``k`` (1 <= k <= period//2) to evaluate. Default: detected from the input
-        spectrum averaged over the periods, ``|U[k]|^2 > threshold * max_k |U[k]|^2``, DC
-        excluded.
+        DFT bins ``k`` (1 <= k <= period//2) to evaluate. Default: the excited lines,
+        detected from the spectrum averaged over the periods of ``reference`` (if given)
+        or of the input: ``|U[k]|^2 > threshold * max_k |U[k]|^2``, DC excluded, and (with
+        two or more periods, from the input) ``|U[k]|^2`` above 10 times the variance of its
+        mean over the periods, so a line that holds only the input's noise is not taken
+        for an excited one.
     skip_periods : int, default 0
         Leading periods to discard as transient.
     threshold : float in (0, 1], default 1e-2
@@ -51,6 +54,10 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
         RMS of the (mean-removed) input; measurement noise on ``u`` must stay below it.
     name : str, optional
         Name of the resulting :class:`FrequencyData`.
+    reference : array_like of float, shape (N,), optional
+        The excitation as generated (the multisine sent to the shaker or amplifier), whose
+        nonzero lines are the excited bins; the measured input ``u`` may hold noise at the
+        other lines.
 
     Returns
     -------
@@ -122,14 +129,8 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
     U = np.fft.fft(u_used, axis=1)[:, :n_half + 1]
     Y = np.fft.fft(y_used, axis=1)[:, :n_half + 1]
     if bins is None:
-        power = np.abs(U.mean(axis=0)) ** 2
-        power[0] = 0.0
-        top = power.max()
-        if top == 0:
-            raise DataError(
-                f"input has no power at any nonzero DFT bin over period {period}: there is "
-                "no excitation; check the input channel and the period")
-        bins = np.flatnonzero(power > threshold * top)
+        bins = _excited_bins(U, _reference_spectrum(reference, u.size, period, skip_periods,
+                                                    n_half), threshold, period)
     else:
         bins = _as_bins(bins, n_half)
     U_b, Y_b = U[:, bins], Y[:, bins]
@@ -152,6 +153,43 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
     data = FrequencyData(omega, G, name, weights, "rad/s" if fs is not None else "rad/sample")
     return FrfEstimate(data, bins, variance, coherence, n_periods, period, fs,
                        estimator="periodic")
+
+
+def _reference_spectrum(reference, n, period, skip_periods, n_half):
+    """DFT of each kept period of ``reference`` (shape (P, n_half + 1)), or None."""
+    if reference is None:
+        return None
+    r = np.asarray(reference, float).reshape(-1) if np.ndim(reference) else None
+    if r is None or r.size != n:
+        raise DataError(f"reference must be a record as long as u ({n} samples), got shape "
+                        f"{np.shape(reference)}; pass the generated excitation signal")
+    if not np.all(np.isfinite(r)):
+        raise DataError("reference holds non-finite samples; repair or cut out the bad "
+                        "samples")
+    n_whole = n // period
+    return np.fft.fft(r[skip_periods * period:n_whole * period].reshape(-1, period),
+                      axis=1)[:, :n_half + 1]
+
+
+def _excited_bins(U, R, threshold, period):
+    """Excited DFT bins: lines of the reference ``R`` (or of the input ``U``, each shape
+    (P, n_half + 1)) above ``threshold`` of the strongest; from the input with P >= 2 also
+    10 times above the variance of the mean over the periods (a line of noise only)."""
+    X = U if R is None else R
+    mean = X.mean(axis=0)
+    power = np.abs(mean) ** 2
+    power[0] = 0.0
+    top = power.max()
+    if top == 0:
+        raise DataError(
+            f"{'reference' if R is not None else 'input'} has no power at any nonzero DFT "
+            f"bin over period {period}: there is no excitation; check the "
+            f"{'reference' if R is not None else 'input channel'} and the period")
+    keep = power > threshold * top
+    if R is None and X.shape[0] >= 2:
+        noise = np.sum(np.abs(X - mean) ** 2, axis=0) / (X.shape[0] * (X.shape[0] - 1))
+        keep &= power > 10 * noise
+    return np.flatnonzero(keep)
 
 
 def _check_nonzero(response, where):

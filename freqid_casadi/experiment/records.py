@@ -1,8 +1,9 @@
 """Time-record files and the shipped measured data sets (layer L1).
 
 Readers: :func:`load_records_csv` (``u,y`` CSV), :func:`load_daisy` (DaISy whitespace
-columns) and :func:`load_daq_records` (a data-acquisition export: header lines, then sample
-number, time stamp, channels, events; ``.xz`` accepted). They share the bounded, regular-file
+columns), :func:`load_daq_records` (a data-acquisition export: header lines, then sample
+number, time stamp, channels, events; ``.xz`` accepted) and :func:`load_records_mat`
+(MATLAB variables or struct fields by name). They share the bounded, regular-file
 reading of :mod:`freqid_casadi.io.loaders` and read ASCII decimal numbers only.
 
 Data sets shipped in ``freqid_casadi/datasets`` (see :func:`dataset_path`):
@@ -25,7 +26,8 @@ from ..errors import DataError, OptionError
 from ..io.loaders import MAX_FILE_BYTES, MAX_ROWS, read_regular_file
 from .periodic import _detect_period, frf_from_periodic
 
-__all__ = ["load_records_csv", "load_daisy", "load_daq_records", "DaqRecords", "robot_arm",
+__all__ = ["load_records_csv", "load_daisy", "load_daq_records", "load_records_mat",
+           "DaqRecords", "robot_arm",
            "actuator_records", "dataset_path", "ROBOT_ARM_FILE", "ACTUATOR_FILE",
            "SHARED_ENV"]
 
@@ -212,8 +214,8 @@ class DaqRecords:
 
     Attributes
     ----------
-    fs : float
-        Sampling rate in Hz (from the header).
+    fs : float or None
+        Sampling rate in Hz (from the header; None when a ``.mat`` file does not give it).
     channels : dict of str to ndarray of float, shape (N,)
         Samples of every channel, by the header's name (e.g. ``"CHANNEL0"``), read-only.
     events : tuple of (int, str)
@@ -394,3 +396,76 @@ def robot_arm(path=None):
     bins = np.arange(1, top + 1, 2) if np.all(probe.bins % 2 == 1) else probe.bins
     return frf_from_periodic(u, y, period, bins=bins,
                              name="robot_arm (DaISy 96-009)")
+
+
+_FS_NAMES = ("fs", "samplerate", "sample_rate", "sampling_rate", "samplingrate",
+             "sampling_frequency", "srate", "sf")
+_DT_NAMES = ("dt", "ts", "sample_time", "sampling_interval", "delta_t")
+_T_NAMES = ("t", "time")
+
+
+def _mat_fs(path, arrays, n):
+    """Sampling rate (Hz) that a ``.mat`` file states: a scalar ``fs`` (or ``SampleRate``
+    ...), ``dt``/``Ts`` (s), or a time vector ``t``/``time`` of the records' length; None."""
+    for key, arr in arrays.items():
+        last = key.rsplit(".", 1)[-1].lower()
+        value = float(arr) if arr.size == 1 and arr.dtype.kind in "iuf" else None
+        if value is not None and np.isfinite(value) and value > 0:
+            if last in _FS_NAMES:
+                return value
+            if last in _DT_NAMES:
+                return 1.0 / value
+        if last in _T_NAMES and arr.ndim == 1 and arr.size == n:
+            step = np.diff(arr.astype(float))
+            if np.all(step > 0) and np.ptp(step) <= 1e-6 * step.mean():
+                return 1.0 / float(step.mean())
+    return None
+
+
+def load_records_mat(path):
+    """Time records of a MATLAB ``.mat`` file (v4 to v7.2), by variable name.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        Arrays of samples as variables (``u``, ``y``) or struct fields (``meas.input``,
+        ``run(2).force``); the sampling rate, if the file gives it, as a scalar ``fs``
+        (``SampleRate``, ``Fs``, ...), ``dt``/``Ts`` in seconds, or a time vector ``t``.
+
+    Returns
+    -------
+    DaqRecords
+        ``channels``: every real vector of the records' length (the most common length of
+        at least 16 samples), by MATLAB path; ``fs`` in Hz, or None when the file does not
+        give it; ``header`` the other scalars (as text).
+
+    Raises
+    ------
+    DataError
+        Not a readable ``.mat`` file, or no two real vectors of one length (no records).
+    """
+    from ..io import read_mat_arrays
+
+    path, payload = read_regular_file(path, "records file")
+    arrays = read_mat_arrays(path, payload, MAX_FILE_BYTES // 8)
+    vectors = {k: a for k, a in arrays.items()
+               if a.ndim == 1 and a.size >= 16 and a.dtype.kind in "iuf"}
+    sizes = [a.size for a in vectors.values()]
+    if not sizes or max(sizes.count(n) for n in set(sizes)) < 2:
+        found = ", ".join(f"{k} {a.shape}" for k, a in list(arrays.items())[:8])
+        raise DataError(f"{path!r} holds no time records (two or more real vectors of one "
+                        f"length): found {found or 'nothing numeric'}; save the input and "
+                        "output samples as vectors, e.g. save(f, 'u', 'y', 'fs', '-v7')")
+    n = max(set(sizes), key=lambda m: (sizes.count(m), m))
+    channels = {}
+    for key, a in vectors.items():
+        if a.size == n and key.rsplit(".", 1)[-1].lower() not in _T_NAMES:
+            v = np.array(a, float)
+            if not np.all(np.isfinite(v)):
+                i = int(np.flatnonzero(~np.isfinite(v))[0])
+                raise DataError(f"{path!r}: variable {key!r} sample {i + 1} is {v[i]!r}, not "
+                                "finite; repair or cut out the bad samples")
+            v.flags.writeable = False
+            channels[key] = v
+    header = {k: repr(a.item()) for k, a in arrays.items() if a.size == 1}
+    return DaqRecords(_mat_fs(path, arrays, n), channels, (), header)

@@ -13,7 +13,8 @@ import numpy as np
 
 from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
-from ._common import _REL_VAR_FLOOR, FrfEstimate, _as_count, _as_fs, _as_pair, _normalised
+from ._common import (_REL_VAR_FLOOR, FrfEstimate, _as_count, _as_fraction, _as_fs, _as_pair,
+                      _normalised, _rms)
 
 __all__ = ["frf_from_records", "ESTIMATORS"]
 
@@ -70,7 +71,8 @@ def _spectra(u, y, fs, win, nperseg, noverlap, detrend):
 
 
 def frf_from_records(u, y, *, fs, estimator="h1", nperseg=None, noverlap=None,
-                     window="hann", detrend="constant", min_coherence=None, name=None):
+                     window="hann", detrend="constant", min_coherence=None, name=None,
+                     reference=None, threshold=1e-2):
     """Frequency response from input/output records of any excitation (Welch H1/H2).
 
     Parameters
@@ -96,6 +98,13 @@ def frf_from_records(u, y, *, fs, estimator="h1", nperseg=None, noverlap=None,
         band where the estimate is trustworthy).
     name : str, optional
         Name of the resulting :class:`FrequencyData`.
+    reference : array_like of float, shape (N,), optional
+        The excitation as generated: only the frequencies where its Welch spectrum is
+        above ``threshold`` of its peak and at least half its stronger neighbour are kept
+        (the lines a multisine excites, not the window's leakage beside them; the others
+        hold noise only).
+    threshold : float in (0, 1], default 1e-2
+        Relative power of ``reference`` (-20 dB) above which a frequency counts as excited.
 
     Returns
     -------
@@ -171,4 +180,27 @@ def frf_from_records(u, y, *, fs, estimator="h1", nperseg=None, noverlap=None,
     weights = 1.0 / rel
     weights = weights / weights.mean()
     data = FrequencyData(omega, h, name, weights)
-    return FrfEstimate(data, bins, variance, coh, None, None, fs, n_avg, nperseg, estimator)
+    est = FrfEstimate(data, bins, variance, coh, None, None, fs, n_avg, nperseg, estimator)
+    if reference is None:
+        return est
+    s_rr = _reference_power(reference, u.size, win, nperseg, noverlap, detrend)
+    return est.subset(_excited(s_rr, _as_fraction(threshold, "threshold"))[bins])
+
+
+def _excited(s_rr, threshold):
+    """Frequencies a reference of Welch spectrum ``s_rr`` excites: above ``threshold`` of
+    its peak and at least half as strong as its stronger neighbour (the window's leakage
+    beside a multisine line, a quarter of it for Hann, is not a line)."""
+    side = np.maximum(np.r_[0.0, s_rr[:-1]], np.r_[s_rr[1:], 0.0])
+    return (s_rr > threshold * s_rr[1:].max()) & (s_rr >= 0.5 * side)
+
+
+def _reference_power(reference, n, win, nperseg, noverlap, detrend):
+    """Welch spectrum (per sample) of the reference, on the segments of the records."""
+    r = np.asarray(reference, float).reshape(-1) if np.ndim(reference) else None
+    if r is None or r.size != n or not np.all(np.isfinite(r)) or np.ptp(r) == 0:
+        raise DataError(f"reference must be a finite, non-constant record as long as u ({n} "
+                        f"samples), got shape {np.shape(reference)}; pass the generated "
+                        "excitation signal")
+    f, s_rr, _, _ = _spectra(r / _rms(r), r / _rms(r), 1.0, win, nperseg, noverlap, detrend)
+    return np.real(s_rr)

@@ -6,6 +6,8 @@ folder is refused before any read, so nothing hangs), and rows at zero frequency
 dropped with a stated :class:`DataWarning`.
 """
 
+import math
+import numbers
 import os
 import stat
 import warnings
@@ -13,9 +15,10 @@ import warnings
 import numpy as np
 
 from ..core.data import FrequencyData
-from ..errors import DataError
+from ..errors import DataError, OptionError
 
-__all__ = ["DataWarning", "read_regular_file", "MAX_FILE_BYTES", "MAX_ROWS", "MAX_ELEMENTS"]
+__all__ = ["DataWarning", "read_regular_file", "parse_band", "MAX_FILE_BYTES", "MAX_ROWS",
+           "MAX_ELEMENTS"]
 
 #: Largest file any reader accepts, in bytes.
 MAX_FILE_BYTES = 256 * 2 ** 20
@@ -112,10 +115,57 @@ def _stem(path):
     return stem.encode("utf-8", "backslashreplace").decode("utf-8")
 
 
-def _finish(path, omega, response, name, weights=None, lines=None, unit="rad/s"):
+def parse_band(band):
+    """``(lo, hi)`` as floats from a user's ``band=``, or None.
+
+    Parameters
+    ----------
+    band : (float, float) or None
+        Lowest and highest frequency kept, ``0 <= lo < hi``, in the file's frequency unit.
+
+    Raises
+    ------
+    OptionError
+        Not two finite numbers with ``0 <= lo < hi``.
+    """
+    if band is None:
+        return None
+    try:
+        lo, hi = band
+    except (TypeError, ValueError):
+        raise OptionError(f"band must be a pair (lo, hi) of frequencies in the file's unit, "
+                          f"got {band!r:.60}; e.g. band=(65, 1000)") from None
+    if not all(isinstance(v, numbers.Real) and not isinstance(v, bool) and math.isfinite(v)
+               for v in (lo, hi)) or not 0 <= lo < hi:
+        raise OptionError(f"band=({lo!r:.20}, {hi!r:.20}) must be two finite numbers with "
+                          "0 <= lo < hi (in the file's frequency unit); e.g. band=(65, 1000)")
+    return float(lo), float(hi)
+
+
+def _in_band(path, omega, band, scale, unit):
+    """Mask of the points of ``omega`` (rad/s) inside ``band`` (file unit, ``omega = scale
+    * f``), with a DataWarning saying how many were dropped; DataError when none is left."""
+    lo, hi = band
+    f = omega / scale
+    below, above = int(np.sum(f < lo)), int(np.sum(f > hi))
+    keep = (f >= lo) & (f <= hi)
+    shown = f"[{lo:g}, {hi:g}] {unit}"
+    if not keep.any():
+        raise DataError(f"{path!r}: no data point in band {shown} (the data span "
+                        f"{f.min():g} to {f.max():g} {unit}); widen the band or check its unit")
+    if below or above:
+        warnings.warn(f"{path!r}: band {shown}: kept {int(keep.sum())} of {f.size} points "
+                      f"(dropped {below} below {lo:g} {unit}, {above} above {hi:g} {unit})",
+                      DataWarning, stacklevel=4)
+    return keep
+
+
+def _finish(path, omega, response, name, weights=None, lines=None, unit="rad/s", band=None,
+            scale=1.0, file_unit="rad/s"):
     """Drop zero-frequency rows and reverse rows in descending frequency order (each stated
-    by a DataWarning) and build the FrequencyData (frequency ``unit``); its errors are
-    prefixed by the file name."""
+    by a DataWarning), keep the points inside ``band`` (``(lo, hi)`` in the file's unit
+    ``file_unit``, ``omega = scale * f``) and build the FrequencyData (frequency ``unit``);
+    its errors are prefixed by the file name."""
     omega = np.asarray(omega, float)
     zero = omega == 0
     if zero.any():
@@ -132,6 +182,10 @@ def _finish(path, omega, response, name, weights=None, lines=None, unit="rad/s")
                       "ascending order", DataWarning, stacklevel=3)
         omega, response = omega[::-1], np.asarray(response)[::-1]
         weights = None if weights is None else np.asarray(weights)[::-1]
+    if band is not None and omega.size:
+        keep = _in_band(path, omega, band, scale, file_unit)
+        omega, response = omega[keep], np.asarray(response)[keep]
+        weights = None if weights is None else np.asarray(weights)[keep]
     try:
         return FrequencyData(omega, response, _stem(path) if name is None else name, weights,
                              unit)

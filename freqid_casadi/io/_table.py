@@ -6,13 +6,16 @@ ASCII decimal literals only: Python's ``float`` would also take ``1_0`` and non-
 digits, which a data file never means.
 """
 
+import codecs
 import re
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from ._columns import (_UNITS, COLUMN_HELP, Column, _layout_problem, parse_columns,
                        parse_freq_unit, recognise)
+from ._readfile import DataWarning
 from ..errors import DataError
 
 __all__ = ["Column", "Table", "parse_columns", "parse_freq_unit", "read_table",
@@ -52,20 +55,93 @@ class Table:
 
 # --------------------------------------------------------------------------- text
 
+_DECLARED = re.compile(rb"(?:encoding|charset|code[ _-]?page)\s*[:=]?\s*[\"']?"
+                       rb"([A-Za-z][A-Za-z0-9_.:-]{1,30})", re.IGNORECASE)
+
+
+def _declared(payload):
+    """The codec a file's first lines declare (``encoding: latin-1``, ``charset=cp1252``,
+    ``Codepage: 1252``), as a Python codec name, or None."""
+    m = _DECLARED.search(payload[:4096])
+    if m is None:
+        return None
+    name = m.group(1).decode("ascii").rstrip(".:;-")
+    name = f"cp{name}" if name.isdigit() else name
+    try:
+        return codecs.lookup(name).name
+    except LookupError:
+        return None
+
+
+def _utf16(payload):
+    """Text of a UTF-16 file with a byte-order mark, or None when the bytes do not read as
+    mostly ASCII text that way (binary data that happens to start with 0xfffe)."""
+    if not payload.startswith((b"\xff\xfe", b"\xfe\xff")) or len(payload) % 2:
+        return None
+    try:
+        text = payload.decode("utf-16")
+    except UnicodeDecodeError:
+        return None
+    ascii_share = sum(ch.isascii() for ch in text) / max(len(text), 1)
+    return text if text and ascii_share > 0.9 and "\x00" not in text else None
+
+
 def decode_text(path, payload):
-    """The text of a file's bytes ``payload`` (UTF-8, a leading byte-order mark dropped);
-    a DataError naming ``path`` for binary data or bytes that are not UTF-8."""
+    """The text of a file's bytes ``payload``.
+
+    UTF-8 first (a leading byte-order mark dropped); UTF-16 with a byte-order mark; else
+    the encoding the file declares in its first lines (``encoding: ...``), else
+    Windows-1252 (or Latin-1 where Windows-1252 leaves a byte undefined), as analysers on
+    Windows write (``m/s\u00b2`` in a unit line). A fallback is stated by a
+    :class:`~freqid_casadi.io._readfile.DataWarning` naming the first byte that is not
+    UTF-8.
+
+    Parameters
+    ----------
+    path : str
+        The file, for messages.
+    payload : bytes
+
+    Returns
+    -------
+    str
+
+    Raises
+    ------
+    DataError
+        NUL bytes (binary data, not text).
+    """
+    text = _utf16(payload)
+    if text is not None:
+        return text[1:] if text.startswith("\ufeff") else text
     if b"\x00" in payload:
         raise DataError(f"{path!r} is not a text CSV file (not UTF-8): it holds NUL bytes "
                         "(binary data); export the data as UTF-8 text")
     try:
         text = payload.decode("utf-8")
     except UnicodeDecodeError as exc:
-        line = payload[:exc.start].count(b"\n") + 1
-        raise DataError(
-            f"{path!r} is not a text CSV file (not UTF-8): byte 0x{payload[exc.start]:02x} "
-            f"on line {line} is not UTF-8; save the file as UTF-8 text") from None
+        text = _fallback(path, payload, exc)
     return text[1:] if text.startswith("\ufeff") else text
+
+
+def _fallback(path, payload, exc):
+    line = payload[:exc.start].count(b"\n") + 1
+    declared = _declared(payload)
+    tried = [c for c in (declared, "cp1252", "latin-1") if c]
+    for codec in tried:
+        try:
+            text = payload.decode(codec)
+        except (UnicodeDecodeError, LookupError):
+            continue
+        shown = {"cp1252": "Windows-1252", "latin-1": "Latin-1",
+                 "iso8859-1": "Latin-1"}.get(codec, codec)
+        warnings.warn(f"{path!r} is not UTF-8 (byte 0x{payload[exc.start]:02x} on line "
+                      f"{line}): read as {shown}"
+                      f"{' (as it declares)' if codec == declared else ''}; save it as UTF-8 "
+                      "to silence this note", DataWarning, stacklevel=4)
+        return text
+    raise DataError(f"{path!r} is not UTF-8 text (byte 0x{payload[exc.start]:02x} on line "
+                    f"{line}); save the file as UTF-8 text")          # latin-1 never fails
 
 
 def _separator(first):
@@ -75,7 +151,15 @@ def _separator(first):
 def _splitter(sep):
     if sep is None:
         return _split_space
+    if sep == "\t":
+        return lambda line: _trimmed([c.strip() for c in line.split(sep)])
     return lambda line: [c.strip() for c in line.split(sep)]
+
+
+def _trimmed(cells):
+    """``cells`` without the empty cell a trailing tab leaves (``1\t2\t3\t``, as some
+    analysers end every line)."""
+    return cells[:-1] if len(cells) > 1 and cells[-1] == "" else cells
 
 
 def _fast_values(rows, cols, sep):
@@ -85,11 +169,14 @@ def _fast_values(rows, cols, sep):
         return None
     num = r"[ \t]*[+-]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?[ \t]*"
     gap = r"[ \t]+" if sep is None else re.escape(sep)
-    row = re.compile(rf"{num}(?:{gap}{num}){{{len(cols) - 1}}}", re.ASCII)
+    tail = r"\t?" if sep == "\t" else ""
+    row = re.compile(rf"{num}(?:{gap}{num}){{{len(cols) - 1}}}{tail}", re.ASCII)
     if not all(row.fullmatch(text) for _, text in rows):
         return None
     joined = "\n".join(text for _, text in rows)
     cells = (joined if sep is None else joined.replace(sep, " ")).split()
+    if len(cells) != len(rows) * len(cols):
+        return None
     return np.array(cells, dtype=float).reshape(len(rows), len(cols))
 
 
@@ -263,9 +350,172 @@ def _units_row(first, rows, split):
     return named, rows[:1] + rows[2:]
 
 
+#: Lines searched for the start of the data (the longest preamble read).
+_PREAMBLE_LINES = 200
+#: Lines between a header and its data (a unit line, ``Units:``, a blank-ish line).
+_HEADER_GAP = 6
+_FREQ_UNITS = {"hz": "hz", "rad/s": "rad/s", "rad/sec": "rad/s", "rads": "rad/s"}
+_META = re.compile(r"^[^,;\t]{1,60}?\s*[:=]")
+
+
+def _row_cells(text):
+    """Cells of one line split by its own separator (decimal commas read as points in a
+    semicolon- or tab-separated line)."""
+    sep = _separator(text)
+    if sep in (";", "\t") and "." not in text:
+        text = _DECIMAL_COMMA.sub(".", text)
+    return _splitter(sep)(text)
+
+
+def _data_start(rows):
+    """Index of the first of three consecutive rows of numbers with one cell count (or of
+    the last rows, if fewer), searched in the first :data:`_PREAMBLE_LINES`; None if the
+    file's top holds no such block."""
+    counts = []
+    for k, (_, text) in enumerate(rows[:_PREAMBLE_LINES + 3]):
+        cells = _row_cells(text)
+        counts.append(len(cells) if len(cells) >= 2 and all(_is_value(c) for c in cells)
+                      else 0)
+        if k >= 2 and counts[k - 2] and counts[k - 2] == counts[k - 1] == counts[k]:
+            return k - 2
+    n = len(counts)
+    if n < len(rows) or not n or not counts[-1]:
+        return None
+    j = n - 1
+    while j > 0 and counts[j - 1] == counts[-1]:
+        j -= 1
+    return j
+
+
+def _header_at(text, sep, ncols):
+    """Header cells of ``text`` when it names ``ncols`` columns of a valid layout, else
+    None (split by the data's separator, or its own, or whitespace)."""
+    for how in (sep, _separator(text), None):
+        if how is not None and how not in text:
+            continue
+        cells = _splitter(how)(text)
+        cols = [recognise(_clean(c)) for c in cells]
+        if len(cells) == ncols and None not in cols and not _layout_problem(cols):
+            return cells
+    return None
+
+
+def _unit_tokens(text):
+    tokens = text.replace(";", "\t").replace(",", "\t").split("\t") if any(
+        c in text for c in ";,\t") else text.split()
+    return [t.strip().strip("[]()").strip().lower() for t in tokens if t.strip()]
+
+
+def _with_units(cells, between):
+    """Header ``cells`` completed by the unit lines ``between`` header and data: a line
+    whose first token is a frequency unit (``Hz  (m/s\u00b2)(N)``, ``Hz dB deg``) gives the
+    frequency unit, and dB / deg / rad of aligned columns; other lines (``Units:``) are
+    ignored."""
+    for _, text in between:
+        if not _unit_line(text):
+            continue
+        tokens = _unit_tokens(text)
+        units = [_FREQ_UNITS[tokens[0]]] + (
+            [t if _UNITS.get(t) in ("db", "deg", "rad") else "" for t in tokens[1:]]
+            if len(tokens) == len(cells) else [""] * (len(cells) - 1))
+        out = []
+        for cell, unit in zip(cells, units):
+            col = recognise(_clean(cell))
+            has = col.unit is not None and col.role in ("freq", "phase") or (
+                col.role == "mag" and _UNIT_IN.search(cell))
+            out.append(f"{_clean(cell)} [{unit}]" if unit and not has else _clean(cell))
+        return out
+    return [_clean(c) for c in cells]
+
+
+_UNIT_IN = re.compile(r"db|[\[(]", re.IGNORECASE)
+
+
+def _preamble(path, rows, columns):
+    """``rows`` from the header on: metadata lines before it (``Units: Ratio``, channel
+    and date lines, as analysers export) are dropped, and the unit line between header
+    and data (``Hz  (m/s\u00b2)(N)``) is merged into the header; both stated by a
+    :class:`DataWarning`. Unchanged when the first line is data or the header line itself
+    is followed by data."""
+    if all(_is_value(c) for c in _row_cells(rows[0][1])):
+        return rows
+    i = _data_start(rows)
+    if i is None:
+        return rows
+    sep = _separator(rows[i][1])
+    ncols = len(_row_cells(rows[i][1]))
+    h = next((k for k in range(i - 1, max(-1, i - 1 - _HEADER_GAP), -1)
+              if _header_at(rows[k][1], sep, ncols)), None)
+    if h is None or columns is not None:
+        if i > 1 and columns is not None or _metadata(rows[:i]):
+            _note_preamble(path, rows[:i], "the data")
+            return rows[i:]
+        k = next((k for k in range(i - 1, 0, -1)          # the header's error names it
+                  if len(_row_cells(rows[k][1])) == ncols and not _unit_line(rows[k][1])),
+                 0)
+        return rows[k:]
+    if h == 0 and i == 1:
+        return rows
+    between = rows[h + 1:i]
+    if not all(_META.match(t) or _unit_line(t) or len(_row_cells(t)) == 1
+               for _, t in between):
+        return rows              # the rows under the header are bad data: say so there
+    cells = _with_units(_header_at(rows[h][1], sep, ncols), between)
+    if h:                     # (a header with its unit line alone is the file's own layout)
+        _note_preamble(path, rows[:h], f"the header on line {rows[h][0]}")
+        if between:
+            _note_units(path, between, cells)
+    if sep is None:            # whitespace-separated data: keep 'Real Part' one cell
+        cells = ["_".join(c.split()) for c in cells]
+    return [(rows[h][0], (sep or " ").join(cells))] + rows[i:]
+
+
+_END = re.compile(r"^\s*(?:\[.*\]|\**\s*end\b.*|[^,;\t\d.+-][^,;\t]{0,59}?\s*[:=].*)$",
+                  re.IGNORECASE)
+
+
+def _footer(path, rows):
+    """``rows`` without up to 5 closing lines after the data that are no data (``[End]``,
+    ``End of data``, ``Key: value``), stated by a DataWarning."""
+    n = len(rows)
+    k = n
+    while k > 1 and n - k < 5 and _END.match(rows[k - 1][1]):
+        k -= 1
+    if k == n or not all(_is_value(c) for c in _row_cells(rows[k - 1][1])):
+        return rows
+    warnings.warn(f"{path!r}: skipped {n - k} line(s) after the data (lines "
+                  f"{rows[k][0]}-{rows[-1][0]}, the first {shown_cell(rows[k][1].strip())})",
+                  DataWarning, stacklevel=5)
+    return rows[:k]
+
+
+def _metadata(rows):
+    """True if every row is a ``Key: value`` / ``Key = value`` line or a single cell."""
+    return all(_META.match(t) or len(_row_cells(t)) == 1 for _, t in rows)
+
+
+def _unit_line(text):
+    tokens = _unit_tokens(text)
+    return bool(tokens) and tokens[0] in _FREQ_UNITS
+
+
+def _note_preamble(path, skipped, what):
+    first = " ".join(skipped[0][1].split())
+    warnings.warn(f"{path!r}: skipped {len(skipped)} line(s) of metadata before {what} "
+                  f"(lines {skipped[0][0]}-{skipped[-1][0]}, the first {shown_cell(first)})",
+                  DataWarning, stacklevel=5)
+
+
+def _note_units(path, between, cells):
+    lines = ", ".join(str(k) for k, _ in between)
+    warnings.warn(f"{path!r}: read the units of line(s) {lines} into the header: "
+                  f"{', '.join(cells)}", DataWarning, stacklevel=5)
+
+
 def read_table(path, payload, columns, freq_unit, max_rows):
     """Parse delimited UTF-8 text into a :class:`Table` (see ``loaders.load_text``)."""
-    rows = _content(path, decode_text(path, payload), max_rows)
+    rows = _footer(path, _preamble(path, _content(path, decode_text(path, payload),
+                                                  max_rows), columns))
     sep = _separator(rows[0][1])
     rows = _decimal_commas(rows, sep)
     split = _splitter(sep)

@@ -12,7 +12,7 @@ from ..errors import DataError
 __all__ = ["load_uff"]
 
 
-def load_uff(path, *, freq_unit=None):
+def load_uff(path, *, freq_unit=None, band=None):
     """Read every frequency-response record (universal file dataset 58/58b) of a UFF file.
 
     Parameters
@@ -21,6 +21,8 @@ def load_uff(path, *, freq_unit=None):
     freq_unit : {"Hz", "rad/s"}, optional
         Unit of the abscissa. Default: from the record's abscissa unit label when it names
         rad/s, else Hz (the unit dataset 58 uses for frequency).
+    band : (float, float), optional
+        Keep only the points with ``lo <= f <= hi`` in that unit.
 
     Returns
     -------
@@ -34,9 +36,10 @@ def load_uff(path, *, freq_unit=None):
         pyuff missing (install the extra ``freqid_casadi[uff]``), a file pyuff cannot read,
         no dataset-58 records, a record over time or with bad values.
     """
-    from ._readfile import read_regular_file
+    from ._readfile import parse_band, read_regular_file
 
     freq_unit = parse_freq_unit(freq_unit)
+    band = parse_band(band)
     path, _ = read_regular_file(path)
     try:
         import pyuff
@@ -53,10 +56,10 @@ def load_uff(path, *, freq_unit=None):
     if not sets:
         raise DataError(f"{path!r} holds no dataset-58 (function) records; export the FRFs "
                         "as UFF 58")
-    return tuple(_uff_record(path, k, s, freq_unit) for k, s in enumerate(sets))
+    return tuple(_uff_record(path, k, s, freq_unit, band) for k, s in enumerate(sets))
 
 
-def _uff_record(path, k, dset, freq_unit):
+def _uff_record(path, k, dset, freq_unit, band=None):
     from ._readfile import _finish, _stem
 
     where = f"{path!r} record {k}"
@@ -75,6 +78,8 @@ def _uff_record(path, k, dset, freq_unit):
     ident = str(dset.get("id1", "") or "").strip()
     name = ident if ident and ident.upper() != "NONE" else f"{_stem(path)}:{k}"
     try:
-        return _finish(path, omega, z, name)
+        return _finish(path, omega, z, name, band=band,
+                       scale=1.0 if unit == "rad/s" else 2 * np.pi,
+                       file_unit="rad/s" if unit == "rad/s" else "Hz")
     except DataError as exc:
         raise DataError(f"{where}: {exc}") from None

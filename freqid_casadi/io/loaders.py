@@ -2,8 +2,8 @@
 
 :func:`load` picks the reader by the file's extension: ``.npz`` :func:`load_npz`, ``.mat``
 :func:`load_mat` (scipy.io), ``.uff``/``.unv`` :func:`load_uff` (UFF 58/58b via pyuff, extra
-``[uff]``), ``.s1p``/``.s2p`` :func:`load_touchstone`, anything else :func:`load_text` (CSV,
-semicolons, tabs or spaces).
+``[uff]``), Touchstone ``.sNp``/``.ts`` :func:`load_touchstone`, anything else
+:func:`load_text` (CSV, semicolons, tabs or spaces).
 
 Every reader returns a validated :class:`~freqid_casadi.core.data.FrequencyData` with ``omega``
 in rad/s (``load_uff`` returns a tuple, one per record). Rows at zero frequency are dropped
@@ -23,10 +23,11 @@ import zipfile
 
 import numpy as np
 
-from ._touchstone import load_touchstone
+from ._mat import read_mat_arrays, records_hint
+from ._touchstone import is_touchstone, load_touchstone
 from ._uff import load_uff
 from ._readfile import (MAX_ELEMENTS, MAX_FILE_BYTES, MAX_ROWS, DataWarning, _finish,
-                        read_regular_file)
+                        parse_band, read_regular_file)
 from ._table import (Column, Table, _check_finite, _default_columns, _layout_problem,
                      _resolve_units, parse_columns, parse_freq_unit, read_table, recognise,
                      table_response)
@@ -34,7 +35,7 @@ from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 
 __all__ = ["load", "load_text", "load_csv", "load_npz", "load_mat", "load_uff",
-           "load_touchstone", "save_csv",
+           "load_touchstone", "is_touchstone", "parse_band", "save_csv",
            "read_regular_file", "DataWarning", "MAX_FILE_BYTES", "MAX_ROWS", "MAX_ELEMENTS"]
 
 
@@ -43,16 +44,17 @@ _UFF_EXT = (".uff", ".unv", ".uf")
 
 # --------------------------------------------------------------------------- dispatch
 
-def load(path, name=None, *, freq_unit=None, columns=None, record=None, parameter=None):
+def load(path, name=None, *, freq_unit=None, columns=None, record=None, parameter=None,
+         band=None):
     """Load frequency-response data from a file, the reader chosen by its extension.
 
     Parameters
     ----------
     path : str or path-like
         ``.npz`` (:func:`load_npz`), ``.mat`` (:func:`load_mat`), ``.uff``/``.unv``
-        (:func:`load_uff`), ``.s1p``/``.s2p`` (:func:`load_touchstone`), anything else
-        delimited text (:func:`load_text`). A ``.json`` file is refused (a model file is
-        read with ``RationalDelayModel.load``).
+        (:func:`load_uff`), Touchstone ``.s1p`` ... ``.sNp`` or ``.ts``
+        (:func:`load_touchstone`), anything else delimited text (:func:`load_text`). A
+        ``.json`` file is refused (a model file is read with ``RationalDelayModel.load``).
     name : str, optional
         Name of the data (default: the file's stem).
     freq_unit : {"Hz", "rad/s"}, optional
@@ -64,7 +66,12 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
     record : int, optional
         For a UFF file with several function records: which one (0-based).
     parameter : str, optional
-        For a Touchstone ``.s1p``/``.s2p`` file: which parameter (default S11), e.g. "S21".
+        For a Touchstone file (``.sNp`` of any number of ports, or a Touchstone 2.0
+        ``.ts``): which parameter (default S11), e.g. "S21".
+    band : (float, float), optional
+        Keep only the points with ``lo <= f <= hi``, in the file's frequency unit (Hz for a
+        header ``Frequency (Hz)`` or a unit line ``Hz``, rad/s for ``omega``, the option
+        line's unit for Touchstone); a DataWarning says how many were dropped.
 
     Returns
     -------
@@ -86,23 +93,24 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
     """
     freq_unit = parse_freq_unit(freq_unit)
     cols = parse_columns(columns)
+    band = parse_band(band)
     lower = os.fspath(path).lower() if isinstance(path, (str, os.PathLike)) else ""
     if lower.endswith(".npz"):
-        return load_npz(path, name, freq_unit=freq_unit)
-    if lower.endswith((".s1p", ".s2p")):
+        return load_npz(path, name, freq_unit=freq_unit, band=band)
+    if is_touchstone(lower):
         if freq_unit is not None or cols is not None:
             raise OptionError("freq_unit and columns do not apply to Touchstone files (the "
                               "option line gives the units); drop them")
-        return load_touchstone(path, name, parameter=parameter)
+        return load_touchstone(path, name, parameter=parameter, band=band)
     if lower.endswith(".mat"):
-        return load_mat(path, name, freq_unit=freq_unit, columns=cols)
+        return load_mat(path, name, freq_unit=freq_unit, columns=cols, band=band)
     if lower.endswith(".json"):
         raise DataError(f"{os.fspath(path)!r} is JSON, not frequency-response data: a model "
                         "file that freqid wrote (model.json) is read with "
                         "freqid_casadi.RationalDelayModel.load(path); data files are text "
-                        "(CSV), .npz, .mat, .uff/.unv or .s1p/.s2p")
+                        "(CSV), .npz, .mat, .uff/.unv or Touchstone .sNp/.ts")
     if lower.endswith(_UFF_EXT):
-        found = load_uff(path, freq_unit=freq_unit)
+        found = load_uff(path, freq_unit=freq_unit, band=band)
         if record is None:
             if len(found) > 1:
                 raise DataError(
@@ -116,18 +124,21 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
                             f"{len(found)} record(s), numbered 0..{len(found) - 1}")
         data = found[record]
         return data if name is None else FrequencyData(data.omega, data.response, name)
-    return load_text(path, name, freq_unit=freq_unit, columns=cols)
+    return load_text(path, name, freq_unit=freq_unit, columns=cols, band=band)
 
 
-def load_text(path, name=None, *, freq_unit=None, columns=None):
+def load_text(path, name=None, *, freq_unit=None, columns=None, band=None):
     """Read frequency-response data from delimited text.
 
     Parameters
     ----------
     path : str or path-like
-        UTF-8 text (a leading byte-order mark is accepted). Separator: semicolon, tab,
-        comma or whitespace, taken from the first non-comment line. Lines starting with
-        ``#``, ``%`` or ``!`` and blank lines are skipped.
+        Text in UTF-8 (a leading byte-order mark is accepted), UTF-16 with a byte-order
+        mark, the encoding the file declares (``# encoding: ...``), else Windows-1252 /
+        Latin-1 (a fallback is stated by a DataWarning). Separator: semicolon, tab, comma
+        or whitespace, taken from the data rows. Lines starting with ``#``, ``%`` or ``!``
+        and blank lines are skipped; metadata lines before the header (an analyser's
+        preamble) are skipped with a DataWarning.
     name : str, optional
         Name of the data (default: the file's stem).
     freq_unit : {"Hz", "rad/s"}, optional
@@ -143,6 +154,8 @@ def load_text(path, name=None, *, freq_unit=None, columns=None):
           ``phase_deg`` or ``phase_rad``; or one complex column ``complex``/``response``/
           ``h``/``g`` holding literals ``1+2j``, ``(1+2j)`` or ``1+2i``;
         - ``skip`` for a column to ignore.
+    band : (float, float), optional
+        Keep only the rows with ``lo <= f <= hi`` in the file's frequency unit.
 
     Returns
     -------
@@ -153,7 +166,7 @@ def load_text(path, name=None, *, freq_unit=None, columns=None):
     Raises
     ------
     DataError
-        Not UTF-8, binary, empty, no data rows, unknown header, a headerless file without
+        Binary (NUL bytes), empty, no data rows, unknown header, a headerless file without
         ``freq_unit``, wrong column count, a cell that is not an ASCII decimal number
         (``1_0`` and non-ASCII digits are refused), non-finite values, dB values that
         overflow, negative or unsorted frequencies, zero responses.
@@ -161,7 +174,11 @@ def load_text(path, name=None, *, freq_unit=None, columns=None):
     Notes
     -----
     A header is recognised when the first line holds a cell that is not a number; a second
-    line of units only (``Hz  dB  deg``) completes it; headerless data take the last comment
+    line of units only (``Hz  dB  deg``) completes it. Above the data (the first three rows
+    of numbers) the nearest line that names every column is the header; the lines before
+    it are a preamble (``Units: Ratio``, channel lines, as SignalCalc exports) and a line
+    between it and the data whose first word is a frequency unit (``Hz  (m/s²)(N)``) gives
+    the units; headerless data take the last comment
     line before them as header when it names every column (``% f [Hz]  Re  Im``). Decimal
     commas are read in a semicolon- or tab-separated file without decimal points; rows in
     descending frequency order are reversed (with a :class:`DataWarning`). Header
@@ -170,14 +187,23 @@ def load_text(path, name=None, *, freq_unit=None, columns=None):
     frequency, real, imaginary; with two columns of which the second holds complex
     literals, frequency and response.
     """
+    band = parse_band(band)
     path, payload = read_regular_file(path)
-    table = read_table(path, payload, columns, freq_unit, max_rows=MAX_ROWS)
+    table = read_table(path, payload, parse_columns(columns), parse_freq_unit(freq_unit),
+                       max_rows=MAX_ROWS)
     omega, response = table_response(table)
     unit = "rad/sample" if table.unit("freq") == "rad/sample" else "rad/s"
-    return _finish(path, omega, response, name, lines=table.lines, unit=unit)
+    return _finish(path, omega, response, name, lines=table.lines, unit=unit, band=band,
+                   **_band_unit(table.unit("freq")))
 
 
-def load_csv(path, name=None, *, freq_unit=None, columns=None):
+def _band_unit(unit):
+    """``scale`` and ``file_unit`` keywords of ``_finish`` for a table's frequency unit."""
+    return ({"scale": 2 * np.pi, "file_unit": "Hz"} if unit == "hz" else
+            {"scale": 1.0, "file_unit": unit})
+
+
+def load_csv(path, name=None, *, freq_unit=None, columns=None, band=None):
     """Read a CSV (or any delimited text) file: the same as :func:`load_text`.
 
     Parameters
@@ -187,8 +213,10 @@ def load_csv(path, name=None, *, freq_unit=None, columns=None):
     freq_unit : {"hz", "rad/s"}, optional
     columns : str or sequence of str, optional
         As :func:`load_text`.
+    band : (float, float), optional
+        As :func:`load_text`.
     """
-    return load_text(path, name, freq_unit=freq_unit, columns=columns)
+    return load_text(path, name, freq_unit=freq_unit, columns=columns, band=band)
 
 
 # --------------------------------------------------------------------------- npz
@@ -234,7 +262,7 @@ def _check_dtype(path, key, dtype, complex_ok):
                         f"numbers{unit}; save plain floats with {_SAVEZ}")
 
 
-def load_npz(path, name=None, *, freq_unit=None):
+def load_npz(path, name=None, *, freq_unit=None, band=None):
     """Read data from a NumPy ``.npz`` archive.
 
     Parameters
@@ -245,6 +273,9 @@ def load_npz(path, name=None, *, freq_unit=None):
     name : str, optional
     freq_unit : {"Hz", "rad/s"}, optional
         Unit of the array ``omega`` when it is not in rad/s ("Hz": multiplied by 2 pi).
+    band : (float, float), optional
+        Keep only the points with ``lo <= f <= hi`` (Hz for ``freq_hz`` or
+        ``freq_unit="Hz"``, else rad/s).
 
     Returns
     -------
@@ -260,6 +291,7 @@ def load_npz(path, name=None, *, freq_unit=None):
         the data), non-numeric or datetime dtypes, and any violation of FrequencyData.
     """
     freq_unit = parse_freq_unit(freq_unit)
+    band = parse_band(band)
     path, payload = read_regular_file(path)
     if payload.startswith(b"\x93NUMPY"):
         raise DataError(f"{path!r} holds a single array (.npy), not an .npz archive; save "
@@ -285,14 +317,16 @@ def load_npz(path, name=None, *, freq_unit=None):
     if freq_key == "freq_hz" and freq_unit == "rad/s":
         raise DataError(f"{path!r}: array 'freq_hz' is in Hz, but freq_unit='rad/s'; drop "
                         "freq_unit or rename the array")
-    if freq_key == "freq_hz" or freq_unit == "hz":
+    hz = freq_key == "freq_hz" or freq_unit == "hz"
+    if hz:
         omega = 2 * np.pi * np.asarray(omega, float)
-    return _finish(path, omega, response, name, weights)
+    return _finish(path, omega, response, name, weights, band=band,
+                   **_band_unit("hz" if hz else "rad/s"))
 
 
 # --------------------------------------------------------------------------- mat
 
-def load_mat(path, name=None, *, freq_unit=None, columns=None):
+def load_mat(path, name=None, *, freq_unit=None, columns=None, band=None):
     """Read data from a MATLAB ``.mat`` file (v4 to v7.2, via ``scipy.io.loadmat``).
 
     Parameters
@@ -303,6 +337,8 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None):
         As for :func:`load_text`.
     columns : str or sequence of str, optional
         Names of the columns of the single numeric matrix (N x k, or k x N) the file holds.
+    band : (float, float), optional
+        As :func:`load_text`.
 
     Returns
     -------
@@ -318,44 +354,23 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None):
 
     Notes
     -----
-    Variables are matched by name with the vocabulary of :func:`load_text` (``omega``,
-    ``w``, ``freq_hz``, ``f`` + ``freq_unit``; ``response``/``h``/``g``/``frf`` complex,
-    ``re``/``im``, ``mag_db``/``phase_deg``, ...). Without such names, a single numeric
-    matrix is read like a headerless text table (``columns`` names its columns).
+    Variables, and the fields of structs (``frf.freq_hz``, ``frf.response``), are matched
+    by name with the vocabulary of :func:`load_text` (``omega``, ``w``, ``freq_hz``, ``f`` +
+    ``freq_unit``; ``response``/``h``/``g``/``frf`` complex, ``re``/``im``,
+    ``mag_db``/``phase_deg``, ...). Without such names, a single numeric matrix is read like
+    a headerless text table (``columns`` names its columns). A file of time records (two or
+    more real vectors of one length) is refused with the command that reads it:
+    ``freqid frf FILE --u NAME --y NAME``
+    (:func:`freqid_casadi.experiment.load_records_mat`).
     """
-    import scipy.io
-
     freq_unit = parse_freq_unit(freq_unit)
     columns = parse_columns(columns)
+    band = parse_band(band)
     path, payload = read_regular_file(path)
-    try:
-        info = scipy.io.whosmat(io.BytesIO(payload))
-    except NotImplementedError:
-        raise DataError(f"{path!r} is a MATLAB v7.3 (HDF5) file; save it with "
-                        "save(..., '-v7') or export the arrays to CSV") from None
-    except Exception as exc:            # scipy raises ValueError, TypeError, ... on garbage
-        raise DataError(f"cannot read {path!r} as a MATLAB .mat file ({exc}); save the "
-                        "arrays with save(..., '-v7')") from None
-    numeric = []
-    for var, shape, cls in info:
-        n = int(np.prod([int(d) for d in shape], dtype=object)) if shape else 1
-        if n > MAX_ELEMENTS:
-            raise DataError(f"{path!r}: variable {var!r} claims shape {shape} ({n} elements), "
-                            f"above the limit of {MAX_ELEMENTS}; the file is damaged or too "
-                            "large (freqid_casadi.io.loaders.MAX_ELEMENTS)")
-        if cls in ("double", "single", "int8", "uint8", "int16", "uint16", "int32",
-                   "uint32", "int64", "uint64"):
-            numeric.append(var)
-    if not numeric:
-        raise DataError(f"{path!r} holds no numeric variables; save omega and response "
-                        "as numeric arrays")
-    try:
-        mat = scipy.io.loadmat(io.BytesIO(payload), variable_names=numeric)
-    except Exception as exc:
-        raise DataError(f"cannot read {path!r} as a MATLAB .mat file ({exc})") from None
-    table = _mat_table(path, {k: mat[k] for k in numeric}, columns, freq_unit)
+    arrays = read_mat_arrays(path, payload, MAX_ELEMENTS)
+    table = _mat_table(path, arrays, columns, freq_unit)
     omega, response = table_response(table)
-    return _finish(path, omega, response, name)
+    return _finish(path, omega, response, name, band=band, **_band_unit(table.unit("freq")))
 
 
 # --------------------------------------------------------------------------- .mat
@@ -366,7 +381,7 @@ def _mat_table(path, arrays, columns, freq_unit):
     named = {}
     if columns is None:
         for key, arr in arrays.items():
-            col = recognise(key)
+            col = recognise(key.rsplit(".", 1)[-1])
             if col is not None and col.role != "skip":
                 named[key] = Column(col.role, col.unit, key)
     cols = tuple(named.values())
@@ -379,6 +394,9 @@ def _mat_table(path, arrays, columns, freq_unit):
         values = dict(zip((c.role for c in cols), vecs))
         n = vecs[0].size
     else:
+        hint = records_hint(path, arrays) if columns is None and not named else None
+        if hint:
+            raise DataError(hint)
         if len(arrays) != 1 or np.ndim(next(iter(arrays.values()))) != 2:
             raise DataError(
                 f"{path!r}: cannot tell the variables apart (found {', '.join(arrays)}); "
