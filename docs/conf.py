@@ -1,0 +1,94 @@
+"""Sphinx configuration of the freqid_casadi documentation.
+
+Build: ``python -m sphinx -W -b html docs docs/_build/html`` (warnings are errors; the
+build output and the generated pages -- ``_build``, ``generated``, ``auto_examples`` -- are
+git-ignored). The gallery runs every ``docs/examples/*.py`` at build time.
+"""
+
+import os
+import sys
+from pathlib import Path
+
+HERE = Path(__file__).resolve().parent
+sys.path.insert(0, str(HERE.parent))  # the checkout, before any installed copy
+
+os.environ.setdefault("MPLBACKEND", "Agg")
+
+import freqid_casadi  # noqa: E402
+
+project = "freqid_casadi"
+author = "the freqid_casadi authors"
+copyright = "the freqid_casadi authors, BSD-3-Clause"
+release = getattr(freqid_casadi, "__version__", "0.1.0")
+version = release
+
+extensions = [
+    "sphinx.ext.autodoc",
+    "sphinx.ext.autosummary",
+    "sphinx.ext.doctest",
+    "sphinx.ext.mathjax",
+    "sphinx.ext.intersphinx",
+    "numpydoc",
+    "myst_parser",
+    "sphinx_gallery.gen_gallery",
+]
+
+source_suffix = {".rst": "restructuredtext", ".md": "markdown"}
+root_doc = "index"
+exclude_patterns = ["_build", "**.ipynb_checkpoints", "examples/README.rst",
+                    "examples/GALLERY_HEADER.rst"]
+templates_path = ["_templates"]
+
+# -- MyST (Markdown pages: docs/guide/*.md, spec.md, style.md, ...) ---------------------
+myst_enable_extensions = ["dollarmath", "amsmath", "colon_fence", "deflist"]
+myst_heading_anchors = 3
+# spec.md and the guide pages link to files of the repository (../scripts/x.py) that are
+# not documents of the site; those are plain links, not cross-reference failures.
+suppress_warnings = ["myst.xref_missing", "myst.header"]
+
+# -- autodoc / autosummary / numpydoc ---------------------------------------------------
+autosummary_generate = True
+autosummary_imported_members = False
+autodoc_default_options = {"members": True, "show-inheritance": False}
+autodoc_member_order = "bysource"
+autodoc_typehints = "none"
+numpydoc_show_class_members = False
+numpydoc_class_members_toctree = False
+numpydoc_validation_checks = set()
+numpydoc_xref_param_type = False
+
+intersphinx_mapping = {}  # offline build: no inventories fetched
+
+# -- doctest (the user guide's code blocks marked as doctest) ---------------------------
+doctest_global_setup = """
+import numpy as np
+import freqid_casadi as fc
+"""
+
+# -- sphinx-gallery ---------------------------------------------------------------------
+sphinx_gallery_conf = {
+    "examples_dirs": "examples",
+    "gallery_dirs": "auto_examples",
+    "filename_pattern": r"/plot_",
+    "ignore_pattern": r"__init__\.py|/_",
+    "within_subsection_order": "FileNameSortKey",
+    "download_all_examples": False,
+    "remove_config_comments": True,
+    "show_memory": False,
+    "abort_on_example_error": True,
+    "only_warn_on_example_error": False,
+    "matplotlib_animations": False,
+    "reset_modules": ("matplotlib",),
+    "min_reported_time": 1,
+}
+
+# -- HTML -------------------------------------------------------------------------------
+html_theme = "pydata_sphinx_theme"
+html_title = "freqid_casadi"
+html_static_path = ["_static"]
+html_theme_options = {
+    "navigation_with_keys": False,
+    "show_toc_level": 2,
+    "secondary_sidebar_items": ["page-toc"],
+}
+html_show_sourcelink = False
