@@ -80,6 +80,9 @@ sphinx_gallery_conf = {
     "matplotlib_animations": False,
     "reset_modules": ("matplotlib",),
     "min_reported_time": 1,
+    # every build runs every example, so the gallery shows what the code does now, not what
+    # it did when the example last changed
+    "run_stale_examples": True,
 }
 
 # -- HTML -------------------------------------------------------------------------------
@@ -92,3 +95,46 @@ html_theme_options = {
     "secondary_sidebar_items": ["page-toc"],
 }
 html_show_sourcelink = False
+
+
+# -- |x| in docstrings ------------------------------------------------------------------
+# Docstrings write absolute values as |x| (``|(Phi - G_N)/G_N|``), which reStructuredText
+# reads as a substitution reference. Escape such bars in prose lines before numpydoc parses
+# the docstring; literal blocks (after ``::``), doctest blocks, inline literals and table or
+# line-block lines (starting with "| ", "+-" or "+=") are left alone.
+import re  # noqa: E402
+
+_LITERAL = re.compile(r"(``.*?``|`[^`]*`)")
+
+
+def _escape_bars(line):
+    parts = _LITERAL.split(line)
+    return "".join(p if i % 2 else re.sub(r"(?<!\\)\|", r"\\|", p) for i, p in enumerate(parts))
+
+
+def _escape_abs_bars(app, what, name, obj, options, lines):
+    literal_indent, in_doctest, prev = None, False, ""
+    for i, line in enumerate(lines):
+        stripped = line.strip()
+        indent = len(line) - len(line.lstrip())
+        if literal_indent is not None:
+            if stripped and indent <= literal_indent:
+                literal_indent = None
+            else:
+                continue
+        if in_doctest:
+            in_doctest = bool(stripped)
+            continue
+        if stripped.startswith(">>>"):
+            in_doctest = True
+            continue
+        if "|" in line and not (stripped == "|" or stripped.startswith(("| ", "+-", "+="))):
+            lines[i] = _escape_bars(line)
+        if stripped.endswith("::"):
+            literal_indent = indent
+        prev = line
+    return prev
+
+
+def setup(app):
+    app.connect("autodoc-process-docstring", _escape_abs_bars, priority=100)
