@@ -17,8 +17,9 @@ data = fc.systems.G_A()
 result = sweep(data, orders=range(4, 21, 4), target=1e-3, integrator=True,
                truth=lambda w: fc.systems.G_A_at(1j * w))
 for row in result.rows:
-    print(f"order {row.order:3d}  max {row.max_rel_error:9.3g}  dense grid {row.max_rel_error_dense:9.3g}"
-          f"  delay {row.delay:.5f} s  converged {row.success}")
+    print(f"order {row.order:3d}  max {row.max_rel_error:9.3g}  "
+          f"dense grid {row.max_rel_error_dense:9.3g}  delay {row.delay:.5f} s  "
+          f"converged {row.success}")
 print("smallest order with max rel. error <= 1e-3:", result.best_order)
 
 # %%

@@ -4,8 +4,8 @@ What the data determine: parameter uncertainty and bands
 
 ``FitResult.uncertainty`` is the covariance of the physical parameters (delay, gain, every
 factor's natural frequency and damping) from the Jacobian at the optimum, with the noise
-variance from the residuals (or from the data's weights). Here a 2-mode system with two zero pairs, a 5 ms
-delay and 1 % complex noise (inside the model class).
+variance from the residuals (or from the data's weights). Here a 2-mode system with two
+zero pairs, a 5 ms delay and 1 % complex noise (inside the model class).
 """
 
 import numpy as np

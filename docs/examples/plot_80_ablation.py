@@ -20,7 +20,8 @@ for n in (4, 8):
         rows.append((n, method, res.max_rel_error, res.nit, res.wall_time))
         last[method] = res
 
-print(f"{'sections':>8s} {'method':>11s} {'max rel. err':>12s} {'iterations':>10s} {'time (s)':>8s}")
+print(f"{'sections':>8s} {'method':>11s} {'max rel. err':>12s} {'iterations':>10s} "
+      f"{'time (s)':>8s}")
 for n, method, err, nit, t in rows:
     print(f"{n:8d} {method:>11s} {err:12.3g} {nit:10d} {t:8.2f}")
 
