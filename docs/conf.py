@@ -14,6 +14,16 @@ sys.path.insert(0, str(HERE.parent))  # the checkout, before any installed copy
 
 os.environ.setdefault("MPLBACKEND", "Agg")
 
+
+def _short_warning(message, category, filename, lineno, line=None):
+    """The gallery shows warnings the package gives as one line, without the build's paths."""
+    return f"{category.__name__}: {message}\n"
+
+
+import warnings  # noqa: E402
+
+warnings.formatwarning = _short_warning
+
 import freqid_casadi  # noqa: E402
 
 project = "freqid_casadi"
@@ -83,6 +93,8 @@ sphinx_gallery_conf = {
     # every build runs every example, so the gallery shows what the code does now, not what
     # it did when the example last changed
     "run_stale_examples": True,
+    # show what the examples print, not the repr of a figure returned by their last line
+    "capture_repr": (),
 }
 
 # -- HTML -------------------------------------------------------------------------------

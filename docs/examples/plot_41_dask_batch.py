@@ -16,7 +16,6 @@ from freqid_casadi import plots
 from freqid_casadi.fitting.batch import fit_many
 
 datas = [fc.systems.G_A(), fc.systems.perturbed("A", 5), fc.systems.perturbed("A", 10)]
-datas[1].name, datas[2].name  # the perturbed plants carry their names
 
 with LocalCluster(n_workers=1, threads_per_worker=1, processes=False,
                   dashboard_address=None) as cluster, Client(cluster) as client:
