@@ -91,3 +91,18 @@ def test_sphinx_build_warnings_are_errors(tmp_path):
     images = {p.name for p in (out / "_images").glob("sphx_glr_*.png")}
     for ex in examples:
         assert any(i.startswith(f"sphx_glr_{ex}_0") for i in images), f"{ex} drew no figure"
+
+
+def test_readme_is_a_front_door_with_the_ci_command():
+    """README.md: at most 150 lines, starting with the install command and then the test
+    command, which is exactly the command .ci/run runs."""
+    readme = (ROOT / "README.md").read_text(encoding="utf-8")
+    assert len(readme.splitlines()) <= 150
+    blocks = re.findall(r"```bash\n(.*?)\n```", readme, flags=re.DOTALL)
+    assert blocks[0] == ("python3 -m venv .venv && .venv/bin/pip install -q -e . && "
+                         ".venv/bin/freqid example A")
+    ci = [ln for ln in (ROOT / ".ci" / "run").read_text(encoding="utf-8").splitlines()
+          if ln.startswith("python3 -m venv")]
+    assert ci == [blocks[1]], "README's test command and .ci/run differ"
+    assert "'.[test,docs]'" in blocks[1]
+    assert "<!-- layer map: read by tests/test_layout.py -->" in readme
