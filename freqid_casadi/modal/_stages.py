@@ -22,7 +22,7 @@ from .. import _interrupt
 from ._nlp import SharedProblem
 from ..solvers.shared_stage import solve_stage
 from ..solvers.shared_termination import SHARED_TERMINATION
-from ._start import channel_zeros, factor_variables, shared_vector_fitting
+from ._start import channel_zeros, factor_variables, peak_poles, shared_vector_fitting
 from ..solvers.common import Status
 from ..solvers.ipopt import ipopt_status
 from ..solvers.termination import Termination
@@ -274,7 +274,8 @@ def rational_start(make, n, n_local, omega, phi, wts, free, log, max_iter, n_ite
         As :func:`sequential_start`.
     """
     t0 = time.perf_counter()
-    poles, residues = shared_vector_fitting(omega, phi, 2 * n, wts, n_iter)
+    poles, residues = shared_vector_fitting(omega, phi, 2 * n, wts, n_iter,
+                                            initial=peak_poles(omega, phi, 2 * n, wts))
     floor = 1e-6 * omega[0]
     q, wr = factor_variables(poles, None, floor)
     c = phi.shape[0]

@@ -14,7 +14,7 @@ poles and zeros into the dc-gauge section variables (:func:`factor_variables`).
 import numpy as np
 import scipy.linalg
 
-__all__ = ["shared_vector_fitting", "channel_zeros", "factor_variables"]
+__all__ = ["shared_vector_fitting", "channel_zeros", "factor_variables", "peak_poles"]
 
 
 def _initial_poles(omega, n):
@@ -25,6 +25,64 @@ def _initial_poles(omega, n):
     poles = list(-b / 100 + 1j * b) + list(np.conj(-b / 100 + 1j * b))
     if n % 2:
         poles.append(-np.sqrt(omega[0] * omega[-1]))
+    return np.array(poles, complex)
+
+
+def peak_poles(omega, phi, n, weights=None):
+    """Starting poles at the resonances the channels agree on.
+
+    The peaks of ``sum_c w_c |Phi_c| / max|Phi_c|`` (each channel normalised, so each has
+    one vote, ``w_c`` its mean weight) are the frequencies where most channels resonate;
+    the ``n // 2`` highest local maxima (at least 1 % of the band's length apart, relative)
+    give pairs ``omega_k (-zeta_k + j)``, ``zeta_k`` from the peak's half-power width
+    (at least the grid's spacing there over ``2 omega_k``); missing pairs fall back to the
+    spread of :func:`_initial_poles`, an odd ``n`` adds its real pole. Lightly damped modes
+    then need one or two vector-fitting iterations instead of many from 1 % damping
+    (which on a dense grid of a 0.01 % damped test does not reach them).
+
+    Parameters
+    ----------
+    omega : ndarray of float, shape (M,)
+    phi : ndarray of complex, shape (C, M)
+    n : int
+        Number of poles.
+    weights : ndarray of float, shape (C, M), optional
+
+    Returns
+    -------
+    ndarray of complex, shape (n,)
+    """
+    mag = np.abs(phi) / np.maximum(np.max(np.abs(phi), axis=1, keepdims=True), 1e-300)
+    w = np.ones(phi.shape[0]) if weights is None else np.mean(weights, axis=1)
+    total = np.sum(w[:, None] * mag, axis=0)
+    m = omega.size
+    if m < 3 or n < 2:
+        return _initial_poles(omega, n)
+    inner = np.arange(1, m - 1)
+    peaks = inner[(total[1:-1] >= total[:-2]) & (total[1:-1] > total[2:])]
+    peaks = peaks[np.argsort(total[peaks])[::-1]]
+    chosen, gap = [], 0.01
+    for i in peaks:
+        if all(abs(omega[i] - omega[j]) > gap * omega[j] for j in chosen):
+            chosen.append(i)
+        if len(chosen) == n // 2:
+            break
+    pairs = []
+    for i in sorted(chosen):
+        half = total[i] / np.sqrt(2)
+        lo, hi = i, i
+        while lo > 0 and total[lo - 1] > half:
+            lo -= 1
+        while hi < m - 1 and total[hi + 1] > half:
+            hi += 1
+        width = max(omega[hi] - omega[lo], omega[min(i + 1, m - 1)] - omega[i - 1] if i else 0)
+        zeta = float(np.clip(width / (2 * omega[i]), 1e-6, 0.5))
+        pairs.append(omega[i] * (-zeta + 1j * np.sqrt(1 - zeta * zeta)))
+    fill = _initial_poles(omega, 2 * (n // 2 - len(pairs)))
+    upper = np.concatenate([np.array(pairs, complex), fill[fill.imag > 0]])
+    poles = list(upper) + list(np.conj(upper))
+    if n % 2:
+        poles.append(-np.sqrt(omega[0] * omega[-1]) + 0j)
     return np.array(poles, complex)
 
 
@@ -64,7 +122,8 @@ def _clean(lam):
     return np.concatenate([lam[real].real + 0j, upper, np.conj(upper)])
 
 
-def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=None):
+def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=None,
+                          initial=None):
     """Common poles and per-channel residues of ``Phi_c(s) ~ sum_k r_k / (s - p_k)``.
 
     Parameters
@@ -80,6 +139,9 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
         Poles kept as they are (conjugate pairs complete, closed left half plane): in the
         basis of the fitted function but not in the weight function's, so the iterations
         relocate only the ``n_poles`` others (a channel's own poles beside shared ones).
+    initial : ndarray of complex, shape (n_poles,), optional
+        Starting poles (conjugate pairs complete), e.g. :func:`peak_poles`; default pairs
+        with 1 % damping spread over the band.
 
     Returns
     -------
@@ -94,7 +156,8 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
     if weights is not None:
         wt = wt * np.sqrt(weights)
     fixed = np.zeros(0, complex) if fixed is None else np.asarray(fixed, complex)
-    poles = _initial_poles(omega, n_poles)
+    poles = _initial_poles(omega, n_poles) if initial is None else \
+        np.asarray(initial, complex)
     n, nf = n_poles, fixed.size
     for _ in range(n_iter):
         ones = np.hstack([_basis(s, poles), np.ones((m, 1))])

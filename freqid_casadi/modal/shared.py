@@ -151,6 +151,32 @@ class SharedFitResult:
                 f"{self.wall_time:.2f} s, {self.nit} iterations, "
                 f"{'converged' if self.success else 'NOT converged'}")
 
+    def mode_shapes(self, coordinates=None, names=None):
+        """The modes' shapes: every channel's modal constant (residue) at every shared
+        mode, phase-aligned and normalised (largest component +1), real where the data
+        allow, with each mode's complexity (MPC, MPD).
+
+        Parameters
+        ----------
+        coordinates : array_like of float, shape (C,) or (C, d), optional
+            Where each channel was measured (e.g. the hammer positions of a roving-hammer
+            test).
+        names : sequence of str, optional
+            Channel names (default the datas' names, else ``ch1``, ...).
+
+        Returns
+        -------
+        freqid_casadi.core.modes.ModeShapes
+            ``numpy.asarray(result.mode_shapes())`` is the (modes, C) array of shapes;
+            compare shape sets with :func:`freqid_casadi.mac`.
+        """
+        from ..core.modes import mode_shapes
+
+        if names is None:
+            given = [d.name for d in self.datas]
+            names = given if all(given) and len(set(given)) == len(given) else None
+        return mode_shapes(self.modes, coordinates, names)
+
     def to_control(self, pade_order=None, references=None):
         """python-control ``StateSpace``: every channel an output.
 
@@ -408,6 +434,7 @@ def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, pro
         prob, z, more = lawson_rounds(prob, z, lam, singles, log, max_iter, BALANCE_ROUNDS)
         stages += more
     res = _result(prob, z, datas, stages, zs, time.perf_counter() - t0, options)
+    res = _resolution(res, omega, phi)
     if not balance:
         return res
     miss = np.flatnonzero(res.max_rel_errors > np.maximum(singles, 1e-8))
@@ -415,6 +442,22 @@ def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, pro
             if miss.size else "; every channel within its own fit's max rel. error")
     return dataclasses.replace(res, single_max_rel_errors=singles,
                                message=res.message + note)
+
+
+def _resolution(res, omega, phi):
+    """``res`` with a note in its message (and a DataWarning) when resonances of the data
+    or modes of the fit are narrower than the frequency spacing."""
+    import warnings
+
+    from ..core.modes import resolution_notes
+    from ..io.loaders import DataWarning
+
+    notes = resolution_notes(omega, phi, res.modes)
+    if not notes:
+        return res
+    text = "; ".join(notes)
+    warnings.warn(f"fit_shared: {text}", DataWarning, stacklevel=4)
+    return dataclasses.replace(res, message=f"{res.message}; under-resolved: {text}")
 
 
 def _models(prob, z):
