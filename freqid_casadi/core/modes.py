@@ -222,8 +222,8 @@ class ModeShapes:
         The residue of every channel's model at every mode's pole (channel unit x rad/s).
     aligned : ndarray of complex, shape (modes, channels)
         ``modal_constants`` rotated by each mode's principal phase and scaled so that the
-        largest component is +1 (dimensionless): a real shape's components lie on the
-        real axis.
+        largest component has magnitude 1 and a positive real part (dimensionless): a
+        real shape's components lie on the real axis.
     shapes : ndarray, shape (modes, channels)
         Real (``aligned.real``) when every mode's MPC is at least :data:`REAL_MPC`, else
         complex (``aligned``); also what ``numpy.asarray(shapes)`` gives.
@@ -412,9 +412,9 @@ def resolution_notes(omega, responses, mode_list=()):
     A resonance is under-resolved when its half-power bandwidth ``2 zeta omega_n`` is
     smaller than the spacing of the grid there: the data then hold it in one or two points
     and a fit cannot place its pole (taking every 8th point of a lightly damped test turns
-    each resonance into one point). Found from the data (a local maximum of ``|Phi|``, at
-    least 1 % of the channel's largest, with both neighbours below half of it) and from
-    fitted modes when given.
+    each resonance into one point). Found from the data (a local maximum of the channels'
+    summed normalised magnitudes ``sum_c |Phi_c| / max |Phi_c|``, at least 5 % of its
+    largest, with both neighbours below half of it) and from fitted modes when given.
 
     Parameters
     ----------
@@ -431,10 +431,12 @@ def resolution_notes(omega, responses, mode_list=()):
     mag = np.abs(np.atleast_2d(responses))
     notes = []
     if omega.size >= 3:
-        mid = mag[:, 1:-1]
-        peak = (mid > 2 * mag[:, :-2]) & (mid > 2 * mag[:, 2:]) & \
-            (mid >= 0.01 * np.max(mag, axis=1, keepdims=True))
-        idx = np.unique(np.nonzero(peak)[1]) + 1
+        # the channels' normalised magnitudes summed: a resonance is in (most) channels,
+        # a noise spike in one
+        tot = np.sum(mag / np.maximum(np.max(mag, axis=1, keepdims=True), 1e-300), axis=0)
+        mid = tot[1:-1]
+        peak = (mid > 2 * tot[:-2]) & (mid > 2 * tot[2:]) & (mid >= 0.05 * np.max(tot))
+        idx = np.nonzero(peak)[0] + 1
         if idx.size:
             hz = ", ".join(f"{omega[i] / (2 * np.pi):.6g}" for i in idx[:8])
             more = f" and {idx.size - 8} more" if idx.size > 8 else ""
@@ -449,8 +451,9 @@ def resolution_notes(omega, responses, mode_list=()):
             notes.append(
                 f"the mode at {m.frequency_hz:.6g} Hz has a half-power bandwidth of "
                 f"{width / (2 * np.pi):.3g} Hz, narrower than the frequency spacing "
-                f"{dw / (2 * np.pi):.3g} Hz there: the data cannot resolve it (was the "
-                "grid decimated?); its damping is not determined by these data")
+                f"{dw / (2 * np.pi):.3g} Hz there: at most one point of the data lies in "
+                "its half-power band, so its damping rests on the points beside the peak "
+                "(noise there moves it; was the grid decimated?)")
     return notes
 
 

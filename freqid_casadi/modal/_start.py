@@ -123,8 +123,8 @@ def _clean(lam):
 
 
 def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=None,
-                          initial=None):
-    """Common poles and per-channel residues of ``Phi_c(s) ~ sum_k r_k / (s - p_k)``.
+                          initial=None, constant=False):
+    """Common poles and per-channel residues of ``Phi_c(s) ~ d_c + sum_k r_k / (s - p_k)``.
 
     Parameters
     ----------
@@ -142,6 +142,11 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
     initial : ndarray of complex, shape (n_poles,), optional
         Starting poles (conjugate pairs complete), e.g. :func:`peak_poles`; default pairs
         with 1 % damping spread over the band.
+    constant : bool
+        Fit a constant ``d_c`` per channel (the "upper residual" of modal analysis: what
+        the modes above the band leave in it, and the high-frequency limit of an
+        accelerance); without it ``d_c = 0`` (strictly proper). A strictly proper fit of an
+        accelerance biases every pole (measured: 0.05 Hz at 307 Hz on a noise-free beam).
 
     Returns
     -------
@@ -149,6 +154,8 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
         The relocated poles (closed left half plane, conjugate pairs complete), then the
         fixed ones.
     residues : ndarray of complex, shape (C, n_poles + F)
+    constants : ndarray of float, shape (C,)
+        Only with ``constant=True``: each channel's ``d_c``.
     """
     s = 1j * omega
     m = omega.size
@@ -158,15 +165,16 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
     fixed = np.zeros(0, complex) if fixed is None else np.asarray(fixed, complex)
     poles = _initial_poles(omega, n_poles) if initial is None else \
         np.asarray(initial, complex)
-    n, nf = n_poles, fixed.size
+    n, nf, nc = n_poles, fixed.size, int(bool(constant))
+    nk = n + nf + nc                                     # each channel's own unknowns
     for _ in range(n_iter):
         ones = np.hstack([_basis(s, poles), np.ones((m, 1))])
-        basis = np.hstack([_basis(s, fixed), ones[:, :n]]) if nf else ones[:, :n]
+        basis = _fit_basis(s, fixed, ones[:, :n], nc)
         rows = []
         for c in range(phi.shape[0]):
             block = np.hstack([wt[c, :, None] * basis, -(wt[c] * phi[c])[:, None] * ones])
             r = np.linalg.qr(np.vstack([block.real, block.imag]), mode="r")
-            rows.append(r[n + nf:2 * n + nf + 1, n + nf:])
+            rows.append(r[nk:nk + n + 1, nk:])
         norm = np.sqrt(np.sum((wt * np.abs(phi)) ** 2))
         relax = norm / m * np.real(np.sum(ones, axis=0))
         mat = np.vstack(rows + [relax[None, :]])
@@ -181,8 +189,9 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
         A, b = _realisation(poles)
         poles = _clean(np.linalg.eigvals(A - np.outer(b, ct) / dt))
     poles = np.concatenate([poles, fixed])
-    basis = _basis(s, poles)
+    basis = _fit_basis(s, np.zeros(0, complex), _basis(s, poles), nc)
     residues = np.zeros((phi.shape[0], n + nf), complex)
+    consts = np.zeros(phi.shape[0])
     order = _column_poles(poles)
     for c in range(phi.shape[0]):
         a = wt[c, :, None] * basis
@@ -190,7 +199,17 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
                                   np.concatenate([(wt[c] * phi[c]).real,
                                                   (wt[c] * phi[c]).imag]))[0]
         residues[c] = _complex_residues(coef, poles, order)
-    return poles, residues
+        consts[c] = coef[-1] if nc else 0.0
+    return (poles, residues, consts) if constant else (poles, residues)
+
+
+def _fit_basis(s, fixed, own, nc):
+    """Columns of the fitted function: the fixed poles', the relocated ones' (``own``) and
+    with ``nc`` a constant."""
+    cols = ([_basis(s, fixed)] if fixed.size else []) + [own]
+    if nc:
+        cols.append(np.ones((s.size, 1), complex))
+    return np.hstack(cols)
 
 
 def _column_poles(poles):
@@ -211,14 +230,15 @@ def _complex_residues(coef, poles, listed):
     return np.array([res[complex(a)] for a in poles])
 
 
-def channel_zeros(poles, residues):
-    """Finite zeros of ``sum_k r_k/(s - p_k)``: generalised eigenvalues of the Rosenbrock
-    pencil of its diagonal realisation; complex (<= n-1,)."""
+def channel_zeros(poles, residues, constant=0.0):
+    """Finite zeros of ``d + sum_k r_k/(s - p_k)``: generalised eigenvalues of the
+    Rosenbrock pencil of its diagonal realisation; complex (<= n-1, or n with ``d != 0``)."""
     n = len(poles)
     mat = np.zeros((n + 1, n + 1), complex)
     mat[:n, :n] = np.diag(poles)
     mat[:n, n] = 1.0
     mat[n, :n] = residues
+    mat[n, n] = constant
     e = np.zeros((n + 1, n + 1))
     e[:n, :n] = np.eye(n)
     with np.errstate(all="ignore"):
