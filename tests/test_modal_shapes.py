@@ -143,6 +143,23 @@ def test_shared_fit_mode_shapes_match_the_true_shapes():
     m = fc.mac(sh, true)
     np.testing.assert_allclose(np.diag(m), 1.0, atol=1e-8)
     assert m[0, 1] < 0.9 and np.all(sh.mpc > 1 - 1e-8)
+    # the models' own residues: the same on exact data (both exact)
+    model = res.mode_shapes(constants="model")
+    np.testing.assert_allclose(model.aligned, sh.aligned, atol=1e-6)
+    with pytest.raises(OptionError, match="constants"):
+        res.mode_shapes(constants="peak")
+
+
+def test_lsfd_shapes_with_delays_and_an_integrator():
+    w = np.linspace(1.0, 30.0, 300)
+    s = 1j * w
+    datas = [fc.FrequencyData(w, np.exp(-s * h) / s * sum(
+        a / (s * s + 2 * z * p * s + p * p) for a, (p, z) in zip(amps, POLES)), f"c{c}")
+        for c, (amps, h) in enumerate(zip(AMPS, (0.0, 0.01, 0.02)))]
+    res = fc.fit_shared(datas, 2, integrator=True, zeros="free")
+    assert np.max(res.max_rel_errors) < 1e-6
+    lsfd, model = res.mode_shapes(), res.mode_shapes(constants="model")
+    np.testing.assert_allclose(lsfd.modal_constants, model.modal_constants, rtol=1e-5)
 
 
 def test_cli_modal_writes_shapes_and_the_mac_against_reference_shapes(tmp_path, capsys):

@@ -14,7 +14,8 @@ poles and zeros into the dc-gauge section variables (:func:`factor_variables`).
 import numpy as np
 import scipy.linalg
 
-__all__ = ["shared_vector_fitting", "channel_zeros", "factor_variables", "peak_poles"]
+__all__ = ["shared_vector_fitting", "channel_zeros", "factor_variables", "peak_poles",
+           "lsfd_residues"]
 
 
 def _initial_poles(omega, n):
@@ -189,8 +190,39 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
         A, b = _realisation(poles)
         poles = _clean(np.linalg.eigvals(A - np.outer(b, ct) / dt))
     poles = np.concatenate([poles, fixed])
-    basis = _fit_basis(s, np.zeros(0, complex), _basis(s, poles), nc)
-    residues = np.zeros((phi.shape[0], n + nf), complex)
+    residues, consts = lsfd_residues(omega, phi, poles, weights, constant)
+    return (poles, residues, consts) if constant else (poles, residues)
+
+
+def lsfd_residues(omega, phi, poles, weights=None, constant=True):
+    """Each channel's residues at given poles: linear least squares of
+    ``Phi_c(s) ~ d_c + sum_k r_ck / (s - p_k)`` with the relative row weights ``1/|Phi|``
+    (times ``sqrt(weights)``), the "least-squares frequency-domain" (LSFD) step of modal
+    analysis.
+
+    Parameters
+    ----------
+    omega : ndarray of float, shape (M,), rad/s
+    phi : ndarray of complex, shape (C, M)
+    poles : ndarray of complex, shape (n,)
+        Conjugate pairs complete.
+    weights : ndarray of float, shape (C, M), optional
+    constant : bool
+        Fit the constant ``d_c`` (else 0).
+
+    Returns
+    -------
+    residues : ndarray of complex, shape (C, n)
+        Conjugate poles get conjugate residues.
+    constants : ndarray of float, shape (C,)
+    """
+    s = 1j * omega
+    wt = 1.0 / np.abs(phi)
+    if weights is not None:
+        wt = wt * np.sqrt(weights)
+    poles = np.asarray(poles, complex)
+    basis = _fit_basis(s, np.zeros(0, complex), _basis(s, poles), int(bool(constant)))
+    residues = np.zeros((phi.shape[0], poles.size), complex)
     consts = np.zeros(phi.shape[0])
     order = _column_poles(poles)
     for c in range(phi.shape[0]):
@@ -199,8 +231,8 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
                                   np.concatenate([(wt[c] * phi[c]).real,
                                                   (wt[c] * phi[c]).imag]))[0]
         residues[c] = _complex_residues(coef, poles, order)
-        consts[c] = coef[-1] if nc else 0.0
-    return (poles, residues, consts) if constant else (poles, residues)
+        consts[c] = coef[-1] if constant else 0.0
+    return residues, consts
 
 
 def _fit_basis(s, fixed, own, nc):
