@@ -10,6 +10,7 @@ import pytest
 import freqid_casadi as fc
 from freqid_casadi.cli.app import main
 from freqid_casadi.core import modes as modal
+from freqid_casadi.core.model import RationalDelayModel, Structure
 from freqid_casadi.errors import OptionError
 from freqid_casadi.modal import survey
 from freqid_casadi.modal._start import peak_poles, shared_vector_fitting
@@ -192,3 +193,28 @@ def test_cli_modal_writes_shapes_and_the_mac_against_reference_shapes(tmp_path, 
     assert main([*argv[:4], "--orders", "4", "--out", str(out), "--force", "--zeros",
                  "free"]) == 0
     assert "at least 4 orders" in capsys.readouterr().out
+
+
+def test_bode_data_phase_stays_on_the_model_branch_through_a_noisy_antiresonance():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from freqid_casadi import plots
+
+    # a mode pair with an antiresonance between; the data there is noise (phase random):
+    # unwrapped, each noisy point could add a turn (the issue's -9000 deg)
+    beta = [0.0, 1.0, 1.0, 0.001, 8.0, 1.0, 0.001, 5.0, 1.0, 0.001, 12.0, 1.0, 0.05, 40.0]
+    model = RationalDelayModel(Structure(2, delay=False, zeros="free"), beta)
+    w = np.linspace(1.0, 20.0, 4000)
+    rng = np.random.default_rng(3)
+    g = model.frequency_response(w)
+    g = g + 0.05 * np.abs(g).max() * 1e-3 * (rng.normal(size=w.size)
+                                             + 1j * rng.normal(size=w.size))
+    fig = plots.bode(fc.FrequencyData(w, g), models={"m": model})
+    lines = fig.axes[1].get_lines()
+    mod = next(ln for ln in lines if ln.get_label() == "m")
+    dat = next(ln for ln in lines if ln.get_label() == "data")
+    ref = np.interp(dat.get_xdata(), mod.get_xdata(), mod.get_ydata())
+    assert np.max(np.abs(dat.get_ydata() - ref)) <= 180 + 1e-9
+    assert np.ptp(dat.get_ydata()) < np.ptp(mod.get_ydata()) + 360
+    plt.close(fig)
