@@ -221,7 +221,8 @@ def run_cli(args, command):
     if not res.modes:
         print(f"none: a mode is selected when it is stable in frequency and damping at each "
               f"of the last {args.min_stable} orders (--min-stable {args.min_stable}); "
-              f"{res.selection_note}; stabilization.csv has every pole's status")
+              f"{res.selection_note or 'the highest order has no underdamped pole'}; "
+              "stabilization.csv has every pole's status")
     return 0
 
 
