@@ -218,3 +218,43 @@ def test_bode_data_phase_stays_on_the_model_branch_through_a_noisy_antiresonance
     assert np.max(np.abs(dat.get_ydata() - ref)) <= 180 + 1e-9
     assert np.ptp(dat.get_ydata()) < np.ptp(mod.get_ydata()) + 360
     plt.close(fig)
+
+
+def _free_free(x, length=1.3):
+    out = []
+    for bl in (4.7300407, 7.8532046, 10.9956078):
+        k = bl / length
+        sig = (np.cosh(bl) - np.cos(bl)) / (np.sinh(bl) - np.sin(bl))
+        out.append(np.cosh(k * x) + np.cos(k * x) - sig * (np.sinh(k * x) + np.sin(k * x)))
+    return np.array(out)
+
+
+def test_roving_hammer_accelerances_lightly_damped():
+    # issue 31 in small: 6 hammer points, accelerances with a rigid-body constant, 3 modes
+    # at 0.05..0.02 % damping, 0.0625 Hz spacing, 0.5 % noise
+    x = np.linspace(0.1, 1.2, 6)
+    f0, zeta = np.array([112.0, 307.0, 596.0]), np.array([5e-4, 3e-4, 2e-4])
+    w = 2 * np.pi * np.arange(65.0, 700.0, 0.0625)
+    s = 1j * w
+    shapes, sensor = _free_free(x), _free_free(np.array([0.5]))[:, 0]
+    rng = np.random.default_rng(31)
+    datas = []
+    for c in range(x.size):
+        g = 1.0 + sum(shapes[k, c] * sensor[k] * s * s
+                      / (s * s + 2 * zeta[k] * 2 * np.pi * f0[k] * s + (2 * np.pi * f0[k]) ** 2)
+                      for k in range(3))
+        g = g * (1 + 0.005 * (rng.normal(size=w.size) + 1j * rng.normal(size=w.size)))
+        datas.append(fc.FrequencyData(w, g, f"x{c}"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")                 # no stray numpy warning either
+        res = fc.fit_shared(datas, 3, delay=False, zeros="free")
+    assert res.success
+    f = np.array([m.frequency_hz for m in res.modes])
+    # measured: within 1.1e-4 Hz; damping within 0.25 %
+    np.testing.assert_allclose(f, f0, atol=3e-3)
+    np.testing.assert_allclose([m.zeta for m in res.modes], zeta, rtol=0.03)
+    sh = res.mode_shapes(coordinates=x)
+    assert np.all(np.diag(fc.mac(sh, shapes)) > 0.9999)   # measured 1 - 1e-8
+    assert np.all(sh.mpc > 0.999) and np.asarray(sh).dtype == float
+    own = [fc.fit_shared([d], 3, delay=False, zeros="free").rms_rel_errors[0] for d in datas]
+    assert np.all(res.rms_rel_errors <= 1.02 * np.array(own))     # measured <= 1.0001
