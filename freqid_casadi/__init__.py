@@ -21,6 +21,7 @@ from .fitting.fit import FitResult, StageRecord, fit
 from .io.loaders import (DataWarning, load, load_csv, load_mat, load_npz, load_text,
                       load_touchstone, load_uff, save_csv)
 from .core.model import RationalDelayModel, Structure
+from .core.modes import ModeShapes, mac
 from .modal.survey import stabilization
 from .modal.shared import SharedFitResult, fit_shared
 from .options import BarrierLMOptions, FitOptions, IpoptOptions, LoopOptions
@@ -32,6 +33,6 @@ __all__ = [
     "load_touchstone", "save_csv",
     "DataWarning", "systems",
     "FreqidError", "DataError", "StructureError", "OptionError", "SolverError",
-    "fit_shared", "SharedFitResult", "stabilization",
+    "fit_shared", "SharedFitResult", "stabilization", "mac", "ModeShapes",
 ]
 __version__ = "0.1.0"

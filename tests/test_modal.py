@@ -106,10 +106,13 @@ def test_stabilization_marks_and_selects_the_two_modes():
     # order 4 finds both modes; from order 6 on they are stable in frequency and damping
     at4 = res.poles_of(4)
     assert sorted(p.omega_n for p in at4) == pytest.approx([5.0, 17.0], rel=1e-6)
+    # (an order above the true one may add a spurious pole beside a mode, e.g. order 6 one
+    # at 17.0016 rad/s with the start's constant per channel: it is "new", the mode is not)
     for order in (6, 8, 10):
-        near = [p for p in res.poles_of(order)
-                if min(abs(p.omega_n - 5.0), abs(p.omega_n - 17.0)) < 0.01]
-        assert len(near) == 2 and all(p.status == "stable-frequency-damping" for p in near)
+        for w in (5.0, 17.0):
+            best = min(res.poles_of(order), key=lambda p: abs(p.omega_n - w))
+            assert abs(best.omega_n - w) < 1e-4 * w
+            assert best.status == "stable-frequency-damping"
     assert all(p.status == "new" for p in res.poles_of(2))
     rows = list(csv.reader(io.StringIO(survey.stabilization_csv(res))))
     assert rows[0] == ["order", "frequency_hz", "omega_n_rad_s", "zeta", "status", "selected"]

@@ -7,6 +7,7 @@ Usage::
                  [--zeros minimum-phase|free|LIST] [--integrator] [--freq-tol 0.01]
                  [--damping-tol 0.10] [--min-stable 3] [--max-iter 100]
                  [--channel-sections K] [--balance-channels]
+                 [--coordinates X1,X2,...|FILE] [--reference-shapes FILE]
 
 Reads one FRF per file (:func:`freqid_casadi.load`; all on one omega grid), fits every
 order of ``--orders`` with shared poles (:func:`freqid_casadi.modal.survey.stabilization`; with
@@ -19,6 +20,12 @@ existing ``DIR`` is refused without ``--force``):
 - ``modes.csv``, ``modes.md``: the automatically selected modes (frequency, damping, each
   channel's residue), from the highest order's fit;
 - ``stabilization.csv``, ``stabilization.png``: every pole of every order with its status;
+- ``shapes.csv``, ``shape_<k>.png``: the selected modes' shapes (every channel's modal
+  constant, phase-aligned, largest component +1; each mode's MPC and MPD), against the
+  channels' ``--coordinates`` when given;
+- ``mac.csv``: with ``--reference-shapes FILE`` (one row per channel, one column per
+  reference mode, numbers only or a header line), the MAC matrix of the selected shapes
+  (rows) against the reference shapes (columns);
 - ``bode_<channel>.png``, ``model_<channel>.json``: data and model of the highest order.
 """
 
@@ -85,7 +92,67 @@ def add_cli(subparsers):
     p.add_argument("--balance-channels", action="store_true",
                    help="reweight so that no channel's max rel. error exceeds that of its "
                         "own single-channel fit (C extra fits per order)")
+    p.add_argument("--coordinates", metavar="X1,X2,...|FILE",
+                   help="where each channel was measured (e.g. the hammer positions), one "
+                        "number per file as a comma list, or a text/CSV file with one row "
+                        "per channel (1-3 numbers); used for the shapes' CSV and figures")
+    p.add_argument("--reference-shapes", metavar="FILE",
+                   help="reference mode shapes (text/CSV: one row per channel, one column "
+                        "per mode, an optional header line): the MAC of the selected "
+                        "shapes against them is written to mac.csv and summary.md")
     return p
+
+
+def _number_table(path, what):
+    """Rows of numbers of a small text/CSV file (a first non-numeric line skipped)."""
+    try:
+        with open(path, encoding="utf-8-sig") as f:
+            lines = [ln.strip() for ln in f if ln.strip() and not ln.lstrip().startswith("#")]
+    except (OSError, UnicodeDecodeError) as exc:
+        raise OptionError(f"{what}: cannot read {path!r} ({exc}); give a UTF-8 text file "
+                          "of numbers") from None
+    rows = []
+    for k, ln in enumerate(lines):
+        try:
+            rows.append([float(t) for t in re.split(r"[,;\s]+", ln) if t])
+        except ValueError:
+            if k == 0:
+                continue                                  # a header line
+            raise OptionError(f"{what}: line {k + 1} of {path!r} is not numbers: "
+                              f"{ln[:60]!r}") from None
+    if not rows or len({len(r) for r in rows}) != 1:
+        raise OptionError(f"{what}: {path!r} must hold rows of equally many numbers, one "
+                          "row per channel")
+    return np.array(rows)
+
+
+def _coordinates(text, n):
+    """The channels' coordinates (n, d) from ``--coordinates`` (None when not given)."""
+    if text is None:
+        return None
+    if os.path.isfile(text):
+        coords = _number_table(text, "--coordinates")
+    else:
+        try:
+            coords = np.array([float(t) for t in str(text).split(",")])[:, None]
+        except ValueError:
+            raise OptionError(f"--coordinates must be a comma list of numbers (one per "
+                              f"file) or a file, got {text!r}") from None
+    if coords.shape[0] != n:
+        raise OptionError(f"--coordinates needs one entry per file ({n}), got "
+                          f"{coords.shape[0]}")
+    return coords
+
+
+def _reference(path, n):
+    """Reference shapes (modes, n) from ``--reference-shapes`` (None when not given)."""
+    if path is None:
+        return None
+    ref = _number_table(path, "--reference-shapes")
+    if ref.shape[0] != n:
+        raise OptionError(f"--reference-shapes: {path!r} has {ref.shape[0]} rows; it needs "
+                          f"one row per channel ({n} files), one column per mode")
+    return ref.T
 
 
 def _channel_names(datas, files):
@@ -141,23 +208,45 @@ def run_cli(args, command):
                           f"{args.min_stable}, {args.max_iter}")
     if args.channel_sections < 0:
         raise OptionError(f"--channel-sections must be >= 0, got {args.channel_sections}")
+    coords = _coordinates(args.coordinates, len(datas))
+    ref = _reference(args.reference_shapes, len(datas))
     res = stabilization(datas, orders, freq_tol=args.freq_tol, damping_tol=args.damping_tol,
                         min_stable=args.min_stable, delay=delay,
                         zeros=_zeros(args.zeros, len(datas)), integrator=args.integrator,
                         max_iter=args.max_iter, channel_sections=args.channel_sections,
                         balance_channels=args.balance_channels)
     with report_folder(args.out, args.force) as (tmp, path):
-        _write_report(res, tmp, names, command)
+        _write_report(res, tmp, names, command, coords, ref)
     print(f"{len(res.modes)} modes selected; report in {path}")
     if not res.modes:
         print(f"none: a mode is selected when it is stable in frequency and damping at each "
-              f"of the last {min(args.min_stable, len(orders) - 1)} orders (--min-stable "
-              f"{args.min_stable}); add orders (--orders) or lower --min-stable; "
+              f"of the last {args.min_stable} orders (--min-stable {args.min_stable}); "
+              f"{res.selection_note or 'the highest order has no underdamped pole'}; "
               "stabilization.csv has every pole's status")
     return 0
 
 
-def _write_report(res, folder, names, command):
+def _write_shapes(res, folder, names, coords, ref):
+    """shapes.csv, shape_<k>.png and (with ``ref``) mac.csv; returns (shapes, MAC or None)."""
+    from ..core.modes import mac, mode_shapes, shapes_csv
+    from ..plots import save_figure
+    from ..plots.modal import mode_shape_figure
+
+    shapes = mode_shapes(res.modes, coords, names)
+    atomic_write_text(os.path.join(folder, "shapes.csv"), shapes_csv(shapes))
+    for k in range(len(shapes)):
+        save_figure(mode_shape_figure(shapes, k), os.path.join(folder, f"shape_{k + 1}.png"))
+    if ref is None or not len(shapes):
+        return shapes, None
+    m = mac(shapes, ref)
+    lines = ["mode,frequency_hz," + ",".join(f"ref{j + 1}" for j in range(ref.shape[0]))]
+    lines += [f"{i + 1},{f!r}," + ",".join(repr(float(v)) for v in row)
+              for i, (f, row) in enumerate(zip(shapes.frequency_hz, m))]
+    atomic_write_text(os.path.join(folder, "mac.csv"), "\n".join(lines) + "\n")
+    return shapes, m
+
+
+def _write_report(res, folder, names, command, coords=None, ref=None):
     from ..core.modes import modes_csv, modes_markdown
     from ..modal.survey import stabilization_csv
     from ..plots import bode, save_figure
@@ -174,7 +263,16 @@ def _write_report(res, folder, names, command):
         save_figure(bode(data, models={f"order {res.orders[-1]}": model},
                          title=f"{name}: data and shared-pole model"),
                     join(folder, f"bode_{name}.png"))
+    shapes, m = _write_shapes(res, folder, names, coords, ref)
     summary = _summary(res, names, command)
+    summary["selection_note"] = res.selection_note
+    summary["shapes"] = [{"frequency_hz": float(f), "mpc": float(p), "mpd_deg": float(d),
+                          "real": bool(r), "shape": [float(v) for v in a.real]}
+                         for f, p, d, r, a in zip(shapes.frequency_hz, shapes.mpc,
+                                                  shapes.mpd_deg, shapes.is_real,
+                                                  shapes.aligned)]
+    if m is not None:
+        summary["mac_vs_reference"] = m.tolist()
     atomic_write_text(join(folder, "summary.json"),
                       json.dumps(summary, indent=1, allow_nan=False) + "\n")
     atomic_write_text(join(folder, "summary.md"), _markdown(summary, res, names))
@@ -225,7 +323,10 @@ def _markdown(s, res, names):
              f"frequency (and {100 * s['damping_tol']:g} % in damping); "
              f"{s['n_modes_selected']} modes selected.", _own_line(s["options"]), "",
              "## Selected modes", "",
-             modes_markdown(res.modes, names), "## Fit of each order", "",
+             modes_markdown(res.modes, names)]
+    if s.get("selection_note"):
+        lines += [f"Not selected: {s['selection_note']}.", ""]
+    lines += ["## Fit of each order", "",
              "| order | worst max rel. error | converged | iterations | time (s) |",
              "|---:|---:|---|---:|---:|"]
     lines += [f"| {r['order']} | {r['max_rel_error']:.3g} | {'yes' if r['success'] else 'no'} "
@@ -238,6 +339,32 @@ def _markdown(s, res, names):
     lines += [f"| {n} | {t['max_rel_errors'][n]:.3g} | {t['rms_rel_errors'][n]:.3g} | "
               f"{t['delays'][n]:.6g} | {'yes' if t['minimum_phase'][n] else 'no'} |"
               for n in names]
-    lines += ["", "Files: modes.csv/.md, stabilization.csv/.png, bode_<channel>.png, "
-              "model_<channel>.json, summary.json."]
+    lines += _shape_lines(s, names)
+    lines += ["", "Files: modes.csv/.md, shapes.csv, shape_<k>.png, stabilization.csv/.png, "
+              "bode_<channel>.png, model_<channel>.json, summary.json"
+              + (", mac.csv." if "mac_vs_reference" in s else ".")]
     return "\n".join(lines) + "\n"
+
+
+def _shape_lines(s, names):
+    """The summary's mode-shape table (and the MAC against the reference shapes)."""
+    if not s["shapes"]:
+        return []
+    out = ["", "## Mode shapes", "",
+           "Modal constants rotated by each mode's principal phase, largest component +1 "
+           "(real part shown); MPC 1 and MPD 0 deg for a real (normal) mode.", "",
+           "| mode | f (Hz) | MPC | MPD (deg) | " + " | ".join(names) + " |",
+           "|---:|---:|---:|---:|" + "---:|" * len(names)]
+    for i, sh in enumerate(s["shapes"], 1):
+        out.append(f"| {i} | {sh['frequency_hz']:.6g} | {sh['mpc']:.4f} | "
+                   f"{sh['mpd_deg']:.2f} | " + " | ".join(f"{v:.3f}" for v in sh["shape"])
+                   + " |")
+    if "mac_vs_reference" in s:
+        m = s["mac_vs_reference"]
+        out += ["", "MAC against the reference shapes (rows: selected modes, columns: "
+                "reference modes):", "",
+                "| mode | " + " | ".join(f"ref {j + 1}" for j in range(len(m[0]))) + " |",
+                "|---:|" + "---:|" * len(m[0])]
+        out += [f"| {i} | " + " | ".join(f"{v:.3f}" for v in row) + " |"
+                for i, row in enumerate(m, 1)]
+    return out

@@ -14,7 +14,8 @@ poles and zeros into the dc-gauge section variables (:func:`factor_variables`).
 import numpy as np
 import scipy.linalg
 
-__all__ = ["shared_vector_fitting", "channel_zeros", "factor_variables"]
+__all__ = ["shared_vector_fitting", "channel_zeros", "factor_variables", "peak_poles",
+           "lsfd_residues"]
 
 
 def _initial_poles(omega, n):
@@ -25,6 +26,64 @@ def _initial_poles(omega, n):
     poles = list(-b / 100 + 1j * b) + list(np.conj(-b / 100 + 1j * b))
     if n % 2:
         poles.append(-np.sqrt(omega[0] * omega[-1]))
+    return np.array(poles, complex)
+
+
+def peak_poles(omega, phi, n, weights=None):
+    """Starting poles at the resonances the channels agree on.
+
+    The peaks of ``sum_c w_c |Phi_c| / max|Phi_c|`` (each channel normalised, so each has
+    one vote, ``w_c`` its mean weight) are the frequencies where most channels resonate;
+    the ``n // 2`` highest local maxima (at least 1 % of the band's length apart, relative)
+    give pairs ``omega_k (-zeta_k + j)``, ``zeta_k`` from the peak's half-power width
+    (at least the grid's spacing there over ``2 omega_k``); missing pairs fall back to the
+    spread of :func:`_initial_poles`, an odd ``n`` adds its real pole. Lightly damped modes
+    then need one or two vector-fitting iterations instead of many from 1 % damping
+    (which on a dense grid of a 0.01 % damped test does not reach them).
+
+    Parameters
+    ----------
+    omega : ndarray of float, shape (M,)
+    phi : ndarray of complex, shape (C, M)
+    n : int
+        Number of poles.
+    weights : ndarray of float, shape (C, M), optional
+
+    Returns
+    -------
+    ndarray of complex, shape (n,)
+    """
+    mag = np.abs(phi) / np.maximum(np.max(np.abs(phi), axis=1, keepdims=True), 1e-300)
+    w = np.ones(phi.shape[0]) if weights is None else np.mean(weights, axis=1)
+    total = np.sum(w[:, None] * mag, axis=0)
+    m = omega.size
+    if m < 3 or n < 2:
+        return _initial_poles(omega, n)
+    inner = np.arange(1, m - 1)
+    peaks = inner[(total[1:-1] >= total[:-2]) & (total[1:-1] > total[2:])]
+    peaks = peaks[np.argsort(total[peaks])[::-1]]
+    chosen, gap = [], 0.01
+    for i in peaks:
+        if all(abs(omega[i] - omega[j]) > gap * omega[j] for j in chosen):
+            chosen.append(i)
+        if len(chosen) == n // 2:
+            break
+    pairs = []
+    for i in sorted(chosen):
+        half = total[i] / np.sqrt(2)
+        lo, hi = i, i
+        while lo > 0 and total[lo - 1] > half:
+            lo -= 1
+        while hi < m - 1 and total[hi + 1] > half:
+            hi += 1
+        width = max(omega[hi] - omega[lo], omega[min(i + 1, m - 1)] - omega[i - 1] if i else 0)
+        zeta = float(np.clip(width / (2 * omega[i]), 1e-6, 0.5))
+        pairs.append(omega[i] * (-zeta + 1j * np.sqrt(1 - zeta * zeta)))
+    fill = _initial_poles(omega, 2 * (n // 2 - len(pairs)))
+    upper = np.concatenate([np.array(pairs, complex), fill[fill.imag > 0]])
+    poles = list(upper) + list(np.conj(upper))
+    if n % 2:
+        poles.append(-np.sqrt(omega[0] * omega[-1]) + 0j)
     return np.array(poles, complex)
 
 
@@ -64,8 +123,9 @@ def _clean(lam):
     return np.concatenate([lam[real].real + 0j, upper, np.conj(upper)])
 
 
-def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=None):
-    """Common poles and per-channel residues of ``Phi_c(s) ~ sum_k r_k / (s - p_k)``.
+def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=None,
+                          initial=None, constant=False):
+    """Common poles and per-channel residues of ``Phi_c(s) ~ d_c + sum_k r_k / (s - p_k)``.
 
     Parameters
     ----------
@@ -80,6 +140,14 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
         Poles kept as they are (conjugate pairs complete, closed left half plane): in the
         basis of the fitted function but not in the weight function's, so the iterations
         relocate only the ``n_poles`` others (a channel's own poles beside shared ones).
+    initial : ndarray of complex, shape (n_poles,), optional
+        Starting poles (conjugate pairs complete), e.g. :func:`peak_poles`; default pairs
+        with 1 % damping spread over the band.
+    constant : bool
+        Fit a constant ``d_c`` per channel (the "upper residual" of modal analysis: what
+        the modes above the band leave in it, and the high-frequency limit of an
+        accelerance); without it ``d_c = 0`` (strictly proper). A strictly proper fit of an
+        accelerance biases every pole (measured: 0.05 Hz at 307 Hz on a noise-free beam).
 
     Returns
     -------
@@ -87,6 +155,8 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
         The relocated poles (closed left half plane, conjugate pairs complete), then the
         fixed ones.
     residues : ndarray of complex, shape (C, n_poles + F)
+    constants : ndarray of float, shape (C,)
+        Only with ``constant=True``: each channel's ``d_c``.
     """
     s = 1j * omega
     m = omega.size
@@ -94,16 +164,18 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
     if weights is not None:
         wt = wt * np.sqrt(weights)
     fixed = np.zeros(0, complex) if fixed is None else np.asarray(fixed, complex)
-    poles = _initial_poles(omega, n_poles)
-    n, nf = n_poles, fixed.size
+    poles = _initial_poles(omega, n_poles) if initial is None else \
+        np.asarray(initial, complex)
+    n, nf, nc = n_poles, fixed.size, int(bool(constant))
+    nk = n + nf + nc                                     # each channel's own unknowns
     for _ in range(n_iter):
         ones = np.hstack([_basis(s, poles), np.ones((m, 1))])
-        basis = np.hstack([_basis(s, fixed), ones[:, :n]]) if nf else ones[:, :n]
+        basis = _fit_basis(s, fixed, ones[:, :n], nc)
         rows = []
         for c in range(phi.shape[0]):
             block = np.hstack([wt[c, :, None] * basis, -(wt[c] * phi[c])[:, None] * ones])
             r = np.linalg.qr(np.vstack([block.real, block.imag]), mode="r")
-            rows.append(r[n + nf:2 * n + nf + 1, n + nf:])
+            rows.append(r[nk:nk + n + 1, nk:])
         norm = np.sqrt(np.sum((wt * np.abs(phi)) ** 2))
         relax = norm / m * np.real(np.sum(ones, axis=0))
         mat = np.vstack(rows + [relax[None, :]])
@@ -118,8 +190,40 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
         A, b = _realisation(poles)
         poles = _clean(np.linalg.eigvals(A - np.outer(b, ct) / dt))
     poles = np.concatenate([poles, fixed])
-    basis = _basis(s, poles)
-    residues = np.zeros((phi.shape[0], n + nf), complex)
+    residues, consts = lsfd_residues(omega, phi, poles, weights, constant)
+    return (poles, residues, consts) if constant else (poles, residues)
+
+
+def lsfd_residues(omega, phi, poles, weights=None, constant=True):
+    """Each channel's residues at given poles: linear least squares of
+    ``Phi_c(s) ~ d_c + sum_k r_ck / (s - p_k)`` with the relative row weights ``1/|Phi|``
+    (times ``sqrt(weights)``), the "least-squares frequency-domain" (LSFD) step of modal
+    analysis.
+
+    Parameters
+    ----------
+    omega : ndarray of float, shape (M,), rad/s
+    phi : ndarray of complex, shape (C, M)
+    poles : ndarray of complex, shape (n,)
+        Conjugate pairs complete.
+    weights : ndarray of float, shape (C, M), optional
+    constant : bool
+        Fit the constant ``d_c`` (else 0).
+
+    Returns
+    -------
+    residues : ndarray of complex, shape (C, n)
+        Conjugate poles get conjugate residues.
+    constants : ndarray of float, shape (C,)
+    """
+    s = 1j * omega
+    wt = 1.0 / np.abs(phi)
+    if weights is not None:
+        wt = wt * np.sqrt(weights)
+    poles = np.asarray(poles, complex)
+    basis = _fit_basis(s, np.zeros(0, complex), _basis(s, poles), int(bool(constant)))
+    residues = np.zeros((phi.shape[0], poles.size), complex)
+    consts = np.zeros(phi.shape[0])
     order = _column_poles(poles)
     for c in range(phi.shape[0]):
         a = wt[c, :, None] * basis
@@ -127,7 +231,17 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
                                   np.concatenate([(wt[c] * phi[c]).real,
                                                   (wt[c] * phi[c]).imag]))[0]
         residues[c] = _complex_residues(coef, poles, order)
-    return poles, residues
+        consts[c] = coef[-1] if constant else 0.0
+    return residues, consts
+
+
+def _fit_basis(s, fixed, own, nc):
+    """Columns of the fitted function: the fixed poles', the relocated ones' (``own``) and
+    with ``nc`` a constant."""
+    cols = ([_basis(s, fixed)] if fixed.size else []) + [own]
+    if nc:
+        cols.append(np.ones((s.size, 1), complex))
+    return np.hstack(cols)
 
 
 def _column_poles(poles):
@@ -148,14 +262,15 @@ def _complex_residues(coef, poles, listed):
     return np.array([res[complex(a)] for a in poles])
 
 
-def channel_zeros(poles, residues):
-    """Finite zeros of ``sum_k r_k/(s - p_k)``: generalised eigenvalues of the Rosenbrock
-    pencil of its diagonal realisation; complex (<= n-1,)."""
+def channel_zeros(poles, residues, constant=0.0):
+    """Finite zeros of ``d + sum_k r_k/(s - p_k)``: generalised eigenvalues of the
+    Rosenbrock pencil of its diagonal realisation; complex (<= n-1, or n with ``d != 0``)."""
     n = len(poles)
     mat = np.zeros((n + 1, n + 1), complex)
     mat[:n, :n] = np.diag(poles)
     mat[:n, n] = 1.0
     mat[n, :n] = residues
+    mat[n, n] = constant
     e = np.zeros((n + 1, n + 1))
     e[:n, :n] = np.eye(n)
     with np.errstate(all="ignore"):

@@ -62,6 +62,9 @@ class StabilizationResult:
         rad/s.
     summed_magnitude : ndarray of float, shape (M,)
         ``sum_c |Phi_c|`` (the curve the diagram is drawn over).
+    selection_note : str
+        Why each pole of the highest order was not selected (or why none could be), empty
+        when every one was.
     """
 
     orders: tuple
@@ -72,6 +75,7 @@ class StabilizationResult:
     damping_tol: float
     omega: np.ndarray
     summed_magnitude: np.ndarray
+    selection_note: str = ""
 
     def poles_of(self, order):
         """The StabilizationPoles of one order."""
@@ -173,7 +177,10 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
         (relative, default 10 %).
     min_stable : int
         A pole of the highest order is selected as a physical mode when it and its
-        predecessors were "stable-frequency-damping" over the last ``min_stable`` orders.
+        predecessors were "stable-frequency-damping" over the last ``min_stable`` orders
+        (each status compares an order with the one before, so at least
+        ``min_stable + 1`` orders are needed: with fewer none is selected, and
+        :attr:`StabilizationResult.selection_note` says why).
     progress : bool
     **fit_options
         Passed to :func:`~freqid_casadi.modal.shared.fit_shared` (integrator, delay, zeros,
@@ -206,29 +213,60 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
             print(f"  order {order}: {len(cur)} modes, "
                   f"{status.count('stable-frequency-damping')} stable", file=sys.stderr)
         prev = cur
-    selected = _select(fits[-1].modes, history, min_stable)
+    selected, note = _select(fits[-1].modes, history, min_stable, orders, fits)
     d0 = fits[0].datas
     return StabilizationResult(
         orders=orders, poles=tuple(poles), modes=selected, fits=tuple(fits),
         freq_tol=float(freq_tol), damping_tol=float(damping_tol), omega=d0[0].omega,
-        summed_magnitude=np.sum([np.abs(d.response) for d in d0], axis=0))
+        summed_magnitude=np.sum([np.abs(d.response) for d in d0], axis=0),
+        selection_note=note)
 
 
-def _select(last, history, min_stable):
+def _select(last, history, min_stable, orders, fits):
     """Modes of the highest order whose chain of matched predecessors was "stable-frequency-
-    damping" at each of the last ``min_stable`` orders."""
-    k = min(int(min_stable), len(history) - 1)
-    keep = []
+    damping" at each of the last ``min_stable`` orders, and a note saying why the others
+    were not selected.
+
+    A status compares an order with the one before, so ``min_stable`` stable orders need
+    ``min_stable + 1`` orders: with fewer, nothing is selected (the note says so)."""
+    k = int(min_stable)
+    if len(history) < k + 1:
+        return (), (f"no mode can be selected: a mode must be stable in frequency and "
+                    f"damping at {k} successive orders (min_stable={k}), each against the "
+                    f"order before, which needs at least {k + 1} orders; {len(orders)} "
+                    f"given ({', '.join(map(str, orders))}); add orders or lower min_stable")
+    keep, why = [], []
     for i, mode in enumerate(last):
-        idx, ok = i, True
-        for status, match in history[::-1][:k]:
+        idx, reason = i, None
+        for j, (status, match) in enumerate(history[::-1][:k]):
             if status[idx] != "stable-frequency-damping":
-                ok = False
+                reason = _break_reason(status[idx], orders, len(history) - 1 - j, match[idx],
+                                       fits, idx)
                 break
             idx = match[idx]
-        if ok:
+        if reason is None:
             keep.append(mode)
-    return tuple(keep)
+        else:
+            why.append(f"{mode.frequency_hz:.6g} Hz (zeta {mode.zeta:.3g}): {reason}")
+    unconverged = [o for o, f in zip(orders[-k - 1:], fits[-k - 1:]) if not f.success]
+    note = "; ".join(why)
+    if why and unconverged:
+        note += (f"; orders {unconverged} did not converge (their poles may be off: raise "
+                 "max_iter or see each order's message)")
+    return tuple(keep), note
+
+
+def _break_reason(status, orders, pos, j, fits, idx):
+    """Why the chain of a top-order pole broke at ``orders[pos]`` (its pole ``idx`` there,
+    matched to pole ``j`` of the order before, or None)."""
+    order, prev = orders[pos], orders[pos - 1]
+    if status == "new":
+        return (f"at order {order} no pole of order {prev} lies within the frequency "
+                "tolerance")
+    cur = fits[pos].modes[idx].zeta
+    old = fits[pos - 1].modes[j].zeta
+    return (f"at order {order} its damping {cur:.3g} differs from order {prev}'s {old:.3g} "
+            f"by {abs(cur - old) / max(cur, 1e-12):.0%} (more than the damping tolerance)")
 
 
 def stabilization_csv(result):

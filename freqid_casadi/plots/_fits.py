@@ -47,8 +47,9 @@ def bode(result_or_data, models=None, *, labels=None, title=None, figsize=None,
     -----
     Each model is evaluated on 2000 log-spaced points merged with the data frequencies, so
     the unwrapped phase follows the resonances. The data phase is drawn on the branch of
-    the first model's phase, ``arg G_N + unwrap(angle(Phi/G_N))``, so lightly damped modes
-    do not make it jump by 360 degrees; without a model it is unwrapped on its own.
+    the first model's phase point by point, ``arg G_N + angle(Phi/G_N)`` (the second term
+    wrapped to (-180, 180] degrees, not unwrapped: noisy points at antiresonances cannot
+    carry it away by multiples of 360 degrees); without a model it is drawn wrapped.
     """
     if _is_result(result_or_data):
         data = result_or_data.data
@@ -90,10 +91,12 @@ def bode(result_or_data, models=None, *, labels=None, title=None, figsize=None,
         ax_mag.semilogx(grid, 20 * np.log10(np.abs(g)), "-", color=color, lw=1.2, label=lab)
         ax_ph.semilogx(grid, np.rad2deg(phase), "-", color=color, lw=1.2, label=lab)
         if data_phase is None:
-            # the data's branch follows the model: model phase + unwrapped phase of Phi/G_N
-            data_phase = phase[at_data] + np.unwrap(np.angle(phi / g[at_data]))
+            # the data's branch follows the model point by point: model phase + the wrapped
+            # phase of Phi/G_N (never accumulated, so noise at an antiresonance cannot carry
+            # the data's phase off by multiples of 360 degrees)
+            data_phase = phase[at_data] + np.angle(phi / g[at_data])
     if data_phase is None:
-        data_phase = np.unwrap(np.angle(phi))
+        data_phase = np.angle(phi)          # wrapped: unwrapping noisy data can run away
     dl = data_label or (f"data ({data.name})" if data.name else "data")
     mk = dict(marker="o", linestyle="none", markersize=2.5, markerfacecolor="none",
               markeredgewidth=0.6, color="C0", zorder=1)

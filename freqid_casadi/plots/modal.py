@@ -4,7 +4,7 @@ import numpy as np
 
 from ..errors import OptionError
 
-__all__ = ["stabilization_diagram", "MARKERS"]
+__all__ = ["stabilization_diagram", "mode_shape_figure", "MARKERS"]
 
 #: marker, colour and legend label of each pole status
 MARKERS = {
@@ -70,4 +70,52 @@ def stabilization_diagram(result, *, title=None, figsize=(8.0, 5.0), log_frequen
                  f"tolerances {100 * result.freq_tol:g} % frequency, "
                  f"{100 * result.damping_tol:g} % damping)", fontsize=10)
     ax.grid(True, alpha=0.3)
+    return fig
+
+
+def mode_shape_figure(shapes, k, *, figsize=(6.4, 3.2)):
+    """One mode's shape against the channels' coordinates (or channel numbers).
+
+    Parameters
+    ----------
+    shapes : freqid_casadi.core.modes.ModeShapes
+    k : int
+        Mode index (0-based).
+    figsize : (float, float)
+        Inches.
+
+    Returns
+    -------
+    matplotlib.figure.Figure
+        The aligned shape's real part (solid, markers) and imaginary part (dashed; near 0
+        for a real mode) against the first coordinate (sorted) or the channel number; the
+        title gives the frequency, damping, MPC and MPD.
+    """
+    if not hasattr(shapes, "aligned") or not 0 <= int(k) < len(shapes):
+        raise OptionError(f"mode_shape_figure needs ModeShapes and a mode index in "
+                          f"[0, {len(getattr(shapes, 'aligned', ()))}), got {k!r}")
+    import matplotlib.pyplot as plt
+
+    k = int(k)
+    fig, ax = plt.subplots(figsize=figsize, layout="constrained")
+    n = shapes.aligned.shape[1]
+    if shapes.coordinates is not None:
+        x, xlabel = shapes.coordinates[:, 0], "channel coordinate"
+    else:
+        x, xlabel = np.arange(1, n + 1, dtype=float), "channel"
+    order = np.argsort(x, kind="stable")
+    a = shapes.aligned[k]
+    ax.axhline(0.0, color="0.6", linewidth=0.8)
+    ax.plot(x[order], a.real[order], "o-", color="tab:blue", label="real part")
+    ax.plot(x[order], a.imag[order], "x--", color="tab:orange", label="imaginary part")
+    if shapes.coordinates is None:
+        ax.set_xticks(x, list(shapes.names), rotation=45, fontsize=7)
+    ax.set_xlabel(xlabel)
+    ax.set_ylabel("shape (largest component +1)")
+    ax.set_ylim(-1.15, 1.15)
+    ax.legend(loc="best", fontsize=8)
+    ax.grid(True, alpha=0.3)
+    ax.set_title(f"mode {k + 1}: {shapes.frequency_hz[k]:.6g} Hz, zeta "
+                 f"{100 * shapes.zeta[k]:.3g} %, MPC {shapes.mpc[k]:.3f}, MPD "
+                 f"{shapes.mpd_deg[k]:.1f} deg", fontsize=10)
     return fig

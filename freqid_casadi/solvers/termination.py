@@ -75,6 +75,13 @@ class Termination:
     newton: bool = False
 
 
+def _reach(col_norms, distance):
+    """First-order residual change ``||J_j|| * distance`` of a move onto a bound; inf for an
+    infinite bound (also where ``||J_j|| = 0``: no "invalid value" from ``0 * inf``)."""
+    finite = np.isfinite(distance)
+    return np.where(finite, col_norms * np.where(finite, distance, 0.0), np.inf)
+
+
 def moved_onto_bounds(x, grad, col_norms, lb, ub, reach):
     """``x`` with every variable that lies within ``reach / ||J_j||`` of a bound the
     gradient pushes it against put onto that bound, or None when there is none.
@@ -95,8 +102,8 @@ def moved_onto_bounds(x, grad, col_norms, lb, ub, reach):
     -------
     ndarray of float, shape (n,), or None
     """
-    low = (grad > 0) & (x > lb) & (col_norms * (x - lb) <= reach)
-    high = (grad < 0) & (x < ub) & (col_norms * (ub - x) <= reach)
+    low = (grad > 0) & (x > lb) & (_reach(col_norms, x - lb) <= reach)
+    high = (grad < 0) & (x < ub) & (_reach(col_norms, ub - x) <= reach)
     if not (np.any(low) or np.any(high)):
         return None
     return np.where(low, lb, np.where(high, ub, x))
@@ -121,8 +128,8 @@ def free_variables(grad, x, lb, ub, col_norms, norm_r, tol=1e-4):
     ndarray of bool, shape (n,)
     """
     big = tol * norm_r
-    at_lb = (col_norms * (x - lb) <= big) & (grad > 0)
-    at_ub = (col_norms * (ub - x) <= big) & (grad < 0)
+    at_lb = (_reach(col_norms, x - lb) <= big) & (grad > 0)
+    at_ub = (_reach(col_norms, ub - x) <= big) & (grad < 0)
     return ~(at_lb | at_ub) & (lb < ub)
 
 
