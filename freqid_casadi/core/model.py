@@ -24,7 +24,7 @@ from .. import _cplx
 from . import _model_json
 from ._model_json import MAX_MODEL_BYTES, MAX_MODEL_DEPTH
 from .._textio import atomic_write_text
-from ..errors import DataError, StructureError
+from ..errors import DataError, OptionError, StructureError
 from .metrics import DelayedResponse
 
 __all__ = ["Structure", "RationalDelayModel", "section_response", "attach_delay", "BASES",
@@ -184,6 +184,23 @@ def _quad_roots(c2, c1, c0):
         big = -(p + sd)                                 # no cancellation
         return [complex(big), complex(q / big if big != 0 else 0.0)]
     return list(np.roots([c2, c1, c0]).astype(complex))
+
+
+DELAY_EXPORTS = (None, "pade", "attribute")
+
+
+def _export_pade_order(delay, pade_order):
+    """The Padé order :meth:`RationalDelayModel.to_control` uses (None: the attribute)."""
+    if delay not in DELAY_EXPORTS or isinstance(delay, bool):
+        raise OptionError(f"delay must be one of {DELAY_EXPORTS} (how the delay is exported), "
+                          f"got {delay!r}; e.g. to_control(delay='pade', pade_order=3)")
+    if delay == "pade" and pade_order is None:
+        raise OptionError("delay='pade' needs pade_order: to_control(delay='pade', "
+                          "pade_order=3) (higher orders follow the delay's phase further)")
+    if delay == "attribute" and pade_order is not None:
+        raise OptionError(f"delay='attribute' keeps the delay out of the dynamics; drop "
+                          f"pade_order={pade_order!r} or use delay='pade'")
+    return pade_order
 
 
 def _structure_dict(s):
@@ -367,7 +384,7 @@ class RationalDelayModel(DelayedResponse):
         return p[p.real == 0]
 
     # ------------------------------------------------------------------ export
-    def to_control(self, pade_order=None):
+    def to_control(self, pade_order=None, *, delay=None):
         """The rational part as a python-control ``StateSpace`` (series of sections).
 
         Parameters
@@ -375,14 +392,28 @@ class RationalDelayModel(DelayedResponse):
         pade_order : int, optional
             If given, the delay is included as a Padé approximation of that order;
             otherwise it is left out of the system and stored as the attribute ``delay`` (s).
+        delay : {None, "pade", "attribute"}
+            How the delay is exported, stated explicitly: "pade" puts the Padé
+            approximation of order ``pade_order`` (required) in series, so the system is
+            rational and ``control.mixsyn`` / ``hinfsyn`` see the delay's phase (its
+            ``delay`` attribute is then 0); "attribute" leaves the delay out of the
+            dynamics and stores it as ``sys.delay`` (``pade_order`` must be None). None
+            (default): "pade" if ``pade_order`` is given, else "attribute".
 
         Returns
         -------
         control.StateSpace
             With attribute ``delay`` (s); sections are realised one by one and connected in
             series, which is better conditioned than expanding one polynomial.
+
+        Raises
+        ------
+        OptionError
+            An unknown ``delay``, "pade" without ``pade_order``, or "attribute" with one.
         """
         import control as ct
+
+        pade_order = _export_pade_order(delay, pade_order)
 
         sys = ct.ss([], [], [], [[self.gain]])
         if self.integrator:

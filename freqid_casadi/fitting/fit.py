@@ -217,7 +217,9 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
     Parameters
     ----------
     data_or_omega : FrequencyData or array_like of float, shape (M,)
-        The data, or the frequencies in rad/s (then ``response`` is required).
+        The data, or the frequencies in rad/s (then ``response`` is required); a
+        python-control ``FrequencyResponseData`` (SISO) or a scikit-rf one-port
+        ``Network`` is converted (:func:`~freqid_casadi.core.data.as_frequency_data`).
     response : array_like of complex, shape (M,), optional
         G(j omega) when ``data_or_omega`` is the frequency array.
     n_sections : int
