@@ -208,3 +208,19 @@ def test_cover_bad_inputs():
         fc.cover(NOMINAL, [MEMBERS[0], np.ones(3)])
     with pytest.raises(DataError, match="empty"):
         fc.cover(NOMINAL, [])
+
+
+def test_to_control_is_balanced_with_a_far_zero():
+    # a section whose zeros are at 1e4 and 1e11 rad/s (the relative degree a fit stands in
+    # for): unbalanced, A had entries 1e7 apart and the response was off by 4e-4
+    beta = np.array([0.0, 6.4e-14, 1.0, 2504.0, 5.3e7, 1.0, 0.01, 38.0,
+                     1.0, 0.02, 4.0, 1.0, 0.02, 15.0])
+    model = RationalDelayModel(Structure(2, False, False), beta)
+    sys = model.to_control()
+    w = np.array([1.0, 4.0, 40.0])
+    g = np.asarray(ct.frequency_response(sys, w).complex).ravel()
+    # measured 4.3e-10 near the mode at 38 rad/s (zeta 0.01)
+    np.testing.assert_allclose(g, model.frequency_response(w), rtol=1e-8)
+    assert np.linalg.norm(sys.A) < 1e4
+    np.testing.assert_allclose(np.sort_complex(ct.poles(sys)),
+                               np.sort_complex(model.poles()), rtol=1e-10)
