@@ -11,6 +11,10 @@ Quick start::
     res = fc.fit(data, n_sections=17, integrator=True)
     res.max_rel_error, res.model.delay, res.model.to_control()
 
+Robust control: ``fc.cover(model, [data, ...])`` gives one stable, minimum-phase weight
+``W(s)`` bounding the relative error of every member of a plant family (MATLAB's
+``ucover``); ``model.to_control(delay="pade", pade_order=k)`` a rational nominal.
+
 Importing this package does not import matplotlib (plots are in ``freqid_casadi.plots``).
 """
 
@@ -25,6 +29,7 @@ from .core.modes import ModeShapes, mac
 from .modal.survey import stabilization
 from .modal.shared import SharedFitResult, fit_shared
 from .options import BarrierLMOptions, FitOptions, IpoptOptions, LoopOptions
+from .uncertainty.cover import CoverResult, cover
 
 __all__ = [
     "fit", "FitResult", "StageRecord", "IpoptOptions", "BarrierLMOptions", "LoopOptions",
@@ -34,5 +39,6 @@ __all__ = [
     "DataWarning", "systems",
     "FreqidError", "DataError", "StructureError", "OptionError", "SolverError",
     "fit_shared", "SharedFitResult", "stabilization", "mac", "ModeShapes",
+    "cover", "CoverResult",
 ]
 __version__ = "0.1.0"

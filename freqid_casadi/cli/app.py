@@ -40,6 +40,7 @@ from .common import error_line as _error, os_exit as _os_exit
 from ..errors import FreqidError, OptionError, ResolutionWarning
 from ..systems.examples import EXAMPLES, FRACTIONAL_SECTIONS
 from ..fitting.fit import GAIN_SIGNS, METHODS, OBJECTIVES, STARTS, fit
+from ..fitting.fixed import FIXED_KEYS
 from ..report.formatting import number, text_table
 from ..core.model import BASES, ZEROS
 from ..report.folder import check_out_dir, dense_error, write_fit_report
@@ -104,6 +105,17 @@ def _positive_float(text):
     return _checked(text, _ascii(_ASCII_FLOAT, float), lambda v: math.isfinite(v) and v > 0,
                     "must be a number > 0",
                     lambda v: f"must be a finite number > 0, got {text!r}")
+
+
+def _fix_pair(text):
+    """``KEY=VALUE`` of ``--fix`` as ``(key, float)``; KEY one of FIXED_KEYS."""
+    what = f"must be KEY=VALUE with KEY one of {', '.join(FIXED_KEYS)}, e.g. delay=0.0123"
+    key, sep, value = text.partition("=")
+    key = key.strip()
+    if not sep or key not in FIXED_KEYS:
+        raise argparse.ArgumentTypeError(f"{what}, got {text!r}")
+    return key, _checked(value, _ascii(_ASCII_FLOAT, float), math.isfinite,
+                         f"{what} (VALUE a number)", lambda v: f"{what}, got {text!r}")
 
 
 # ----------------------------------------------------------------------------- parser
@@ -213,6 +225,9 @@ def _add_fit(sub):
                    help="floor on the damping ratio of every pole and zero; 'auto' ties it "
                         "to the frequency spacing (for noisy data: no pole/zero pair "
                         "narrower than the spacing)")
+    p.add_argument("--fix", type=_fix_pair, action="append", metavar="KEY=VALUE",
+                   help="hold a known parameter exactly (repeatable): delay=H (s) or "
+                        "dc_gain=K (K0 with --integrator, else G(0))")
     # a user's data: both starts (the sequential loop alone can end in a valley the
     # rational start avoids, e.g. a zero pair drifting to infinity against the delay)
     _common(p, out_required=True, start="best")
@@ -342,7 +357,7 @@ def _cmd_fit(args, command):
                      delay=args.delay, basis=args.basis, method=args.method, tol=args.tol,
                      progress=_progress(args), start=args.start, objective=args.objective,
                      min_damping=args.min_damping, gain_sign=args.gain_sign,
-                     zeros=args.zeros)
+                     zeros=args.zeros, **({"fixed": dict(args.fix)} if args.fix else {}))
     _resolution_warning(result)
     path = write_fit_report(result, args.out, command=command, force=args.force)
     print(result.summary())

@@ -5,13 +5,20 @@ are read-only, so a window or a result can share them safely.
 """
 
 import math
+import re
+import sys
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import DataError, OptionError
 
-__all__ = ["FrequencyData", "dense_grid", "frequency_grid", "FREQUENCY_UNITS", "TIME_UNITS"]
+__all__ = ["FrequencyData", "dense_grid", "frequency_grid", "FREQUENCY_UNITS", "TIME_UNITS",
+           "as_frequency_data", "external_frequency_data", "DATA_TYPES"]
+
+#: What :func:`as_frequency_data` accepts (for messages).
+DATA_TYPES = ("FrequencyData", "control.FrequencyResponseData (SISO)",
+              "skrf.Network (one-port)")
 
 #: Units of :attr:`FrequencyData.omega`.
 FREQUENCY_UNITS = ("rad/s", "rad/sample")
@@ -149,6 +156,21 @@ class FrequencyData:
         """Unit of a delay on this frequency axis: "s" (rad/s) or "samples"."""
         return TIME_UNITS[self.unit]
 
+    def to_frd(self):
+        """The data as a python-control ``FrequencyResponseData`` (SISO).
+
+        Returns
+        -------
+        control.FrequencyResponseData
+            ``omega`` in the data's unit (rad/s, or rad/sample for normalised data: a
+            python-control FRD has no sampling time) and the complex ``response``; its
+            ``name`` is the data's name when it has one. The weights are not carried.
+        """
+        import control as ct
+
+        kw = {"name": self.name} if self.name else {}
+        return ct.frd(np.array(self.response), np.array(self.omega), **kw)
+
     @classmethod
     def sorted(cls, omega, response, name=None, weights=None):
         """Build from unsorted data: sort by omega and drop exact duplicate frequencies.
@@ -171,6 +193,92 @@ class FrequencyData:
                             f"len(omega)={omega.size}")
         w = None if w is None else w[idx]
         return cls(omega[idx], response[idx], name, w)
+
+
+# --------------------------------------------------------------------------- conversion
+def external_frequency_data(obj, name="data"):
+    """``obj`` as FrequencyData if it is a python-control FRD or a scikit-rf Network, else
+    None (a FrequencyData is returned as it is).
+
+    Neither library is imported here: an object can only be one of theirs if its module
+    is already loaded (``sys.modules``).
+
+    Parameters
+    ----------
+    obj : object
+    name : str
+        The argument's name, for messages.
+
+    Returns
+    -------
+    FrequencyData or None
+
+    Raises
+    ------
+    DataError
+        A MIMO FRD, a Network with more than one port, or values FrequencyData refuses
+        (a frequency <= 0, a NaN, ...), naming ``name``.
+    """
+    if isinstance(obj, FrequencyData):
+        return obj
+    ct = sys.modules.get("control")
+    frd_type = getattr(ct, "FrequencyResponseData", None) if ct is not None else None
+    if frd_type is not None and isinstance(obj, frd_type):
+        resp = np.asarray(obj.frdata if hasattr(obj, "frdata") else obj.fresp)
+        if resp.ndim != 3 or resp.shape[:2] != (1, 1):
+            raise DataError(f"{name} is a FrequencyResponseData with {obj.noutputs} outputs "
+                            f"and {obj.ninputs} inputs; pass one SISO channel, e.g. "
+                            f"{name}[0, 0]")
+        label = getattr(obj, "name", None)
+        return _converted(np.asarray(obj.omega, float), resp[0, 0], label, name,
+                          "FrequencyResponseData")
+    skrf = sys.modules.get("skrf")
+    net_type = getattr(skrf, "Network", None) if skrf is not None else None
+    if net_type is not None and isinstance(obj, net_type):
+        s = np.asarray(obj.s)
+        if s.ndim != 3 or s.shape[1:] != (1, 1):
+            raise DataError(f"{name} is a {s.shape[1]}-port skrf.Network; pass a one-port "
+                            f"(e.g. {name}.s11)")
+        return _converted(2.0 * np.pi * np.asarray(obj.f, float), s[:, 0, 0],
+                          getattr(obj, "name", None), name, "skrf.Network")
+    return None
+
+
+def as_frequency_data(obj, name="data"):
+    """``obj`` as FrequencyData: a FrequencyData itself, a SISO python-control
+    ``FrequencyResponseData`` (omega in rad/s, its ``name``) or a one-port scikit-rf
+    ``Network`` (omega = 2 pi f, the response S11, its ``name``).
+
+    Parameters
+    ----------
+    obj : FrequencyData, control.FrequencyResponseData or skrf.Network
+    name : str
+        The argument's name, for messages.
+
+    Returns
+    -------
+    FrequencyData
+
+    Raises
+    ------
+    DataError
+        Any other type, a MIMO system or a multi-port network, or bad values.
+    """
+    data = external_frequency_data(obj, name)
+    if data is None:
+        raise DataError(f"{name} must be one of {', '.join(DATA_TYPES)}, got "
+                        f"{type(obj).__name__}; build FrequencyData(omega, response) from "
+                        "arrays or read a file with freqid_casadi.load")
+    return data
+
+
+def _converted(omega, response, label, name, kind):
+    if not isinstance(label, str) or not label or re.fullmatch(r"sys\[\d+\]", label):
+        label = None                                  # python-control's automatic names
+    try:
+        return FrequencyData(omega, response, label)
+    except DataError as exc:
+        raise DataError(f"{name} ({kind}): {exc}") from None
 
 
 def _as_float_vector(x, name):

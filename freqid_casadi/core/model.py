@@ -27,7 +27,8 @@ from .._validate import check_choice, check_flag
 from ..errors import DataError, OptionError, StructureError
 from .metrics import DelayedResponse
 
-__all__ = ["Structure", "RationalDelayModel", "section_response", "attach_delay", "BASES",
+__all__ = ["Structure", "RationalDelayModel", "section_response", "attach_delay",
+           "balanced_ss", "BASES",
            "ZEROS", "FORMAT_VERSION", "MAX_MODEL_BYTES", "MAX_MODEL_DEPTH"]
 
 BASES = ("second-order", "first-order")
@@ -190,6 +191,23 @@ def _quad_roots(c2, c1, c0):
     return list(np.roots([c2, c1, c0]).astype(complex))
 
 
+DELAY_EXPORTS = (None, "pade", "attribute")
+
+
+def _export_pade_order(delay, pade_order):
+    """The Padé order :meth:`RationalDelayModel.to_control` uses (None: the attribute)."""
+    if delay not in DELAY_EXPORTS or isinstance(delay, bool):
+        raise OptionError(f"delay must be one of {DELAY_EXPORTS} (how the delay is exported), "
+                          f"got {delay!r}; e.g. to_control(delay='pade', pade_order=3)")
+    if delay == "pade" and pade_order is None:
+        raise OptionError("delay='pade' needs pade_order: to_control(delay='pade', "
+                          "pade_order=3) (higher orders follow the delay's phase further)")
+    if delay == "attribute" and pade_order is not None:
+        raise OptionError(f"delay='attribute' keeps the delay out of the dynamics; drop "
+                          f"pade_order={pade_order!r} or use delay='pade'")
+    return pade_order
+
+
 def _structure_dict(s):
     d = {"n_sections": s.n_sections, "integrator": s.integrator, "delay": s.delay,
          "basis": s.basis}
@@ -198,6 +216,39 @@ def _structure_dict(s):
     if s.gain_sign != 1:
         d["gain_sign"] = s.gain_sign
     return d
+
+
+def balanced_ss(sys):
+    """``sys`` (python-control StateSpace) after a diagonal similarity by powers of two
+    that balances the row and column norms of A (LAPACK's gebal, no permutation).
+
+    Series connections of sections whose coefficients span many decades (a zero far
+    above the band) give A, B, C entries 1e7 apart; evaluating or synthesising with that
+    realization loses digits (python-control's frequency response of such a model was
+    off by 4e-4, and slycot's H-infinity synthesis refused it). The transform is exact in
+    floating point (powers of two), so poles, zeros and the response are unchanged.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+
+    Returns
+    -------
+    control.StateSpace
+        The same system; its attribute ``delay`` is kept.
+    """
+    import control as ct
+    from scipy.linalg import matrix_balance
+
+    a = np.asarray(sys.A, float)
+    if a.size == 0:
+        return sys
+    _, (scale, _) = matrix_balance(a, permute=False, separate=True)
+    out = ct.ss(a * scale[None, :] / scale[:, None], np.asarray(sys.B) / scale[:, None],
+                np.asarray(sys.C) * scale[None, :], sys.D)
+    if hasattr(sys, "delay"):
+        out.delay = sys.delay
+    return out
 
 
 def attach_delay(sys, delay, pade_order=None):
@@ -371,7 +422,7 @@ class RationalDelayModel(DelayedResponse):
         return p[p.real == 0]
 
     # ------------------------------------------------------------------ export
-    def to_control(self, pade_order=None):
+    def to_control(self, pade_order=None, *, delay=None):
         """The rational part as a python-control ``StateSpace`` (series of sections).
 
         Parameters
@@ -379,14 +430,29 @@ class RationalDelayModel(DelayedResponse):
         pade_order : int, optional
             If given, the delay is included as a Padé approximation of that order;
             otherwise it is left out of the system and stored as the attribute ``delay`` (s).
+        delay : {None, "pade", "attribute"}
+            How the delay is exported, stated explicitly: "pade" puts the Padé
+            approximation of order ``pade_order`` (required) in series, so the system is
+            rational and ``control.mixsyn`` / ``hinfsyn`` see the delay's phase (its
+            ``delay`` attribute is then 0); "attribute" leaves the delay out of the
+            dynamics and stores it as ``sys.delay`` (``pade_order`` must be None). None
+            (default): "pade" if ``pade_order`` is given, else "attribute".
 
         Returns
         -------
         control.StateSpace
             With attribute ``delay`` (s); sections are realised one by one and connected in
-            series, which is better conditioned than expanding one polynomial.
+            series, which is better conditioned than expanding one polynomial, and the
+            result is balanced by an exact diagonal similarity (:func:`balanced_ss`).
+
+        Raises
+        ------
+        OptionError
+            An unknown ``delay``, "pade" without ``pade_order``, or "attribute" with one.
         """
         import control as ct
+
+        pade_order = _export_pade_order(delay, pade_order)
 
         sys = ct.ss([], [], [], [[self.gain]])
         if self.integrator:
@@ -403,7 +469,8 @@ class RationalDelayModel(DelayedResponse):
                 raise StructureError("section is improper (numerator degree > denominator's); "
                                      "cannot export to a state-space model")
             sys = ct.series(sys, ct.ss(ct.tf(num, den)))
-        return attach_delay(sys, self.delay, pade_order)
+        # balanced: a far zero otherwise puts entries 1e7 apart into A (balanced_ss)
+        return balanced_ss(attach_delay(sys, self.delay, pade_order))
 
     # ------------------------------------------------------------------ JSON
     def to_dict(self):

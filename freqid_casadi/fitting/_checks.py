@@ -8,7 +8,7 @@ import numbers
 
 import numpy as np
 
-from ..core.data import FrequencyData
+from ..core.data import FrequencyData, external_frequency_data
 from .diagnostics import (check_delay, check_minimum_phase, check_roots_below_band,
                           check_trivial, rhp_zeros_note)
 from ..errors import DataError, FreqidError, OptionError, StructureError
@@ -75,6 +75,8 @@ def _check_span(omega):
 
 
 def validate(data, response, n_sections, basis, tol, integrator, weights=None):
+    if response is None and data is not None:      # python-control FRD, skrf Network
+        data = external_frequency_data(data) or data
     if isinstance(data, FrequencyData):
         if response is not None:
             raise DataError("pass either a FrequencyData or (omega, response), not both")

@@ -24,6 +24,7 @@ from ..core.data import FrequencyData
 from .delay_hold import hold_undetermined_delay
 from .delay_search import delay_search_run
 from .far_roots import far_root_run
+from .fixed import check_fixed, fit_with_fixed
 from .diagnostics import check_gain_sign
 from ..errors import FreqidError, OptionError, ResolutionWarning
 from .mainloop import LoopContext, minimax, rational, sequential
@@ -104,6 +105,9 @@ class FitResult:
     message : str
         Why ``success`` is what it is: the final stage's termination (with the relative
         stationarity numbers) or the reason the fit is not a success.
+    fixed : dict of str to float
+        The parameters held at known values (fit's ``fixed``: "delay" in s, "dc_gain");
+        empty when none. The covariance (:attr:`uncertainty`) treats them as known.
     """
 
     model: RationalDelayModel
@@ -125,6 +129,7 @@ class FitResult:
     zeta_min: float = None
     diagnostics: tuple = ()
     message: str = ""
+    fixed: dict = field(default_factory=dict)
 
     @property
     def delay(self):
@@ -211,13 +216,15 @@ def _reject_old_keywords(function):
 def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=True,
         basis="second-order", method="ipopt", tol=None, weights=None, start="sequential",
         objective="least-squares", min_damping=None, progress=False, loop=None,
-        gain_sign="auto", zeros="minimum-phase"):
+        gain_sign="auto", zeros="minimum-phase", fixed=None):
     """Fit ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` to frequency-response data.
 
     Parameters
     ----------
     data_or_omega : FrequencyData or array_like of float, shape (M,)
-        The data, or the frequencies in rad/s (then ``response`` is required).
+        The data, or the frequencies in rad/s (then ``response`` is required); a
+        python-control ``FrequencyResponseData`` (SISO) or a scikit-rf one-port
+        ``Network`` is converted (:func:`~freqid_casadi.core.data.as_frequency_data`).
     response : array_like of complex, shape (M,), optional
         G(j omega) when ``data_or_omega`` is the frequency array.
     n_sections : int
@@ -280,6 +287,15 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         "free": the numerators are unbounded (zeros anywhere, e.g. non-collocated sensors
         or accelerances whose excess phase no delay explains), the poles stay stable by
         their bounds; needs the IPOPT method, the dc gauge and no damping floor.
+    fixed : dict, optional
+        Known parameters held exactly (:mod:`freqid_casadi.fitting.fixed`):
+        ``{"delay": h}`` (s, >= 0) is removed from the variables (the fit runs on
+        ``Phi exp(j w h)`` without a delay; the model's delay is ``h`` exactly);
+        ``{"dc_gain": k}``, the low-frequency gain (``K0`` of ``K0/s`` with an integrator,
+        ``G(0)`` without; signed, a negative ``k`` means ``gain_sign="negative"``), is held
+        by an equality in a final stage on all data (gain variable fixed in the dc gauge,
+        every other parameter refitted). Both may be given. ``FitResult.fixed`` records
+        them; the covariance reports them as fixed. Other keys: OptionError.
 
     Returns
     -------
@@ -295,10 +311,18 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
     """
     integrator, delay = check_flag("integrator", integrator), check_flag("delay", delay)
     progress = check_progress(progress, "each StageRecord")
+    fixed, gain_sign = check_fixed(fixed, delay=delay, gain_sign=gain_sign)
     kw = dict(integrator=integrator, basis=basis, method=method, tol=tol, start=start,
               objective=objective, min_damping=min_damping, loop=loop, gain_sign=gain_sign,
               zeros=zeros)
     with single_threaded_blas(), channel(progress, _stage_line) as emit:
+        if fixed:
+            data = validate(data_or_omega, response, n_sections, basis, tol, integrator,
+                            weights)
+            return fit_with_fixed(
+                lambda d, dl: _fit_held(d, None, n_sections=n_sections, delay=dl,
+                                        progress=emit, weights=None, **kw),
+                data, fixed, delay=delay, loop=loop, method=method)
         return _fit_held(data_or_omega, response, n_sections=n_sections, delay=delay,
                          progress=emit, weights=weights, **kw)
 

@@ -39,7 +39,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .. import _interrupt
-from ..core.data import FrequencyData
+from ..core.data import FrequencyData, external_frequency_data
 from ..core.gauges import dc_to_thesis
 from ..errors import DataError, OptionError
 from .._validate import check_flag
@@ -269,9 +269,10 @@ class SharedFitResult:
 
 
 def _check_datas(datas, weights):
-    if isinstance(datas, FrequencyData):
+    if external_frequency_data(datas, "datas") is not None:        # one channel
         datas = [datas]
     datas = list(datas) if datas is not None else []
+    datas = [external_frequency_data(d, f"datas[{c}]") or d for c, d in enumerate(datas)]
     if not datas or not all(isinstance(d, FrequencyData) for d in datas):
         raise DataError("datas must be a non-empty sequence of FrequencyData (one per "
                         "channel); read files with freqid_casadi.load")
@@ -382,7 +383,9 @@ def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
     Parameters
     ----------
     datas : sequence of FrequencyData, length C
-        One FRF per channel, all on the same omega grid (rad/s), else DataError.
+        One FRF per channel, all on the same omega grid (rad/s), else DataError; a
+        python-control ``FrequencyResponseData`` or a scikit-rf one-port ``Network`` is
+        converted (:func:`~freqid_casadi.core.data.as_frequency_data`).
     n_sections : int
         Shared denominator sections N (2N poles); every channel also gets N numerator
         sections.

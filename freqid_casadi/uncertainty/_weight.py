@@ -13,6 +13,7 @@ from typing import NamedTuple
 import numpy as np
 
 from .. import _cplx
+from ..core.model import balanced_ss
 from ..errors import DataError
 from ..solvers.common import Status
 
@@ -232,7 +233,7 @@ class WeightResult:
         sys = ct.ss([], [], [], [[self.gain]])
         for sec in self.sections:
             sys = ct.series(sys, ct.ss(ct.tf(list(sec.num), list(sec.den))))
-        return sys
+        return balanced_ss(sys)
 
 
 def _response(gain, sections, omega):

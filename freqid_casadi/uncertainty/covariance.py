@@ -21,6 +21,7 @@ scaled to unit norm before the inversion (an SVD, whose condition number is repo
 :mod:`freqid_casadi.uncertainty.bands` the delta-method band of the response and of the relative error.
 """
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -31,7 +32,7 @@ from ..core.data import FrequencyData
 from ..errors import DataError, OptionError, StructureError
 from ..core.model import RationalDelayModel
 
-__all__ = ["ModeEstimate", "ParameterUncertainty", "parameter_uncertainty",
+__all__ = ["ModeEstimate", "ParameterUncertainty", "parameter_uncertainty", "held_parameters",
            "with_std", "NOISE_SOURCES"]
 
 #: Values of ``ParameterUncertainty.noise_source``.
@@ -135,6 +136,9 @@ class ParameterUncertainty:
         Jacobian, along which the response does not move); NaN rows at a bound.
         :func:`~freqid_casadi.uncertainty.bands.response_band` sums squares ``|g F|^2`` (never
         negative, no cancellation), see :attr:`response_covariance`.
+    fixed : tuple of str
+        Parameters the fit held at known values (``fit(..., fixed=...)``: ``delay``,
+        ``log_gain``): not estimated, so ``at_bound`` True and a NaN standard deviation.
     """
 
     model: RationalDelayModel
@@ -155,6 +159,7 @@ class ParameterUncertainty:
     method: str = "delta"
     samples: np.ndarray = None
     response_factor: np.ndarray = None
+    fixed: tuple = ()
 
     @property
     def response_covariance(self):
@@ -200,6 +205,7 @@ class ParameterUncertainty:
                 "values": clean(self.values), "at_bound": [bool(b) for b in self.at_bound],
                 "covariance": [clean(self.covariance[i]) for i in range(p)],
                 "delay_std": clean([self.delay_std])[0], "gain": self.gain,
+                "fixed": list(self.fixed),
                 "gain_std": clean([self.gain_std])[0]}
 
     def intervals(self, level=0.95, dist="normal"):
@@ -209,9 +215,27 @@ class ParameterUncertainty:
 
 # --------------------------------------------------------------------------- inputs
 
+def held_parameters(result):
+    """Names of the physical parameters a fit held at known values.
+
+    Parameters
+    ----------
+    result : FitResult or RationalDelayModel
+        Its ``fixed`` ("delay" -> ``delay``, "dc_gain" -> ``log_gain``); none for a model.
+
+    Returns
+    -------
+    tuple of str
+    """
+    fixed = getattr(result, "fixed", None) or {}
+    return tuple(name for key, name in (("delay", "delay"), ("dc_gain", "log_gain"))
+                 if key in fixed)
+
+
 def covariance_inputs(model, data, weights, noise_variance, bound_tol):
     """Model, FrequencyData, weights (M,), absolute noise variance or None, source, par."""
     zeta_floor, delay_max, source, variance = 0.0, None, "residuals", None
+    held = held_parameters(model)
     if hasattr(model, "model") and hasattr(model, "rel_error"):          # a FitResult
         opts = model.options_dict() if hasattr(model, "options_dict") else {}
         zeta_floor = float(opts.get("min_damping") or 0.0)
@@ -239,6 +263,11 @@ def covariance_inputs(model, data, weights, noise_variance, bound_tol):
                             "scalar or shape (M,))")
     par = _physical.parametrize(model, float(data.omega[-1]), zeta_floor=zeta_floor,
                                 delay_max=delay_max, bound_tol=bound_tol)
+    if held:                      # known parameters: out of the inversion, like a bound
+        at = np.array(par.at_bound)
+        at[[par.names.index(n) for n in held]] = True
+        at.setflags(write=False)
+        par = dataclasses.replace(par, at_bound=at)
     return model, data, np.asarray(w, dtype=float), variance, source, par
 
 
@@ -374,14 +403,17 @@ def parameter_uncertainty(model, data=None, *, weights=None, noise_variance=None
     known to 30 % of itself or a mode narrower than the frequency spacing are beyond it;
     compare with :func:`bootstrap`).
     """
+    fit_result = model
     model, data, w, variance, source, par = covariance_inputs(model, data, weights, noise_variance,
                                                     bound_tol)
     r, jac = residual_jacobian(par, par.theta, data)
     free = ~par.at_bound
     g_abs2 = np.abs(data.response / (1 + r)) ** 2
     cov, factor, sigma2, dof, cond = _covariance(r, jac, w, variance, g_abs2, free)
-    return covariance_record(model, par, cov, free, sigma2, dof, cond, source, "delta",
-                   factor_free=factor)
+    held = held_parameters(fit_result)
+    rec = covariance_record(model, par, cov, free, sigma2, dof, cond, source, "delta",
+                            factor_free=factor)
+    return dataclasses.replace(rec, fixed=held) if held else rec
 
 
 

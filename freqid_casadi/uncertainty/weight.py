@@ -90,7 +90,7 @@ from ..errors import DataError, OptionError
 from ..solvers.common import SUCCESS_STATUSES, TERMINATION_MESSAGES, Status
 from ..solvers.ipopt import run_nlpsol
 
-__all__ = ["fit_uncertainty_weight", "WeightResult", "WeightSection", "Overbound",
+__all__ = ["fit_uncertainty_weight", "weights_by_order", "iter_weights", "WeightResult", "WeightSection", "Overbound",
            "MAX_DAMPING", "CORNER_DECADES", "E_FLOOR"]
 
 # ---------------------------------------------------------------------------- validation
@@ -457,35 +457,100 @@ def fit_uncertainty_weight(result_or_omega, rel_error=None, *, order=2, margin=0
     in turn (each from a fresh start and from the best weight of the order below), so
     ``objective`` does not increase with ``order`` (up to rounding).
     """
-    omega, e = _validate(result_or_omega, rel_error, order, margin, max_iter, min_damping)
-    order = int(order)
+    return weights_by_order(result_or_omega, rel_error, max_order=order, margin=margin,
+                            min_damping=min_damping, max_iter=max_iter, verbose=verbose)[-1]
+
+
+def weights_by_order(result_or_omega, rel_error=None, *, max_order=2, margin=0.0,
+                     min_damping=0.2, max_iter=500, verbose=False):
+    """The weights of every order ``0..max_order`` that :func:`fit_uncertainty_weight`
+    passes through (it solves the orders in turn, each from a fresh start and from the
+    order below): ``weights_by_order(..., max_order=n)[n]`` is
+    ``fit_uncertainty_weight(..., order=n)``.
+
+    Parameters
+    ----------
+    result_or_omega, rel_error, margin, min_damping, max_iter, verbose
+        As :func:`fit_uncertainty_weight`.
+    max_order : int
+        Highest McMillan degree (>= 0).
+
+    Returns
+    -------
+    tuple of WeightResult, length max_order + 1
+        Entry ``n`` has order ``n``; ``nit`` counts the iterations up to that order.
+
+    Raises
+    ------
+    DataError, OptionError
+        As :func:`fit_uncertainty_weight` (``max_order`` in place of ``order``).
+    """
+    return tuple(iter_weights(result_or_omega, rel_error, max_order=max_order, margin=margin,
+                              min_damping=min_damping, max_iter=max_iter, verbose=verbose))
+
+
+def iter_weights(result_or_omega, rel_error=None, *, max_order=2, margin=0.0,
+                 min_damping=0.2, max_iter=500, verbose=False):
+    """:func:`weights_by_order` one order at a time (a generator: a caller that has what
+    it needs stops the ladder early, e.g. :func:`~freqid_casadi.uncertainty.cover.cover`).
+
+    The arguments are checked before the first weight is yielded.
+
+    Parameters
+    ----------
+    result_or_omega, rel_error, margin, min_damping, max_iter, verbose
+        As :func:`fit_uncertainty_weight`.
+    max_order : int
+        Highest McMillan degree (>= 0).
+
+    Yields
+    ------
+    WeightResult
+        Orders 0, 1, ..., ``max_order``.
+    """
+    omega, e = _validate(result_or_omega, rel_error, max_order, margin, max_iter, min_damping)
+    return _ladder(omega, e, int(max_order), float(margin), min_damping, max_iter, verbose)
+
+
+def _ladder(omega, e, max_order, margin, min_damping, max_iter, verbose):
     scale = frequency_scale(omega)              # solve at omega / scale, rescale after
-    prob = _Problem(omega / scale, e, float(margin), min_damping)
+    prob = _Problem(omega / scale, e, margin, min_damping)
 
     # order 0 is closed form: W = max (1 + margin) e (verified like any other weight)
     best = _candidate(prob, 0.0, (), Status.CONVERGED, "closed form (constant weight)")
     nit = 0
-    for n in range(1, order + 1):
-        kinds = _kinds(n)
-        best_n = None
-        for label, start in (("fresh", _shaped_start(prob, kinds)),
-                             ("ladder", _ladder_start(prob, best.sections, n))):
-            xs, st, ipopt_msg, it = _solve(prob, kinds, prob.pack(start), max_iter, verbose)
-            nit += it
-            msg = f"{TERMINATION_MESSAGES[st]} (IPOPT: {ipopt_msg}; {label} start)"
-            cand = _candidate(prob, float(xs[0]), prob.unpack(xs[1:], kinds), st, msg)
-            if label == "ladder":
-                # the ladder start is never worse than the order below; keep it if IPOPT
-                # ended above it (as fit.py keeps a stage's start)
-                kappa0 = prob.feasible_kappa(prob.pack(start), kinds)
-                kept = _candidate(prob, kappa0, start, st, msg + ", kept the start")
-                if kept.objective < cand.objective:
-                    cand = kept
-            if best_n is None or cand.objective < best_n.objective:
-                best_n = cand
-        best = best_n
+    yield _weight_result(prob, omega, e, scale, best, 0, margin, nit)
+    for n in range(1, max_order + 1):
+        best, it = _best_of_order(prob, best, n, max_iter, verbose)
+        nit += it
+        yield _weight_result(prob, omega, e, scale, best, n, margin, nit)
 
-    mag = best.magnitude
+
+def _best_of_order(prob, best, n, max_iter, verbose):
+    """The best weight of order ``n`` from a fresh start and from ``best`` (order n - 1);
+    returns ``(candidate, iterations)``."""
+    kinds = _kinds(n)
+    best_n, nit = None, 0
+    for label, start in (("fresh", _shaped_start(prob, kinds)),
+                         ("ladder", _ladder_start(prob, best.sections, n))):
+        xs, st, ipopt_msg, it = _solve(prob, kinds, prob.pack(start), max_iter, verbose)
+        nit += it
+        msg = f"{TERMINATION_MESSAGES[st]} (IPOPT: {ipopt_msg}; {label} start)"
+        cand = _candidate(prob, float(xs[0]), prob.unpack(xs[1:], kinds), st, msg)
+        if label == "ladder":
+            # the ladder start is never worse than the order below; keep it if IPOPT
+            # ended above it (as fit.py keeps a stage's start)
+            kappa0 = prob.feasible_kappa(prob.pack(start), kinds)
+            kept = _candidate(prob, kappa0, start, st, msg + ", kept the start")
+            if kept.objective < cand.objective:
+                cand = kept
+        if best_n is None or cand.objective < best_n.objective:
+            best_n = cand
+    return best_n, nit
+
+
+def _weight_result(prob, omega, e, scale, best, order, margin, nit):
+    mag = best.magnitude.copy()
     mag.setflags(write=False)
     om = omega.copy()
     om.setflags(write=False)
