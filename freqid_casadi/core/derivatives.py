@@ -152,6 +152,7 @@ class StageFunctions:
                               "affine in the variables); use 'casadi-map'")
         self.derivatives = derivatives
         self._key = None
+        self._work = {}              # scratch arrays of the Hessian and column norms, by shape
         nsec, ns = param.structure.n_sections, param.section_size
         h_ref, k_ref, wr = param._refs()
         self._q0 = self._sw * resp * (1j * omega if param.structure.integrator else 1.0)
@@ -294,7 +295,20 @@ class StageFunctions:
         """
         self._eval(z)
         a = self._sq.real ** 2 + self._sq.imag ** 2
-        return np.sqrt((self._L.real ** 2 + self._L.imag ** 2) @ a)
+        lr, li = self._scratch(self._L.shape, float, 2)
+        np.square(self._L.real, out=lr)
+        lr += np.square(self._L.imag, out=li)
+        return np.sqrt(lr @ a)
+
+    def _scratch(self, shape, dtype, count):
+        """``count`` scratch arrays of ``shape`` and ``dtype``, allocated once per stage:
+        the per-iteration products of the Hessian and the column norms write into them
+        instead of allocating O(n M) temporaries at every call (same operations, same
+        numbers)."""
+        key = (shape, np.dtype(dtype).char, count)
+        if key not in self._work:
+            self._work[key] = [np.empty(shape, dtype) for _ in range(count)]
+        return self._work[key]
 
     def residual_jacobian(self, z):
         """``(r (2M,), J (2M, n))`` with ``J = dr/dz`` stacked ``[Re; Im]``."""
@@ -329,11 +343,11 @@ class StageFunctions:
         c = np.conj(self._r) * self._sq
         if point_weights is not None:
             a, c = a * point_weights, c * point_weights
-        if not exact:
-            y = lg * a
-        else:
-            y = lg * a
-            y += np.conj(lg * c)
+        y, t = self._scratch(lg.shape, complex, 2)
+        np.multiply(lg, a, out=y)
+        if exact:
+            np.multiply(lg, c, out=t)
+            y += np.conjugate(t, out=t)
         h = lg.view(float) @ y.view(float).T
         h = (h + h.T) / 2.0
         if exact:
