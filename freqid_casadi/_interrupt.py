@@ -200,4 +200,16 @@ def _make_callback(ca, n_x, n_g, n_p, check=None, name=None):
                 return [0]
             return [1 if check(np.array(arg[0].full(), float).reshape(-1)) else 0]
 
+        def has_eval_buffer(self):
+            return True
+
+        def eval_buffer(self, arg, res):
+            # copy-free: CasADi's own buffers, not six DM arguments built per iteration
+            # (the iterate x is copied: the check may keep it)
+            stop = requested() or (check is not None and bool(check(
+                np.frombuffer(arg[0], dtype=np.float64).copy())))
+            if res[0] is not None:
+                np.frombuffer(res[0], dtype=np.float64)[0] = 1.0 if stop else 0.0
+            return 0
+
     return _Stop()
