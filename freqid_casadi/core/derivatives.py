@@ -172,21 +172,26 @@ class StageFunctions:
 
             zero = [np.zeros((nsec, 1))] * ns
             n0, d0 = pair(zero)
-            steps = [pair([np.ones((nsec, 1)) if j == i else zero[j] for j in range(ns)])
-                     for i in range(ns)]
-            # an affine factor is f(v) = f(0) + sum_i v_i (f(e_i) - f(0)) exactly
-            dnum = [s_[0] - n0 for s_ in steps]
-            dden = [s_[1] - d0 for s_ in steps]
-            self._idx_num = [i for i in range(ns) if np.any(dnum[i] != 0)]
-            self._idx_den = [i for i in range(ns) if np.any(dden[i] != 0)]
+            # an affine factor is f(v) = f(0) + sum_i v_i (f(e_i) - f(0)) exactly; one
+            # step at a time, keeping only the nonzero difference (O(ns nsec M) memory)
+            dnum, dden = {}, {}
+            for i in range(ns):
+                num_i, den_i = pair([np.ones((nsec, 1)) if j == i else zero[j]
+                                     for j in range(ns)])
+                for d, f_i, f_0 in ((dnum, num_i, n0), (dden, den_i, d0)):
+                    diff = f_i - f_0
+                    if np.any(diff != 0):
+                        d[i] = diff
+                del num_i, den_i
+            self._idx_num, self._idx_den = sorted(dnum), sorted(dden)
             if nsec and sorted(self._idx_num + self._idx_den) != list(range(ns)):
                 raise StructureError("internal: each dc-gauge variable must enter exactly "
                                      "one of a section's numerator and denominator")
             self._n0, self._d0 = n0, d0
             if nsec:
                 # (nsec, k, M), the numerator's negated: dlog q = dlog den - dlog num
-                self._neg_dnum_t = -np.stack([dnum[i] for i in self._idx_num], axis=1)
-                self._dden_t = np.stack([dden[i] for i in self._idx_den], axis=1)
+                self._neg_dnum_t = -np.stack([dnum.pop(i) for i in self._idx_num], axis=1)
+                self._dden_t = np.stack([dden.pop(i) for i in self._idx_den], axis=1)
             self._sl_num, self._sl_den = _as_slice(self._idx_num), _as_slice(self._idx_den)
             self._lg = np.empty((n, m), complex)
         else:
