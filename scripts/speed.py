@@ -334,9 +334,18 @@ def _batch_data(n):
 
 
 def part_batch(repeat):
+    paths = _batch_data(N_BATCH)
+    try:
+        return _batch_runs(paths)
+    finally:
+        import shutil
+
+        shutil.rmtree(os.path.dirname(paths[0]), ignore_errors=True)
+
+
+def _batch_runs(paths):
     from freqid_casadi.fitting.batch import fit_many
 
-    paths = _batch_data(N_BATCH)
     opts = dict(n_sections=4, integrator=True)
     out = {"n": len(paths), "local": {}, "dask": {}}
     for jobs in (1, 2):
