@@ -171,12 +171,26 @@ def stop_callback(n_x, n_g, check, name="iteration_monitor"):
 
 
 def _make_callback(ca, n_x, n_g, n_p, check=None, name=None):
-    sizes = (n_x, 1, n_g, n_x, n_g, n_p)    # nlpsol outputs: x, f, g, lam_x, lam_g, lam_p
+    # one class for all callbacks (a class made per call is cyclic garbage that kept the
+    # check's closure, a stage's whole problem, alive until the next collection)
+    return _stop_class(ca)((n_x, 1, n_g, n_x, n_g, n_p), check,
+                           name or f"freqid_interrupt_{n_x}_{n_g}_{n_p}")
+
+
+_STOP_CLASS = []
+
+
+def _stop_class(ca):
+    """The ``casadi.Callback`` subclass of :func:`stop_callback` (built on first use)."""
+    if _STOP_CLASS:
+        return _STOP_CLASS[0]
 
     class _Stop(ca.Callback):
-        def __init__(self):
+        def __init__(self, sizes, check, name):
             ca.Callback.__init__(self)
-            construct(self, name or f"freqid_interrupt_{n_x}_{n_g}_{n_p}")
+            # nlpsol outputs: x, f, g, lam_x, lam_g, lam_p
+            self.sizes, self.check = sizes, check
+            construct(self, name)
 
         def get_n_in(self):
             return ca.nlpsol_n_out()
@@ -191,13 +205,26 @@ def _make_callback(ca, n_x, n_g, n_p, check=None, name=None):
             return "stop"
 
         def get_sparsity_in(self, i):
-            return ca.Sparsity.dense(sizes[i], 1)
+            return ca.Sparsity.dense(self.sizes[i], 1)
 
         def eval(self, arg):
             if requested():                     # a signal: guard() raises after the stop
                 return [1]
-            if check is None:
+            if self.check is None:
                 return [0]
-            return [1 if check(np.array(arg[0].full(), float).reshape(-1)) else 0]
+            return [1 if self.check(np.array(arg[0].full(), float).reshape(-1)) else 0]
 
-    return _Stop()
+        def has_eval_buffer(self):
+            return True
+
+        def eval_buffer(self, arg, res):
+            # copy-free: CasADi's own buffers, not six DM arguments built per iteration
+            # (the iterate x is copied: the check may keep it)
+            stop = requested() or (self.check is not None and bool(self.check(
+                np.frombuffer(arg[0], dtype=np.float64).copy())))
+            if res[0] is not None:
+                np.frombuffer(res[0], dtype=np.float64)[0] = 1.0 if stop else 0.0
+            return 0
+
+    _STOP_CLASS.append(_Stop)
+    return _Stop

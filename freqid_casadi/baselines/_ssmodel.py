@@ -163,13 +163,30 @@ class StateSpaceModel(DelayedResponse):
     def zeros(self):
         """Finite transmission zeros, complex ndarray (1/s).
 
-        Computed by SLICOT AB08ND through python-control (``StateSpace.zeros``): the
-        Rosenbrock pencil ``[[A - sI, B], [C, D]]`` is reduced so that the infinite zeros
-        are removed exactly, then the finite ones are the generalised eigenvalues.
+        Computed by SLICOT AB08ND (slycot), as python-control's ``StateSpace.zeros``
+        does, called directly: importing python-control (it imports matplotlib) cost
+        about 3 s of every process's first fit. The Rosenbrock pencil
+        ``[[A - sI, B], [C, D]]`` is reduced so that the infinite zeros are removed
+        exactly, then the finite ones are the generalised eigenvalues. Without slycot,
+        python-control's own fallback is used.
         """
         if self.order == 0:
             return np.zeros(0, dtype=complex)
-        return np.asarray(self._control_ss().zeros(), dtype=complex)
+        try:
+            from slycot import ab08nd
+        except ImportError:
+            return np.asarray(self._control_ss().zeros(), dtype=complex)
+        n = self.order
+        A = np.array(self.A, dtype=float).reshape(n, n)
+        B = np.array(self.B, dtype=float).reshape(n, -1)
+        C = np.array(self.C, dtype=float).reshape(-1, n)
+        D = np.array([[self.D]], dtype=float)
+        out = ab08nd(n, B.shape[1], C.shape[0], A, B, C, D)
+        nu = out[0]
+        if nu == 0:
+            return np.zeros(0, dtype=complex)
+        return np.asarray(scipy.linalg.eigvals(out[8][0:nu, 0:nu], out[9][0:nu, 0:nu]),
+                          dtype=complex)
 
     def is_stable(self):
         """True if every pole has a negative real part."""

@@ -137,6 +137,16 @@ def _cost_class(ca):
         def eval(self, arg):
             return [float(self.cost(np.array(arg[0], float).reshape(-1)))]
 
+        def has_eval_buffer(self):
+            return True
+
+        def eval_buffer(self, arg, res):
+            # copy-free: read x from and write the cost into CasADi's own buffers
+            if res[0] is not None:
+                x = np.frombuffer(arg[0], dtype=np.float64).copy()
+                np.frombuffer(res[0], dtype=np.float64)[0] = self.cost(x)
+            return 0
+
         def has_jacobian(self):
             return True
 

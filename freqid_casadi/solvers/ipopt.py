@@ -83,8 +83,9 @@ def solve_stage(problem, x0, *, lam_x0=None, hessian="exact", max_iter=3000, tol
     Parameters
     ----------
     problem : StageProblem
-        Residual, derivatives, bounds and optional constraints. IPOPT gets the cost (from
-        ``problem.casadi_residual`` when given, else a callback of ``problem.cost``), and
+        Residual, derivatives, bounds and optional constraints. IPOPT gets the cost (a
+        callback of ``problem.nlp_cost`` when given, else the MX expression of
+        ``problem.casadi_residual``, else a callback of ``problem.cost``), and
         the gradient and Hessian from the problem's numpy callables as ``grad_f`` /
         ``hess_lag`` Functions (:class:`casadi.Callback`): the dense products are done
         by BLAS, the one operation the CasADi VM is slow at.
@@ -140,7 +141,10 @@ def solve_stage(problem, x0, *, lam_x0=None, hessian="exact", max_iter=3000, tol
     n = problem.n
     z = ca.MX.sym("z", n)
     keep = [_GradF(n, problem.eval_gradient)]     # the callbacks must outlive the solver
-    if problem.casadi_residual is not None:
+    if problem.nlp_cost is not None:
+        keep.append(_Cost(n, problem.nlp_cost, keep[0]))
+        f = keep[-1](z)
+    elif problem.casadi_residual is not None:
         f = ca.sumsqr(problem.casadi_residual(z))
     else:
         keep.append(_Cost(n, problem.eval_cost, keep[0]))

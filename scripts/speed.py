@@ -1,0 +1,528 @@
+"""Speed benchmark of issue 30: the package against scikit-rf's vector fitting and against
+the numerical floor of its own iterations, in one run.
+
+Usage::
+
+    python scripts/speed.py [--out results] [--repeat 3] [--parts fits,iteration,...]
+                            [--timeout 240]
+
+Parts (all by default):
+
+``fits``
+    The measured sets of the repository (the actuator's H1 estimate, 166 points, 1-3
+    sections with a delay; the DaISy robot arm, 101 points, 1, 3 and 5 sections): the
+    default fit (``start="sequential"``), ``start="rational"`` and ``start="best"`` (as the
+    CLI runs it) beside scikit-rf's ``VectorFitting`` of the same order (2 poles per
+    section) on the same data, with each model's max relative error.
+``iteration``
+    One 5-section stage at 500 and 50 000 points: the seconds of one whole IPOPT iteration
+    of the package (two capped solves, the difference of their times over the difference
+    of their iteration counts) against the floor: the stage's own numerical work timed in
+    numpy beside it (the residual, the Jacobian, its Gauss-Newton product ``J^T J``, the
+    exact Hessian and a dense solve of that size; one of each per iteration).
+``fixed``
+    Fixed costs per fit (profiled, cumulative seconds of the named functions): problem
+    construction (stage functions, ``nlpsol``), the rational start, candidate bookkeeping,
+    diagnostics, covariance.
+``large``
+    200 000 points at 2 sections (example A's system): one ``fit`` in a fresh subprocess,
+    its time and peak memory (``ru_maxrss`` and ``tracemalloc``).
+``sweep``
+    ``sweep(G_A(), 2:40:2, integrator=True)``.
+``survey``
+    A stabilization survey (:func:`~freqid_casadi.modal.survey.stabilization`) of 16
+    channels x 1000 points (the beam of ``scripts/modal_benchmark.py``) over orders
+    2:40:2, in a subprocess with a time limit.
+``batch``
+    128 FRFs (4 sections, 400 points, as ``scripts/batch_benchmark.py``) by
+    ``fit_many`` with 1 and 2 local processes and, if Dask is installed, on a local Dask
+    cluster of 1 and of 2 single-threaded workers.
+
+The machine (2 cores) is shared with other engineers: absolute times are noisy. Every
+single-process time is the median of ``--repeat`` runs, the CPU seconds of this process
+(``time.process_time``) are given beside the wall time, and the report's conclusions are
+ratios measured in the same run. The load average is recorded before and after each part.
+Writes ``<out>/speed.md`` (first line: this command) and ``<out>/speed.json``.
+"""
+
+import argparse
+import cProfile
+import json
+import os
+import platform
+import pstats
+import resource
+import subprocess
+import sys
+import tempfile
+import time
+import warnings
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+
+import freqid_casadi as fc  # noqa: E402
+from freqid_casadi._textio import atomic_write_text  # noqa: E402
+
+PARTS = ("fits", "iteration", "fixed", "large", "sweep", "survey", "batch")
+FIT_SETS = {"actuator": (1, 2, 3), "robot arm": (1, 3, 5)}
+STARTS = ("sequential", "rational", "best")
+ITER_SECTIONS, ITER_POINTS = 5, (500, 50_000)
+LARGE_POINTS, LARGE_SECTIONS = 200_000, 2
+N_BATCH = 128
+
+
+def _median(values):
+    return float(np.median(np.asarray(values, float)))
+
+
+def _timed(fn, repeat):
+    """(result of the last call, median wall s, median CPU s) of ``repeat`` calls."""
+    walls, cpus = [], []
+    for _ in range(repeat):
+        t0, c0 = time.perf_counter(), time.process_time()
+        out = fn()
+        walls.append(time.perf_counter() - t0)
+        cpus.append(time.process_time() - c0)
+    return out, _median(walls), _median(cpus)
+
+
+# ----------------------------------------------------------------------------- fits
+
+
+def measured_sets():
+    """{name: FrequencyData} of the repository's measured sets (as the measured study)."""
+    from freqid_casadi.core.data import FrequencyData
+    from freqid_casadi.studies.measured import actuator_frf
+
+    est = fc.experiment.robot_arm()
+    act = actuator_frf().data
+    return {"actuator": FrequencyData(act.omega, act.response, "actuator", unit=act.unit),
+            "robot arm": est.data}
+
+
+def part_fits(repeat):
+    from freqid_casadi.baselines import skrf_vector_fitting
+    from freqid_casadi.core.metrics import relative_error
+
+    rows = []
+    for name, data in measured_sets().items():
+        for n in FIT_SETS[name]:
+            model, wall, cpu = _timed(lambda: skrf_vector_fitting(data, 2 * n), repeat)
+            err = relative_error(model, data)
+            vf = {"wall": wall, "cpu": cpu, "max_rel_error": float(err.max)}
+            for start in STARTS:
+                res, wall, cpu = _timed(lambda: fc.fit(data, n_sections=n, delay=True,
+                                                       start=start), repeat)
+                rows.append({"data": name, "n_points": int(data.n_points), "n_sections": n,
+                             "order": 2 * n, "start": start, "wall": wall, "cpu": cpu,
+                             "nit": int(res.nit), "max_rel_error": float(res.max_rel_error),
+                             "success": bool(res.success), "vf": vf,
+                             "ratio_wall": wall / vf["wall"], "ratio_cpu": cpu / vf["cpu"]})
+                print(f"  fits: {name} {n} {start}: {wall:.3f} s, VF {vf['wall'] * 1e3:.1f} ms",
+                      file=sys.stderr)
+    return rows
+
+
+# ----------------------------------------------------------------------------- iteration
+
+
+def _stage(n_points, n_sections):
+    from freqid_casadi.core.objective import Parametrization
+
+    data = fc.systems.G_A(np.logspace(-2, 3, n_points))
+    gain0 = abs(data.response[0]) * data.omega[0]
+    wr = tuple(np.logspace(0, 3, n_sections))
+    param = Parametrization(fc.Structure(n_sections, True, True), "dc", wr, gain0, 0.1)
+    z0 = np.concatenate([[0.08, 1.0]] + [param.new_section(w, 0.01, 1.1 * w, 0.02, w)
+                                         for w in wr])
+    return data, param, z0
+
+
+def _floor(funcs, param, data, z, repeat):
+    """CPU seconds of the stage's own numerical work at ``z`` (median of ``repeat``)."""
+    omega, pair = data.omega, (data.response.real, data.response.imag)
+
+    def resid():
+        return param.residual_pair(z, omega, pair)
+
+    def jac():
+        funcs._key = None                       # a new point: the pieces are recomputed
+        return funcs.residual_jacobian(z)
+
+    _, J = funcs.residual_jacobian(z)
+    H = funcs.hessian(z)
+    g = funcs.gradient(z)[1]
+    items = {"residual": resid, "jacobian": jac, "jtj": lambda: J.T @ J,
+             "hessian": lambda: funcs.hessian(z),
+             "solve": lambda: np.linalg.solve(H + np.eye(g.size), g)}
+    out = {}
+    for key, fn in items.items():
+        fn()
+        n = max(1, int(0.05 / max(_timed(fn, 1)[2], 1e-6)))
+        out[key] = _median([_timed(fn, n)[2] for _ in range(repeat)])
+    out["floor"] = out["residual"] + out["jacobian"] + out["hessian"] + out["solve"]
+    return out
+
+
+def part_iteration(repeat):
+    from freqid_casadi._threads import single_threaded_blas
+    from freqid_casadi.core.objective import stage_functions
+    from freqid_casadi.solvers.ipopt import solve_least_squares
+    from freqid_casadi.solvers.termination import Termination
+
+    rows = []
+    for m in ITER_POINTS:
+        data, param, z0 = _stage(m, ITER_SECTIONS)
+        lb, ub = param.bounds()
+        with single_threaded_blas():
+            funcs = stage_functions(param, data.omega, data.response)
+            lo, hi = (5, 25) if m > 10_000 else (10, 40)
+            # the termination test off: both solves run to their limits
+            term = Termination(ftol=0.0, noise_factor=0.0, polish_steps=0)
+
+            def solve(k):
+                return solve_least_squares(funcs, z0, lb, ub, max_iter=k, termination=term)
+
+            solve(3)
+            r_lo, w_lo, c_lo = _timed(lambda: solve(lo), repeat)
+            r_hi, w_hi, c_hi = _timed(lambda: solve(hi), repeat)
+            d_it = max(r_hi.nit - r_lo.nit, 1)
+            floor = _floor(funcs, param, data, r_hi.x, repeat)
+        it = {"wall": (w_hi - w_lo) / d_it, "cpu": (c_hi - c_lo) / d_it,
+              "build": float(r_hi.extra.get("t_build", np.nan)),
+              "callbacks": {k: float(r_hi.extra.get(f"t_{k}", 0.0)) / max(r_hi.nit, 1)
+                            for k in ("f", "grad_f", "hess_l")}}
+        rows.append({"n_points": m, "n_sections": ITER_SECTIONS, "n_vars": int(param.n_vars),
+                     "iteration": it, "floor": floor, "ratio_cpu": it["cpu"] / floor["floor"],
+                     "nit": [int(r_lo.nit), int(r_hi.nit)]})
+        print(f"  iteration: {m} points: {it['cpu'] * 1e3:.2f} ms CPU against a floor of "
+              f"{floor['floor'] * 1e3:.2f} ms", file=sys.stderr)
+    return rows
+
+
+# ----------------------------------------------------------------------------- fixed costs
+
+#: (label, function names of the profile whose cumulative time is the cost).
+FIXED = (
+    ("stage functions (objective, derivatives)", ("stage_functions",)),
+    ("nlpsol construction", ("nlpsol",)),
+    ("rational start (vector fitting)", ("rational_start",)),
+    ("candidates (choose, zero delay, delay search)", ("choose", "zero_delay_run",
+                                                      "delay_search")),
+    ("diagnostics and resolution check", ("after_fit", "_resolution_check")),
+    ("covariance", ("parameter_uncertainty",)),
+    ("IPOPT solve (nlpsol call)", ("Function_call",)),
+)
+
+
+def _profile_fit(data, **kw):
+    prof = cProfile.Profile()
+    t0 = time.perf_counter()
+    prof.enable()
+    res = fc.fit(data, **kw)
+    _ = res.uncertainty                  # the covariance, as a report asks for it
+    prof.disable()
+    total = time.perf_counter() - t0
+    stats = pstats.Stats(prof).stats
+    out = {}
+    for label, names in FIXED:
+        cum = [v[3] for (_f, _l, fn), v in stats.items()
+               if fn in names or any(fn.endswith(f".{n}>") for n in names)]
+        out[label] = float(max(cum)) if cum else 0.0
+    return {"total": total, "costs": out}
+
+
+def part_fixed(repeat):
+    from freqid_casadi.systems.examples import EXAMPLES
+
+    sets = measured_sets()
+    a = EXAMPLES["A"]
+    cases = [("actuator, 2 sections, default", sets["actuator"], dict(n_sections=2)),
+             ("actuator, 2 sections, rational", sets["actuator"],
+              dict(n_sections=2, start="rational")),
+             ("A, 17 sections, rational", a.data(), dict(a.structure(), start="rational"))]
+    rows = []
+    for label, data, kw in cases:
+        fc.fit(data, **kw)                                            # warm-up
+        runs = [_profile_fit(data, **kw) for _ in range(max(1, repeat - 1))]
+        rows.append({"fit": label, "total": _median([r["total"] for r in runs]),
+                     "costs": {k: _median([r["costs"][k] for r in runs])
+                               for k in runs[0]["costs"]}})
+    return rows
+
+
+# ----------------------------------------------------------------------------- subprocesses
+
+_LARGE = r"""
+import json, resource, sys, time, tracemalloc, warnings
+import numpy as np
+import freqid_casadi as fc
+warnings.simplefilter("ignore")
+m, n = int(sys.argv[1]), int(sys.argv[2])
+data = fc.systems.G_A(np.logspace(-2, 3, m))
+base = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+tracemalloc.start()
+t0, c0 = time.perf_counter(), time.process_time()
+res = fc.fit(data, n_sections=n, integrator=True)
+wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+peak = tracemalloc.get_traced_memory()[1] / 2**20
+tracemalloc.stop()
+print(json.dumps({"wall": wall, "cpu": cpu, "maxrss_mib": resource.getrusage(
+    resource.RUSAGE_SELF).ru_maxrss / 1024, "base_rss_mib": base, "tracemalloc_mib": peak,
+    "max_rel_error": float(res.max_rel_error), "nit": int(res.nit)}))
+"""
+
+_SURVEY = r"""
+import json, sys, time, warnings
+sys.path.insert(0, sys.argv[1])
+warnings.simplefilter("ignore")
+from modal_benchmark import beam_channels, zeros_of
+from freqid_casadi.modal.survey import stabilization
+datas = beam_channels(16)
+t0, c0 = time.perf_counter(), time.process_time()
+res = stabilization(datas, range(2, 41, 2), delay=False, zeros=zeros_of(16))
+print(json.dumps({"wall": time.perf_counter() - t0, "cpu": time.process_time() - c0,
+                  "n_modes": len(res.modes)}))
+"""
+
+
+def _run_code(code, args, timeout):
+    t0 = time.perf_counter()
+    try:
+        out = subprocess.run([sys.executable, "-c", code, *map(str, args)], text=True,
+                             capture_output=True, timeout=timeout,
+                             env=dict(os.environ, PYTHONPATH=ROOT))
+    except subprocess.TimeoutExpired:
+        return {"error": f"not finished within {timeout} s"}
+    if out.returncode:
+        return {"error": (out.stderr.strip().splitlines() or ["?"])[-1]}
+    row = json.loads(out.stdout.strip().splitlines()[-1])
+    row["subprocess_wall"] = time.perf_counter() - t0
+    return row
+
+
+def part_large(repeat, timeout):
+    return {"n_points": LARGE_POINTS, "n_sections": LARGE_SECTIONS,
+            **_run_code(_LARGE, [LARGE_POINTS, LARGE_SECTIONS], timeout)}
+
+
+def part_sweep(repeat):
+    from freqid_casadi.fitting.sweep import parse_orders, sweep
+
+    data = fc.systems.G_A()
+    orders = parse_orders("2:40:2")
+    res, wall, cpu = _timed(lambda: sweep(data, orders, integrator=True), max(1, repeat - 1))
+    return {"orders": "2:40:2", "wall": wall, "cpu": cpu,
+            "max_rel_errors": [float(r.max_rel_error) for r in res.rows]}
+
+
+def part_survey(repeat, timeout):
+    return {"channels": 16, "n_points": 1000, "orders": "2:40:2",
+            **_run_code(_SURVEY, [os.path.join(ROOT, "scripts")], timeout)}
+
+
+def _batch_data(n):
+    sys.path.insert(0, os.path.join(ROOT, "scripts"))
+    from batch_benchmark import make_datasets
+
+    folder = tempfile.mkdtemp(prefix="speed-batch-")
+    make_datasets(folder, n)
+    return sorted(os.path.join(folder, f) for f in os.listdir(folder) if f.endswith(".csv"))
+
+
+def part_batch(repeat):
+    paths = _batch_data(N_BATCH)
+    try:
+        return _batch_runs(paths)
+    finally:
+        import shutil
+
+        shutil.rmtree(os.path.dirname(paths[0]), ignore_errors=True)
+
+
+def _batch_runs(paths):
+    from freqid_casadi.fitting.batch import fit_many
+
+    opts = dict(n_sections=4, integrator=True)
+    out = {"n": len(paths), "local": {}, "dask": {}}
+    for jobs in (1, 2):
+        t0 = time.perf_counter()
+        items = fit_many(paths, jobs=jobs, **opts)
+        out["local"][jobs] = time.perf_counter() - t0
+        out.setdefault("ok", {})[f"local{jobs}"] = sum(1 for it in items if it.ok)
+    out["local"]["speedup"] = out["local"][1] / out["local"][2]
+    try:
+        from distributed import Client, LocalCluster
+    except ImportError:
+        out["dask"] = {"error": "dask not installed"}
+        return out
+    for workers in (1, 2):
+        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
+                          dashboard_address=None) as cluster, Client(cluster) as client:
+            client.run(lambda: None)
+            t0 = time.perf_counter()
+            items = fit_many(paths, scheduler=client, **opts)
+            out["dask"][workers] = time.perf_counter() - t0
+            out["ok"][f"dask{workers}"] = sum(1 for it in items if it.ok)
+    out["dask"]["speedup"] = out["dask"][1] / out["dask"][2]
+    return out
+
+
+# ----------------------------------------------------------------------------- report
+
+
+def _fits_md(rows):
+    lines = ["## Fits on the measured sets beside scikit-rf's vector fitting", "",
+             "Median of the repeats; `ratio` is the package's time over vector fitting's "
+             "(CPU seconds of this process; wall in parentheses).", "",
+             "| data | points | order | start | time (s) | CPU (s) | iterations | max rel. "
+             "error | VF time (ms) | VF max rel. error | ratio CPU (wall) |",
+             "|---|---:|---:|---|---:|---:|---:|---:|---:|---:|---:|"]
+    for r in rows:
+        lines.append(f"| {r['data']} | {r['n_points']} | {r['order']} | {r['start']} | "
+                     f"{r['wall']:.3f} | {r['cpu']:.3f} | {r['nit']} | "
+                     f"{r['max_rel_error']:.4g} | {r['vf']['wall'] * 1e3:.1f} | "
+                     f"{r['vf']['max_rel_error']:.4g} | {r['ratio_cpu']:.0f} "
+                     f"({r['ratio_wall']:.0f}) |")
+    for start in STARTS:
+        rr = [r["ratio_cpu"] for r in rows if r["start"] == start]
+        if rr:
+            lines.append(f"\nMedian ratio, start={start!r}: **{_median(rr):.0f}** "
+                         f"(targets: default <= 10, rational <= 3).")
+    return lines
+
+
+def _iteration_md(rows):
+    lines = ["## One IPOPT iteration against its floor", "",
+             "A 5-section stage of example A's system (22 variables). Whole iteration: CPU "
+             "seconds per IPOPT iteration of the package (difference of two capped solves). "
+             "Floor: one residual, one Jacobian (its pieces recomputed), one exact Hessian "
+             "and one dense solve of that size, timed in numpy in the same run (`J^T J` alone "
+             "for comparison).", "",
+             "| points | iteration (ms CPU) | wall (ms) | residual | Jacobian | J^T J | exact "
+             "Hessian | solve | floor (ms) | ratio | per-iteration callbacks f / grad / "
+             "Hessian (ms wall) | NLP build (s) |",
+             "|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---|---:|"]
+    for r in rows:
+        f, it = r["floor"], r["iteration"]
+        cb = " / ".join(f"{it['callbacks'][k] * 1e3:.2f}" for k in ("f", "grad_f", "hess_l"))
+        lines.append(f"| {r['n_points']} | {it['cpu'] * 1e3:.2f} | {it['wall'] * 1e3:.2f} | "
+                     + " | ".join(f"{f[k] * 1e3:.3f}" for k in ("residual", "jacobian", "jtj",
+                                                                 "hessian", "solve"))
+                     + f" | {f['floor'] * 1e3:.2f} | **{r['ratio_cpu']:.2f}** | {cb} | "
+                     f"{it['build']:.3f} |")
+    lines.append("\nTarget: ratio <= 2 at 500 and at 50 000 points.")
+    return lines
+
+
+def _fixed_md(rows):
+    labels = [label for label, _ in FIXED]
+    lines = ["## Fixed costs per fit", "",
+             "Cumulative seconds under cProfile (the profiler inflates Python-heavy parts; "
+             "read the shares), median of the repeats.", "",
+             "| fit | total (s) | " + " | ".join(labels) + " |",
+             "|---|---:|" + "---:|" * len(labels)]
+    for r in rows:
+        lines.append(f"| {r['fit']} | {r['total']:.3f} | "
+                     + " | ".join(f"{r['costs'][k]:.3f}" for k in labels) + " |")
+    return lines
+
+
+def _one_md(title, row, keys):
+    if "error" in row:
+        return [f"## {title}", "", f"{row['error']}."]
+    return [f"## {title}", "", ", ".join(f"{k}: {row[k]:.4g}" if isinstance(row[k], float)
+                                         else f"{k}: {row[k]}" for k in keys if k in row)
+            + "."]
+
+
+def _batch_md(b):
+    lines = ["## Batch of 128 FRFs, 2 jobs against 1", ""]
+    loc = b["local"]
+    lines.append(f"Local processes: 1 job {loc[1]:.1f} s, 2 jobs {loc[2]:.1f} s, speed-up "
+                 f"**{loc['speedup']:.2f}** (target >= 1.8).")
+    d = b.get("dask", {})
+    if "error" in d:
+        lines.append(f"Dask: {d['error']}.")
+    elif d:
+        lines.append(f"Local Dask cluster: 1 worker {d[1]:.1f} s, 2 workers {d[2]:.1f} s, "
+                     f"speed-up **{d['speedup']:.2f}**.")
+    lines.append(f"Fits that succeeded: {b.get('ok')}.")
+    return lines
+
+
+def markdown(command, out):
+    lines = [f"<!-- generated by: {command} -->", "", "# Speed (issue 30)", "",
+             f"Machine: {os.cpu_count()} CPUs shared with other engineers (load average "
+             f"{', '.join(f'{x:.1f}' for x in out['load'])} over the run), Python "
+             f"{platform.python_version()}. Absolute times are noisy; single-process "
+             f"numbers are medians of {out['repeat']} repeats, with CPU seconds beside the "
+             "wall time, and the conclusions are ratios measured in this run. Every number is "
+             "in `speed.json`.", ""]
+    if "fits" in out:
+        lines += _fits_md(out["fits"]) + [""]
+    if "iteration" in out:
+        lines += _iteration_md(out["iteration"]) + [""]
+    if "fixed" in out:
+        lines += _fixed_md(out["fixed"]) + [""]
+    if "large" in out:
+        lines += _one_md("200 000 points, 2 sections (one fit, fresh subprocess)", out["large"],
+                         ["wall", "cpu", "maxrss_mib", "base_rss_mib", "tracemalloc_mib",
+                          "max_rel_error", "nit"])
+        lines += ["", "Targets: <= 10 s and <= 300 MiB peak.", ""]
+    if "sweep" in out:
+        s = out["sweep"]
+        lines += [f"## Sweep of example A over orders {s['orders']}", "",
+                  f"{s['wall']:.2f} s wall, {s['cpu']:.2f} s CPU (target <= 2 s).", ""]
+    if "survey" in out:
+        lines += _one_md("Stabilization survey, 16 channels x 1000 points, orders 2:40:2",
+                         out["survey"], ["wall", "cpu", "n_modes"])
+        lines += ["", "Target: <= 10 s.", ""]
+    if "batch" in out:
+        lines += _batch_md(out["batch"]) + [""]
+    return "\n".join(lines)
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--out", default="results")
+    ap.add_argument("--repeat", type=int, default=3)
+    ap.add_argument("--parts", default=",".join(PARTS))
+    ap.add_argument("--timeout", type=float, default=240.0,
+                    help="seconds allowed to each subprocess part (large, survey)")
+    args = ap.parse_args(argv)
+    parts = [p for p in args.parts.split(",") if p]
+    unknown = sorted(set(parts) - set(PARTS))
+    if unknown:
+        ap.error(f"unknown part(s) {unknown}; choose from {', '.join(PARTS)}")
+    warnings.simplefilter("ignore")
+    command = "python scripts/speed.py" + "".join(
+        f" --{k} {v}" for k, v in (("out", args.out), ("repeat", args.repeat),
+                                   ("parts", args.parts)) if v != ap.get_default(k))
+    out = {"command": command, "repeat": args.repeat, "load": [os.getloadavg()[0]],
+           "machine": {"cpus": os.cpu_count(), "python": platform.python_version()}}
+    runners = {"fits": part_fits, "iteration": part_iteration, "fixed": part_fixed,
+               "large": lambda r: part_large(r, args.timeout), "sweep": part_sweep,
+               "survey": lambda r: part_survey(r, args.timeout), "batch": part_batch}
+    for p in PARTS:
+        if p in parts:
+            t0 = time.perf_counter()
+            out[p] = runners[p](args.repeat)
+            out.setdefault("part_wall", {})[p] = time.perf_counter() - t0
+            out["load"].append(os.getloadavg()[0])
+            print(f"{p}: {out['part_wall'][p]:.1f} s", file=sys.stderr)
+    out["maxrss_mib"] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024
+    text = markdown(command, out)
+    os.makedirs(args.out, exist_ok=True)
+    atomic_write_text(os.path.join(args.out, "speed.md"), text)
+    atomic_write_text(os.path.join(args.out, "speed.json"),
+                      json.dumps(out, indent=1, default=str) + "\n")
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

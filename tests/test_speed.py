@@ -1,0 +1,103 @@
+"""The speed changes of issue 30 keep the numbers: each faster path gives the same values
+bit for bit as the path it replaced, and a fit's stages no longer stay alive."""
+
+import dataclasses
+import gc
+
+import numpy as np
+import pytest
+
+import freqid_casadi as fc
+from freqid_casadi.core.derivatives import StageFunctions
+from freqid_casadi.core.objective import Parametrization, stage_functions
+from freqid_casadi.solvers.common import CALLBACK_COST_POINTS, StageProblem
+from freqid_casadi.solvers.ipopt import solve_stage
+from freqid_casadi.solvers.termination import Termination
+
+
+def _stage(m, ns=2, derivatives=None):
+    data = fc.systems.G_A(np.logspace(-2, 3, m))
+    wr = tuple(np.logspace(0, 3, ns))
+    param = Parametrization(fc.Structure(ns, True, True), "dc", wr,
+                            abs(data.response[0]) * data.omega[0], 0.1)
+    z0 = np.concatenate([[0.08, 1.0]] + [param.new_section(w, 0.01, 1.1 * w, 0.02, w)
+                                         for w in wr])
+    return param, stage_functions(param, data.omega, data.response,
+                                  derivatives=derivatives), z0
+
+
+def test_nlp_cost_is_the_mx_objective_bit_for_bit():
+    import casadi as ca
+
+    param, funcs, z0 = _stage(300)
+    z = ca.MX.sym("z", param.n_vars)
+    mx = ca.Function("f", [z], [ca.sumsqr(funcs.r_fun(z))])
+    for k in range(3):
+        x = z0 * (1.0 + 0.01 * k)
+        assert funcs.nlp_cost(x) == float(mx(x))
+
+
+def test_a_stage_solved_with_the_cost_callback_ends_where_the_mx_objective_does():
+    param, funcs, z0 = _stage(CALLBACK_COST_POINTS)
+    lb, ub = param.bounds()
+    pb = StageProblem.from_stage_functions(funcs, lb, ub)
+    assert pb.nlp_cost is not None                   # at this many points: the callback
+    term = Termination(ftol=0.0, noise_factor=0.0, polish_steps=0)
+    a = solve_stage(pb, z0, max_iter=15, termination=term)
+    b = solve_stage(dataclasses.replace(pb, nlp_cost=None), z0, max_iter=15,
+                    termination=term)
+    assert a.nit == b.nit == 15
+    np.testing.assert_array_equal(a.x, b.x)
+    assert a.cost == b.cost
+    assert a.cost < pb.eval_cost(z0)                  # (it did move)
+
+
+@pytest.mark.parametrize("derivatives", ["affine", "casadi-map"])
+def test_hessian_scratch_arrays_do_not_leak_between_calls(derivatives):
+    _, funcs, z0 = _stage(200, derivatives=derivatives)
+    z1 = z0 * 1.01
+    h0, g0, c0 = funcs.hessian(z0), funcs.hessian(z0, exact=False), funcs.column_norms(z0)
+    saved = h0.copy(), g0.copy(), c0.copy()
+    h1 = funcs.hessian(z1)
+    funcs.column_norms(z1)
+    for a, b in zip((h0, g0, c0), saved):          # earlier results are not overwritten
+        np.testing.assert_array_equal(a, b)
+    np.testing.assert_array_equal(funcs.hessian(z0), saved[0])
+    assert not np.array_equal(h1, saved[0])
+    # against the products written without scratch arrays
+    funcs._eval(z0)
+    lg, sq = funcs._L, funcs._sq
+    a = sq.real ** 2 + sq.imag ** 2
+    np.testing.assert_array_equal(c0, np.sqrt((lg.real ** 2 + lg.imag ** 2) @ a))
+    y = lg * a
+    gn = lg.view(float) @ y.view(float).T
+    np.testing.assert_array_equal(g0, 2.0 * ((gn + gn.T) / 2.0))
+    assert np.all(np.isfinite(h0)) and np.allclose(h0, h0.T)
+
+
+def test_state_space_zeros_are_python_controls_bit_for_bit():
+    import control as ct
+
+    from freqid_casadi.baselines import vector_fitting
+
+    data = fc.systems.G_B()
+    for n in (3, 6, 10):
+        m = vector_fitting(data, n)
+        ref = np.asarray(ct.ss(m.A, m.B, m.C, [[m.D]]).zeros(), complex)
+        got = m.zeros()
+        assert got.shape == ref.shape and got.size > 0
+        np.testing.assert_array_equal(np.sort_complex(got), np.sort_complex(ref))
+
+
+def test_a_fits_stages_do_not_stay_alive():
+    # each stage's StageFunctions (O(n M) arrays) used to be held by a reference cycle
+    # (a callback class made per stage) until the next garbage collection
+    data = fc.systems.G_A(np.logspace(-2, 3, 300))
+    gc.collect()
+    gc.disable()
+    try:
+        fc.fit(data, n_sections=2, integrator=True)
+        alive = sum(isinstance(o, StageFunctions) for o in gc.get_objects())
+    finally:
+        gc.enable()
+    assert alive <= 1
