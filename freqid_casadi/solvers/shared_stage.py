@@ -16,6 +16,7 @@ import numpy as np
 
 from .. import _interrupt
 from .shared_termination import SHARED_TERMINATION, SharedMonitor, verdict
+from .ipopt import run_nlpsol
 from .termination import iteration_callback
 
 __all__ = ["solve_stage", "RESCALE", "MAX_RESTARTS"]
@@ -84,9 +85,9 @@ def _callbacks():
 
 def solve_stage(problem, x0, n_points=None, *, lam_x0=None, max_iter=200, tol=1e-10,
                 termination=SHARED_TERMINATION):
-    """Minimise the stage cost with IPOPT (CasADi ``nlpsol``), true bounds, exact sparse
-    Hessian; stop at a relatively stationary point
-    (:class:`~freqid_casadi.solvers.shared_termination.SharedMonitor`).
+    """Minimise the stage cost with IPOPT (through :func:`~.ipopt.run_nlpsol`, the one
+    ``nlpsol`` path), true bounds, exact sparse Hessian; stop at a relatively stationary
+    point (:class:`~freqid_casadi.solvers.shared_termination.SharedMonitor`).
 
     Parameters
     ----------
@@ -181,31 +182,23 @@ def _solve_once(problem, x0, n_points, lam_x0, max_iter, tol, monitor):
     cost0 = problem.cost(x0, n_points)
     if np.isfinite(cost0) and cost0 > 0:
         ipopt["obj_scaling_factor"] = 1.0 / cost0
-    args = {"x0": x0, "lbx": lb, "ubx": ub}
     if lam_x0 is not None:
         ipopt.update({"warm_start_init_point": "yes", "warm_start_bound_push": 1e-9,
                       "warm_start_bound_frac": 1e-9, "warm_start_mult_bound_push": 1e-9,
                       "mu_init": 1e-6})
-        args["lam_x0"] = np.asarray(lam_x0, float)
     opts = {"print_time": False, "error_on_fail": False, "grad_f": keep[1],
             "hess_lag": keep[2], "ipopt": ipopt}
     if monitor is not None:
         monitor.arm(RESCALE * cost0)
         keep.append(iteration_callback(monitor, n, 0))
         opts["iteration_callback"] = keep[-1]
-    solver = ca.nlpsol("shared_stage", "ipopt", {"x": z, "f": keep[0](z)}, opts)
-    t_build = time.perf_counter() - t0
-    t1, c1 = time.perf_counter(), time.process_time()
-    try:
-        sol = solver(**args)
-        stats = solver.stats()
-        status = str(stats.get("return_status", "unknown"))
-        x = np.clip(np.array(sol["x"], float).ravel(), lb, ub)
-        lam = np.array(sol["lam_x"], float).ravel()
-    except RuntimeError as exc:                       # evaluation error inside CasADi
-        stats, status, x, lam = {}, f"exception: {exc}", x0, np.zeros(n)
-    t_solve, c_solve = time.perf_counter() - t1, time.process_time() - c1
-    cost = problem.cost(x, n_points)
+    c1 = time.process_time()
+    res, stats, t_build, t_solve = run_nlpsol(
+        "shared_stage", {"x": z, "f": keep[0](z)}, opts, x0, lb, ub,
+        lam_x0=lam_x0, cost_of=lambda x: problem.cost(x, n_points), keep=keep,
+        t0=t0)
+    c_solve = time.process_time() - c1
+    x, lam, cost, status = res.x, res.lam_x, res.cost, res.solver_status
     if not (np.isfinite(cost) and np.all(np.isfinite(x))):
         x, cost, status = x0, cost0, "Invalid_Number_Detected"
     return {"x": x, "lam_x": lam, "cost": cost, "nit": int(stats.get("iter_count", 0)),
