@@ -312,13 +312,11 @@ def _cmd_example(args, command):
            _g(dense["max_rel_error"]), _g(result.rms_rel_error),
            _g(result.model.delay), f"{result.wall_time:.1f}",
            t.get("order", "-"), _g(t.get("max_rel_error")), _g(t.get("delay")))
+    print(result.message)
     print(text_table([row], ("example", "order", "max rel. err", "10x grid",
                               "RMS rel. err", "delay (s)", "time (s)", "thesis order",
                               "thesis max", "thesis delay")))
     _resolution_warning(result)
-    if not result.success:
-        print(f"warning: the final stage stopped at {result.stages[-1].solver_status} "
-              "(see summary.md); the model is feasible and the errors above are measured")
     print(f"report: {path}")
     return 0
 

@@ -18,8 +18,8 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .candidates import Candidate, choose, zero_delay_run
-from ._checks import (GAIN_SIGNS, after_fit, check_model_class, check_progress, success_of,
-                      validate, zeta_min_of)
+from ._checks import (GAIN_SIGNS, after_fit, check_model_class, check_progress, validate,
+                      verdict, zeta_min_of)
 from .._validate import check_choice, check_flag
 from ..core.data import FrequencyData
 from .delay_hold import hold_undetermined_delay
@@ -38,8 +38,9 @@ from ..core.resolution import check_resolution, default_delay_max, resolution_da
 from .._threads import single_threaded_blas
 from .stages import Kept, StageKind, StageRecord, StageSolver
 from .start import RationalStartError
+from .verdict import FitStatus
 
-__all__ = ["fit", "FitResult", "StageRecord", "Kept", "StageKind", "METHODS", "INITS",
+__all__ = ["fit", "FitResult", "FitStatus", "StageRecord", "Kept", "StageKind", "METHODS", "INITS",
            "WARM_STARTS", "STARTS", "OBJECTIVES", "GAIN_SIGNS", "default_delay_max",
            "resolution_damping"]
 
@@ -65,7 +66,15 @@ class FitResult:
         all-data stage converged (IPOPT's tolerance, or the scale-free relative
         stationarity test of :mod:`freqid_casadi.solvers.termination`, which a fit at
         machine precision passes) and the model is better than an infinite gain (RMS
-        relative error < 1). ``message`` says why not.
+        relative error < 1). ``message`` says why not. Whether the model explains the
+        data is ``status``.
+    status : FitStatus
+        The verdict (a ``str`` enum, :mod:`freqid_casadi.fitting.verdict`): "ok"
+        (converged and the residual is consistent with the noise, estimated from the
+        weights' shape and the residual's point-to-point scatter, or at rounding level),
+        "poor-fit" (converged, but the residual has structure well above the noise; a
+        ``poor-fit`` diagnostic says why: model class, order, sign or delay) or
+        "not-converged" (the final stage did not converge).
     wall_time : float
         Seconds for the whole fit.
     method : str
@@ -102,8 +111,15 @@ class FitResult:
         ("<start>, far roots", :mod:`freqid_casadi.fitting.far_roots`), see
         :func:`~freqid_casadi.fitting.candidates.choose`.
     message : str
-        Why ``success`` is what it is: the final stage's termination (with the relative
-        stationarity numbers) or the reason the fit is not a success.
+        One plain sentence led by the status: the errors and the next step (e.g.
+        "not-converged: the final stage reached its iteration limit (200) ...; pass
+        method=IpoptOptions(final_max_iter=2000) to continue").
+    details : dict
+        The numbers behind ``status`` and ``message``: ``final_stage`` (the final
+        stage's ``StageRecord.details``: termination test's cosines and projection,
+        IPOPT's return status, iterations and limit) and ``noise`` (the residual's
+        consistency check, :func:`~freqid_casadi.fitting.verdict.residual_noise`:
+        ``noise_rms``, ``ratio``, ``runs_z``, ``worst_omega``).
     """
 
     model: RationalDelayModel
@@ -125,6 +141,8 @@ class FitResult:
     zeta_min: float = None
     diagnostics: tuple = ()
     message: str = ""
+    status: FitStatus = FitStatus.NOT_CONVERGED
+    details: dict = field(default_factory=dict)
 
     @property
     def delay(self):
@@ -182,13 +200,14 @@ class FitResult:
             return found
 
     def summary(self):
-        """One line (and one more per diagnostic): errors, delay, time, status."""
+        """Lines led by the status: the message (which starts with it), then the model's numbers, then one per
+        diagnostic."""
         m = self.model
         line = (f"{self.data.name or 'data'}: {m.n_sections} sections (order {m.order}), "
                 f"max rel. error {self.max_rel_error:.4g}, RMS {self.rms_rel_error:.4g}, "
                 f"delay {m.delay:.6g} {self.data.time_unit}, "
-                f"{self.wall_time:.2f} s, method {self.method}, "
-                + ("converged" if self.success else f"NOT converged ({self.message})"))
+                f"{self.wall_time:.2f} s, method {self.method}")
+        return "\n".join([self.message, line] + [f"  {d.severity}: {d}" for d in self.diagnostics])
         return "\n".join([line] + [f"  {d.severity}: {d}" for d in self.diagnostics])
 
 
@@ -209,7 +228,7 @@ def _reject_old_keywords(function):
 
 @_reject_old_keywords
 def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=True,
-        basis="second-order", method="ipopt", tol=None, weights=None, start="sequential",
+        basis="second-order", method="ipopt", tol=None, weights=None, start="best",
         objective="least-squares", min_damping=None, progress=False, loop=None,
         gain_sign="auto", zeros="minimum-phase"):
     """Fit ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` to frequency-response data.
@@ -241,8 +260,10 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         ratios matter (the fit divides them by a power of two near their mean). At least
         as many points as parameters need a weight > 0; points of weight 0 below the first
         weighted one are left out of the loop's windows (their error is still reported).
-    start : {"sequential", "rational", "best"}
-        "sequential" is the thesis's main loop; "rational" fits all sections at once by
+    start : {"best", "sequential", "rational"}
+        "best" (default, as ``fit_shared`` and ``freqid fit``) runs both of the others
+        and keeps the better (below). "sequential" is the thesis's main loop (pass it to
+        reproduce the thesis's numbers); "rational" fits all sections at once by
         vector fitting with the delay refined from the right-half-plane zeros
         (:mod:`freqid_casadi.fitting.start`), then polishes everything by one IPOPT stage on all
         data; "best" runs both and keeps, among the models within 10 % of the lowest max
@@ -366,6 +387,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                                    model.beta)
     records = [unscaled[id(r)][1] if id(r) in unscaled else _unscale_record(r, w_ref)
                for r in records]
+    scaled_omega, scaled_response = data.omega, data.response
     data = user_data       # stats stay those of the scaled problem (the same numbers, and
                            # no overflow of the model at the user's extreme omega)
     final = [r for r in records if r.kept != Kept.MINIMAX_REJECTED
@@ -373,17 +395,16 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     check = _resolution_check(model, data.omega)
     with np.errstate(all="ignore"):     # extreme user scales: a check may give up, not warn
         found += after_fit(model, data, stats, dmax / w_ref)
-    success, message = success_of(final[-1], stats)
-    errors_found = [d for d in found if d.severity == "error"]
-    if success and errors_found:
-        success, message = False, f"{errors_found[0].code}: {errors_found[0].message}"
+        residual = scaled_response / model_scaled.frequency_response(scaled_omega) - 1.0
+    success, status, message, details, found = verdict(
+        final[-1], stats, residual, data, found, int(n_sections))
     return FitResult(model=model, stages=tuple(records), data=data, rel_error=stats.values,
                      max_rel_error=stats.max, rms_rel_error=stats.rms,
                      success=success, message=message, wall_time=time.perf_counter() - t_start,
                      method=solver.method, options=options, start=won, objective=objective,
                      resolution=check, start_max_rel_errors=errors,
                      candidate_max_rel_errors=cand_errors, delay_max=dmax / w_ref,
-                     zeta_min=zeta_min, diagnostics=found)
+                     zeta_min=zeta_min, diagnostics=found, status=status, details=details)
 
 
 def _run_starts(ctx, start, tol, data):

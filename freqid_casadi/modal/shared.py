@@ -46,6 +46,7 @@ from .._validate import check_flag
 from ..core.resolution import default_delay_max
 from ..core.scaling import weight_scale
 from ..core.model import RationalDelayModel, Structure
+from ..fitting.verdict import FitStatus, NoiseCheck, residual_noise, status_of
 from ._nlp import SharedProblem
 from ._stages import (SharedStage, lawson_rounds, logger, rational_start,
                              sequential_start)
@@ -55,7 +56,7 @@ __all__ = ["fit_shared", "SharedFitResult", "SharedStage", "DELAYS", "ZEROS", "S
 
 DELAYS = ("per-channel", "shared", False)
 ZEROS = ("minimum-phase", "free")
-SHARED_STARTS = ("rational", "sequential")
+SHARED_STARTS = ("best", "rational", "sequential")
 #: Most reweighted fits of ``balance_channels``.
 BALANCE_ROUNDS = 10
 
@@ -104,6 +105,15 @@ class SharedFitResult:
     message : str
         Why the last stage stopped (with the termination test's numbers) and, with
         ``balance_channels``, which channels miss their targets.
+    status : FitStatus
+        As ``FitResult.status``: "ok" when the last stage converged and every channel's
+        residual is consistent with its noise
+        (:func:`~freqid_casadi.fitting.verdict.residual_noise`), "poor-fit" when it
+        converged but a channel's residual is well above its noise, "not-converged".
+    details : dict
+        ``noise``: each channel's consistency check; ``start``: the start that won
+        (with ``start="best"``) and ``start_max_rel_errors`` (largest channel max error of
+        each start).
     """
 
     models: tuple
@@ -122,6 +132,8 @@ class SharedFitResult:
     channel_poles: tuple = ()
     single_max_rel_errors: np.ndarray = ()
     message: str = ""
+    status: FitStatus = FitStatus.NOT_CONVERGED
+    details: dict = field(default_factory=dict)
 
     @property
     def n_channels(self):
@@ -306,7 +318,7 @@ def _check_options(n_sections, delay, zeros, start, n_channels, channel_sections
 
 
 def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
-               zeros="minimum-phase", weights=None, start="rational", progress=False,
+               zeros="minimum-phase", weights=None, start="best", progress=False,
                delay_max=None, max_iter=200, n_vf_iter=10, channel_sections=0,
                balance_channels=False):
     """Fit several FRFs of one structure with one shared set of poles.
@@ -329,7 +341,11 @@ def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
         ``gain_sign = -1`` for a negative gain).
     weights : array_like of float, shape (C, M), (M,) or scalar, optional
         Weights of the squared relative residuals, multiplying the datas' own weights.
-    start : {"rational", "sequential"}
+    start : {"best", "rational", "sequential"}
+        "best" (default) runs both starts and keeps, among the results within 10 % of the
+        lowest max relative error (largest over the channels), a converged one if any,
+        then the lower RMS error (as :func:`freqid_casadi.fit`); ``details["start"]``
+        says which won.
     progress : bool
         Print one line per stage to stderr.
     delay_max : float, optional
@@ -388,15 +404,15 @@ def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, pro
     log = logger(progress)
     base = phi * (1j * omega) if integrator else phi          # VF fits the rational part
 
-    def run(w):
+    def run(w, which):
         def make(wr, wl):
             with _interrupt.guard():    # CasADi expressions: see stages.StageSolver
                 return SharedProblem(omega, phi, w, g, wr, integrator, delay, free, dmax, wl)
-        if start == "rational":
+        if which == "rational":
             return rational_start(make, n, k, omega, base, w, free, log, max_iter, n_vf_iter)
         return sequential_start(make, n, k, omega, w, log, max_iter)
 
-    prob, z, lam, stages = run(wts)
+    prob, z, lam, stages, won, start_errors = _run_starts(run, wts, start, datas, zs)
     options = {"n_sections": n, "channel_sections": k, "integrator": bool(integrator),
                "delay": delay, "zeros": list(zs), "start": start, "delay_max": dmax,
                "balance_channels": bool(balance)}
@@ -408,6 +424,8 @@ def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, pro
         prob, z, more = lawson_rounds(prob, z, lam, singles, log, max_iter, BALANCE_ROUNDS)
         stages += more
     res = _result(prob, z, datas, stages, zs, time.perf_counter() - t0, options)
+    res = dataclasses.replace(res, details=dict(res.details, start=won,
+                                                start_max_rel_errors=start_errors))
     if not balance:
         return res
     miss = np.flatnonzero(res.max_rel_errors > np.maximum(singles, 1e-8))
@@ -415,6 +433,22 @@ def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, pro
             if miss.size else "; every channel within its own fit's max rel. error")
     return dataclasses.replace(res, single_max_rel_errors=singles,
                                message=res.message + note)
+
+
+def _run_starts(run, wts, start, datas, zs):
+    """Run the start(s) ``start`` asks for on weights ``wts`` and keep one (see
+    :func:`fit_shared`); returns ``(prob, z, lam, stages, won, start_max_rel_errors)``."""
+    names = ("sequential", "rational") if start == "best" else (start,)
+    runs = {}
+    for name in names:
+        prob, z, lam, stages = run(wts, name)
+        rel = np.abs(prob.ratio(z) - 1.0)
+        runs[name] = ((prob, z, lam, stages), float(np.max(rel)),
+                      float(np.sqrt(np.mean(rel ** 2))), bool(stages[-1].success))
+    lowest = min(r[1] for r in runs.values())
+    near = [k for k, r in runs.items() if r[1] <= 1.1 * lowest] or list(runs)
+    pick = sorted(near, key=lambda k: (not runs[k][3], runs[k][2]))[0]
+    return (*runs[pick][0], pick, {k: r[1] for k, r in runs.items()})
 
 
 def _models(prob, z):
@@ -455,14 +489,20 @@ def _result(prob, z, datas, stages, zeros, wall, options):
     from ..core.modes import modes_of_models
 
     models = _models(prob, z)
-    rel = np.abs(prob.ratio(z) - 1.0)
+    ratio = prob.ratio(z) - 1.0
+    rel = np.abs(ratio)
     n = prob.n_sections
+    checks = [residual_noise(ratio[c], d.omega, d.weights) for c, d in enumerate(datas)]
+    status = status_of(bool(stages[-1].success),
+                       bool(np.any(np.sqrt(np.mean(rel ** 2, axis=1)) >= 1.0)),
+                       NoiseCheck(consistent=all(c.consistent for c in checks)))
     return SharedFitResult(
         models=models, datas=tuple(datas), poles=_section_poles(models[0], slice(0, n)),
         rel_errors=rel,
         max_rel_errors=np.max(rel, axis=1), rms_rel_errors=np.sqrt(np.mean(rel ** 2, axis=1)),
         success=bool(stages[-1].success), modes=modes_of_models(models, n),
         message=stages[-1].message or stages[-1].solver_status,
+        status=status, details={"noise": [dict(c) for c in checks]},
         wall_time=wall, nit=int(sum(s.nit for s in stages
                                    if s.solver_status != "vector-fitting")),
         stages=tuple(stages), zeros=tuple(zeros), options=options,

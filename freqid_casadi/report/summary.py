@@ -80,8 +80,10 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
         "delay": float(model.delay),
         "gain": float(model.gain),
         "wall_time": float(result.wall_time),
+        "status": str(getattr(getattr(result, "status", None), "value", "") or ""),
         "success": bool(result.success),
         "message": str(getattr(result, "message", "") or ""),
+        "details": dict(getattr(result, "details", None) or {}),
         "nit": int(sum(s.nit for s in result.stages)),
         "checks": {
             "stable": model.is_stable(),
@@ -199,8 +201,9 @@ def render_fit_summary(summary):
         digits, the delay and gain to 6), so summary.json and summary.md always agree.
     """
     s = summary
-    lines = [generated_by_line(s["command"]), "", f"# {md_text(s['title'])}", "",
-             markdown_table(_overview_rows(s), ("quantity", "value")), ""]
+    lines = [generated_by_line(s["command"]), "", f"# {md_text(s['title'])}", ""]
+    lines += _status_lines(s)
+    lines += [markdown_table(_overview_rows(s), ("quantity", "value")), ""]
     lines += _diagnostic_lines(s)
     lines += _uncertainty_lines(s)
     lines += _thesis_lines(s)
@@ -214,6 +217,13 @@ def render_fit_summary(summary):
               "`model.json` (the model; `RationalDelayModel.load`), `rel_error.csv`, "
               "`stages.csv`, `summary.json` (every number above, full precision).", ""]
     return "\n".join(lines)
+
+
+def _status_lines(s):
+    """The report's lead: the status and the message (what to do next)."""
+    if not s.get("status"):                 # (summaries written before the status)
+        return []
+    return [f"**Status: {s['status']}.** {md_text(s.get('message') or '')}", ""]
 
 
 def _units(s):
@@ -261,7 +271,8 @@ def _overview_rows(s):
         ("wall time", f"{number(s['wall_time'])} s"),
         ("iterations (all stages)", number(s["nit"])),
         ("success (final stage converged)", ("yes" if s["success"] else "NO") + (
-            f": {md_text(s['message'])}" if s.get("message") and not s["success"] else "")),
+            f": {md_text(s['message'])}" if s.get("message") and not s["success"]
+            and not s.get("status") else "")),
         ("P_N stable", _roots_check(ck["stable"], ck["max_pole_real_part"],
                                     ck["min_pole_damping"], "pole", fu) + (
             f", {ck['n_poles_on_axis']} pole(s) on the imaginary axis (undamped, zeta = 0: "
