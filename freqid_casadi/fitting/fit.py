@@ -290,10 +290,12 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         Knobs of the main loop (gauge, new-section init, scaling, delay bound, final
         stage, derivative evaluation); default ``LoopOptions()``.
     gain_sign : {"auto", "positive", "negative"}
-        Sign of the gain K. "auto" takes it from the data's low-frequency phase
-        (integrator removed): near +-180 deg means a negative static gain (a sign-inverted
-        sensor or transmissibility), fitted as ``-(fit of -Phi)`` and stated by a
-        ``negative-gain`` diagnostic.
+        Sign of the gain K. "auto" takes the sign under which the rational start explains
+        the data far better (both signs tried, vector fitting only:
+        :func:`~freqid_casadi.fitting.diagnostics.rational_gain_sign`), not the phase at
+        the lowest bins (which a delay and a pole below the band turn past
+        -90 deg); a negative gain (a sign-inverted sensor or transmissibility) is fitted
+        as ``-(fit of -Phi)`` and stated by a ``negative-gain`` diagnostic.
     zeros : {"minimum-phase", "free"}
         "minimum-phase" (the thesis's class): every zero in the closed left half plane.
         "free": the numerators are unbounded (zeros anywhere, e.g. non-collocated sensors
@@ -346,7 +348,8 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     check_choice("start", start, STARTS)
     check_choice("objective", objective, OBJECTIVES)
     check_model_class(gain_sign, zeros, solver.method, loop.gauge, min_damping)
-    sign, found = check_gain_sign(data, integrator, gain_sign)
+    sign, found = check_gain_sign(data, integrator, gain_sign, Structure(
+        int(n_sections), integrator, delay, basis, zeros))
     user_data = data
     if sign == -1:                  # a negative gain: fit -Phi, the model gets gain_sign -1
         data = FrequencyData(data.omega, -data.response, data.name, data.weights)

@@ -232,6 +232,23 @@ def rational_start(data, structure, *, delay_max, delay0=0.0, max_delay_updates=
     RationalStart
         The best (lowest max relative error) of the trial delays.
     """
+    key = (data.omega.tobytes(), data.response.tobytes(),
+           None if data.weights is None else data.weights.tobytes(), repr(structure),
+           float(delay_max), float(delay0), int(max_delay_updates), int(n_iter))
+    last = _LAST[0]                      # (one read: threads may replace it)
+    if last is not None and last[0] == key:     # fit's gain-sign check ran this start
+        return last[1]
+    result = _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_iter)
+    _LAST[0] = (key, result)
+    return result
+
+
+#: The last (key, RationalStart) of :func:`rational_start`: the gain-sign check of
+#: ``fit(gain_sign="auto")`` runs the same start as the fit's rational start.
+_LAST = [None]
+
+
+def _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_iter):
     from ..baselines import vector_fitting
 
     s = 1j * data.omega

@@ -439,7 +439,8 @@ class StageMonitor:
         if status in (Status.CONVERGED, Status.ACCEPTABLE, Status.COST_TOL):
             status = Status.SMALL_STEP
         steps = extra["polish_steps"]
-        its = f"{nit0} iterations" + (f" and {steps} polish steps" if steps else "")
+        its = (f"{nit0} iteration{'s' * (nit0 != 1)}"
+               + (f" and {steps} polish step{'s' * (steps != 1)}" if steps else ""))
         msg = f"{TERMINATION_MESSAGES[status]} after {its}; {self._plain(False, False)}"
         return dataclasses.replace(res, status=status, success=False, message=msg,
                                    extra=extra)
