@@ -187,7 +187,8 @@ def _add_example(sub):
     p.add_argument("--sections", type=_positive_int, metavar="N",
                    help="number of sections (default: the thesis's order; A 17, B 9, C 27, "
                         f"fractional {FRACTIONAL_SECTIONS} first-order)")
-    _common(p, out_required=False)
+    # the thesis's loop (its published numbers); --start best or rational to compare
+    _common(p, out_required=False, start="sequential")
     return p
 
 
