@@ -9,7 +9,8 @@ import numbers
 import numpy as np
 
 from ..core.data import FrequencyData
-from .diagnostics import (check_delay, check_minimum_phase, check_roots_below_band,
+from .diagnostics import (TRIVIAL_RMS, check_delay, check_minimum_phase,
+                          check_roots_below_band,
                           check_trivial, rhp_zeros_note)
 from ..errors import DataError, FreqidError, OptionError, StructureError
 from ..core.model import BASES, ZEROS, Structure
@@ -176,8 +177,11 @@ def success_of(last, stats):
     return False, _not_converged(last, stats)
 
 
-def _next_step(last):
+def _next_step(last, stats):
     """What to pass to let an unconverged final stage continue."""
+    if not stats.rms < TRIVIAL_RMS:
+        return ("the model explains almost nothing: see the diagnostics (gain sign, model "
+                "class, delay) before iterating further")
     limit = last.details.get("max_iter")
     if last.status == Status.MAX_ITER and limit:
         kind = "BarrierLMOptions" if last.details.get("method") == "barrier-lm" \
@@ -202,7 +206,7 @@ def _not_converged(last, stats):
         how = f"stopped ({TERMINATION_MESSAGES[last.status]})"
     return (f"not-converged: the final stage {how}; max rel. error {stats.max:.2g}, "
             f"RMS {stats.rms:.2g} (the model is feasible and these errors are measured) "
-            f"— {_next_step(last)}")
+            f"— {_next_step(last, stats)}")
 
 
 def verdict(last, stats, residual, data, found, n_sections):

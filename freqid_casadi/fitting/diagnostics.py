@@ -360,13 +360,14 @@ def check_delay(model, data, delay_max, rms_rel_error=None, *, delay_std=None, a
     return ()
 
 
-def _vf_free_zeros(data, model, n_poles):
-    """Vector fit with stable poles and free zeros of the data with the model's delay and
-    integrator removed; returns (max, rms relative error, RHP zeros) or None."""
+def _vf_free_zeros(data, model, n_poles, delay=None):
+    """Vector fit with stable poles and free zeros of the data with a delay (default the
+    model's) and the model's integrator removed; returns (max, rms relative error, RHP
+    zeros) or None."""
     from ..baselines import vector_fitting
 
     s = 1j * data.omega
-    base = data.response * np.exp(s * model.delay)
+    base = data.response * np.exp(s * (model.delay if delay is None else delay))
     if model.integrator:
         base = base * s
     try:
@@ -418,9 +419,14 @@ def check_minimum_phase(model, data, max_rel_error, rms_rel_error, *, ratio=0.5,
     if rms_rel_error < floor or model.n_sections == 0:
         return ()
     per = 2 if model.structure.basis == "second-order" else 1
-    vf = _vf_free_zeros(data, model, per * model.n_sections)
-    if vf is None:
+    # at the fitted delay, and at none (a minimum-phase fit may have pushed its delay far
+    # beyond the data's to mimic the excess phase)
+    fits = [f for f in (_vf_free_zeros(data, model, per * model.n_sections),
+                        _vf_free_zeros(data, model, per * model.n_sections, 0.0)
+                        if model.delay > 0 else None) if f is not None]
+    if not fits:
         return ()
+    vf = min(fits, key=lambda f: f[1])
     vmax, vrms, rhp = vf
     if rhp.size == 0 or not vrms < ratio * rms_rel_error:
         return ()

@@ -120,6 +120,12 @@ class FitResult:
         IPOPT's return status, iterations and limit) and ``noise`` (the residual's
         consistency check, :func:`~freqid_casadi.fitting.verdict.residual_noise`:
         ``noise_rms``, ``ratio``, ``runs_z``, ``worst_omega``).
+    alternatives : dict of str to FitResult
+        Better models outside the class asked for: ``"zeros=free"``, the fit with
+        ``zeros="free"`` (stable poles, zeros anywhere), computed when the
+        ``non-minimum-phase`` diagnostic finds that the data need right-half-plane zeros
+        (the diagnostic then gives both errors and the switch). The result's own model
+        stays minimum phase.
     """
 
     model: RationalDelayModel
@@ -143,6 +149,7 @@ class FitResult:
     message: str = ""
     status: FitStatus = FitStatus.NOT_CONVERGED
     details: dict = field(default_factory=dict)
+    alternatives: dict = field(default_factory=dict)
 
     @property
     def delay(self):
@@ -333,7 +340,44 @@ def _fit_held(data_or_omega, response, *, progress, weights, **kw):
         return _fit_held(data, None, progress=False, weights=None,
                          **dict(kw, n_sections=n_sections, delay=delay))
 
-    return hold_undetermined_delay(result, refit)
+    return _with_alternatives(hold_undetermined_delay(result, refit), data_or_omega,
+                              response, weights, kw)
+
+
+def _with_alternatives(result, data_or_omega, response, weights, kw):
+    """``result`` with the ``zeros="free"`` model in ``alternatives`` when the
+    ``non-minimum-phase`` diagnostic says the data need right-half-plane zeros (issue 26
+    item 4), the diagnostic then giving both errors and the switch; the result's own
+    model stays minimum phase."""
+    found = [d for d in result.diagnostics
+             if d.code == "non-minimum-phase" and d.severity == "warning"]
+    loop = result.options.loop if result.options is not None else None
+    if (not found or kw["zeros"] != "minimum-phase" or kw["min_damping"] is not None
+            or result.method != "ipopt" or loop is None or loop.gauge != "dc"):
+        return result
+    try:
+        with warnings.catch_warnings():       # a fit the user did not ask for: quiet
+            warnings.simplefilter("ignore")
+            alt = _fit_held(data_or_omega, response, progress=False, weights=weights,
+                            **dict(kw, zeros="free"))
+    except FreqidError:
+        return result
+    old = found[0]
+    text = (f"minimum phase: RMS {result.rms_rel_error:.3g} (max {result.max_rel_error:.3g}); "
+            f"with free zeros: RMS {alt.rms_rel_error:.3g} (max {alt.max_rel_error:.3g}, "
+            f"status {FitStatus(alt.status).value}) — pass zeros='free' "
+            "(FitResult.alternatives['zeros=free'] holds that model)")
+    diag = dataclasses.replace(old, message=f"{text}; {old.message}", values=dict(
+        old.values, alternative_rms_rel_error=alt.rms_rel_error,
+        alternative_max_rel_error=alt.max_rel_error))
+    diags = tuple(diag if d is old else d for d in result.diagnostics)
+    message = result.message
+    if alt.rms_rel_error < 0.5 * result.rms_rel_error:
+        message = (f"{message.split(' — ')[0]}; the data need right-half-plane zeros: "
+                   f"zeros='free' reaches RMS {alt.rms_rel_error:.3g} — pass zeros='free' "
+                   "(FitResult.alternatives['zeros=free'])")
+    return dataclasses.replace(result, diagnostics=diags, message=message,
+                               alternatives=dict(result.alternatives, **{"zeros=free": alt}))
 
 
 def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, method, tol,

@@ -116,7 +116,8 @@ class StageRecord:
     details : dict
         The optimiser's numbers behind ``message``: ``termination`` (the relative
         stationarity test's cosines and projection with their allowed values and the RMS
-        error's fall per iteration, :meth:`~freqid_casadi.solvers.termination.StageMonitor.test_numbers`),
+        error's fall per iteration,
+        :meth:`~freqid_casadi.solvers.termination.StageMonitor.test_numbers`),
         ``ipopt_status`` (IPOPT's return status), ``ipopt_iterations`` and
         ``polish_steps`` (``nit`` is their sum), ``max_iter`` (the stage's iteration
         limit) and ``method``; empty for stages without a solve.
