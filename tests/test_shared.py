@@ -388,7 +388,7 @@ def test_input_errors():
     with pytest.raises(OptionError, match="n_sections"):
         fit_shared(datas, 0)
     with pytest.raises(OptionError, match="start"):
-        fit_shared(datas, 2, start="best")
+        fit_shared(datas, 2, start="fastest")
     for bad in (-1, True, 1.5):
         with pytest.raises(OptionError, match="channel_sections"):
             fit_shared(datas, 2, channel_sections=bad)

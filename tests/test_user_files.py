@@ -235,7 +235,7 @@ def one_mode_fit():
     data = fc.FrequencyData(2 * np.pi * F_HZ, RESP, "one")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return fc.fit(data, n_sections=1)
+        return fc.fit(data, n_sections=1, start="sequential")   # (its delay: 0)
 
 
 def test_report_names_both_gains_the_hz_range_and_the_stage_status(one_mode_fit):
