@@ -49,6 +49,10 @@ __all__ = ["Diagnostic", "CODES", "TRIVIAL_RMS", "low_frequency_phase", "low_fre
 CODES = ("negative-gain", "non-minimum-phase", "delay-undetermined", "no-better-than-trivial",
          "root-below-band")
 
+#: Low-frequency phase (deg, integrator removed) within which flat data (log-log slope
+#: within 0.5) have a positive gain without asking the fits (:func:`check_gain_sign`).
+CLEAR_PHASE_DEG = 45.0
+
 #: Fraction of the lowest data frequency below which a root is "far below the band".
 BELOW_BAND = 0.01
 
@@ -206,8 +210,9 @@ def check_gain_sign(data, integrator, gain_sign="auto", structure=None):
     data : FrequencyData
     integrator : bool
     gain_sign : {"auto", "positive", "negative"}
-        "auto" takes the sign under which the rational start of ``structure`` explains the
-        data (:func:`rational_gain_sign`), or, without ``structure`` (or with free zeros,
+        "auto": positive when the data are flat and within :data:`CLEAR_PHASE_DEG` of 0 deg
+        at the lowest bins; else the sign under which the rational start of ``structure``
+        explains the data (:func:`rational_gain_sign`), or, without ``structure`` (or with free zeros,
         which fit either sign) or when that does not decide, the sign of the
         low-frequency response (phase within 90 deg of 0: positive; of 180 deg: negative).
     structure : Structure, optional
@@ -228,7 +233,13 @@ def check_gain_sign(data, integrator, gain_sign="auto", structure=None):
               "omega_max_used": float(data.omega[_low_points(data.omega) - 1]),
               "low_frequency_slope": slope}
     rational = None
-    if structure is not None and structure.zeros != "free" and gain_sign == "auto":
+    # flat and in phase at the lowest bins: positive without a doubt (a stable minimum-
+    # phase factor with a flat magnitude has no phase there, Bode's gain-phase relation);
+    # otherwise the phase may come from a delay and poles below the band, or from zeros
+    # at the origin, and the fits decide
+    clear = abs(deg) <= CLEAR_PHASE_DEG and abs(slope) <= 0.5
+    if (structure is not None and structure.zeros != "free" and gain_sign == "auto"
+            and not clear):
         rational = rational_gain_sign(data, structure)
     if rational is not None:
         looks_negative = rational[0] < 0
