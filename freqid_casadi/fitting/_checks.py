@@ -191,8 +191,9 @@ def _next_step(last, stats):
             "sections")
 
 
-def _not_converged(last, stats):
-    """The message of a fit whose final stage did not converge."""
+def _not_converged(last, stats, usable=False):
+    """The message of a fit whose final stage did not converge (``usable``: its residual
+    is consistent with the noise all the same)."""
     d = last.details
     limit = d.get("max_iter")
     fell = d.get("termination", {}).get("rms_fall_per_iteration")
@@ -204,9 +205,10 @@ def _not_converged(last, stats):
         how = "stalled (the error stopped falling) at a point that is not stationary"
     else:
         how = f"stopped ({TERMINATION_MESSAGES[last.status]})"
+    state = ("usable: the residual is consistent with the noise" if usable else
+             "the model is feasible and these errors are measured")
     return (f"not-converged: the final stage {how}; max rel. error {stats.max:.2g}, "
-            f"RMS {stats.rms:.2g} (the model is feasible and these errors are measured) "
-            f"— {_next_step(last, stats)}")
+            f"RMS {stats.rms:.2g} ({state}) — {_next_step(last, stats)}")
 
 
 def verdict(last, stats, residual, data, found, n_sections):
@@ -251,7 +253,9 @@ def verdict(last, stats, residual, data, found, n_sections):
             success, message = False, f"poor-fit: {errors[0].code}: {errors[0].message}"
         elif not stats.rms < 1.0:
             message = f"poor-fit: {message}"
-    elif status == FitStatus.NOT_CONVERGED and not message.startswith("not-converged"):
+    elif status == FitStatus.NOT_CONVERGED and stats.rms < 1.0:
+        message = _not_converged(last, stats, usable=check.consistent)
+    elif status == FitStatus.NOT_CONVERGED:
         message = f"not-converged: {message}"
     elif status == FitStatus.OK:
         message = (f"ok: converged; max rel. error {stats.max:.3g}, RMS {stats.rms:.3g}, "
