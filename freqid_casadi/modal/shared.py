@@ -155,13 +155,15 @@ class SharedFitResult:
         return np.array([m.delay for m in self.models])
 
     def summary(self):
-        """One line: channels, sections, worst max/RMS relative error, time, status."""
+        """One line: channels, sections, worst max/RMS relative error, time, convergence
+        and :attr:`status`."""
         own = (f" + {self.channel_sections} per channel" if self.channel_sections else "")
         return (f"{self.n_channels} channels, {self.n_shared} shared sections{own}, "
                 f"{len(self.modes)} modes, max rel. error {np.max(self.max_rel_errors):.4g} "
                 f"(worst channel), RMS {np.max(self.rms_rel_errors):.4g}, "
                 f"{self.wall_time:.2f} s, {self.nit} iterations, "
-                f"{'converged' if self.success else 'NOT converged'}")
+                f"{'converged' if self.success else 'NOT converged'}, status "
+                f"{FitStatus(self.status).value}")
 
     def to_control(self, pade_order=None, references=None):
         """python-control ``StateSpace``: every channel an output.
