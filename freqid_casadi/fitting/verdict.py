@@ -205,8 +205,22 @@ def poor_fit_diagnostic(check, found, n_sections, unit="rad/s"):
 
 
 def status_of(converged, errors_found, check):
-    """The :class:`FitStatus` of a fit: ``converged`` (its final stage), whether a
-    diagnostic of severity "error" was found, and its :class:`NoiseCheck`."""
+    """The :class:`FitStatus` of a fit.
+
+    Parameters
+    ----------
+    converged : bool
+        The final all-data stage converged.
+    errors_found : bool
+        A diagnostic of severity "error" was found (or the model is no better than an
+        infinite gain).
+    check : NoiseCheck
+        The residual's consistency with the noise (:func:`residual_noise`).
+
+    Returns
+    -------
+    FitStatus
+    """
     if not converged:
         return FitStatus.NOT_CONVERGED
     if errors_found or not check.consistent:
