@@ -269,7 +269,7 @@ def _overview_rows(s):
         ("delay h", f"{number(s['delay'], 6)} {tu}"),
         ("gain K (model.gain, in front of the sections)", number(s["gain"], 6)),
         ("wall time", f"{number(s['wall_time'])} s"),
-        ("iterations (all stages)", number(s["nit"])),
+        ("iterations (all stages, polish steps included)", number(s["nit"])),
         ("success (final stage converged)", ("yes" if s["success"] else "NO") + (
             f": {md_text(s['message'])}" if s.get("message") and not s["success"]
             and not s.get("status") else "")),
@@ -372,6 +372,16 @@ def _stage_status(r):
     return f"{word} ({solver})" if word and solver else word or solver
 
 
+def _iterations(r):
+    """A stage's iterations: the solver's, plus the polish steps tried after it (so a
+    stage at its limit of 200 reads "200 + 4 polish", not 204)."""
+    d = r.get("details") or {}
+    steps = d.get("polish_steps") or 0
+    if steps and "ipopt_iterations" in d:
+        return f"{number(d['ipopt_iterations'])} + {number(steps)} polish"
+    return number(r["nit"])
+
+
 def _stage_lines(stages, unit="rad/s"):
     """The "Stages" section: one table row per stage record (the main loop's stages by
     number, the others by their kind)."""
@@ -382,7 +392,7 @@ def _stage_lines(stages, unit="rad/s"):
         if label == kind and kind not in kinds:
             kinds.append(kind)
         srows.append((label, number(r["n_sections"]), number(r["window"]),
-                      number(r["omega_c"]), number(r["max_rel_error"]), number(r["nit"]),
+                      number(r["omega_c"]), number(r["max_rel_error"]), _iterations(r),
                       number(r["wall_time"]), _stage_status(r)))
     known = {"final": "final: the loop's last stage, on all data",
              "rational-start": "rational-start: vector fitting of all sections (no solve; "
