@@ -37,7 +37,7 @@ from ..core.scaling import (check_finite_result, reference_scales, scale_data, u
 from ..core.resolution import check_resolution, default_delay_max, resolution_damping
 from .._threads import single_threaded_blas
 from .stages import Kept, StageKind, StageRecord, StageSolver
-from .start import RationalStartError
+from .start import RationalStartError, rational_start_memo
 from .verdict import FitStatus
 
 __all__ = ["fit", "FitResult", "FitStatus", "StageRecord", "Kept", "StageKind", "METHODS", "INITS",
@@ -326,7 +326,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
     kw = dict(integrator=integrator, basis=basis, method=method, tol=tol, start=start,
               objective=objective, min_damping=min_damping, loop=loop, gain_sign=gain_sign,
               zeros=zeros)
-    with single_threaded_blas():
+    with single_threaded_blas(), rational_start_memo():
         return _fit_held(data_or_omega, response, n_sections=n_sections, delay=delay,
                          progress=progress, weights=weights, **kw)
 
