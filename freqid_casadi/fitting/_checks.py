@@ -179,14 +179,14 @@ def success_of(last, stats):
 
 def _next_step(last, stats):
     """What to pass to let an unconverged final stage continue."""
-    if not stats.rms < TRIVIAL_RMS:
-        return ("the model explains almost nothing: see the diagnostics (gain sign, model "
-                "class, delay) before iterating further")
     limit = last.details.get("max_iter")
     if last.status == Status.MAX_ITER and limit:
         kind = "BarrierLMOptions" if last.details.get("method") == "barrier-lm" \
             else "IpoptOptions"
         return f"pass method={kind}(final_max_iter={10 * int(limit)}) to continue"
+    if not stats.rms < TRIVIAL_RMS:
+        return ("the model explains almost nothing: see the diagnostics (gain sign, model "
+                "class, delay) before iterating further")
     return ("try start='best' (both starts, the better kept) or another number of "
             "sections")
 
