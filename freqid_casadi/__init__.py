@@ -9,6 +9,7 @@ Quick start::
     import freqid_casadi as fc
     data = fc.systems.G_A()                      # free-free beam, 500 points
     res = fc.fit(data, n_sections=17, integrator=True)
+    res.status, res.message                      # "ok": the model explains the data
     res.max_rel_error, res.model.delay, res.model.to_control()
 
 Robust control: ``fc.cover(model, [data, ...])`` gives one stable, minimum-phase weight
@@ -21,7 +22,7 @@ Importing this package does not import matplotlib (plots are in ``freqid_casadi.
 from . import systems
 from .core.data import FrequencyData
 from .errors import DataError, FreqidError, OptionError, SolverError, StructureError
-from .fitting.fit import FitResult, StageRecord, fit
+from .fitting.fit import FitResult, FitStatus, StageRecord, fit
 from .io.loaders import (DataWarning, load, load_csv, load_mat, load_npz, load_text,
                       load_touchstone, load_uff, save_csv)
 from .core.model import RationalDelayModel, Structure
@@ -32,7 +33,7 @@ from .options import BarrierLMOptions, FitOptions, IpoptOptions, LoopOptions
 from .uncertainty.cover import CoverResult, cover
 
 __all__ = [
-    "fit", "FitResult", "StageRecord", "IpoptOptions", "BarrierLMOptions", "LoopOptions",
+    "fit", "FitResult", "FitStatus", "StageRecord", "IpoptOptions", "BarrierLMOptions", "LoopOptions",
     "FitOptions", "FrequencyData", "RationalDelayModel", "Structure",
     "load", "load_csv", "load_npz", "load_text", "load_mat", "load_uff",
     "load_touchstone", "save_csv",

@@ -69,7 +69,8 @@ def timed_fit(n_channels, repeats=3):
     walls, per_it, cpu_it = [], [], []
     for _ in range(repeats):
         t0 = time.perf_counter()
-        res = fit_shared(datas, N_MODES, delay=False, zeros=zeros_of(n_channels))
+        res = fit_shared(datas, N_MODES, delay=False, zeros=zeros_of(n_channels),
+                         start="rational")
         walls.append(time.perf_counter() - t0)
         per_it.append(res.stages[-1].t_solve / max(res.stages[-1].nit, 1))
         cpu_it.append(res.stages[-1].cpu_solve / max(res.stages[-1].nit, 1))

@@ -47,7 +47,7 @@ def main(argv=None):
            "non_increasing": all(b <= a for a, b in zip(errs, errs[1:])), "rows": rows}
     if not args.no_baseline:
         t0 = time.perf_counter()
-        base = [fc.fit(data, n_sections=o // 2, integrator=True,
+        base = [fc.fit(data, n_sections=o // 2, integrator=True, start="sequential",
                        method=fc.IpoptOptions(ftol=0.0),
                        loop=fc.LoopOptions(init="peak", delay_search=False)).max_rel_error for o in orders]
         t_base = time.perf_counter() - t0

@@ -75,7 +75,7 @@ def run_fit(data, name, method):
     log.info("%s: fit(method=%r)", name, method)
     t0 = time.perf_counter()
     res = fc.fit(data, n_sections=row["n_sections"], integrator=row["integrator"],
-                 method=method)
+                 method=method, start="sequential")
     wall = time.perf_counter() - t0
     out = dict(method=f"ours, fit(method={method!r})", n_sections=res.model.n_sections,
                max_rel_error=res.max_rel_error, rms_rel_error=res.rms_rel_error,

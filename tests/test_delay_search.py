@@ -51,7 +51,7 @@ def test_the_option_is_validated():
 def _fit_a(**loop):
     ex = EXAMPLES["A"]
     return fc.fit(ex.system(), n_sections=ex.n_sections, integrator=ex.integrator,
-                  loop=fc.LoopOptions(**loop))
+                  start="sequential", loop=fc.LoopOptions(**loop))
 
 
 def test_a_converged_fit_is_not_searched():
@@ -97,7 +97,8 @@ def test_progress_names_the_search(capsys):
     beta = [0.01, 3.0, 1, 0.05, 2.0, 1, 0.1, 5.0, 1, 0.02, 20.0, 1, 0.03, 40.0]
     true = fc.RationalDelayModel(fc.Structure(2, True, True), beta)
     res = fc.fit(w, true.frequency_response(w), n_sections=2, integrator=True,
-                 method=fc.IpoptOptions(max_iter=1, final_max_iter=1), progress="lines")
+                 method=fc.IpoptOptions(max_iter=1, final_max_iter=1), progress="lines",
+                 start="sequential")
     err = capsys.readouterr().err
     assert res.success and res.max_rel_error < 1e-12
     assert "delay search (vector fits):" in err and "delay search, polish:" in err

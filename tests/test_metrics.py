@@ -65,8 +65,8 @@ def test_stage_enums_compare_and_serialise_as_words():
     data = fc.systems.G_A().window(100)
     # init="peak": its section stage ends at its limit, so a final stage runs (with the
     # default init="relocate" the section stage converges on all data and none is needed)
-    res = fc.fit(data, n_sections=1, integrator=True, loop=fc.LoopOptions(init="peak",
-                                                                          delay_search=False))
+    res = fc.fit(data, n_sections=1, integrator=True, start="sequential",
+                 loop=fc.LoopOptions(init="peak", delay_search=False))
     kinds = [s.kind for s in res.stages]
     assert kinds[0] == StageKind.GAIN_DELAY and kinds[-1] == StageKind.FINAL
     d = res.stages[-1].as_dict()

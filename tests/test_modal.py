@@ -65,7 +65,8 @@ def test_modes_of_fit_result_and_errors():
 
 
 def test_shared_modes_residues_are_the_modal_constants():
-    res = fc.fit_shared(_datas(), 2, delay=False, zeros=["minimum-phase", "free"])
+    res = fc.fit_shared(_datas(), 2, delay=False, zeros=["minimum-phase", "free"],
+                        start="rational")
     assert [m.omega_n for m in res.modes] == pytest.approx([5.0, 17.0], rel=1e-7)
     assert [m.zeta for m in res.modes] == pytest.approx([0.02, 0.03], rel=1e-6)
     for k, (w, z) in enumerate(POLES):
@@ -75,7 +76,7 @@ def test_shared_modes_residues_are_the_modal_constants():
 
 
 def test_csv_and_markdown_writers(tmp_path):
-    res = fc.fit_shared(_datas(), 2, delay=False, zeros="free")
+    res = fc.fit_shared(_datas(), 2, delay=False, zeros="free", start="rational")
     text = modal.modes_csv(res.modes, ["a", "b"])
     rows = list(csv.reader(io.StringIO(text)))
     assert rows[0][:4] == ["mode", "frequency_hz", "omega_n_rad_s", "zeta"]

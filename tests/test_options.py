@@ -110,7 +110,7 @@ def test_solver_options_and_translation():
 def test_fit_records_typed_options_and_computed_numbers():
     data = fc.systems.G_A().window(120)
     loop = LoopOptions(delay_max=0.05)
-    res = fc.fit(data, n_sections=2, integrator=True,
+    res = fc.fit(data, n_sections=2, integrator=True, start="sequential",
                  method=IpoptOptions(hessian="gauss-newton"), loop=loop)
     assert res.method == "ipopt" and res.options.method == "ipopt"
     assert res.options.solver == IpoptOptions(hessian="gauss-newton")
@@ -130,7 +130,7 @@ def test_final_stage_false_runs_no_final_stage():
     final stage with final_stage=False after a stage that hit its iteration limit."""
     data = fc.systems.G_A().window(200)
     res = fc.fit(data, n_sections=3, integrator=True, method=IpoptOptions(max_iter=1),
-                 loop=LoopOptions(final_stage=False))
+                 loop=LoopOptions(final_stage=False), start="sequential")
     assert res.stages[-2].status.name == "MAX_ITER" or res.stages[-1].status.name == "MAX_ITER"
     assert max(s.stage for s in res.stages) == 3
 

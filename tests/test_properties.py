@@ -136,7 +136,7 @@ def test_fit_recovers_an_exact_one_section_model():
     beta = [0.0, 1.0, 1.0, 1.0, 2.0, 1.0, 1.0, 1.0]
     model = fc.RationalDelayModel(fc.Structure(1, False, True), beta)
     res = fc.fit(fc.FrequencyData(OMEGA, model.frequency_response(OMEGA)), n_sections=1,
-                 loop=fc.LoopOptions(init="peak"))
+                 loop=fc.LoopOptions(init="peak"), start="sequential")
     assert res.max_rel_error < 1e-6, res.summary()
     assert [r.kept for r in res.stages][1] == "identity-retry"
     assert res.model.is_stable() and res.model.is_minimum_phase()

@@ -65,6 +65,7 @@ pytestmark = pytest.mark.filterwarnings("ignore::freqid_casadi.errors.Resolution
 
 def _fit(name, loop=None, **kw):
     ex = EXAMPLES[name]
+    kw.setdefault("start", "sequential")        # the loop these tests measure
     return fc.fit(ex.system(), n_sections=ex.n_sections, integrator=ex.integrator,
                   loop=loop or fc.LoopOptions(), **kw)
 

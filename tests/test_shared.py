@@ -142,7 +142,7 @@ def test_ema_system_matches_pylump():
 
 def test_ema_acceptance_frequencies_and_dampings():
     datas, f_true, zeta_true = ema_system()
-    res = fit_shared(datas, 5, delay=False)
+    res = fit_shared(datas, 5, delay=False, start="rational")
     assert isinstance(res, SharedFitResult) and res.success
     f = np.array([m.frequency_hz for m in res.modes])
     zeta = np.array([m.zeta for m in res.modes])
@@ -183,7 +183,7 @@ BEAM_ZEROS = ["minimum-phase"] + ["free"] * (len(SENSORS) - 1)
 
 @pytest.fixture(scope="module")
 def beam_fit():
-    return fit_shared(beam_datas(), 6, delay=False, zeros=BEAM_ZEROS)
+    return fit_shared(beam_datas(), 6, delay=False, zeros=BEAM_ZEROS, start="rational")
 
 
 def test_beam_modes_within_half_percent(beam_fit):
@@ -236,13 +236,14 @@ def beam_own():
     out-of-band modes as that channel sees them) = 6 sections per channel, default
     max_iter (its polish: 376 IPOPT iterations with one rescaled restart, measured; 410
     without the restart, which exceeded the default 2 x 200)."""
-    return fit_shared(beam_datas(), 5, delay=False, zeros=BEAM_ZEROS, channel_sections=1)
+    return fit_shared(beam_datas(), 5, delay=False, zeros=BEAM_ZEROS, channel_sections=1,
+                      start="rational")
 
 
 @pytest.fixture(scope="module")
 def beam_balanced():
     return fit_shared(beam_datas(), 5, delay=False, zeros=BEAM_ZEROS, channel_sections=1,
-                      balance_channels=True)
+                      balance_channels=True, start="rational")
 
 
 def _check_beam_modes(res):
@@ -357,7 +358,7 @@ def test_channel_sections_take_what_is_not_shared(start):
 
 def test_to_control_outputs_every_channel_with_delays():
     datas = _two_mode_datas(delays=(0.0, 0.02))
-    res = fit_shared(datas, 2, delay="per-channel")
+    res = fit_shared(datas, 2, delay="per-channel", start="rational")
     sys = res.to_control()
     assert sys.ninputs == 1 and sys.noutputs == 2
     np.testing.assert_allclose(sys.output_delays, res.delays)
@@ -394,7 +395,7 @@ def test_input_errors():
     with pytest.raises(OptionError, match="n_sections"):
         fit_shared(datas, 0)
     with pytest.raises(OptionError, match="start"):
-        fit_shared(datas, 2, start="best")
+        fit_shared(datas, 2, start="fastest")
     for bad in (-1, True, 1.5):
         with pytest.raises(OptionError, match="channel_sections"):
             fit_shared(datas, 2, channel_sections=bad)
@@ -405,7 +406,7 @@ def test_input_errors():
 def test_integrator_in_every_channel():
     datas = [fc.FrequencyData(d.omega, d.response / (1j * d.omega), d.name)
              for d in _two_mode_datas()]
-    res = fit_shared(datas, 2, integrator=True, delay=False)
+    res = fit_shared(datas, 2, integrator=True, delay=False, start="rational")
     assert res.success and np.all(res.max_rel_errors < 1e-8)
     assert all(m.integrator for m in res.models)
     np.testing.assert_allclose([m.omega_n for m in res.modes], [5.0, 17.0], rtol=1e-8)
@@ -416,9 +417,9 @@ def test_weights_scale_the_channels():
     datas = _two_mode_datas()
     w = np.ones((2, 200))
     w[1, 100:] = 0.0                              # the second channel's upper half ignored
-    res = fit_shared(datas, 2, delay=False, weights=w)
+    res = fit_shared(datas, 2, delay=False, weights=w, start="rational")
     assert res.success and np.all(res.max_rel_errors < 1e-6)
-    same = fit_shared(datas, 2, delay=False, weights=2.0)
+    same = fit_shared(datas, 2, delay=False, weights=2.0, start="rational")
     assert np.all(same.max_rel_errors < 1e-6)
     with pytest.raises(DataError, match="broadcastable"):
         fit_shared(datas, 2, weights=np.ones(7))

@@ -239,7 +239,7 @@ def one_mode_fit():
     data = fc.FrequencyData(2 * np.pi * F_HZ, RESP, "one")
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return fc.fit(data, n_sections=1)
+        return fc.fit(data, n_sections=1, start="sequential")   # (its delay: 0)
 
 
 def test_report_names_both_gains_the_hz_range_and_the_stage_status(one_mode_fit):
@@ -296,10 +296,16 @@ def test_cli_weights_reads_the_frf_sidecar(tmp_path, capsys):
 def test_report_says_why_a_fit_did_not_converge(one_mode_fit):
     s = fit_summary(one_mode_fit, command="freqid fit x --sections 1 --out r")
     assert s["message"] == one_mode_fit.message
-    s["success"], s["message"] = False, "the final stage did not converge: iteration limit"
+    s["success"], s["message"] = False, "not-converged: the final stage reached its limit"
+    s["status"] = "not-converged"
     text = render_fit_summary(s)
-    assert "| success (final stage converged) | NO: the final stage did not converge: " \
-           "iteration limit |" in text
+    # the report leads with the status and the message; the table says NO
+    assert "**Status: not-converged.** not-converged: the final stage reached its limit" \
+        in text.split("| quantity |")[0]
+    assert "| success (final stage converged) | NO |" in text
+    del s["status"]                   # a summary written before the status: the table says why
+    assert "| success (final stage converged) | NO: not-converged: the final stage " \
+           "reached its limit |" in render_fit_summary(s)
 
 
 def test_bode_and_error_figures_have_a_hz_axis(one_mode_fit):
@@ -418,7 +424,7 @@ def test_cli_fit_of_exact_two_mode_data_converges_by_default(tmp_path, capsys):
     assert main(["fit", str(path), "--sections", "2", "--out", str(tmp_path / "fit"),
                  "--quiet"]) == 0
     out = capsys.readouterr()
-    assert "NOT converged" not in out.out + out.err
+    assert "NOT converged" not in out.out + out.err and "not-converged" not in out.out
     js = json.loads((tmp_path / "fit" / "summary.json").read_text())
     assert js["max_rel_error"] < 1e-12
     # 8.8e-11 s of the delay sits in a zero at -1.1e10 rad/s (a phase lead of 1.6e-8 rad

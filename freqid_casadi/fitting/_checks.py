@@ -9,15 +9,18 @@ import numbers
 import numpy as np
 
 from ..core.data import FrequencyData, external_frequency_data
-from .diagnostics import (check_delay, check_minimum_phase, check_roots_below_band,
+from .diagnostics import (TRIVIAL_RMS, check_delay, check_minimum_phase,
+                          check_roots_below_band,
                           check_trivial, rhp_zeros_note)
 from ..errors import DataError, FreqidError, OptionError, StructureError
 from ..core.model import BASES, ZEROS, Structure
 from ..core.resolution import resolution_damping
 from .._validate import check_choice, check_flag
+from ..solvers.common import TERMINATION_MESSAGES, Status
+from .verdict import FitStatus, ROUNDING_RMS, poor_fit_diagnostic, residual_noise, status_of
 
 __all__ = ["GAIN_SIGNS", "validate", "zeta_min_of", "check_model_class", "after_fit",
-           "success_of", "MAX_DECADES",
+           "success_of", "verdict", "MAX_DECADES",
            "check_weighted_points"]
 
 #: Values of ``fit(gain_sign=...)``.
@@ -154,12 +157,100 @@ def after_fit(model, data, stats, delay_max):
 
 
 def success_of(last, stats):
-    """``(success, message)`` of a fit from its last stage record and its error."""
+    """``(success, message)`` of a fit from its last stage record and its error (the
+    optimiser's verdict only; :func:`verdict` is the fit's)."""
     if not stats.rms < 1.0:
-        return False, (f"RMS relative error {stats.rms:.3g} >= 1: no better than an "
+        return False, (f"the RMS relative error {stats.rms:.3g} >= 1: no better than an "
                        "infinite-gain model (a stationary point at infinity); try "
                        "start='rational', another structure or fewer sections")
     if last.success:
         return True, last.message or "converged"
-    return False, (f"the final stage did not converge: {last.message or last.solver_status}"
-                   f" (stage {last.stage}, {last.nit} iterations)")
+    return False, _not_converged(last, stats)
+
+
+def _next_step(last, stats):
+    """What to pass to let an unconverged final stage continue."""
+    limit = last.details.get("max_iter")
+    if last.status == Status.MAX_ITER and limit:
+        kind = "BarrierLMOptions" if last.details.get("method") == "barrier-lm" \
+            else "IpoptOptions"
+        return f"pass method={kind}(final_max_iter={10 * int(limit)}) to continue"
+    if not stats.rms < TRIVIAL_RMS:
+        return ("the model explains almost nothing: see the diagnostics (gain sign, model "
+                "class, delay) before iterating further")
+    return ("try start='best' (both starts, the better kept) or another number of "
+            "sections")
+
+
+def _not_converged(last, stats, usable=False):
+    """The message of a fit whose final stage did not converge (``usable``: its residual
+    is consistent with the noise all the same)."""
+    d = last.details
+    limit = d.get("max_iter")
+    fell = d.get("termination", {}).get("rms_fall_per_iteration")
+    if last.status == Status.MAX_ITER and limit:
+        how = f"reached its iteration limit ({int(limit)})"
+        if fell is not None and math.isfinite(fell):
+            how += f" while the error still fell {100 * fell:.2g} % per iteration"
+    elif last.status == Status.STALLED:
+        how = "stalled (the error stopped falling) at a point that is not stationary"
+    else:
+        how = f"stopped ({TERMINATION_MESSAGES[last.status]})"
+    state = ("usable: the residual is consistent with the noise" if usable else
+             "the model is feasible and these errors are measured")
+    return (f"not-converged: the final stage {how}; max rel. error {stats.max:.2g}, "
+            f"RMS {stats.rms:.2g} ({state}) — {_next_step(last, stats)}")
+
+
+def verdict(last, stats, residual, data, found, n_sections):
+    """The fit's verdict: ``(success, status, message, details, diagnostics)``.
+
+    ``success`` is the optimiser's (:func:`success_of`, False also on a diagnostic of
+    severity "error"); ``status`` a :class:`~.verdict.FitStatus` from it and the
+    residual's consistency with the noise (:func:`~.verdict.residual_noise`); a
+    ``poor-fit`` diagnostic is added to ``found`` when a converged fit's residual is well
+    above the noise.
+
+    Parameters
+    ----------
+    last : StageRecord
+        The final all-data stage.
+    stats : ErrorStats
+    residual : ndarray of complex, shape (M,)
+        ``Phi / G_N - 1``.
+    data : FrequencyData
+        The user's data (weights and unit).
+    found : tuple of Diagnostic
+    n_sections : int
+
+    Returns
+    -------
+    (bool, FitStatus, str, dict, tuple of Diagnostic)
+    """
+    success, message = success_of(last, stats)
+    check = residual_noise(residual, data.omega, data.weights)
+    errors = [d for d in found if d.severity == "error"]
+    converged = bool(last.success)
+    status = status_of(converged, bool(errors) or not stats.rms < 1.0, check)
+    details = {"final_stage": dict(last.details, message=last.message, stage=last.stage,
+                                   iterations=int(last.nit)),
+               "noise": dict(check)}
+    if status == FitStatus.POOR_FIT:
+        if not check.consistent:
+            diag = poor_fit_diagnostic(check, found, n_sections, data.unit)
+            found = tuple(found) + (diag,)
+            message = f"poor-fit: converged, but {diag.message}"
+        if errors:
+            success, message = False, f"poor-fit: {errors[0].code}: {errors[0].message}"
+        elif not stats.rms < 1.0:
+            message = f"poor-fit: {message}"
+    elif status == FitStatus.NOT_CONVERGED and stats.rms < 1.0:
+        message = _not_converged(last, stats, usable=check.consistent)
+    elif status == FitStatus.NOT_CONVERGED:
+        message = f"not-converged: {message}"
+    elif status == FitStatus.OK:
+        message = (f"ok: converged; max rel. error {stats.max:.3g}, RMS {stats.rms:.3g}, "
+                   "consistent with the noise"
+                   + (" (the fit is exact to rounding)" if check["rms"] <= ROUNDING_RMS
+                      else f" ({check['noise_rms']:.3g} from the residual's scatter)"))
+    return success, status, message, details, tuple(found)

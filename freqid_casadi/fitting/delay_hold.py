@@ -33,10 +33,11 @@ import warnings
 
 import numpy as np
 
-from ._checks import after_fit
+from ._checks import after_fit, verdict
 from .candidates import NEAR
 from ..core.data import FrequencyData
 from .diagnostics import Diagnostic
+from .stages import Kept, StageKind
 from ..errors import ResolutionWarning
 from ..core.metrics import relative_error
 from ..core.model import RationalDelayModel
@@ -145,14 +146,19 @@ def _held_result(free, held, model, lower, found, extra_time):
     before = tuple(d for d in held.diagnostics if d.code == "negative-gain")  # pre-fit
     diags = before + (Diagnostic("delay-undetermined", message, "warning", values),) + tuple(
         d for d in found_now if d.code != "delay-undetermined")
-    errors = [d for d in diags if d.severity == "error"]
     stages = tuple(dataclasses.replace(r, delay=h) for r in held.stages)
     cands = dict(held.candidate_max_rel_errors, **{"free delay": free.max_rel_error})
+    final = [r for r in stages if r.kept != Kept.MINIMAX_REJECTED
+             and r.kind != StageKind.RATIONAL_START] or stages
+    with np.errstate(all="ignore"):
+        residual = data.response / model.frequency_response(data.omega) - 1.0
+    success, status, message, details, diags = verdict(
+        final[-1], stats, residual, data, diags, model.n_sections)
+    if status != "poor-fit":
+        message += f"; the delay is held at {h:.6g} {tu} (see the delay-undetermined diagnostic)"
     return dataclasses.replace(
         held, model=model, data=data, rel_error=stats.values, max_rel_error=stats.max,
         rms_rel_error=stats.rms, stages=stages, options=free.options,
         candidate_max_rel_errors=cands, delay_max=free.delay_max, diagnostics=diags,
-        success=held.success and not errors,
-        message=(f"{errors[0].code}: {errors[0].message}" if errors else
-                 f"{held.message}; delay held at {h:.6g} {tu} (delay-undetermined)"),
+        success=success, status=status, message=message, details=details,
         wall_time=free.wall_time + extra_time)

@@ -11,8 +11,9 @@ finding into a :class:`Diagnostic` record (``code``, ``message``, ``values``) th
 Codes
 -----
 ``negative-gain``
-    The low-frequency phase (integrator removed) is near +-180 deg: the static gain is
-    negative. With ``gain_sign="auto"`` the fit uses a negative gain and says so.
+    The rational start explains the data far better with a negative gain than with a
+    positive one (:func:`rational_gain_sign`; when it does not decide, the low-frequency
+    phase, integrator removed, is near +-180 deg). With ``gain_sign="auto"`` the fit uses a negative gain and says so.
 ``non-minimum-phase``
     Excess phase that a delay cannot explain: a stable rational fit of the same order with
     free zeros (vector fitting at the fitted delay) needs right-half-plane zeros and is
@@ -41,12 +42,16 @@ from ..core.data import FrequencyData
 from ..core.metrics import relative_error
 
 __all__ = ["Diagnostic", "CODES", "TRIVIAL_RMS", "low_frequency_phase", "low_frequency_slope",
-           "check_gain_sign",
+           "check_gain_sign", "rational_gain_sign",
            "check_trivial", "check_delay", "check_minimum_phase", "rhp_zeros_note",
            "check_roots_below_band", "BELOW_BAND"]
 
 CODES = ("negative-gain", "non-minimum-phase", "delay-undetermined", "no-better-than-trivial",
          "root-below-band")
+
+#: Low-frequency phase (deg, integrator removed) within which flat data (log-log slope
+#: within 0.5) have a positive gain without asking the fits (:func:`check_gain_sign`).
+CLEAR_PHASE_DEG = 45.0
 
 #: Fraction of the lowest data frequency below which a root is "far below the band".
 BELOW_BAND = 0.01
@@ -142,7 +147,62 @@ def low_frequency_slope(data, integrator):
     return float(np.polyfit(log_w, log_g, 1)[0])
 
 
-def check_gain_sign(data, integrator, gain_sign="auto"):
+def rational_gain_sign(data, structure, decisive=0.5):
+    """The gain sign under which the rational start explains the data, or None.
+
+    The rational start (:func:`~freqid_casadi.fitting.start.rational_start`: vector
+    fitting with the delay refined from the right-half-plane zeros, the zeros reflected,
+    the gain in closed form; no IPOPT) is run on the data, on a frequency axis scaled by a
+    power of two; if its max relative error is not below ``decisive``, also on the negated
+    data. The sign whose start has the lower error wins if that error is below
+    ``decisive`` times the other's. Unlike the phase at the lowest bins (which a delay and
+    a pole below the band turn past -90 deg, and an accelerance's zeros at the origin to
+    180 deg), this is the sign the model class fits.
+
+    Parameters
+    ----------
+    data : FrequencyData
+    structure : Structure
+        The model to fit (sections, basis, integrator, delay; minimum-phase zeros).
+    decisive : float
+        Max relative error of the positive start that decides alone, and the largest
+        ratio of the winner's error to the loser's.
+
+    Returns
+    -------
+    (int, float, float) or None
+        The sign and the starts' max relative errors with K > 0 and K < 0 (NaN for a
+        start not run); None when neither start is usable or the errors do not decide.
+    """
+    from ..core.resolution import default_delay_max
+    from ..core.scaling import reference_scales, scale_data
+    from .start import RationalStartError, rational_start
+
+    w_ref, g_ref = reference_scales(data)
+    scaled = scale_data(data, w_ref, g_ref)
+    dmax = default_delay_max(scaled.omega)
+
+    def error(sign):
+        target = FrequencyData(scaled.omega, sign * scaled.response, None, scaled.weights)
+        try:
+            with np.errstate(all="ignore"):
+                err = rational_start(target, structure, delay_max=dmax).max_rel_error
+        except (RationalStartError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+            return math.inf
+        return float(err) if math.isfinite(err) else math.inf
+
+    pos = error(1)
+    if pos < decisive:
+        return 1, pos, math.nan
+    neg = error(-1)
+    if neg <= decisive * pos and math.isfinite(neg):
+        return -1, pos, neg
+    if pos <= decisive * neg and math.isfinite(pos):
+        return 1, pos, neg
+    return None
+
+
+def check_gain_sign(data, integrator, gain_sign="auto", structure=None):
     """The gain sign to fit, and the record that says why.
 
     Parameters
@@ -150,8 +210,13 @@ def check_gain_sign(data, integrator, gain_sign="auto"):
     data : FrequencyData
     integrator : bool
     gain_sign : {"auto", "positive", "negative"}
-        "auto" takes the sign of the low-frequency response (phase within 90 deg of 0:
-        positive; of 180 deg: negative).
+        "auto": positive when the data are flat and within :data:`CLEAR_PHASE_DEG` of 0 deg
+        at the lowest bins; else the sign under which the rational start of ``structure``
+        explains the data (:func:`rational_gain_sign`), or, without ``structure`` (or with free zeros,
+        which fit either sign) or when that does not decide, the sign of the
+        low-frequency response (phase within 90 deg of 0: positive; of 180 deg: negative).
+    structure : Structure, optional
+        The model to fit.
 
     Returns
     -------
@@ -162,30 +227,48 @@ def check_gain_sign(data, integrator, gain_sign="auto"):
         uses the negative gain, "warning" when ``gain_sign="positive"`` forces the other.
     """
     phase = low_frequency_phase(data, integrator)
-    looks_negative = abs(phase) > math.pi / 2
     deg = math.degrees(phase)
     slope = low_frequency_slope(data, integrator)
     values = {"low_frequency_phase_deg": deg, "n_points": _low_points(data.omega),
               "omega_max_used": float(data.omega[_low_points(data.omega) - 1]),
               "low_frequency_slope": slope}
-    origin = (f" (the magnitude rises as omega^{slope:.1f} there: part of this phase comes "
-              "from zeros at the origin, as in an accelerance, which the unit-DC factors "
-              "can only approach; dividing the data by (j omega)^k before fitting is the "
-              "cleaner model)" if abs(slope) > 0.5 else "")
-    what = "with the integrator removed, " if integrator else ""
+    rational = None
+    # flat and in phase at the lowest bins: positive without a doubt (a stable minimum-
+    # phase factor with a flat magnitude has no phase there, Bode's gain-phase relation);
+    # otherwise the phase may come from a delay and poles below the band, or from zeros
+    # at the origin, and the fits decide
+    clear = abs(deg) <= CLEAR_PHASE_DEG and abs(slope) <= 0.5
+    if (structure is not None and structure.zeros != "free" and gain_sign == "auto"
+            and not clear):
+        rational = rational_gain_sign(data, structure)
+    if rational is not None:
+        looks_negative = rational[0] < 0
+        values.update(rational_sign=rational[0], rational_max_rel_error_positive=rational[1],
+                      rational_max_rel_error_negative=rational[2])
+        why = (f"the rational start explains the data with a negative gain (max rel. error "
+               f"{rational[2]:.2g}) far better than with a positive one "
+               f"({rational[1]:.2g}): the static gain is negative (the low-frequency phase "
+               f"is {deg:.1f} deg)")
+    else:
+        looks_negative = abs(phase) > math.pi / 2
+        what = "with the integrator removed, " if integrator else ""
+        origin = (f" (the magnitude rises as omega^{slope:.1f} there: part of this phase "
+                  "comes from zeros at the origin, as in an accelerance, which the unit-DC "
+                  "factors can only approach; dividing the data by (j omega)^k before "
+                  "fitting is the cleaner model)" if abs(slope) > 0.5 else "")
+        why = (f"the low-frequency phase ({what}lowest {values['n_points']} points up to "
+               f"{values['omega_max_used']:.4g} {data.unit}) is {deg:.1f} deg, near "
+               f"+-180 deg: the static gain is negative{origin}")
     if gain_sign == "negative" or (gain_sign == "auto" and looks_negative):
         if not looks_negative:
             return -1, ()
-        msg = (f"the low-frequency phase ({what}lowest {values['n_points']} points up to "
-               f"{values['omega_max_used']:.4g} {data.unit}) is {deg:.1f} deg, near "
-               f"+-180 deg: the static gain is negative{origin}; fitted with a negative gain "
-               "(gain_sign='auto'; pass gain_sign='positive' to force K > 0)")
+        msg = (f"{why}; fitted with a negative gain (gain_sign='auto'; pass "
+               "gain_sign='positive' to force K > 0)")
         return -1, (Diagnostic("negative-gain", msg, "info", values),)
     if looks_negative:
-        msg = (f"the low-frequency phase ({what}lowest points) is {deg:.1f} deg, near "
-               "+-180 deg: the data look sign-inverted but gain_sign='positive' forces "
-               "K > 0, so the fit must explain a 180 deg phase it cannot; use "
-               "gain_sign='auto' or 'negative'")
+        msg = (f"{why}: the data look sign-inverted but gain_sign='positive' forces K > 0, "
+               "so the fit must explain a 180 deg phase it cannot; use gain_sign='auto' or "
+               "'negative'")
         return 1, (Diagnostic("negative-gain", msg, "warning", values),)
     return 1, ()
 
@@ -288,13 +371,14 @@ def check_delay(model, data, delay_max, rms_rel_error=None, *, delay_std=None, a
     return ()
 
 
-def _vf_free_zeros(data, model, n_poles):
-    """Vector fit with stable poles and free zeros of the data with the model's delay and
-    integrator removed; returns (max, rms relative error, RHP zeros) or None."""
+def _vf_free_zeros(data, model, n_poles, delay=None):
+    """Vector fit with stable poles and free zeros of the data with a delay (default the
+    model's) and the model's integrator removed; returns (max, rms relative error, RHP
+    zeros) or None."""
     from ..baselines import vector_fitting
 
     s = 1j * data.omega
-    base = data.response * np.exp(s * model.delay)
+    base = data.response * np.exp(s * (model.delay if delay is None else delay))
     if model.integrator:
         base = base * s
     try:
@@ -346,9 +430,14 @@ def check_minimum_phase(model, data, max_rel_error, rms_rel_error, *, ratio=0.5,
     if rms_rel_error < floor or model.n_sections == 0:
         return ()
     per = 2 if model.structure.basis == "second-order" else 1
-    vf = _vf_free_zeros(data, model, per * model.n_sections)
-    if vf is None:
+    # at the fitted delay, and at none (a minimum-phase fit may have pushed its delay far
+    # beyond the data's to mimic the excess phase)
+    fits = [f for f in (_vf_free_zeros(data, model, per * model.n_sections),
+                        _vf_free_zeros(data, model, per * model.n_sections, 0.0)
+                        if model.delay > 0 else None) if f is not None]
+    if not fits:
         return ()
+    vf = min(fits, key=lambda f: f[1])
     vmax, vrms, rhp = vf
     if rhp.size == 0 or not vrms < ratio * rms_rel_error:
         return ()

@@ -17,7 +17,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from .candidates import Candidate, choose, zero_delay_run
-from ._checks import (GAIN_SIGNS, after_fit, check_model_class, success_of, validate,
+from ._checks import (GAIN_SIGNS, after_fit, check_model_class, validate, verdict,
                       zeta_min_of)
 from .._validate import check_choice, check_flag
 from ..core.data import FrequencyData
@@ -38,9 +38,10 @@ from ..core.resolution import check_resolution, default_delay_max, resolution_da
 from .._progress import channel, check_progress
 from .._threads import single_threaded_blas
 from .stages import Kept, StageKind, StageRecord, StageSolver
-from .start import RationalStartError
+from .start import RationalStartError, rational_start_memo
+from .verdict import FitStatus
 
-__all__ = ["fit", "FitResult", "StageRecord", "Kept", "StageKind", "METHODS", "INITS",
+__all__ = ["fit", "FitResult", "FitStatus", "StageRecord", "Kept", "StageKind", "METHODS", "INITS",
            "WARM_STARTS", "STARTS", "OBJECTIVES", "GAIN_SIGNS", "default_delay_max",
            "resolution_damping"]
 
@@ -66,7 +67,15 @@ class FitResult:
         all-data stage converged (IPOPT's tolerance, or the scale-free relative
         stationarity test of :mod:`freqid_casadi.solvers.termination`, which a fit at
         machine precision passes) and the model is better than an infinite gain (RMS
-        relative error < 1). ``message`` says why not.
+        relative error < 1). ``message`` says why not. Whether the model explains the
+        data is ``status``.
+    status : FitStatus
+        The verdict (a ``str`` enum, :mod:`freqid_casadi.fitting.verdict`): "ok"
+        (converged and the residual is consistent with the noise, estimated from the
+        weights' shape and the residual's point-to-point scatter, or at rounding level),
+        "poor-fit" (converged, but the residual has structure well above the noise; a
+        ``poor-fit`` diagnostic says why: model class, order, sign or delay) or
+        "not-converged" (the final stage did not converge).
     wall_time : float
         Seconds for the whole fit.
     method : str
@@ -103,8 +112,21 @@ class FitResult:
         ("<start>, far roots", :mod:`freqid_casadi.fitting.far_roots`), see
         :func:`~freqid_casadi.fitting.candidates.choose`.
     message : str
-        Why ``success`` is what it is: the final stage's termination (with the relative
-        stationarity numbers) or the reason the fit is not a success.
+        One plain sentence led by the status: the errors and the next step (e.g.
+        "not-converged: the final stage reached its iteration limit (200) ...; pass
+        method=IpoptOptions(final_max_iter=2000) to continue").
+    details : dict
+        The numbers behind ``status`` and ``message``: ``final_stage`` (the final
+        stage's ``StageRecord.details``: termination test's cosines and projection,
+        IPOPT's return status, iterations and limit) and ``noise`` (the residual's
+        consistency check, :func:`~freqid_casadi.fitting.verdict.residual_noise`:
+        ``noise_rms``, ``ratio``, ``runs_z``, ``worst_omega``).
+    alternatives : dict of str to FitResult
+        Better models outside the class asked for: ``"zeros=free"``, the fit with
+        ``zeros="free"`` (stable poles, zeros anywhere), computed when the
+        ``non-minimum-phase`` diagnostic finds that the data need right-half-plane zeros
+        (the diagnostic then gives both errors and the switch). The result's own model
+        stays minimum phase.
     fixed : dict of str to float
         The parameters held at known values (fit's ``fixed``: "delay" in s, "dc_gain");
         empty when none. The covariance (:attr:`uncertainty`) treats them as known.
@@ -130,6 +152,9 @@ class FitResult:
     diagnostics: tuple = ()
     message: str = ""
     fixed: dict = field(default_factory=dict)
+    status: FitStatus = FitStatus.NOT_CONVERGED
+    details: dict = field(default_factory=dict)
+    alternatives: dict = field(default_factory=dict)
 
     @property
     def delay(self):
@@ -187,13 +212,14 @@ class FitResult:
             return found
 
     def summary(self):
-        """One line (and one more per diagnostic): errors, delay, time, status."""
+        """Lines led by the status: the message (which starts with it), then the model's numbers, then one per
+        diagnostic."""
         m = self.model
         line = (f"{self.data.name or 'data'}: {m.n_sections} sections (order {m.order}), "
                 f"max rel. error {self.max_rel_error:.4g}, RMS {self.rms_rel_error:.4g}, "
                 f"delay {m.delay:.6g} {self.data.time_unit}, "
-                f"{self.wall_time:.2f} s, method {self.method}, "
-                + ("converged" if self.success else f"NOT converged ({self.message})"))
+                f"{self.wall_time:.2f} s, method {self.method}")
+        return "\n".join([self.message, line] + [f"  {d.severity}: {d}" for d in self.diagnostics])
         return "\n".join([line] + [f"  {d.severity}: {d}" for d in self.diagnostics])
 
 
@@ -214,7 +240,7 @@ def _reject_old_keywords(function):
 
 @_reject_old_keywords
 def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=True,
-        basis="second-order", method="ipopt", tol=None, weights=None, start="sequential",
+        basis="second-order", method="ipopt", tol=None, weights=None, start="best",
         objective="least-squares", min_damping=None, progress=False, loop=None,
         gain_sign="auto", zeros="minimum-phase", fixed=None):
     """Fit ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` to frequency-response data.
@@ -248,8 +274,10 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         ratios matter (the fit divides them by a power of two near their mean). At least
         as many points as parameters need a weight > 0; points of weight 0 below the first
         weighted one are left out of the loop's windows (their error is still reported).
-    start : {"sequential", "rational", "best"}
-        "sequential" is the thesis's main loop; "rational" fits all sections at once by
+    start : {"best", "sequential", "rational"}
+        "best" (default, as ``fit_shared`` and ``freqid fit``) runs both of the others
+        and keeps the better (below). "sequential" is the thesis's main loop (pass it to
+        reproduce the thesis's numbers); "rational" fits all sections at once by
         vector fitting with the delay refined from the right-half-plane zeros
         (:mod:`freqid_casadi.fitting.start`), then polishes everything by one IPOPT stage on all
         data; "best" runs both and keeps, among the models within 10 % of the lowest max
@@ -278,10 +306,12 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         Knobs of the main loop (gauge, new-section init, scaling, delay bound, final
         stage, derivative evaluation); default ``LoopOptions()``.
     gain_sign : {"auto", "positive", "negative"}
-        Sign of the gain K. "auto" takes it from the data's low-frequency phase
-        (integrator removed): near +-180 deg means a negative static gain (a sign-inverted
-        sensor or transmissibility), fitted as ``-(fit of -Phi)`` and stated by a
-        ``negative-gain`` diagnostic.
+        Sign of the gain K. "auto" takes the sign under which the rational start explains
+        the data far better (both signs tried, vector fitting only:
+        :func:`~freqid_casadi.fitting.diagnostics.rational_gain_sign`), not the phase at
+        the lowest bins (which a delay and a pole below the band turn past
+        -90 deg); a negative gain (a sign-inverted sensor or transmissibility) is fitted
+        as ``-(fit of -Phi)`` and stated by a ``negative-gain`` diagnostic.
     zeros : {"minimum-phase", "free"}
         "minimum-phase" (the thesis's class): every zero in the closed left half plane.
         "free": the numerators are unbounded (zeros anywhere, e.g. non-collocated sensors
@@ -315,7 +345,8 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
     kw = dict(integrator=integrator, basis=basis, method=method, tol=tol, start=start,
               objective=objective, min_damping=min_damping, loop=loop, gain_sign=gain_sign,
               zeros=zeros)
-    with single_threaded_blas(), channel(progress, _stage_line) as emit:
+    with single_threaded_blas(), rational_start_memo(), \
+            channel(progress, _stage_line) as emit:
         if fixed:
             data = validate(data_or_omega, response, n_sections, basis, tol, integrator,
                             weights)
@@ -336,7 +367,44 @@ def _fit_held(data_or_omega, response, *, progress, weights, **kw):
         return _fit_held(data, None, progress=False, weights=None,
                          **dict(kw, n_sections=n_sections, delay=delay))
 
-    return hold_undetermined_delay(result, refit)
+    return _with_alternatives(hold_undetermined_delay(result, refit), data_or_omega,
+                              response, weights, kw)
+
+
+def _with_alternatives(result, data_or_omega, response, weights, kw):
+    """``result`` with the ``zeros="free"`` model in ``alternatives`` when the
+    ``non-minimum-phase`` diagnostic says the data need right-half-plane zeros (issue 26
+    item 4), the diagnostic then giving both errors and the switch; the result's own
+    model stays minimum phase."""
+    found = [d for d in result.diagnostics
+             if d.code == "non-minimum-phase" and d.severity == "warning"]
+    loop = result.options.loop if result.options is not None else None
+    if (not found or kw["zeros"] != "minimum-phase" or kw["min_damping"] is not None
+            or result.method != "ipopt" or loop is None or loop.gauge != "dc"):
+        return result
+    try:
+        with warnings.catch_warnings():       # a fit the user did not ask for: quiet
+            warnings.simplefilter("ignore")
+            alt = _fit_held(data_or_omega, response, progress=False, weights=weights,
+                            **dict(kw, zeros="free"))
+    except FreqidError:
+        return result
+    old = found[0]
+    text = (f"minimum phase: RMS {result.rms_rel_error:.3g} (max {result.max_rel_error:.3g}); "
+            f"with free zeros: RMS {alt.rms_rel_error:.3g} (max {alt.max_rel_error:.3g}, "
+            f"status {FitStatus(alt.status).value}) — pass zeros='free' "
+            "(FitResult.alternatives['zeros=free'] holds that model)")
+    diag = dataclasses.replace(old, message=f"{text}; {old.message}", values=dict(
+        old.values, alternative_rms_rel_error=alt.rms_rel_error,
+        alternative_max_rel_error=alt.max_rel_error))
+    diags = tuple(diag if d is old else d for d in result.diagnostics)
+    message = result.message
+    if alt.rms_rel_error < 0.5 * result.rms_rel_error:
+        message = (f"{message.split(' — ')[0]}; the data need right-half-plane zeros: "
+                   f"zeros='free' reaches RMS {alt.rms_rel_error:.3g} — pass zeros='free' "
+                   "(FitResult.alternatives['zeros=free'])")
+    return dataclasses.replace(result, diagnostics=diags, message=message,
+                               alternatives=dict(result.alternatives, **{"zeros=free": alt}))
 
 
 def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, method, tol,
@@ -351,7 +419,8 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     check_choice("start", start, STARTS)
     check_choice("objective", objective, OBJECTIVES)
     check_model_class(gain_sign, zeros, solver.method, loop.gauge, min_damping)
-    sign, found = check_gain_sign(data, integrator, gain_sign)
+    sign, found = check_gain_sign(data, integrator, gain_sign, Structure(
+        int(n_sections), integrator, delay, basis, zeros))
     user_data = data
     if sign == -1:                  # a negative gain: fit -Phi, the model gets gain_sign -1
         data = FrequencyData(data.omega, -data.response, data.name, data.weights)
@@ -393,6 +462,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                                    model.beta)
     records = [unscaled[id(r)][1] if id(r) in unscaled else _unscale_record(r, w_ref)
                for r in records]
+    scaled_omega, scaled_response = data.omega, data.response
     data = user_data       # stats stay those of the scaled problem (the same numbers, and
                            # no overflow of the model at the user's extreme omega)
     final = [r for r in records if r.kept != Kept.MINIMAX_REJECTED
@@ -400,17 +470,16 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     check = _resolution_check(model, data.omega)
     with np.errstate(all="ignore"):     # extreme user scales: a check may give up, not warn
         found += after_fit(model, data, stats, dmax / w_ref)
-    success, message = success_of(final[-1], stats)
-    errors_found = [d for d in found if d.severity == "error"]
-    if success and errors_found:
-        success, message = False, f"{errors_found[0].code}: {errors_found[0].message}"
+        residual = scaled_response / model_scaled.frequency_response(scaled_omega) - 1.0
+    success, status, message, details, found = verdict(
+        final[-1], stats, residual, data, found, int(n_sections))
     return FitResult(model=model, stages=tuple(records), data=data, rel_error=stats.values,
                      max_rel_error=stats.max, rms_rel_error=stats.rms,
                      success=success, message=message, wall_time=time.perf_counter() - t_start,
                      method=solver.method, options=options, start=won, objective=objective,
                      resolution=check, start_max_rel_errors=errors,
                      candidate_max_rel_errors=cand_errors, delay_max=dmax / w_ref,
-                     zeta_min=zeta_min, diagnostics=found)
+                     zeta_min=zeta_min, diagnostics=found, status=status, details=details)
 
 
 def _run_starts(ctx, start, tol, data):

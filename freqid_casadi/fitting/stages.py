@@ -112,8 +112,15 @@ class StageRecord:
     kind : StageKind
         "gain-delay" (stage 0), "section", "final", "rational-start" or "minimax".
     message : str
-        The stage solver's message: why it stopped, and for IPOPT the termination test's
-        numbers (:class:`~freqid_casadi.solvers.termination.StageMonitor`).
+        The stage solver's message: why it stopped, in plain words.
+    details : dict
+        The optimiser's numbers behind ``message``: ``termination`` (the relative
+        stationarity test's cosines and projection with their allowed values and the RMS
+        error's fall per iteration,
+        :meth:`~freqid_casadi.solvers.termination.StageMonitor.test_numbers`),
+        ``ipopt_status`` (IPOPT's return status), ``ipopt_iterations`` and
+        ``polish_steps`` (``nit`` is their sum), ``max_iter`` (the stage's iteration
+        limit) and ``method``; empty for stages without a solve.
     """
 
     stage: int
@@ -136,6 +143,7 @@ class StageRecord:
     timing: dict = field(default_factory=dict)
     kind: StageKind = StageKind.SECTION
     message: str = ""
+    details: dict = field(default_factory=dict)
 
     def as_dict(self):
         """JSON-ready dict of the fields (enums as their names/values)."""
@@ -144,6 +152,7 @@ class StageRecord:
         d["kept"] = Kept(self.kept).value
         d["kind"] = StageKind(self.kind).value
         d["timing"] = dict(self.timing)
+        d["details"] = dict(self.details)
         return d
 
 
@@ -209,7 +218,24 @@ def stage_record(stage, param, z, data, window, omega_c, res, nit, nfev, wall, k
                        delay=float(param.to_beta(z)[0]),
                        n_active=int(np.count_nonzero(res.active_mask)),
                        timing=solver_timing([res]) if timing is None else timing,
-                       kind=StageKind(kind), message=str(res.message))
+                       kind=StageKind(kind), message=str(res.message),
+                       details=stage_details(res))
+
+
+#: Keys of ``StageResult.extra`` that go to ``StageRecord.details``.
+_DETAIL_KEYS = ("termination", "ipopt_status", "ipopt_iterations", "polish_steps", "max_iter")
+
+
+def stage_details(res):
+    """``StageRecord.details`` of a stage result: the optimiser's numbers (see
+    :class:`StageRecord`)."""
+    extra = res.extra or {}
+    out = {k: extra[k] for k in _DETAIL_KEYS if k in extra}
+    if out or res.solver_status:
+        out["method"] = "ipopt" if "ipopt_status" in out or "termination" in out else (
+            "barrier-lm" if "n_outer" in extra else "")
+        out.setdefault("solver_status", res.solver_status)
+    return out
 
 
 def _termination(ftol, onto_bounds=False, stall=None, newton=False):

@@ -11,6 +11,8 @@ wins. The caller then polishes all parameters, delay included, by
 one IPOPT stage on all data (:func:`freqid_casadi.fitting.fit.fit` with ``start="rational"``).
 """
 
+import contextlib
+import contextvars
 from dataclasses import dataclass
 
 import numpy as np
@@ -19,7 +21,8 @@ from ..core.data import FrequencyData
 from ..errors import OptionError, SolverError
 from ..core.model import RationalDelayModel
 
-__all__ = ["RationalStart", "RationalStartError", "rational_start", "sections_from_roots"]
+__all__ = ["RationalStart", "RationalStartError", "rational_start", "rational_start_memo",
+           "sections_from_roots"]
 
 
 class RationalStartError(SolverError):
@@ -232,6 +235,35 @@ def rational_start(data, structure, *, delay_max, delay0=0.0, max_delay_updates=
     RationalStart
         The best (lowest max relative error) of the trial delays.
     """
+    key = (data.omega.tobytes(), data.response.tobytes(),
+           None if data.weights is None else data.weights.tobytes(), repr(structure),
+           float(delay_max), float(delay0), int(max_delay_updates), int(n_iter))
+    memo = _MEMO.get()
+    if memo is not None and key in memo:       # fit's gain-sign check ran this start
+        return memo[key]
+    result = _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_iter)
+    if memo is not None:
+        memo[key] = result
+    return result
+
+
+#: The starts computed inside one :func:`rational_start_memo` (one fit): the gain-sign
+#: check of ``fit(gain_sign="auto")`` runs the same start as the fit's rational start.
+_MEMO = contextvars.ContextVar("rational_start_memo", default=None)
+
+
+@contextlib.contextmanager
+def rational_start_memo():
+    """Within this context (one :func:`~freqid_casadi.fitting.fit.fit`, in one thread), a
+    :func:`rational_start` of the same data and arguments is computed once."""
+    token = _MEMO.set({})
+    try:
+        yield
+    finally:
+        _MEMO.reset(token)
+
+
+def _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_iter):
     from ..baselines import vector_fitting
 
     s = 1j * data.omega

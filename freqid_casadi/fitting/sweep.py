@@ -179,7 +179,9 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=Fa
         runs :func:`~freqid_casadi.fitting.fit.fit` at every order and keeps the better model.
         Either way the max error never increases with the order.
     **fit_options
-        Passed to :func:`~freqid_casadi.fitting.fit.fit` (``integrator``, ``start``, ...).
+        Passed to :func:`~freqid_casadi.fitting.fit.fit` (``integrator``, ``start``, ...);
+        ``start`` defaults to "sequential" here, unlike :func:`fit` (the sweep continues
+        the sequential loop from order to order; ``freqid sweep`` passes "best").
 
     Returns
     -------
@@ -187,6 +189,7 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=Fa
     """
     if not isinstance(data, FrequencyData):
         raise OptionError("sweep takes a FrequencyData")
+    fit_options = {"start": "sequential", **fit_options}
     if target is not None and (isinstance(target, (bool, np.bool_))
                                or not isinstance(target, numbers.Real)
                                or not (np.isfinite(target) and target > 0)):

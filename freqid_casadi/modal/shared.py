@@ -46,6 +46,7 @@ from .._validate import check_flag
 from ..core.resolution import default_delay_max
 from ..core.scaling import weight_scale
 from ..core.model import RationalDelayModel, Structure
+from ..fitting.verdict import FitStatus, NoiseCheck, residual_noise, status_of
 from ._nlp import SharedProblem
 from ._stages import (SharedStage, lawson_rounds, logger, rational_start,
                              sequential_start)
@@ -55,7 +56,7 @@ __all__ = ["fit_shared", "SharedFitResult", "SharedStage", "DELAYS", "ZEROS", "S
 
 DELAYS = ("per-channel", "shared", False)
 ZEROS = ("minimum-phase", "free")
-SHARED_STARTS = ("rational", "sequential")
+SHARED_STARTS = ("best", "rational", "sequential")
 #: Most reweighted fits of ``balance_channels``.
 BALANCE_ROUNDS = 10
 
@@ -104,6 +105,15 @@ class SharedFitResult:
     message : str
         Why the last stage stopped (with the termination test's numbers) and, with
         ``balance_channels``, which channels miss their targets.
+    status : FitStatus
+        As ``FitResult.status``: "ok" when the last stage converged and every channel's
+        residual is consistent with its noise
+        (:func:`~freqid_casadi.fitting.verdict.residual_noise`), "poor-fit" when it
+        converged but a channel's residual is well above its noise, "not-converged".
+    details : dict
+        ``noise``: each channel's consistency check; ``start``: the start that won
+        (with ``start="best"``) and ``start_max_rel_errors`` (largest channel max error of
+        each start).
     """
 
     models: tuple
@@ -122,6 +132,8 @@ class SharedFitResult:
     channel_poles: tuple = ()
     single_max_rel_errors: np.ndarray = ()
     message: str = ""
+    status: FitStatus = FitStatus.NOT_CONVERGED
+    details: dict = field(default_factory=dict)
 
     @property
     def n_channels(self):
@@ -143,13 +155,15 @@ class SharedFitResult:
         return np.array([m.delay for m in self.models])
 
     def summary(self):
-        """One line: channels, sections, worst max/RMS relative error, time, status."""
+        """One line: channels, sections, worst max/RMS relative error, time, convergence
+        and :attr:`status`."""
         own = (f" + {self.channel_sections} per channel" if self.channel_sections else "")
         return (f"{self.n_channels} channels, {self.n_shared} shared sections{own}, "
                 f"{len(self.modes)} modes, max rel. error {np.max(self.max_rel_errors):.4g} "
                 f"(worst channel), RMS {np.max(self.rms_rel_errors):.4g}, "
                 f"{self.wall_time:.2f} s, {self.nit} iterations, "
-                f"{'converged' if self.success else 'NOT converged'}")
+                f"{'converged' if self.success else 'NOT converged'}, status "
+                f"{FitStatus(self.status).value}")
 
     def mode_shapes(self, coordinates=None, names=None, constants="lsfd"):
         """The modes' shapes: every channel's modal constant (residue) at every shared
@@ -375,7 +389,7 @@ def _check_options(n_sections, delay, zeros, start, n_channels, channel_sections
 
 
 def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
-               zeros="minimum-phase", weights=None, start="rational", progress=False,
+               zeros="minimum-phase", weights=None, start="best", progress=False,
                delay_max=None, max_iter=200, n_vf_iter=10, channel_sections=0,
                balance_channels=False):
     """Fit several FRFs of one structure with one shared set of poles.
@@ -400,7 +414,11 @@ def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
         ``gain_sign = -1`` for a negative gain).
     weights : array_like of float, shape (C, M), (M,) or scalar, optional
         Weights of the squared relative residuals, multiplying the datas' own weights.
-    start : {"rational", "sequential"}
+    start : {"best", "rational", "sequential"}
+        "best" (default) runs both starts and keeps, among the results within 10 % of the
+        lowest max relative error (largest over the channels), a converged one if any,
+        then the lower RMS error (as :func:`freqid_casadi.fit`); ``details["start"]``
+        says which won.
     progress : bool
         Print one line per stage to stderr.
     delay_max : float, optional
@@ -459,15 +477,15 @@ def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, pro
     log = logger(progress)
     base = phi * (1j * omega) if integrator else phi          # VF fits the rational part
 
-    def run(w):
+    def run(w, which):
         def make(wr, wl):
             with _interrupt.guard():    # CasADi expressions: see stages.StageSolver
                 return SharedProblem(omega, phi, w, g, wr, integrator, delay, free, dmax, wl)
-        if start == "rational":
+        if which == "rational":
             return rational_start(make, n, k, omega, base, w, free, log, max_iter, n_vf_iter)
         return sequential_start(make, n, k, omega, w, log, max_iter)
 
-    prob, z, lam, stages = run(wts)
+    prob, z, lam, stages, won, start_errors = _run_starts(run, wts, start, datas, zs)
     options = {"n_sections": n, "channel_sections": k, "integrator": bool(integrator),
                "delay": delay, "zeros": list(zs), "start": start, "delay_max": dmax,
                "balance_channels": bool(balance)}
@@ -480,6 +498,8 @@ def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, pro
         stages += more
     res = _result(prob, z, datas, stages, zs, time.perf_counter() - t0, options)
     res = _resolution(res, omega, phi)
+    res = dataclasses.replace(res, details=dict(res.details, start=won,
+                                                start_max_rel_errors=start_errors))
     if not balance:
         return res
     miss = np.flatnonzero(res.max_rel_errors > np.maximum(singles, 1e-8))
@@ -503,6 +523,22 @@ def _resolution(res, omega, phi):
     text = "; ".join(notes)
     warnings.warn(f"fit_shared: {text}", DataWarning, stacklevel=4)
     return dataclasses.replace(res, message=f"{res.message}; under-resolved: {text}")
+
+
+def _run_starts(run, wts, start, datas, zs):
+    """Run the start(s) ``start`` asks for on weights ``wts`` and keep one (see
+    :func:`fit_shared`); returns ``(prob, z, lam, stages, won, start_max_rel_errors)``."""
+    names = ("sequential", "rational") if start == "best" else (start,)
+    runs = {}
+    for name in names:
+        prob, z, lam, stages = run(wts, name)
+        rel = np.abs(prob.ratio(z) - 1.0)
+        runs[name] = ((prob, z, lam, stages), float(np.max(rel)),
+                      float(np.sqrt(np.mean(rel ** 2))), bool(stages[-1].success))
+    lowest = min(r[1] for r in runs.values())
+    near = [k for k, r in runs.items() if r[1] <= 1.1 * lowest] or list(runs)
+    pick = sorted(near, key=lambda k: (not runs[k][3], runs[k][2]))[0]
+    return (*runs[pick][0], pick, {k: r[1] for k, r in runs.items()})
 
 
 def _models(prob, z):
@@ -543,14 +579,20 @@ def _result(prob, z, datas, stages, zeros, wall, options):
     from ..core.modes import modes_of_models
 
     models = _models(prob, z)
-    rel = np.abs(prob.ratio(z) - 1.0)
+    ratio = prob.ratio(z) - 1.0
+    rel = np.abs(ratio)
     n = prob.n_sections
+    checks = [residual_noise(ratio[c], d.omega, d.weights) for c, d in enumerate(datas)]
+    status = status_of(bool(stages[-1].success),
+                       bool(np.any(np.sqrt(np.mean(rel ** 2, axis=1)) >= 1.0)),
+                       NoiseCheck(consistent=all(c.consistent for c in checks)))
     return SharedFitResult(
         models=models, datas=tuple(datas), poles=_section_poles(models[0], slice(0, n)),
         rel_errors=rel,
         max_rel_errors=np.max(rel, axis=1), rms_rel_errors=np.sqrt(np.mean(rel ** 2, axis=1)),
         success=bool(stages[-1].success), modes=modes_of_models(models, n),
         message=stages[-1].message or stages[-1].solver_status,
+        status=status, details={"noise": [dict(c) for c in checks]},
         wall_time=wall, nit=int(sum(s.nit for s in stages
                                    if s.solver_status != "vector-fitting")),
         stages=tuple(stages), zeros=tuple(zeros), options=options,

@@ -80,8 +80,10 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
         "delay": float(model.delay),
         "gain": float(model.gain),
         "wall_time": float(result.wall_time),
+        "status": str(getattr(getattr(result, "status", None), "value", "") or ""),
         "success": bool(result.success),
         "message": str(getattr(result, "message", "") or ""),
+        "details": dict(getattr(result, "details", None) or {}),
         "nit": int(sum(s.nit for s in result.stages)),
         "checks": {
             "stable": model.is_stable(),
@@ -199,8 +201,9 @@ def render_fit_summary(summary):
         digits, the delay and gain to 6), so summary.json and summary.md always agree.
     """
     s = summary
-    lines = [generated_by_line(s["command"]), "", f"# {md_text(s['title'])}", "",
-             markdown_table(_overview_rows(s), ("quantity", "value")), ""]
+    lines = [generated_by_line(s["command"]), "", f"# {md_text(s['title'])}", ""]
+    lines += _status_lines(s)
+    lines += [markdown_table(_overview_rows(s), ("quantity", "value")), ""]
     lines += _diagnostic_lines(s)
     lines += _uncertainty_lines(s)
     lines += _thesis_lines(s)
@@ -214,6 +217,13 @@ def render_fit_summary(summary):
               "`model.json` (the model; `RationalDelayModel.load`), `rel_error.csv`, "
               "`stages.csv`, `summary.json` (every number above, full precision).", ""]
     return "\n".join(lines)
+
+
+def _status_lines(s):
+    """The report's lead: the status and the message (what to do next)."""
+    if not s.get("status"):                 # (summaries written before the status)
+        return []
+    return [f"**Status: {s['status']}.** {md_text(s.get('message') or '')}", ""]
 
 
 def _units(s):
@@ -259,9 +269,10 @@ def _overview_rows(s):
         ("delay h", f"{number(s['delay'], 6)} {tu}"),
         ("gain K (model.gain, in front of the sections)", number(s["gain"], 6)),
         ("wall time", f"{number(s['wall_time'])} s"),
-        ("iterations (all stages)", number(s["nit"])),
+        ("iterations (all stages, polish steps included)", number(s["nit"])),
         ("success (final stage converged)", ("yes" if s["success"] else "NO") + (
-            f": {md_text(s['message'])}" if s.get("message") and not s["success"] else "")),
+            f": {md_text(s['message'])}" if s.get("message") and not s["success"]
+            and not s.get("status") else "")),
         ("P_N stable", _roots_check(ck["stable"], ck["max_pole_real_part"],
                                     ck["min_pole_damping"], "pole", fu) + (
             f", {ck['n_poles_on_axis']} pole(s) on the imaginary axis (undamped, zeta = 0: "
@@ -361,6 +372,16 @@ def _stage_status(r):
     return f"{word} ({solver})" if word and solver else word or solver
 
 
+def _iterations(r):
+    """A stage's iterations: the solver's, plus the polish steps tried after it (so a
+    stage at its limit of 200 reads "200 + 4 polish", not 204)."""
+    d = r.get("details") or {}
+    steps = d.get("polish_steps") or 0
+    if steps and "ipopt_iterations" in d:
+        return f"{number(d['ipopt_iterations'])} + {number(steps)} polish"
+    return number(r["nit"])
+
+
 def _stage_lines(stages, unit="rad/s"):
     """The "Stages" section: one table row per stage record (the main loop's stages by
     number, the others by their kind)."""
@@ -371,7 +392,7 @@ def _stage_lines(stages, unit="rad/s"):
         if label == kind and kind not in kinds:
             kinds.append(kind)
         srows.append((label, number(r["n_sections"]), number(r["window"]),
-                      number(r["omega_c"]), number(r["max_rel_error"]), number(r["nit"]),
+                      number(r["omega_c"]), number(r["max_rel_error"]), _iterations(r),
                       number(r["wall_time"]), _stage_status(r)))
     known = {"final": "final: the loop's last stage, on all data",
              "rational-start": "rational-start: vector fitting of all sections (no solve; "

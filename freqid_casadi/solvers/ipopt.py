@@ -189,6 +189,7 @@ def solve_stage(problem, x0, *, lam_x0=None, hessian="exact", max_iter=3000, tol
         lam_x0=lam_x0 if use_warm else None, cost_of=problem.eval_cost, keep=keep, t0=t0)
     res = monitor.decide(res)
     return dataclasses.replace(res, extra={
+        **(res.extra or {}), "max_iter": int(max_iter), "ipopt_status": res.solver_status,
         "t_build": t_build, "t_solve": t_solve,
         **{f"t_{k}": float(stats.get(f"t_wall_nlp_{k}", 0.0) or 0.0)
            for k in ("f", "grad_f", "hess_l")}})

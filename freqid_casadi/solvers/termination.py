@@ -267,6 +267,31 @@ class StageMonitor:
                          f"{100 * min(self.proj, 1.0) ** 2:.3g} % lower cost")
         return f"max cos(r, J_j) {self.cos:.2g} (allowed {self.allowed:.2g}), {proj}"
 
+    def test_numbers(self):
+        """The termination test's numbers at the last point tested (for ``details``):
+        ``max_cos`` and ``max_cos_allowed``, ``projection`` and ``projection_allowed``
+        (``||P r|| / ||r||``; NaN when the cosine test failed first), ``ftol``, and the
+        RMS error's relative fall per iteration over the last ten iterations
+        (``rms_fall_per_iteration``, NaN with fewer)."""
+        hist = [c for c in self.history if np.isfinite(c) and c > 0]
+        fall = float("nan")
+        if len(hist) > 10:
+            fall = float(1.0 - (hist[-1] / hist[-11]) ** (1.0 / 20.0))   # RMS: sqrt(cost)
+        return {"max_cos": float(self.cos), "max_cos_allowed": float(self.allowed),
+                "projection": float(self.proj), "projection_allowed": float(self.proj_allowed),
+                "ftol": float(self.term.ftol), "rms_fall_per_iteration": fall}
+
+    def _plain(self, ok, ipopt_ok):
+        """One plain clause: how the test ended (the numbers go to ``details``)."""
+        if ok:
+            return "converged (relative stationarity: no step can lower the cost further)"
+        if ipopt_ok:
+            return "converged (IPOPT's tolerance)"
+        if not np.isfinite(self.proj):
+            return "not stationary: the gradient is not yet small"
+        return ("not stationary: the gradient is small, but a Gauss-Newton step still "
+                f"promises a {100 * min(self.proj, 1.0) ** 2:.3g} % lower cost")
+
     def _free(self, x, cost, grad, cn):
         """(free variables, noise) at ``x``: those the test does not hold at a bound."""
         pb = self.problem
@@ -339,9 +364,9 @@ class StageMonitor:
         pb = self.problem
         x = np.clip(np.asarray(x0, float), pb.lb, pb.ub)
         lam = np.zeros_like(x) if lam_x0 is None else np.asarray(lam_x0, float).copy()
-        test = self.test_text()
         return StageResult(x=x, cost=pb.eval_cost(x), status=Status.CONVERGED,
-                           message=f"converged: the start is stationary ({test})",
+                           message="converged: the start is already stationary",
+                           extra={"termination": self.test_numbers(), "polish_steps": 0},
                            success=True, nit=0, nfev=1, wall_time=time.perf_counter() - t0,
                            active_mask=find_active_constraints(x, pb.lb, pb.ub, rtol=1e-8),
                            lam_x=lam, solver_status="start stationary")
@@ -392,6 +417,7 @@ class StageMonitor:
         """
         if res.status == Status.ERROR:
             return res
+        nit0 = int(res.nit)              # the solver's own iterations (the rest: polish)
         ok, _ = self.stationary(res.x)
         if not ok and self.term.onto_bounds:
             snapped = self._onto_bounds(res)
@@ -410,18 +436,21 @@ class StageMonitor:
             if not ok and self.term.newton and self.cos <= self.allowed:
                 res, ok = self._newton(res)
         ipopt_ok = res.status in (Status.CONVERGED, Status.ACCEPTABLE)
-        test = self.test_text(explain=not ok and not ipopt_ok)
+        extra = dict(res.extra or {}, termination=self.test_numbers(),
+                     polish_steps=int(res.nit - nit0), ipopt_iterations=int(nit0))
         if ok or ipopt_ok:
             status = res.status if ipopt_ok else Status.CONVERGED
-            how = "relative stationarity" if ok else "IPOPT's tolerance"
-            msg = f"converged ({how}: {test}; {res.solver_status})"
-            return dataclasses.replace(res, status=status, success=True, message=msg)
+            return dataclasses.replace(res, status=status, success=True,
+                                       message=self._plain(ok, ipopt_ok), extra=extra)
         status = Status.STALLED if self.reason == "stalled" else res.status
         if status in (Status.CONVERGED, Status.ACCEPTABLE, Status.COST_TOL):
             status = Status.SMALL_STEP
-        msg = (f"{TERMINATION_MESSAGES[status]}; not stationary ({test}; "
-               f"{res.solver_status})")
-        return dataclasses.replace(res, status=status, success=False, message=msg)
+        steps = extra["polish_steps"]
+        its = (f"{nit0} iteration{'s' * (nit0 != 1)}"
+               + (f" and {steps} polish step{'s' * (steps != 1)}" if steps else ""))
+        msg = f"{TERMINATION_MESSAGES[status]} after {its}; {self._plain(False, False)}"
+        return dataclasses.replace(res, status=status, success=False, message=msg,
+                                   extra=extra)
 
     def _newton(self, res):
         """``(res, ok)`` after Newton steps (:func:`~.lm_polish.newton_polish`) from a point

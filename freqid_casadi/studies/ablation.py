@@ -288,7 +288,8 @@ def _run_variant(data, spec, variant):
     t0 = time.perf_counter()
     try:
         result = fit(data, n_sections=spec["n_sections"], integrator=spec["integrator"],
-                     delay=spec["delay"], basis=spec["basis"], **variant.fit_options())
+                     delay=spec["delay"], basis=spec["basis"],
+                     **{"start": "sequential", **variant.fit_options()})
     except Exception as exc:           # noqa: BLE001 - reported as a failed variant
         rec.update(dict.fromkeys(_RECORD_KEYS), status="failed",
                    message=" ".join(f"{type(exc).__name__}: {exc}".split()),

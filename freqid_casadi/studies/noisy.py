@@ -109,7 +109,8 @@ def study(data, clean, dense, n_sections, weights=None, floor=False):
         the pruned one, and the clean errors before and after pruning
         (:func:`clean_errors`).
     """
-    res = fit(data, n_sections=n_sections, integrator=True, delay=True, weights=weights)
+    res = fit(data, n_sections=n_sections, integrator=True, delay=True, weights=weights,
+              start="sequential")
     check = check_resolution(res, data.omega)
     pr = prune_sections(res, reference=lambda w: systems.G_A(omega=w), dense_factor=DENSE)
     before = clean_errors(res.model, clean, dense)
@@ -136,7 +137,7 @@ def study(data, clean, dense, n_sections, weights=None, floor=False):
     }
     if floor:
         rf = fit(data, n_sections=n_sections, integrator=True, delay=True, weights=weights,
-                 min_damping="auto")
+                 min_damping="auto", start="sequential")
         fe = clean_errors(rf.model, clean, dense)
         out["floor"] = {
             "n_sections": rf.model.n_sections, "zeta_min": rf.zeta_min,
@@ -201,7 +202,7 @@ def run_noisy(n_sections=17):
     main_study, res, pr, before, after = study(data, clean, dense, n_sections, floor=True)
     floor_err = main_study.pop("_floor_errors")
     clean_fit = {k: fit(clean, n_sections=n_sections, integrator=True, delay=True,
-                        min_damping=md).max_rel_error
+                        min_damping=md, start="sequential").max_rel_error
                  for k, md in (("plain", None), ("floor", "auto"))}
     sigma = np.logspace(np.log10(SIGMA_RANGE[0]), np.log10(SIGMA_RANGE[1]), clean.n_points)
     _, data2 = noisy_data(sigma, seed=1, name="G_A + frequency-dependent noise")

@@ -112,7 +112,7 @@ def scan(data, orders, delays=(False, True), progress=None):
     rows, results = [], {}
     for delay in delays:
         for n in orders:
-            raw = fit(data, n_sections=n, integrator=False, delay=delay)
+            raw = fit(data, n_sections=n, integrator=False, delay=delay, start="sequential")
             res, pr = _validated(raw)
             results[(delay, n)] = res
             rows.append({"delay": delay, "n_sections": n, "order": 2 * n,
