@@ -555,6 +555,6 @@ def _stage_line(rec):
              StageKind.ZERO_DELAY: "at h = 0"}.get(rec.kind, f"stage {rec.stage:2d}")
     return (f"{label}: {rec.n_sections:2d} sections{where}, window {rec.window}, "
             f"max rel. error {rec.max_rel_error:.3e} (window {rec.max_rel_error_window:.3e}), "
-            f"{rec.nit} it, {rec.wall_time:.2f} s, {rec.solver_status}")
+            f"{rec.nit} it, {rec.wall_time:.2f} s")
 
 
