@@ -121,8 +121,13 @@ def test_stabilization_diagram_without_poles_draws_no_empty_legend():
         warnings.simplefilter("ignore")
         # (the rational start's order-2 pole lies outside the band)
         res = fc.stabilization([data], (2,), delay=False, start="rational")
+    # keep only the poles outside the band (the shared fit's peak start may now place the
+    # order-2 pole inside it): the diagram then has nothing to label
+    import dataclasses
+
+    res = dataclasses.replace(res, poles=tuple(p for p in res.poles
+                                               if not W[0] <= p.omega_n <= W[-1]), modes=())
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         fig = stabilization_diagram(res)
     assert fig.axes[0].get_legend() is None
-    assert not any(p.order == 2 and W[0] <= p.omega_n <= W[-1] for p in res.poles)
