@@ -46,7 +46,7 @@ __all__ = ["Diagnostic", "CODES", "TRIVIAL_RMS", "low_frequency_phase", "low_fre
            "check_roots_below_band", "BELOW_BAND"]
 
 CODES = ("negative-gain", "non-minimum-phase", "delay-undetermined", "no-better-than-trivial",
-         "root-below-band")
+         "root-below-band", "order-chosen")
 
 #: Fraction of the lowest data frequency below which a root is "far below the band".
 BELOW_BAND = 0.01

@@ -27,6 +27,7 @@ from .delay_search import delay_search_run
 from .far_roots import far_root_run
 from .diagnostics import check_gain_sign
 from ..errors import FreqidError, OptionError, ResolutionWarning
+from .order import MAX_SECTIONS, choose_order, with_order_record
 from .mainloop import LoopContext, minimax, rational, sequential
 from ..core.metrics import relative_error
 from ..core.model import RationalDelayModel, Structure
@@ -211,7 +212,7 @@ def _reject_old_keywords(function):
 def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=True,
         basis="second-order", method="ipopt", tol=None, weights=None, start="sequential",
         objective="least-squares", min_damping=None, progress=False, loop=None,
-        gain_sign="auto", zeros="minimum-phase"):
+        gain_sign="auto", zeros="minimum-phase", max_sections=None):
     """Fit ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` to frequency-response data.
 
     Parameters
@@ -220,9 +221,11 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         The data, or the frequencies in rad/s (then ``response`` is required).
     response : array_like of complex, shape (M,), optional
         G(j omega) when ``data_or_omega`` is the frequency array.
-    n_sections : int
+    n_sections : int or "auto"
         Number of sections N >= 1 (order 2N, or 2N+1 with the integrator; N with the
-        first-order basis).
+        first-order basis). "auto": the smallest N (up to ``max_sections``) whose residual
+        is consistent with the noise and whose modes N + 1 sections keep
+        (:mod:`freqid_casadi.fitting.order`); an ``order-chosen`` diagnostic says why.
     integrator : bool
         Include the factor K0/s.
     delay : bool
@@ -278,6 +281,9 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         "free": the numerators are unbounded (zeros anywhere, e.g. non-collocated sensors
         or accelerances whose excess phase no delay explains), the poles stay stable by
         their bounds; needs the IPOPT method, the dc gauge and no damping floor.
+    max_sections : int, optional
+        With ``n_sections="auto"``: the largest order tried (default
+        :data:`~freqid_casadi.fitting.order.MAX_SECTIONS`).
 
     Returns
     -------
@@ -291,6 +297,8 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         A keyword fit() no longer takes (``gauge=``, ``hessian=``, ...): the message names
         the option object and field it moved to.
     """
+    if isinstance(n_sections, str) or max_sections is not None:
+        return _fit_auto_order(locals())
     integrator, delay = check_flag("integrator", integrator), check_flag("delay", delay)
     progress = check_progress(progress)
     kw = dict(integrator=integrator, basis=basis, method=method, tol=tol, start=start,
@@ -299,6 +307,21 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
     with single_threaded_blas():
         return _fit_held(data_or_omega, response, n_sections=n_sections, delay=delay,
                          progress=progress, weights=weights, **kw)
+
+
+def _fit_auto_order(args):
+    """``fit(..., n_sections="auto")``: :func:`~freqid_casadi.fitting.order.choose_order` over
+    fits at each order (``args``: fit's keywords)."""
+    args = dict(args)
+    n, top = args.pop("n_sections"), args.pop("max_sections")
+    if n != "auto":
+        raise OptionError(f"n_sections must be a positive integer or 'auto', got {n!r}"
+                          + ("" if isinstance(n, str) else
+                             "; max_sections applies only to n_sections='auto'"))
+    data, response = args.pop("data_or_omega"), args.pop("response")
+    choice = choose_order(lambda k: fit(data, response, n_sections=k, **args),
+                          max_sections=MAX_SECTIONS if top is None else top)
+    return with_order_record(choice)
 
 
 def _fit_held(data_or_omega, response, *, progress, weights, **kw):
