@@ -93,6 +93,16 @@ def _positive_int(text):
                     lambda v: f"must be a positive integer (>= 1), got {v}")
 
 
+def _sections_or_auto(text):
+    if text == "auto":
+        return "auto"
+    try:
+        return _positive_int(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"must be a positive integer or 'auto', got {text!r}") from None
+
+
 def _min_damping(text):
     what = "must be 'auto' or a damping ratio in [0, 1)"
     return "auto" if text == "auto" else _checked(
@@ -204,8 +214,11 @@ def _add_fit(sub):
                                    "a file and write a report folder. " + _FILES)
     _add_input(p, "file", "FILE", "data file: text/CSV, .npz, .mat, .uff/.unv, .s1p/.s2p",
                records=True)
-    p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
-                   help="number of sections N >= 1")
+    p.add_argument("--sections", type=_sections_or_auto, required=True, metavar="N|auto",
+                   help="number of sections N >= 1, or 'auto': the smallest order whose "
+                        "residual is consistent with the noise (up to --max-sections)")
+    p.add_argument("--max-sections", type=_positive_int, default=None, metavar="N",
+                   help="with --sections auto: the largest order tried (default 16)")
     _add_model_arguments(p)
     _add_choices(p, "--gain-sign", "--zeros")
     p.add_argument("--min-damping", type=_min_damping, metavar="auto|ZETA",
@@ -341,7 +354,7 @@ def _cmd_fit(args, command):
                      delay=args.delay, basis=args.basis, method=args.method, tol=args.tol,
                      progress=_progress(args), start=args.start, objective=args.objective,
                      min_damping=args.min_damping, gain_sign=args.gain_sign,
-                     zeros=args.zeros)
+                     zeros=args.zeros, max_sections=args.max_sections)
     _resolution_warning(result)
     path = write_fit_report(result, args.out, command=command, force=args.force)
     print(result.summary())
