@@ -230,8 +230,9 @@ def _choice(results, steps, k, reason, omega):
         moved = _modes_stable(results[k], results[k + 1], omega)
         nxt = (f"; {steps[k + 1].n_sections} sections lower the RMS by {100 * drop:.2g} % "
                f"and move its in-band poles by at most {100 * moved:.2g} %")
-    message = (f"n_sections='auto' chose {step.n_sections} sections: {_WHY[reason]} (RMS "
-               f"{step.rms:.3g}, {step.ratio:.3g} times its point-to-point roughness){nxt}; "
+    plural = "s" if step.n_sections != 1 else ""
+    message = (f"n_sections='auto' chose {step.n_sections} section{plural}: {_WHY[reason]} "
+               f"(RMS {step.rms:.3g}, {step.ratio:.3g} times its point-to-point roughness){nxt}; "
                f"orders tried (RMS, x roughness) {tried}")
     return OrderChoice(result=results[k], n_sections=step.n_sections, reason=reason,
                        steps=tuple(steps), message=message)

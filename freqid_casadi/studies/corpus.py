@@ -2,7 +2,8 @@
 
 Every case of :func:`freqid_casadi.systems.corpus.corpus` is fitted at its true order by
 each configuration of :data:`CONFIGS` (today's defaults and the candidate defaults, in the
-same run; those of :data:`NOISY_ONLY` on the noisy cases), and the noisy cases once more with ``n_sections="auto"``. Each fit gives one
+same run; those of :data:`NOISY_ONLY` on a subset of the noisy cases), and that subset
+once more with ``n_sections="auto"``. Each fit gives one
 :class:`CaseFit` record; :func:`summarize` turns them into the per-family table of
 :mod:`freqid_casadi.studies.corpus_report`.
 
