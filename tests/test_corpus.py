@@ -148,17 +148,22 @@ def test_subset_runs_every_case(subset):
 
 
 def test_subset_in_class_at_the_floor(subset):
-    # measured: MEASURED_IN_CLASS of the in-class cases at the floor (data)
-    assert subset[1]["in-class cases"]["at_floor"] >= MEASURED_IN_CLASS - 0.1
+    # measured: 29 of the 48 in-class cases (0.604) at the floor (data); margin 0.1 (5
+    # cases). The misses: accelerances and high-pass data (zeros at the origin, taken for
+    # a negative gain) and local minima of the sequential start
+    assert subset[1]["in-class cases"]["at_floor"] >= 0.604 - 0.1
 
 
 def test_subset_sign(subset):
-    # measured: MEASURED_SIGN of the negative-gain cases with the right sign
-    assert subset[1]["negative-gain"]["sign_right"] >= MEASURED_SIGN - 0.15
+    # measured: 7 of the 7 negative-gain cases with the right sign, all at the floor;
+    # margin: one case
+    assert subset[1]["negative-gain"]["sign_right"] >= 1.0 - 0.15
+    assert subset[1]["negative-gain"]["at_floor"] >= 1.0 - 0.15
 
 
-@pytest.mark.xfail(strict=True, reason="MEASURED_DISHONEST of 60 fits claim success with an "
-                                       "RMS > 10x the noise before FitResult.status exists")
+@pytest.mark.xfail(strict=True, reason="measured: 14 of 60 fits claim success with an RMS "
+                                       "> 10x the noise (today's defaults, before "
+                                       "FitResult.status exists)")
 def test_subset_never_ok_far_above_the_noise(subset):
     assert subset[1]["all"]["dishonest"] == 0
 

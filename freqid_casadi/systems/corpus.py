@@ -29,10 +29,10 @@ the full one. Families (:data:`FAMILIES`, cycled so each is equally represented)
 Every case draws: the band (1-3.5 decades log spaced, 0.7-1.5 decades linear, anywhere
 within 1e-3 ... 1e9 rad/s), the number of points (50-5000; 94 % of the cases 50-300,
 log-uniform, the others 1000-5000), dampings 0.2 %-15 % (raised where needed so each
-resonance spans at least one sample), a delay (half none; the others from a small phase lag up to 0.85 of the aliasing limit ``pi / max(dw)``),
-multiplicative complex Gaussian noise (a fifth noiseless, the others 0.1 %-5 % RMS, flat or
-varying by up to 10x over the band) and, for half the noisy cases, the variance given as
-``data.weights = 1 / sigma_i^2``.
+resonance spans at least one sample), a delay (half none; the others from a small phase lag
+up to 0.85 of the aliasing limit ``pi / max(dw)``), multiplicative complex Gaussian noise
+(a fifth noiseless, the others 0.1 %-5 % RMS, flat or varying by up to 10x over the band)
+and, for half the noisy cases, the variance given as ``data.weights = 1 / sigma_i^2``.
 """
 
 import math
