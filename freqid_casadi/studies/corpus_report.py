@@ -62,6 +62,50 @@ def _auto_table(summary):
                                  "time median (s)"])
 
 
+def _verdict(summary, records):
+    """One line per candidate: its floor fractions and dishonest fits against today's on
+    the same cases, and its time."""
+    if "today" not in summary:
+        return []
+    out = []
+    for c in [k for k in CONFIGS if k in summary and k != "today"]:
+        mine = [r for r in records if r["config"] == c]
+        names = {r["case"] for r in mine}
+        base = [r for r in records if r["config"] == "today" and r["case"] in names]
+        a, b = _floor_stats(mine), _floor_stats(base)
+        out.append(f"- `{c}` ({len(mine)} fits): in-class cases at the floor {_pct(a[0])} "
+                   f"against today's {_pct(b[0])} on the same cases, all {_pct(a[1])} "
+                   f"against {_pct(b[1])}; dishonest {a[2]} against {b[2]}; median time "
+                   f"{number(a[3], 2)} s against {number(b[3], 2)} s.")
+    if AUTO in summary:
+        s = summary[AUTO]["all"]
+        ok = _identifiable(records)
+        right = [0 <= r["n_sections"] - r["true_sections"] <= 1 for r in ok]
+        out.append(f"- `{AUTO}` ({s['n']} noisy cases): order in [true, true + 1] in "
+                   f"{_pct(s['order_right'])} ({s['order_below']} below, {s['order_above']} "
+                   f"above), median time {number(s['time_median'], 2)} s; on the "
+                   f"{len(ok)} of them whose fit at the true order (today's defaults) "
+                   f"reaches the floor: {_pct(np.mean(right) if right else np.nan)}.")
+    return out
+
+
+def _identifiable(records):
+    """The automatic-order fits of the cases whose true order is identifiable: today's
+    fit at the true order reaches the floor."""
+    floor = {r["case"] for r in records if r["config"] == "today" and r["at_floor"]}
+    return [r for r in records if r["config"] == AUTO and r["case"] in floor
+            and not r["error"]]
+
+
+def _floor_stats(recs):
+    """(in-class fraction at the floor, all at the floor, dishonest, median time)."""
+    inc = [r["at_floor"] for r in recs if r["in_class"]]
+    return (float(np.mean(inc)) if inc else float("nan"),
+            float(np.mean([r["at_floor"] for r in recs])) if recs else float("nan"),
+            int(sum(r["dishonest"] for r in recs)),
+            float(np.median([r["wall_time"] for r in recs])) if recs else float("nan"))
+
+
 def render_corpus(command, summary, meta, records):
     """The Markdown report."""
     lines = [generated_by_line(command), "", "# Validation corpus: the defaults on "
@@ -85,7 +129,8 @@ def render_corpus(command, summary, meta, records):
              "floor, or outside the class with a diagnostic naming the cause (`integrator` "
              "for undeclared poles at the origin, `non-minimum-phase` for right-half-plane "
              "zeros).", "",
-             "## Today's defaults against the candidates", "",
+             "## Today's defaults against the candidates", "", *_verdict(summary, records),
+             "",
              "Per family: fraction at the floor (data) / dishonest fits / median time per fit.",
              "", _compare(summary), ""]
     for config in [c for c in CONFIGS if c in summary]:
@@ -113,7 +158,10 @@ def _figure(summary, records):
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    fig, (a, b) = plt.subplots(1, 2, figsize=(14, 5.5))
+    auto = [r for r in records if r["config"] == AUTO and not r["error"]]
+    fig, axes = plt.subplots(1, 3 if auto else 2, figsize=(19 if auto else 14, 5.5),
+                             gridspec_kw={"width_ratios": [3, 3, 1.6] if auto else [1, 1]})
+    a, b = axes[0], axes[1]
     configs = [c for c in CONFIGS if c in summary]
     fams = [f for f in FAMILIES if f in summary[configs[0]]]
     x = np.arange(len(fams))
@@ -130,7 +178,7 @@ def _figure(summary, records):
         sel = [r for r in records if r["config"] == c and np.isfinite(r["rms"])]
         a_ok = np.array([r["claims_ok"] for r in sel], bool)
         nu = np.array([r["nu"] for r in sel])
-        rms = np.array([r["rms"] for r in sel])
+        rms = np.maximum([r["rms"] for r in sel], 1e-8)   # exact fits shown at 1e-8
         b.scatter(nu[a_ok] * (1.06 ** k), rms[a_ok], s=10, marker="o", alpha=0.6,
                   label=f"{c}: claims ok")
         b.scatter(nu[~a_ok] * (1.06 ** k), rms[~a_ok], s=14, marker="x", alpha=0.6,
@@ -141,9 +189,18 @@ def _figure(summary, records):
     b.set_xscale("log")
     b.set_yscale("log")
     b.set_xlabel("noise level ν (relative RMS; exact data at 1e-4)")
-    b.set_ylabel("RMS relative error against the data")
+    b.set_ylabel("RMS relative error against the data (floored at 1e-8)")
     b.set_title("every fit")
     b.legend(fontsize=6, loc="lower right")
+    if auto:
+        diff = np.array([r["n_sections"] - r["true_sections"] for r in auto])
+        edges = np.arange(diff.min() - 0.5, diff.max() + 1.5)
+        axes[2].hist(diff, bins=edges, color="0.5")
+        axes[2].axvspan(-0.5, 1.5, color="g", alpha=0.15, label="[true, true + 1]")
+        axes[2].set_xlabel("chosen - true sections")
+        axes[2].set_ylabel("noisy cases")
+        axes[2].set_title("n_sections='auto'")
+        axes[2].legend(fontsize=8)
     fig.tight_layout()
     return fig
 
