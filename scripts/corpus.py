@@ -9,7 +9,8 @@ configuration of ``freqid_casadi.studies.corpus.CONFIGS`` and the noisy cases wi
 ``n_sections="auto"``, on ``--workers`` processes (default 2), a progress line per fit on
 stderr. Writes ``--out`` (default ``results/corpus``; ``--quick``: 60 cases of at most 400
 points into ``results/corpus-quick``): report.md (first line: this command), report.json,
-fits.csv and corpus.png.
+fits.csv and corpus.png. ``--rerender DIR`` writes DIR's report.md, fits.csv and figure
+again from its report.json, without fitting.
 """
 
 import argparse
@@ -20,7 +21,7 @@ import time
 
 from freqid_casadi.errors import FreqidError
 from freqid_casadi.studies.corpus import FULL_CASES, QUICK_CASES
-from freqid_casadi.studies.corpus_report import write_corpus_report
+from freqid_casadi.studies.corpus_report import rerender_corpus_report, write_corpus_report
 
 
 def main(argv=None):
@@ -34,7 +35,14 @@ def main(argv=None):
     ap.add_argument("--no-auto", action="store_true", help="skip the n_sections=auto fits")
     ap.add_argument("--out", default=None)
     ap.add_argument("--force", action="store_true")
+    ap.add_argument("--rerender", metavar="DIR",
+                    help="write DIR's report.md, fits.csv and figure again from its "
+                         "report.json (no fits)")
     args = ap.parse_args(argv)
+    if args.rerender:
+        rerender_corpus_report(args.rerender)
+        print(f"report: {os.path.join(args.rerender, 'report.md')}")
+        return 0
     n = args.n or (QUICK_CASES if args.quick else FULL_CASES)
     max_points = args.max_points or (400 if args.quick else 5000)
     out = args.out or os.path.join("results", "corpus-quick" if args.quick else "corpus")

@@ -19,7 +19,7 @@ from ..systems.corpus import FAMILIES
 from .corpus import (AUTO, CONFIGS, DENSE, DISHONEST_FACTOR, EXACT_FLOOR, FLOOR_FACTOR,
                      record_dicts, run_corpus, summarize)
 
-__all__ = ["write_corpus_report", "render_corpus"]
+__all__ = ["write_corpus_report", "render_corpus", "rerender_corpus_report"]
 
 
 def _pct(x):
@@ -262,6 +262,31 @@ def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers
         atomic_write_text(os.path.join(tmp, "fits.csv"), _csv(records))
         atomic_write_text(os.path.join(tmp, "report.md"),
                           render_corpus(command, summary, meta, records))
+    return out
+
+
+def rerender_corpus_report(out_dir):
+    """Write report.md, fits.csv and corpus.png of ``out_dir`` again from its report.json
+    (no fit is run; the first line keeps the command that made the fits).
+
+    Returns
+    -------
+    dict
+        The report.json contents.
+    """
+    path = os.path.join(out_dir, "report.json")
+    with open(path, encoding="utf-8") as f:
+        out = json.load(f)
+    records = out["fits"]
+    summary = summarize([_Rec(r) for r in records])
+    fig = _figure(summary, records)
+    fig.savefig(os.path.join(out_dir, "corpus.png"), dpi=110)
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    atomic_write_text(os.path.join(out_dir, "fits.csv"), _csv(records))
+    atomic_write_text(os.path.join(out_dir, "report.md"),
+                      render_corpus(out["command"], summary, out["meta"], records))
     return out
 
 
