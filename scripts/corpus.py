@@ -2,14 +2,16 @@
 
 Usage::
 
-    python scripts/corpus.py [--quick] [--n N] [--seed S] [--workers W] [--out DIR] [--force]
+    python scripts/corpus.py [--quick] [--n N] [--seed S] [--workers W] [--out DIR]
+                             [--force] [--resume] [--rerender DIR]
 
 Fits every case of ``freqid_casadi.systems.corpus(n, seed)`` at its true order with each
 configuration of ``freqid_casadi.studies.corpus.CONFIGS`` and the noisy cases with
 ``n_sections="auto"``, on ``--workers`` processes (default 2), a progress line per fit on
 stderr. Writes ``--out`` (default ``results/corpus``; ``--quick``: 60 cases of at most 400
 points into ``results/corpus-quick``): report.md (first line: this command), report.json,
-fits.csv and corpus.png. ``--rerender DIR`` writes DIR's report.md, fits.csv and figure
+fits.csv and corpus.png. Each fit is also appended to ``OUT.checkpoint.jsonl``; ``--resume`` keeps those of a
+stopped run. ``--rerender DIR`` writes DIR's report.md, fits.csv and figure
 again from its report.json, without fitting.
 """
 
@@ -35,6 +37,8 @@ def main(argv=None):
     ap.add_argument("--no-auto", action="store_true", help="skip the n_sections=auto fits")
     ap.add_argument("--out", default=None)
     ap.add_argument("--force", action="store_true")
+    ap.add_argument("--resume", action="store_true",
+                    help="keep the fits of a stopped run (OUT.checkpoint.jsonl) and run the rest")
     ap.add_argument("--rerender", metavar="DIR",
                     help="write DIR's report.md, fits.csv and figure again from its "
                          "report.json (no fits)")
@@ -47,6 +51,9 @@ def main(argv=None):
     max_points = args.max_points or (400 if args.quick else 5000)
     out = args.out or os.path.join("results", "corpus-quick" if args.quick else "corpus")
     command = " ".join(["python scripts/corpus.py"] + [shlex.quote(a) for a in argv])
+    checkpoint = out.rstrip("/\\") + ".checkpoint.jsonl"
+    if not args.resume and os.path.exists(checkpoint):
+        os.remove(checkpoint)
     t0 = time.perf_counter()
 
     def progress(done, total, rec):
@@ -59,10 +66,11 @@ def main(argv=None):
     try:
         write_corpus_report(out, command=command, n=n, seed=args.seed, max_points=max_points,
                             workers=args.workers, auto=not args.no_auto, force=args.force,
-                            progress=progress)
+                            progress=progress, checkpoint=checkpoint)
     except (FreqidError, OSError) as exc:
         sys.stderr.write(f"error: {' '.join(str(exc).split())}\n")
         return 2
+    os.remove(checkpoint)
     print(f"report: {os.path.join(out, 'report.md')} ({time.perf_counter() - t0:.0f} s)")
     return 0
 

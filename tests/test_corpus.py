@@ -181,3 +181,14 @@ def test_fit_case_records_a_time_limit(monkeypatch):
     monkeypatch.setattr(study, "CPU_BUDGET", 0.0)
     rec = fit_case((1, 0, 50, "today"))
     assert rec.error.startswith("TimeLimit") and not rec.claims_ok
+
+
+def test_run_corpus_resumes_from_its_checkpoint(tmp_path):
+    path = tmp_path / "fits.jsonl"
+    first = run_corpus(1, 0, max_points=50, workers=1, configs=["today"], auto=False,
+                       checkpoint=path)
+    seen = []
+    again = run_corpus(1, 0, max_points=50, workers=1, configs=["today"], auto=False,
+                       checkpoint=path, progress=lambda done, total, rec: seen.append(rec))
+    assert seen == [] and len(path.read_text().splitlines()) == 1
+    assert again[0].rms == first[0].rms and again[0].diagnostics == first[0].diagnostics

@@ -31,6 +31,7 @@ order right (auto)
     The chosen order lies in ``[true, true + 1]``.
 """
 
+import json
 import multiprocessing
 import os
 import time
@@ -104,6 +105,7 @@ class CaseFit:
     diagnostics: tuple
     wall_time: float
     error: str = ""
+    task: tuple = ()
 
 
 class TimeLimit(Exception):
@@ -144,7 +146,7 @@ def fit_case(task):
         CONFIGS[config], n_sections=c.n_sections)
     nu = max(c.noise, EXACT_FLOOR)
     t0 = time.perf_counter()
-    base = dict(case=c.name, index=c.index, family=c.family, config=config,
+    base = dict(task=tuple(task), case=c.name, index=c.index, family=c.family, config=config,
                 n_points=c.n_points, true_sections=c.n_sections, noise=c.noise, nu=nu,
                 in_class=c.in_class, variance_given=c.variance_given, delay=c.delay)
     try:
@@ -197,7 +199,7 @@ def tasks(n, seed=0, max_points=FULL_MAX_POINTS, configs=None, auto=True):
 
 
 def run_corpus(n=FULL_CASES, seed=0, *, max_points=FULL_MAX_POINTS, workers=2,
-               configs=None, auto=True, progress=None):
+               configs=None, auto=True, progress=None, checkpoint=None):
     """Fit the corpus; returns the list of :class:`CaseFit` (in task order).
 
     Parameters
@@ -212,9 +214,16 @@ def run_corpus(n=FULL_CASES, seed=0, *, max_points=FULL_MAX_POINTS, workers=2,
         Also fit the noisy cases with ``n_sections="auto"``.
     progress : callable, optional
         Called with ``(done, total, CaseFit)`` after each fit.
+    checkpoint : str or os.PathLike, optional
+        A JSON-lines file: each fit is appended as it is done, and the fits it already
+        holds (same case, seed and configuration) are not run again (a run that was
+        stopped resumes).
     """
     todo = tasks(n, seed, max_points, configs, auto)
-    out = []
+    out = _read_checkpoint(checkpoint, todo)
+    done = {(r.index, r.config) for r in out}
+    todo = [t for t in todo if (t[0], t[3]) not in done]
+    total = len(todo) + len(out)
     if workers <= 1:
         mapped = map(fit_case, todo)
         pool = None
@@ -224,13 +233,40 @@ def run_corpus(n=FULL_CASES, seed=0, *, max_points=FULL_MAX_POINTS, workers=2,
     try:
         for rec in mapped:
             out.append(rec)
+            if checkpoint is not None:
+                with open(checkpoint, "a", encoding="utf-8") as f:
+                    f.write(json.dumps(asdict(rec), default=_plain) + "\n")
             if progress is not None:
-                progress(len(out), len(todo), rec)
+                progress(len(out), total, rec)
     finally:
         if pool is not None:
             pool.terminate()
             pool.join()
     return sorted(out, key=lambda r: (r.index, r.config))
+
+
+def _plain(x):
+    return x.item() if hasattr(x, "item") else str(x)
+
+
+def _read_checkpoint(path, todo):
+    """The :class:`CaseFit` records of a checkpoint file that belong to ``todo`` (seed and
+    point cap included: the key is the task)."""
+    if path is None or not os.path.exists(path):
+        return []
+    keys = {(t[0], t[3]): t for t in todo}
+    out = []
+    with open(path, encoding="utf-8") as f:
+        for line in f:
+            try:
+                d = json.loads(line)
+            except ValueError:
+                continue                    # a line cut by the stop
+            task = keys.get((d.get("index"), d.get("config")))
+            if task is not None and d.get("task") == list(task):
+                d["diagnostics"] = tuple(d["diagnostics"])
+                out.append(CaseFit(**d))
+    return out
 
 
 def _quiet():

@@ -217,7 +217,8 @@ def _csv(records):
 
 
 def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers=2,
-                        configs=None, auto=True, force=False, progress=None):
+                        configs=None, auto=True, force=False, progress=None,
+                        checkpoint=None):
     """Run the corpus (:func:`~freqid_casadi.studies.corpus.run_corpus`) and write its
     report folder.
 
@@ -226,7 +227,7 @@ def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers
     out_dir : str or os.PathLike
     command : str
         First line of report.md.
-    n, seed, max_points, workers, configs, auto, progress
+    n, seed, max_points, workers, configs, auto, progress, checkpoint
         Passed to :func:`run_corpus`.
     force : bool
         Replace an existing ``out_dir`` (only once the new report is complete).
@@ -242,7 +243,8 @@ def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers
     cases = corpus(n, seed, max_points=max_points)
     t0 = time.perf_counter()
     records = record_dicts(run_corpus(n, seed, max_points=max_points, workers=workers,
-                                      configs=configs, auto=auto, progress=progress))
+                                      configs=configs, auto=auto, progress=progress,
+                                      checkpoint=checkpoint))
     wall = time.perf_counter() - t0
     points = [c.n_points for c in cases]
     meta = {"n_cases": n, "seed": seed, "max_points": max_points, "workers": workers,
