@@ -348,13 +348,19 @@ def _resolution_warning(result):
 def _cmd_fit(args, command):
     data = load_data(args, args.file)                # DataError on bad files
     check_out_dir(args.out, args.force)              # before the (long) fit
+    if args.max_sections is not None:
+        if args.sections != "auto":
+            raise OptionError(f"--max-sections {args.max_sections} applies only to --sections "
+                              f"auto, got --sections {args.sections}; drop --max-sections "
+                              "or pass --sections auto")
+        args.sections = range(1, args.max_sections + 1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ResolutionWarning)   # reported below, one line
         result = fit(data, n_sections=args.sections, integrator=args.integrator,
                      delay=args.delay, basis=args.basis, method=args.method, tol=args.tol,
                      progress=_progress(args), start=args.start, objective=args.objective,
                      min_damping=args.min_damping, gain_sign=args.gain_sign,
-                     zeros=args.zeros, max_sections=args.max_sections)
+                     zeros=args.zeros)
     _resolution_warning(result)
     path = write_fit_report(result, args.out, command=command, force=args.force)
     print(result.summary())

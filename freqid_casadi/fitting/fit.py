@@ -212,7 +212,7 @@ def _reject_old_keywords(function):
 def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=True,
         basis="second-order", method="ipopt", tol=None, weights=None, start="sequential",
         objective="least-squares", min_damping=None, progress=False, loop=None,
-        gain_sign="auto", zeros="minimum-phase", max_sections=None):
+        gain_sign="auto", zeros="minimum-phase"):
     """Fit ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` to frequency-response data.
 
     Parameters
@@ -221,11 +221,13 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         The data, or the frequencies in rad/s (then ``response`` is required).
     response : array_like of complex, shape (M,), optional
         G(j omega) when ``data_or_omega`` is the frequency array.
-    n_sections : int or "auto"
+    n_sections : int, "auto" or range
         Number of sections N >= 1 (order 2N, or 2N+1 with the integrator; N with the
-        first-order basis). "auto": the smallest N (up to ``max_sections``) whose residual
-        is consistent with the noise and whose modes N + 1 sections keep
-        (:mod:`freqid_casadi.fitting.order`); an ``order-chosen`` diagnostic says why.
+        first-order basis). "auto": the smallest N whose residual is consistent with the
+        noise and whose modes N + 1 sections keep (:mod:`freqid_casadi.fitting.order`), N
+        from 1 up to :data:`~freqid_casadi.fitting.order.MAX_SECTIONS`; a range (e.g.
+        ``range(1, 9)``: at most 8 sections) sets the orders tried. An ``order-chosen``
+        diagnostic says why the search stopped.
     integrator : bool
         Include the factor K0/s.
     delay : bool
@@ -281,9 +283,6 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         "free": the numerators are unbounded (zeros anywhere, e.g. non-collocated sensors
         or accelerances whose excess phase no delay explains), the poles stay stable by
         their bounds; needs the IPOPT method, the dc gauge and no damping floor.
-    max_sections : int, optional
-        With ``n_sections="auto"``: the largest order tried (default
-        :data:`~freqid_casadi.fitting.order.MAX_SECTIONS`).
 
     Returns
     -------
@@ -297,7 +296,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         A keyword fit() no longer takes (``gauge=``, ``hessian=``, ...): the message names
         the option object and field it moved to.
     """
-    if isinstance(n_sections, str) or max_sections is not None:
+    if isinstance(n_sections, (str, range)):
         return _fit_auto_order(locals())
     integrator, delay = check_flag("integrator", integrator), check_flag("delay", delay)
     progress = check_progress(progress)
@@ -310,17 +309,18 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
 
 
 def _fit_auto_order(args):
-    """``fit(..., n_sections="auto")``: :func:`~freqid_casadi.fitting.order.choose_order` over
-    fits at each order (``args``: fit's keywords)."""
+    """``fit(..., n_sections="auto" | range)``: :func:`~freqid_casadi.fitting.order.
+    choose_order` over fits at each order (``args``: fit's keywords)."""
     args = dict(args)
-    n, top = args.pop("n_sections"), args.pop("max_sections")
-    if n != "auto":
-        raise OptionError(f"n_sections must be a positive integer or 'auto', got {n!r}"
-                          + ("" if isinstance(n, str) else
-                             "; max_sections applies only to n_sections='auto'"))
+    n = args.pop("n_sections")
+    orders = range(1, MAX_SECTIONS + 1) if n == "auto" else n
+    if not isinstance(orders, range) or orders.step != 1 or len(orders) == 0 \
+            or orders.start < 1:
+        raise OptionError(f"n_sections must be a positive integer, 'auto' or a range of "
+                          f"orders such as range(1, 9), got {n!r}")
     data, response = args.pop("data_or_omega"), args.pop("response")
     choice = choose_order(lambda k: fit(data, response, n_sections=k, **args),
-                          max_sections=MAX_SECTIONS if top is None else top)
+                          max_sections=orders[-1], min_sections=orders[0])
     return with_order_record(choice)
 
 

@@ -1,8 +1,9 @@
 """Automatic order: the smallest order whose residual is consistent with the noise (layer L5).
 
-``fit(data, n_sections="auto")`` fits N = 1, 2, ... sections (as :func:`~freqid_casadi.
-fitting.sweep.sweep` does, one whole fit per order, the data's own options) and stops at the
-smallest N whose model explains the data:
+``fit(data, n_sections="auto")`` (or a range of orders, ``n_sections=range(1, 9)``) fits
+N = 1, 2, ... sections (as :func:`~freqid_casadi.fitting.sweep.sweep` does, one whole fit
+per order, with the call's other options) and stops at the smallest N whose model explains
+the data:
 
 1. **consistent with the noise**: the relative residual ``r_i = Phi_i / G_N(j w_i) - 1``
    (times ``sqrt(w_i)`` with weights) is no rougher than white noise would be -- its RMS is
@@ -48,7 +49,7 @@ EXACT_RMS = 1e-8
 MODE_TOLERANCE = 0.05
 #: Orders in a row without a significant improvement after which the search stops.
 PATIENCE = 2
-#: Default ``max_sections``.
+#: The largest order ``n_sections="auto"`` tries.
 MAX_SECTIONS = 16
 
 
