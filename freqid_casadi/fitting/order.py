@@ -126,6 +126,17 @@ def significant(rms_before, rms_after, n_points):
 
     Six more parameters fitted to white noise lower the RMS by about 3/M; an improvement
     counts when the RMS falls below ``rms_before * (1 - max(0.1, 12 / M))``.
+
+    Parameters
+    ----------
+    rms_before, rms_after : float
+        RMS relative error at N and N + 1 sections.
+    n_points : int
+        M.
+
+    Returns
+    -------
+    bool
     """
     return rms_after < rms_before * (1 - max(0.1, 12.0 / n_points))
 
@@ -241,7 +252,16 @@ def _choice(results, steps, k, reason, omega):
 
 def with_order_record(choice):
     """``choice.result`` with an ``order-chosen`` diagnostic (severity "info") appended:
-    the reason and every order's RMS and roughness ratio in its values."""
+    the reason and every order's RMS and roughness ratio in its values.
+
+    Parameters
+    ----------
+    choice : OrderChoice
+
+    Returns
+    -------
+    FitResult
+    """
     d = Diagnostic("order-chosen", choice.message, "info", {
         "n_sections": choice.n_sections, "reason": choice.reason,
         "orders": [s.n_sections for s in choice.steps],

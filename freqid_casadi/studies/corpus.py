@@ -77,7 +77,37 @@ FULL_MAX_POINTS = 5000
 
 @dataclass(frozen=True)
 class CaseFit:
-    """One fit of one case (see the module docstring for the definitions)."""
+    """One fit of one case (see the module docstring for the definitions).
+
+    Attributes
+    ----------
+    case, index, family : str, int, str
+        The case (:class:`~freqid_casadi.systems.corpus.CorpusCase`).
+    config : str
+        A key of :data:`CONFIGS`, or :data:`AUTO`.
+    n_points, true_sections, n_sections : int
+        The case's points, its true sections and the fitted model's.
+    noise, nu : float
+        The noise RMS and the noise level (at least :data:`EXACT_FLOOR`).
+    in_class, variance_given : bool
+    delay : float
+        The true delay, seconds.
+    rms, rms_truth, max_rel_error : float
+        RMS against the data, RMS against the truth between the samples, max against the
+        data.
+    success : bool
+    status : str
+        ``res.status``, or "converged" / "not-converged" from ``res.success``; "error".
+    claims_ok, at_floor, at_floor_truth, dishonest, sign_right, class_right : bool
+    diagnostics : tuple of str
+        The codes.
+    wall_time : float
+        Seconds.
+    error : str
+        The exception (type: message) of a fit that raised, or "".
+    task : tuple
+        ``(index, seed, max_points, config)``.
+    """
 
     case: str
     index: int
@@ -134,7 +164,12 @@ def _class_flagged(c, res):
 
 
 def fit_case(task):
-    """Fit one case with one configuration: ``task = (index, seed, max_points, config)``.
+    """Fit one case with one configuration.
+
+    Parameters
+    ----------
+    task : tuple
+        ``(index, seed, max_points, config)``.
 
     Returns
     -------
@@ -282,6 +317,10 @@ def summarize(records):
     """Per configuration and family (and ``"all"``): counts, fractions at the floor (data,
     truth), sign and class right, dishonest, median and max time; for the automatic order
     the fraction of orders in [true, true + 1] and of orders below / above.
+
+    Parameters
+    ----------
+    records : sequence of CaseFit
 
     Returns
     -------

@@ -107,7 +107,23 @@ def _floor_stats(recs):
 
 
 def render_corpus(command, summary, meta, records):
-    """The Markdown report."""
+    """The Markdown report.
+
+    Parameters
+    ----------
+    command : str
+        First line.
+    summary : dict
+        :func:`~freqid_casadi.studies.corpus.summarize` of the records.
+    meta : dict
+        The run: cases, seed, points, fits, workers, wall time.
+    records : list of dict
+        Every fit (:func:`~freqid_casadi.studies.corpus.record_dicts`).
+
+    Returns
+    -------
+    str
+    """
     lines = [generated_by_line(command), "", "# Validation corpus: the defaults on "
              f"{meta['n_cases']} seeded synthetic FRFs", "",
              f"Corpus `freqid_casadi.systems.corpus(n={meta['n_cases']}, seed={meta['seed']}, "
@@ -270,6 +286,11 @@ def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers
 def rerender_corpus_report(out_dir):
     """Write report.md, fits.csv and corpus.png of ``out_dir`` again from its report.json
     (no fit is run; the first line keeps the command that made the fits).
+
+    Parameters
+    ----------
+    out_dir : str or os.PathLike
+        A folder written by :func:`write_corpus_report`.
 
     Returns
     -------
