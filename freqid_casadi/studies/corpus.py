@@ -57,9 +57,10 @@ CONFIGS = {
 }
 #: Configurations run on the subset only (a damping floor is for noisy data).
 NOISY_ONLY = ("start=best, min_damping=auto",)
-#: The subset of the automatic order and of :data:`NOISY_ONLY`: the noisy cases whose
-#: index is a multiple of this (the run's time budget).
-SUBSET_EVERY = 3
+#: The subset of the automatic order and of :data:`NOISY_ONLY`: the noisy cases of every
+#: this-many-th round of the nine families (``(index // 9) % SUBSET_EVERY == 0``: every
+#: family in it; the run's time budget).
+SUBSET_EVERY = 4
 #: CPU seconds a fit may take (three times that with ``n_sections="auto"``); a fit over
 #: it is recorded as an error "time-limit" (CPU time: fair on a loaded machine).
 CPU_BUDGET = 40.0
@@ -224,7 +225,8 @@ def tasks(n, seed=0, max_points=FULL_MAX_POINTS, configs=None, auto=True):
     largest cases first (so two workers end together)."""
     configs = list(CONFIGS) if configs is None else list(configs)
     cases = corpus(n, seed, max_points=max_points)
-    sub = {c.index for c in cases if c.noise > 0 and c.index % SUBSET_EVERY == 0}
+    sub = {c.index for c in cases
+           if c.noise > 0 and (c.index // len(FAMILIES)) % SUBSET_EVERY == 0}
     out = [(c.index, seed, max_points, k) for c in cases for k in configs
            if c.index in sub or k not in NOISY_ONLY]
     if auto:

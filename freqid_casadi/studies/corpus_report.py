@@ -183,7 +183,8 @@ def _figure(summary, records):
     x = np.arange(len(fams))
     width = 0.8 / len(configs)
     for k, c in enumerate(configs):
-        a.bar(x + k * width, [summary[c][f]["at_floor"] for f in fams], width, label=c)
+        a.bar(x + k * width, [summary[c].get(f, {}).get("at_floor", np.nan) for f in fams],
+              width, label=c)
     a.set_xticks(x + 0.4 - width / 2)
     a.set_xticklabels(fams, rotation=35, ha="right")
     a.set_ylabel("fraction at the noise floor (data)")
