@@ -129,7 +129,9 @@ def render_corpus(command, summary, meta, records):
              f"Corpus `freqid_casadi.systems.corpus(n={meta['n_cases']}, seed={meta['seed']}, "
              f"max_points={meta['max_points']})`: {meta['n_points_total']} points in all "
              f"({meta['n_points_min']}-{meta['n_points_max']} per case); {meta['n_fits']} fits "
-             f"on {meta['workers']} worker processes in {meta['wall_time']:.0f} s wall time.",
+             f"on {meta['workers']} worker processes, {meta.get('fit_time_total', float('nan')):.0f} s "
+             f"of fitting summed over the fits (this command's wall time {meta['wall_time']:.0f}"
+             " s; with --resume the fits of the checkpoint are not timed again).",
              "", "Every case is fitted at its true order (`fc.fit(data, n_sections=<true>, "
              "**config)`, every other option at its default), by each configuration, in "
              "this one run. Definitions (`freqid_casadi.studies.corpus`):", "",
@@ -184,13 +186,13 @@ def _figure(summary, records):
     width = 0.8 / len(configs)
     for k, c in enumerate(configs):
         a.bar(x + k * width, [summary[c].get(f, {}).get("at_floor", np.nan) for f in fams],
-              width, label=c)
+              width, label=f"{c} ({summary[c]['all']['n']} fits)")
     a.set_xticks(x + 0.4 - width / 2)
     a.set_xticklabels(fams, rotation=35, ha="right")
     a.set_ylabel("fraction at the noise floor (data)")
     a.set_ylim(0, 1.05)
     a.legend(fontsize=8, loc="lower left")
-    a.set_title("per family, at the true order")
+    a.set_title("per family, at the true order (the candidates on the subset)")
     for k, c in enumerate(configs):
         sel = [r for r in records if r["config"] == c and np.isfinite(r["rms"])]
         a_ok = np.array([r["claims_ok"] for r in sel], bool)
@@ -228,7 +230,7 @@ def _csv(records):
     w = csv.DictWriter(buf, keys)
     w.writeheader()
     for r in records:
-        w.writerow({k: (";".join(v) if isinstance(v, (list, tuple)) else v)
+        w.writerow({k: (";".join(map(str, v)) if isinstance(v, (list, tuple)) else v)
                     for k, v in r.items()})
     return buf.getvalue()
 
@@ -265,7 +267,9 @@ def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers
     wall = time.perf_counter() - t0
     points = [c.n_points for c in cases]
     meta = {"n_cases": n, "seed": seed, "max_points": max_points, "workers": workers,
-            "n_fits": len(records), "wall_time": wall, "n_points_total": int(sum(points)),
+            "n_fits": len(records), "wall_time": wall,
+            "fit_time_total": float(sum(r["wall_time"] for r in records)),
+            "n_points_total": int(sum(points)),
             "n_points_min": int(min(points)), "n_points_max": int(max(points))}
     summary = summarize([_Rec(r) for r in records])
     out = json_safe({"command": command, "meta": meta, "summary": summary,
