@@ -61,7 +61,7 @@ NOISY_ONLY = ("start=best", "start=best, min_damping=auto")
 #: The subset of the automatic order and of :data:`NOISY_ONLY`: the noisy cases of every
 #: this-many-th round of the nine families (``(index // 9) % SUBSET_EVERY == 0``: every
 #: family in it; the run's time budget).
-SUBSET_EVERY = 10
+SUBSET_EVERY = 4
 #: CPU seconds a fit may take (three times that with ``n_sections="auto"``); a fit over
 #: it is recorded as an error "time-limit" (CPU time: fair on a loaded machine).
 CPU_BUDGET = 40.0
