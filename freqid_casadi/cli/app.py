@@ -94,6 +94,16 @@ def _positive_int(text):
                     lambda v: f"must be a positive integer (>= 1), got {v}")
 
 
+def _sections_or_auto(text):
+    if text == "auto":
+        return "auto"
+    try:
+        return _positive_int(text)
+    except argparse.ArgumentTypeError:
+        raise argparse.ArgumentTypeError(
+            f"must be a positive integer or 'auto', got {text!r}") from None
+
+
 def _min_damping(text):
     what = "must be 'auto' or a damping ratio in [0, 1)"
     return "auto" if text == "auto" else _checked(
@@ -218,8 +228,11 @@ def _add_fit(sub):
     _add_input(p, "file", "FILE",
                "data file: text/CSV, .npz, .mat, .uff/.unv, Touchstone .s1p/.s2p/.../.sNp or .ts",
                records=True)
-    p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
-                   help="number of sections N >= 1")
+    p.add_argument("--sections", type=_sections_or_auto, required=True, metavar="N|auto",
+                   help="number of sections N >= 1, or 'auto': the smallest order whose "
+                        "residual is consistent with the noise (up to --max-sections)")
+    p.add_argument("--max-sections", type=_positive_int, default=None, metavar="N",
+                   help="with --sections auto: the largest order tried (default 16)")
     _add_model_arguments(p)
     _add_choices(p, "--gain-sign", "--zeros")
     p.add_argument("--min-damping", type=_min_damping, metavar="auto|ZETA",
@@ -350,6 +363,12 @@ def _resolution_warning(result):
 def _cmd_fit(args, command):
     data = load_data(args, args.file)                # DataError on bad files
     check_out_dir(args.out, args.force)              # before the (long) fit
+    if args.max_sections is not None:
+        if args.sections != "auto":
+            raise OptionError(f"--max-sections {args.max_sections} applies only to --sections "
+                              f"auto, got --sections {args.sections}; drop --max-sections "
+                              "or pass --sections auto")
+        args.sections = range(1, args.max_sections + 1)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ResolutionWarning)   # reported below, one line
         result = fit(data, n_sections=args.sections, integrator=args.integrator,

@@ -27,6 +27,7 @@ from .far_roots import far_root_run
 from .fixed import check_fixed, fit_with_fixed
 from .diagnostics import check_gain_sign
 from ..errors import FreqidError, OptionError, ResolutionWarning
+from .order import MAX_SECTIONS, choose_order, with_order_record
 from .mainloop import LoopContext, minimax, rational, sequential
 from ..core.metrics import relative_error
 from ..core.model import RationalDelayModel, Structure
@@ -253,9 +254,13 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         ``Network`` is converted (:func:`~freqid_casadi.core.data.as_frequency_data`).
     response : array_like of complex, shape (M,), optional
         G(j omega) when ``data_or_omega`` is the frequency array.
-    n_sections : int
+    n_sections : int, "auto" or range
         Number of sections N >= 1 (order 2N, or 2N+1 with the integrator; N with the
-        first-order basis).
+        first-order basis). "auto": the smallest N whose residual is consistent with the
+        noise and whose modes N + 1 sections keep (:mod:`freqid_casadi.fitting.order`), N
+        from 1 up to :data:`~freqid_casadi.fitting.order.MAX_SECTIONS`; a range (e.g.
+        ``range(1, 9)``: at most 8 sections) sets the orders tried. An ``order-chosen``
+        diagnostic says why the search stopped.
     integrator : bool
         Include the factor K0/s.
     delay : bool
@@ -339,6 +344,8 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         A keyword fit() no longer takes (``gauge=``, ``hessian=``, ...): the message names
         the option object and field it moved to.
     """
+    if isinstance(n_sections, (str, range)):
+        return _fit_auto_order(locals())
     integrator, delay = check_flag("integrator", integrator), check_flag("delay", delay)
     progress = check_progress(progress, "each StageRecord")
     fixed, gain_sign = check_fixed(fixed, delay=delay, gain_sign=gain_sign)
@@ -356,6 +363,22 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
                 data, fixed, delay=delay, loop=loop, method=method)
         return _fit_held(data_or_omega, response, n_sections=n_sections, delay=delay,
                          progress=emit, weights=weights, **kw)
+
+
+def _fit_auto_order(args):
+    """``fit(..., n_sections="auto" | range)``: :func:`~freqid_casadi.fitting.order.
+    choose_order` over fits at each order (``args``: fit's keywords)."""
+    args = dict(args)
+    n = args.pop("n_sections")
+    orders = range(1, MAX_SECTIONS + 1) if n == "auto" else n
+    if not isinstance(orders, range) or orders.step != 1 or len(orders) == 0 \
+            or orders.start < 1:
+        raise OptionError(f"n_sections must be a positive integer, 'auto' or a range of "
+                          f"orders such as range(1, 9), got {n!r}")
+    data, response = args.pop("data_or_omega"), args.pop("response")
+    choice = choose_order(lambda k: fit(data, response, n_sections=k, **args),
+                          max_sections=orders[-1], min_sections=orders[0])
+    return with_order_record(choice)
 
 
 def _fit_held(data_or_omega, response, *, progress, weights, **kw):

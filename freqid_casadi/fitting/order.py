@@ -1,0 +1,273 @@
+"""Automatic order: the smallest order whose residual is consistent with the noise (layer L5).
+
+``fit(data, n_sections="auto")`` (or a range of orders, ``n_sections=range(1, 9)``) fits
+N = 1, 2, ... sections (as :func:`~freqid_casadi.fitting.sweep.sweep` does, one whole fit
+per order, with the call's other options) and stops at the smallest N whose model explains
+the data:
+
+1. **consistent with the noise**: the relative residual ``r_i = Phi_i / G_N(j w_i) - 1``
+   (times ``sqrt(w_i)`` with weights) is no rougher than white noise would be -- its RMS is
+   at most :data:`WHITE_RATIO` times its point-to-point roughness
+   ``sqrt(mean |r_{i+1} - r_i|^2 / 2)``, which equals the RMS for white noise and is far
+   below it when the residual has structure (a missed mode, a wrong delay) -- or the RMS is
+   at the rounding level (:data:`EXACT_RMS`, exact data);
+2. **not bettered by one more section**: N + 1 sections lower the RMS by less than
+   :func:`significant` (a share that shrinks with the number of points, as fitting noise
+   with 6 more parameters would);
+3. **its modes are stable**: every pole of N inside the band has a pole of N + 1 within
+   :data:`MODE_TOLERANCE` (relative).
+
+Without a consistent order it stops after :data:`PATIENCE` orders in a row that do not
+lower the RMS significantly (``"no-improvement"``: the model class, not the order, limits
+the fit; the smallest of the best orders is kept) or at ``max_sections``. The result's
+diagnostics carry an ``order-chosen`` record with the reason, every order's RMS and
+roughness ratio.
+
+This module takes the fit as a callable (``fit_one(n) -> FitResult``), so the pipeline
+(:mod:`freqid_casadi.fitting.fit`) dispatches to it without an import cycle.
+"""
+
+import dataclasses
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import FreqidError, OptionError, StructureError
+from .diagnostics import Diagnostic
+
+__all__ = ["OrderStep", "OrderChoice", "choose_order", "with_order_record", "whiteness",
+           "significant", "WHITE_RATIO", "EXACT_RMS", "MODE_TOLERANCE", "PATIENCE",
+           "MAX_SECTIONS"]
+
+#: RMS / roughness of a residual consistent with white noise (1 for white noise; the
+#: estimate scatters by about 1/sqrt(M)).
+WHITE_RATIO = 1.3
+#: RMS relative error at or below which the data are explained exactly.
+EXACT_RMS = 1e-8
+#: Relative distance within which a pole of N sections is "the same" pole at N + 1.
+MODE_TOLERANCE = 0.05
+#: Orders in a row without a significant improvement after which the search stops.
+PATIENCE = 2
+#: The largest order ``n_sections="auto"`` tries.
+MAX_SECTIONS = 16
+
+
+@dataclass(frozen=True)
+class OrderStep:
+    """One order tried.
+
+    Attributes
+    ----------
+    n_sections : int
+    rms : float
+        RMS relative error (weighted when the data have weights).
+    ratio : float
+        RMS / point-to-point roughness of the residual (about 1: white).
+    success : bool
+    """
+
+    n_sections: int
+    rms: float
+    ratio: float
+    success: bool
+
+
+@dataclass(frozen=True, eq=False)
+class OrderChoice:
+    """The chosen order.
+
+    Attributes
+    ----------
+    result : FitResult
+        The fit at the chosen order.
+    n_sections : int
+    reason : {"consistent", "no-improvement", "max-sections", "data-limit"}
+    steps : tuple of OrderStep
+        Every order tried, in order.
+    message : str
+        One sentence: the order, why, and the numbers.
+    """
+
+    result: object
+    n_sections: int
+    reason: str
+    steps: tuple
+    message: str
+
+
+def whiteness(residual, weights=None):
+    """RMS of a residual and its ratio to the point-to-point roughness.
+
+    Parameters
+    ----------
+    residual : ndarray of complex, shape (M,)
+        Relative residual by increasing frequency.
+    weights : ndarray of float, shape (M,), optional
+        Only their ratios matter; points of weight 0 are left out.
+
+    Returns
+    -------
+    (float, float)
+        ``(rms, rms / sqrt(mean |diff|^2 / 2))``; the ratio is about 1 for white noise,
+        large for a smooth (structured) residual, inf for a constant one.
+    """
+    r = np.asarray(residual, complex)
+    if weights is not None:
+        w = np.asarray(weights, float)
+        r = r[w > 0] * np.sqrt(w[w > 0] / np.mean(w[w > 0]))
+    rms = float(np.sqrt(np.mean(np.abs(r) ** 2)))
+    rough = float(np.sqrt(np.mean(np.abs(np.diff(r)) ** 2) / 2)) if r.size > 1 else 0.0
+    return rms, (rms / rough if rough > 0 else (math.inf if rms > 0 else 1.0))
+
+
+def significant(rms_before, rms_after, n_points):
+    """Whether one more section lowered the RMS by more than fitting noise would.
+
+    Six more parameters fitted to white noise lower the RMS by about 3/M; an improvement
+    counts when the RMS falls below ``rms_before * (1 - max(0.1, 12 / M))``.
+
+    Parameters
+    ----------
+    rms_before, rms_after : float
+        RMS relative error at N and N + 1 sections.
+    n_points : int
+        M.
+
+    Returns
+    -------
+    bool
+    """
+    return rms_after < rms_before * (1 - max(0.1, 12.0 / n_points))
+
+
+def _step(res):
+    weights = res.data.weights
+    residual = res.data.response / res.model.frequency_response(res.data.omega) - 1
+    rms, ratio = whiteness(residual, weights)
+    return OrderStep(res.model.n_sections, rms, ratio, bool(res.success))
+
+
+def _consistent(step):
+    return step.rms <= EXACT_RMS or step.ratio <= WHITE_RATIO
+
+
+def _modes_stable(lower, higher, omega):
+    """Largest relative distance from each in-band pole of ``lower`` to the nearest pole of
+    ``higher`` (0 when ``lower`` has none in the band)."""
+    p, q = lower.model.poles(), higher.model.poles()
+    p = p[(np.abs(p) >= omega[0]) & (np.abs(p) <= omega[-1])]
+    if p.size == 0 or q.size == 0:
+        return 0.0 if p.size == 0 else math.inf
+    return float(max(np.min(np.abs(q - x)) / abs(x) for x in p))
+
+
+def choose_order(fit_one, *, max_sections=MAX_SECTIONS, min_sections=1):
+    """Fit orders ``min_sections, ...`` with ``fit_one`` and choose one (module docstring).
+
+    Parameters
+    ----------
+    fit_one : callable
+        ``n_sections -> FitResult`` (its ``data.omega`` gives the band of the mode check).
+    max_sections, min_sections : int
+
+    Returns
+    -------
+    OrderChoice
+
+    Raises
+    ------
+    OptionError
+        Bad ``max_sections`` / ``min_sections``.
+    StructureError
+        ``min_sections`` already needs more parameters than the data have points.
+    """
+    for name, v in (("max_sections", max_sections), ("min_sections", min_sections)):
+        if isinstance(v, bool) or not isinstance(v, (int, np.integer)) or v < 1:
+            raise OptionError(f"{name} must be an integer >= 1, got {v!r}; e.g. "
+                              f"max_sections={MAX_SECTIONS}")
+    if min_sections > max_sections:
+        raise OptionError(f"min_sections={min_sections} > max_sections={max_sections}: "
+                          "raise max_sections")
+    results, steps = [], []
+    n, stale, reason = int(min_sections), 0, "max-sections"
+    while n <= max_sections:
+        try:
+            res = fit_one(n)
+        except StructureError:
+            if not results:
+                raise
+            reason = "data-limit"
+            break
+        results.append(res)
+        steps.append(_step(res))
+        omega = results[0].data.omega
+        if len(steps) >= 2:
+            prev, cur = steps[-2], steps[-1]
+            better = significant(prev.rms, cur.rms, omega.size)
+            if _consistent(prev) and (not better or cur.rms <= EXACT_RMS and prev.rms
+                                      <= EXACT_RMS) and _modes_stable(
+                    results[-2], res, omega) <= MODE_TOLERANCE:
+                return _choice(results, steps, len(steps) - 2, "consistent", omega)
+            stale = 0 if better else stale + 1
+            if stale >= PATIENCE:
+                reason = "no-improvement"
+                break
+        n += 1
+    if reason != "no-improvement" and steps and _consistent(steps[-1]):
+        return _choice(results, steps, len(steps) - 1, "consistent", omega)
+    best = min(s.rms for s in steps)
+    k = next(i for i, s in enumerate(steps) if not significant(s.rms, best, omega.size))
+    return _choice(results, steps, k, reason, omega)
+
+
+_WHY = {
+    "consistent": "the residual is consistent with the noise",
+    "no-improvement": "no residual is consistent with the noise, and more sections stopped "
+                      "lowering it (the model class, not the order, limits this fit: see the "
+                      "other diagnostics)",
+    "max-sections": "no residual is consistent with the noise up to max_sections (raise "
+                    "max_sections, or see the other diagnostics)",
+    "data-limit": "no residual is consistent with the noise, and more sections need more "
+                  "data points than there are",
+}
+
+
+def _choice(results, steps, k, reason, omega):
+    step = steps[k]
+    tried = ", ".join(f"{s.n_sections}: RMS {s.rms:.3g} (x{s.ratio:.2g})" for s in steps)
+    nxt = ""
+    if k + 1 < len(steps):
+        drop = 1 - steps[k + 1].rms / step.rms if step.rms > 0 else 0.0
+        moved = _modes_stable(results[k], results[k + 1], omega)
+        nxt = (f"; {steps[k + 1].n_sections} sections lower the RMS by {100 * drop:.2g} % "
+               f"and move its in-band poles by at most {100 * moved:.2g} %")
+    plural = "s" if step.n_sections != 1 else ""
+    message = (f"n_sections='auto' chose {step.n_sections} section{plural}: {_WHY[reason]} "
+               f"(RMS {step.rms:.3g}, {step.ratio:.3g} times its point-to-point roughness){nxt}; "
+               f"orders tried (RMS, x roughness) {tried}")
+    return OrderChoice(result=results[k], n_sections=step.n_sections, reason=reason,
+                       steps=tuple(steps), message=message)
+
+
+def with_order_record(choice):
+    """``choice.result`` with an ``order-chosen`` diagnostic (severity "info") appended:
+    the reason and every order's RMS and roughness ratio in its values.
+
+    Parameters
+    ----------
+    choice : OrderChoice
+
+    Returns
+    -------
+    FitResult
+    """
+    d = Diagnostic("order-chosen", choice.message, "info", {
+        "n_sections": choice.n_sections, "reason": choice.reason,
+        "orders": [s.n_sections for s in choice.steps],
+        "rms": [s.rms for s in choice.steps], "ratio": [s.ratio for s in choice.steps]})
+    try:
+        return dataclasses.replace(choice.result, diagnostics=tuple(choice.result.diagnostics)
+                                   + (d,))
+    except (TypeError, FreqidError):        # a result type without diagnostics
+        return choice.result

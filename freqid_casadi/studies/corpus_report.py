@@ -1,0 +1,325 @@
+"""Report folder of the validation corpus run (:mod:`freqid_casadi.studies.corpus`).
+
+``report.md`` (first line: the command), ``report.json`` (the summary and every fit),
+``fits.csv`` (one row per fit) and ``corpus.png`` (per family: fraction at the floor for
+each configuration; RMS against the noise level for every fit).
+"""
+
+import csv
+import io
+import json
+import os
+import time
+
+import numpy as np
+
+from ..report.formatting import generated_by_line, json_safe, markdown_table, number
+from ..report.folder import atomic_write_text, check_out_dir, report_folder
+from ..systems.corpus import FAMILIES
+from .corpus import (AUTO, CONFIGS, DENSE, DISHONEST_FACTOR, EXACT_FLOOR, FLOOR_FACTOR,
+                     record_dicts, run_corpus, summarize)
+
+__all__ = ["write_corpus_report", "render_corpus", "rerender_corpus_report"]
+
+
+def _pct(x):
+    return "—" if x is None or not np.isfinite(x) else f"{100 * x:.0f} %"
+
+
+def _table(summary, config):
+    rows = []
+    for fam, s in summary[config].items():
+        rows.append([fam, s["n"], _pct(s["at_floor"]), _pct(s["at_floor_truth"]),
+                     _pct(s["sign_right"]), _pct(s["class_right"]), _pct(s["claims_ok"]),
+                     s["dishonest"], s["errors"], number(s["time_median"], 2),
+                     number(s["time_max"], 2)])
+    return markdown_table(rows, ["family", "fits", "at floor (data)", "at floor (truth)",
+                                 "sign right", "class right", "claims ok",
+                                 "dishonest", "errors", "time median (s)", "time max (s)"])
+
+
+def _compare(summary):
+    configs = [c for c in CONFIGS if c in summary]
+    rows = []
+    for fam in list(FAMILIES) + ["in-class cases", "outside the class", "all"]:
+        row = [fam]
+        for c in configs:
+            s = summary[c].get(fam)
+            row.append("—" if s is None else
+                       f"{_pct(s['at_floor'])} / {s['dishonest']} / {number(s['time_median'], 2)}")
+        rows.append(row)
+    return markdown_table(rows, ["family"] + [f"{c}: floor / dishonest / median s"
+                                              for c in configs])
+
+
+def _auto_table(summary):
+    rows = []
+    for fam, s in summary[AUTO].items():
+        rows.append([fam, s["n"], _pct(s["order_right"]), s["order_below"], s["order_above"],
+                     _pct(s["at_floor"]), s["dishonest"], number(s["time_median"], 2)])
+    return markdown_table(rows, ["family", "noisy cases", "order in [true, true+1]",
+                                 "below", "above", "at floor (data)", "dishonest",
+                                 "time median (s)"])
+
+
+def _verdict(summary, records):
+    """One line per candidate: its floor fractions and dishonest fits against today's on
+    the same cases, and its time."""
+    if "today" not in summary:
+        return []
+    out = []
+    for c in [k for k in CONFIGS if k in summary and k != "today"]:
+        mine = [r for r in records if r["config"] == c]
+        names = {r["case"] for r in mine}
+        base = [r for r in records if r["config"] == "today" and r["case"] in names]
+        a, b = _floor_stats(mine), _floor_stats(base)
+        out.append(f"- `{c}` ({len(mine)} fits): in-class cases at the floor {_pct(a[0])} "
+                   f"against today's {_pct(b[0])} on the same cases, all {_pct(a[1])} "
+                   f"against {_pct(b[1])}; dishonest {a[2]} against {b[2]}; median time "
+                   f"{number(a[3], 2)} s against {number(b[3], 2)} s.")
+    if AUTO in summary:
+        s = summary[AUTO]["all"]
+        ok = _identifiable(records)
+        right = [0 <= r["n_sections"] - r["true_sections"] <= 1 for r in ok]
+        out.append(f"- `{AUTO}` ({s['n']} noisy cases): order in [true, true + 1] in "
+                   f"{_pct(s['order_right'])} ({s['order_below']} below, {s['order_above']} "
+                   f"above), median time {number(s['time_median'], 2)} s; on the "
+                   f"{len(ok)} of them whose fit at the true order (today's defaults) "
+                   f"reaches the floor: {_pct(np.mean(right) if right else np.nan)}.")
+    return out
+
+
+def _identifiable(records):
+    """The automatic-order fits of the cases whose true order is identifiable: today's
+    fit at the true order reaches the floor."""
+    floor = {r["case"] for r in records if r["config"] == "today" and r["at_floor"]}
+    return [r for r in records if r["config"] == AUTO and r["case"] in floor
+            and not r["error"]]
+
+
+def _floor_stats(recs):
+    """(in-class fraction at the floor, all at the floor, dishonest, median time)."""
+    inc = [r["at_floor"] for r in recs if r["in_class"]]
+    return (float(np.mean(inc)) if inc else float("nan"),
+            float(np.mean([r["at_floor"] for r in recs])) if recs else float("nan"),
+            int(sum(r["dishonest"] for r in recs)),
+            float(np.median([r["wall_time"] for r in recs])) if recs else float("nan"))
+
+
+def render_corpus(command, summary, meta, records):
+    """The Markdown report.
+
+    Parameters
+    ----------
+    command : str
+        First line.
+    summary : dict
+        :func:`~freqid_casadi.studies.corpus.summarize` of the records.
+    meta : dict
+        The run: cases, seed, points, fits, workers, wall time.
+    records : list of dict
+        Every fit (:func:`~freqid_casadi.studies.corpus.record_dicts`).
+
+    Returns
+    -------
+    str
+    """
+    lines = [generated_by_line(command), "", "# Validation corpus: the defaults on "
+             f"{meta['n_cases']} seeded synthetic FRFs", "",
+             f"Corpus `freqid_casadi.systems.corpus(n={meta['n_cases']}, seed={meta['seed']}, "
+             f"max_points={meta['max_points']})`: {meta['n_points_total']} points in all "
+             f"({meta['n_points_min']}-{meta['n_points_max']} per case); {meta['n_fits']} fits "
+             f"on {meta['workers']} worker processes, {meta.get('fit_time_total', float('nan')):.0f} s "
+             f"of fitting summed over the fits (this command's wall time {meta['wall_time']:.0f}"
+             " s; with --resume the fits of the checkpoint are not timed again).",
+             "", "Every case is fitted at its true order (`fc.fit(data, n_sections=<true>, "
+             "**config)`, every other option at its default), by each configuration, in "
+             "this one run. Definitions (`freqid_casadi.studies.corpus`):", "",
+             f"- noise level ν: the RMS of the case's relative noise, at least {EXACT_FLOOR:g} "
+             "(exact data are held to that numerical floor);",
+             f"- **at floor (data)**: RMS relative error against the noisy data ≤ "
+             f"{FLOOR_FACTOR:g} ν; **at floor (truth)**: RMS of |G_true/G_N − 1| on a log grid "
+             f"{DENSE}× denser than the data (between the samples) ≤ {FLOOR_FACTOR:g} ν;",
+             "- **claims ok**: `res.status == \"ok\"` when results have a status, else "
+             "`res.success`; **dishonest**: claims ok with an RMS above "
+             f"{DISHONEST_FACTOR:g} ν;",
+             "- **sign right**: the model's gain sign is the system's; **class right**: at the "
+             "floor, or outside the class with a diagnostic naming the cause (`integrator` "
+             "for undeclared poles at the origin, `non-minimum-phase` for right-half-plane "
+             "zeros).", "",
+             "## Today's defaults against the candidates", "", *_verdict(summary, records),
+             "",
+             "Per family: fraction at the floor (data) / dishonest fits / median time per fit.",
+             "", _compare(summary), ""]
+    for config in [c for c in CONFIGS if c in summary]:
+        lines += [f"## `{config}`", "", _table(summary, config), ""]
+    if AUTO in summary:
+        lines += [f"## Automatic order (`{AUTO}`, noisy cases)", "",
+                  "`fc.fit(data, n_sections=\"auto\")`, today's other defaults: the smallest "
+                  "order whose residual is no rougher than white noise, not bettered by one "
+                  "more section, its in-band poles kept by it (`freqid_casadi.fitting.order`).",
+                  "", _auto_table(summary), ""]
+    worst = sorted((r for r in records if r["dishonest"]), key=lambda r: -r["rms"] / r["nu"])
+    if worst:
+        lines += ["## Dishonest fits (claims ok, RMS > 10 ν), worst first", "",
+                  markdown_table([[r["case"], r["config"], number(r["rms"], 3),
+                                   number(r["noise"], 3), ", ".join(r["diagnostics"]) or "—"]
+                                  for r in worst[:25]],
+                                 ["case", "config", "RMS", "noise", "diagnostics"]), ""]
+    lines += ["![per family](corpus.png)", ""]
+    return "\n".join(lines)
+
+
+def _figure(summary, records):
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    auto = [r for r in records if r["config"] == AUTO and not r["error"]]
+    fig, axes = plt.subplots(1, 3 if auto else 2, figsize=(19 if auto else 14, 5.5),
+                             gridspec_kw={"width_ratios": [3, 3, 1.6] if auto else [1, 1]})
+    a, b = axes[0], axes[1]
+    configs = [c for c in CONFIGS if c in summary]
+    fams = [f for f in FAMILIES if f in summary[configs[0]]]
+    x = np.arange(len(fams))
+    width = 0.8 / len(configs)
+    for k, c in enumerate(configs):
+        a.bar(x + k * width, [summary[c].get(f, {}).get("at_floor", np.nan) for f in fams],
+              width, label=f"{c} ({summary[c]['all']['n']} fits)")
+    a.set_xticks(x + 0.4 - width / 2)
+    a.set_xticklabels(fams, rotation=35, ha="right")
+    a.set_ylabel("fraction at the noise floor (data)")
+    a.set_ylim(0, 1.05)
+    a.legend(fontsize=8, loc="lower left")
+    a.set_title("per family, at the true order (the candidates on the subset)")
+    for k, c in enumerate(configs):
+        sel = [r for r in records if r["config"] == c and np.isfinite(r["rms"])]
+        a_ok = np.array([r["claims_ok"] for r in sel], bool)
+        nu = np.array([r["nu"] for r in sel])
+        rms = np.maximum([r["rms"] for r in sel], 1e-8)   # exact fits shown at 1e-8
+        b.scatter(nu[a_ok] * (1.06 ** k), rms[a_ok], s=10, marker="o", alpha=0.6,
+                  label=f"{c}: claims ok")
+        b.scatter(nu[~a_ok] * (1.06 ** k), rms[~a_ok], s=14, marker="x", alpha=0.6,
+                  label=f"{c}: does not")
+    grid = np.logspace(np.log10(EXACT_FLOOR) - 0.2, np.log10(0.06), 20)
+    b.plot(grid, FLOOR_FACTOR * grid, "k--", lw=1, label=f"{FLOOR_FACTOR:g} ν (floor)")
+    b.plot(grid, DISHONEST_FACTOR * grid, "r:", lw=1, label=f"{DISHONEST_FACTOR:g} ν")
+    b.set_xscale("log")
+    b.set_yscale("log")
+    b.set_xlabel("noise level ν (relative RMS; exact data at 1e-4)")
+    b.set_ylabel("RMS relative error against the data (floored at 1e-8)")
+    b.set_title("every fit")
+    b.legend(fontsize=6, loc="lower right")
+    if auto:
+        diff = np.array([r["n_sections"] - r["true_sections"] for r in auto])
+        edges = np.arange(diff.min() - 0.5, diff.max() + 1.5)
+        axes[2].hist(diff, bins=edges, color="0.5")
+        axes[2].axvspan(-0.5, 1.5, color="g", alpha=0.15, label="[true, true + 1]")
+        axes[2].set_xlabel("chosen - true sections")
+        axes[2].set_ylabel("noisy cases")
+        axes[2].set_title("n_sections='auto'")
+        axes[2].legend(fontsize=8)
+    fig.tight_layout()
+    return fig
+
+
+def _csv(records):
+    buf = io.StringIO()
+    keys = list(records[0]) if records else []
+    w = csv.DictWriter(buf, keys)
+    w.writeheader()
+    for r in records:
+        w.writerow({k: (";".join(map(str, v)) if isinstance(v, (list, tuple)) else v)
+                    for k, v in r.items()})
+    return buf.getvalue()
+
+
+def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers=2,
+                        configs=None, auto=True, force=False, progress=None,
+                        checkpoint=None):
+    """Run the corpus (:func:`~freqid_casadi.studies.corpus.run_corpus`) and write its
+    report folder.
+
+    Parameters
+    ----------
+    out_dir : str or os.PathLike
+    command : str
+        First line of report.md.
+    n, seed, max_points, workers, configs, auto, progress, checkpoint
+        Passed to :func:`run_corpus`.
+    force : bool
+        Replace an existing ``out_dir`` (only once the new report is complete).
+
+    Returns
+    -------
+    dict
+        The summary, as in report.json.
+    """
+    check_out_dir(out_dir, force)
+    from ..systems.corpus import corpus
+
+    cases = corpus(n, seed, max_points=max_points)
+    t0 = time.perf_counter()
+    records = record_dicts(run_corpus(n, seed, max_points=max_points, workers=workers,
+                                      configs=configs, auto=auto, progress=progress,
+                                      checkpoint=checkpoint))
+    wall = time.perf_counter() - t0
+    points = [c.n_points for c in cases]
+    meta = {"n_cases": n, "seed": seed, "max_points": max_points, "workers": workers,
+            "n_fits": len(records), "wall_time": wall,
+            "fit_time_total": float(sum(r["wall_time"] for r in records)),
+            "n_points_total": int(sum(points)),
+            "n_points_min": int(min(points)), "n_points_max": int(max(points))}
+    summary = summarize([_Rec(r) for r in records])
+    out = json_safe({"command": command, "meta": meta, "summary": summary,
+                     "fits": records})
+    with report_folder(out_dir, force) as (tmp, _):
+        fig = _figure(summary, records)
+        fig.savefig(os.path.join(tmp, "corpus.png"), dpi=110)
+        import matplotlib.pyplot as plt
+
+        plt.close(fig)
+        atomic_write_text(os.path.join(tmp, "report.json"),
+                          json.dumps(out, indent=1, allow_nan=False) + "\n")
+        atomic_write_text(os.path.join(tmp, "fits.csv"), _csv(records))
+        atomic_write_text(os.path.join(tmp, "report.md"),
+                          render_corpus(command, summary, meta, records))
+    return out
+
+
+def rerender_corpus_report(out_dir):
+    """Write report.md, fits.csv and corpus.png of ``out_dir`` again from its report.json
+    (no fit is run; the first line keeps the command that made the fits).
+
+    Parameters
+    ----------
+    out_dir : str or os.PathLike
+        A folder written by :func:`write_corpus_report`.
+
+    Returns
+    -------
+    dict
+        The report.json contents.
+    """
+    path = os.path.join(out_dir, "report.json")
+    with open(path, encoding="utf-8") as f:
+        out = json.load(f)
+    records = out["fits"]
+    summary = summarize([_Rec(r) for r in records])
+    fig = _figure(summary, records)
+    fig.savefig(os.path.join(out_dir, "corpus.png"), dpi=110)
+    import matplotlib.pyplot as plt
+
+    plt.close(fig)
+    atomic_write_text(os.path.join(out_dir, "fits.csv"), _csv(records))
+    atomic_write_text(os.path.join(out_dir, "report.md"),
+                      render_corpus(out["command"], summary, out["meta"], records))
+    return out
+
+
+class _Rec:
+    """A record dict read as attributes (for :func:`summarize`)."""
+
+    def __init__(self, d):
+        self.__dict__.update(d)

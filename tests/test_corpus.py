@@ -1,0 +1,198 @@
+"""The validation corpus (issue 26): the generator, the automatic order and a seeded subset
+of 60 cases fitted with today's defaults.
+
+The subset: ``corpus(60, seed=0, max_points=50)`` (every case cut to 50 points so the 60
+fits take a minute or two), fitted at the true order by
+:func:`freqid_casadi.studies.corpus.run_corpus` with the defaults. Measured values are in
+the comments; the thresholds keep a stated margin below them.
+"""
+
+import math
+
+import numpy as np
+import pytest
+
+import freqid_casadi as fc
+from freqid_casadi.errors import OptionError
+from freqid_casadi.fitting.order import choose_order, significant, whiteness
+from freqid_casadi.studies.corpus import (EXACT_FLOOR, FLOOR_FACTOR, fit_case, run_corpus,
+                                          summarize)
+from freqid_casadi.systems import corpus as make_corpus
+from freqid_casadi.systems.corpus import FAMILIES, case
+
+
+# -- the generator ----------------------------------------------------------------------
+
+def test_corpus_is_deterministic_and_a_prefix():
+    a, b = make_corpus(12, seed=3), make_corpus(12, seed=3)
+    for x, y in zip(a, b):
+        assert np.array_equal(x.data.response, y.data.response)
+        assert x.family == y.family and x.delay == y.delay
+    c = case(7, seed=3)
+    assert np.array_equal(c.data.response, a[7].data.response)
+    assert not np.array_equal(make_corpus(12, seed=4)[7].data.response, c.data.response)
+    assert [x.family for x in a[:9]] == list(FAMILIES)
+
+
+def test_corpus_spans_the_families_ranges():
+    cases = make_corpus(300)
+    points = [c.n_points for c in cases]
+    assert min(points) >= 50 and max(points) <= 5000 and max(points) > 2000
+    lo = min(c.data.omega[0] for c in cases)
+    hi = max(c.data.omega[-1] for c in cases)
+    assert 1e-3 <= lo < 1e-2 and 1e8 < hi <= 1e9
+    assert {c.spacing for c in cases} == {"log", "linear"}
+    noise = [c.noise for c in cases]
+    assert min(noise) == 0 and 0.04 < max(noise) <= 0.05
+    assert any(c.variance_given for c in cases) and not all(c.variance_given for c in cases
+                                                          if c.noise > 0)
+    damp = [c.min_damping for c in cases]
+    assert min(damp) < 0.003
+    assert sum(c.delay == 0 for c in cases) > 100
+    fams = {f: [c for c in cases if c.family == f] for f in FAMILIES}
+    assert all(len(v) >= 33 for v in fams.values())
+    assert all(c.gain_sign == -1 for c in fams["negative-gain"])
+    assert all(c.integrators in (1, 2) and not c.in_class for c in fams["integrator"])
+    assert all(c.zeros_at_origin == 2 for c in fams["accelerance"])
+    assert all(c.zeros_at_origin == 1 for c in fams["band-pass"])
+    nmp = [c for c in fams["modal-noncollocated"] if c.nmp_zeros]
+    assert nmp and all(not c.in_class for c in nmp)
+    assert all(c.in_class for f in ("in-class", "modal-collocated", "modal-feedthrough")
+               for c in fams[f])
+
+
+def test_case_data_is_the_truth_times_the_noise():
+    for c in make_corpus(27):
+        dev = np.abs(c.data.response / c.truth(c.data.omega) - 1)
+        if c.noise == 0:
+            assert dev.max() < 1e-12
+        else:
+            # complex Gaussian of RMS sigma_i: the mean of |n|^2 / sigma^2 is near 1
+            assert 0.5 < np.mean((dev / c.sigma) ** 2) < 1.6
+        if c.variance_given:
+            assert np.allclose(c.data.weights, 1 / c.sigma ** 2)
+        assert c.delay <= 0.85 * math.pi / np.max(np.diff(c.data.omega)) * (1 + 1e-12)
+
+
+def test_a_noncollocated_zero_is_where_the_truth_vanishes():
+    c = next(x for x in make_corpus(60) if x.nmp_zeros)
+    z = c.truth.finite_zeros()
+    z = z[z.real > 0][0]
+    assert abs(c.truth.at(np.array([z]))[0]) < 1e-6 * np.max(np.abs(c.truth(c.data.omega)))
+
+
+@pytest.mark.parametrize("kw, match", [({"n": 0}, "n must"), ({"families": ["x"]}, "unknown"),
+                                       ({"max_points": 10}, "max_points")])
+def test_corpus_bad_arguments(kw, match):
+    with pytest.raises(OptionError, match=match):
+        make_corpus(**dict({"n": 3}, **kw))
+
+
+# -- the automatic order ----------------------------------------------------------------
+
+def test_whiteness_tells_noise_from_structure():
+    rng = np.random.default_rng(1)
+    noise = rng.standard_normal(400) + 1j * rng.standard_normal(400)
+    assert whiteness(noise)[1] == pytest.approx(1, abs=0.15)
+    smooth = np.exp(1j * np.linspace(0, 3, 400))
+    assert whiteness(smooth)[1] > 20
+    assert significant(1.0, 0.5, 100) and not significant(1.0, 0.95, 100)
+
+
+def test_auto_order_on_a_noisy_in_class_case():
+    c = case(0)                     # 3 sections, 56 points, 0.45 % noise
+    res = fc.fit(c.data, n_sections="auto")
+    rec = next(d for d in res.diagnostics if d.code == "order-chosen")
+    # measured: 1: 0.83 (x2.8), 2: 0.52 (x2.2), 3: 0.0040 (x0.92), 4: 0.0039; chose 3
+    assert res.model.n_sections == 3 and rec.values["reason"] == "consistent"
+    assert rec.values["orders"] == [1, 2, 3, 4]
+    assert res.rms_rel_error < FLOOR_FACTOR * c.noise
+    assert "chose 3 sections" in rec.message
+
+
+def test_auto_order_stops_at_max_sections():
+    c = case(3)                     # right-half-plane zeros: no order is consistent
+    choice = choose_order(lambda n: fc.fit(c.data, n_sections=n), max_sections=2)
+    assert choice.reason in ("max-sections", "no-improvement")
+    assert [s.n_sections for s in choice.steps] == [1, 2]
+
+
+@pytest.mark.parametrize("n", ["many", range(0, 3), range(1, 5, 2), range(2, 2)])
+def test_auto_order_bad_options(n):
+    with pytest.raises(OptionError, match="positive integer, 'auto' or a range"):
+        fc.fit(case(0).data, n_sections=n)
+
+
+def test_auto_order_over_a_range():
+    res = fc.fit(case(18).data, n_sections=range(2, 4))   # 1 true section, 1.6 % noise
+    rec = next(d for d in res.diagnostics if d.code == "order-chosen")
+    assert rec.values["orders"][0] == 2 and max(rec.values["orders"]) <= 3
+
+
+def test_cli_sections_accepts_auto():
+    from freqid_casadi.cli.app import build_parser
+
+    args = build_parser().parse_args(["fit", "x.csv", "--sections", "auto", "--out", "r"])
+    assert args.sections == "auto" and args.max_sections is None
+    with pytest.raises(Exception, match="positive integer or 'auto'"):
+        build_parser().parse_args(["fit", "x.csv", "--sections", "many", "--out", "r"])
+
+
+# -- the seeded subset ------------------------------------------------------------------
+
+@pytest.fixture(scope="module")
+def subset():
+    records = run_corpus(60, 0, max_points=50, workers=1, configs=["today"], auto=False)
+    return records, summarize(records)["today"]
+
+
+def test_subset_runs_every_case(subset):
+    records, s = subset
+    assert len(records) == 60 and s["all"]["errors"] == 0
+
+
+def test_subset_in_class_at_the_floor(subset):
+    # measured: 29 of the 48 in-class cases (0.604) at the floor (data); margin 0.1 (5
+    # cases). The misses: accelerances and high-pass data (zeros at the origin, taken for
+    # a negative gain) and local minima of the sequential start
+    assert subset[1]["in-class cases"]["at_floor"] >= 0.604 - 0.1
+
+
+def test_subset_sign(subset):
+    # measured: 7 of the 7 negative-gain cases with the right sign, all at the floor;
+    # margin: one case
+    assert subset[1]["negative-gain"]["sign_right"] >= 1.0 - 0.15
+    assert subset[1]["negative-gain"]["at_floor"] >= 1.0 - 0.15
+
+
+@pytest.mark.xfail(strict=True, reason="measured: 14 of 60 fits claim success with an RMS "
+                                       "> 10x the noise (today's defaults, before "
+                                       "FitResult.status exists)")
+def test_subset_never_ok_far_above_the_noise(subset):
+    assert subset[1]["all"]["dishonest"] == 0
+
+
+def test_subset_record_definitions(subset):
+    for r in subset[0]:
+        assert r.nu == max(r.noise, EXACT_FLOOR)
+        assert r.at_floor == (r.rms <= FLOOR_FACTOR * r.nu)
+        assert r.dishonest == (r.claims_ok and r.rms > 10 * r.nu)
+
+
+def test_fit_case_records_a_time_limit(monkeypatch):
+    import freqid_casadi.studies.corpus as study
+
+    monkeypatch.setattr(study, "CPU_BUDGET", 0.0)
+    rec = fit_case((1, 0, 50, "today"))
+    assert rec.error.startswith("TimeLimit") and not rec.claims_ok
+
+
+def test_run_corpus_resumes_from_its_checkpoint(tmp_path):
+    path = tmp_path / "fits.jsonl"
+    first = run_corpus(1, 0, max_points=50, workers=1, configs=["today"], auto=False,
+                       checkpoint=path)
+    seen = []
+    again = run_corpus(1, 0, max_points=50, workers=1, configs=["today"], auto=False,
+                       checkpoint=path, progress=lambda done, total, rec: seen.append(rec))
+    assert seen == [] and len(path.read_text().splitlines()) == 1
+    assert again[0].rms == first[0].rms and again[0].diagnostics == first[0].diagnostics
