@@ -9,7 +9,7 @@ Runs the headline fits (examples A, B and C with ``start="sequential"`` and
 (:func:`freqid_casadi.studies.measured.actuator_frf`), the DaISy robot arm with a delay at
 1-5 sections (:func:`freqid_casadi.studies.robot_arm.arm_data`), the shared-pole modal
 benchmark of ``scripts/modal_benchmark.py`` (16 channels, 10 modes) and the sweep of A over
-orders 2:40:2 (``scripts/sweep_benchmark.py``)) in worker subprocesses, at most ``--jobs``
+orders 2:20:2 (``scripts/sweep_benchmark.py``; 2:40:2 took 10 min a run on the shared machine)) in worker subprocesses, at most ``--jobs``
 (<= 2) at a time:
 
 * once per OpenBLAS kernel (``OPENBLAS_CORETYPE`` = Haswell, SkylakeX, Zen, Sandybridge,
@@ -118,7 +118,7 @@ def _sweep(seed, quick):
     import freqid_casadi as fc
     from freqid_casadi.fitting.sweep import parse_orders, sweep
 
-    orders = "2:10:2" if quick else "2:40:2"
+    orders = "2:10:2" if quick else "2:20:2"      # 2:40:2 took 10 min a run here
 
     def run():
         t0 = time.perf_counter()
