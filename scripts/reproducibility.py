@@ -2,15 +2,15 @@
 
 Usage::
 
-    python scripts/reproducibility.py [--quick] [--jobs 2] [--out results]
+    python scripts/reproducibility.py [--quick] [--jobs 2] [--out results] [--seeds 10] [--keep DIR]
 
 Runs the headline fits (examples A, B and C with ``start="sequential"`` and
 ``start="rational"``, B with ``objective="minimax"``, the actuator at 1-3 sections
 (:func:`freqid_casadi.studies.measured.actuator_frf`), the DaISy robot arm with a delay at
 1-5 sections (:func:`freqid_casadi.studies.robot_arm.arm_data`), the shared-pole modal
 benchmark of ``scripts/modal_benchmark.py`` (16 channels, 10 modes) and the sweep of A over
-orders 2:20:2 (``scripts/sweep_benchmark.py``; 2:40:2 took 10 min a run on the shared machine)) in worker subprocesses, at most ``--jobs``
-(<= 2) at a time:
+orders 2:20:2 (``scripts/sweep_benchmark.py``; 2:40:2 took 10 min a run on the shared
+machine)) in worker subprocesses, at most ``--jobs`` (<= 2) at a time:
 
 * once per OpenBLAS kernel (``OPENBLAS_CORETYPE`` = Haswell, SkylakeX, Zen, Sandybridge,
   Nehalem, Prescott), set in the worker's environment only; the worker records with
@@ -160,16 +160,24 @@ def worker(seed, quick, path):
         json.dump({"openblas": info, "rows": rows}, fh, indent=1)
 
 
-def _configs(quick):
+def _configs(quick, n_seeds=len(SEEDS)):
     kernels = KERNELS[:2] if quick else KERNELS
-    seeds = SEEDS[:2] if quick else SEEDS
+    seeds = SEEDS[:2] if quick else SEEDS[:n_seeds]
     return ([{"kernel": k, "seed": None} for k in kernels]
             + [{"kernel": None, "seed": s} for s in seeds])
 
 
 def _run_all(configs, quick, jobs, tmp):
     """Start the workers, at most ``jobs`` at a time; return their results in order."""
-    pending, running, done = list(enumerate(configs)), [], {}
+    pending, running, done = [], [], {}
+    for i, c in enumerate(configs):      # a worker's output from an earlier run is reused
+        path = os.path.join(tmp, f"worker{i}.json")
+        if os.path.exists(path):
+            with open(path, encoding="utf-8") as fh:
+                done[i] = dict(c, **json.load(fh))
+            print(f"reused {_label(c)} ({path})", flush=True)
+        else:
+            pending.append((i, c))
     t0 = time.perf_counter()
     while pending or running:
         while pending and len(running) < jobs:
@@ -286,6 +294,11 @@ def main(argv=None):
     ap.add_argument("--quick", action="store_true", help="A and B only, 2 kernels, 2 seeds")
     ap.add_argument("--jobs", type=int, default=2, help="workers at a time (1 or 2)")
     ap.add_argument("--out", default=os.path.join(ROOT, "results"))
+    ap.add_argument("--seeds", type=int, default=len(SEEDS),
+                    help=f"perturbation seeds 0..N-1 (default {len(SEEDS)}, at most that)")
+    ap.add_argument("--keep", metavar="DIR",
+                    help="keep each worker's output in DIR (worker<i>.json) and reuse those "
+                         "already there: an interrupted run resumes")
     ap.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     ap.add_argument("--seed", type=int, default=None, help=argparse.SUPPRESS)
     ap.add_argument("--json", help=argparse.SUPPRESS)
@@ -299,10 +312,17 @@ def main(argv=None):
 
     from freqid_casadi._textio import atomic_write_text
 
-    command = "python scripts/reproducibility.py" + (" --quick" if args.quick else "")
+    if not 1 <= args.seeds <= len(SEEDS):
+        ap.error(f"--seeds must be 1..{len(SEEDS)} (got {args.seeds})")
+    command = "python scripts/reproducibility.py" + (" --quick" if args.quick else "") + (
+        f" --seeds {args.seeds}" if args.seeds != len(SEEDS) else "")
     t0 = time.perf_counter()
-    with tempfile.TemporaryDirectory() as tmp:
-        runs = _run_all(_configs(args.quick), args.quick, args.jobs, tmp)
+    if args.keep:
+        os.makedirs(args.keep, exist_ok=True)
+        runs = _run_all(_configs(args.quick, args.seeds), args.quick, args.jobs, args.keep)
+    else:
+        with tempfile.TemporaryDirectory() as tmp:
+            runs = _run_all(_configs(args.quick, args.seeds), args.quick, args.jobs, tmp)
     summary = summarise(runs)
     os.makedirs(args.out, exist_ok=True)
     result = {"command": command, "perturbation": PERTURBATION, "runs": runs,
