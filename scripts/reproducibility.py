@@ -256,7 +256,8 @@ def render(command, runs, summary):
              "", "Each configuration ran in its own subprocess (at most 2 at a time). Kernels: "
              "`OPENBLAS_CORETYPE` set in that subprocess's environment only; the kernel "
              "OpenBLAS actually loaded, read by threadpoolctl in the worker:", "",
-             "| requested | loaded (numpy's / scipy's OpenBLAS) |", "|---|---|"]
+             "| requested | loaded (each OpenBLAS library in the process: numpy's, scipy's) |",
+             "|---|---|"]
     for r in runs:
         if r["kernel"]:
             lines.append(f"| {r['kernel']} | "
