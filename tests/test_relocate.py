@@ -121,7 +121,7 @@ def test_example_c_sequential_is_more_accurate_with_fewer_stages_at_their_limit(
     # C's result moves with rounding (issue 27, results/reproducibility.md): the delay
     # search's vector fits are erratic in the delay and its polish ends at its limit in a
     # narrow curved valley. Measured over the six OpenBLAS kernels and data perturbed by
-    # 1e-15: max rel. error 1.2e-10..3.3e-7 (1.09e-10 on one machine before), 1763..1832
+    # 1e-15: max rel. error 4.9e-11..3.3e-7 (1.09e-10 on one machine before), 1600..1835
     # IPOPT iterations (peak: 4.94e-5, 2754). Bounds: the worst case times ~6 and 1.15.
     assert fit_c.max_rel_error <= 2e-6
     assert fit_c.nit <= 2100
@@ -164,7 +164,7 @@ def test_example_c_rational_is_rescued_by_the_delay_search(fit_c_rational):
     assert res.candidate_max_rel_errors["rational"] > 1e-7         # measured 8.33e-7
     # measured over the six OpenBLAS kernels (issue 27, results/reproducibility.md):
     # 5.5e-11..4.1e-10, delay 0.026165..0.026233 s (3.2e-3 below G_C's at worst). Bounds:
-    # the worst case times ~10 and 3. (With the data perturbed by 1e-15 one seed in four
+    # the worst case times ~10 and 3. (With the data perturbed by 1e-15 one seed in ten
     # kept the unrescued rational fit, 8.0e-7 at 0.026005 s: a knife edge not removed.)
     assert res.max_rel_error < 4e-9
     assert res.candidate_max_rel_errors["rational, delay search"] == res.max_rel_error
