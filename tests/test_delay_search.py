@@ -68,16 +68,22 @@ def rescued():
 
 def test_an_unconverged_fit_is_rescued(rescued):
     """A's sequential loop with init="peak" ends at its limits (6.3e-6, not converged); the
-    vector fit at a nearby delay, polished, converges to machine precision."""
+    vector fit at a nearby delay, polished, converges to its rounding floor."""
+    # measured with OPENBLAS_CORETYPE = Haswell, SkylakeX, Zen, Sandybridge, Nehalem and
+    # Prescott on one machine (issue 27): before 6.34e-6..6.68e-6; after 1.09e-13
+    # (SkylakeX) .. 2.53e-12 (Prescott), the delay 0.0100002..0.0100259 s (at 1e-12 the
+    # delay trades with the sections above the band: it is determined to ~3e-3 relative,
+    # not 1e-4); converged on every kernel. Bounds: the worst case times 8 (error) and
+    # about 4 (delay).
     res = rescued
     before = res.candidate_max_rel_errors["sequential"]
-    assert before > 1e-6                                    # measured 6.34e-6
-    assert res.max_rel_error < 1e-12                        # measured 1.1e-13
+    assert before > 1e-6
+    assert res.max_rel_error < 2e-11
     assert res.success, res.message
     assert res.start == "sequential"
     assert [s.kind for s in res.stages[-2:]] == ["rational-start", "delay-search"]
     assert res.stages[-2].nit <= MAX_TRIALS                 # the probes
-    assert res.delay == pytest.approx(EXAMPLES["A"].true_delay, rel=1e-4)
+    assert res.delay == pytest.approx(EXAMPLES["A"].true_delay, rel=1e-2)
 
 
 def test_the_report_names_the_search_stages(rescued):

@@ -107,13 +107,17 @@ def test_stabilization_marks_and_selects_the_two_modes():
     # order 4 finds both modes; from order 6 on they are stable in frequency and damping
     at4 = res.poles_of(4)
     assert sorted(p.omega_n for p in at4) == pytest.approx([5.0, 17.0], rel=1e-6)
-    # (an order above the true one may add a spurious pole beside a mode, e.g. order 6 one
-    # at 17.0016 rad/s with the start's constant per channel: it is "new", the mode is not)
+    # (the data are exact: the sections beyond the two modes are undetermined, and where
+    # their poles land moves with the start and the BLAS kernel's rounding. With
+    # OPENBLAS_CORETYPE=Haswell a near-cancelling pair sits beside the mode at 17 rad/s
+    # (17.003 rad/s at order 8, 17.0022 at order 10), and the start's constant per channel
+    # put one at 17.0016 rad/s at order 6. The selection above still keeps the two modes;
+    # each has a stable pole at the mode.)
     for order in (6, 8, 10):
-        for w in (5.0, 17.0):
-            best = min(res.poles_of(order), key=lambda p: abs(p.omega_n - w))
-            assert abs(best.omega_n - w) < 1e-4 * w
-            assert best.status == "stable-frequency-damping"
+        for mode in (5.0, 17.0):
+            assert any(p.status == "stable-frequency-damping"
+                       and p.omega_n == pytest.approx(mode, rel=1e-4)
+                       for p in res.poles_of(order)), (order, mode)
     assert all(p.status == "new" for p in res.poles_of(2))
     rows = list(csv.reader(io.StringIO(survey.stabilization_csv(res))))
     assert rows[0] == ["order", "frequency_hz", "omega_n_rad_s", "zeta", "status", "selected"]

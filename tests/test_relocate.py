@@ -97,7 +97,9 @@ def test_example_a_sequential_converges_within_600_iterations():
     assert res.nit <= 600                       # measured 133 (init="peak": 1433)
     assert res.max_rel_error <= 1e-5            # measured 4.8e-14 (peak: 6.34e-6)
     assert _at_limit(res) == []                 # peak: 11 of 19 stages
-    assert res.delay == pytest.approx(0.01, rel=1e-3)   # measured 0.0100072
+    # delay measured over the kernels and perturbations (results/reproducibility.md):
+    # 0.0099947..0.0100179 s, 1.8e-3 off at worst; bound ~3x that
+    assert res.delay == pytest.approx(0.01, rel=5e-3)
 
 
 def test_example_a_peak_init_is_still_available_and_worse():
@@ -116,10 +118,16 @@ def test_example_b_is_not_worse(start):
 
 
 def test_example_c_sequential_is_more_accurate_with_fewer_stages_at_their_limit(fit_c):
-    assert fit_c.max_rel_error <= 1e-9          # measured 1.09e-10 (peak: 4.94e-5)
-    assert fit_c.nit <= 1900                    # measured 1771 (peak: 2754)
-    # section stage 20, the loop's final stage, the delay search's polish (peak: 11 of 29)
-    assert len(_at_limit(fit_c)) <= 3
+    # C's result moves with rounding (issue 27, results/reproducibility.md): the delay
+    # search's vector fits are erratic in the delay and its polish ends at its limit in a
+    # narrow curved valley. Measured over the six OpenBLAS kernels and data perturbed by
+    # 1e-15: max rel. error 4.9e-11..3.3e-7 (1.09e-10 on one machine before), 1600..1835
+    # IPOPT iterations (peak: 4.94e-5, 2754). Bounds: the worst case times ~6 and 1.15.
+    assert fit_c.max_rel_error <= 2e-6
+    assert fit_c.nit <= 2100
+    # section stage 20, the loop's final stage, the delay search's polish (peak: 11 of 29);
+    # with OPENBLAS_CORETYPE=Prescott also section stage 22: 4. Bound: the worst + 1
+    assert len(_at_limit(fit_c)) <= 5
     assert len([s for s in fit_c.stages if s.kind == "section"]) == 27
     assert fit_c.stages[-1].kind == "delay-search"
 
@@ -154,14 +162,23 @@ def test_example_c_rational_is_rescued_by_the_delay_search(fit_c_rational):
     res = fit_c_rational
     assert res.start == "rational"
     assert res.candidate_max_rel_errors["rational"] > 1e-7         # measured 8.33e-7
-    assert res.max_rel_error < 1e-9                                 # measured 6.08e-11
+    # measured over the six OpenBLAS kernels (issue 27, results/reproducibility.md):
+    # 5.5e-11..4.1e-10, delay 0.026165..0.026233 s (3.2e-3 below G_C's at worst). Bounds:
+    # the worst case times ~10 and 3. (With the data perturbed by 1e-15 one seed in ten
+    # kept the unrescued rational fit, 8.0e-7 at 0.026005 s: a knife edge not removed.)
+    assert res.max_rel_error < 4e-9
     assert res.candidate_max_rel_errors["rational, delay search"] == res.max_rel_error
-    assert res.delay == pytest.approx(EXAMPLES["C"].true_delay, rel=2e-3)   # 0.0262293
+    assert res.delay == pytest.approx(EXAMPLES["C"].true_delay, rel=1e-2)
 
 
 def test_example_c_has_a_far_better_basin_at_the_systems_delay():
     """Why C's xfails above: the fits end at h ~ 0.0260 s; a vector fit at G_C's delay
-    polished for 200 iterations is 2500x more accurate (module docstring)."""
+    polished for 200 iterations is more accurate (module docstring).
+
+    Vector fitting 27 sections is itself erratic under rounding (issue 27): at h =
+    0.02625 s it reaches 1.6e-8 (SkylakeX), 2.6e-8 (Haswell) but 2.2e-4 with
+    OPENBLAS_CORETYPE=Prescott, and its polish 3.3e-10 / 6.0e-10 / 1.9e-7 at h 0.0262499 /
+    0.0262498 / 0.0262512 s. Bounds: the worst case times ~5 (error) and ~10 (delay)."""
     from freqid_casadi.core.resolution import default_delay_max
     from freqid_casadi.fitting.stages import polish
     from freqid_casadi.fitting.start import rational_start
@@ -171,10 +188,10 @@ def test_example_c_has_a_far_better_basin_at_the_systems_delay():
     rs = rational_start(data, fc.Structure(ex.n_sections, ex.integrator, ex.delay),
                         delay_max=default_delay_max(data.omega), delay0=ex.true_delay,
                         max_delay_updates=1)
-    assert rs.max_rel_error < 1e-7              # measured 1.59e-8
+    assert rs.max_rel_error < 1e-3
     pol = polish(rs.model, data, max_iter=200)
-    assert np.max(pol.model.relative_error(data)) < 1e-9      # measured 3.3e-10
-    assert pol.model.delay == pytest.approx(ex.true_delay, rel=1e-5)   # measured 0.0262499
+    assert np.max(pol.model.relative_error(data)) < 1e-6
+    assert pol.model.delay == pytest.approx(ex.true_delay, rel=5e-4)
 
 
 def _two_section_stage():

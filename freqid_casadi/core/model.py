@@ -161,6 +161,22 @@ def section_response(basis, omega, theta):
     return num, den
 
 
+def _section_ratio(basis, omega, theta):
+    """num/den of one section at s = j omega (complex ndarray like omega), free of overflow
+    at extreme frequency scales: a second-order section is evaluated at omega / c with its
+    natural frequencies divided by c = max(wn, wd) (the ratio is invariant), and numpy's
+    complex division scales its operands (|den|^2 is never formed)."""
+    theta = np.asarray(theta, dtype=float)
+    if basis == "second-order":
+        c = float(max(theta[2], theta[5]))
+        if np.isfinite(c) and c > 0:
+            theta = theta * np.array([1.0, 1.0, 1 / c, 1.0, 1.0, 1 / c])
+            omega = omega / c
+    num, den = section_response(basis, omega, theta)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return _cplx.to_complex(num) / _cplx.to_complex(den)
+
+
 def _quad_roots(c2, c1, c0):
     """Roots of c2 s^2 + c1 s + c0 (c2 may be 0); returns a list of complex.
 
@@ -361,13 +377,13 @@ class RationalDelayModel(DelayedResponse):
     def rational_response(self, omega):
         """K [1/(j omega)] P_N(j omega), without the delay; complex ndarray like omega."""
         omega = np.asarray(omega, dtype=float)
-        z = (self.gain + 0 * omega, 0 * omega)
+        z = self.gain + 0j * omega
         if self.integrator:
-            z = _cplx.div(z, (0 * omega, omega))
+            with np.errstate(divide="ignore", invalid="ignore"):
+                z = z / (1j * omega)
         for theta in self.sections():
-            num, den = section_response(self.structure.basis, omega, theta)
-            z = _cplx.mul(z, _cplx.div(num, den))
-        return _cplx.to_complex(z)
+            z = z * _section_ratio(self.structure.basis, omega, theta)
+        return z
 
     # ------------------------------------------------------------------ poles / zeros
     def _factor_roots(self, which):

@@ -180,9 +180,11 @@ def _as_fraction(value, name, low_open=0.0, high=1.0):
 
 
 def _pow2_scale(x):
-    """A power of two near max|x| (1.0 for all zeros): dividing by it is exact."""
+    """A power of two near max|x| (1.0 for all zeros): dividing by it is exact. At most
+    2^1023 (the largest power of two a float holds), so samples near the largest float
+    (1.8e308) scale to at most 2 instead of overflowing the scale itself."""
     top = float(np.max(np.abs(x))) if np.size(x) else 0.0
-    return 1.0 if top == 0 else math.ldexp(1.0, math.frexp(top)[1])
+    return 1.0 if top == 0 else math.ldexp(1.0, min(math.frexp(top)[1], 1023))
 
 
 def _normalised(u, y):

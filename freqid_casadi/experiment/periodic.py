@@ -114,11 +114,11 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
     u_used = u[skip_periods * period:n_whole * period].reshape(-1, period)
     y_used = y[skip_periods * period:n_whole * period].reshape(-1, period)
     n_periods = u_used.shape[0]
-    if np.ptp(u) == 0:
+    if np.all(u == u.flat[0]):
         raise DataError(
             f"input u is constant (every sample = {u[0]!r}): there is no excitation; check "
             "that the input channel was recorded")
-    if np.ptp(u_used) == 0:
+    if np.all(u_used == u_used.flat[0]):
         raise DataError(
             "input u is constant over the periods kept after skip_periods: there is no "
             "excitation there; lower skip_periods")
@@ -126,8 +126,10 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
     if n_periods >= 2:
         _check_periodic(u_used, period, skip_periods, periodic_rtol)
     n_half = period // 2
-    U = np.fft.fft(u_used, axis=1)[:, :n_half + 1]
-    Y = np.fft.fft(y_used, axis=1)[:, :n_half + 1]
+    with np.errstate(over="ignore", invalid="ignore"):
+        U = np.fft.fft(u_used, axis=1)[:, :n_half + 1]
+        Y = np.fft.fft(y_used, axis=1)[:, :n_half + 1]
+    _check_finite_spectra(U, Y, u, y)
     if bins is None:
         bins = _excited_bins(U, _reference_spectrum(reference, u.size, period, skip_periods,
                                                     n_half), threshold, period)
@@ -190,6 +192,15 @@ def _excited_bins(U, R, threshold, period):
         noise = np.sum(np.abs(X - mean) ** 2, axis=0) / (X.shape[0] * (X.shape[0] - 1))
         keep &= power > 10 * noise
     return np.flatnonzero(keep)
+
+
+def _check_finite_spectra(U, Y, u, y):
+    """DataError when the DFT of a period overflowed (not finite): it names the cause."""
+    for what, s, x in (("input", U, u), ("output", Y, y)):
+        if not np.all(np.isfinite(s)):
+            raise DataError(f"the FFT of the {what} record overflows (max |u| = "
+                            f"{float(np.max(np.abs(u))):.3g}, max |y| = "
+                            f"{float(np.max(np.abs(y))):.3g}); rescale the records")
 
 
 def _check_nonzero(response, where):

@@ -138,7 +138,7 @@ def frf_from_records(u, y, *, fs, estimator="h1", nperseg=None, noverlap=None,
     u, y = _as_pair(u, y)
     fs, nperseg, noverlap, win = _check_options(u.size, fs, estimator, nperseg, noverlap,
                                                 window, detrend, min_coherence)
-    if np.ptp(u) == 0:
+    if np.all(u == u.flat[0]):
         raise DataError(f"input u is constant (every sample = {u[0]!r}): there is no "
                         "excitation; check that the input channel was recorded")
     u, y, gain = _normalised(u, y)       # spectra of the scaled records; H times gain

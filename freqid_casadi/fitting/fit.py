@@ -276,7 +276,8 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         Stop adding sections once the max relative error over all data is below ``tol``.
     weights : array_like of float, shape (M,), optional
         Weights of the squared relative residuals (overrides ``data.weights``); only their
-        ratios matter (the fit divides them by a power of two near their mean). At least
+        ratios matter (the fit divides them by the largest, then by a power of two near
+        the mean of that ratio; uniform weights of any size fit exactly like none). At least
         as many points as parameters need a weight > 0; points of weight 0 below the first
         weighted one are left out of the loop's windows (their error is still reported).
     start : {"best", "sequential", "rational"}

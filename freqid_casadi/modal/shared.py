@@ -44,7 +44,7 @@ from ..core.gauges import dc_to_thesis
 from ..errors import DataError, OptionError
 from .._validate import check_flag
 from ..core.resolution import default_delay_max
-from ..core.scaling import weight_scale
+from ..core.scaling import normalised_weights
 from ..core.model import RationalDelayModel, Structure
 from ..fitting.verdict import FitStatus, NoiseCheck, residual_noise, status_of
 from ._nlp import SharedProblem
@@ -313,8 +313,9 @@ def _check_datas(datas, weights):
                             f"points) = {wts.shape}, not all zero in a channel")
         wts = wts * w
     # the problem does not change with a common factor of the weights, the solvers'
-    # absolute tolerances do: mean weight about 1 (a power of two; unit weights unchanged)
-    wts = wts / weight_scale(wts.ravel())
+    # absolute tolerances do: mean weight about 1 (uniform weights: all exactly 1)
+    norm = normalised_weights(wts)
+    wts = np.ones_like(wts) if norm is None else norm
     return datas, omega, np.array([d.response for d in datas]), wts
 
 
