@@ -375,8 +375,30 @@ class RationalDelayModel(DelayedResponse):
 
     # ------------------------------------------------------------------ evaluation
     def rational_response(self, omega):
-        """K [1/(j omega)] P_N(j omega), without the delay; complex ndarray like omega."""
+        """K [1/(j omega)] P_N(j omega), without the delay; complex ndarray like omega.
+
+        The (re, im) formula of the spec, the one the fit's objective uses; only where it
+        overflows (a frequency axis near 1e150 rad/s) is each section evaluated again free
+        of overflow (:func:`_section_ratio`), so ordinary data get the fit's own rounding.
+        """
         omega = np.asarray(omega, dtype=float)
+        with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+            z = (self.gain + 0 * omega, 0 * omega)
+            if self.integrator:
+                z = _cplx.div(z, (0 * omega, omega))
+            for theta in self.sections():
+                num, den = section_response(self.structure.basis, omega, theta)
+                z = _cplx.mul(z, _cplx.div(num, den))
+            z = np.asarray(_cplx.to_complex(z))
+        bad = ~np.isfinite(z) & np.isfinite(omega) & (omega != 0)
+        if np.any(bad):
+            z = np.array(z, dtype=complex, copy=True)
+            z[bad] = self._scaled_response(omega[bad])
+        return z
+
+    def _scaled_response(self, omega):
+        """:meth:`rational_response` at ``omega`` (1-D) with every section scaled to its
+        own natural frequency, free of overflow at extreme frequency scales."""
         z = self.gain + 0j * omega
         if self.integrator:
             with np.errstate(divide="ignore", invalid="ignore"):

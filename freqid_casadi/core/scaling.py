@@ -75,14 +75,15 @@ def weight_scale(weights):
 
 
 def normalised_weights(weights):
-    """``weights`` divided by their largest value and then by the power of two nearest to
-    the mean of that ratio, or None when they are uniform.
+    """``weights`` divided by :func:`weight_scale` (a power of two: exact, mean about 1), or
+    None when they are uniform.
 
     Only the ratios of the weights matter to a fit; this is the form the solvers see. A
     uniform weight of any size (1e-320, 3.0, 1e300) becomes None, so it fits exactly like
     no weights: dividing by :func:`weight_scale` alone left 1e-320 at 1e-19 (its power of
     two is clamped at 2^-1000) and 3.0 at 0.75, and the solvers' absolute tolerances saw
-    those (A: max rel. error 5.8e-8 instead of 2.3e-14 at 1e-320).
+    those (A: max rel. error 5.8e-8 instead of 2.3e-14 at 1e-320). Other weights keep the
+    power-of-two division, so a weighted fit's arithmetic is what it was.
 
     Parameters
     ----------
@@ -96,10 +97,13 @@ def normalised_weights(weights):
     if weights is None:
         return None
     w = np.asarray(weights, dtype=float)
-    ratio = w / float(np.max(w))                           # exactly 1 at the largest
-    if np.all(ratio == 1.0):
+    if np.all(w == w.flat[0]):
         return None
-    return ratio / _pow2(float(np.mean(ratio)))
+    out = w / weight_scale(w)
+    mean = float(np.mean(out))
+    if not 0.5 <= mean <= 2.0:             # weight_scale was clamped (subnormal weights)
+        out = np.ldexp(out, -math.frexp(mean)[1])
+    return out
 
 
 def weighted_span(data):
