@@ -190,7 +190,7 @@ CASES = [
 CLI_MATCH = {   # argparse words the same problems its own way
     "n-sections-zero": "--sections: must be a positive integer",
     "n-sections-negative": "--sections: must be a positive integer",
-    "n-sections-float": "--sections: must be a positive integer, got '1.5'",
+    "n-sections-float": "--sections: must be a positive integer or 'auto', got '1.5'",
     "tol-negative": "--tol: must be a finite number > 0",
     "tol-nan": "--tol: must be a finite number > 0",
     "method-unknown": "invalid choice: 'newton'",

@@ -19,7 +19,7 @@ DELAY_TOL = {"A": 5e-4, "C": 2e-3}
 #: Our max relative error as measured: (this machine's OpenBLAS kernel, the worst over the
 #: kernels Haswell, SkylakeX, Zen and Prescott and rounding-level perturbations of the
 #: data; results/reproducibility.md). C's curved valley makes it move with rounding.
-MEASURED = {"A": (4.8e-14, 1.3e-12), "B": (0.331, 0.331), "C": (1.1e-10, 1.3e-8)}
+MEASURED = {"A": (4.8e-14, 1.3e-12), "B": (0.331, 0.331), "C": (1.1e-10, 1.5e-7)}
 #: How far above the worst measured value a row may land before it counts as a regression.
 FACTOR = 10.0
 
