@@ -8,6 +8,7 @@ import numpy as np
 import pytest
 
 import freqid_casadi as fc
+from freqid_casadi.fitting.stages import StageKind
 from freqid_casadi.errors import OptionError
 from freqid_casadi.options import (LEGACY_KEYWORDS, BarrierLMOptions, IpoptOptions,
                                    LoopOptions, options_from_keywords, solver_options)
@@ -131,7 +132,10 @@ def test_final_stage_false_runs_no_final_stage():
     data = fc.systems.G_A().window(200)
     res = fc.fit(data, n_sections=3, integrator=True, method=IpoptOptions(max_iter=1),
                  loop=LoopOptions(final_stage=False), start="sequential")
-    assert res.stages[-2].status.name == "MAX_ITER" or res.stages[-1].status.name == "MAX_ITER"
+    # (which stages hit the 1-iteration limit depends on the BLAS kernel: under
+    # OPENBLAS_CORETYPE=Prescott the last two converge in one iteration)
+    assert any(s.status.name == "MAX_ITER" for s in res.stages)
+    assert not any(s.kind == StageKind.FINAL for s in res.stages)
     assert max(s.stage for s in res.stages) == 3
 
 
