@@ -80,10 +80,11 @@ class Structure:
         if n < 0:
             raise StructureError(f"n_sections must be >= 0, got {n}")
         object.__setattr__(self, "n_sections", int(n))
-        _choice("basis", self.basis, BASES)
-        object.__setattr__(self, "integrator", _flag("integrator", self.integrator))
-        object.__setattr__(self, "delay", _flag("delay", self.delay))
-        _choice("zeros", self.zeros, ZEROS)
+        check_choice("basis", self.basis, BASES, StructureError)
+        object.__setattr__(self, "integrator",
+                           check_flag("integrator", self.integrator, StructureError))
+        object.__setattr__(self, "delay", check_flag("delay", self.delay, StructureError))
+        check_choice("zeros", self.zeros, ZEROS, StructureError)
         if isinstance(self.gain_sign, (bool, np.bool_)) or \
                 not isinstance(self.gain_sign, (int, np.integer)) or self.gain_sign not in (1, -1):
             raise StructureError(f"gain_sign must be 1 or -1, got {self.gain_sign!r}")
@@ -769,16 +770,6 @@ def _all_zero_factor(basis, theta):
 
 
 # ------------------------------------------------- checks of Structure / RationalDelayModel
-def _flag(name, value):
-    """``bool(value)`` by :func:`freqid_casadi._validate.check_flag`, a StructureError."""
-    return check_flag(name, value, StructureError)
-
-
-def _choice(name, value, choices):
-    """:func:`freqid_casadi._validate.check_choice` with a StructureError."""
-    check_choice(name, value, choices, StructureError)
-
-
 def _real_vector(beta):
     """``beta`` as a new one-dimensional float array; StructureError for complex values,
     text or a 2-D array (rather than a silent real part or flattening)."""

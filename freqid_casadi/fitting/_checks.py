@@ -15,7 +15,7 @@ from .diagnostics import (TRIVIAL_RMS, check_delay, check_minimum_phase,
 from ..errors import DataError, FreqidError, OptionError, StructureError
 from ..core.model import BASES, ZEROS, Structure
 from ..core.resolution import resolution_damping
-from .._validate import check_choice, check_flag
+from .._validate import check_choice
 from ..solvers.common import TERMINATION_MESSAGES, Status
 from .verdict import FitStatus, ROUNDING_RMS, poor_fit_diagnostic, residual_noise, status_of
 
