@@ -493,3 +493,27 @@ def test_beam_sequential_stages_end_relatively_stationary():
     res = fit_shared(beam_datas(), 6, delay=False, zeros=BEAM_ZEROS, start="sequential")
     assert res.success
     assert all(s.message.startswith("converged (relative stationarity") for s in res.stages)
+
+
+def test_best_start_skips_the_sequential_loop_only_when_it_cannot_help(monkeypatch):
+    # exact two-mode data: the rational start explains them to their noise (the numerical
+    # floor), so "best" keeps it without the sequential loop and says why
+    import freqid_casadi.modal.shared as shared
+
+    datas = _two_mode_datas()
+    res = fit_shared(datas, 2, delay=False)
+    assert res.details["start"] == "rational" and res.status == "ok"
+    assert "explains every channel" in res.details["start_skipped"]
+    assert set(res.details["start_max_rel_errors"]) == {"rational"}
+    # above the size limit the loop is not run either (and the reason names the override)
+    monkeypatch.setattr(shared, "BEST_SEQUENTIAL_LIMIT", 100)
+    noisy = [fc.FrequencyData(d.omega, d.response * (1 + 0.01 * np.cos(3.7 * d.omega)), d.name)
+             for d in datas]
+    big = fit_shared(noisy, 1, delay=False)
+    assert big.details["start"] == "rational"
+    assert "start='sequential'" in big.details["start_skipped"]
+    # below it, a rational start that does not explain the data brings in the loop
+    monkeypatch.setattr(shared, "BEST_SEQUENTIAL_LIMIT", 10 ** 9)
+    both = fit_shared(noisy, 1, delay=False)
+    assert "start_skipped" not in both.details
+    assert set(both.details["start_max_rel_errors"]) == {"rational", "sequential"}
