@@ -313,6 +313,11 @@ class LoopOptions:
         When a fit with a delay did not converge, also try it with the roots far above
         the band moved to infinity and their phase into the delay, polished, as one more
         candidate (:mod:`freqid_casadi.fitting.far_roots`); kept only when it is better.
+    resolution_guard : bool
+        When ``min_damping`` is not given and the fit has poles or zeros narrower than the
+        frequency spacing, refit with ``min_damping="auto"`` and keep that fit when it still
+        explains the data to their noise (:mod:`freqid_casadi.fitting.guard`: on noisy data,
+        no feature narrower than the data resolve unless the data determine it).
     """
 
     gauge: str = "dc"
@@ -327,11 +332,12 @@ class LoopOptions:
     hold_delay: bool = True
     delay_search: bool = True
     far_roots: bool = True
+    resolution_guard: bool = True
 
     def __post_init__(self):
         owner = type(self).__name__
         _flags(self, "hold_delay", "delay_search", "far_roots", "scaled", "bound_delay",
-               "final_stage")
+               "final_stage", "resolution_guard")
         _choice(owner, "gauge", self.gauge, GAUGES)
         _choice(owner, "init", self.init, INITS)
         _real(owner, "scale_l", self.scale_l, 1.0, strict=False)

@@ -26,6 +26,7 @@ from .delay_search import delay_search_run
 from .far_roots import far_root_run
 from .fixed import check_fixed, fit_with_fixed
 from .diagnostics import check_gain_sign
+from .guard import guard_resolution, is_resolution_warning
 from ..errors import FreqidError, OptionError, ResolutionWarning
 from .order import MAX_SECTIONS, choose_order, with_order_record
 from .mainloop import LoopContext, minimax, rational, sequential
@@ -362,8 +363,8 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
                 lambda d, dl: _fit_held(d, None, n_sections=n_sections, delay=dl,
                                         progress=emit, weights=None, **kw),
                 data, fixed, delay=delay, loop=loop, method=method)
-        return _fit_held(data_or_omega, response, n_sections=n_sections, delay=delay,
-                         progress=emit, weights=weights, **kw)
+        return _fit_guarded(data_or_omega, response, n_sections=n_sections, delay=delay,
+                            progress=emit, weights=weights, **kw)
 
 
 def _fit_auto_order(args):
@@ -380,6 +381,26 @@ def _fit_auto_order(args):
     choice = choose_order(lambda k: fit(data, response, n_sections=k, **args),
                           max_sections=orders[-1], min_sections=orders[0])
     return with_order_record(choice)
+
+
+def _fit_guarded(data_or_omega, response, *, progress, weights, **kw):
+    """:func:`_fit_held`, then :func:`~freqid_casadi.fitting.guard.guard_resolution` (the
+    floored refit quiet; the first fit's warnings re-issued after it, its
+    ResolutionWarning dropped when the floored fit is kept)."""
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        result = _fit_held(data_or_omega, response, progress=progress, weights=weights,
+                           **kw)
+
+    def refit(min_damping):
+        return _fit_held(data_or_omega, response, progress=False, weights=weights,
+                         **dict(kw, min_damping=min_damping))
+
+    result, floored = guard_resolution(result, refit, kw["min_damping"], result.method)
+    for w in caught:
+        if not (floored and is_resolution_warning(w)):
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    return result
 
 
 def _fit_held(data_or_omega, response, *, progress, weights, **kw):

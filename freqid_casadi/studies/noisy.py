@@ -23,6 +23,7 @@ import numpy as np
 from .. import systems
 from ..core.data import FrequencyData, dense_grid
 from ..fitting.fit import fit
+from ..options import LoopOptions
 from ..core.metrics import relative_error
 from ..fitting.validation import check_resolution, prune_sections
 
@@ -109,8 +110,10 @@ def study(data, clean, dense, n_sections, weights=None, floor=False):
         the pruned one, and the clean errors before and after pruning
         (:func:`clean_errors`).
     """
+    # the plain fit is the subject: without the resolution guard (fitting.guard), which
+    # would refit it with the damping floor
     res = fit(data, n_sections=n_sections, integrator=True, delay=True, weights=weights,
-              start="sequential")
+              start="sequential", loop=LoopOptions(resolution_guard=False))
     check = check_resolution(res, data.omega)
     pr = prune_sections(res, reference=lambda w: systems.G_A(omega=w), dense_factor=DENSE)
     before = clean_errors(res.model, clean, dense)

@@ -1,0 +1,87 @@
+"""The resolution guard of :func:`~freqid_casadi.fitting.fit.fit` (layer L4): on noisy data
+no pole or zero narrower than the data resolve, unless the data determine it.
+
+A least-squares fit of noisy data with many sections can spend a section on the noise: a
+near-cancelling pole/zero pair, or an undamped peak, narrower than the frequency spacing,
+that passes through one noisy sample and is not there between the samples (example A with
+2 % noise at 17 sections: 0.058 against the true system at the samples, 2.5 between them).
+The data cannot tell such a feature from the noise. When the fit's resolution check fails
+and ``min_damping`` was not given, :func:`guard_resolution` refits with the damping floor
+of the frequency resolution (``min_damping="auto"``: no pole or zero narrower than the
+spacing) and keeps that fit when it still explains the data to their noise (its status
+"ok", :mod:`~freqid_casadi.fitting.verdict`): the narrow feature was then not determined by
+the data (example A at 2 %: 0.045 at the samples and 0.048 between them). When the floor
+costs more than the noise allows (exact data: A's own lightest modes are narrower than its
+grid, 4.8e-14 free against 7e-4 with the floor), the data determine the feature and the
+free fit stays (``LoopOptions(resolution_guard=False)`` skips the guard). Either way ``FitResult.details["resolution_guard"]`` says what was done
+and ``alternatives`` holds the fit that was not kept.
+"""
+
+import dataclasses
+import warnings
+
+from ..errors import FreqidError, ResolutionWarning
+from .verdict import FitStatus
+
+__all__ = ["guard_resolution", "is_resolution_warning"]
+
+
+def guard_resolution(result, refit, min_damping, method):
+    """``result``, or its refit with the damping floor when that explains the data too.
+
+    Parameters
+    ----------
+    result : FitResult
+        The fit as asked for.
+    refit : callable
+        ``refit(min_damping)`` runs the same fit with that ``min_damping``, quietly.
+    min_damping : None, str or float
+        The user's ``min_damping``: the guard acts only when it is None.
+    method : str
+        The solver method (the floor needs "ipopt").
+
+    Returns
+    -------
+    (FitResult, bool)
+        The fit kept, and whether it is the floored refit (then the caller drops the
+        first fit's ResolutionWarning).
+    """
+    check = result.resolution
+    loop = result.options.loop if result.options is not None else None
+    if (min_damping is not None or check is None or check.ok or method != "ipopt"
+            or loop is None or not loop.resolution_guard or loop.gauge != "dc"
+            or not result.success
+            or result.model.structure.basis != "second-order"):
+        return result, False
+    try:
+        with warnings.catch_warnings():       # a fit the user did not ask for: quiet
+            warnings.simplefilter("ignore")
+            floored = refit("auto")
+    except FreqidError:
+        return result, False
+    kept = floored.status == FitStatus.OK and floored.resolution is not None \
+        and floored.resolution.ok
+    record = {"unresolved_features": len(check.flags) + len(check.unresolved),
+              "free_rms_rel_error": result.rms_rel_error,
+              "floored_rms_rel_error": floored.rms_rel_error,
+              "floored_status": FitStatus(floored.status).value,
+              "zeta_min": floored.zeta_min, "kept": "floored" if kept else "free"}
+    if not kept:
+        return dataclasses.replace(
+            result, details=dict(result.details, resolution_guard=record),
+            alternatives=dict(result.alternatives, **{"min_damping=auto": floored})), False
+    note = (f"; {record['unresolved_features']} pole(s)/zero(s) narrower than the frequency "
+            f"spacing were not determined by the data (free fit RMS "
+            f"{result.rms_rel_error:.3g}, floored RMS {floored.rms_rel_error:.3g}, both within "
+            f"the noise): held to the spacing (min_damping='auto', zeta >= "
+            f"{floored.zeta_min:.3g}); pass loop=LoopOptions(resolution_guard=False) to "
+            "keep the free fit (FitResult.alternatives['min_damping=None'] holds it)")
+    return dataclasses.replace(
+        floored, message=floored.message + note,
+        details=dict(floored.details, resolution_guard=record),
+        alternatives=dict(floored.alternatives, **{"min_damping=None": result})), True
+
+
+def is_resolution_warning(w):
+    """Whether the caught warning ``w`` is the fit's ResolutionWarning."""
+    return issubclass(w.category, ResolutionWarning)
