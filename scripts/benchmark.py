@@ -127,6 +127,7 @@ def fit_costs(name, start="sequential", derivatives=None, ftol=None):
             "max_rel_error": res.max_rel_error, "rms_rel_error": res.rms_rel_error,
             "delay": res.model.delay, "success": res.success,
             "final_stage_status": last.solver_status, "message": res.message,
+            "status": str(getattr(res.status, "value", res.status)),
             "stages": len(res.stages),
             "stages_at_limit": sum(1 for s in res.stages if s.status.name == "MAX_ITER"),
             "final_stage_iterations": int(last.nit)}
@@ -225,7 +226,7 @@ def _markdown(command, out, rows, baseline, fit_repeat, conv_base):
              "result); the table gives the fastest run, the median in parentheses.", "",
              "| example | start | sections | wall time (s) | IPOPT iterations | ms / iteration | "
              "final stage ms / it | max rel. error | on a 10x denser grid | delay (s) | "
-             "final stage |",
+             "status |",
              "|---|---|---|---|---|---|---|---|---|---|---|"]
     for r in rows:
         lines.append(f"| {r['example']} | {r['start']} | {r['n_sections']} | "
@@ -235,7 +236,7 @@ def _markdown(command, out, rows, baseline, fit_repeat, conv_base):
                      f"{r['final_stage_ms_per_iteration']:.2f} "
                      f"({r['median_final_stage_ms_per_iteration']:.2f}) | "
                      f"{r['max_rel_error']:.3g} | {r['max_rel_error_dense_10x']:.3g} | "
-                     f"{r['delay']:.6g} | {r['final_stage_status']} |")
+                     f"{r['delay']:.6g} | {r.get('status', '')} |")
     lines += convergence_table(rows, conv_base)
     lines += ["", "Where an iteration's time goes (ms per IPOPT iteration, summed over each "
               "fit's stages: NLP construction, objective, gradient and Hessian callbacks, "

@@ -57,8 +57,9 @@ def _row(res):
     last = res.stages[-1]
     return {"max_rel_error": float(res.max_rel_error), "delay": float(res.model.delay),
             "nit": int(res.nit),
-            "status": ("converged" if res.success else "not converged")
-            + f" ({last.solver_status})", "wall_time": float(res.wall_time)}
+            "status": str(getattr(res.status, "value", res.status)),
+            "final_stage_solver_status": last.solver_status,
+            "wall_time": float(res.wall_time)}
 
 
 def _examples(seed, quick):
@@ -108,8 +109,9 @@ def _modal(seed, quick):
         res = fit_shared(datas, mb.N_MODES, delay=False, zeros=mb.zeros_of(channels))
         return {"max_rel_error": float(np.max(res.max_rel_errors)), "delay": 0.0,
                 "nit": int(res.nit), "wall_time": time.perf_counter() - t0,
-                "status": ("converged" if res.success else "not converged")
-                + f" ({res.stages[-1].solver_status}), {len(res.modes)} modes"}
+                "status": f"{getattr(res.status, 'value', res.status)}, "
+                          f"{len(res.modes)} modes",
+                "final_stage_solver_status": res.stages[-1].solver_status}
 
     return {f"modal beam {channels} channels x 10 modes": run}
 

@@ -363,13 +363,11 @@ _STATUS_WORDS = {"CONVERGED": "converged", "ACCEPTABLE": "converged (acceptable 
 
 
 def _stage_status(r):
-    """A stage's status in words, with the solver's own status (IPOPT's
-    User_Requested_Stop is freqid's convergence test stopping it)."""
-    solver = str(r.get("solver_status") or "")
-    if solver == "User_Requested_Stop":
-        solver = "stopped by freqid's test"
+    """A stage's status in words ("converged", "iteration limit", ...); the solver's own
+    status string stays in the machine-readable records (stages.csv, summary.json)."""
     word = _STATUS_WORDS.get(r.get("status"))
-    return f"{word} ({solver})" if word and solver else word or solver
+    return word or ("vector fitting" if r.get("solver_status") == "vector-fitting"
+                    else "—")
 
 
 def _iterations(r):
