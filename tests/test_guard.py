@@ -30,6 +30,8 @@ def test_noisy_a_default_fit_is_safe_between_the_samples(noisy_a):
     at, between = clean_errors(res.model, clean, dense)
     assert at.max() <= 0.06 and between.max() <= 0.1, (at.max(), between.max())
     assert res.status == "ok" and res.resolution.ok
+    assert res.options.min_damping == "auto" and res.zeta_min == pytest.approx(
+        res.details["resolution_guard"]["zeta_min"])
     guard = res.details["resolution_guard"]
     assert guard["kept"] == "floored" and guard["unresolved_features"] >= 1
     assert "min_damping='auto'" in res.message and "resolution_guard=False" in res.message

@@ -20,11 +20,19 @@ from ..core.metrics import error_stats, relative_error
 from ..core.model import RationalDelayModel
 from .stages import Kept, StageKind, polish, polish_start, stage_record
 
-__all__ = ["Candidate", "choose", "zero_delay_run", "NEAR"]
+__all__ = ["Candidate", "choose", "zero_delay_run", "NEAR", "SCREEN_ITERATIONS",
+           "SCREEN_FACTOR"]
 
 #: Candidates whose max relative error is within this factor of the lowest are compared
 #: by convergence, then RMS.
 NEAR = 1.10
+#: The h = 0 candidate is screened: its polish is abandoned after this many iterations
+#: when its RMS relative error is then still above :data:`SCREEN_FACTOR` times the max
+#: relative error of the best candidate so far (it would have to fall by that factor to
+#: enter :func:`choose`'s pool). A polish that is not abandoned runs on unchanged, so a
+#: candidate that can win is solved exactly as without the screen.
+SCREEN_ITERATIONS = 20
+SCREEN_FACTOR = 10.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -96,7 +104,7 @@ def choose(candidates):
     return min(pool, key=lambda c: (c.rank_rms, candidates.index(c)))
 
 
-def zero_delay_run(ctx, run):
+def zero_delay_run(ctx, run, against=None):
     """The candidate "the same fit at h = 0": the model of ``run`` with its delay removed,
     polished on all data without a delay (one stage), in ``run``'s structure (h = 0).
 
@@ -110,12 +118,16 @@ def zero_delay_run(ctx, run):
     ctx : mainloop.LoopContext
     run : tuple
         ``(param, z, lam, records)``.
+    against : float, optional
+        The lowest max relative error (weighted, :attr:`Candidate.rank_max`) of the
+        candidates so far: the polish is abandoned after :data:`SCREEN_ITERATIONS`
+        iterations if its RMS is still above :data:`SCREEN_FACTOR` times it.
 
     Returns
     -------
     tuple or None
         The candidate's ``(param, z, lam, records)`` (records end with a
-        ``StageKind.ZERO_DELAY`` record), or None when not tried.
+        ``StageKind.ZERO_DELAY`` record), or None when not tried or abandoned.
     """
     param, z, _, records = run
     st, data = param.structure, ctx.data
@@ -125,8 +137,14 @@ def zero_delay_run(ctx, run):
     t0 = time.perf_counter()
     beta[0] = 0.0
     st0 = dataclasses.replace(st, delay=False)
+    screen = None
+    if against is not None and np.isfinite(against):
+        screen = (SCREEN_ITERATIONS, SCREEN_FACTOR * float(against))
     pol = polish(RationalDelayModel(st0, beta), data, method=ctx.solve.solver, loop=ctx.loop,
-                 delay_max=ctx.delay_max, zeta_min=ctx.zeta_min, max_iter=ctx.final_max_iter)
+                 delay_max=ctx.delay_max, zeta_min=ctx.zeta_min, max_iter=ctx.final_max_iter,
+                 abandon=screen)
+    if (pol.result.extra or {}).get("abandoned"):
+        return None
     model = RationalDelayModel(st, pol.model.beta)
     p1, z1 = polish_start(model, data, loop=ctx.loop, delay_max=ctx.delay_max,
                           zeta_min=ctx.zeta_min)

@@ -544,7 +544,7 @@ def _run_starts(ctx, start, tol, data):
                 raise
     cands = [Candidate.of(name, run, data) for name, run in runs.items()]
     for cand in list(cands):
-        zero = zero_delay_run(ctx, cand.run)
+        zero = zero_delay_run(ctx, cand.run, min(c.rank_max for c in cands))
         if zero is not None:
             cands.append(Candidate.of(f"{cand.name} at h=0", zero, data, cand.start))
     # rescues of an unconverged fit, each from the candidate the fit would then keep (the

@@ -238,13 +238,16 @@ def stage_details(res):
     return out
 
 
-def _termination(ftol, onto_bounds=False, stall=None, newton=False):
+def _termination(ftol, onto_bounds=False, stall=None, newton=False, abandon=None):
     """The stages' :class:`~freqid_casadi.solvers.termination.Termination` for
     ``IpoptOptions.ftol`` (0: the test and its polishes off), the optional stall rule
-    ``stall = (window, ftol)`` and the final stages' Newton polish."""
+    ``stall = (window, ftol)``, the final stages' Newton polish and the optional
+    ``abandon = (k, rms)`` rule of a screened candidate."""
     from ..solvers.termination import Termination
 
     kw = {} if stall is None else dict(stall_window=int(stall[0]), stall_ftol=float(stall[1]))
+    if abandon is not None:
+        kw["abandon"] = (int(abandon[0]), float(abandon[1]))
     if ftol > 0:
         return Termination(ftol=float(ftol), onto_bounds=onto_bounds, newton=newton, **kw)
     return Termination(ftol=0.0, noise_factor=0.0, polish_steps=0, **kw)
@@ -276,15 +279,16 @@ class StageSolver:
         self.zeta_min = zeta_min
         self.onto_bounds = onto_bounds
 
-    def __call__(self, param, wdata, x0, lam0, max_iter=None, stall=None, final=False):
+    def __call__(self, param, wdata, x0, lam0, max_iter=None, stall=None, final=False,
+                 abandon=None):
         # signals deferred while the stage's CasADi expressions and solver are built and
         # run: a KeyboardInterrupt raised inside CasADi's argument conversion (SWIG calls
         # back into Python) is swallowed there; IPOPT and the barrier-LM stop at their next
         # iteration, and Interrupted is raised when the stage returns
         with _interrupt.guard():
-            return self._solve(param, wdata, x0, lam0, max_iter, stall, final)
+            return self._solve(param, wdata, x0, lam0, max_iter, stall, final, abandon)
 
-    def _solve(self, param, wdata, x0, lam0, max_iter, stall, final):
+    def _solve(self, param, wdata, x0, lam0, max_iter, stall, final, abandon=None):
         funcs = stage_functions(param, wdata.omega, wdata.response, wdata.weights,
                                 derivatives=self.loop.derivatives)
         lb, ub = param.bounds()
@@ -302,7 +306,7 @@ class StageSolver:
                               warm_start=opts.warm_start != "none",
                               ipopt_options=opts.ipopt_dict(),
                               termination=_termination(opts.ftol, self.onto_bounds, stall,
-                                                       final))
+                                                       final, abandon))
             if cons is not None:
                 # IPOPT meets g >= 0 to its tolerance; make the floor exact
                 res = dataclasses.replace(res, x=param.project_damping(res.x, self.zeta_min))
@@ -458,7 +462,7 @@ def _from_a_model(solver):
 
 
 def polish(model, data, *, method="ipopt", loop=None, delay_max=None, zeta_min=None,
-           max_iter=None, stall=None):
+           max_iter=None, stall=None, abandon=None):
     """Refit every parameter of ``model`` on all of ``data``, started from ``model``.
 
     One stage NLP on all data (as the main loop's final stage), kept only if it lowers
@@ -489,6 +493,9 @@ def polish(model, data, *, method="ipopt", loop=None, delay_max=None, zeta_min=N
     stall : (int, float), optional
         ``(window, ftol)``: also stop when the cost fell by less than the fraction ``ftol``
         over ``window`` iterations (IPOPT only; :class:`StageSolver`).
+    abandon : (int, float), optional
+        ``(k, rms)``: stop at iteration ``k`` if the RMS residual is still above ``rms``
+        (IPOPT only; ``result.extra["abandoned"]`` then True): a screened candidate.
 
     Returns
     -------
@@ -509,7 +516,7 @@ def polish(model, data, *, method="ipopt", loop=None, delay_max=None, zeta_min=N
     param, z0 = polish_start(model, data, loop=loop, delay_max=delay_max, zeta_min=zeta_min)
     solve = StageSolver(solver, loop, zeta_min, onto_bounds=True)
     res = solve(param, data, z0, None, max_iter=max_iter or solver.final_max_iter,
-                stall=stall, final=stall is None)
+                stall=stall, final=stall is None, abandon=abandon)
     z, lam, kept = keep_better(param, data, z0, np.zeros_like(z0), res)
     return PolishResult(model=param.to_model(z), param=param, x=z, lam_x=lam, start=z0,
                         result=res, kept=kept)

@@ -63,6 +63,10 @@ class Termination:
         At a returned point that passes the gradient test but not the projection, try
         Newton steps with the exact Hessian (:func:`~.lm_polish.newton_polish`), kept only
         if they reach the test; set for a fit's final stages.
+    abandon : (int, float) or None
+        ``(k, rms)``: stop at iteration ``k`` when the RMS residual ``sqrt(cost / M)`` is
+        still above ``rms`` (a candidate that cannot catch up: its stage returns unsolved,
+        ``extra["abandoned"]`` True, without the polish of a stopped stage). None: off.
     """
 
     ftol: float = 1e-12
@@ -73,6 +77,7 @@ class Termination:
     polish_steps: int = 10
     onto_bounds: bool = False
     newton: bool = False
+    abandon: tuple = None
 
 
 def _reach(col_norms, distance):
@@ -328,12 +333,17 @@ class StageMonitor:
         return self.proj <= self.proj_allowed, cost
 
     def check(self, x):
-        """After an iteration at ``x``: True to stop (stationary or stalled)."""
+        """After an iteration at ``x``: True to stop (stationary, stalled or abandoned)."""
         ok, cost = self.stationary(x)
         if ok:
             self.reason = "stationary"
             return True
         self.history.append(cost)
+        # (the first call is IPOPT's iteration 0, the start)
+        if self.term.abandon is not None and len(self.history) == self.term.abandon[0] + 1 \
+                and np.sqrt(max(cost, 0.0) / (self.n_points or 1)) > self.term.abandon[1]:
+            self.reason = "abandoned"
+            return True
         w = self.term.stall_window
         if w and len(self.history) > w:
             old = self.history[-w - 1]
@@ -417,6 +427,11 @@ class StageMonitor:
         """
         if res.status == Status.ERROR:
             return res
+        if self.reason == "abandoned":
+            return dataclasses.replace(
+                res, status=Status.STALLED, success=False,
+                message=f"abandoned after {int(res.nit)} iterations: still above the "
+                        "candidate it had to beat", extra=dict(res.extra or {}, abandoned=True))
         nit0 = int(res.nit)              # the solver's own iterations (the rest: polish)
         ok, _ = self.stationary(res.x)
         if not ok and self.term.onto_bounds:
