@@ -372,12 +372,17 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
             check_choice("zeros", zeros, ZEROS)
             k, record = choose_origin_order(data, n_sections, delay, basis, zeros)
             ks = record["contenders"]
-            results = {j: _fit_resolved(data_or_omega, response, n_sections, delay, fixed,
-                                        weights, emit if j == k else False,
-                                        dict(kw, integrator=check_origin_order(j)))
-                       for j in ks}
-            if len(ks) > 1:          # the starts do not decide: the fits do
+            results = {}
+            for j in ks:             # several (the starts do not decide): quiet, the fits do
+                with warnings.catch_warnings():
+                    if len(ks) > 1:
+                        warnings.simplefilter("ignore")
+                    results[j] = _fit_resolved(data_or_omega, response, n_sections, delay,
+                                               fixed, weights, emit if j == k else False,
+                                               dict(kw, integrator=check_origin_order(j)))
+            if len(ks) > 1:
                 record = settle_by_fits(record, {j: r.rms_rel_error for j, r in results.items()})
+                _resolution_check(results[record["chosen"]].model, data.omega, 3)  # its warning
             return _with_origin_record(results[record["chosen"]], record,
                                        origin_diagnostics(record, data))
         return _fit_resolved(data_or_omega, response, n_sections, delay, fixed, weights,
@@ -603,7 +608,7 @@ def _run_starts(ctx, start, tol, data):
     return param, z, records, won, errors, cand_errors
 
 
-def _resolution_check(model, omega):
+def _resolution_check(model, omega, stacklevel=7):
     """The model checked against the frequency spacing (None for first-order sections,
     whose real roots are never narrow), with a ResolutionWarning when it fails."""
     if model.structure.basis != "second-order" or not model.n_sections:
@@ -617,7 +622,7 @@ def _resolution_check(model, omega):
             "noisy data); inspect FitResult.resolution, refit with min_damping='auto' (a "
             "damping floor from the frequency spacing), remove them with "
             "freqid_casadi.fitting.validation.prune_sections, or fit fewer sections",
-            ResolutionWarning, stacklevel=6)
+            ResolutionWarning, stacklevel=stacklevel)
     return check
 
 
