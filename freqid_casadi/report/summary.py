@@ -72,8 +72,10 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
                      "f_max_hz": float(data.omega[-1] / (2 * np.pi))}
                     if data.unit == "rad/s" else {})},
         "structure": {"n_sections": st.n_sections, "basis": st.basis,
-                      "integrator": st.integrator, "origin_order": k, "delay": st.delay,
-                      "order_rational_part": per * st.n_sections, "order": st.order},
+                      "integrator": st.integrator, "delay": st.delay,
+                      "order_rational_part": per * st.n_sections, "order": st.order,
+                      # k of integrator=k (|k| >= 2 only: the reports of 0 and 1 unchanged)
+                      **({"origin_order": k} if k not in (0, 1) else {})},
         "method": result.method,
         "max_rel_error": float(result.max_rel_error),
         "rms_rel_error": float(result.rms_rel_error),
