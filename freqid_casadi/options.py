@@ -360,7 +360,10 @@ class FitOptions:
     Parameters
     ----------
     n_sections : int
-    integrator, delay : bool
+    integrator : bool or int
+        The poles at the origin fitted (False, True or an int k; with
+        ``integrator="auto"`` the k it chose).
+    delay : bool
     basis : str
     method : {"ipopt", "barrier-lm"}
         The name of the stage solver (the type of ``solver``).
@@ -371,10 +374,12 @@ class FitOptions:
         As given to fit (the floor used is ``FitResult.zeta_min``).
     solver : IpoptOptions or BarrierLMOptions
     loop : LoopOptions
+    integrator_auto : bool
+        Whether ``integrator`` was chosen by ``integrator="auto"``.
     """
 
     n_sections: int
-    integrator: bool
+    integrator: object
     delay: bool
     basis: str
     method: str
@@ -384,6 +389,7 @@ class FitOptions:
     min_damping: object
     solver: object
     loop: LoopOptions
+    integrator_auto: bool = False
 
     def as_dict(self):
         """Flat dict of every option (the solver's and loop's fields included), for

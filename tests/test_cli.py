@@ -198,7 +198,7 @@ def test_fit_options_are_passed(workdir, capsys, fake_fit, fast_figures):
     assert code == 0, err
     data, kw = fake_fit[0]
     assert data.name == "plant" and data.n_points == _OMEGA.size
-    assert kw == dict(n_sections=3, integrator=False, delay=False, basis="first-order",
+    assert kw == dict(n_sections=3, integrator="auto", delay=False, basis="first-order",
                       method="barrier-lm", tol=1e-3, progress=True, start="best",
                       objective="least-squares", min_damping=None, gain_sign="auto",
                       zeros="minimum-phase")

@@ -3,7 +3,7 @@
 Commands::
 
     freqid example {A,B,C,fractional} [--sections N] [--method M] [--out DIR] [--force]
-    freqid fit FILE --sections N [--integrator] [--no-delay] [--basis B] [--method M]
+    freqid fit FILE --sections N [--integrator [K|auto]] [--no-delay] [--basis B] [--method M]
                     [--gain-sign S] [--zeros Z] [--tol X] --out DIR [--force]
     freqid sweep FILE|example:X --orders SPEC [--target X] --out DIR
     freqid ablation [--examples LIST] [--quick] [--out DIR]     (cli_ablation)
@@ -42,7 +42,7 @@ from ..systems.examples import EXAMPLES, FRACTIONAL_SECTIONS
 from ..fitting.fit import GAIN_SIGNS, METHODS, OBJECTIVES, STARTS, fit
 from ..fitting.fixed import FIXED_KEYS
 from ..report.formatting import number, text_table
-from ..core.model import BASES, ZEROS
+from ..core.model import BASES, MAX_ORIGIN_ORDER, ZEROS
 from ..report.folder import check_out_dir, dense_error, write_fit_report
 
 __all__ = ["main", "build_parser", "EXAMPLES", "FRACTIONAL_SECTIONS", "PROG"]
@@ -178,10 +178,31 @@ def _common(p, *, out_required, start="sequential"):
                    help="no progress output")
 
 
-def _add_model_arguments(p, tol=True):
-    """--integrator, --no-delay, --basis (and --tol): the model structure of a fit (used
-    by the fit, sweep and batch commands)."""
-    p.add_argument("--integrator", action="store_true", help="include the factor K0/s")
+def _integrator_arg(text):
+    """``--integrator K|auto``: "auto" or an integer k with ``|k| <= MAX_ORIGIN_ORDER``."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        k = int(text.strip(), 10)
+    except ValueError:
+        k = None
+    if k is None or abs(k) > MAX_ORIGIN_ORDER:
+        raise argparse.ArgumentTypeError(
+            f"must be auto or an integer k with |k| <= {MAX_ORIGIN_ORDER} (k poles at the "
+            f"origin, -k zeros), got {text!r}; e.g. --integrator 2, --integrator -2")
+    return bool(k) if k in (0, 1) else k
+
+
+def _add_model_arguments(p, tol=True, integrator="auto"):
+    """--integrator [K|auto], --no-delay, --basis (and --tol): the model structure of a
+    fit (used by the fit, sweep and batch commands; ``integrator`` is the default when
+    the flag is absent: "auto" for fit and sweep, False for batch)."""
+    p.add_argument("--integrator", nargs="?", const=True, default=integrator,
+                   type=_integrator_arg, metavar="K|auto",
+                   help="poles at the origin: --integrator alone is the factor K0/s (k = 1); "
+                        "--integrator K for k poles (negative: -k zeros, e.g. -2 for an "
+                        "accelerance), |k| <= 3; --integrator auto chooses k from the data "
+                        f"(default {'auto' if integrator == 'auto' else 'none'})")
     p.add_argument("--no-delay", dest="delay", action="store_false",
                    help="fix the delay h at 0")
     p.add_argument("--basis", choices=BASES, default="second-order",
@@ -419,7 +440,8 @@ def _cmd_sweep(args, command):
                               "example:B or example:C")
         data = EXAMPLES[name].data()
         truth = EXAMPLES[name].truth
-        integrator = integrator or EXAMPLES[name].integrator
+        if integrator == "auto":                   # the example's own structure
+            integrator = EXAMPLES[name].integrator
     else:
         data = load_data(args, args.file)
     check_out_dir(args.out, args.force)

@@ -72,7 +72,7 @@ def add_cli(subparsers):
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="Dask scheduler address (e.g. tcp://127.0.0.1:8786); needs "
                         "pip install freqid_casadi[dask]")
-    _add_model_arguments(p)
+    _add_model_arguments(p, integrator=False)
     p.add_argument("--method", choices=METHODS, default="ipopt",
                    help="stage solver (default ipopt)")
     p.add_argument("--force", action="store_true",

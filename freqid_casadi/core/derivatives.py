@@ -13,6 +13,7 @@ import numpy as np
 from .. import _cplx
 from ..errors import OptionError, StructureError
 from .gauges import gauge_for
+from .model import times_jw_power
 
 __all__ = ["StageFunctions", "PNormFunctions", "stage_functions"]
 
@@ -47,8 +48,12 @@ def _point_functions(param):
 
     h_ref, k_ref, wr = param._refs()
     q = _cplx.mul(phi, (ca.cos(w * h_ref * z[0]), ca.sin(w * h_ref * z[0])))
-    if param.structure.integrator:
+    k = param.structure.origin_order
+    if k == 1:
         q = _cplx.mul(q, (0, w))
+    elif k:                                      # times (j w)^k: k poles at 0 removed
+        for _ in range(abs(k)):
+            q = (_cplx.mul if k > 0 else _cplx.div)(q, (0, w))
     q = (q[0] / (k_ref * z[1]), q[1] / (k_ref * z[1]))
     ld = [(0, w * h_ref), (-1 / z[1], 0)]
     ln = [(0, 0), (0, 0)]
@@ -80,6 +85,13 @@ def _point_functions(param):
             ca.vertcat(row(t2, 0), row(t2, 1)) if t2 else ca.SX(2, 0)]
     return ca.Function("derivative_point", inputs, outs, names,
                        ["r", "sq", "Ld", "Ln", "T2"])
+
+
+
+def _origin_removed(x, omega, k):
+    """``x * (j omega)^k``: the integrator's ``x * (1j * omega)`` for k = 1 (its rounding),
+    ``x * 1.0`` for k = 0."""
+    return x * (1j * omega if k else 1.0) if k in (0, 1) else times_jw_power(x, omega, k)
 
 
 class StageFunctions:
@@ -156,7 +168,7 @@ class StageFunctions:
         self._cost_buf = None        # (Function, buffer, trigger, z, out) of nlp_cost
         nsec, ns = param.structure.n_sections, param.section_size
         h_ref, k_ref, wr = param._refs()
-        self._q0 = self._sw * resp * (1j * omega if param.structure.integrator else 1.0)
+        self._q0 = _origin_removed(self._sw * resp, omega, param.structure.origin_order)
         self._dlog_delay = 1j * omega * h_ref
         if derivatives == "affine":
             x = omega[None, :] / np.asarray(wr, float).reshape(-1, 1)         # (nsec, M)

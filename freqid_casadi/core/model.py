@@ -2,7 +2,7 @@
 
 The model (SPEC §1)::
 
-    G_N(s) = exp(-h s) * K * [1/s if integrator] * P_N(s)
+    G_N(s) = exp(-h s) * K * s^(-k) * P_N(s)      (k = structure.origin_order)
     P_N(s) = prod_k (a_k s^2 + 2 zn_k wn_k s + wn_k^2) / (b_k s^2 + 2 zd_k wd_k s + wd_k^2)
 
 or, with the first-order basis (thesis §2.6), ``P_N(s) = prod_k (a1_k s + a0_k)/(b1_k s + b0_k)``.
@@ -14,6 +14,7 @@ of P_N in the closed left half plane.
 """
 
 import json
+import numbers
 import os
 import re
 import stat
@@ -28,7 +29,8 @@ from ..errors import DataError, OptionError, StructureError
 from .metrics import DelayedResponse
 
 __all__ = ["Structure", "RationalDelayModel", "section_response", "attach_delay",
-           "balanced_ss", "BASES",
+           "balanced_ss", "BASES", "MAX_ORIGIN_ORDER", "check_origin_order", "jw_power",
+           "times_jw_power",
            "ZEROS", "FORMAT_VERSION", "MAX_MODEL_BYTES", "MAX_MODEL_DEPTH"]
 
 BASES = ("second-order", "first-order")
@@ -37,10 +39,45 @@ FORMAT_VERSION = 1
 
 _SECOND_NAMES = ("a", "zeta_num", "omega_num", "b", "zeta_den", "omega_den")
 _FIRST_NAMES = ("a1", "a0", "b1", "b0")
+#: Largest number of poles (or zeros) at the origin a model may have: ``|k| <= 3``.
+MAX_ORIGIN_ORDER = 3
 #: Largest model file :meth:`RationalDelayModel.load` reads (bytes).
 MAX_MODEL_BYTES = 16 * 2**20
 #: Deepest nesting of arrays/objects accepted in a model file (the schema needs 2).
 MAX_MODEL_DEPTH = 16
+
+
+def check_origin_order(value, error=StructureError, name="integrator"):
+    """The poles at the origin ``value`` as stored by :class:`Structure`: False/True for
+    False/True/0/1 (numpy's too), an int k for another integer with
+    ``|k| <= MAX_ORIGIN_ORDER``; ``error`` naming ``name`` otherwise."""
+    if isinstance(value, (bool, np.bool_)):
+        return bool(value)
+    if isinstance(value, numbers.Integral):
+        if value in (0, 1):
+            return bool(value)
+        if abs(int(value)) <= MAX_ORIGIN_ORDER:
+            return int(value)
+    raise error(f"{name} must be True, False or an integer k with |k| <= {MAX_ORIGIN_ORDER} "
+                f"(k poles at the origin; -k zeros), got {value!r}; e.g. {name}=2 for a "
+                f"double integrator, {name}=-2 for an accelerance")
+
+
+def jw_power(omega, k):
+    """``(j omega)^k`` for an integer ``k``: the unit ``j^k`` times the real ``omega^k``,
+    complex ndarray like ``omega`` (rad/s)."""
+    omega = np.asarray(omega, dtype=float)
+    return (1, 1j, -1, -1j)[int(k) % 4] * omega ** float(k)
+
+
+def times_jw_power(x, omega, k):
+    """``x * (j omega)^k`` (the data with ``k`` poles at the origin removed): ``x`` itself
+    for k = 0 and ``x * (1j * omega)`` for k = 1 (the integrator's arithmetic)."""
+    if k == 0:
+        return x
+    if k == 1:
+        return x * (1j * np.asarray(omega, dtype=float))
+    return x * jw_power(omega, k)
 
 
 @dataclass(frozen=True)
@@ -51,8 +88,12 @@ class Structure:
     ----------
     n_sections : int
         Number of sections N >= 0 (second-order: order 2N of P_N; first-order: N).
-    integrator : bool
-        Whether G_N has the factor K0/s.
+    integrator : bool or int
+        Poles at the origin: False (none), True (the factor K0/s), or an integer k with
+        ``|k| <= MAX_ORIGIN_ORDER`` for the factor ``s^(-k)`` (k poles at the origin; a
+        negative k is -k zeros at the origin: an accelerance ``s^2`` is k = -2). The
+        integers 0 and 1 are stored as False and True (so models and their files are the
+        same as with the bools); :attr:`origin_order` is k as an int.
     delay : bool
         Whether the delay h is a free parameter (else h = 0).
     basis : {"second-order", "first-order"}
@@ -81,14 +122,18 @@ class Structure:
             raise StructureError(f"n_sections must be >= 0, got {n}")
         object.__setattr__(self, "n_sections", int(n))
         check_choice("basis", self.basis, BASES, StructureError)
-        object.__setattr__(self, "integrator",
-                           check_flag("integrator", self.integrator, StructureError))
+        object.__setattr__(self, "integrator", check_origin_order(self.integrator))
         object.__setattr__(self, "delay", check_flag("delay", self.delay, StructureError))
         check_choice("zeros", self.zeros, ZEROS, StructureError)
         if isinstance(self.gain_sign, (bool, np.bool_)) or \
                 not isinstance(self.gain_sign, (int, np.integer)) or self.gain_sign not in (1, -1):
             raise StructureError(f"gain_sign must be 1 or -1, got {self.gain_sign!r}")
         object.__setattr__(self, "gain_sign", int(self.gain_sign))
+
+    @property
+    def origin_order(self):
+        """k, the number of poles at the origin (negative: -k zeros at the origin), int."""
+        return int(self.integrator)
 
     @property
     def section_size(self):
@@ -106,9 +151,10 @@ class Structure:
 
     @property
     def order(self):
-        """Order of the rational part including the integrator (2N+1 with integrator...)."""
+        """Order of the rational part including the poles at the origin (2N + k for k >= 0
+        poles at the origin, 2N for zeros there)."""
         per = 2 if self.basis == "second-order" else 1
-        return per * self.n_sections + int(self.integrator)
+        return per * self.n_sections + max(int(self.integrator), 0)
 
     def with_sections(self, n_sections):
         """The same structure with another number of sections."""
@@ -363,11 +409,17 @@ class RationalDelayModel(DelayedResponse):
 
     @property
     def integrator(self):
+        """The structure's poles at the origin (False, True or an int k)."""
         return self.structure.integrator
 
     @property
+    def origin_order(self):
+        """k, the poles at the origin (negative: zeros there), int."""
+        return self.structure.origin_order
+
+    @property
     def order(self):
-        """Order of the rational part, integrator included."""
+        """Order of the rational part, poles at the origin included."""
         return self.structure.order
 
     def sections(self):
@@ -376,7 +428,7 @@ class RationalDelayModel(DelayedResponse):
 
     # ------------------------------------------------------------------ evaluation
     def rational_response(self, omega):
-        """K [1/(j omega)] P_N(j omega), without the delay; complex ndarray like omega.
+        """K (j omega)^(-k) P_N(j omega), without the delay; complex ndarray like omega.
 
         The (re, im) formula of the spec, the one the fit's objective uses; only where it
         overflows (a frequency axis near 1e150 rad/s) is each section evaluated again free
@@ -385,8 +437,9 @@ class RationalDelayModel(DelayedResponse):
         omega = np.asarray(omega, dtype=float)
         with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
             z = (self.gain + 0 * omega, 0 * omega)
-            if self.integrator:
-                z = _cplx.div(z, (0 * omega, omega))
+            k = self.origin_order
+            for _ in range(abs(k)):          # k = 1: the integrator's one division
+                z = (_cplx.div if k > 0 else _cplx.mul)(z, (0 * omega, omega))
             for theta in self.sections():
                 num, den = section_response(self.structure.basis, omega, theta)
                 z = _cplx.mul(z, _cplx.div(num, den))
@@ -401,9 +454,13 @@ class RationalDelayModel(DelayedResponse):
         """:meth:`rational_response` at ``omega`` (1-D) with every section scaled to its
         own natural frequency, free of overflow at extreme frequency scales."""
         z = self.gain + 0j * omega
-        if self.integrator:
+        k = self.origin_order
+        if k == 1:
             with np.errstate(divide="ignore", invalid="ignore"):
                 z = z / (1j * omega)
+        elif k:
+            with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+                z = z / jw_power(omega, k)
         for theta in self.sections():
             z = z * _section_ratio(self.structure.basis, omega, theta)
         return z
@@ -424,15 +481,19 @@ class RationalDelayModel(DelayedResponse):
         return roots
 
     def poles(self):
-        """Poles of the rational part (the integrator's pole at 0 included), complex (n,)."""
+        """Poles of the rational part (the k poles at the origin first), complex (n,)."""
         p = self._factor_roots("den")
-        if self.integrator:
-            p = [0j] + p
+        if self.origin_order > 0:
+            p = [0j] * self.origin_order + p
         return np.array(p, dtype=complex)
 
     def zeros(self):
-        """Finite zeros of the rational part, complex ndarray."""
-        return np.array(self._factor_roots("num"), dtype=complex)
+        """Finite zeros of the rational part (the -k zeros at the origin first, k < 0),
+        complex ndarray."""
+        z = self._factor_roots("num")
+        if self.origin_order < 0:
+            z = [0j] * -self.origin_order + z
+        return np.array(z, dtype=complex)
 
     def is_stable(self, strict=False):
         """Whether P_N is stable (the integrator's pole at 0, if any, is not counted).
@@ -494,8 +555,10 @@ class RationalDelayModel(DelayedResponse):
         pade_order = _export_pade_order(delay, pade_order)
 
         sys = ct.ss([], [], [], [[self.gain]])
-        if self.integrator:
-            sys = ct.series(sys, ct.ss(ct.tf([1.0], [1.0, 0.0])))
+        k = self.origin_order
+        if k > 0:                             # k poles at the origin
+            sys = ct.series(sys, ct.ss(ct.tf([1.0], [1.0] + [0.0] * k)))
+        origin_zeros = max(-k, 0)             # -k zeros at the origin: into the sections
         for theta in self.sections():
             if self.structure.basis == "second-order":
                 a, zn, wn, b, zd, wd = theta
@@ -504,10 +567,16 @@ class RationalDelayModel(DelayedResponse):
                 a1, a0, b1, b0 = theta
                 num, den = [a1, a0], [b1, b0]
             num, den = np.trim_zeros(num, "f"), np.trim_zeros(den, "f")
+            while origin_zeros and len(num) < len(den):
+                num, origin_zeros = np.append(num, 0.0), origin_zeros - 1
             if len(num) > len(den):
                 raise StructureError("section is improper (numerator degree > denominator's); "
                                      "cannot export to a state-space model")
             sys = ct.series(sys, ct.ss(ct.tf(num, den)))
+        if origin_zeros:
+            raise StructureError(f"{-k} zeros at the origin need as many poles in the "
+                                 "sections (the model is improper); cannot export to a "
+                                 "state-space model")
         # balanced: a far zero otherwise puts entries 1e7 apart into A (balanced_ss)
         return balanced_ss(attach_delay(sys, self.delay, pade_order))
 
@@ -576,8 +645,9 @@ class RationalDelayModel(DelayedResponse):
         device is refused before it is opened); its JSON may nest at most
         :data:`MAX_MODEL_DEPTH` levels and must follow the schema: ``format``
         ``"freqid_casadi.RationalDelayModel"``, ``version`` 1, ``structure`` with
-        ``n_sections`` (integer >= 0) and optional ``integrator`` and ``delay`` (JSON
-        booleans, default false and true) and ``basis`` (default second-order), optional
+        ``n_sections`` (integer >= 0) and optional ``integrator`` (JSON boolean, or an
+        integer k with ``|k| <= MAX_ORIGIN_ORDER`` poles at the origin, negative for
+        zeros, as written for ``|k| >= 2``; default false) and ``delay`` (JSON boolean, default true) and ``basis`` (default second-order), optional
         ``param_names`` (as written), and ``beta``: finite numbers >= 0, one per parameter,
         no section with an all-zero numerator or denominator.
 
@@ -697,8 +767,12 @@ def _checked_fields(d, bases, version_read):
                         f"{', '.join(map(repr, unknown))}")
     n = _field(sd, "n_sections", (int,), "an integer >= 0")
     sd = {"integrator": False, "delay": True, "basis": bases[0], **sd}   # defaults
-    flags = [_field(sd, k, (bool,), "true or false (a JSON boolean, not a string)")
-             for k in ("integrator", "delay")]
+    flags = [_field(sd, "integrator", (bool, int), "true, false or an integer k with "
+                    f"|k| <= {MAX_ORIGIN_ORDER} (poles at the origin)"),
+             _field(sd, "delay", (bool,), "true or false (a JSON boolean, not a string)")]
+    if not isinstance(flags[0], bool) and abs(flags[0]) > MAX_ORIGIN_ORDER:
+        raise DataError(f"malformed model JSON: integrator {flags[0]!r} must be true, false "
+                        f"or an integer k with |k| <= {MAX_ORIGIN_ORDER} (poles at the origin)")
     basis = _field(sd, "basis", (str,), f"one of {', '.join(bases)}")
     if n < 0 or basis not in bases:
         raise DataError(f"malformed model JSON: n_sections must be >= 0 and basis one of "

@@ -63,8 +63,11 @@ class Mode:
 def _residue(model, pole, j):
     """Residue of ``model`` at ``pole``, a root of its denominator section ``j``."""
     val = np.exp(-pole * model.delay) * model.gain
-    if model.integrator:
+    k = model.origin_order
+    if k == 1:
         val /= pole
+    elif k:
+        val /= pole ** k
     for k, (a, zn, wn, b, zd, wd) in enumerate(model.sections()):
         val *= a * pole ** 2 + 2 * zn * wn * pole + wn ** 2
         if k == j:

@@ -230,8 +230,12 @@ class Parametrization:
         gain = k_ref * z[1]
         cos, sin = _trig(z)
         q = _cplx.mul(response_pair, (cos(omega * h), sin(omega * h)))
-        if self.structure.integrator:
+        k = self.structure.origin_order
+        if k == 1:
             q = _cplx.mul(q, (0 * omega, omega))
+        elif k:                                  # times (j omega)^k: k poles at 0 removed
+            for _ in range(abs(k)):
+                q = (_cplx.mul if k > 0 else _cplx.div)(q, (0 * omega, omega))
         q = (q[0] / gain, q[1] / gain)
         gauge = self.gauge_obj
         for k, v, wr, chart in self._sections(z):

@@ -14,7 +14,7 @@ with every factor normalised to a unit lowest coefficient (``s^m`` stripped):
 * first order ``f = 1 + s/r``: the root ``r`` (rad/s), and the missing coefficient as a
   parameter at its bound 0 (``s2_*`` for a second-order section whose ``s^2`` coefficient
   is 0, ``s1_*`` for a constant factor, ``s0_*`` for a factor with roots at the origin);
-* ``g`` the gain: the coefficient of the lowest power of s of ``K [1/s] P_N`` (the DC gain
+* ``g`` the gain: the coefficient of the lowest power of s of ``K s^(-k) P_N`` (the DC gain
   when there are no roots at the origin; ``K0`` with an integrator), as ``log_gain``;
 * ``h`` the delay (s), at its bound when ``h * max(omega) <= bound_tol``.
 
@@ -228,7 +228,7 @@ def log_response(par, theta, omega):
         i = 1
     log_g += theta[i] + (1j * np.pi if par.structure.gain_sign < 0 else 0.0)
     jac[:, i] = 1.0
-    power = -int(par.structure.integrator)
+    power = -par.structure.origin_order
     for f in par.factors:
         power += f.sign * f.power
         if f.kind == QUADRATIC:

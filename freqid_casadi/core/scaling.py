@@ -178,7 +178,8 @@ def unscale_model(model, w_ref, g_ref):
     beta = np.array(model.beta, float)
     with np.errstate(over="ignore", under="ignore"):
         beta[0] = beta[0] / w_ref
-        beta[1] = beta[1] * g_ref * (w_ref if st.integrator else 1.0)
+        k = st.origin_order
+        beta[1] = beta[1] * g_ref * (w_ref if k == 1 else float(w_ref) ** k if k else 1.0)
         secs = beta[2:].reshape(st.n_sections, st.section_size)
         if st.basis == "second-order":
             secs[:, 2] *= w_ref

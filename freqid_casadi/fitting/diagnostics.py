@@ -40,14 +40,15 @@ import numpy as np
 
 from ..core.data import FrequencyData
 from ..core.metrics import relative_error
+from ..core.model import times_jw_power
 
 __all__ = ["Diagnostic", "CODES", "TRIVIAL_RMS", "low_frequency_phase", "low_frequency_slope",
            "check_gain_sign", "rational_gain_sign",
            "check_trivial", "check_delay", "check_minimum_phase", "rhp_zeros_note",
-           "check_roots_below_band", "BELOW_BAND"]
+           "check_roots_below_band", "BELOW_BAND", "spell_origin"]
 
 CODES = ("negative-gain", "non-minimum-phase", "delay-undetermined", "no-better-than-trivial",
-         "root-below-band", "order-chosen")
+         "root-below-band", "order-chosen", "integrator")
 
 #: Low-frequency phase (deg, integrator removed) within which flat data (log-log slope
 #: within 0.5) have a positive gain without asking the fits (:func:`check_gain_sign`).
@@ -93,6 +94,11 @@ class Diagnostic:
         return f"{self.code}: {self.message}"
 
 
+def spell_origin(k):
+    """How ``integrator=`` spells k poles at the origin: "False", "True" or the integer."""
+    return "True" if k == 1 else "False" if k == 0 else str(int(k))
+
+
 def _low_points(omega, n_min=3, n_max=20, fraction=0.05):
     m = int(np.clip(round(fraction * omega.size), n_min, n_max))
     return min(m, omega.size)
@@ -117,8 +123,11 @@ def low_frequency_phase(data, integrator):
     """
     m = _low_points(data.omega)
     g = data.response[:m]
-    if integrator:
+    k = int(integrator)
+    if k == 1:
         g = g * 1j * data.omega[:m]
+    elif k:
+        g = times_jw_power(g, data.omega[:m], k)
     unit = np.exp(1j * np.angle(g))       # no division: subnormal or huge responses
     return float(np.angle(np.mean(unit)))
 
@@ -143,7 +152,8 @@ def low_frequency_slope(data, integrator):
         return float("nan")
     log_w = np.log(data.omega[:m])
     with np.errstate(divide="ignore"):      # logs: no overflow at extreme scales
-        log_g = np.log(np.abs(data.response[:m])) + (log_w if integrator else 0.0)
+        k = int(integrator)
+        log_g = np.log(np.abs(data.response[:m])) + (log_w if k == 1 else k * log_w)
     return float(np.polyfit(log_w, log_g, 1)[0])
 
 
@@ -379,8 +389,10 @@ def _vf_free_zeros(data, model, n_poles, delay=None):
 
     s = 1j * data.omega
     base = data.response * np.exp(s * (model.delay if delay is None else delay))
-    if model.integrator:
+    if model.origin_order == 1:
         base = base * s
+    elif model.origin_order:
+        base = times_jw_power(base, data.omega, model.origin_order)
     try:
         target = FrequencyData(data.omega, base)
         vf = vector_fitting(target, n_poles, n_iter=10, enforce_stable_poles=True)
@@ -500,9 +512,15 @@ def check_roots_below_band(model, data, fraction=BELOW_BAND):
         return ()
     w_min = float(data.omega[0])
     found = []
-    for kind, roots, stands in (("pole", model.poles()[int(model.integrator):],
-                                 "an integrator (refit with integrator=True)"),
-                                ("zero", model.zeros(), "a differentiator (a zero at 0)")):
+    k = model.origin_order
+    for kind, roots, stands in (("pole", model.poles()[max(k, 0):],
+                                 f"an integrator (refit with integrator="
+                                 f"{spell_origin(max(k, 0) + 1)})" if k >= 0 else
+                                 "fewer zeros at the origin (refit with integrator="
+                                 f"{spell_origin(k + 1)})"),
+                                ("zero", model.zeros()[max(-k, 0):],
+                                 "a differentiator (a zero at 0; refit with integrator="
+                                 f"{spell_origin(k - 1)})")):
         low = roots[np.abs(roots) < fraction * w_min]
         if low.size == 0:
             continue

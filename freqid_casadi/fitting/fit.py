@@ -31,7 +31,10 @@ from ..errors import FreqidError, OptionError, ResolutionWarning
 from .order import MAX_SECTIONS, choose_order, with_order_record
 from .mainloop import LoopContext, minimax, rational, sequential
 from ..core.metrics import relative_error
-from ..core.model import RationalDelayModel, Structure
+from ..core.model import (MAX_ORIGIN_ORDER, ZEROS, RationalDelayModel, Structure,
+                          check_origin_order)
+from .origin import (choose_origin_order, describe_origin, origin_diagnostics,
+                     settle_by_fits)
 from ..options import (INITS, LEGACY_KEYWORDS, METHODS, WARM_STARTS, FitOptions, LoopOptions,
                       legacy_message, solver_options)
 from ..core.scaling import (check_finite_result, reference_scales, scale_data, unscale_model,
@@ -241,11 +244,11 @@ def _reject_old_keywords(function):
 
 
 @_reject_old_keywords
-def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=True,
+def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=True,
         basis="second-order", method="ipopt", tol=None, weights=None, start="best",
         objective="least-squares", min_damping=None, progress=False, loop=None,
         gain_sign="auto", zeros="minimum-phase", fixed=None):
-    """Fit ``G_N(s) = exp(-h s) K [1/s] P_N(s)`` to frequency-response data.
+    """Fit ``G_N(s) = exp(-h s) K s^(-k) P_N(s)`` to frequency-response data.
 
     Parameters
     ----------
@@ -262,8 +265,15 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
         from 1 up to :data:`~freqid_casadi.fitting.order.MAX_SECTIONS`; a range (e.g.
         ``range(1, 9)``: at most 8 sections) sets the orders tried. An ``order-chosen``
         diagnostic says why the search stopped.
-    integrator : bool
-        Include the factor K0/s.
+    integrator : "auto", bool or int
+        The poles at the origin, the factor ``s^(-k)``: True (k = 1, the factor K0/s),
+        False (k = 0), an integer k with ``|k| <= 3`` (k poles at the origin: 2 for a
+        motor's current-to-angle response; a negative k for -k zeros there: -2 for an
+        accelerance, -1 for a band-pass), or "auto" (default): k chosen from the rational
+        starts of a few candidates (:mod:`freqid_casadi.fitting.origin`), recorded in
+        ``details["integrator"]`` and ``options.integrator`` (``options.integrator_auto``
+        True); an ``integrator`` diagnostic states a choice other than 0, or says "pass
+        integrator=..." with the errors of each choice when the data do not decide.
     delay : bool
         Fit a delay h >= 0 (else h = 0).
     basis : {"second-order", "first-order"}
@@ -348,7 +358,9 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
     """
     if isinstance(n_sections, (str, range)):
         return _fit_auto_order(locals())
-    integrator, delay = check_flag("integrator", integrator), check_flag("delay", delay)
+    auto = _is_auto(integrator)
+    integrator = "auto" if auto else check_origin_order(integrator, OptionError)
+    delay = check_flag("delay", delay)
     progress = check_progress(progress, "each StageRecord")
     fixed, gain_sign = check_fixed(fixed, delay=delay, gain_sign=gain_sign)
     kw = dict(integrator=integrator, basis=basis, method=method, tol=tol, start=start,
@@ -356,15 +368,66 @@ def fit(data_or_omega, response=None, *, n_sections, integrator=False, delay=Tru
               zeros=zeros)
     with single_threaded_blas(), rational_start_memo(), \
             channel(progress, _stage_line) as emit:
-        if fixed:
-            data = validate(data_or_omega, response, n_sections, basis, tol, integrator,
-                            weights)
-            return fit_with_fixed(
-                lambda d, dl: _fit_held(d, None, n_sections=n_sections, delay=dl,
-                                        progress=emit, weights=None, **kw),
-                data, fixed, delay=delay, loop=loop, method=method)
-        return _fit_guarded(data_or_omega, response, n_sections=n_sections, delay=delay,
-                            progress=emit, weights=weights, **kw)
+        if auto:
+            data = validate(data_or_omega, response, n_sections, basis, tol, False, weights)
+            check_choice("zeros", zeros, ZEROS)
+            k, record = choose_origin_order(data, n_sections, delay, basis, zeros)
+            ks = record["contenders"]
+            results = {}
+            for j in ks:             # several (the starts do not decide): quiet, the fits do
+                with warnings.catch_warnings():
+                    if len(ks) > 1:
+                        warnings.simplefilter("ignore")
+                    results[j] = _fit_resolved(data_or_omega, response, n_sections, delay,
+                                               fixed, weights, emit if j == k else False,
+                                               dict(kw, integrator=check_origin_order(j)))
+            if len(ks) > 1:
+                record = settle_by_fits(record, {j: r.rms_rel_error for j, r in results.items()})
+                _resolution_check(results[record["chosen"]].model, data.omega, 3)  # its warning
+            return _with_origin_record(results[record["chosen"]], record,
+                                       origin_diagnostics(record, data))
+        return _fit_resolved(data_or_omega, response, n_sections, delay, fixed, weights,
+                             emit, kw)
+
+
+def _is_auto(integrator):
+    """Whether ``integrator`` is "auto" (another string is an OptionError)."""
+    if isinstance(integrator, str):
+        if integrator != "auto":
+            raise OptionError(f"integrator must be 'auto', True, False or an integer k with "
+                              f"|k| <= {MAX_ORIGIN_ORDER}, got {integrator!r}; e.g. "
+                              "integrator=2 for two poles at the origin")
+        return True
+    return False
+
+
+def _with_origin_record(result, record, found):
+    """``result`` of ``integrator="auto"``: the choice in ``details["integrator"]`` and
+    ``options`` (``integrator_auto``), its diagnostic first, the summary line saying it."""
+    options = result.options
+    if options is not None:
+        options = dataclasses.replace(options, integrator_auto=True)
+    message = result.message
+    if record["chosen"] != 0 or record["ambiguous"]:
+        message = (f"{message}; integrator='auto' chose {describe_origin(record['chosen'])}"
+                   + (" (ambiguous: see the integrator diagnostic)" if record["ambiguous"]
+                      else ""))
+    return dataclasses.replace(result, options=options, message=message,
+                               diagnostics=tuple(found) + tuple(result.diagnostics),
+                               details=dict(result.details, integrator=record))
+
+
+def _fit_resolved(data_or_omega, response, n_sections, delay, fixed, weights, emit, kw):
+    """The fit once the poles at the origin are known (``kw["integrator"]``)."""
+    if fixed:
+        data = validate(data_or_omega, response, n_sections, kw["basis"], kw["tol"],
+                        kw["integrator"], weights)
+        return fit_with_fixed(
+            lambda d, dl: _fit_held(d, None, n_sections=n_sections, delay=dl,
+                                    progress=emit, weights=None, **kw),
+            data, fixed, delay=delay, loop=kw["loop"], method=kw["method"])
+    return _fit_guarded(data_or_omega, response, n_sections=n_sections, delay=delay,
+                        progress=emit, weights=weights, **kw)
 
 
 def _fit_auto_order(args):
@@ -490,7 +553,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
         structure=Structure(int(n_sections), integrator, delay, basis, zeros), loop=loop,
         warm_start=solver.warm_start, delay_max=dmax, final_max_iter=solver.final_max_iter,
         zeta_min=zeta_min)
-    options = FitOptions(n_sections=int(n_sections), integrator=bool(integrator),
+    options = FitOptions(n_sections=int(n_sections), integrator=integrator,
                          delay=bool(delay), basis=basis, method=solver.method, tol=tol,
                          start=start, objective=objective, min_damping=min_damping,
                          solver=solver, loop=loop)
@@ -566,7 +629,7 @@ def _run_starts(ctx, start, tol, data):
     return param, z, records, won, errors, cand_errors
 
 
-def _resolution_check(model, omega):
+def _resolution_check(model, omega, stacklevel=7):
     """The model checked against the frequency spacing (None for first-order sections,
     whose real roots are never narrow), with a ResolutionWarning when it fails."""
     if model.structure.basis != "second-order" or not model.n_sections:
@@ -580,7 +643,7 @@ def _resolution_check(model, omega):
             "noisy data); inspect FitResult.resolution, refit with min_damping='auto' (a "
             "damping floor from the frequency spacing), remove them with "
             "freqid_casadi.fitting.validation.prune_sections, or fit fewer sections",
-            ResolutionWarning, stacklevel=6)
+            ResolutionWarning, stacklevel=stacklevel)
     return check
 
 

@@ -63,7 +63,8 @@ def _gain_delay_stage(ctx):
     points). Returns (param, z, lam, record)."""
     data, st = ctx.data, ctx.structure
     omega, phi = data.omega, data.response
-    gain0 = abs(phi[0]) * (omega[0] if st.integrator else 1.0)
+    k = st.origin_order
+    gain0 = abs(phi[0]) * (omega[0] if k == 1 else float(omega[0]) ** k if k else 1.0)
     param = Parametrization(st.with_sections(0), ctx.loop.gauge, (), gain0, ctx.delay_max,
                             ctx.loop.scaled)
     z = np.zeros(param.n_vars)

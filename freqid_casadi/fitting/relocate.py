@@ -17,6 +17,7 @@ measured, leaves the iterations unchanged. The linear relocation moves every pol
 
 import numpy as np
 
+from ..core.model import times_jw_power
 from ..errors import StructureError
 
 __all__ = ["relocated_start", "STALL_RULE", "VF_ITERATIONS"]
@@ -76,8 +77,7 @@ def relocated_start(param, wdata, z_start, zeta_min=None):
     if n_poles == 0 or wdata.n_points < 2 * n_poles + 2:
         return None
     h = float(param.to_beta(z_start)[0])
-    s = 1j * wdata.omega
-    base = wdata.response * s if st.integrator else wdata.response
+    base = times_jw_power(wdata.response, wdata.omega, st.origin_order)
     try:
         model = _start_at(vector_fitting, wdata, st, base, h, n_poles, VF_ITERATIONS,
                           1e-6 * wdata.omega[0])[0]

@@ -1,7 +1,7 @@
 """A global start for the fit: a linear-algebra rational fit turned into sections (layer L4).
 
 The sequential loop of the thesis stops far from what its model structure can do. This
-start fits all sections at once: for a trial delay, the data with the integrator and the delay removed, ``Phi(jw) * [jw] * exp(jwh)``, is fitted by relaxed vector
+start fits all sections at once: for a trial delay, the data with the poles at the origin and the delay removed, ``Phi(jw) * (jw)^k * exp(jwh)``, is fitted by relaxed vector
 fitting with pole flipping (:func:`freqid_casadi.baselines.vector_fitting`, relative
 weighting); right-half-plane zeros are reflected to the left half plane (same magnitude,
 the phase difference is left to the delay), poles and zeros are paired into sections
@@ -19,7 +19,7 @@ import numpy as np
 
 from ..core.data import FrequencyData
 from ..errors import OptionError, SolverError
-from ..core.model import RationalDelayModel
+from ..core.model import RationalDelayModel, times_jw_power
 
 __all__ = ["RationalStart", "RationalStartError", "rational_start", "rational_start_memo",
            "sections_from_roots"]
@@ -266,8 +266,7 @@ def rational_start_memo():
 def _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_iter):
     from ..baselines import vector_fitting
 
-    s = 1j * data.omega
-    base = data.response * s if structure.integrator else data.response
+    base = times_jw_power(data.response, data.omega, structure.origin_order)
     n_poles = structure.n_sections * (2 if structure.basis == "second-order" else 1)
     floor = 1e-6 * data.omega[0]
     h = float(np.clip(delay0, 0.0, delay_max)) if structure.delay else 0.0

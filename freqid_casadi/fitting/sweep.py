@@ -200,7 +200,8 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=Fa
     orders = _orders(orders)
     if orders:                  # the largest order fits the data, before any fit is run
         validate(data, None, max(orders) // per, basis, None,
-                 fit_options.get("integrator", False), fit_options.get("weights"))
+                 _integrator_check(fit_options.get("integrator", False)),
+                 fit_options.get("weights"))
     for o in orders:
         if o % per:
             raise OptionError(f"order {o} is odd: second-order sections give even orders; "
@@ -254,6 +255,11 @@ def _row_line(row):
     """One line of text for a sweep row (``progress="lines"`` and the bar's summary)."""
     return (f"order {row.order}: max rel. error {row.max_rel_error:.3e}, delay "
             f"{row.delay:.6g}, {row.wall_time:.1f} s")
+
+
+def _integrator_check(integrator):
+    """The integrator option as validate checks it ("auto" has the shape of False)."""
+    return False if isinstance(integrator, str) and integrator == "auto" else integrator
 
 
 def _orders(orders):

@@ -162,8 +162,8 @@ _CAUSES = (
     ("non-minimum-phase", "the model class: the data need right-half-plane zeros "
                           "(pass zeros='free')"),
     ("root-below-band", "the structure: a pole or zero at the origin the model lacks "
-                        "(pass integrator=True for a pole; divide the data by j*omega for a "
-                        "zero)"),
+                        "(pass integrator=k: k poles at the origin, a negative k for zeros; "
+                        "integrator='auto' tries them)"),
     ("delay-undetermined", "the delay: it may be larger than the frequency spacing "
                            "resolves (sample more densely or remove a known delay)"),
 )

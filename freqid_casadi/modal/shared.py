@@ -327,6 +327,12 @@ def _check_datas(datas, weights):
 def _check_numbers(integrator, delay_max, max_iter, n_vf_iter, progress, balance):
     """The scalar options of :func:`fit_shared` (OptionError naming the bad one)."""
     flags = {"integrator": integrator, "progress": progress, "balance_channels": balance}
+    if isinstance(integrator, (str, numbers.Integral)) and not isinstance(
+            integrator, (bool, np.bool_)) and integrator not in (0, 1):
+        raise OptionError(f"fit_shared takes integrator=True or False only, got "
+                          f"{integrator!r}; for k poles (or zeros) at the origin fit each "
+                          "channel with fc.fit(..., integrator=k), or divide the data by "
+                          "(j omega)^k first")
     for name, value in flags.items():
         check_flag(name, value)
     if delay_max is not None and (isinstance(delay_max, (bool, np.bool_))

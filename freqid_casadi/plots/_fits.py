@@ -228,8 +228,11 @@ def pole_zero(model, *, zoom=None, title=None, figsize=None, unit="rad/s"):
         raise OptionError(f"pole_zero: expected a RationalDelayModel, got {type(model).__name__}")
     poles = model.poles()
     zeros = model.zeros()
-    integ = poles[:1] if model.integrator else poles[:0]
-    poles = poles[1:] if model.integrator else poles
+    k = model.origin_order
+    integ = poles[:max(k, 0)]
+    poles = poles[max(k, 0):]
+    origin_zeros = zeros[:max(-k, 0)]
+    zeros = zeros[max(-k, 0):]
     if zoom == "auto":
         mags = np.sort(np.abs(np.concatenate([poles, zeros])))
         mags = mags[mags > 0]
@@ -254,7 +257,13 @@ def pole_zero(model, *, zoom=None, title=None, figsize=None, unit="rad/s"):
         ax.plot(zeros.real, zeros.imag, "o", color="C0", ms=7, mfc="none", mew=1.3,
                 label=f"zeros ({zeros.size})")
         if integ.size:
-            ax.plot([0.0], [0.0], "s", color="k", ms=5, label="integrator pole")
+            ax.plot([0.0], [0.0], "s", color="k", ms=5,
+                    label="integrator pole" if integ.size == 1 else
+                    f"{integ.size} poles at the origin")
+        if origin_zeros.size:
+            ax.plot([0.0], [0.0], "D", color="k", mfc="none", ms=6,
+                    label=f"{origin_zeros.size} zero{'s' if origin_zeros.size > 1 else ''} "
+                          "at the origin")
         ax.set_xlabel(f"real part ({unit})")
         ax.set_ylabel(f"imaginary part ({unit})")
         finish_axes(ax)

@@ -56,8 +56,9 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
     rel = np.asarray(result.rel_error, float)
     i_max = int(np.argmax(rel))
     poles_all = model.poles()
-    poles = poles_all[1:] if st.integrator else poles_all
-    zeros = model.zeros()
+    k = st.origin_order
+    poles = poles_all[max(k, 0):]
+    zeros = model.zeros()[max(-k, 0):]
     name = data.name or "data"
     summary = {
         "format": REPORT_FORMAT,
@@ -72,7 +73,9 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
                     if data.unit == "rad/s" else {})},
         "structure": {"n_sections": st.n_sections, "basis": st.basis,
                       "integrator": st.integrator, "delay": st.delay,
-                      "order_rational_part": per * st.n_sections, "order": st.order},
+                      "order_rational_part": per * st.n_sections, "order": st.order,
+                      # k of integrator=k (|k| >= 2 only: the reports of 0 and 1 unchanged)
+                      **({"origin_order": k} if k not in (0, 1) else {})},
         "method": result.method,
         "max_rel_error": float(result.max_rel_error),
         "rms_rel_error": float(result.rms_rel_error),
@@ -239,12 +242,22 @@ def _roots_check(ok, real_part, damping, what, unit="rad/s"):
         f"smallest damping ratio {number(damping)})" if real_part is not None else "")
 
 
+def _origin_words(st):
+    """"with integrator", "no integrator", "2 poles at the origin", "1 zero at the origin"
+    for a summary's structure dict (``origin_order`` absent in older summaries)."""
+    k = st.get("origin_order", int(st["integrator"]))
+    if k in (0, 1):
+        return f"{'with' if k else 'no'} integrator"
+    n, what = abs(k), "poles" if k > 0 else "zeros"
+    return f"{n} {what[:-1] if n == 1 else what} at the origin"
+
+
 def _overview_rows(s):
     """(quantity, value) rows of the first table of summary.md."""
     d, st, ck = s["data"], s["structure"], s["checks"]
     fu, tu = _units(s)
     structure = (f"{st['n_sections']} {st['basis']} sections, "
-                 f"{'with' if st['integrator'] else 'no'} integrator, "
+                 f"{_origin_words(st)}, "
                  f"{'with' if st['delay'] else 'no'} delay; order of P_N "
                  f"{st['order_rational_part']}, model order {st['order']}")
     rows = [
@@ -318,7 +331,9 @@ def _uncertainty_lines(s):
     if not u or "error" in u:
         return ([f"Parameter uncertainty: not available ({md_text(u['error'])}).", ""]
                 if u else [])
-    low = "K0 = lim s G(s)" if s["structure"]["integrator"] else "DC gain G(0)"
+    k = s["structure"].get("origin_order", int(s["structure"]["integrator"]))
+    low = ("DC gain G(0)" if k == 0 else "K0 = lim s G(s)" if k == 1 else
+           f"K0 = lim s^{k} G(s)" if k > 0 else f"K0 = lim G(s) / s^{-k}")
     fu, tu = _units(s)
     hz = fu == "rad/s"
     rows = [(f"delay h ({tu})", _pm(u["delay"], u["delay_std"], 6)),

@@ -110,7 +110,7 @@ class ParameterUncertainty:
     delay, delay_std : float
         Delay and its standard deviation, s (NaN std without a delay or at its bound).
     gain, gain_std : float
-        Gain ``g`` (lowest coefficient of ``K [1/s] P_N``: DC gain, K0 with an integrator;
+        Gain ``g`` (lowest coefficient of ``K s^(-k) P_N``: DC gain, K0 with poles at 0;
         signed)
         and its standard deviation ``g * std(log_gain)``.
     modes : tuple of ModeEstimate

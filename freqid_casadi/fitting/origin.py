@@ -1,0 +1,212 @@
+"""``fit(integrator="auto")``: the number of poles (or zeros) at the origin, from the fits
+(layer L5; issue 26 item 5).
+
+The model has the factor ``s^(-k)``: k poles at the origin (an integrator k = 1, a motor's
+current-to-angle response k = 2), or -k zeros there (a high-pass or band-pass filter k = -1
+or -2, an accelerance k = -2). The low-frequency log-log slope of the data alone does not
+decide k (a pole below the band looks like an integrator; a resonance near the lowest bins
+bends the slope), so the slope only proposes the candidates: k = -round(slope) and its two
+neighbours, and k = 0, within ``|k| <= MAX_ORIGIN_ORDER``. Each candidate is judged by the
+rational start (:func:`~freqid_casadi.fitting.start.rational_start`: vector fitting of
+``data * (j omega)^k`` with the delay refined; no IPOPT, a fraction of a fit's time) with
+either gain sign, by its RMS relative error on the data. Of the candidates within
+:data:`PREFER_FACTOR` of the lowest error, the one with the smallest ``|k|`` wins (the
+simpler model, when the data do not tell them apart), except that a candidate whose start
+puts poles or zeros far below the band (below ``BELOW_BAND`` times the lowest frequency:
+the data cannot tell them from roots at the origin) counts as the k it effectively has and
+yields to the candidate that has them at the origin (a k = 0 start of accelerance data
+with two zeros near 0 is the k = -2 model reached the hard way: the fit's bounds stop such
+roots at a floor). When another candidate, not effectively the same, is within
+:data:`AMBIGUOUS_FACTOR` of the winner, the choice is ambiguous: both are fitted (the full
+fit) and the lower RMS wins; when the fits too are within that factor (typically: the data
+end too high to show the low-frequency asymptote) an ``integrator`` warning gives the
+errors of each choice and the switch ``integrator=...``.
+"""
+
+import math
+
+import numpy as np
+
+from ..core.data import FrequencyData
+from ..core.model import MAX_ORIGIN_ORDER, Structure
+from ..core.resolution import default_delay_max
+from ..core.scaling import reference_scales, scale_data
+from .diagnostics import BELOW_BAND, Diagnostic, low_frequency_slope, spell_origin
+from .start import RationalStartError, rational_start
+
+__all__ = ["choose_origin_order", "origin_candidates", "settle_by_fits", "origin_diagnostics",
+           "describe_origin", "PREFER_FACTOR", "AMBIGUOUS_FACTOR", "MAX_FITS"]
+
+#: A candidate with a smaller ``|k|`` whose start's RMS error is within this factor of the
+#: best candidate's is chosen instead (the simpler model when the data do not decide).
+PREFER_FACTOR = 1.5
+#: Another candidate within this factor of the chosen one's error: the choice is stated as
+#: ambiguous (an ``integrator`` warning with the errors of each choice).
+AMBIGUOUS_FACTOR = 3.0
+#: RMS error of the positive-gain start below which the negative sign is not tried.
+DECISIVE_RMS = 0.25
+#: Most full fits an ambiguous choice runs (the contenders within AMBIGUOUS_FACTOR).
+MAX_FITS = 3
+
+
+def origin_candidates(slope):
+    """The k tried by ``integrator="auto"`` for a low-frequency log-log slope ``slope``:
+    ``-round(slope)`` and its neighbours, and 0, within ``|k| <= MAX_ORIGIN_ORDER``,
+    sorted by ``|k|`` (then k); just ``(0, 1, -1)`` when the slope is not finite."""
+    if not math.isfinite(slope):
+        return (0, 1, -1)
+    c = int(np.clip(-round(slope), -MAX_ORIGIN_ORDER, MAX_ORIGIN_ORDER))
+    ks = {0} | {k for k in (c - 1, c, c + 1) if abs(k) <= MAX_ORIGIN_ORDER}
+    return tuple(sorted(ks, key=lambda k: (abs(k), k)))
+
+
+def _start_error(scaled, structure, dmax):
+    """(RMS, max, effective k) of the rational start of ``structure`` on ``scaled``, the
+    better of the two gain signs (the negative one only when the positive start's RMS is
+    not below :data:`DECISIVE_RMS`; inf when neither start is usable); the effective k
+    counts the start's poles (minus zeros) far below the band as poles at the origin."""
+    best = (math.inf, math.inf, structure.origin_order)
+    for sign in (1, -1):
+        if sign < 0 and best[0] < DECISIVE_RMS:     # the positive start explains the data
+            break
+        target = FrequencyData(scaled.omega, sign * scaled.response, None, scaled.weights)
+        try:
+            with np.errstate(all="ignore"):
+                start = rational_start(target, structure, delay_max=dmax)
+                err = np.abs(start.model.relative_error(target))
+        except (RationalStartError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+            continue
+        rms = float(np.sqrt(np.mean(err ** 2)))
+        if math.isfinite(rms) and rms < best[0]:
+            best = (rms, float(np.max(err)), _effective_order(start.model, scaled.omega[0]))
+    return best
+
+
+def _effective_order(model, omega_min):
+    """The model's k plus its poles, minus its zeros, below ``BELOW_BAND * omega_min``
+    (which the data cannot tell from roots at the origin)."""
+    k = model.origin_order
+    low = BELOW_BAND * float(omega_min)
+    poles = model.poles()[max(k, 0):]
+    zeros = model.zeros()[max(-k, 0):]
+    return int(k + np.sum(np.abs(poles) < low) - np.sum(np.abs(zeros) < low))
+
+
+def choose_origin_order(data, n_sections, delay, basis, zeros):
+    """The poles at the origin ``integrator="auto"`` fits (see the module docstring).
+
+    Parameters
+    ----------
+    data : FrequencyData
+        The data as given (the choice scales them itself).
+    n_sections : int
+        Sections of the model to fit (each candidate's start has as many).
+    delay : bool
+    basis : {"second-order", "first-order"}
+    zeros : {"minimum-phase", "free"}
+
+    Returns
+    -------
+    k : int
+        The chosen number of poles at the origin (negative: zeros).
+    record : dict
+        ``{"auto": True, "chosen": k, "candidates": [k, ...], "rms": {k: RMS}, "max":
+        {k: max}, "effective": {k: k + roots below the band}, "low_frequency_slope": slope,
+        "ambiguous": bool, "runner_up": k or None}``, the errors being those of each candidate's rational start on the data
+        (either gain sign), for ``FitResult.details["integrator"]``.
+    When ``record["ambiguous"]``, the caller fits each k of ``record["contenders"]`` (the
+    chosen k, the runner-up and, up to :data:`MAX_FITS`, the others within
+    :data:`AMBIGUOUS_FACTOR`) and settles it (:func:`settle_by_fits`); :func:`origin_diagnostics` then states it: an
+    ``integrator`` record, "info" when a k other than 0 is chosen clearly, "warning" (with
+    the errors of each choice and ``pass integrator=...``) when it stays ambiguous.
+    """
+    slope = low_frequency_slope(data, 0)
+    cands = origin_candidates(slope)
+    w_ref, g_ref = reference_scales(data)
+    scaled = scale_data(data, w_ref, g_ref)
+    dmax = default_delay_max(scaled.omega)
+    errors = {k: _start_error(scaled, Structure(int(n_sections), k, delay, basis, zeros), dmax)
+              for k in cands}
+    rms = {k: errors[k][0] for k in cands}
+    eff = {k: errors[k][2] for k in cands}
+    best = min(cands, key=lambda k: (rms[k], abs(k)))
+    if math.isfinite(rms[best]):
+        near = [k for k in cands if rms[k] <= PREFER_FACTOR * rms[best]]
+        # a start that puts roots far below the band asks for them at the origin: among
+        # the near-best, the candidates whose start agrees with its own k come first
+        chosen = min(near, key=lambda k: (eff[k] != k, abs(k), rms[k]))
+    else:
+        chosen = 0
+    others = [k for k in cands if k != chosen and eff[k] != chosen]
+    close = [k for k in others if rms[k] <= AMBIGUOUS_FACTOR * max(rms[chosen], 1e-300)]
+    runner = (min(close, key=lambda k: (eff[k] != k, rms[k])) if close else
+              min(others, key=lambda k: rms[k]) if others else None)
+    usable = math.isfinite(rms[chosen])
+    ambiguous = bool(not usable or runner is not None and
+                     rms[runner] <= AMBIGUOUS_FACTOR * max(rms[chosen], 1e-300))
+    contenders = [int(chosen)] + sorted(
+        (int(k) for k in close if k != runner), key=lambda k: rms[k])[:MAX_FITS - 2]
+    if runner is not None and ambiguous:
+        contenders.insert(1, int(runner))
+    record = {"auto": True, "chosen": int(chosen), "candidates": [int(k) for k in cands],
+              "contenders": contenders if ambiguous else [int(chosen)],
+              "rms": {int(k): rms[k] for k in cands},
+              "max": {int(k): errors[k][1] for k in cands},
+              "effective": {int(k): int(eff[k]) for k in cands},
+              "low_frequency_slope": float(slope), "ambiguous": ambiguous,
+              "runner_up": None if runner is None else int(runner)}
+    return int(chosen), record
+
+
+def settle_by_fits(record, fits):
+    """The record once the ambiguous choice was settled by full fits: ``fits`` maps each
+    k of ``record["contenders"]`` to the RMS relative error of ``fit(..., integrator=k)``;
+    the lowest wins unless the first contender (the starts' choice) is within
+    :data:`PREFER_FACTOR` of it (differences at the noise level do not move the choice);
+    still ambiguous when another is within :data:`AMBIGUOUS_FACTOR` of the winner."""
+    first = record["contenders"][0]
+    lowest = min(fits, key=lambda k: (fits[k], record["contenders"].index(k)))
+    chosen = first if fits[first] <= PREFER_FACTOR * fits[lowest] else lowest
+    loser = min((k for k in fits if k != chosen), key=lambda k: fits[k])
+    ambiguous = bool(fits[loser] <= AMBIGUOUS_FACTOR * max(fits[chosen], 1e-300))
+    return dict(record, chosen=int(chosen), runner_up=int(loser), ambiguous=ambiguous,
+                fit_rms={int(k): float(v) for k, v in fits.items()})
+
+
+def describe_origin(k):
+    """Words for k poles at the origin: "no pole at the origin", "2 poles at the origin",
+    "1 zero at the origin"..."""
+    if k == 0:
+        return "no pole or zero at the origin"
+    n, what = abs(k), "pole" if k > 0 else "zero"
+    return f"{n} {what}{'s' if n > 1 else ''} at the origin"
+
+
+def origin_diagnostics(record, data):
+    """The ``integrator`` diagnostic of an ``integrator="auto"`` choice (see
+    :func:`choose_origin_order`), () for a clear k = 0."""
+    k, rms = record["chosen"], record["rms"]
+    table = "; ".join(f"integrator={spell_origin(j)}: RMS {rms[j]:.3g}"
+                      for j in sorted(rms, key=lambda j: (abs(j), j)))
+    table = f"rational starts: {table}"
+    if "fit_rms" in record:
+        table += "; fits: " + "; ".join(f"integrator={spell_origin(j)}: RMS {v:.3g}"
+                                       for j, v in record["fit_rms"].items())
+    values = {"chosen": k, "candidates": record["candidates"],
+              "rms": [rms[j] for j in record["candidates"]],
+              "low_frequency_slope": record["low_frequency_slope"]}
+    if record["ambiguous"]:
+        other = record["runner_up"]
+        lowest = float(data.omega[0])
+        msg = (f"integrator='auto' chose {describe_origin(k)} (integrator={spell_origin(k)}) "
+               f"but the fits hardly tell it from "
+               + (f"integrator={spell_origin(other)}" if other is not None else "the others")
+               + f" ({table}); the data may end too high (lowest {lowest:.4g} {data.unit}) "
+               f"to show the low-frequency asymptote: pass integrator="
+               f"{spell_origin(k)} or integrator={spell_origin(other)} if you know it")
+        return (Diagnostic("integrator", msg, "warning", values),)
+    if k == 0:
+        return ()
+    msg = (f"integrator='auto' fits {describe_origin(k)} (integrator={spell_origin(k)}), "
+           f"clearly better than the other choices ({table})")
+    return (Diagnostic("integrator", msg, "info", values),)
