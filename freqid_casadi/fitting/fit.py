@@ -26,7 +26,7 @@ from .delay_search import delay_search_run
 from .far_roots import far_root_run
 from .fixed import check_fixed, fit_with_fixed
 from .diagnostics import check_gain_sign
-from .guard import guard_resolution, is_resolution_warning
+from .guard import guard_resolution
 from ..errors import FreqidError, OptionError, ResolutionWarning
 from .order import MAX_SECTIONS, choose_order, with_order_record
 from .mainloop import LoopContext, minimax, rational, sequential
@@ -383,7 +383,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
                                                dict(kw, integrator=check_origin_order(j)))
             if len(ks) > 1:
                 record = settle_by_fits(record, {j: r.rms_rel_error for j, r in results.items()})
-                _resolution_check(results[record["chosen"]].model, data.omega, 3)  # its warning
+                _resolution_check(results[record["chosen"]].model, data.omega, 4)  # its warning
             return _with_origin_record(results[record["chosen"]], record,
                                        origin_diagnostics(record, data))
         return _fit_resolved(data_or_omega, response, n_sections, delay, fixed, weights,
@@ -448,10 +448,10 @@ def _fit_auto_order(args):
 
 def _fit_guarded(data_or_omega, response, *, progress, weights, **kw):
     """:func:`_fit_held`, then :func:`~freqid_casadi.fitting.guard.guard_resolution` (the
-    floored refit quiet; the first fit's warnings re-issued after it, its
-    ResolutionWarning dropped when the floored fit is kept)."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
+    floored refit quiet); the fit's ResolutionWarning is issued here, for the fit that is
+    kept, when that one is not resolved."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", category=ResolutionWarning)
         result = _fit_held(data_or_omega, response, progress=progress, weights=weights,
                            **kw)
 
@@ -459,10 +459,9 @@ def _fit_guarded(data_or_omega, response, *, progress, weights, **kw):
         return _fit_held(data_or_omega, response, progress=False, weights=weights,
                          **dict(kw, min_damping=min_damping))
 
-    result, floored = guard_resolution(result, refit, kw["min_damping"], result.method)
-    for w in caught:
-        if not (floored and is_resolution_warning(w)):
-            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    result, _ = guard_resolution(result, refit, kw["min_damping"], result.method)
+    if result.resolution is not None and not result.resolution.ok:
+        _resolution_check(result.model, result.data.omega, stacklevel=6)
     return result
 
 

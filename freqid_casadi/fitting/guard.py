@@ -20,10 +20,10 @@ and ``alternatives`` holds the fit that was not kept.
 import dataclasses
 import warnings
 
-from ..errors import FreqidError, ResolutionWarning
+from ..errors import FreqidError
 from .verdict import FitStatus
 
-__all__ = ["guard_resolution", "is_resolution_warning"]
+__all__ = ["guard_resolution"]
 
 
 def guard_resolution(result, refit, min_damping, method):
@@ -80,8 +80,3 @@ def guard_resolution(result, refit, min_damping, method):
         floored, message=floored.message + note,
         details=dict(floored.details, resolution_guard=record),
         alternatives=dict(floored.alternatives, **{"min_damping=None": result})), True
-
-
-def is_resolution_warning(w):
-    """Whether the caught warning ``w`` is the fit's ResolutionWarning."""
-    return issubclass(w.category, ResolutionWarning)
