@@ -301,9 +301,9 @@ def _relocate(s, phi, wt, rp, cp, fixed, nd, stable):
     return _split_eigs(lam)
 
 
-def _coefficients(s, phi, wt, sets, nd):
+def _coefficients(s, phi, wt, sets, nd, scaled=True):
     """Real basis coefficients (C, n_cols) of each channel at fixed poles: weighted linear
-    least squares, real and imaginary parts stacked, columns of unit norm."""
+    least squares, real and imaginary parts stacked (columns of unit norm if ``scaled``)."""
     cols = [_basis(s, rp, cp) for rp, cp in sets if rp.size + cp.size]
     cols = cols or [np.zeros((s.size, 0), complex)]
     left = np.hstack(cols + [np.ones((s.size, 1))]) if nd else np.hstack(cols)
@@ -311,14 +311,14 @@ def _coefficients(s, phi, wt, sets, nd):
     for c in range(phi.shape[0]):
         Mc = wt[c][:, None] * left
         f = wt[c] * phi[c]
-        out.append(_lstsq_scaled(np.vstack([Mc.real, Mc.imag]),
-                                 np.concatenate([f.real, f.imag])))
+        solve = _lstsq_scaled if scaled else (lambda a, b: scipy.linalg.lstsq(a, b)[0])
+        out.append(solve(np.vstack([Mc.real, Mc.imag]), np.concatenate([f.real, f.imag])))
     return np.array(out).reshape(phi.shape[0], left.shape[1])
 
 
-def _residues(s, phi, wt, sets, nd, n_relocated):
+def _residues(s, phi, wt, sets, nd, n_relocated, scaled=True):
     """:class:`VectorFit` of the pole sets ``[(real, upper), ...]`` (in that order)."""
-    coef = _coefficients(s, phi, wt, sets, nd)
+    coef = _coefficients(s, phi, wt, sets, nd, scaled)
     poles, residues, k = [], [], 0
     for rp, cp in sets:
         real = coef[:, k:k + rp.size]
@@ -333,7 +333,7 @@ def _residues(s, phi, wt, sets, nd, n_relocated):
 
 
 def fit_residues(omega, response, poles, *, weights=None, weighting="relative",
-                 constant=True):
+                 constant=True, scaled=True):
     """Each channel's residues at given poles (the "least-squares frequency-domain" step).
 
     Linear least squares of ``G_c(s) ~ d_c + sum_k r_ck / (s - p_k)``, real and imaginary
@@ -352,6 +352,12 @@ def fit_residues(omega, response, poles, *, weights=None, weighting="relative",
         Row weights ``1/|G_c|`` (default) or 1.
     constant : bool, optional
         Fit ``d_c`` (default True); else 0.
+    scaled : bool, optional
+        Solve with the columns scaled to unit norm (default True, as :func:`vectfit`);
+        False: the plain least-squares solution (scipy's gelsd), the modal start's LSFD
+        step (:func:`freqid_casadi.modal._start.lsfd_residues`). The two differ at rounding
+        level, except where the problem is rank-deficient to working precision (a strictly
+        proper channel's constant), where gelsd's cut-off keeps different noise.
 
     Returns
     -------
@@ -364,7 +370,8 @@ def fit_residues(omega, response, poles, *, weights=None, weighting="relative",
     rp, cp = _split(given, "poles")
     if 2 * omega.size < given.size + int(bool(constant)):
         raise DataError(f"too few points ({omega.size}) for {given.size} residues")
-    fit = _residues(1j * omega, phi, wt, [(rp, cp)], 1 if constant else 0, given.size)
+    fit = _residues(1j * omega, phi, wt, [(rp, cp)], 1 if constant else 0, given.size,
+                    bool(scaled))
     # the fit lists the real poles, the upper members, their conjugates: back to the
     # caller's order (a lower member takes the conjugate of its nearest upper one)
     real = np.abs(given.imag) <= _REAL_RTOL * np.abs(given)

@@ -124,10 +124,12 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
     constants : ndarray of float, shape (C,)
         Only with ``constant=True``: each channel's ``d_c``.
     """
-    fit = vectfit(omega, phi, n_poles, weights=weights, n_iter=n_iter,
-                  initial=_initial_poles(omega, n_poles) if initial is None else initial,
-                  fixed=fixed, constant=constant, stable=True)
-    return (fit.poles, fit.residues, fit.constants) if constant else (fit.poles, fit.residues)
+    poles = vectfit(omega, phi, n_poles, weights=weights, n_iter=n_iter,
+                    initial=_initial_poles(omega, n_poles) if initial is None else initial,
+                    fixed=fixed, constant=constant, stable=True).poles
+    # the residues from the modal start's own LSFD step, as before vectfit was shared
+    residues, consts = lsfd_residues(omega, phi, poles, weights, constant)
+    return (poles, residues, consts) if constant else (poles, residues)
 
 
 def lsfd_residues(omega, phi, poles, weights=None, constant=True):
@@ -152,7 +154,7 @@ def lsfd_residues(omega, phi, poles, weights=None, constant=True):
         Conjugate poles get conjugate residues.
     constants : ndarray of float, shape (C,)
     """
-    return fit_residues(omega, phi, poles, weights=weights, constant=constant)
+    return fit_residues(omega, phi, poles, weights=weights, constant=constant, scaled=False)
 
 
 def channel_zeros(poles, residues, constant=0.0):
