@@ -12,6 +12,9 @@ Every method is a function returning a :class:`StateSpaceModel`, which has the i
 - :func:`balanced_truncation`, :func:`hankel_singular_values` — SLICOT via slycot;
 - :func:`moheimani_kopt`, :func:`feedthrough_from_data` — Moheimani's feedthrough;
 - :func:`aaa`, :func:`vector_fitting` — unconstrained peers; :func:`count_rhp`;
+- :func:`vectfit` — the one vector fitting: C >= 1 channels with common poles (one channel
+  is :func:`vector_fitting`, many the rational start of ``fit_shared``), with
+  :class:`VectorFit`, :func:`fit_residues`, :func:`initial_poles`;
 - :func:`skrf_vector_fitting` — scikit-rf's vector fitting (the ``[peers]`` extra).
 
 python-control is imported inside the functions that need it, so importing this package
@@ -27,6 +30,7 @@ from .fractional import (continued_fraction_sqrt, newton_sqrt, newton_sqrt_polyn
 from .peers import aaa, vector_fitting
 from .skrf_peer import skrf_vector_fitting
 from .subspace import default_bilinear_T, subspace
+from .vectfit import VectorFit, fit_residues, initial_poles, vectfit
 
 __all__ = [
     "StateSpaceModel", "count_rhp",
@@ -36,4 +40,5 @@ __all__ = [
     "moheimani_kopt", "feedthrough_from_data", "modal_model",
     "continued_fraction_sqrt", "newton_sqrt", "newton_sqrt_polynomials", "thiele_coefficients",
     "aaa", "vector_fitting", "skrf_vector_fitting",
+    "vectfit", "VectorFit", "fit_residues", "initial_poles",
 ]

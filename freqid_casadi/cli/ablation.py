@@ -1,7 +1,7 @@
 """The ``freqid ablation`` command: IPOPT vs the thesis's barrier-LM, and IPOPT's options
 one at a time (layer L7; the study is :mod:`freqid_casadi.studies.ablation`).
 
-Registered by ``cli.py`` as a plugin command.
+Registered in :data:`freqid_casadi.cli.app.COMMANDS` (its :func:`add_cli` and :func:`run_cli`).
 """
 
 import argparse

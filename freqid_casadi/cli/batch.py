@@ -18,7 +18,7 @@ left behind on an error or Ctrl-C); an existing ``--out`` is refused before any 
 ``--force``. Exit code 0 if every file was fitted and converged, 1 if a file failed or did
 not converge (the summary says which), 2 on a usage, option or folder error.
 
-Registered by ``cli.py`` as ``COMMANDS["batch"] = (add_cli, run_cli)``.
+Registered in :data:`freqid_casadi.cli.app.COMMANDS` (its :func:`add_cli` and :func:`run_cli`).
 """
 
 import math
@@ -29,7 +29,7 @@ import warnings
 from .common import load_options, notes_to_stderr
 from .._textio import atomic_write_text, csv_row, one_line
 from ..fitting.batch import fit_many
-from .app import _add_input, _add_model_arguments, _positive_int   # the CLI's own helpers
+from .common import _add_input, _add_model_arguments, _positive_int   # the CLI's own helpers
 from ..report.outputs import MARKER
 from ..errors import DataError
 from ..fitting.fit import METHODS

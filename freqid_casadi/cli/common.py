@@ -1,5 +1,10 @@
-"""Options shared by every command that reads a data file (layer L6).
+"""What several ``freqid`` commands share (layer 10): argument types, option groups, data
+files, output lines and errors.
 
+The argument types (``_positive_int``, ``_positive_float``, the ASCII-only number checks
+``_ascii``/``_checked``) and the option groups of a fit (``_add_choices`` of
+``_CHOICE_OPTIONS``, ``_common``, ``_add_model_arguments``, ``_add_input``) are the CLI's own
+helpers, used by the command modules of this package only.
 :func:`add_data_options` adds ``--freq-unit hz|rad/s``, ``--columns LIST`` and ``--band LO:HI``
 to a parser;
 :func:`load_data` loads a file with them (:func:`freqid_casadi.io.loaders.load`) and prints the
@@ -9,13 +14,19 @@ instead of Python warning text.
 
 import argparse
 import contextlib
+import math
 import os
+import re
 import sys
 import warnings
+from functools import partial
 
 import numpy as np
 
+from ..core.model import BASES, MAX_ORIGIN_ORDER, ZEROS
+from ..fitting.fit import GAIN_SIGNS, METHODS, OBJECTIVES, STARTS
 from ..io import NUMBER, decode_text, parse_columns, read_regular_file
+from ..report.formatting import number
 from ..core.data import FrequencyData
 from ..io.loaders import DataWarning, is_touchstone, load
 from ..errors import DataError, OptionError
@@ -249,3 +260,155 @@ def os_exit(exc):
     what = exc.strerror or str(exc)
     error_line(f"{what}: {exc.filename!r}" if exc.filename else what)
     return 2
+
+
+# ----------------------------------------------------------------------------- arg types
+
+
+_ASCII_INT = re.compile(r"[+-]?[0-9]+")
+_ASCII_FLOAT = re.compile(r"[+-]?(([0-9]+\.?[0-9]*|\.[0-9]+)([eE][+-]?[0-9]+)?|nan|inf(inity)?)",
+                          re.IGNORECASE)
+
+
+def _ascii(pattern, convert):
+    """``convert`` that first requires ``pattern`` (no "1_0", no non-ASCII digits)."""
+    def checked(text):
+        if not pattern.fullmatch(text.strip()):
+            raise ValueError(text)
+        return convert(text)
+    return checked
+
+
+def _checked(text, convert, valid, bad_type, bad_value):
+    """``convert(text)`` if ``valid`` of it, else an ArgumentTypeError: ``bad_type`` (text)
+    when it does not convert, ``bad_value(value)`` when it is out of range."""
+    try:
+        value = convert(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"{bad_type}, got {text!r}") from None
+    if not valid(value):
+        raise argparse.ArgumentTypeError(bad_value(value))
+    return value
+
+
+def _positive_int(text):
+    return _checked(text, _ascii(_ASCII_INT, int), lambda v: v >= 1, "must be a positive integer",
+                    lambda v: f"must be a positive integer (>= 1), got {v}")
+
+
+def _positive_float(text):
+    return _checked(text, _ascii(_ASCII_FLOAT, float), lambda v: math.isfinite(v) and v > 0,
+                    "must be a number > 0",
+                    lambda v: f"must be a finite number > 0, got {text!r}")
+
+
+# ----------------------------------------------------------------------------- option groups
+
+
+#: --flag -> (choices, default, help) of the fit's options that take one of a set of words
+_CHOICE_OPTIONS = {
+    "--method": (METHODS, "ipopt", "stage solver: IPOPT with bounds or the thesis's "
+                                   "log-barrier Levenberg-Marquardt"),
+    "--start": (STARTS, "sequential", "sequential: the thesis's main loop; rational: vector "
+                                      "fitting of all sections then one IPOPT polish; best: "
+                                      "both, a converged model within 10 %% of the lowest max "
+                                      "error wins"),
+    "--objective": (OBJECTIVES, "least-squares", "minimax adds a polish of the max relative "
+                                                 "error (kept only if it lowers it)"),
+    "--gain-sign": (GAIN_SIGNS, "auto", "sign of the gain (auto: from the "
+                                        "low-frequency phase; a sign-inverted system is "
+                                        "fitted with a negative gain and said so)"),
+    "--zeros": (ZEROS, "minimum-phase", "minimum-phase or free: zeros anywhere, "
+                                        "poles stable (for excess phase a delay cannot "
+                                        "explain)"),
+}
+
+
+def _add_choices(p, *flags, defaults=None):
+    """Add the options ``flags`` of :data:`_CHOICE_OPTIONS` to ``p``, in that order;
+    ``defaults`` (flag -> value) overrides their defaults."""
+    for flag in flags:
+        choices, default, text = _CHOICE_OPTIONS[flag]
+        default = (defaults or {}).get(flag, default)
+        p.add_argument(flag, choices=choices, default=default,
+                       help=f"{text} (default {default})")
+
+
+def _common(p, *, out_required, start="sequential"):
+    _add_choices(p, "--method", "--start", "--objective", defaults={"--start": start})
+    if out_required:
+        p.add_argument("--out", required=True, metavar="DIR",
+                       help="report folder to create (must not exist unless --force)")
+    else:
+        p.add_argument("--out", metavar="DIR",
+                       help="report folder to create (default: ./freqid_example_<X>)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing report folder (after the new one is complete)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--progress", dest="progress", action="store_true", default=None,
+                   help="print one line per stage to stderr (default when stderr is a "
+                        "terminal)")
+    g.add_argument("--quiet", dest="progress", action="store_false",
+                   help="no progress output")
+
+
+def _integrator_arg(text):
+    """``--integrator K|auto``: "auto" or an integer k with ``|k| <= MAX_ORIGIN_ORDER``."""
+    if text.strip().lower() == "auto":
+        return "auto"
+    try:
+        k = int(text.strip(), 10)
+    except ValueError:
+        k = None
+    if k is None or abs(k) > MAX_ORIGIN_ORDER:
+        raise argparse.ArgumentTypeError(
+            f"must be auto or an integer k with |k| <= {MAX_ORIGIN_ORDER} (k poles at the "
+            f"origin, -k zeros), got {text!r}; e.g. --integrator 2, --integrator -2")
+    return bool(k) if k in (0, 1) else k
+
+
+def _add_model_arguments(p, tol=True, integrator="auto"):
+    """--integrator [K|auto], --no-delay, --basis (and --tol): the model structure of a
+    fit (used by the fit, sweep and batch commands; ``integrator`` is the default when
+    the flag is absent: "auto" for fit and sweep, False for batch)."""
+    p.add_argument("--integrator", nargs="?", const=True, default=integrator,
+                   type=_integrator_arg, metavar="K|auto",
+                   help="poles at the origin: --integrator alone is the factor K0/s (k = 1); "
+                        "--integrator K for k poles (negative: -k zeros, e.g. -2 for an "
+                        "accelerance), |k| <= 3; --integrator auto chooses k from the data "
+                        f"(default {'auto' if integrator == 'auto' else 'none'})")
+    p.add_argument("--no-delay", dest="delay", action="store_false",
+                   help="fix the delay h at 0")
+    p.add_argument("--basis", choices=BASES, default="second-order",
+                   help="section type (default second-order)")
+    if tol:
+        p.add_argument("--tol", type=_positive_float, metavar="X",
+                       help="stop adding sections once the max relative error is below X")
+
+
+def _add_input(p, name, metavar, text, records=False):
+    """The positional data input ``name`` and the data-file options (``--freq-unit``,
+    ``--columns``; with ``records`` ``--record``, ``--parameter``) of a command that reads
+    data (fit, sweep, batch)."""
+    p.add_argument(name, metavar=metavar, help=text)
+    add_data_options(p, records)
+
+
+# ----------------------------------------------------------------------------- output
+
+
+def _progress(args):
+    return True if args.progress is None else ("lines" if args.progress else False)
+
+
+# a number in the console tables: "-" when missing
+_g = partial(number, missing="-")
+
+
+def _resolution_warning(result):
+    check = getattr(result, "resolution", None)
+    if check is not None and not check.ok:
+        print(f"warning: {len(check.flags)} near-cancelling pole/zero pair(s) and "
+              f"{len(check.unresolved)} unresolved pole(s)/zero(s) are narrower than the "
+              "frequency spacing (not determined by the data); refit with --min-damping auto, "
+              "fit fewer sections, or prune them with freqid_casadi.fitting.validation.prune_sections")

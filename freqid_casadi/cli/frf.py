@@ -25,9 +25,9 @@ the periods (:func:`freqid_casadi.experiment.frf_from_periodic`, SPEC §7) or by
   ``bin`` is the DFT bin of the period or of the Welch segment).
 
 Both files are written atomically (temporary file, then ``os.replace``). This module only
-defines the parser (:func:`add_cli`) and the command (:func:`run_cli`); ``cli.py`` registers
-them. Errors are raised as :class:`~freqid_casadi.errors.FreqidError` for the caller to
-print as ``error: ...``.
+defines the parser (:func:`add_cli`) and the command (:func:`run_cli`);
+:data:`freqid_casadi.cli.app.COMMANDS` registers them. Errors are raised as
+:class:`~freqid_casadi.errors.FreqidError` for the caller to print as ``error: ...``.
 """
 
 import math
@@ -38,10 +38,10 @@ import numpy as np
 from ..report.outputs import check_out_file
 
 from .._textio import atomic_write_text
-from .app import _ASCII_FLOAT, _ASCII_INT, _ascii, _checked   # the CLI's own type helpers
 from ..errors import OptionError
 from ..experiment import (ESTIMATORS, frf_from_periodic, frf_from_records, load_daq_records,
                          load_records_csv, load_records_mat)
+from .common import _ASCII_FLOAT, _ASCII_INT, _ascii, _checked   # the CLI's own type helpers
 from .common import parse_band_text
 from ..io.loaders import read_regular_file, save_csv
 

@@ -1,18 +1,19 @@
-"""Rational start of the shared-pole fit: vector fitting with one common pole set (layer L4).
+"""Rational start of the shared-pole fit: vector fitting with one common pole set (layer L6).
 
-Relaxed vector fitting (Gustavsen & Semlyen 1999; Gustavsen 2006) over all channels at once:
-every channel ``c`` has its own residues, all share the weight function
-``sigma(s) = dt + sum_k ct_k phi_k(s)`` whose zeros are the next poles. Each channel's own
-unknowns are eliminated by a QR factorisation of its block (Deschrijver et al.'s "fast VF"),
-so one iteration costs C small QRs plus one least-squares problem in the ``n + 1`` shared
-unknowns. Rows are weighted by ``1/|Phi_c|`` (the relative error, the fit's measure);
-relocated poles with ``Re > 0`` are flipped to the left half plane. The channels' zeros
-are the finite generalised eigenvalues of their pole-residue realisation; the caller turns
-poles and zeros into the dc-gauge section variables (:func:`factor_variables`).
+The vector fitting itself is the package's one implementation,
+:func:`freqid_casadi.baselines.vectfit` (C channels, common poles, each channel's own
+unknowns eliminated by a QR factorisation of its block, relocated poles flipped to the left
+half plane, rows weighted by ``1/|Phi_c|``, the fit's relative error). This module adds
+what the modal start needs around it: starting poles at the resonances the channels share
+(:func:`peak_poles`), residues at given poles (:func:`lsfd_residues`), each channel's
+zeros from its pole-residue form (:func:`channel_zeros`) and the dc-gauge section
+variables of poles and zeros (:func:`factor_variables`).
 """
 
 import numpy as np
 import scipy.linalg
+
+from ..baselines import fit_residues, vectfit
 
 __all__ = ["shared_vector_fitting", "channel_zeros", "factor_variables", "peak_poles",
            "lsfd_residues"]
@@ -87,42 +88,6 @@ def peak_poles(omega, phi, n, weights=None):
     return np.array(poles, complex)
 
 
-def _basis(s, poles):
-    """Real-formulation partial-fraction basis (M, n): ``1/(s-a)`` per real pole,
-    ``1/(s-a) + 1/(s-a*)`` and ``j/(s-a) - j/(s-a*)`` per pair (upper member listed)."""
-    cols = []
-    for a in poles:
-        if abs(a.imag) <= 1e-12 * abs(a):
-            cols.append(1.0 / (s - a.real))
-        elif a.imag > 0:
-            u, v = 1.0 / (s - a), 1.0 / (s - np.conj(a))
-            cols += [u + v, 1j * (u - v)]
-    return np.stack(cols, axis=1)
-
-
-def _realisation(poles):
-    """A, b with ``(sI - A)^-1 b`` equal to :func:`_basis`."""
-    n = len(poles)
-    A, b, k = np.zeros((n, n)), np.zeros(n), 0
-    for a in poles:
-        if abs(a.imag) <= 1e-12 * abs(a):
-            A[k, k], b[k] = a.real, 1.0
-            k += 1
-        elif a.imag > 0:
-            A[k:k + 2, k:k + 2] = [[a.real, a.imag], [-a.imag, a.real]]
-            b[k] = 2.0
-            k += 2
-    return A, b
-
-
-def _clean(lam):
-    """Upper members of conjugate pairs and real values (a real matrix's eigenvalues)."""
-    lam = np.where(lam.real > 0, -np.conj(lam), lam)
-    real = np.abs(lam.imag) <= 1e-12 * np.abs(lam)
-    upper = lam[~real & (lam.imag > 0)]
-    return np.concatenate([lam[real].real + 0j, upper, np.conj(upper)])
-
-
 def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=None,
                           initial=None, constant=False):
     """Common poles and per-channel residues of ``Phi_c(s) ~ d_c + sum_k r_k / (s - p_k)``.
@@ -152,44 +117,17 @@ def shared_vector_fitting(omega, phi, n_poles, weights=None, n_iter=10, fixed=No
     Returns
     -------
     poles : ndarray of complex, shape (n_poles + F,)
-        The relocated poles (closed left half plane, conjugate pairs complete), then the
-        fixed ones.
+        The relocated poles (closed left half plane; the real ones, the upper members of
+        the pairs, their conjugates), then the fixed ones in the same layout
+        (:class:`~freqid_casadi.baselines.VectorFit`).
     residues : ndarray of complex, shape (C, n_poles + F)
     constants : ndarray of float, shape (C,)
         Only with ``constant=True``: each channel's ``d_c``.
     """
-    s = 1j * omega
-    m = omega.size
-    wt = 1.0 / np.abs(phi)
-    if weights is not None:
-        wt = wt * np.sqrt(weights)
-    fixed = np.zeros(0, complex) if fixed is None else np.asarray(fixed, complex)
-    poles = _initial_poles(omega, n_poles) if initial is None else \
-        np.asarray(initial, complex)
-    n, nf, nc = n_poles, fixed.size, int(bool(constant))
-    nk = n + nf + nc                                     # each channel's own unknowns
-    for _ in range(n_iter):
-        ones = np.hstack([_basis(s, poles), np.ones((m, 1))])
-        basis = _fit_basis(s, fixed, ones[:, :n], nc)
-        rows = []
-        for c in range(phi.shape[0]):
-            block = np.hstack([wt[c, :, None] * basis, -(wt[c] * phi[c])[:, None] * ones])
-            r = np.linalg.qr(np.vstack([block.real, block.imag]), mode="r")
-            rows.append(r[nk:nk + n + 1, nk:])
-        norm = np.sqrt(np.sum((wt * np.abs(phi)) ** 2))
-        relax = norm / m * np.real(np.sum(ones, axis=0))
-        mat = np.vstack(rows + [relax[None, :]])
-        rhs = np.zeros(mat.shape[0])
-        rhs[-1] = norm
-        scale = np.linalg.norm(mat, axis=0)
-        scale[scale == 0] = 1.0
-        x = scipy.linalg.lstsq(mat / scale, rhs)[0] / scale
-        ct, dt = x[:n], x[n]
-        if abs(dt) < 1e-8:
-            dt = 1e-8 if dt >= 0 else -1e-8
-        A, b = _realisation(poles)
-        poles = _clean(np.linalg.eigvals(A - np.outer(b, ct) / dt))
-    poles = np.concatenate([poles, fixed])
+    poles = vectfit(omega, phi, n_poles, weights=weights, n_iter=n_iter,
+                    initial=_initial_poles(omega, n_poles) if initial is None else initial,
+                    fixed=fixed, constant=constant, stable=True).poles
+    # the residues from the modal start's own LSFD step, as before vectfit was shared
     residues, consts = lsfd_residues(omega, phi, poles, weights, constant)
     return (poles, residues, consts) if constant else (poles, residues)
 
@@ -216,50 +154,7 @@ def lsfd_residues(omega, phi, poles, weights=None, constant=True):
         Conjugate poles get conjugate residues.
     constants : ndarray of float, shape (C,)
     """
-    s = 1j * omega
-    wt = 1.0 / np.abs(phi)
-    if weights is not None:
-        wt = wt * np.sqrt(weights)
-    poles = np.asarray(poles, complex)
-    basis = _fit_basis(s, np.zeros(0, complex), _basis(s, poles), int(bool(constant)))
-    residues = np.zeros((phi.shape[0], poles.size), complex)
-    consts = np.zeros(phi.shape[0])
-    order = _column_poles(poles)
-    for c in range(phi.shape[0]):
-        a = wt[c, :, None] * basis
-        coef = scipy.linalg.lstsq(np.vstack([a.real, a.imag]),
-                                  np.concatenate([(wt[c] * phi[c]).real,
-                                                  (wt[c] * phi[c]).imag]))[0]
-        residues[c] = _complex_residues(coef, poles, order)
-        consts[c] = coef[-1] if constant else 0.0
-    return residues, consts
-
-
-def _fit_basis(s, fixed, own, nc):
-    """Columns of the fitted function: the fixed poles', the relocated ones' (``own``) and
-    with ``nc`` a constant."""
-    cols = ([_basis(s, fixed)] if fixed.size else []) + [own]
-    if nc:
-        cols.append(np.ones((s.size, 1), complex))
-    return np.hstack(cols)
-
-
-def _column_poles(poles):
-    return [a for a in poles if abs(a.imag) <= 1e-12 * abs(a) or a.imag > 0]
-
-
-def _complex_residues(coef, poles, listed):
-    """Residue of every pole (pairs conjugate) from the real-basis coefficients."""
-    res, k = {}, 0
-    for a in listed:
-        if abs(a.imag) <= 1e-12 * abs(a):
-            res[complex(a)] = coef[k] + 0j
-            k += 1
-        else:
-            r = coef[k] + 1j * coef[k + 1]
-            res[complex(a)], res[complex(np.conj(a))] = r, np.conj(r)
-            k += 2
-    return np.array([res[complex(a)] for a in poles])
+    return fit_residues(omega, phi, poles, weights=weights, constant=constant, scaled=False)
 
 
 def channel_zeros(poles, residues, constant=0.0):

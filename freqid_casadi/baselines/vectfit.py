@@ -1,0 +1,384 @@
+"""Relaxed vector fitting of C >= 1 channels with one common pole set (layer L3).
+
+The package's one vector fitting. Every channel ``c`` gets its own residues and constant,
+all channels share the poles: the weight function ``sigma(s) = dt + sum_k ct_k phi_k(s)``
+is common, and its zeros are the next poles (Gustavsen & Semlyen 1999; the relaxation of
+Gustavsen 2006). One channel is the single fit (:func:`~freqid_casadi.baselines.vector_fitting`,
+the rational start of :func:`freqid_casadi.fit`); many channels are the rational start of
+:func:`freqid_casadi.fit_shared` (:mod:`freqid_casadi.modal`).
+
+How each iteration's linear problem is solved depends only on the number of channels: with
+one channel the stacked problem in all unknowns is solved as it stands (eliminating the
+channel's own unknowns would cost the same QR and round differently from the single fits
+this package has always reported); with C > 1 each channel's own unknowns are eliminated by
+a QR factorisation of its block (Deschrijver, Mrozowski, Dhaene & De Zutter, IEEE MWCL 18
+(2008) 383, "fast VF"), so one iteration costs C small QRs plus one least-squares problem in
+the ``n + 1`` shared unknowns instead of one in ``C (n + 1) + n + 1``.
+"""
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from ..errors import DataError, OptionError
+from ._ssmodel import check_order
+
+__all__ = ["VectorFit", "vectfit", "fit_residues", "initial_poles"]
+
+# |Im p| <= _REAL_RTOL |p|: a real pole (the eigenvalues of a real matrix).
+_REAL_RTOL = 1e-12
+# |dt| below this is fixed to it (with its sign) and sigma re-fitted without the relaxation.
+_DT_MIN = 1e-8
+
+
+@dataclass(frozen=True)
+class VectorFit:
+    """Result of :func:`vectfit`: ``G_c(s) ~ d_c + sum_k r_ck / (s - p_k)``.
+
+    Attributes
+    ----------
+    poles : ndarray of complex, shape (n + F,)
+        rad/s. The ``n`` relocated poles (real ones, increasing, then the upper members of
+        the pairs, then their conjugates), then the F fixed ones in the same layout.
+    residues : ndarray of complex, shape (C, n + F)
+        Each channel's residue of each pole (conjugate poles have conjugate residues).
+    constants : ndarray of float, shape (C,)
+        Each channel's ``d_c`` (0 unless fitted).
+    n_relocated : int
+        n, the number of relocated poles (the first ones of ``poles``).
+    """
+
+    poles: np.ndarray
+    residues: np.ndarray
+    constants: np.ndarray
+    n_relocated: int
+
+    def response(self, omega):
+        """The fitted channels at ``s = j omega``.
+
+        Parameters
+        ----------
+        omega : array_like of float, shape (K,)
+            rad/s.
+
+        Returns
+        -------
+        ndarray of complex, shape (C, K)
+        """
+        s = 1j * np.asarray(omega, float)
+        terms = self.residues[:, :, None] / (s[None, None, :] - self.poles[None, :, None])
+        return self.constants[:, None] + np.sum(terms, axis=1)
+
+
+def initial_poles(omega, n_poles):
+    """Gustavsen & Semlyen's start: ``n // 2`` pairs ``-b/100 +- j b`` with b log-spaced over
+    the band (ends included), plus one real pole ``-geomean(omega)`` if n is odd.
+
+    Parameters
+    ----------
+    omega : ndarray of float, shape (M,)
+        rad/s, increasing, > 0.
+    n_poles : int
+        n.
+
+    Returns
+    -------
+    ndarray of complex, shape (n,)
+        The real pole first, then the upper members, then their conjugates.
+    """
+    rp, cp = _initial_split(np.asarray(omega, float), int(n_poles))
+    return _join(rp, cp)
+
+
+def _initial_split(omega, n):
+    n_pairs = n // 2
+    b = np.geomspace(omega[0], omega[-1], n_pairs) if n_pairs else np.zeros(0)
+    cp = -b / 100 + 1j * b
+    rp = np.array([-np.exp(np.mean(np.log(omega)))]) if n % 2 else np.zeros(0)
+    return rp, cp
+
+
+def _join(rp, cp):
+    return np.concatenate([np.asarray(rp, float) + 0j, cp, np.conj(cp)])
+
+
+def _split(poles, name):
+    """(real poles, upper members of the pairs) of a conjugate-complete set, in its order."""
+    poles = np.asarray(poles, complex).ravel()
+    if not np.all(np.isfinite(poles)):
+        raise OptionError(f"{name} must be finite, got {poles}")
+    real = np.abs(poles.imag) <= _REAL_RTOL * np.abs(poles)
+    upper, lower = poles[~real & (poles.imag > 0)], poles[~real & (poles.imag < 0)]
+    if upper.size != lower.size or not np.allclose(np.sort_complex(np.conj(upper)),
+                                                    np.sort_complex(lower)):
+        raise OptionError(f"{name} must hold complete conjugate pairs, got {poles}; pass "
+                          "both p and conj(p) of every complex pole")
+    return poles[real].real, upper
+
+
+def _basis(s, rp, cp):
+    """Real-formulation partial-fraction basis, shape (M, n): ``1/(s-a)`` per real pole,
+    ``1/(s-a) + 1/(s-a*)`` and ``j/(s-a) - j/(s-a*)`` per pair."""
+    cols = [1.0 / (s - a) for a in rp]
+    for a in cp:
+        u, v = 1.0 / (s - a), 1.0 / (s - np.conj(a))
+        cols += [u + v, 1j * u - 1j * v]
+    return np.stack(cols, axis=1) if cols else np.zeros((s.size, 0), complex)
+
+
+def _state_matrices(rp, cp):
+    """A and b of Gustavsen's real realisation of the basis (b = 1 or [2, 0])."""
+    n = rp.size + 2 * cp.size
+    A = np.zeros((n, n))
+    b = np.zeros(n)
+    k = 0
+    for a in rp:
+        A[k, k], b[k] = a, 1.0
+        k += 1
+    for a in cp:
+        A[k:k + 2, k:k + 2] = [[a.real, a.imag], [-a.imag, a.real]]
+        b[k] = 2.0
+        k += 2
+    return A, b
+
+
+def _split_eigs(lam):
+    """Real eigenvalues and the upper members of conjugate pairs of a real matrix."""
+    lam = np.asarray(lam, complex)
+    tol = _REAL_RTOL * np.maximum(np.abs(lam), np.finfo(float).tiny)
+    is_real = np.abs(lam.imag) <= tol
+    return np.sort(lam[is_real].real), np.sort_complex(lam[~is_real & (lam.imag > 0)])
+
+
+def _lstsq_scaled(Mat, rhs):
+    """Least squares with unit-norm columns (scipy's gelsd), solution scaled back."""
+    scale = np.linalg.norm(Mat, axis=0)
+    scale[scale == 0] = 1.0
+    x = scipy.linalg.lstsq(Mat / scale, rhs)[0]
+    return x / scale
+
+
+def _check(omega, response, weights, weighting):
+    """(omega (M,), response (C, M), row weights (C, M)) or a DataError/OptionError."""
+    omega = np.asarray(omega, float)
+    if omega.ndim != 1 or omega.size < 2 or not np.all(np.isfinite(omega)) \
+            or np.any(omega <= 0) or np.any(np.diff(omega) <= 0):
+        raise DataError("omega must be a 1-D array of at least 2 finite, positive, strictly "
+                        f"increasing frequencies (rad/s), got shape {omega.shape}")
+    phi = np.asarray(response, complex)
+    phi = phi[None, :] if phi.ndim == 1 else phi
+    if phi.ndim != 2 or phi.shape[1] != omega.size or phi.shape[0] < 1:
+        raise DataError(f"response must have shape (M,) or (C, M) with M = {omega.size} "
+                        f"(the frequencies), got {np.shape(response)}")
+    if weighting not in ("relative", "none"):
+        raise OptionError(f"weighting must be 'relative' or 'none', got {weighting!r}")
+    if not np.all(np.isfinite(phi)) or (weighting == "relative" and np.any(phi == 0)):
+        raise DataError("response must be finite (and nonzero with weighting='relative', "
+                        "whose row weights are 1/|response|): drop or fix those points")
+    wt = 1.0 / np.abs(phi) if weighting == "relative" else np.ones(phi.shape)
+    if weights is not None:
+        w = np.asarray(weights, float)
+        if w.shape not in (omega.shape, phi.shape) or not np.all(np.isfinite(w)) \
+                or np.any(w < 0):
+            raise DataError(f"weights must be finite, >= 0, shape {omega.shape} or "
+                            f"{phi.shape}, got shape {w.shape}")
+        wt = wt * np.sqrt(w)
+    return omega, phi, wt
+
+
+def vectfit(omega, response, n_poles, *, weights=None, weighting="relative", n_iter=10,
+            initial=None, fixed=None, constant=True, stable=False):
+    """Relaxed vector fitting of one or more channels with common poles.
+
+    Parameters
+    ----------
+    omega : array_like of float, shape (M,)
+        rad/s, positive, strictly increasing.
+    response : array_like of complex, shape (M,) or (C, M)
+        The channels' samples ``G_c(j omega)``; one channel may be given as a 1-D array.
+    n_poles : int
+        n >= 1, the poles relocated by the iterations.
+    weights : array_like of float, shape (M,) or (C, M), optional
+        Squared-residual weights; their square roots multiply the row weights.
+    weighting : {"relative", "none"}, optional
+        Row weights ``1/|G_c|`` (the relative error, the package's measure; default) or 1.
+    n_iter : int, optional
+        Pole-relocation iterations, >= 0 (default 10; 0 fits residues at ``initial``).
+    initial : array_like of complex, shape (n,), optional
+        Starting poles, conjugate pairs complete; default :func:`initial_poles`.
+    fixed : array_like of complex, shape (F,), optional
+        Poles kept as they are (conjugate pairs complete): in the basis of the fitted
+        functions but not in sigma's, so the iterations relocate only the other n (a
+        channel's own poles beside shared ones).
+    constant : bool, optional
+        Fit a constant ``d_c`` per channel (default True); else the fit is strictly proper.
+    stable : bool, optional
+        Flip relocated poles with ``Re > 0`` to the left half plane after each iteration
+        (Gustavsen & Semlyen's option). Default False.
+
+    Returns
+    -------
+    VectorFit
+        Poles, each channel's residues and constant.
+
+    Raises
+    ------
+    DataError
+        Bad frequencies, responses or weights, or fewer rows than unknowns.
+    OptionError
+        Bad ``n_poles``, ``n_iter``, ``weighting`` or pole sets.
+
+    Notes
+    -----
+    Each iteration solves, real and imaginary parts stacked, real unknowns, the linear
+    least-squares problem (per channel c, with the current poles' real basis ``phi_k``)
+
+        w_c (sum_k c_ck phi_k + d_c) - w_c G_c (sum_k ct_k phi_k + dt) = 0,
+        (||w G|| / M) Re sum_i (sum_k ct_k phi_k(s_i) + dt) = ||w G||     (relaxation)
+
+    and the new poles are the zeros of ``sigma``, ``eig(A - b ct^T / dt)`` with ``(A, b)``
+    Gustavsen's real realisation of the basis. If ``|dt|`` falls below 1e-8 it is fixed to
+    ``1e-8 sign(dt)`` and sigma re-fitted without the relaxation row, as Gustavsen does.
+    The residues are finally fitted per channel at the last poles (:func:`fit_residues`).
+    """
+    n = check_order(n_poles, "n_poles")
+    k_iter = check_order(n_iter, "n_iter", 0)
+    omega, phi, wt = _check(omega, response, weights, weighting)
+    if initial is None:
+        rp, cp = _initial_split(omega, n)
+    else:
+        rp, cp = _split(initial, "initial")
+        if rp.size + 2 * cp.size != n:
+            raise OptionError(f"initial must hold n_poles = {n} poles, got "
+                              f"{rp.size + 2 * cp.size}")
+    fixed = ((np.zeros(0), np.zeros(0, complex)) if fixed is None
+             else _split(fixed, "fixed"))
+    nd = 1 if constant else 0
+    n_own = n + fixed[0].size + 2 * fixed[1].size + nd
+    if 2 * omega.size < n_own + n + 1:
+        raise DataError(f"too few points ({omega.size}) for {n} poles: vector fitting needs "
+                        f"2 M >= {n_own + n + 1} (real and imaginary parts); fit fewer poles")
+    s = 1j * omega
+    for _ in range(k_iter):
+        rp, cp = _relocate(s, phi, wt, rp, cp, fixed, nd, stable)
+    return _residues(s, phi, wt, [(rp, cp), fixed], nd, n)
+
+
+def _relocate(s, phi, wt, rp, cp, fixed, nd, stable):
+    """One iteration: the zeros of the fitted sigma -> (real poles, upper members)."""
+    m = s.size
+    Phi = _basis(s, rp, cp)                                      # (M, n)
+    n = Phi.shape[1]
+    ones = np.ones((m, 1))
+    sig = np.hstack([Phi, ones])                                 # ct, dt
+    left = [Phi] + ([_basis(s, *fixed)] if fixed[0].size + fixed[1].size else [])
+    left = np.hstack(left + [ones]) if nd else np.hstack(left)   # c (fixed, own), d
+    nl = left.shape[1]
+    if phi.shape[0] == 1:                       # the stacked problem as it stands
+        Mc = wt[0][:, None] * np.hstack([left, -phi[0][:, None] * sig])
+        K, lead = np.vstack([Mc.real, Mc.imag]), nl
+    else:                                       # each channel's own unknowns eliminated
+        rows = []
+        for c in range(phi.shape[0]):
+            Mc = wt[c][:, None] * np.hstack([left, -phi[c][:, None] * sig])
+            r = np.linalg.qr(np.vstack([Mc.real, Mc.imag]), mode="r")
+            rows.append(r[nl:nl + n + 1, nl:])
+        K, lead = np.vstack(rows), 0
+    norm = np.linalg.norm(wt * phi)
+    relax = np.concatenate([np.zeros(lead), np.real(np.sum(sig, axis=0))])
+    relax *= norm / m
+    x = _lstsq_scaled(np.vstack([K, relax]), np.concatenate([np.zeros(K.shape[0]), [norm]]))
+    ct, dt = x[lead:lead + n], x[-1]
+    if abs(dt) < _DT_MIN:
+        dt = _DT_MIN if dt >= 0 else -_DT_MIN
+        # the non-relaxed problem with dt fixed: its column moves to the right-hand side
+        ct = _lstsq_scaled(K[:, :-1], -dt * K[:, -1])[lead:]
+    A, b = _state_matrices(rp, cp)
+    lam = np.linalg.eigvals(A - np.outer(b, ct) / dt)
+    if stable:
+        lam = np.where(lam.real > 0, -np.conj(lam), lam)
+    return _split_eigs(lam)
+
+
+def _coefficients(s, phi, wt, sets, nd, scaled=True):
+    """Real basis coefficients (C, n_cols) of each channel at fixed poles: weighted linear
+    least squares, real and imaginary parts stacked (columns of unit norm if ``scaled``)."""
+    cols = [_basis(s, rp, cp) for rp, cp in sets if rp.size + cp.size]
+    cols = cols or [np.zeros((s.size, 0), complex)]
+    left = np.hstack(cols + [np.ones((s.size, 1))]) if nd else np.hstack(cols)
+    out = []
+    for c in range(phi.shape[0]):
+        Mc = wt[c][:, None] * left
+        f = wt[c] * phi[c]
+        solve = _lstsq_scaled if scaled else (lambda a, b: scipy.linalg.lstsq(a, b)[0])
+        out.append(solve(np.vstack([Mc.real, Mc.imag]), np.concatenate([f.real, f.imag])))
+    return np.array(out).reshape(phi.shape[0], left.shape[1])
+
+
+def _residues(s, phi, wt, sets, nd, n_relocated, scaled=True):
+    """:class:`VectorFit` of the pole sets ``[(real, upper), ...]`` (in that order)."""
+    coef = _coefficients(s, phi, wt, sets, nd, scaled)
+    poles, residues, k = [], [], 0
+    for rp, cp in sets:
+        real = coef[:, k:k + rp.size]
+        pair = coef[:, k + rp.size:k + rp.size + 2 * cp.size].reshape(phi.shape[0], -1, 2)
+        upper = pair[:, :, 0] + 1j * pair[:, :, 1]
+        k += rp.size + 2 * cp.size
+        poles.append(_join(rp, cp))
+        residues.append(np.concatenate([real + 0j, upper, np.conj(upper)], axis=1))
+    consts = np.array([float(v) for v in coef[:, k]]) if nd else np.zeros(phi.shape[0])
+    return VectorFit(np.concatenate(poles), np.concatenate(residues, axis=1), consts,
+                     int(n_relocated))
+
+
+def fit_residues(omega, response, poles, *, weights=None, weighting="relative",
+                 constant=True, scaled=True):
+    """Each channel's residues at given poles (the "least-squares frequency-domain" step).
+
+    Linear least squares of ``G_c(s) ~ d_c + sum_k r_ck / (s - p_k)``, real and imaginary
+    parts stacked, with the row weights of :func:`vectfit`.
+
+    Parameters
+    ----------
+    omega : array_like of float, shape (M,)
+        rad/s, positive, strictly increasing.
+    response : array_like of complex, shape (M,) or (C, M)
+    poles : array_like of complex, shape (n,)
+        rad/s, conjugate pairs complete.
+    weights : array_like of float, shape (M,) or (C, M), optional
+        Squared-residual weights.
+    weighting : {"relative", "none"}, optional
+        Row weights ``1/|G_c|`` (default) or 1.
+    constant : bool, optional
+        Fit ``d_c`` (default True); else 0.
+    scaled : bool, optional
+        Solve with the columns scaled to unit norm (default True, as :func:`vectfit`);
+        False: the plain least-squares solution (scipy's gelsd), the modal start's LSFD
+        step (:func:`freqid_casadi.modal._start.lsfd_residues`). The two differ at rounding
+        level, except where the problem is rank-deficient to working precision (a strictly
+        proper channel's constant), where gelsd's cut-off keeps different noise.
+
+    Returns
+    -------
+    residues : ndarray of complex, shape (C, n)
+        In the order of ``poles``; conjugate poles get conjugate residues.
+    constants : ndarray of float, shape (C,)
+    """
+    omega, phi, wt = _check(omega, response, weights, weighting)
+    given = np.asarray(poles, complex).ravel()
+    rp, cp = _split(given, "poles")
+    if 2 * omega.size < given.size + int(bool(constant)):
+        raise DataError(f"too few points ({omega.size}) for {given.size} residues")
+    fit = _residues(1j * omega, phi, wt, [(rp, cp)], 1 if constant else 0, given.size,
+                    bool(scaled))
+    # the fit lists the real poles, the upper members, their conjugates: back to the
+    # caller's order (a lower member takes the conjugate of its nearest upper one)
+    real = np.abs(given.imag) <= _REAL_RTOL * np.abs(given)
+    upper, lower = ~real & (given.imag > 0), ~real & (given.imag < 0)
+    order = np.zeros(given.size, int)
+    order[real] = np.arange(rp.size)
+    order[upper] = rp.size + np.arange(cp.size)
+    order[lower] = [rp.size + cp.size + int(np.argmin(np.abs(np.conj(cp) - p)))
+                    for p in given[lower]]
+    return fit.residues[:, order], fit.constants

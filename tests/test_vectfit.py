@@ -1,0 +1,127 @@
+"""The one vector fitting (baselines.vectfit): 1 and 3 channels of a known rational system,
+fixed poles, residues at given poles, the old names that call it, and bad input."""
+
+import numpy as np
+import pytest
+
+from freqid_casadi import FrequencyData
+from freqid_casadi.baselines._ssmodel import pole_residue_ss
+from freqid_casadi.baselines import (VectorFit, fit_residues, initial_poles, vectfit,
+                                     vector_fitting)
+from freqid_casadi.errors import DataError, OptionError
+from freqid_casadi.modal._start import lsfd_residues, shared_vector_fitting
+
+OMEGA = np.geomspace(1.0, 100.0, 300)
+S = 1j * OMEGA
+#: the known system's common poles (rad/s): two lightly damped pairs and a real pole
+POLES = np.array([-5.0, -0.3 + 10j, -1.0 + 40j, -0.3 - 10j, -1.0 - 40j])
+#: each channel's residues at POLES (conjugate poles, conjugate residues) and constant
+RESIDUES = np.array([[3.0, 1 + 0.5j, 2 + 1j, 1 - 0.5j, 2 - 1j],
+                     [4.0, 1 + 0.0j, 1 + 1j, 1 - 0.0j, 1 - 1j],
+                     [5.0, 1 - 0.5j, 0 + 1j, 1 + 0.5j, 0 - 1j]])
+CONSTANTS = np.array([0.1, 0.2, 0.3])
+
+
+def _response(poles, residues, constants):
+    return constants[:, None] + np.sum(residues[:, :, None] / (S - poles[:, None]), axis=1)
+
+
+PHI = _response(POLES, RESIDUES, CONSTANTS)             # (3, 300)
+
+
+def _sorted(p):
+    return np.sort_complex(np.asarray(p, complex))
+
+
+@pytest.mark.parametrize("channels", [1, 3])
+def test_recovers_known_system(channels):
+    """Poles, residues and constants of 1 and 3 channels. Measured (default and Prescott
+    OpenBLAS kernels): poles 2e-15 relative, residues 8e-15, response 4e-14 relative; the
+    bounds 1e-10 leave a factor > 1000."""
+    phi = PHI[:channels]
+    fit = vectfit(OMEGA, phi if channels > 1 else phi[0], 5)
+    assert isinstance(fit, VectorFit) and fit.n_relocated == 5
+    assert fit.residues.shape == (channels, 5) and fit.constants.shape == (channels,)
+    p = fit.poles
+    assert np.max(np.abs(_sorted(p) - _sorted(POLES)) / np.abs(_sorted(POLES))) < 1e-10
+    # the residue of each true pole: that of the fitted pole nearest to it
+    near = [int(np.argmin(np.abs(p - q))) for q in POLES]
+    assert np.max(np.abs(fit.residues[:, near] - RESIDUES[:channels])) < 1e-10
+    assert np.max(np.abs(fit.constants - CONSTANTS[:channels])) < 1e-10
+    assert np.max(np.abs(fit.response(OMEGA) / phi - 1)) < 1e-10
+
+
+def test_one_channel_is_vector_fitting():
+    """baselines.vector_fitting is vectfit of one channel: the same realisation, bitwise."""
+    data = FrequencyData(OMEGA, PHI[1])
+    model = vector_fitting(data, 5, n_iter=4, enforce_stable_poles=True)
+    fit = vectfit(OMEGA, PHI[1], 5, n_iter=4, stable=True)
+    p, r = fit.poles, fit.residues[0]
+    real, upper = p.imag == 0, p.imag > 0
+    same = pole_residue_ss(p[real].real, r[real].real, p[upper], r[upper], fit.constants[0],
+                           "vector-fitting")
+    for name in "ABCD":
+        assert np.array_equal(getattr(model, name), getattr(same, name)), name
+
+
+def test_many_channels_agree_with_one():
+    """Three copies of one channel (the eliminated problem) give that channel's poles
+    (the stacked problem): measured 1e-15 relative, bound 1e-10."""
+    one = vectfit(OMEGA, PHI[2], 5)
+    three = vectfit(OMEGA, np.tile(PHI[2], (3, 1)), 5)
+    assert np.max(np.abs(_sorted(one.poles) - _sorted(three.poles))
+                  / np.abs(_sorted(one.poles))) < 1e-10
+
+
+def test_fixed_poles_are_kept_and_the_others_relocated():
+    """With the pairs fixed, the iterations find the real pole; the fixed ones come last."""
+    fit = vectfit(OMEGA, PHI, 1, fixed=POLES[1:], n_iter=10)
+    assert fit.n_relocated == 1 and fit.poles.size == 5
+    assert abs(fit.poles[0] - POLES[0]) < 1e-9 * 5
+    assert np.array_equal(_sorted(fit.poles[1:]), _sorted(POLES[1:]))
+    assert np.max(np.abs(fit.response(OMEGA) / PHI - 1)) < 1e-10
+
+
+def test_fit_residues_in_the_callers_order():
+    res, const = fit_residues(OMEGA, PHI, POLES)
+    assert np.max(np.abs(res - RESIDUES)) < 1e-10
+    assert np.max(np.abs(const - CONSTANTS)) < 1e-10
+    order = [3, 0, 4, 2, 1]
+    res2, _ = fit_residues(OMEGA, PHI, POLES[order])
+    assert np.max(np.abs(res2 - RESIDUES[:, order])) < 1e-10
+
+
+def test_initial_poles_cover_the_band():
+    p = initial_poles(OMEGA, 5)
+    assert p.size == 5 and p[0] == -np.exp(np.mean(np.log(OMEGA)))
+    assert np.isclose(p[1].imag, OMEGA[0]) and np.isclose(p[2].imag, OMEGA[-1])
+    assert np.array_equal(p[3:], np.conj(p[1:3]))
+
+
+def test_old_modal_names_call_it():
+    poles, residues, consts = shared_vector_fitting(OMEGA, PHI, 5, None, 10, constant=True)
+    assert poles.shape == (5,) and residues.shape == (3, 5) and consts.shape == (3,)
+    assert np.max(np.abs(_sorted(poles) - _sorted(POLES)) / np.abs(_sorted(POLES))) < 1e-10
+    poles2, residues2 = shared_vector_fitting(OMEGA, PHI - CONSTANTS[:, None], 5)
+    assert np.max(np.abs(_sorted(poles2) - _sorted(POLES)) / np.abs(_sorted(POLES))) < 1e-10
+    res, const = lsfd_residues(OMEGA, PHI, POLES)
+    assert np.max(np.abs(res - RESIDUES)) < 1e-10 and np.allclose(const, CONSTANTS)
+
+
+@pytest.mark.parametrize("call, error, match", [
+    (lambda: vectfit(OMEGA[::-1], PHI, 4), DataError, "strictly increasing"),
+    (lambda: vectfit(OMEGA, PHI[:, :10], 4), DataError, r"shape \(M,\) or \(C, M\)"),
+    (lambda: vectfit(OMEGA, np.zeros(300), 4), DataError, "nonzero"),
+    (lambda: vectfit(OMEGA[:4], PHI[:, :4], 4), DataError, "too few points"),
+    (lambda: vectfit(OMEGA, PHI, 0), OptionError, "n_poles must be >= 1"),
+    (lambda: vectfit(OMEGA, PHI, 4, n_iter=-1), OptionError, "n_iter must be >= 0"),
+    (lambda: vectfit(OMEGA, PHI, 4, weighting="abs"), OptionError, "weighting"),
+    (lambda: vectfit(OMEGA, PHI, 2, initial=[-1 + 2j, -1 + 2j]), OptionError,
+     "complete conjugate pairs"),
+    (lambda: vectfit(OMEGA, PHI, 3, initial=[-1 + 2j, -1 - 2j]), OptionError,
+     "n_poles = 3"),
+    (lambda: vectfit(OMEGA, PHI, 2, weights=np.ones(7)), DataError, "weights"),
+])
+def test_bad_input_is_a_typed_error(call, error, match):
+    with pytest.raises(error, match=match):
+        call()
