@@ -48,9 +48,23 @@ MAX_MODEL_DEPTH = 16
 
 
 def check_origin_order(value, error=StructureError, name="integrator"):
-    """The poles at the origin ``value`` as stored by :class:`Structure`: False/True for
-    False/True/0/1 (numpy's too), an int k for another integer with
-    ``|k| <= MAX_ORIGIN_ORDER``; ``error`` naming ``name`` otherwise."""
+    """The poles at the origin ``value`` as stored by :class:`Structure`.
+
+    Parameters
+    ----------
+    value : bool or int
+        True/False, or an integer k (k poles at the origin; negative: -k zeros).
+    error : type
+        The exception raised for anything else (e.g. OptionError for fit's keyword).
+    name : str
+        The argument named in the message.
+
+    Returns
+    -------
+    bool or int
+        False/True for False/True/0/1 (numpy's too), an int k for another integer with
+        ``|k| <= MAX_ORIGIN_ORDER``.
+    """
     if isinstance(value, (bool, np.bool_)):
         return bool(value)
     if isinstance(value, numbers.Integral):
@@ -64,15 +78,41 @@ def check_origin_order(value, error=StructureError, name="integrator"):
 
 
 def jw_power(omega, k):
-    """``(j omega)^k`` for an integer ``k``: the unit ``j^k`` times the real ``omega^k``,
-    complex ndarray like ``omega`` (rad/s)."""
+    """``(j omega)^k`` for an integer ``k``: the unit ``j^k`` times the real ``omega^k``.
+
+    Parameters
+    ----------
+    omega : array_like of float
+        Frequencies (rad/s).
+    k : int
+        The power.
+
+    Returns
+    -------
+    ndarray of complex, like ``omega``
+    """
     omega = np.asarray(omega, dtype=float)
     return (1, 1j, -1, -1j)[int(k) % 4] * omega ** float(k)
 
 
 def times_jw_power(x, omega, k):
-    """``x * (j omega)^k`` (the data with ``k`` poles at the origin removed): ``x`` itself
-    for k = 0 and ``x * (1j * omega)`` for k = 1 (the integrator's arithmetic)."""
+    """``x * (j omega)^k``: the data with ``k`` poles at the origin removed.
+
+    Parameters
+    ----------
+    x : array_like of complex
+        A response at ``omega``.
+    omega : array_like of float
+        Frequencies (rad/s), broadcastable with ``x``.
+    k : int
+        Poles at the origin (negative: zeros).
+
+    Returns
+    -------
+    ndarray of complex
+        ``x`` itself for k = 0 and ``x * (1j * omega)`` for k = 1 (the integrator's
+        arithmetic, bit for bit), else ``x * jw_power(omega, k)``.
+    """
     if k == 0:
         return x
     if k == 1:

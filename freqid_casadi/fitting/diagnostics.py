@@ -95,7 +95,18 @@ class Diagnostic:
 
 
 def spell_origin(k):
-    """How ``integrator=`` spells k poles at the origin: "False", "True" or the integer."""
+    """How ``integrator=`` spells k poles at the origin.
+
+    Parameters
+    ----------
+    k : int
+        Poles at the origin (negative: zeros).
+
+    Returns
+    -------
+    str
+        "False", "True" or the integer.
+    """
     return "True" if k == 1 else "False" if k == 0 else str(int(k))
 
 

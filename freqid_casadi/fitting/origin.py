@@ -50,9 +50,19 @@ MAX_FITS = 3
 
 
 def origin_candidates(slope):
-    """The k tried by ``integrator="auto"`` for a low-frequency log-log slope ``slope``:
-    ``-round(slope)`` and its neighbours, and 0, within ``|k| <= MAX_ORIGIN_ORDER``,
-    sorted by ``|k|`` (then k); just ``(0, 1, -1)`` when the slope is not finite."""
+    """The k tried by ``integrator="auto"``.
+
+    Parameters
+    ----------
+    slope : float
+        Low-frequency log-log slope of |G| (decades per decade).
+
+    Returns
+    -------
+    tuple of int
+        ``-round(slope)`` and its neighbours, and 0, within ``|k| <= MAX_ORIGIN_ORDER``,
+        sorted by ``|k|`` (then k); just ``(0, 1, -1)`` when the slope is not finite.
+    """
     if not math.isfinite(slope):
         return (0, 1, -1)
     c = int(np.clip(-round(slope), -MAX_ORIGIN_ORDER, MAX_ORIGIN_ORDER))
@@ -159,11 +169,24 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
 
 
 def settle_by_fits(record, fits):
-    """The record once the ambiguous choice was settled by full fits: ``fits`` maps each
-    k of ``record["contenders"]`` to the RMS relative error of ``fit(..., integrator=k)``;
-    the lowest wins unless the first contender (the starts' choice) is within
+    """The record once the ambiguous choice was settled by full fits.
+
+    The lowest error wins unless the first contender (the starts' choice) is within
     :data:`PREFER_FACTOR` of it (differences at the noise level do not move the choice);
-    still ambiguous when another is within :data:`AMBIGUOUS_FACTOR` of the winner."""
+    still ambiguous when another is within :data:`AMBIGUOUS_FACTOR` of the winner.
+
+    Parameters
+    ----------
+    record : dict
+        The choice of :func:`choose_origin_order` (its ``"contenders"``).
+    fits : dict of int to float
+        Each contender k to the RMS relative error of ``fit(..., integrator=k)``.
+
+    Returns
+    -------
+    dict
+        ``record`` with ``"chosen"``, ``"ambiguous"`` and ``"fit_rms"`` updated.
+    """
     first = record["contenders"][0]
     lowest = min(fits, key=lambda k: (fits[k], record["contenders"].index(k)))
     chosen = first if fits[first] <= PREFER_FACTOR * fits[lowest] else lowest
@@ -174,8 +197,19 @@ def settle_by_fits(record, fits):
 
 
 def describe_origin(k):
-    """Words for k poles at the origin: "no pole at the origin", "2 poles at the origin",
-    "1 zero at the origin"..."""
+    """Words for k poles at the origin.
+
+    Parameters
+    ----------
+    k : int
+        Poles at the origin (negative: zeros).
+
+    Returns
+    -------
+    str
+        "no pole or zero at the origin", "2 poles at the origin", "1 zero at the
+        origin", ...
+    """
     if k == 0:
         return "no pole or zero at the origin"
     n, what = abs(k), "pole" if k > 0 else "zero"
@@ -183,8 +217,20 @@ def describe_origin(k):
 
 
 def origin_diagnostics(record, data):
-    """The ``integrator`` diagnostic of an ``integrator="auto"`` choice (see
-    :func:`choose_origin_order`), () for a clear k = 0."""
+    """The ``integrator`` diagnostic of an ``integrator="auto"`` choice.
+
+    Parameters
+    ----------
+    record : dict
+        The choice (:func:`choose_origin_order`, :func:`settle_by_fits`).
+    data : FrequencyData
+        The data fitted (its lowest frequency is named).
+
+    Returns
+    -------
+    tuple of Diagnostic
+        () for a clear k = 0.
+    """
     k, rms = record["chosen"], record["rms"]
     table = "; ".join(f"integrator={spell_origin(j)}: RMS {rms[j]:.3g}"
                       for j in sorted(rms, key=lambda j: (abs(j), j)))
