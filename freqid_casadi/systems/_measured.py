@@ -53,6 +53,8 @@ class MeasuredSet:
         What was measured, and the response's unit.
     licence : str
         The source's licence (full text in the folder's ``LICENSE``).
+    sha256 : str
+        SHA-256 of the file as published (also in ``SOURCE.md``).
     """
 
     name: str
@@ -65,6 +67,12 @@ class MeasuredSet:
     max_sections: int
     description: str
     licence: str
+    sha256: str
+
+
+_IMPACT_SHA256 = ("ae99c87c17747ddc0819dffc6fadaf605385b5e5a0eec43415b724aaccf7223a",
+                  "872f58a6e812cd9abed390262bec120d9064738524faff082929dd303a17e340",
+                  "2c3a420cbb076fc88532fc625d642295e14cf3b79bcc73d26e759ab33f80b5f6")
 
 
 def _impact(k):
@@ -74,7 +82,7 @@ def _impact(k):
         description=f"impact test, accelerance (acceleration / force) at response point 1, "
                     f"hammer at point {k}, 0-1000 Hz in 1 Hz steps, six modes in the band "
                     f"(ladisk/pyuff data/meas_point_{k}.txt; units not stated in the source)",
-        licence="MIT")
+        licence="MIT", sha256=_IMPACT_SHA256[k - 1])
 
 
 _SKRF = "BSD-3-Clause"
@@ -86,28 +94,32 @@ MEASURED_SETS = {s.name: s for s in (
                 parameter="S11", n_points=101, f_min_hz=75e9, f_max_hz=110e9, max_sections=4,
                 description="reflection S11 (dimensionless) of a ring-slot resonator, "
                             "measured 75-110 GHz (scikit-rf skrf/data)",
-                licence=_SKRF),
+                licence=_SKRF,
+                sha256="d916949bdcce147e2d246d9674469042f35bc7b79a3e0683b64b5bf9aad20f4d"),
     MeasuredSet(name="tx190_s21", folder="skrf_tx190", file="190ghz_tx_measured.S2P",
                 parameter="S21", n_points=801, f_min_hz=140e9, f_max_hz=220e9,
                 max_sections=6,
                 description="transmission S21 (dimensionless, gain) of an active 190 GHz "
                             "2-port measured on a R&S ZVA67 VNA, 140-220 GHz (scikit-rf "
                             "vector-fitting example 2)",
-                licence=_SKRF),
+                licence=_SKRF,
+                sha256="e767b132764a658efa80e89417c801bf92bcdd135e6e7cbd42f4b62074cf8e7b"),
     MeasuredSet(name="resonator_36mm_s21", folder="skrf_resonator",
                 file="resonator_36mm.s2p", parameter="S21", n_points=401, f_min_hz=1e9,
                 f_max_hz=5e9, max_sections=4,
                 description="transmission S21 (dimensionless) of a 36 mm stripline resonator "
                             "on a PCB laminate, two resonances, measured 1-5 GHz on a "
                             "Keysight N5242A (scikit-rf Q-factor example)",
-                licence=_SKRF),
+                licence=_SKRF,
+                sha256="9fd37c4871cc79aa5aac9934a0c77eac739225c1e2825a393fd7603804ffd1d7"),
     MeasuredSet(name="msl_thru_100_s21", folder="skrf_msl_thru",
                 file="P1-MSL_Thru_100-P2.s2p", parameter="S21", n_points=10000,
                 f_min_hz=1e6, f_max_hz=10e9, max_sections=4,
                 description="transmission S21 (dimensionless) of a 100 mm microstrip line on "
                             "FR-4: a delay of about 0.7 ns with loss, measured 1 MHz-10 GHz "
                             "on an Anritsu MS46524B (scikit-rf TDR example)",
-                licence=_SKRF),
+                licence=_SKRF,
+                sha256="d6cde91d1abc82e8e00d636548e3d437ad7172964bae269fed87f308340213c4"),
 )}
 
 
