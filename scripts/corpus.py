@@ -19,7 +19,8 @@ The measured part: every FRF of ``freqid_casadi.systems.measured_sets()`` (shipp
 ``freqid_casadi/datasets``) fitted with ``n_sections=range(1, max_sections + 1)``, its
 section at the end of report.md and under ``"measured"`` in report.json. It runs with the
 full corpus (not with ``--quick`` unless ``--measured``; ``--no-measured`` skips it);
-``--measured-only`` runs it alone (default ``--out results/corpus-measured``).
+``--measured-only`` runs it alone (default ``--out results/corpus-measured``);
+``--measured-sets`` and ``--measured-max-sections`` choose a quicker subset.
 """
 
 import argparse
@@ -53,6 +54,11 @@ def main(argv=None):
                       help="skip the measured FRFs")
     part.add_argument("--measured-only", action="store_true",
                       help="fit only the shipped measured FRFs")
+    ap.add_argument("--measured-sets", metavar="A,B", default=None,
+                    help="only these measured sets (names of "
+                         "freqid_casadi.systems.measured_sets())")
+    ap.add_argument("--measured-max-sections", type=int, default=None, metavar="K",
+                    help="cap the measured sets' orders at K (a quicker run)")
     ap.add_argument("--rerender", metavar="DIR",
                     help="write DIR's report.md, fits.csv and figure again from its "
                          "report.json (no fits)")
@@ -90,7 +96,10 @@ def main(argv=None):
                             workers=args.workers, auto=not args.no_auto, force=args.force,
                             progress=progress, checkpoint=checkpoint, measured=measured,
                             measured_only=args.measured_only,
-                            measured_progress=measured_progress)
+                            measured_progress=measured_progress,
+                            measured_names=args.measured_sets.split(",")
+                            if args.measured_sets else None,
+                            measured_max_sections=args.measured_max_sections)
     except (FreqidError, OSError) as exc:
         sys.stderr.write(f"error: {' '.join(str(exc).split())}\n")
         return 2

@@ -241,7 +241,8 @@ def _csv(records):
 def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers=2,
                         configs=None, auto=True, force=False, progress=None,
                         checkpoint=None, measured=False, measured_only=False,
-                        measured_progress=None):
+                        measured_progress=None, measured_names=None,
+                        measured_max_sections=None):
     """Run the corpus (:func:`~freqid_casadi.studies.corpus.run_corpus`) and write its
     report folder.
 
@@ -260,8 +261,9 @@ def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers
         and add their section.
     measured_only : bool
         Fit only the measured FRFs: report.md and report.json hold that section alone.
-    measured_progress : callable, optional
-        Passed to :func:`run_measured` as its ``progress``.
+    measured_progress, measured_names, measured_max_sections : optional
+        Passed to :func:`run_measured` as its ``progress``, ``names`` and
+        ``max_sections`` (which sets, and a cap on their orders: a quicker run).
 
     Returns
     -------
@@ -269,8 +271,10 @@ def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers
         The summary, as in report.json.
     """
     check_out_dir(out_dir, force)
+    run_kw = {"workers": workers, "progress": measured_progress, "names": measured_names,
+              "max_sections": measured_max_sections}
     if measured_only:
-        return _write_measured_only(out_dir, command, workers, force, measured_progress)
+        return _write_measured_only(out_dir, command, force, run_kw)
     from ..systems.corpus import corpus
 
     cases = corpus(n, seed, max_points=max_points)
@@ -289,8 +293,7 @@ def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers
     out = {"command": command, "meta": meta, "summary": summary, "fits": records}
     if measured:
         t1 = time.perf_counter()
-        out["measured"] = measured_dicts(run_measured(workers=workers,
-                                                      progress=measured_progress))
+        out["measured"] = measured_dicts(run_measured(**run_kw))
         meta["measured_wall_time"] = time.perf_counter() - t1
     out = json_safe(out)
     with report_folder(out_dir, force) as (tmp, _):
@@ -313,12 +316,13 @@ def _measured_text(records):
     return "" if records is None else "\n" + "\n".join(render_measured(records))
 
 
-def _write_measured_only(out_dir, command, workers, force, progress):
+def _write_measured_only(out_dir, command, force, run_kw):
     """``write_corpus_report(..., measured_only=True)``: report.md and report.json of the
     measured section alone."""
     t0 = time.perf_counter()
-    records = measured_dicts(run_measured(workers=workers, progress=progress))
-    meta = {"workers": workers, "measured_wall_time": time.perf_counter() - t0}
+    records = measured_dicts(run_measured(**run_kw))
+    meta = {"workers": run_kw["workers"], "measured_wall_time": time.perf_counter() - t0,
+            "measured_max_sections": run_kw["max_sections"]}
     out = json_safe({"command": command, "meta": meta, "measured": records})
     with report_folder(out_dir, force) as (tmp, _):
         atomic_write_text(os.path.join(tmp, "report.json"),
