@@ -237,8 +237,16 @@ def _sign(s):
     return {1: "+", -1: "−"}.get(s, "—")
 
 
+def _hz(f):
+    """A frequency with its SI prefix, e.g. ``"75 GHz"``."""
+    for scale, unit in ((1e9, "GHz"), (1e6, "MHz"), (1e3, "kHz")):
+        if abs(f) >= scale:
+            return f"{f / scale:.4g} {unit}"
+    return f"{f:.4g} Hz"
+
+
 def _band(r):
-    return f"{number(r['f_min_hz'], 3)}–{number(r['f_max_hz'], 3)} Hz"
+    return f"{_hz(r['f_min_hz'])}–{_hz(r['f_max_hz'])}"
 
 
 def render_measured(records):
@@ -272,7 +280,9 @@ def render_measured(records):
             "other option at its default. No truth is known: the noise is the fit's own "
             "estimate (`details[\"noise\"][\"noise_rms\"]`, the residual's point-to-point "
             f"roughness); **at the noise**: RMS ≤ {FLOOR_FACTOR:g} × that; **honest**: not "
-            f"status ok with an RMS above {DISHONEST_FACTOR:g} × that.", "",
+            f"status ok with an RMS above {DISHONEST_FACTOR:g} × that. A fit that explains "
+            "nothing (RMS near 1, `no-better-than-trivial`) leaves a nearly constant "
+            "residual, whose noise estimate is then meaninglessly small.", "",
             f"{len(records)} sets: {n_ok} ok, {n_noise} at the noise, {n_dis} dishonest.", "",
             markdown_table(rows, ["set", "points", "band", "max N", "status",
                                   "N chosen (why)", "RMS", "noise est.", "RMS / noise",
