@@ -119,3 +119,23 @@ def test_corpus_script_measured_only_writes_and_rerenders(tmp_path):
     assert rec["status"] == "poor-fit" and rec["honest"] is True
     assert main(["--rerender", str(out)]) == 0
     assert (out / "report.md").read_text(encoding="utf-8") == text
+
+
+def test_full_corpus_report_ends_with_the_measured_section(tmp_path):
+    # one synthetic case with today's defaults and the ring slot at one section: report.md
+    # has the synthetic part first and the measured section last; rerender keeps both
+    import json
+
+    from freqid_casadi.studies.corpus_report import rerender_corpus_report, write_corpus_report
+
+    out = tmp_path / "corpus"
+    write_corpus_report(out, command="python scripts/corpus.py --n 1", n=1, max_points=60,
+                        workers=1, configs=["today"], auto=False, measured=True,
+                        measured_names=["ring_slot_s11"], measured_max_sections=1)
+    text = (out / "report.md").read_text(encoding="utf-8")
+    assert text.index("# Validation corpus") < text.index("## Measured FRFs")
+    assert "| ring_slot_s11 | 101 | 75 GHz–110 GHz | 1 | poor-fit |" in text
+    data = json.loads((out / "report.json").read_text(encoding="utf-8"))
+    assert len(data["fits"]) == 1 and [r["name"] for r in data["measured"]] == ["ring_slot_s11"]
+    rerender_corpus_report(out)
+    assert (out / "report.md").read_text(encoding="utf-8") == text
