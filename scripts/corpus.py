@@ -4,6 +4,7 @@ Usage::
 
     python scripts/corpus.py [--quick] [--n N] [--seed S] [--workers W] [--out DIR]
                              [--force] [--resume] [--rerender DIR]
+                             [--measured | --no-measured | --measured-only]
 
 Fits every case of ``freqid_casadi.systems.corpus(n, seed)`` at its true order with each
 configuration of ``freqid_casadi.studies.corpus.CONFIGS`` and the noisy cases with
@@ -13,6 +14,13 @@ points into ``results/corpus-quick``): report.md (first line: this command), rep
 fits.csv and corpus.png. Each fit is also appended to ``OUT.checkpoint.jsonl``; ``--resume`` keeps those of a
 stopped run. ``--rerender DIR`` writes DIR's report.md, fits.csv and figure
 again from its report.json, without fitting.
+
+The measured part: every FRF of ``freqid_casadi.systems.measured_sets()`` (shipped in
+``freqid_casadi/datasets``) fitted with ``n_sections=range(1, max_sections + 1)``, its
+section at the end of report.md and under ``"measured"`` in report.json. It runs with the
+full corpus (not with ``--quick`` unless ``--measured``; ``--no-measured`` skips it);
+``--measured-only`` runs it alone (default ``--out results/corpus-measured``);
+``--measured-sets`` and ``--measured-max-sections`` choose a quicker subset.
 """
 
 import argparse
@@ -39,6 +47,18 @@ def main(argv=None):
     ap.add_argument("--force", action="store_true")
     ap.add_argument("--resume", action="store_true",
                     help="keep the fits of a stopped run (OUT.checkpoint.jsonl) and run the rest")
+    part = ap.add_mutually_exclusive_group()
+    part.add_argument("--measured", action="store_true",
+                      help="also fit the shipped measured FRFs (the default without --quick)")
+    part.add_argument("--no-measured", action="store_true",
+                      help="skip the measured FRFs")
+    part.add_argument("--measured-only", action="store_true",
+                      help="fit only the shipped measured FRFs")
+    ap.add_argument("--measured-sets", metavar="A,B", default=None,
+                    help="only these measured sets (names of "
+                         "freqid_casadi.systems.measured_sets())")
+    ap.add_argument("--measured-max-sections", type=int, default=None, metavar="K",
+                    help="cap the measured sets' orders at K (a quicker run)")
     ap.add_argument("--rerender", metavar="DIR",
                     help="write DIR's report.md, fits.csv and figure again from its "
                          "report.json (no fits)")
@@ -49,7 +69,9 @@ def main(argv=None):
         return 0
     n = args.n or (QUICK_CASES if args.quick else FULL_CASES)
     max_points = args.max_points or (400 if args.quick else 5000)
-    out = args.out or os.path.join("results", "corpus-quick" if args.quick else "corpus")
+    out = args.out or os.path.join("results", "corpus-measured" if args.measured_only else
+                                   "corpus-quick" if args.quick else "corpus")
+    measured = args.measured or not (args.quick or args.no_measured)
     command = " ".join(["python scripts/corpus.py"] + [shlex.quote(a) for a in argv])
     checkpoint = out.rstrip("/\\") + ".checkpoint.jsonl"
     if not args.resume and os.path.exists(checkpoint):
@@ -63,14 +85,26 @@ def main(argv=None):
               f"{rec.status}, {rec.wall_time:.1f} s{' ' + rec.error if rec.error else ''}; "
               f"eta {eta / 60:.1f} min", file=sys.stderr, flush=True)
 
+    def measured_progress(done, total, rec):
+        print(f"[measured {done}/{total}] {rec.name}: {rec.n_points} points, "
+              f"{rec.n_sections} sections ({rec.order_reason}), RMS {rec.rms:.3g} (noise "
+              f"estimate {rec.noise:.3g}), {rec.status}, {rec.wall_time:.1f} s"
+              f"{' ' + rec.error if rec.error else ''}", file=sys.stderr, flush=True)
+
     try:
         write_corpus_report(out, command=command, n=n, seed=args.seed, max_points=max_points,
                             workers=args.workers, auto=not args.no_auto, force=args.force,
-                            progress=progress, checkpoint=checkpoint)
+                            progress=progress, checkpoint=checkpoint, measured=measured,
+                            measured_only=args.measured_only,
+                            measured_progress=measured_progress,
+                            measured_names=args.measured_sets.split(",")
+                            if args.measured_sets else None,
+                            measured_max_sections=args.measured_max_sections)
     except (FreqidError, OSError) as exc:
         sys.stderr.write(f"error: {' '.join(str(exc).split())}\n")
         return 2
-    os.remove(checkpoint)
+    if os.path.exists(checkpoint):
+        os.remove(checkpoint)
     print(f"report: {os.path.join(out, 'report.md')} ({time.perf_counter() - t0:.0f} s)")
     return 0
 

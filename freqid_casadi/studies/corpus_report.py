@@ -2,7 +2,9 @@
 
 ``report.md`` (first line: the command), ``report.json`` (the summary and every fit),
 ``fits.csv`` (one row per fit) and ``corpus.png`` (per family: fraction at the floor for
-each configuration; RMS against the noise level for every fit).
+each configuration; RMS against the noise level for every fit); with ``measured`` also the
+section of the shipped measured FRFs (:mod:`freqid_casadi.studies.corpus_measured`, key
+``"measured"`` of report.json), and with ``measured_only`` that section alone.
 """
 
 import csv
@@ -18,6 +20,7 @@ from ..report.folder import atomic_write_text, check_out_dir, report_folder
 from ..systems.corpus import FAMILIES
 from .corpus import (AUTO, CONFIGS, DENSE, DISHONEST_FACTOR, EXACT_FLOOR, FLOOR_FACTOR,
                      record_dicts, run_corpus, summarize)
+from .corpus_measured import measured_dicts, render_measured, run_measured
 
 __all__ = ["write_corpus_report", "render_corpus", "rerender_corpus_report"]
 
@@ -237,7 +240,9 @@ def _csv(records):
 
 def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers=2,
                         configs=None, auto=True, force=False, progress=None,
-                        checkpoint=None):
+                        checkpoint=None, measured=False, measured_only=False,
+                        measured_progress=None, measured_names=None,
+                        measured_max_sections=None):
     """Run the corpus (:func:`~freqid_casadi.studies.corpus.run_corpus`) and write its
     report folder.
 
@@ -250,6 +255,15 @@ def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers
         Passed to :func:`run_corpus`.
     force : bool
         Replace an existing ``out_dir`` (only once the new report is complete).
+    measured : bool
+        Also fit the shipped measured FRFs
+        (:func:`~freqid_casadi.studies.corpus_measured.run_measured`, ``workers`` processes)
+        and add their section.
+    measured_only : bool
+        Fit only the measured FRFs: report.md and report.json hold that section alone.
+    measured_progress, measured_names, measured_max_sections : optional
+        Passed to :func:`run_measured` as its ``progress``, ``names`` and
+        ``max_sections`` (which sets, and a cap on their orders: a quicker run).
 
     Returns
     -------
@@ -257,6 +271,10 @@ def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers
         The summary, as in report.json.
     """
     check_out_dir(out_dir, force)
+    run_kw = {"workers": workers, "progress": measured_progress, "names": measured_names,
+              "max_sections": measured_max_sections}
+    if measured_only:
+        return _write_measured_only(out_dir, command, force, run_kw)
     from ..systems.corpus import corpus
 
     cases = corpus(n, seed, max_points=max_points)
@@ -272,8 +290,12 @@ def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers
             "n_points_total": int(sum(points)),
             "n_points_min": int(min(points)), "n_points_max": int(max(points))}
     summary = summarize([_Rec(r) for r in records])
-    out = json_safe({"command": command, "meta": meta, "summary": summary,
-                     "fits": records})
+    out = {"command": command, "meta": meta, "summary": summary, "fits": records}
+    if measured:
+        t1 = time.perf_counter()
+        out["measured"] = measured_dicts(run_measured(**run_kw))
+        meta["measured_wall_time"] = time.perf_counter() - t1
+    out = json_safe(out)
     with report_folder(out_dir, force) as (tmp, _):
         fig = _figure(summary, records)
         fig.savefig(os.path.join(tmp, "corpus.png"), dpi=110)
@@ -284,8 +306,38 @@ def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers
                           json.dumps(out, indent=1, allow_nan=False) + "\n")
         atomic_write_text(os.path.join(tmp, "fits.csv"), _csv(records))
         atomic_write_text(os.path.join(tmp, "report.md"),
-                          render_corpus(command, summary, meta, records))
+                          render_corpus(command, summary, meta, records)
+                          + _measured_text(out.get("measured")))
     return out
+
+
+def _measured_text(records):
+    """The measured section appended to report.md ("" without one)."""
+    return "" if records is None else "\n" + "\n".join(render_measured(records))
+
+
+def _write_measured_only(out_dir, command, force, run_kw):
+    """``write_corpus_report(..., measured_only=True)``: report.md and report.json of the
+    measured section alone."""
+    t0 = time.perf_counter()
+    records = measured_dicts(run_measured(**run_kw))
+    meta = {"workers": run_kw["workers"], "measured_wall_time": time.perf_counter() - t0,
+            "measured_max_sections": run_kw["max_sections"]}
+    out = json_safe({"command": command, "meta": meta, "measured": records})
+    with report_folder(out_dir, force) as (tmp, _):
+        atomic_write_text(os.path.join(tmp, "report.json"),
+                          json.dumps(out, indent=1, allow_nan=False) + "\n")
+        atomic_write_text(os.path.join(tmp, "report.md"), _measured_only_md(out))
+    return out
+
+
+def _measured_only_md(out):
+    head = [generated_by_line(out["command"]), "",
+            "# Validation corpus: the measured FRFs only", "",
+            f"{len(out['measured'])} fits on {out['meta']['workers']} worker processes, "
+            f"{out['meta']['measured_wall_time']:.0f} s wall time (the synthetic corpus is "
+            "not in this run: `python scripts/corpus.py` without --measured-only).", ""]
+    return "\n".join(head + render_measured(out["measured"]))
 
 
 def rerender_corpus_report(out_dir):
@@ -305,6 +357,9 @@ def rerender_corpus_report(out_dir):
     path = os.path.join(out_dir, "report.json")
     with open(path, encoding="utf-8") as f:
         out = json.load(f)
+    if "fits" not in out:                   # a --measured-only report
+        atomic_write_text(os.path.join(out_dir, "report.md"), _measured_only_md(out))
+        return out
     records = out["fits"]
     summary = summarize([_Rec(r) for r in records])
     fig = _figure(summary, records)
@@ -314,7 +369,8 @@ def rerender_corpus_report(out_dir):
     plt.close(fig)
     atomic_write_text(os.path.join(out_dir, "fits.csv"), _csv(records))
     atomic_write_text(os.path.join(out_dir, "report.md"),
-                      render_corpus(out["command"], summary, out["meta"], records))
+                      render_corpus(out["command"], summary, out["meta"], records)
+                      + _measured_text(out.get("measured")))
     return out
 
 

@@ -21,13 +21,16 @@ S. O. R. Moheimani, ASME JDSMC 122 (2000), §3 (simply-supported beam, eq. 11).
 The systems live in private modules (``_beams``: A, B, C and the perturbed plants;
 ``_fractional``: 1/sqrt(s), G_D and Moheimani's beam; ``_common``: the grid); every public
 name is re-exported here (and :mod:`~freqid_casadi.systems.corpus`, the seeded corpus of
-synthetic FRFs of issue 26: ``corpus(n, seed)``), so ``freqid_casadi.systems.G_A()`` is the way to call them.
+synthetic FRFs of issue 26: ``corpus(n, seed)``; ``_measured``: the measured FRFs shipped in
+``freqid_casadi/datasets``, ``measured_sets()`` and ``measured(name)``), so ``freqid_casadi.systems.G_A()`` is the way to call them.
 """
 
 from ._beams import (G_A, G_A_at, G_B, G_B_at, G_C, G_C_at, SERIES_THRESHOLD,
                      perturbed)
 from ._common import thesis_grid
 from .corpus import CorpusCase, CorpusSystem, FAMILIES, case, corpus
+from ._measured import (MEASURED_SETS, MeasuredSet, measured, measured_file,
+                        measured_sets, measured_source)
 from ._fractional import (G_D, G_D_at, moheimani_at, moheimani_beam, moheimani_kopt,
                           moheimani_modes, sqrt_inverse, sqrt_inverse_at)
 
@@ -43,4 +46,6 @@ __all__ = [
     "moheimani_beam", "moheimani_at", "moheimani_modes", "moheimani_kopt",
     "SERIES_THRESHOLD",
     "corpus", "case", "CorpusCase", "CorpusSystem", "FAMILIES",
+    "measured_sets", "measured", "measured_file", "measured_source", "MeasuredSet",
+    "MEASURED_SETS",
 ]
