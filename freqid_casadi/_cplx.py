@@ -9,7 +9,8 @@ be a Python float, a numpy array or a CasADi expression. Only ``+ - * /``, ``cos
 
 import numpy as np
 
-__all__ = ["mul", "div", "inv", "expj", "scale", "abs2", "from_complex", "to_complex"]
+__all__ = ["mul", "div", "inv", "expj", "scale", "abs2", "from_complex", "to_complex",
+           "jw_power", "times_jw_power"]
 
 
 def mul(z1, z2):
@@ -58,3 +59,46 @@ def from_complex(x):
 def to_complex(z):
     """Join a numeric (re, im) pair into one complex numpy array."""
     return np.asarray(z[0], dtype=float) + 1j * np.asarray(z[1], dtype=float)
+
+
+def jw_power(omega, k):
+    """``(j omega)^k`` for an integer ``k``: the unit ``j^k`` times the real ``omega^k``.
+
+    Parameters
+    ----------
+    omega : array_like of float
+        Frequencies (rad/s).
+    k : int
+        The power.
+
+    Returns
+    -------
+    ndarray of complex, like ``omega``
+    """
+    omega = np.asarray(omega, dtype=float)
+    return (1, 1j, -1, -1j)[int(k) % 4] * omega ** float(k)
+
+
+def times_jw_power(x, omega, k):
+    """``x * (j omega)^k``: the data with ``k`` poles at the origin removed.
+
+    Parameters
+    ----------
+    x : array_like of complex
+        A response at ``omega``.
+    omega : array_like of float
+        Frequencies (rad/s), broadcastable with ``x``.
+    k : int
+        Poles at the origin (negative: zeros).
+
+    Returns
+    -------
+    ndarray of complex
+        ``x`` itself for k = 0 and ``x * (1j * omega)`` for k = 1 (the integrator's
+        arithmetic, bit for bit), else ``x * jw_power(omega, k)``.
+    """
+    if k == 0:
+        return x
+    if k == 1:
+        return x * (1j * np.asarray(omega, dtype=float))
+    return x * jw_power(omega, k)

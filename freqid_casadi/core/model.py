@@ -23,6 +23,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .. import _cplx
+from .._cplx import jw_power, times_jw_power
 from .._textio import atomic_write_text
 from .._validate import check_choice, check_flag
 from ..errors import DataError, OptionError, StructureError
@@ -75,49 +76,6 @@ def check_origin_order(value, error=StructureError, name="integrator"):
     raise error(f"{name} must be True, False or an integer k with |k| <= {MAX_ORIGIN_ORDER} "
                 f"(k poles at the origin; -k zeros), got {value!r}; e.g. {name}=2 for a "
                 f"double integrator, {name}=-2 for an accelerance")
-
-
-def jw_power(omega, k):
-    """``(j omega)^k`` for an integer ``k``: the unit ``j^k`` times the real ``omega^k``.
-
-    Parameters
-    ----------
-    omega : array_like of float
-        Frequencies (rad/s).
-    k : int
-        The power.
-
-    Returns
-    -------
-    ndarray of complex, like ``omega``
-    """
-    omega = np.asarray(omega, dtype=float)
-    return (1, 1j, -1, -1j)[int(k) % 4] * omega ** float(k)
-
-
-def times_jw_power(x, omega, k):
-    """``x * (j omega)^k``: the data with ``k`` poles at the origin removed.
-
-    Parameters
-    ----------
-    x : array_like of complex
-        A response at ``omega``.
-    omega : array_like of float
-        Frequencies (rad/s), broadcastable with ``x``.
-    k : int
-        Poles at the origin (negative: zeros).
-
-    Returns
-    -------
-    ndarray of complex
-        ``x`` itself for k = 0 and ``x * (1j * omega)`` for k = 1 (the integrator's
-        arithmetic, bit for bit), else ``x * jw_power(omega, k)``.
-    """
-    if k == 0:
-        return x
-    if k == 1:
-        return x * (1j * np.asarray(omega, dtype=float))
-    return x * jw_power(omega, k)
 
 
 @dataclass(frozen=True)

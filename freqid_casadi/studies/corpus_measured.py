@@ -229,7 +229,17 @@ def run_measured(names=None, *, workers=2, max_sections=None, progress=None):
 
 
 def measured_dicts(records):
-    """The records as plain dicts (for JSON)."""
+    """The records as plain dicts (for JSON).
+
+    Parameters
+    ----------
+    records : sequence of MeasuredFit
+        The measured part's records (:func:`run_measured`).
+
+    Returns
+    -------
+    list of dict
+    """
     return [asdict(r) for r in records]
 
 
