@@ -187,8 +187,12 @@ def poor_fit_diagnostic(check, found, n_sections, unit="rad/s"):
     """
     # a delay the data do not determine explains a poor fit only when it sits in the upper
     # half of its range (aliased); a tiny or traded delay is a finding of its own
-    codes = [d.code for d in found if d.code != "delay-undetermined"
-             or d.values.get("delay", 0.0) >= 0.5 * d.values.get("delay_max", math.inf)]
+    # and a negative gain the fits chose (gain_sign="auto": the other sign was worse,
+    # an "info") explains nothing; only a sign forced against the data does
+    codes = [d.code for d in found
+             if (d.code != "delay-undetermined"
+                 or d.values.get("delay", 0.0) >= 0.5 * d.values.get("delay_max", math.inf))
+             and (d.code != "negative-gain" or d.severity != "info")]
     cause = next(((code, text) for code, text in _CAUSES if code in codes), None)
     if cause is None:
         why = ("the order: the residual is largest near omega = "
