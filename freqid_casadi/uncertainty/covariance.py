@@ -31,9 +31,10 @@ from ..core import physical as _physical
 from ..core.data import FrequencyData
 from ..errors import DataError, OptionError, StructureError
 from ..core.model import RationalDelayModel
+from .determined import determined_status
 
 __all__ = ["ModeEstimate", "ParameterUncertainty", "parameter_uncertainty", "held_parameters",
-           "with_std", "NOISE_SOURCES"]
+           "with_std", "with_status", "NOISE_SOURCES"]
 
 #: Values of ``ParameterUncertainty.noise_source``.
 NOISE_SOURCES = ("residuals", "given", "data", "bootstrap")
@@ -69,6 +70,11 @@ class ModeEstimate:
         Damping ratio (< 1) and its standard deviation; ``zeta_std`` is NaN when the
         damping is at its bound (``zeta_at_bound``).
     zeta_at_bound : bool
+    omega_n_determined, zeta_determined : bool
+        False when the interval of ``omega_n`` (``zeta``) is not to be trusted (see
+        :mod:`freqid_casadi.uncertainty.determined`); the std keeps its value.
+    reason : str
+        Why not ("" when both are determined).
     """
 
     section: int
@@ -79,6 +85,9 @@ class ModeEstimate:
     zeta: float
     zeta_std: float
     zeta_at_bound: bool = False
+    omega_n_determined: bool = True
+    zeta_determined: bool = True
+    reason: str = ""
 
     def interval(self, level=0.95):
         """Normal confidence intervals ``{"omega_n": (lo, hi), "zeta": (lo, hi)}``."""
@@ -139,6 +148,13 @@ class ParameterUncertainty:
     fixed : tuple of str
         Parameters the fit held at known values (``fit(..., fixed=...)``: ``delay``,
         ``log_gain``): not estimated, so ``at_bound`` True and a NaN standard deviation.
+    determined : ndarray of bool, shape (P,) or None
+        Delta method only: False where the parameter's interval is not to be trusted
+        (at a bound, a singular direction, an interval reaching 0, a factor outside the
+        band or a parameter trading with one; see
+        :mod:`freqid_casadi.uncertainty.determined`). ``std`` keeps its value there.
+    reasons : tuple of str, length P
+        Why each parameter is not determined ("" where it is).
     """
 
     model: RationalDelayModel
@@ -160,6 +176,23 @@ class ParameterUncertainty:
     samples: np.ndarray = None
     response_factor: np.ndarray = None
     fixed: tuple = ()
+    determined: np.ndarray = None
+    reasons: tuple = ()
+
+    @property
+    def not_determined(self):
+        """``{name: reason}`` of the parameters whose interval is not to be trusted
+        (empty without :attr:`determined`)."""
+        if self.determined is None:
+            return {}
+        return {n: r for n, d, r in zip(self.param_names, self.determined, self.reasons)
+                if not d}
+
+    def is_determined(self, name):
+        """True when the interval of ``name`` can be trusted (see :attr:`determined`);
+        True for every parameter of a record without the status (bootstrap)."""
+        i = self._index(name)
+        return True if self.determined is None else bool(self.determined[i])
 
     @property
     def response_covariance(self):
@@ -206,6 +239,7 @@ class ParameterUncertainty:
                 "covariance": [clean(self.covariance[i]) for i in range(p)],
                 "delay_std": clean([self.delay_std])[0], "gain": self.gain,
                 "fixed": list(self.fixed),
+                "not_determined": self.not_determined,
                 "gain_std": clean([self.gain_std])[0]}
 
     def intervals(self, level=0.95, dist="normal"):
@@ -413,7 +447,45 @@ def parameter_uncertainty(model, data=None, *, weights=None, noise_variance=None
     held = held_parameters(fit_result)
     rec = covariance_record(model, par, cov, free, sigma2, dof, cond, source, "delta",
                             factor_free=factor)
-    return dataclasses.replace(rec, fixed=held) if held else rec
+    rec = dataclasses.replace(rec, fixed=held) if held else rec
+    return with_status(rec, par, data.omega, data.unit, getattr(fit_result, "status", None))
+
+
+def with_status(rec, par, omega, unit="rad/s", fit_status=None):
+    """``rec`` with :attr:`ParameterUncertainty.determined` and ``reasons`` filled (and its
+    modes' ``omega_n_determined``, ``zeta_determined``, ``reason``), see
+    :func:`freqid_casadi.uncertainty.determined.determined_status`.
+
+    Parameters
+    ----------
+    rec : ParameterUncertainty
+    par : freqid_casadi.core.physical.Parametrization
+        The parametrisation ``rec`` was computed in.
+    omega : ndarray of float, shape (M,)
+        The data frequencies, rad/s (the band).
+    unit : str
+        Frequency unit named in the reasons.
+    fit_status : str, optional
+        ``FitResult.status`` of the fit: other than "ok" (a "poor-fit" or
+        "not-converged" fit), no parameter is determined.
+
+    Returns
+    -------
+    ParameterUncertainty
+    """
+    det, reasons = determined_status(par, rec.values, rec.covariance, rec.std, omega, unit,
+                                     fit_status)
+    slot = {}
+    for f in par.factors:
+        if f.sign < 0 and f.kind == _physical.QUADRATIC:
+            slot[f.section] = f.slots
+    modes = []
+    for m in rec.modes:
+        iw, iz = slot[m.section]
+        why = "; ".join(dict.fromkeys(r for r in (reasons[iw], reasons[iz]) if r))
+        modes.append(dataclasses.replace(m, omega_n_determined=bool(det[iw]),
+                                         zeta_determined=bool(det[iz]), reason=why))
+    return dataclasses.replace(rec, determined=det, reasons=reasons, modes=tuple(modes))
 
 
 

@@ -1,0 +1,149 @@
+"""Which delta-method intervals to trust: the "not determined" status of a parameter (L4).
+
+The delta method (:mod:`freqid_casadi.uncertainty.covariance`) linearises the model at the
+optimum. Its 95 % interval covers the truth 95 % of the time when the estimate is normal
+and unbiased to first order; measured by Monte Carlo over a family of systems
+(``scripts/coverage.py``, ``results/coverage/``) it is not in these cases, which
+:func:`determined_status` names:
+
+``fit status``
+    A fit whose status is not "ok" ("poor-fit": the residual has structure well above the
+    noise; "not-converged"): the residual is not noise, nothing is determined.
+``at its bound``
+    A damping at 0 or at the fit's floor, a delay at 0 or at its bound, a missing
+    coefficient: the bound, not the data, fixes the value (``at_bound``, NaN std).
+``no finite standard deviation``
+    The Fisher matrix is singular along the parameter (rounding gave a negative or NaN
+    variance).
+``interval reaches the bound``
+    A frequency, damping, root or delay whose 95 % interval reaches 0: the estimate's
+    distribution is cut by the bound and far from normal (a damping known to 50 % of
+    itself, a delay the data cannot tell from 0).
+``factor outside the band``
+    A numerator or denominator factor whose natural frequency (or real root) lies more
+    than :data:`FAR` times above the highest (or below the lowest) data frequency. In the
+    band the data see only its first terms ``1 + a_1 s + a_2 s^2`` (above) or its
+    asymptote (below): its own frequency and damping are not determined, and the
+    parameters that trade with it (the delay against ``a_1``: a zero pair far above the
+    band adds a phase lead ``a_1 omega``, like a negative delay; the gain and the nearby
+    modes against ``a_2``) are biased by its nonlinear, one-sided estimate — which the
+    delta method does not see (measured: a 2-mode + 1 zero-pair + delay system fitted
+    with 2 sections, whose spare zero pair goes to infinity, covered the truth of the
+    delay in 71 % of the replicates). A parameter is "not determined" when more than
+    :data:`SHARE_MAX` of its variance is shared with such a factor (its squared multiple
+    correlation with the factor's free parameters).
+
+The test uses only the fit (values, covariance, band): it flags the same parameters with
+or without a truth to compare with.
+"""
+
+import numpy as np
+
+from ..core import physical as _physical
+
+__all__ = ["determined_status", "FAR", "SHARE_MAX", "Z_BOUND"]
+
+#: A factor whose natural frequency is more than FAR times above the highest data
+#: frequency (or below the lowest) is outside the band.
+FAR = 2.0
+#: Largest share of a parameter's variance shared with a factor outside the band.
+SHARE_MAX = 0.5
+#: Standard deviations within which a bound at 0 counts as reached (the 95 % quantile).
+Z_BOUND = 1.959963984540054
+
+
+def _label(f):
+    part = "numerator" if f.sign > 0 else "denominator"
+    return f"the {part} of section {f.section}"
+
+
+def _outside(par, values, omega_min, omega_max):
+    """Factors outside the band: list of (slots, label, frequency, 'above'/'below')."""
+    out = []
+    for f in par.factors:
+        if f.kind == _physical.CONSTANT or not f.slots:
+            continue
+        w = abs(float(values[f.slots[0]]))
+        where = "above" if w > FAR * omega_max else "below" if w < omega_min / FAR else None
+        if where:
+            out.append((f.slots, _label(f), w, where))
+    return out
+
+
+def _share(cov, j, slots):
+    """Share of Var(theta_j) explained by the parameters ``slots`` (squared multiple
+    correlation, invariant to how the factor is parametrised); NaN when undefined."""
+    s = [k for k in slots if k != j and np.isfinite(cov[k, k]) and cov[k, k] > 0]
+    if not s or not (np.isfinite(cov[j, j]) and cov[j, j] > 0):
+        return np.nan
+    c = cov[np.ix_(s, s)]
+    b = cov[s, j]
+    try:
+        val = float(b @ np.linalg.lstsq(c, b, rcond=1e-12)[0] / cov[j, j])
+    except np.linalg.LinAlgError:
+        return np.nan
+    return min(max(val, 0.0), 1.0)
+
+
+def determined_status(par, values, cov, std, omega, unit="rad/s", fit_status=None):
+    """Whether each parameter's delta-method interval can be trusted, and why not.
+
+    Parameters
+    ----------
+    par : freqid_casadi.core.physical.Parametrization
+        The fit's parameters (names, factors, ``at_bound``).
+    values, std : ndarray of float, shape (P,)
+        Parameter values and standard deviations (NaN at a bound).
+    cov : ndarray of float, shape (P, P)
+        Their covariance (NaN rows and columns at a bound).
+    omega : ndarray of float, shape (M,)
+        The data frequencies, rad/s.
+    unit : str
+        Frequency unit named in the reasons.
+    fit_status : str, optional
+        The fit's ``FitResult.status``; other than None or "ok", every parameter is not
+        determined (the residual is not noise: the intervals describe a model error).
+
+    Returns
+    -------
+    determined : ndarray of bool, shape (P,)
+    reasons : tuple of str, length P
+        "" where determined, else a sentence saying why not (see the module notes).
+    """
+    p = len(par.names)
+    reasons = [""] * p
+    omega_min, omega_max = float(np.min(omega)), float(np.max(omega))
+    if fit_status not in (None, "ok"):
+        why = (f"the fit's status is {fit_status!r}: its residual is not the noise, so the "
+               "intervals do not describe the data's uncertainty")
+        determined = np.zeros(p, dtype=bool)
+        determined.setflags(write=False)
+        return determined, tuple([why] * p)
+    for j, name in enumerate(par.names):
+        if par.at_bound[j]:
+            reasons[j] = "at its bound: the bound, not the data, fixes it"
+        elif not np.isfinite(std[j]):
+            reasons[j] = "no finite standard deviation (the Fisher matrix is singular)"
+        elif name != "log_gain" and abs(values[j]) <= Z_BOUND * std[j]:
+            reasons[j] = (f"its 95 % interval reaches the bound 0 (value {values[j]:.4g}, "
+                          f"std {std[j]:.3g}): the estimate is far from normal")
+    for slots, label, w, where in _outside(par, values, omega_min, omega_max):
+        edge = omega_max if where == "above" else omega_min
+        ratio = w / edge if where == "above" else edge / w
+        for k in slots:
+            if not reasons[k]:
+                reasons[k] = (f"{label} lies {where} the band ({w:.4g} {unit}, {ratio:.3g} "
+                              f"times {'above' if where == 'above' else 'below'} its edge): "
+                              "the data see only its asymptote")
+        for j in range(p):
+            if reasons[j] or j in slots:
+                continue
+            share = _share(cov, j, slots)
+            if share > SHARE_MAX:
+                reasons[j] = (f"trades with {label}, which lies {where} the band ({w:.4g} "
+                              f"{unit}): {100 * share:.0f} % of its variance is shared with "
+                              "it, and that factor's estimate is one-sided (the delta method "
+                              "does not see the bias)")
+    determined = np.array([not r for r in reasons])
+    determined.setflags(write=False)
+    return determined, tuple(reasons)
