@@ -14,6 +14,7 @@ import pytest
 
 from freqid_casadi.core import physical
 from freqid_casadi.core.model import RationalDelayModel, Structure
+from freqid_casadi.errors import OptionError
 from freqid_casadi.fitting.fit import fit
 from freqid_casadi.uncertainty import determined as det
 from freqid_casadi.uncertainty.covariance import parameter_uncertainty
@@ -158,3 +159,49 @@ def test_script_smallest_run_writes_its_report_and_resumes(tmp_path):
                    timeout=600)
     js = json.loads((out / "coverage.json").read_text(encoding="utf-8"))
     assert js["new_fits"] == 0 and len(js["records"]) == 8
+
+
+# ------------------------------------------------------------------ noise level, weak factor
+
+def _residuals(slope, m=200, seed=1):
+    rng = np.random.default_rng(seed)
+    sigma = 0.01 * np.exp(np.linspace(0, np.log(slope), m))
+    return sigma * (rng.standard_normal(m) + 1j * rng.standard_normal(m)) / np.sqrt(2), sigma
+
+
+def test_local_variance_follows_a_sloped_noise_and_leaves_a_flat_one():
+    from freqid_casadi.uncertainty.covariance import local_variance
+
+    r, sigma = _residuals(1.0)
+    assert local_variance(r, np.ones(r.size), np.ones(r.size), 10) is None
+    r, sigma = _residuals(5.0)
+    v = local_variance(r, np.ones(r.size), np.ones(r.size), 10)
+    assert v is not None
+    # the running mean of |r|^2 follows sigma^2 (25x over the band) within 40 %
+    ratio = v / sigma ** 2
+    assert 0.6 < np.median(ratio[:50]) < 1.6 and 0.6 < np.median(ratio[-50:]) < 1.6
+    assert v[-20:].mean() > 8 * v[:20].mean()
+
+
+def test_a_weakly_determined_factor_in_the_band_flags_what_trades_with_it():
+    par = _par(80.0)                                  # in the band
+    cov, std = _cov(par, 0.01, [("delay", "omega_num[2]", -0.95)])
+    std = std.copy()
+    std[par.index("omega_num[2]")] = 0.1 * 80.0       # known to 10 %
+    cov[par.index("omega_num[2]"), par.index("omega_num[2]")] = (0.1 * 80.0) ** 2
+    i, j = par.index("delay"), par.index("omega_num[2]")
+    cov[i, j] = cov[j, i] = -0.95 * std[i] * std[j]
+    ok, why = det.determined_status(par, par.theta, cov, std, OMEGA)
+    assert not ok[i] and "known to 10 % only" in why[i]
+    assert not ok[j] and ok[par.index("omega_den[1]")]
+
+
+def test_noise_level_option():
+    system = C.overparametrised()[1]                  # 1 mode, 1 section
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = fit(C.replicate_data(system, 0), n_sections=1)
+    a = parameter_uncertainty(res, noise_level="constant")
+    assert not a.heteroscedastic
+    with pytest.raises(OptionError, match="noise_level"):
+        parameter_uncertainty(res, noise_level="sometimes")
