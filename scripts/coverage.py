@@ -200,7 +200,8 @@ def score(system, res, rec):
         iz = u.param_names.index(f"zeta_den[{m.section}]")
         p[f"omega_{k}"] = _entry(m.omega_n, m.omega_n_std, m.omega_n_determined, u.reasons[iw])
         p[f"zeta_{k}"] = _entry(m.zeta, m.zeta_std, m.zeta_determined, u.reasons[iz])
-    rec.update(status=res.status, rms=float(res.rms_rel_error))
+    rec.update(status=getattr(res.status, "value", res.status), rms=float(res.rms_rel_error),
+               heteroscedastic=bool(u.heteroscedastic))
     return rec
 
 
@@ -415,9 +416,10 @@ def report_lines(command, systems, rows, pool, wall, new, jobs, replicates, recs
           "(every other option at its default); 95 % normal intervals from "
           "`parameter_uncertainty` (`FitResult.uncertainty`).", "",
           f"Fits: {len(recs)} ({', '.join(f'{k}: {v}' for k, v in sorted(status.items(), key=str))}"
-          f"; {n_fail} raised). Wall time of this run {wall:.0f} s for {new} new fits "
-          f"({jobs} workers under nice, loaded 2-core machine); fit CPU time summed over all "
-          f"replicates {fit_time:.0f} s.", "",
+          f"; {n_fail} raised). This invocation: {new} new fits in {wall:.0f} s ({jobs} "
+          f"workers under nice, 2-core machine, load average {os.getloadavg()[0]:.1f} at "
+          f"the end); the fits' own wall times summed over all replicates {fit_time:.0f} s "
+          "(the others come from the checkpoint).", "",
           "## Result", "",
           f"Reported (determined) parameters in the target [{TARGET[0]:.2f}, {TARGET[1]:.2f}]: "
           f"**{inside} of {len(rep)}** system-parameter pairs. With {replicates} replicates "
@@ -455,12 +457,17 @@ def report_lines(command, systems, rows, pool, wall, new, jobs, replicates, recs
            "![coverage](coverage.png)", "",
            "## What \"not determined\" means", "",
            "`ParameterUncertainty.determined` / `.reasons` / `.not_determined` "
-           "(`freqid_casadi.uncertainty.determined`): a parameter at its bound, with no "
-           "finite std, whose 95 % interval reaches 0, a factor more than 2 times outside "
-           "the band, or a parameter sharing more than half its variance with such a "
-           "factor (the delay against a zero pair going to infinity) is reported not "
-           "determined with the reason, and its std is kept but its interval is not to be "
-           "trusted.", ""]
+           "(`freqid_casadi.uncertainty.determined`): a parameter of a fit whose status is "
+           "not ok, at its bound, with no finite std, whose 95 % interval reaches 0, of a "
+           "factor more than 2 times outside the band or known to worse than 5 %, or "
+           "sharing more than half its variance with such a factor (the delay against a "
+           "zero pair going to infinity) is reported not determined with the reason; its "
+           "std is kept, its interval is not to be trusted.", "",
+           "Noise level: with the noise from the residuals of an ok fit, when their level "
+           "changes over the band (Bartlett's test over blocks of frequency, p < 0.01) the "
+           "covariance is the sandwich with their local level "
+           f"(`heteroscedastic`): {sum(1 for r in recs if r.get('heteroscedastic'))} of "
+           f"{len(recs)} replicates here.", ""]
     return md
 
 
