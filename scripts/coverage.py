@@ -72,12 +72,6 @@ MAX_SECTIONS = 2
 CORPUS_SEED = 0
 #: Corpus cases drawn beyond --systems, in case some are screened out.
 SPARE = 10
-#: Short names of the reasons of "not determined", by the start of the sentence.
-REASON_KEYS = (("the fit's status", "fit status"), ("at its bound", "at bound"), ("no finite", "singular"),
-               ("its 95 % interval reaches", "interval reaches 0"),
-               ("trades with", "trades with a factor outside the band"),
-               ("the numerator", "outside the band"), ("the denominator", "outside the band"))
-
 
 # --------------------------------------------------------------------------- systems
 
@@ -165,8 +159,14 @@ def replicate_data(system, r):
 
 
 def _reason_key(text):
-    for start, key in REASON_KEYS:
-        if text.startswith(start):
+    """A short name of a "not determined" reason (the sentences of
+    :mod:`freqid_casadi.uncertainty.determined`)."""
+    for part, key in (("fit's status", "fit status"), ("at its bound", "at bound"),
+                      ("no finite", "singular"), ("within 3 std of its bound", "near 0"),
+                      ("nearly cancel", "cancelling pair"),
+                      ("trades with", "trades with a far or weak factor"),
+                      ("known to", "weak factor"), ("the band", "outside the band")):
+        if part in text:
             return key
     return text[:40]
 
@@ -310,6 +310,21 @@ def _cov(hits):
     return c, math.sqrt(max(c * (1 - c), 0.25 / n) / n), n
 
 
+def _p_outside(n):
+    """Probability that ``n`` intervals of true coverage 95 % cover outside the target."""
+    from scipy import stats
+
+    lo, hi = math.ceil(TARGET[0] * n - 1e-9), math.floor(TARGET[1] * n + 1e-9)
+    return float(stats.binom.cdf(lo - 1, n, 0.95) + stats.binom.sf(hi, n, 0.95))
+
+
+def _consistent(c, n):
+    """The coverage ``c`` of ``n`` intervals is within 2 binomial standard errors (of a
+    95 % coverage) of the target range."""
+    se = math.sqrt(0.95 * 0.05 / n)
+    return TARGET[0] - 2 * se <= c <= TARGET[1] + 2 * se
+
+
 def summarize(systems, recs):
     """Per system and parameter: coverage (reported, all), its SE, not-determined counts."""
     rows = []
@@ -339,6 +354,7 @@ def summarize(systems, recs):
                          "coverage_all": ca, "se_all": sea, "n_all": na,
                          "not_determined": sum(reasons.values()), "reasons": reasons,
                          "in_target": None if c is None else TARGET[0] <= c <= TARGET[1],
+                         "consistent": None if c is None else _consistent(c, n),
                          "in_target_all": None if ca is None else
                          TARGET[0] <= ca <= TARGET[1]})
     return rows
@@ -383,7 +399,7 @@ def figure(rows):
     ax.axhspan(100 * TARGET[0], 100 * TARGET[1], color="C2", alpha=0.15)
     ax.axhline(95, color="C2", lw=0.8)
     ax.set_xticks(x)
-    ax.set_xticklabels([f"{r['system'].split(',')[0][:18]}: {r['parameter']}" for r in rows],
+    ax.set_xticklabels([f"{r['system'].split(',')[0][:24]}: {r['parameter']}" for r in rows],
                        rotation=90, fontsize=5)
     ax.set_ylabel("coverage of the 95 % interval (%)")
     ax.set_ylim(max(0, min([100 * (r["coverage_all"] or 1) for r in rows] + [80]) - 5), 101)
@@ -402,6 +418,8 @@ def report_lines(command, systems, rows, pool, wall, new, jobs, replicates, recs
     fit_time = sum(r.get("time", 0) for r in recs)
     rep = [r for r in rows if r["reported"]]
     inside = sum(1 for r in rep if r["in_target"])
+    consistent = sum(1 for r in rep if r["consistent"])
+    big = [r for r in rep if r["reported"] >= 20]
     nd_rows = [r for r in rows if r["not_determined"]]
     never = [r for r in rows if not r["reported"]]
     md = [generated_by_line(command), "",
@@ -422,11 +440,16 @@ def report_lines(command, systems, rows, pool, wall, new, jobs, replicates, recs
           "(the others come from the checkpoint).", "",
           "## Result", "",
           f"Reported (determined) parameters in the target [{TARGET[0]:.2f}, {TARGET[1]:.2f}]: "
-          f"**{inside} of {len(rep)}** system-parameter pairs. With {replicates} replicates "
+          f"**{inside} of {len(rep)}** system-parameter pairs; within 2 binomial standard "
+          f"errors of it: **{consistent} of {len(rep)}** (of the {len(big)} pairs reported "
+          f"in at least 20 replicates: {sum(1 for r in big if r['in_target'])} in the "
+          f"target, {sum(1 for r in big if r['consistent'])} within 2 SE). "
+          f"With {replicates} replicates "
           f"the binomial standard error of a 95 % coverage is "
           f"{100 * math.sqrt(0.95 * 0.05 / replicates):.1f} points, so a parameter whose "
-          "true coverage is 95 % falls outside [90, 98] % by chance in about one case in "
-          "ten; the pooled coverages below are the sharper test.", "",
+          f"true coverage is 95 % falls outside [90, 98] % by chance with probability "
+          f"{_p_outside(replicates):.2f}; the pooled coverages below are the sharper "
+          "test.", "",
           f"Not determined: {sum(r['not_determined'] for r in rows)} parameter estimates of "
           f"{sum(r['replicates'] - r['unmatched'] for r in rows)} "
           f"({len(nd_rows)} system-parameter pairs in at least one replicate; "
@@ -448,10 +471,12 @@ def report_lines(command, systems, rows, pool, wall, new, jobs, replicates, recs
                       _pct(r["coverage"], r["se"]), _pct(r["coverage_all"], r["se_all"]),
                       f"{r['not_determined']}" + (f" ({why})" if why else ""),
                       r["unmatched"], "–" if r["in_target"] is None else
-                      ("yes" if r["in_target"] else "no")))
+                      ("yes" if r["in_target"] else "no"),
+                      "–" if r["consistent"] is None else
+                      ("yes" if r["consistent"] else "no")))
     md += [markdown_table(table, ["system", "parameter", "truth", "reported",
                                   "coverage (%)", "all (%)", "not det.", "unmatched",
-                                  "in target"], "llrrrrlrl"), "",
+                                  "in target", "within 2 SE"], "llrrrrlrll"), "",
            "`unmatched`: replicates whose fit has no mode within 25 % of the true one "
            "(a fit that missed the mode; no interval to test).", "",
            "![coverage](coverage.png)", "",
