@@ -366,10 +366,21 @@ def _covariance(r, jac, w, variance, g_abs2, free):
     if variance is None:
         return sigma2 * inv, np.sqrt(sigma2) * factor, sigma2, dof, cond
     s = np.concatenate([variance, variance]) / (2 * np.concatenate([g_abs2, g_abs2]))
-    meat = (a * (s * sw * sw)[:, None]).T @ a
     # det meat det = (det A^T sqrt(D)) (...)^T, det = F F^T
     sandwich = factor @ ((a @ factor).T * np.sqrt(s) * sw)
-    return inv @ meat @ inv, sandwich, sigma2, dof, cond
+    return _sandwich(a, np.sqrt(s) * sw), sandwich, sigma2, dof, cond
+
+
+def _sandwich(a, root_d):
+    """``(A^T A)^-1 A^T D A (A^T A)^-1`` as ``B B^T`` with ``B = (A^T A)^-1 A^T sqrt(D)``
+    from the SVD of the column-scaled A (never negative on the diagonal, unlike the
+    product of the three matrices when A is nearly singular)."""
+    scale = np.linalg.norm(a, axis=0)
+    scale[scale == 0] = 1.0
+    u, sv, vt = np.linalg.svd(a / scale, full_matrices=False)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        b = ((vt.T / np.where(sv > 0, sv, np.nan)) @ (u.T * root_d)) / scale[:, None]
+    return b @ b.T
 
 
 def covariance_record(model, par, cov_free, free, sigma2, dof, cond, source, method, samples=None,
