@@ -422,18 +422,20 @@ def report_lines(command, systems, rows, pool, wall, new, jobs, replicates, recs
     big = [r for r in rep if r["reported"] >= 20]
     nd_rows = [r for r in rows if r["not_determined"]]
     never = [r for r in rows if not r["reported"]]
+    n_over = sum(1 for s in systems if s["family"] == "over-parametrised")
+    counts = ", ".join(f"{k}: {v}" for k, v in sorted(status.items(), key=str))
     md = [generated_by_line(command), "",
           "# Coverage of the 95 % parameter intervals over a family of systems (issue 26, "
           "item 8)", "",
-          f"{len(systems)} systems: {sum(1 for s in systems if s['family'] != 'over-parametrised')} "
+          f"{len(systems)} systems: {len(systems) - n_over} "
           f"from the corpus (seed {CORPUS_SEED}, families {', '.join(FAMILIES)}; noisy, in "
           f"the class, at most {MAX_SECTIONS} sections and {MAX_POINTS} points) and "
-          f"{sum(1 for s in systems if s['family'] == 'over-parametrised')} over-parametrised "
+          f"{n_over} over-parametrised "
           "ones (a section whose zero pair must go to infinity). Each with "
           f"{replicates} noisy replicates, fitted with `fc.fit(data, n_sections=<true>)` "
           "(every other option at its default); 95 % normal intervals from "
           "`parameter_uncertainty` (`FitResult.uncertainty`).", "",
-          f"Fits: {len(recs)} ({', '.join(f'{k}: {v}' for k, v in sorted(status.items(), key=str))}"
+          f"Fits: {len(recs)} ({counts}"
           f"; {n_fail} raised). This invocation: {new} new fits in {wall:.0f} s ({jobs} "
           f"workers under nice, 2-core machine, load average {os.getloadavg()[0]:.1f} at "
           f"the end); the fits' own wall times summed over all replicates {fit_time:.0f} s "

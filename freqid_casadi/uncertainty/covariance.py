@@ -13,8 +13,9 @@ frequency and damping of every quadratic factor, root of every first-order one):
 (``S`` the variance of each real component of ``r``: ``E|Phi - G|^2 / (2 |G_N|^2)``; with
 ``W = S^-1`` the sandwich is ``(J^T W J)^-1``). Without a given variance, when the
 residuals' level changes over the band (:func:`local_variance`: Bartlett's test over
-blocks of frequency) ``S`` is their local level (``heteroscedastic`` True). Parameters at a bound (a damping of 0 or at
-the fit's floor, a delay of 0, a missing coefficient) are excluded from the inversion and
+blocks of frequency) ``S`` is their local level (``heteroscedastic`` True).
+Parameters at a bound (a damping of 0 or at the fit's floor, a delay of 0, a missing
+coefficient) are excluded from the inversion and
 reported with ``at_bound`` True and a NaN standard deviation: the data do not make them
 known exactly, the bound does. The derivatives of ``ln G_N`` are analytic; the columns are
 scaled to unit norm before the inversion (an SVD, whose condition number is reported).

@@ -21,9 +21,9 @@ and unbiased to first order; measured by Monte Carlo over a family of systems
     itself, a delay the data cannot tell from 0).
 ``nearly cancelling pair``
     A pole pair and a zero pair whose natural frequencies are within :data:`CANCEL_GAP`
-    (relative) and :data:`Z_BOUND` std of each other: the data barely see the pair, and where it sits is far from
-    normal (measured: a pair 0.2 % apart, 4 % noise, fitted 20 % away from its true
-    place, 17 of its std).
+    (relative) and :data:`Z_BOUND` std of each other: the data barely see the pair, and
+    where it sits is far from normal (measured: a pair 0.2 % apart, 4 % noise, fitted
+    20 % away from its true place, 17 of its std).
 ``factor outside the band``
     A numerator or denominator factor whose natural frequency (or real root) lies more
     than :data:`FAR` times above the highest (or below the lowest) data frequency. In the
