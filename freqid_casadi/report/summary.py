@@ -119,11 +119,17 @@ def _uncertainty_dict(result):
         u = result.uncertainty
     except (FreqidError, np.linalg.LinAlgError, ArithmeticError, AttributeError) as exc:
         return {"error": str(exc)}
+    nd = u.not_determined
     return {"noise_source": u.noise_source, "delay": u.delay, "delay_std": u.delay_std,
             "gain": u.gain, "gain_std": u.gain_std,
+            "delay_reason": nd.get("delay", "") if "delay" in u.param_names else "",
+            "gain_reason": nd.get("log_gain", ""), "not_determined": nd,
             "modes": [{"omega_n": m.omega_n, "omega_n_std": m.omega_n_std,
                        "frequency_hz": m.frequency_hz, "zeta": m.zeta, "zeta_std": m.zeta_std,
-                       "zeta_at_bound": m.zeta_at_bound} for m in u.modes]}
+                       "zeta_at_bound": m.zeta_at_bound,
+                       "omega_n_determined": m.omega_n_determined,
+                       "zeta_determined": m.zeta_determined, "reason": m.reason}
+                      for m in u.modes]}
 
 
 def dense_error(model, omega, truth, factor=10):
@@ -317,11 +323,13 @@ def _diagnostic_lines(s):
             + [""])
 
 
-def _pm(value, std, digits=4):
-    """'value ± std', '(not determined)' appended when std > |value|, or '(at its bound)'."""
+def _pm(value, std, digits=4, determined=True):
+    """'value ± std', '(not determined)' appended when std > |value| or the interval is
+    not to be trusted (``determined`` False), or '(at its bound)'."""
     if std != std:
         return f"{number(value, digits)} (at its bound)"
-    vague = " (not determined)" if std is not None and std > abs(value) else ""
+    vague = (" (not determined)" if std is not None and (std > abs(value) or not determined)
+             else "")
     return f"{number(value, digits)} ± {number(std)}{vague}"
 
 
@@ -336,18 +344,27 @@ def _uncertainty_lines(s):
            f"K0 = lim s^{k} G(s)" if k > 0 else f"K0 = lim G(s) / s^{-k}")
     fu, tu = _units(s)
     hz = fu == "rad/s"
-    rows = [(f"delay h ({tu})", _pm(u["delay"], u["delay_std"], 6)),
-            (f"low-frequency gain ({low})", _pm(u["gain"], u["gain_std"]))]
+    rows = [(f"delay h ({tu})", _pm(u["delay"], u["delay_std"], 6,
+                                    not u.get("delay_reason"))),
+            (f"low-frequency gain ({low})", _pm(u["gain"], u["gain_std"], 4,
+                                                not u.get("gain_reason")))]
     rows += [(f"mode {k}: omega_n ({fu})" + (" [f_n (Hz)]" if hz else "") + ", zeta",
-              f"{_pm(m['omega_n'], m['omega_n_std'])}"
+              f"{_pm(m['omega_n'], m['omega_n_std'], 4, m.get('omega_n_determined', True))}"
               + (f" [{number(m['frequency_hz'])} Hz]" if hz else "")
-              + f", {_pm(m['zeta'], m['zeta_std'])}") for k, m in enumerate(u["modes"], 1)]
+              + f", {_pm(m['zeta'], m['zeta_std'], 4, m.get('zeta_determined', True))}")
+             for k, m in enumerate(u["modes"], 1)]
+    why = [(f"delay h ({tu})", u.get("delay_reason")), ("gain", u.get("gain_reason"))]
+    why += [(f"mode {k}", m.get("reason")) for k, m in enumerate(u["modes"], 1)]
+    notes = [f"- {name}: not determined: {md_text(r)}" for name, r in why if r]
     return ["## What the data determine", "",
             "One standard deviation from the weighted Jacobian at the optimum (delta method; "
             f"noise variance from the {u['noise_source']}); `FitResult.uncertainty`. "
             "\"Not determined\": the std exceeds the value (a pole/zero pair that nearly "
-            "cancels, a mode outside the band, a delay traded against a far zero).", "",
-            markdown_table(rows, ("parameter", "value ± std")), ""]
+            "cancels, a mode outside the band, a delay traded against a far zero) or the "
+            "95 % interval is not to be trusted (`ParameterUncertainty.not_determined` "
+            "says why).", "",
+            markdown_table(rows, ("parameter", "value ± std")), ""] + (notes + [""] if notes
+                                                                     else [])
 
 
 def _thesis_lines(s):
