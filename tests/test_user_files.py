@@ -263,12 +263,30 @@ def test_report_names_both_gains_the_hz_range_and_the_stage_status(one_mode_fit)
 
 
 def test_report_marks_a_parameter_the_data_do_not_determine(one_mode_fit):
-    s = fit_summary(one_mode_fit, command="freqid fit x --sections 1 --out r")
+    # the one-mode plant with a zero pair on 40 points, 0.1 % noise: status ok, every parameter
+    # determined (on the 8 exact points of one_mode_fit the delay trades to 1.6e-7, a
+    # poor fit of exact data whose intervals are all reported not determined)
+    f = np.linspace(0.5, 14.0, 40)
+    s_ = 2j * np.pi * f
+    wz = 2 * np.pi * 9.0                 # a zero pair in the band: no factor above it
+    g = 3.0 * np.exp(-0.002 * s_) * W1 ** 2 / (s_ ** 2 + 2 * 0.05 * W1 * s_ + W1 ** 2) \
+        * (s_ ** 2 / wz ** 2 + 2 * 0.2 * s_ / wz + 1)
+    rng = np.random.default_rng(5)
+    g = g * (1 + 1e-3 * (rng.standard_normal(f.size) + 1j * rng.standard_normal(f.size)))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = fc.fit(fc.FrequencyData(2 * np.pi * f, g, "one"), n_sections=1,
+                     integrator=False)
+    assert res.status == "ok", res.message
+    s = fit_summary(res, command="freqid fit x --sections 1 --out r")
     mode = s["uncertainty"]["modes"][0]
     assert "not determined" not in render_fit_summary(s)
     mode["omega_n_std"] = 2 * mode["omega_n"]
     text = render_fit_summary(s)
     assert re.search(r"31\.4\d* ± 62\.8\d* \(not determined\)", text), text
+    # a poor fit's intervals are all marked, with the reason
+    bad = render_fit_summary(fit_summary(one_mode_fit, command="freqid fit x"))
+    assert one_mode_fit.status == "poor-fit" and "the fit's status is 'poor-fit'" in bad
 
 
 def test_cli_weights_reads_the_frf_sidecar(tmp_path, capsys):
