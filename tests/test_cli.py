@@ -299,3 +299,24 @@ def test_python_m_help():
     assert proc.returncode == 0, proc.stderr
     assert proc.stdout.startswith("usage: freqid")
     assert "example" in proc.stdout and "fit" in proc.stdout
+
+
+def test_notes_of_many_files_are_printed_once_per_text(capsys):
+    import warnings as _w
+
+    from freqid_casadi.cli.common import grouped_notes, notes_to_stderr
+    from freqid_casadi.io.loaders import DataWarning
+
+    texts = [f"'H{i}.txt' is not UTF-8 (byte 0xb2 on line 9): read as Windows-1252"
+             for i in range(1, 10)] + ["'H1.txt': band [65, 1000] Hz: kept 10 of 12 points"]
+    assert grouped_notes(texts) == [
+        "'H1.txt' ... 'H9.txt' (each of 9 files) is not UTF-8 (byte 0xb2 on line 9): read "
+        "as Windows-1252", "'H1.txt': band [65, 1000] Hz: kept 10 of 12 points"]
+    assert grouped_notes(["'a': x", "'b': x"]) == ["'a', 'b' (each of 2 files): x"]
+    with notes_to_stderr():                       # nested blocks: the outer one prints
+        for t in texts[:3]:
+            with notes_to_stderr():
+                _w.warn(t, DataWarning)
+    err = capsys.readouterr().err.splitlines()
+    assert err == ["note: 'H1.txt', 'H2.txt', 'H3.txt' (each of 3 files) is not UTF-8 (byte "
+                   "0xb2 on line 9): read as Windows-1252"]

@@ -32,7 +32,7 @@ from ..io.loaders import DataWarning, is_touchstone, load
 from ..errors import DataError, OptionError
 
 __all__ = ["add_data_options", "parse_band_text", "load_data", "load_options",
-           "notes_to_stderr", "with_weights", "error_line", "os_exit"]
+           "notes_to_stderr", "grouped_notes", "with_weights", "error_line", "os_exit"]
 
 
 def _columns(text):
@@ -139,19 +139,67 @@ def load_options(args):
     return opts
 
 
+#: Depth of nested :func:`notes_to_stderr` blocks (the outermost one prints).
+_NOTE_DEPTH = [0]
+
+
 @contextlib.contextmanager
 def notes_to_stderr():
     """Within the block, :class:`~freqid_casadi.io.loaders.DataWarning` s are printed as
-    ``note: ...`` lines on stderr after the block succeeds (none if it raises); other
-    warnings are passed on unchanged."""
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", DataWarning)
-        yield
+    ``note: ...`` lines on stderr after the block succeeds (none if it raises), the same
+    text for several files once (:func:`grouped_notes`); other warnings are passed on
+    unchanged. Nested in another such block, the notes are passed to the outer one (a
+    command reading many files prints their notes together)."""
+    _NOTE_DEPTH[0] += 1
+    try:
+        with warnings.catch_warnings(record=True) as caught:
+            warnings.simplefilter("always", DataWarning)
+            yield
+    finally:
+        _NOTE_DEPTH[0] -= 1
+    notes = []
     for w in caught:
-        if issubclass(w.category, DataWarning):
-            sys.stderr.write(f"note: {' '.join(str(w.message).split())}\n")
+        if issubclass(w.category, DataWarning) and _NOTE_DEPTH[0] == 0:
+            notes.append(" ".join(str(w.message).split()))
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+    for line in grouped_notes(notes):
+        sys.stderr.write(f"note: {line}\n")
+
+
+#: A note that names its file first: ``'path' ...`` or ``'path': ...``.
+_FILE_NOTE = re.compile(r"^'(?P<path>[^']+)'(?P<rest>:? .*)$")
+
+
+def grouped_notes(notes):
+    """The reader notes of several files, each text once: notes that differ only in the
+    file they name (nine exports of one analyser: the same encoding, preamble and band)
+    become one line naming the files, in the order first seen.
+
+    Parameters
+    ----------
+    notes : sequence of str
+
+    Returns
+    -------
+    list of str
+    """
+    groups = {}
+    for text in notes:
+        m = _FILE_NOTE.match(text)
+        key, path = (m.group("rest"), m.group("path")) if m else (text, None)
+        groups.setdefault(key, []).append(path)
+    out = []
+    for rest, paths in groups.items():
+        if None in paths:                       # a note naming no file: once
+            out.append(rest)
+        elif len(paths) == 1:
+            out.append(f"'{paths[0]}'{rest}")
+        else:
+            shown = (f"'{paths[0]}' ... '{paths[-1]}'" if len(paths) > 3
+                     else ", ".join(f"'{p}'" for p in paths))
+            out.append(f"{shown} (each of {len(paths)} files){rest}")
+    return out
 
 
 def load_data(args, path):

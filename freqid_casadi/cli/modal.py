@@ -194,13 +194,14 @@ def run_cli(args, command):
         DataError for unreadable files or different grids, OptionError for bad options or
         an existing ``--out`` without ``--force``.
     """
-    from .common import load_data
+    from .common import load_data, notes_to_stderr
     from ..modal.survey import parse_orders, stabilization
     from ..report.folder import check_out_dir, report_folder
 
     check_out_dir(args.out, args.force)
     orders = parse_orders(args.orders)
-    datas = [load_data(args, f) for f in args.files]
+    with notes_to_stderr():                  # the files' notes together, each text once
+        datas = [load_data(args, f) for f in args.files]
     names = _channel_names(datas, args.files)
     delay = False if args.delay == "none" else args.delay
     if args.min_stable < 1 or args.max_iter < 1:
