@@ -1,12 +1,31 @@
 """The public :func:`fit` and its :class:`FitResult` (layer L5).
 
-:func:`fit` checks the data and options, runs the starts (:mod:`freqid_casadi.fitting.mainloop`:
-the thesis's sequential main loop, SPEC §2, and/or the rational start), keeps the better,
-optionally polishes the max error, and checks the model against the frequency resolution
-(:mod:`freqid_casadi.core.resolution`). Every stage is one NLP (:mod:`freqid_casadi.fitting.stages`,
-:mod:`freqid_casadi.solvers`).
-"""
+The pipeline, in the order a call runs it (each step one function, in this module unless
+named):
 
+1. ``fit``: the keywords checked (integrator, delay, progress, fixed), the progress channel
+   opened; ``n_sections="auto"`` goes to :func:`_fit_auto_order`
+   (:mod:`~freqid_casadi.fitting.order`: one fit per order, the smallest that explains
+   the data).
+2. ``integrator="auto"``: :func:`~freqid_casadi.fitting.origin.choose_origin_order` picks
+   the poles/zeros at the origin from rational starts (full fits settle a close call).
+3. :func:`_fit_resolved` -> ``fixed=`` (:mod:`~freqid_casadi.fitting.fixed`) or
+   :func:`_fit_guarded`: the resolution guard (:mod:`~freqid_casadi.fitting.guard`)
+   around :func:`_fit_held`.
+4. :func:`_fit_held`: :func:`_fit`, then the undetermined delay held
+   (:mod:`~freqid_casadi.fitting.delay_hold`) and the free-zeros alternative
+   (:func:`_with_alternatives`).
+5. :func:`_fit`: the data checked (:mod:`~freqid_casadi.fitting._checks`), the gain sign
+   (:mod:`~freqid_casadi.fitting.diagnostics`), the scales (:mod:`~freqid_casadi.core.scaling`);
+   the starts and candidates (:func:`_run_starts`: the thesis's sequential loop, SPEC §2,
+   and the rational start, :mod:`~freqid_casadi.fitting.mainloop`; the h = 0 candidates,
+   screened, and the rescues of an unconverged fit, :mod:`~freqid_casadi.fitting.candidates`);
+   the optional minimax polish; the model mapped back to the user's units; the
+   diagnostics and the verdict (:mod:`~freqid_casadi.fitting.verdict`: status, message,
+   details).
+
+Every stage is one NLP (:mod:`freqid_casadi.fitting.stages`, :mod:`freqid_casadi.solvers`).
+"""
 import dataclasses
 import functools
 import math
