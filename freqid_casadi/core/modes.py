@@ -66,7 +66,13 @@ class Modes(tuple):
     :class:`~freqid_casadi.fitting.fit.FitResult` and a
     :class:`~freqid_casadi.modal.shared.SharedFitResult` (the one was a method, the other
     a field): ``len(res.modes)``, ``res.modes[0].omega_n``, ``for m in res.modes()`` all
-    work on both. Equal to the plain tuple of the same modes."""
+    work on both. Equal to the plain tuple of the same modes.
+
+    Parameters
+    ----------
+    iterable : iterable of Mode, optional
+        The modes, by increasing frequency.
+    """
 
     __slots__ = ()
 
