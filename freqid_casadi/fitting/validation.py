@@ -29,7 +29,8 @@ from ..core.resolution import (PairFlag, Quadratic, ResolutionCheck, model_of, c
                          default_delay_max)
 from .stages import polish
 
-__all__ = ["PRUNE_METHOD", "Quadratic", "PairFlag", "ResolutionCheck", "PruneResult", "ValidatedFit",
+__all__ = ["PRUNE_METHOD", "Quadratic", "PairFlag", "ResolutionCheck", "PruneResult",
+           "ValidatedFit",
            "check_resolution", "prune_sections", "fit_validated", "dense_grid"]
 # Quadratic, PairFlag, ResolutionCheck, check_resolution: defined in freqid_casadi.core.resolution
 # (below fit), dense_grid in freqid_casadi.core.data; re-exported here for callers of this module.

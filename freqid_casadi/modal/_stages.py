@@ -27,8 +27,8 @@ from ..solvers.common import Status
 from ..solvers.ipopt import ipopt_status
 from ..solvers.termination import Termination
 
-__all__ = ["SharedStage", "logger", "stage_line", "rational_start", "sequential_start", "lawson_weights",
-           "lawson_rounds", "EXACT", "ROUND_TERMINATION"]
+__all__ = ["SharedStage", "logger", "stage_line", "rational_start", "sequential_start",
+           "lawson_weights", "lawson_rounds", "EXACT", "ROUND_TERMINATION"]
 
 #: Max relative error below which a channel's fit counts as exact (not beaten by its own).
 EXACT = 1e-8

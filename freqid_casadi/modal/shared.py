@@ -97,8 +97,10 @@ class SharedFitResult:
         decrease of at most 1e-12, :mod:`freqid_casadi.solvers.shared_termination`); with
         ``balance_channels`` that stage solves the last reweighted problem, i.e. the one
         whose solution is returned.
-    modes : tuple of freqid_casadi.core.modes.Mode
-        The underdamped shared poles with every channel's residue, by frequency.
+    modes : freqid_casadi.core.modes.Modes
+        The underdamped shared poles with every channel's residue, by frequency: a tuple
+        of Mode that is also callable (``res.modes()`` is the same tuple, the spelling of
+        ``FitResult.modes``).
     wall_time : float
         s.
     nit : int
@@ -115,17 +117,24 @@ class SharedFitResult:
         With ``balance_channels``: each channel's max relative error in its own
         single-channel fit (the targets); empty otherwise.
     message : str
-        Why the last stage stopped (with the termination test's numbers) and, with
-        ``balance_channels``, which channels miss their targets.
+        One sentence led by :attr:`status`: the worst channel's errors and what to do next
+        (e.g. "not-converged: the final stage reached its iteration limit (400); ... —
+        pass method=IpoptOptions(final_max_iter=4000) to let it run further"); with
+        ``balance_channels``, whether every channel is within its own fit's max error;
+        notes on under-resolved modes. The optimiser's words are in ``details``.
     status : FitStatus
         As ``FitResult.status``: "ok" when the last stage converged and every channel's
         residual is consistent with its noise
         (:func:`~freqid_casadi.fitting.verdict.residual_noise`), "poor-fit" when it
         converged but a channel's residual is well above its noise, "not-converged".
     details : dict
-        ``noise``: each channel's consistency check; ``start``: the start that won
-        (with ``start="best"``) and ``start_max_rel_errors`` (largest channel max error of
-        each start).
+        ``final_stage``: the last stage's ``stage``, ``iterations``, ``max_iter`` (its
+        limit), ``status`` (a :class:`~freqid_casadi.solvers.common.Status` name),
+        ``solver_status`` (IPOPT's) and ``message`` (the termination test's text with its
+        numbers); ``noise``: each channel's consistency check; ``start``: the start that
+        won (with ``start="best"``) and ``start_max_rel_errors`` (largest channel max error
+        of each start); with ``balance_channels``, ``balance`` (``exceed``: the channels
+        above their own fit's max error, ``rounds``, ``targets``).
     """
 
     models: tuple

@@ -14,7 +14,8 @@ import numpy as np
 from .._progress import channel, check_progress
 from ..errors import OptionError
 
-__all__ = ["StabilizationPole", "StabilizationOrder", "StabilizationResult", "parse_orders", "stabilization",
+__all__ = ["StabilizationPole", "StabilizationOrder", "StabilizationResult", "parse_orders",
+           "stabilization",
            "stabilization_csv"]
 
 

@@ -93,7 +93,8 @@ from ..solvers.common import SUCCESS_STATUSES, TERMINATION_MESSAGES, Status
 from ..solvers.ipopt import run_nlpsol
 
 __all__ = ["WEIGHT_METHOD", "fit_uncertainty_weight", "weights_by_order", "iter_weights",
-           "WeightResult", "WeightSection", "Overbound", "MAX_DAMPING", "CORNER_DECADES", "E_FLOOR",
+           "WeightResult", "WeightSection", "Overbound", "MAX_DAMPING", "CORNER_DECADES",
+           "E_FLOOR",
            "MAX_DECADES", "frequency_scale", "rescaled"]
 
 
