@@ -400,15 +400,14 @@ def _weight_options(function, method, max_iter, verbose):
                           "ipopt={'print_level': 5}) only")
     if max_iter is None and verbose is None:
         return ipopt_limits(function, method, WEIGHT_METHOD, ("max_iter", "ipopt"))
-    if max_iter is not None and (isinstance(max_iter, bool) or max_iter < 1
-                                 or not isinstance(max_iter, (int, np.integer))):
+    if max_iter is not None and (isinstance(max_iter, bool) or not isinstance(
+            max_iter, (int, np.integer)) or max_iter < 1):
         raise OptionError(f"max_iter must be an integer >= 1, got {max_iter!r}; pass "
                           "method=IpoptOptions(max_iter=500) instead")
     limit = WEIGHT_METHOD.max_iter if max_iter is None else int(max_iter)
     log = {"print_level": 5} if verbose else {}
-    new = f"method=IpoptOptions(max_iter={limit}" + (f", ipopt={log})" if log else ")")
-    if verbose is not None:
-        new += " (IPOPT's log; progress='lines' gives one line per order)"
+    new = f"method=IpoptOptions(max_iter={limit}" + (f", ipopt={log})" if log else ")") + (
+        "" if verbose is None else " (IPOPT's log; progress='lines' gives one line per order)")
     old = ", ".join(f"{k}={v!r}" for k, v in (("max_iter", max_iter), ("verbose", verbose))
                     if v is not None)
     warn_renamed(function, old, new, 3)
@@ -417,9 +416,8 @@ def _weight_options(function, method, max_iter, verbose):
 
 def _order_line(w):
     """One line of text for a :class:`WeightResult` (``progress="lines"``)."""
-    return (f"order {w.order}: objective {w.objective:.4g}, overbound max "
-            f"{w.overbound.max_db:.3g} dB, {w.nit} iterations, "
-            f"{'converged' if w.success else 'not converged'}")
+    return (f"order {w.order}: objective {w.objective:.4g}, overbound max {w.overbound.max_db:.3g}"
+            f" dB, {w.nit} iterations, {'converged' if w.success else 'not converged'}")
 
 
 def _validate(result_or_omega, rel_error, order, margin, min_damping):
