@@ -209,3 +209,27 @@ def test_weight_progress_receives_every_order():
     assert all(isinstance(w, WeightResult) for w in seen) and seen[-1].gain == res.gain
     with pytest.raises(OptionError, match="progress must be"):
         fit_uncertainty_weight(OMEGA, REL_ERROR, progress="bar")
+
+
+# ------------------------------------------------------------------ fit's unconverged message
+@pytest.mark.parametrize("details, says, step", [
+    ({"max_iter": 500, "method": "ipopt", "termination": {"rms_fall_per_iteration": 0.002}},
+     "reached its iteration limit (500) while the error still fell 0.2 % per iteration",
+     "pass method=IpoptOptions(final_max_iter=5000) to continue"),
+    ({"max_iter": 500, "method": "ipopt", "termination": {"rms_fall_per_iteration": -0.05}},
+     "reached its iteration limit (500) with the error no longer falling",
+     "try start='best'"),
+    ({"method": "barrier-lm", "solver_status": "inner_max_iter"},
+     "reached the barrier-LM's limit of trial steps per inner solve (max_inner)",
+     "pass method=BarrierLMOptions(max_inner=5000)"),
+])
+def test_an_unconverged_fit_says_what_stopped_it_and_what_to_pass(details, says, step):
+    from types import SimpleNamespace
+
+    from freqid_casadi.fitting._checks import _not_converged
+    from freqid_casadi.solvers.common import Status
+
+    last = SimpleNamespace(status=Status.MAX_ITER, details=details)
+    text = _not_converged(last, SimpleNamespace(max=1e-9, rms=1e-10))
+    assert text.startswith("not-converged: the final stage " + says), text
+    assert step in text and "-5 %" not in text
