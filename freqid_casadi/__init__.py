@@ -29,12 +29,13 @@ from .core.model import RationalDelayModel, Structure
 from .core.modes import ModeShapes, mac
 from .modal.survey import stabilization
 from .modal.shared import SharedFitResult, fit_shared
-from .options import BarrierLMOptions, FitOptions, IpoptOptions, LoopOptions
+from .options import (BarrierLMOptions, FitOptions, IpoptOptions, LoopOptions,
+                      VectorFittingOptions)
 from .uncertainty.cover import CoverResult, cover
 
 __all__ = [
     "fit", "FitResult", "FitStatus", "StageRecord", "IpoptOptions", "BarrierLMOptions", "LoopOptions",
-    "FitOptions", "FrequencyData", "RationalDelayModel", "Structure",
+    "FitOptions", "VectorFittingOptions", "FrequencyData", "RationalDelayModel", "Structure",
     "load", "load_csv", "load_npz", "load_text", "load_mat", "load_uff",
     "load_touchstone", "save_csv",
     "DataWarning", "systems",

@@ -9,6 +9,9 @@ that names the field, its value and the fix. Variants are built with
 - :class:`BarrierLMOptions`: the thesis's log-barrier + Levenberg-Marquardt stage solver.
 - :class:`LoopOptions`: the sequential main loop (parametrization, new sections, scaling).
 - :class:`FitOptions`: the record of one fit (``FitResult.options``).
+- :class:`VectorFittingOptions`: the vector-fitting start of
+  :func:`~freqid_casadi.modal.shared.fit_shared` (its ``start="rational"``); that function's
+  IPOPT iteration limits are an :class:`IpoptOptions` (``method=``) as for ``fit``.
 
 ``fit(..., method=IpoptOptions(...))`` selects the method by the object's type; a string
 method means that method's default options.
@@ -21,9 +24,11 @@ from dataclasses import dataclass, fields
 from ._validate import check_choice, check_flag
 from .errors import OptionError
 
-__all__ = ["IpoptOptions", "BarrierLMOptions", "LoopOptions", "FitOptions", "METHODS",
+__all__ = ["IpoptOptions", "BarrierLMOptions", "LoopOptions", "FitOptions",
+           "VectorFittingOptions", "METHODS",
            "HESSIANS", "WARM_STARTS", "GAUGES", "INITS", "DERIVATIVES", "DAMPING_MODES",
-           "LEGACY_KEYWORDS", "solver_options", "options_from_keywords", "legacy_message"]
+           "LEGACY_KEYWORDS", "solver_options", "options_from_keywords", "legacy_message",
+           "warn_renamed", "ipopt_limits"]
 
 #: Stage-solver methods of :func:`~freqid_casadi.fitting.fit.fit`.
 METHODS = ("ipopt", "barrier-lm")
@@ -354,6 +359,27 @@ class LoopOptions:
 
 
 @dataclass(frozen=True)
+class VectorFittingOptions:
+    """Options of the vector-fitting start of
+    :func:`~freqid_casadi.modal.shared.fit_shared` (``start="rational"``, and the rational
+    half of ``start="best"``): ``fit_shared(..., vector_fitting=VectorFittingOptions(...))``.
+
+    Parameters
+    ----------
+    n_iter : int >= 0
+        Pole-relocation iterations of the shared-pole vector fitting (and of each
+        channel's own poles with ``channel_sections``); 0 keeps the start poles (placed at
+        the resonance peaks the channels share) and fits only the residues.
+    """
+
+    n_iter: int = 10
+
+    def __post_init__(self):
+        _int_at_least(type(self).__name__, "n_iter", self.n_iter, 0)
+        object.__setattr__(self, "n_iter", int(self.n_iter))
+
+
+@dataclass(frozen=True)
 class FitOptions:
     """The options one :func:`~freqid_casadi.fitting.fit.fit` ran with (``FitResult.options``).
 
@@ -502,3 +528,63 @@ def options_from_keywords(method="ipopt", **keywords):
         return IpoptOptions(**common, ipopt=extra), loop
     common.pop("hessian", None)
     return BarrierLMOptions(**common, **dict(keywords.get("lm_options") or {})), loop
+
+
+def warn_renamed(function, old, new, stacklevel=3):
+    """Issue the FutureWarning of a keyword that keeps working under its old spelling.
+
+    Parameters
+    ----------
+    function : str
+        Name of the function called (e.g. "fit_shared").
+    old : str
+        The old spelling as passed, e.g. ``"max_iter=200"``.
+    new : str
+        The spelling to use, e.g. ``"method=IpoptOptions(max_iter=200)"``.
+    stacklevel : int
+        As for :func:`warnings.warn`, counted from the caller of this function.
+    """
+    import warnings
+
+    warnings.warn(f"{function}({old}) is deprecated; pass {new} (the same setting)",
+                  FutureWarning, stacklevel=stacklevel + 1)
+
+
+def ipopt_limits(function, method, default, used):
+    """The IpoptOptions ``method`` of a function that takes only some of its fields.
+
+    Parameters
+    ----------
+    function : str
+        Name of the function, for the message.
+    method : IpoptOptions, "ipopt" or None
+        None or "ipopt": ``default``.
+    default : IpoptOptions
+    used : tuple of str
+        The fields ``function`` reads; every other field must keep its default.
+
+    Returns
+    -------
+    IpoptOptions
+
+    Raises
+    ------
+    OptionError
+        Not an IpoptOptions, or a field ``function`` does not read was changed.
+    """
+    if method is None or (isinstance(method, str) and method == "ipopt"):
+        return default
+    if not isinstance(method, IpoptOptions):
+        fields_text = ", ".join(f"{k}={getattr(default, k)!r}" for k in used)
+        raise OptionError(f"{function} solves with IPOPT: method must be an IpoptOptions (or "
+                          f"None), got {method!r:.80}; pass method=IpoptOptions("
+                          f"{fields_text})")
+    plain = IpoptOptions()
+    changed = [f.name for f in fields(IpoptOptions) if f.name not in used
+               and getattr(method, f.name) != getattr(plain, f.name)]
+    if changed:
+        name = changed[0]
+        raise OptionError(f"{function} uses only {', '.join(used)} of IpoptOptions, got "
+                          f"{name}={getattr(method, name)!r}; leave IpoptOptions.{name} at "
+                          "its default")
+    return method

@@ -83,10 +83,9 @@ def timed_fit(n_channels, repeats=3):
     return {"channels": n_channels, "wall_time": min(walls), "wall_times": walls,
             "nit": polish.nit, "t_per_iteration": min(per_it), "t_per_iteration_all": per_it,
             "cpu_per_iteration": min(cpu_it),
-            "status": polish.solver_status, "success": res.success,
-            "how": ("converged" if polish.success else "not converged") +
-                   (" (relative stationarity)" if "relative stationarity" in polish.message
-                    else ""), "n_modes": len(res.modes),
+            "status": str(res.status), "message": res.message,
+            "solver_status": polish.solver_status, "success": res.success,
+            "n_modes": len(res.modes),
             "max_rel_error_worst": float(np.max(res.max_rel_errors)),
             "rms_rel_error_worst": float(np.max(res.rms_rel_errors)),
             "max_freq_error": max(freq_err), "max_zeta_error": max(zeta_err),
@@ -175,7 +174,7 @@ def modal_test(datas, truth_shapes, truth_hz, label):
     f = sh.frequency_hz
     return {"label": label, "channels": len(datas), "points": int(datas[0].n_points),
             "wall_time": wall, "cpu_time": cpu, "success": res.success,
-            "message": res.message, "nit": res.nit,
+            "status": str(res.status), "message": res.message, "nit": res.nit,
             "frequency_hz": f.tolist(), "zeta": sh.zeta.tolist(),
             "frequency_error_hz": [float(np.min(np.abs(f - t))) for t in truth_hz],
             "rms": res.rms_rel_errors.tolist(), "own_rms": own,
@@ -271,7 +270,8 @@ def stabilization_example():
     datas = [fc.FrequencyData(d.omega[::2], d.response[::2], d.name)
              for d in beam_channels(6)]
     t0 = time.perf_counter()
-    res = stabilization(datas, range(12, 33, 2), delay=False, zeros=zeros_of(6), max_iter=100)
+    res = stabilization(datas, range(12, 33, 2), delay=False, zeros=zeros_of(6),
+                        method=fc.IpoptOptions(max_iter=100, final_max_iter=200))
     wall = time.perf_counter() - t0
     save_figure(stabilization_diagram(res), os.path.join(OUT, "stabilization.png"))
     with open(os.path.join(OUT, "stabilization.csv"), "w", encoding="utf-8") as fh:
@@ -320,8 +320,10 @@ def render(r):
                      f"{1e3 * x['t_per_iteration']:.1f} | {1e3 * x['cpu_per_iteration']:.1f} | "
                      f"{x['max_rel_error_worst']:.3g} | "
                      f"{x['max_freq_error']:.2e} | {x['max_zeta_error']:.2e} | "
-                     f"{x.get('how', '')}; IPOPT: {x['status']} |")
-    lines += ["", "CPU time of one cost+gradient+Hessian evaluation (median of 20, one "
+                     f"{x['status']} |")
+    lines += ["", "Messages (SharedFitResult.message): " + "; ".join(
+        f"{x['channels']} channels: {x['message']}" for x in r["runs"]) + ".", "",
+              "CPU time of one cost+gradient+Hessian evaluation (median of 20, one "
               "thread): " + ", ".join(
         f"{c} ch. {1e3 * t:.1f} ms" for c, t in r["eval_time"].items()) + ".", "",
         "Ratios (linear growth in the number of channels gives 2.0; CPU time of this "
@@ -352,7 +354,7 @@ def _modal_test_lines(m):
             f"{m['channels']} channels x {m['points']} points (65..1000 Hz), 4 shared "
             f"sections, delay none, zeros free: {m['wall_time']:.1f} s wall, "
             f"{m['cpu_time']:.1f} s CPU (this process; the machine is shared), "
-            f"{m['nit']} IPOPT iterations, {'converged' if m['success'] else 'NOT converged'}."
+            f"{m['nit']} IPOPT iterations; {m['message']}."
             f" Reference frequencies: {', '.join(f'{v:g}' for v in PUBLISHED_HZ)} Hz.")
     lines = [head, "",
              "| mode | f (Hz) | zeta (%) | error vs reference (Hz) | MPC | MPD (deg) | MAC vs "

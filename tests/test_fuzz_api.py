@@ -121,12 +121,12 @@ def test_fit_of_600_decades_of_magnitude_reports_finite_errors():
 
 # ----------------------------------------------------------------------- fit_shared
 @pytest.mark.parametrize("kw, needle", [
-    (dict(delay=np.array([1, 2])), "delay must be one of"),
-    (dict(zeros=None), "zeros must be one of"),
-    (dict(start=np.array([1, 2])), "start must be one of"),
+    (dict(delay=np.array([1, 2])), "unknown delay array"),
+    (dict(zeros=None), "unknown zeros None; choose one of minimum-phase, free"),
+    (dict(start=np.array([1, 2])), "unknown start array"),
     (dict(integrator="no"), "integrator must be True or False"),
     (dict(balance_channels="no"), "balance_channels must be True or False"),
-    (dict(progress=np.array([1, 2])), "progress must be True or False"),
+    (dict(progress=np.array([1, 2])), "progress must be True, False, 'lines' or a callable"),
     (dict(delay_max=-1.0), "delay_max must be a finite delay > 0"),
     (dict(delay_max=float("nan")), "delay_max must be a finite delay > 0"),
     (dict(delay_max="x"), "delay_max must be a finite delay > 0"),

@@ -101,17 +101,22 @@ def test_bound_tests_do_not_multiply_an_infinite_distance_by_zero():
     np.testing.assert_array_equal(moved, [0.0, 0.5])
 
 
+#: The iteration limits of the small stabilization diagrams (the old max_iter=60).
+LIMITS = fc.IpoptOptions(max_iter=60, final_max_iter=120)
+
+
 def test_selection_needs_min_stable_plus_one_orders_and_says_why():
     datas = _datas(120, 2)
-    one = survey.stabilization(datas, orders=(4,), delay=False, zeros="free", max_iter=60)
+    one = survey.stabilization(datas, orders=(4,), delay=False, zeros="free",
+                               method=LIMITS)
     assert one.modes == () and "at least 4 orders" in one.selection_note
     four = survey.stabilization(datas, orders=(2, 4, 6, 8), delay=False, zeros="free",
-                                max_iter=60, min_stable=3)
+                                method=LIMITS, min_stable=3)
     # order 4 is the first with both modes: their chains break there (new against order 2)
     assert four.modes == ()
     assert four.selection_note.count("at order 4 no pole of order 2") >= 1
     two = survey.stabilization(datas, orders=(2, 4, 6, 8), delay=False, zeros="free",
-                               max_iter=60, min_stable=2)
+                               method=LIMITS, min_stable=2)
     assert [m.omega_n for m in two.modes] == pytest.approx([5.0, 17.0], rel=1e-4)
 
 

@@ -8,15 +8,17 @@
 Every ``.csv`` and ``.npz`` file directly inside ``DIR`` is fitted with the same options by
 :func:`freqid_casadi.fitting.batch.fit_many`. The output folder holds::
 
-    summary.md      first line: the command; one table row per file
-    summary.csv     file, name, status, order, max/RMS relative error, ..., error, model
+    summary.md      first line: the command; the count of each status; one table row per
+                    file, led by its status
+    summary.csv     status (ok, poor-fit, not-converged or error), file, name, order,
+                    max/RMS relative error, ..., message, error, model
     models/<name>.json   the model of every file that was fitted (named in the ``model``
                     column: the file's stem, or its whole name where stems collide)
 
 It is built in a temporary sibling folder and renamed into place when complete (nothing is
 left behind on an error or Ctrl-C); an existing ``--out`` is refused before any fit unless
-``--force``. Exit code 0 if every file was fitted and converged, 1 if a file failed or did
-not converge (the summary says which), 2 on a usage, option or folder error.
+``--force``. Exit code 0 if every file was fitted and converged (status "ok" or "poor-fit"), 1 if a
+file failed or did not converge (the summary says which), 2 on a usage, option or folder error.
 
 Registered in :data:`freqid_casadi.cli.app.COMMANDS` (its :func:`add_cli` and :func:`run_cli`).
 """
@@ -28,7 +30,7 @@ import warnings
 
 from .common import load_options, notes_to_stderr
 from .._textio import atomic_write_text, csv_row, one_line
-from ..fitting.batch import fit_many
+from ..fitting.batch import BATCH_STATUSES, fit_many
 from .common import _add_input, _add_model_arguments, _positive_int   # the CLI's own helpers
 from ..report.outputs import MARKER
 from ..errors import DataError
@@ -45,8 +47,10 @@ _SUFFIXES = (".csv", ".npz")
 #: Data files that ``freqid fit`` reads but batch does not: named in a warning when skipped.
 _OTHER_DATA = (".txt", ".dat", ".tsv", ".mat", ".uff", ".unv", ".s1p", ".s2p")
 
-_COLUMNS = ("file", "name", "status", "n_sections", "order", "max_rel_error",
-            "rms_rel_error", "delay", "nit", "wall_time", "error", "model")
+_COLUMNS = ("status", "file", "name", "n_sections", "order", "max_rel_error",
+            "rms_rel_error", "delay", "nit", "wall_time", "message", "error", "model")
+#: BatchItem statuses whose fit converged (the exit code is 0 when every file's is one).
+_CONVERGED = ("ok", "poor-fit")
 
 
 def add_cli(subparsers):
@@ -160,13 +164,14 @@ def _unique_names(paths):
 def _row(item, file_name, model_file):
     r = item.result
     if r is None:
-        return dict(file=file_name, model=None, name=item.name, status=item.status,
+        return dict(file=file_name, model=None, name=item.name, status=str(item.status),
                     n_sections=None, order=None, max_rel_error=None, rms_rel_error=None,
-                    delay=None, nit=None, wall_time=None, error=item.error)
-    return dict(file=file_name, model=model_file, name=item.name, status=item.status,
+                    delay=None, nit=None, wall_time=None, message=None, error=item.error)
+    return dict(file=file_name, model=model_file, name=item.name, status=str(item.status),
                 n_sections=r.model.n_sections, order=r.model.order,
                 max_rel_error=r.max_rel_error, rms_rel_error=r.rms_rel_error,
-                delay=r.model.delay, nit=r.nit, wall_time=r.wall_time, error=None)
+                delay=r.model.delay, nit=r.nit, wall_time=r.wall_time, message=r.message,
+                error=None)
 
 
 def _csv_value(v):
@@ -207,18 +212,16 @@ def write_batch_report(items, files, out_dir, *, command, force=False):
 
 
 def _markdown(rows, command):
-    n_ok = sum(r["status"] == "converged" for r in rows)
-    n_fail = sum(r["status"] == "failed" for r in rows)
+    counts = ", ".join(f"{sum(r['status'] == s for r in rows)} {s}" for s in BATCH_STATUSES)
     table = markdown_table(
-        [(r["file"], r["status"], r["order"], _num(r["max_rel_error"]),
+        [(r["status"], r["file"], r["order"], _num(r["max_rel_error"]),
           _num(r["rms_rel_error"]), _num(r["delay"]), r["nit"],
-          _num(r["wall_time"], 3), r["error"], r["model"]) for r in rows],
-        ("file", "status", "order", "max rel. error", "RMS rel. error", "delay (s)",
-         "iterations", "time (s)", "error", "model file"), align="llrrrrrrll")
+          _num(r["wall_time"], 3), r["message"] or r["error"], r["model"]) for r in rows],
+        ("status", "file", "order", "max rel. error", "RMS rel. error", "delay (s)",
+         "iterations", "time (s)", "message", "model file"), align="llrrrrrrll")
     return "\n".join([
         generated_by_line(command), "", "# Batch fit", "",
-        f"{len(rows)} files: {n_ok} converged, {len(rows) - n_ok - n_fail} not converged, "
-        f"{n_fail} failed.", "", table, ""])
+        f"{len(rows)} files: {counts}.", "", table, ""])
 
 
 def run_cli(args, command):
@@ -240,9 +243,9 @@ def run_cli(args, command):
                          n_sections=args.sections, integrator=args.integrator,
                          delay=args.delay, basis=args.basis, method=args.method, tol=args.tol)
     path = write_batch_report(items, files, args.out, command=command, force=args.force)
-    n_ok = sum(i.status == "converged" for i in items)
+    n_ok = sum(i.status in _CONVERGED for i in items)
     for item, f in zip(items, files):
         what = item.result.summary() if item.result is not None else item.error
-        print(f"{one_line(os.path.basename(f))}: {item.status}: {one_line(what)}")
+        print(f"{item.status}: {one_line(os.path.basename(f))}: {one_line(what)}")
     print(f"{n_ok}/{len(items)} converged; report: {path}")
     return 0 if n_ok == len(items) else 1

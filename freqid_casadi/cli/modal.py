@@ -38,6 +38,7 @@ import numpy as np
 from .._textio import atomic_write_text
 from .common import add_data_options
 from ..errors import OptionError
+from ..options import IpoptOptions
 
 __all__ = ["add_cli", "run_cli", "NAME"]
 
@@ -184,7 +185,8 @@ def run_cli(args, command):
     args : argparse.Namespace
         The parsed ``freqid modal`` arguments (``files``, ``orders``, ``out``, ``force``,
         ``delay``, ``zeros``, ``integrator``, ``freq_tol``, ``damping_tol``, ``min_stable``,
-        ``max_iter``, ``channel_sections``, ``balance_channels``).
+        ``max_iter`` (``--max-iter k``: ``method=IpoptOptions(max_iter=k,
+        final_max_iter=2 k)``), ``channel_sections``, ``balance_channels``).
     command : str
         The command line, written as the first line of ``summary.md``.
 
@@ -214,7 +216,9 @@ def run_cli(args, command):
     res = stabilization(datas, orders, freq_tol=args.freq_tol, damping_tol=args.damping_tol,
                         min_stable=args.min_stable, delay=delay,
                         zeros=_zeros(args.zeros, len(datas)), integrator=args.integrator,
-                        max_iter=args.max_iter, channel_sections=args.channel_sections,
+                        method=IpoptOptions(max_iter=args.max_iter,
+                                            final_max_iter=2 * args.max_iter),
+                        channel_sections=args.channel_sections,
                         balance_channels=args.balance_channels)
     with report_folder(args.out, args.force) as (tmp, path):
         _write_report(res, tmp, names, command, coords, ref)

@@ -19,7 +19,7 @@ from .._textio import atomic_write_text
 from ..errors import DataError, OptionError
 from .model import RationalDelayModel
 
-__all__ = ["Mode", "modes", "modes_of_models", "modes_csv", "modes_markdown",
+__all__ = ["Mode", "Modes", "modes", "modes_of_models", "modes_csv", "modes_markdown",
            "write_modes", "STATUSES", "ModeShapes", "mode_shapes", "mac", "shapes_csv",
            "REAL_MPC", "resolution_notes"]
 
@@ -60,6 +60,30 @@ class Mode:
     zeta_std: float = None
 
 
+class Modes(tuple):
+    """A tuple of :class:`Mode` that is also callable (returning itself), so that
+    ``res.modes`` and ``res.modes()`` mean the same for a
+    :class:`~freqid_casadi.fitting.fit.FitResult` and a
+    :class:`~freqid_casadi.modal.shared.SharedFitResult` (the one was a method, the other
+    a field): ``len(res.modes)``, ``res.modes[0].omega_n``, ``for m in res.modes()`` all
+    work on both. Equal to the plain tuple of the same modes.
+
+    Parameters
+    ----------
+    iterable : iterable of Mode, optional
+        The modes, by increasing frequency.
+    """
+
+    __slots__ = ()
+
+    def __call__(self):
+        """The modes themselves (the spelling of a method call)."""
+        return self
+
+    def __repr__(self):
+        return f"Modes({tuple.__repr__(self)})"
+
+
 def _residue(model, pole, j):
     """Residue of ``model`` at ``pole``, a root of its denominator section ``j``."""
     val = np.exp(-pole * model.delay) * model.gain
@@ -91,11 +115,12 @@ def modes_of_models(models, n_shared=None):
 
     Returns
     -------
-    tuple of Mode
+    Modes
+        A tuple of Mode (callable: ``modes()`` returns it).
     """
     models = list(models)
     if not models or models[0].structure.basis != "second-order":
-        return ()
+        return Modes()
     out = []
     for j, (a, zn, wn, b, zd, wd) in enumerate(models[0].sections()[:n_shared]):
         zeta = zd / np.sqrt(b) if b > 0 else np.inf
@@ -106,7 +131,7 @@ def modes_of_models(models, n_shared=None):
         out.append(Mode(omega_n=float(omega_n), frequency_hz=float(omega_n / (2 * np.pi)),
                         zeta=float(-pole.real / omega_n),
                         residues=tuple(_residue(m, pole, j) for m in models), pole=pole))
-    return tuple(sorted(out, key=lambda m: m.omega_n))
+    return Modes(sorted(out, key=lambda m: m.omega_n))
 
 
 def modes(model_or_result):

@@ -171,10 +171,14 @@ def success_of(last, stats):
 def _next_step(last, stats):
     """What to pass to let an unconverged final stage continue."""
     limit = last.details.get("max_iter")
-    if last.status == Status.MAX_ITER and limit:
-        kind = "BarrierLMOptions" if last.details.get("method") == "barrier-lm" \
-            else "IpoptOptions"
+    lm = last.details.get("method") == "barrier-lm"
+    fell = last.details.get("termination", {}).get("rms_fall_per_iteration")
+    if last.status == Status.MAX_ITER and limit and not (fell is not None and fell <= 0):
+        kind = "BarrierLMOptions" if lm else "IpoptOptions"
         return f"pass method={kind}(final_max_iter={10 * int(limit)}) to continue"
+    if last.status == Status.MAX_ITER and lm:
+        return ("pass method=BarrierLMOptions(max_inner=5000) to let its inner solves run "
+                "further, or method='ipopt'")
     if not stats.rms < TRIVIAL_RMS:
         return ("the model explains almost nothing: see the diagnostics (gain sign, model "
                 "class, delay) before iterating further")
@@ -191,7 +195,10 @@ def _not_converged(last, stats, usable=False):
     if last.status == Status.MAX_ITER and limit:
         how = f"reached its iteration limit ({int(limit)})"
         if fell is not None and math.isfinite(fell):
-            how += f" while the error still fell {100 * fell:.2g} % per iteration"
+            how += (f" while the error still fell {100 * fell:.2g} % per iteration" if fell > 0
+                    else " with the error no longer falling")
+    elif last.status == Status.MAX_ITER and d.get("method") == "barrier-lm":
+        how = "reached the barrier-LM's limit of trial steps per inner solve (max_inner)"
     elif last.status == Status.STALLED:
         how = "stalled (the error stopped falling) at a point that is not stationary"
     else:

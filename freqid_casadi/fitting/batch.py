@@ -24,14 +24,15 @@ from ..core.data import FrequencyData
 from ..io.loaders import load
 from ..errors import DataError, OptionError, StructureError
 from .fit import FitResult, fit
+from .verdict import FitStatus
 from ..core.model import BASES, Structure
 from ..options import LEGACY_KEYWORDS, LoopOptions, legacy_message, solver_options
 from .._progress import channel, check_progress
 
 __all__ = ["fit_many", "BatchItem", "BATCH_STATUSES"]
 
-#: Values of :attr:`BatchItem.status`.
-BATCH_STATUSES = ("converged", "not-converged", "failed")
+#: Values of :attr:`BatchItem.status`: a fit's :class:`~.verdict.FitStatus`, or "error".
+BATCH_STATUSES = tuple(s.value for s in FitStatus) + ("error",)
 
 _FIT_OPTIONS = frozenset(p for p in inspect.signature(fit).parameters
                          if p not in ("data_or_omega", "response"))
@@ -50,9 +51,10 @@ class BatchItem:
         The fit, or None if it failed.
     error : str or None
         ``"<ExceptionType>: <message>"`` if the fit failed, else None.
-    status : {"converged", "not-converged", "failed"}
-        "converged" if ``result.success``, "not-converged" if the fit ran but its final
-        stage did not converge, "failed" if there is no result.
+    status : FitStatus or "error"
+        The fit's :attr:`FitResult.status <freqid_casadi.fitting.fit.FitResult.status>`
+        ("ok", "poor-fit" or "not-converged": a ``str`` enum, so ``item.status == "ok"``
+        works), or "error" if there is no result (see ``error``).
     source : str or None
         The file the data came from, if it was given as a path.
     """
@@ -60,7 +62,7 @@ class BatchItem:
     name: str
     result: FitResult = None
     error: str = None
-    status: str = "failed"
+    status: str = "error"
     source: str = None
 
     @property
@@ -117,9 +119,8 @@ def _fit_one(name, item, options, load_options=None):
         raise                                   # the same for every dataset: not per item
     except Exception as exc:  # noqa: BLE001 - one failing dataset must not stop the batch
         message = " ".join(str(exc).split())
-        return BatchItem(name, None, f"{type(exc).__name__}: {message}", "failed", source)
-    status = "converged" if result.success else "not-converged"
-    return BatchItem(name, result, None, status, source)
+        return BatchItem(name, None, f"{type(exc).__name__}: {message}", "error", source)
+    return BatchItem(name, result, None, FitStatus(result.status), source)
 
 
 def _fit_one_held(name, item, options, load_options=None):

@@ -217,21 +217,27 @@ class FitResult:
         """IPOPT/LM iterations summed over all stages."""
         return int(sum(s.nit for s in self.stages))
 
+    @property
     def modes(self):
-        """The model's modes (:func:`freqid_casadi.core.modes.modes`): tuple of Mode, one residue
-        each, by increasing frequency, with ``omega_n_std`` and ``zeta_std`` from
+        """The model's modes (:func:`freqid_casadi.core.modes.modes`), one residue each, by
+        increasing frequency, with ``omega_n_std`` and ``zeta_std`` from
         :attr:`uncertainty` (None where the covariance cannot be formed).
+
+        A :class:`~freqid_casadi.core.modes.Modes`: a tuple that is also callable, so
+        ``res.modes`` and ``res.modes()`` (the spelling of earlier versions) are the same,
+        as on :attr:`SharedFitResult.modes <freqid_casadi.modal.shared.SharedFitResult>`.
 
         Returns
         -------
-        tuple of freqid_casadi.core.modes.Mode
+        Modes
+            Tuple of freqid_casadi.core.modes.Mode.
         """
         from ..uncertainty.covariance import with_std
-        from ..core.modes import modes
+        from ..core.modes import Modes, modes
 
         found = modes(self.model)
         try:
-            return with_std(found, self.uncertainty)
+            return Modes(with_std(found, self.uncertainty))
         except (FreqidError, np.linalg.LinAlgError, ArithmeticError):
             return found
 

@@ -24,12 +24,13 @@ from ..errors import DataError, OptionError
 from .fit import FitResult, fit
 from ..core.metrics import relative_error
 from ..core.model import RationalDelayModel
-from ..options import IpoptOptions
+from ..options import IpoptOptions, ipopt_limits, warn_renamed
 from ..core.resolution import (PairFlag, Quadratic, ResolutionCheck, model_of, check_resolution,
                          default_delay_max)
 from .stages import polish
 
-__all__ = ["Quadratic", "PairFlag", "ResolutionCheck", "PruneResult", "ValidatedFit",
+__all__ = ["PRUNE_METHOD", "Quadratic", "PairFlag", "ResolutionCheck", "PruneResult",
+           "ValidatedFit",
            "check_resolution", "prune_sections", "fit_validated", "dense_grid"]
 # Quadratic, PairFlag, ResolutionCheck, check_resolution: defined in freqid_casadi.core.resolution
 # (below fit), dense_grid in freqid_casadi.core.data; re-exported here for callers of this module.
@@ -164,19 +165,23 @@ def _remove(model, pairs):
     return RationalDelayModel(model.structure.with_sections(len(rows)), beta)
 
 
-def _refit(model, data, weights, delay_max, max_iter):
+#: The IPOPT options of :func:`prune_sections`' refits by default (each refit is a final
+#: all-data stage, :func:`~freqid_casadi.fitting.stages.polish`).
+PRUNE_METHOD = IpoptOptions(final_max_iter=500)
+
+
+def _refit(model, data, weights, delay_max, solver):
     """Refit all parameters of ``model`` on all of ``data`` from ``model`` (IPOPT, dc
     gauge, as fit()'s final stage: :func:`~freqid_casadi.fitting.stages.polish`). Returns
     (model, success)."""
     if weights is not None:
         data = data.with_weights(weights)
-    pol = polish(model, data, method=IpoptOptions(final_max_iter=max_iter),
-                 delay_max=delay_max)
+    pol = polish(model, data, method=solver, delay_max=delay_max)
     return pol.model, bool(pol.result.success)
 
 
 def prune_sections(result_or_model, data=None, *, reference=None, factor=1.0, refit=True,
-                   max_rounds=3, dense_factor=10, weights=None, max_iter=500):
+                   max_rounds=3, dense_factor=10, weights=None, method=None, max_iter=None):
     """Remove the sections the data cannot resolve and refit the rest.
 
     Parameters
@@ -198,8 +203,13 @@ def prune_sections(result_or_model, data=None, *, reference=None, factor=1.0, re
         The dense grid has ``dense_factor`` x as many log-spaced points as the data.
     weights : array_like of float, shape (M,), optional
         Weights of the refit (default: ``data.weights``).
-    max_iter : int
-        IPOPT iteration limit of each refit.
+    method : IpoptOptions, optional
+        The refits' IPOPT options (each refit is a final all-data stage, so
+        ``final_max_iter`` is its iteration limit); default :data:`PRUNE_METHOD`,
+        ``IpoptOptions(final_max_iter=500)``.
+    max_iter : int, optional
+        Deprecated (FutureWarning): ``max_iter=k`` is
+        ``method=IpoptOptions(final_max_iter=k)``.
 
     Returns
     -------
@@ -227,7 +237,9 @@ def prune_sections(result_or_model, data=None, *, reference=None, factor=1.0, re
         raise DataError("data must be the FrequencyData the model was fitted to")
     original = model_of(original)
     if isinstance(max_rounds, bool) or not isinstance(max_rounds, int) or max_rounds < 1:
-        raise OptionError(f"max_rounds must be an integer >= 1, got {max_rounds!r}")
+        raise OptionError(f"max_rounds must be an integer >= 1, got {max_rounds!r}; pass "
+                          "e.g. max_rounds=3")
+    solver = _prune_method(method, max_iter)
     w = data.weights if weights is None else np.asarray(weights, float)
     omega = data.omega
     dense = dense_grid(omega, dense_factor)
@@ -241,7 +253,7 @@ def prune_sections(result_or_model, data=None, *, reference=None, factor=1.0, re
         model = _remove(model, check.flags)
         rounds += 1
         if refit:
-            model, success = _refit(model, data, w, delay_max, max_iter)
+            model, success = _refit(model, data, w, delay_max, solver)
         check = check_resolution(model, omega, factor=factor)
     if not check.ok:
         _log.warning("after pruning: %s", check.message())
@@ -263,6 +275,22 @@ def prune_sections(result_or_model, data=None, *, reference=None, factor=1.0, re
                        max_dense_error_after=dense_vals[2],
                        rms_dense_error_after=dense_vals[3], max_dense_change=change,
                        n_dense=int(dense.size))
+
+
+def _prune_method(method, max_iter):
+    """The refits' IpoptOptions from ``method`` or the old ``max_iter`` keyword."""
+    if max_iter is None:
+        return ipopt_limits("prune_sections", method, PRUNE_METHOD,
+                            ("final_max_iter", "hessian", "ipopt", "ftol"))
+    if method is not None:
+        raise OptionError("max_iter and method both give the refits' iteration limit; drop "
+                          "max_iter and pass method=IpoptOptions(final_max_iter=...) only")
+    if isinstance(max_iter, bool) or not isinstance(max_iter, int) or max_iter < 1:
+        raise OptionError(f"max_iter must be an integer >= 1, got {max_iter!r}; pass "
+                          "method=IpoptOptions(final_max_iter=500) instead")
+    warn_renamed("prune_sections", f"max_iter={max_iter!r}",
+                 f"method=IpoptOptions(final_max_iter={max_iter})", 3)
+    return IpoptOptions(final_max_iter=max_iter)
 
 
 def fit_validated(data, *, n_sections, reference=None, factor=1.0, refit=True,

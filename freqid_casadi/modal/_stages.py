@@ -13,7 +13,6 @@ re-fitted, warm-started; then each channel's own sections, one per stage, each a
 frequency of that channel's largest error (all data); a last stage on all data.
 """
 
-import sys
 import time
 from dataclasses import dataclass
 
@@ -28,8 +27,8 @@ from ..solvers.common import Status
 from ..solvers.ipopt import ipopt_status
 from ..solvers.termination import Termination
 
-__all__ = ["SharedStage", "logger", "rational_start", "sequential_start", "lawson_weights",
-           "lawson_rounds", "EXACT", "ROUND_TERMINATION"]
+__all__ = ["SharedStage", "logger", "stage_line", "rational_start", "sequential_start",
+           "lawson_weights", "lawson_rounds", "EXACT", "ROUND_TERMINATION"]
 
 #: Max relative error below which a channel's fit counts as exact (not beaten by its own).
 EXACT = 1e-8
@@ -91,16 +90,21 @@ class SharedStage:
     message: str = ""
 
 
-def logger(progress):
-    """A function printing one line per :class:`SharedStage` to stderr when ``progress``
-    (returning the record)."""
+def logger(emit):
+    """A function handing each :class:`SharedStage` to ``emit`` (the progress channel's,
+    :mod:`freqid_casadi._progress`) and returning the record."""
     def log(rec):
-        if progress:
-            print(f"  stage {rec.stage:2d}: {rec.n_sections} sections, window {rec.window}, "
-                  f"max rel. error {rec.max_rel_error:.3e}, {rec.nit} it, "
-                  f"{rec.wall_time:.2f} s, {rec.message or rec.solver_status}", file=sys.stderr)
+        emit(rec)
         return rec
     return log
+
+
+def stage_line(rec):
+    """One line of text for a :class:`SharedStage` (``progress="lines"`` and the bar)."""
+    why = rec.status.name.lower().replace("_", " ")
+    return (f"stage {rec.stage:2d}: {rec.n_sections} sections, window {rec.window}, "
+            f"max rel. error {rec.max_rel_error:.3e}, {rec.nit} it, {rec.wall_time:.2f} s, "
+            f"{'converged' if rec.success else f'not converged ({why})'}")
 
 
 def _stage(prob, x0, window, stage, omega_c, log, lam=None, max_iter=200,
@@ -155,7 +159,7 @@ def _resolve(prob, res, cost0, window, max_iter):
     return out
 
 
-def sequential_start(make, n_total, n_local, omega, wts, log, max_iter):
+def sequential_start(make, n_total, n_local, omega, wts, log, max_iter, final_max_iter):
     """The main loop over shared sections, then over each channel's own sections.
 
     Parameters
@@ -169,7 +173,9 @@ def sequential_start(make, n_total, n_local, omega, wts, log, max_iter):
     omega : ndarray of float, shape (M,)
     wts : ndarray of float, shape (C, M)
     log : callable
-    max_iter : int
+    max_iter, final_max_iter : int
+        IPOPT iterations of each stage and of the final all-data stage
+        (``IpoptOptions.max_iter``, ``final_max_iter``).
 
     Returns
     -------
@@ -210,7 +216,7 @@ def sequential_start(make, n_total, n_local, omega, wts, log, max_iter):
                              _move_lam(old, prob, lam), max_iter)
         stages.append(rec)
     z, lam, rec = _stage(prob, z, None, n_total + n_local + 1, np.nan, log, lam,
-                         2 * max_iter)
+                         final_max_iter)
     return prob, z, lam, stages + [rec]
 
 
@@ -250,7 +256,7 @@ def _peak_damping(err, idx, omega):
     return float(np.clip(width / 2, 1e-3, 0.5))
 
 
-def rational_start(make, n, n_local, omega, phi, wts, free, log, max_iter, n_iter):
+def rational_start(make, n, n_local, omega, phi, wts, free, log, final_max_iter, n_iter):
     """Shared-pole vector fitting (and per channel its own poles), zeros per channel, then
     one IPOPT polish on all data.
 
@@ -266,8 +272,9 @@ def rational_start(make, n, n_local, omega, phi, wts, free, log, max_iter, n_ite
     wts : ndarray of float, shape (C, M)
     free : ndarray of bool, shape (C,)
     log : callable
-    max_iter, n_iter : int
-        IPOPT iterations (twice that in the polish) and vector-fitting iterations.
+    final_max_iter, n_iter : int
+        IPOPT iterations of the polish (``IpoptOptions.final_max_iter``) and
+        vector-fitting iterations (``VectorFittingOptions.n_iter``).
 
     Returns
     -------
@@ -310,7 +317,7 @@ def rational_start(make, n, n_local, omega, phi, wts, free, log, max_iter, n_ite
     stages = [log(SharedStage(0, n, omega.size, np.nan, err, n_iter, 0.0,
                               time.perf_counter() - t0, Status.CONVERGED, "vector-fitting",
                               True))]
-    z, lam, rec = _stage(prob, z0, None, n + n_local + 1, np.nan, log, None, 2 * max_iter)
+    z, lam, rec = _stage(prob, z0, None, n + n_local + 1, np.nan, log, None, final_max_iter)
     return prob, z, lam, stages + [rec]
 
 
@@ -373,7 +380,7 @@ def lawson_weights(prob, z, targets):
     return wts
 
 
-def lawson_rounds(prob, z, lam, targets, log, max_iter, rounds):
+def lawson_rounds(prob, z, lam, targets, log, final_max_iter, rounds):
     """Lawson rounds (:func:`lawson_weights`) as warm-started solves of the reweighted
     problem, the intermediate ones ended by :data:`ROUND_TERMINATION`, then one solve of
     the last weighted problem to the stages' own test (so the result's success is that of
@@ -388,8 +395,8 @@ def lawson_rounds(prob, z, lam, targets, log, max_iter, rounds):
     targets : ndarray of float, shape (C,)
         Largest acceptable max relative error per channel.
     log : callable
-    max_iter : int
-        IPOPT iterations per round (twice that in the last solve).
+    final_max_iter : int
+        IPOPT iterations of each round and of the last solve (``IpoptOptions.final_max_iter``).
     rounds : int
         Most reweighted rounds.
 
@@ -407,11 +414,11 @@ def lawson_rounds(prob, z, lam, targets, log, max_iter, rounds):
         with _interrupt.guard():
             prob = SharedProblem(prob.omega, prob.phi, w, prob.g, prob.wr, prob.integrator,
                                  prob.delay, prob.free, prob.delay_max, prob.wl)
-        z, lam, rec = _stage(prob, z, None, no + k, np.nan, log, lam, 2 * max_iter,
+        z, lam, rec = _stage(prob, z, None, no + k, np.nan, log, lam, final_max_iter,
                              ROUND_TERMINATION)
         stages.append(rec)
     if stages:
         z, lam, rec = _stage(prob, z, None, no + len(stages) + 1, np.nan, log, lam,
-                             2 * max_iter)
+                             final_max_iter)
         stages.append(rec)
     return prob, z, stages

@@ -33,6 +33,7 @@ Two starts (:mod:`freqid_casadi.modal._stages`), both tried by the default
 """
 
 import dataclasses
+import math
 import numbers
 import time
 from dataclasses import dataclass, field
@@ -43,17 +44,21 @@ from .. import _interrupt
 from ..core.data import FrequencyData, external_frequency_data
 from ..core.gauges import dc_to_thesis
 from ..errors import DataError, OptionError
-from .._validate import check_flag
+from .._progress import channel, check_progress
+from .._validate import check_choice, check_flag
 from ..core.resolution import default_delay_max
 from ..core.scaling import normalised_weights
 from ..core.model import RationalDelayModel, Structure
-from ..fitting.verdict import FitStatus, NoiseCheck, residual_noise, status_of
+from ..core.modes import Modes
+from ..fitting.verdict import ROUNDING_RMS, FitStatus, NoiseCheck, residual_noise, status_of
+from ..options import IpoptOptions, VectorFittingOptions, ipopt_limits, warn_renamed
+from ..solvers.common import TERMINATION_MESSAGES, Status
 from ._nlp import SharedProblem
-from ._stages import (SharedStage, lawson_rounds, logger, rational_start,
-                             sequential_start)
+from ._stages import (SharedStage, lawson_rounds, logger, rational_start, sequential_start,
+                      stage_line)
 
 __all__ = ["fit_shared", "SharedFitResult", "SharedStage", "DELAYS", "ZEROS", "SHARED_STARTS",
-           "check_largest_order"]
+           "DEFAULT_METHOD", "check_largest_order"]
 
 DELAYS = ("per-channel", "shared", False)
 ZEROS = ("minimum-phase", "free")
@@ -64,6 +69,13 @@ SHARED_STARTS = ("best", "rational", "sequential")
 BEST_SEQUENTIAL_LIMIT = 100_000
 #: Most reweighted fits of ``balance_channels``.
 BALANCE_ROUNDS = 10
+#: The IPOPT iteration limits of :func:`fit_shared` when ``method`` is not given: 200 per
+#: stage, 400 in the final all-data stage (also the rational start's polish and each round
+#: of ``balance_channels``), i.e. the old ``max_iter=200``.
+DEFAULT_METHOD = IpoptOptions(max_iter=200, final_max_iter=400)
+#: The fields of IpoptOptions that fit_shared uses (its stages have their own exact Hessian,
+#: warm start and termination test).
+_USED_FIELDS = ("max_iter", "final_max_iter")
 
 
 @dataclass(frozen=True, eq=False)
@@ -90,8 +102,10 @@ class SharedFitResult:
         decrease of at most 1e-12, :mod:`freqid_casadi.solvers.shared_termination`); with
         ``balance_channels`` that stage solves the last reweighted problem, i.e. the one
         whose solution is returned.
-    modes : tuple of freqid_casadi.core.modes.Mode
-        The underdamped shared poles with every channel's residue, by frequency.
+    modes : freqid_casadi.core.modes.Modes
+        The underdamped shared poles with every channel's residue, by frequency: a tuple
+        of Mode that is also callable (``res.modes()`` is the same tuple, the spelling of
+        ``FitResult.modes``).
     wall_time : float
         s.
     nit : int
@@ -108,17 +122,24 @@ class SharedFitResult:
         With ``balance_channels``: each channel's max relative error in its own
         single-channel fit (the targets); empty otherwise.
     message : str
-        Why the last stage stopped (with the termination test's numbers) and, with
-        ``balance_channels``, which channels miss their targets.
+        One sentence led by :attr:`status`: the worst channel's errors and what to do next
+        (e.g. "not-converged: the final stage reached its iteration limit (400); ... —
+        pass method=IpoptOptions(final_max_iter=4000) to let it run further"); with
+        ``balance_channels``, whether every channel is within its own fit's max error;
+        notes on under-resolved modes. The optimiser's words are in ``details``.
     status : FitStatus
         As ``FitResult.status``: "ok" when the last stage converged and every channel's
         residual is consistent with its noise
         (:func:`~freqid_casadi.fitting.verdict.residual_noise`), "poor-fit" when it
         converged but a channel's residual is well above its noise, "not-converged".
     details : dict
-        ``noise``: each channel's consistency check; ``start``: the start that won
-        (with ``start="best"``) and ``start_max_rel_errors`` (largest channel max error of
-        each start).
+        ``final_stage``: the last stage's ``stage``, ``iterations``, ``max_iter`` (its
+        limit), ``status`` (a :class:`~freqid_casadi.solvers.common.Status` name),
+        ``solver_status`` (IPOPT's) and ``message`` (the termination test's text with its
+        numbers); ``noise``: each channel's consistency check; ``start``: the start that
+        won (with ``start="best"``) and ``start_max_rel_errors`` (largest channel max error
+        of each start); with ``balance_channels``, ``balance`` (``exceed``: the channels
+        above their own fit's max error, ``rounds``, ``targets``).
     """
 
     models: tuple
@@ -235,7 +256,7 @@ class SharedFitResult:
         res = res * np.exp(-pk[None, :] * self.delays[:, None])     # the delay's factor
         if self.options.get("integrator"):
             res = res / pk[None, :]
-        return tuple(dataclasses.replace(m, residues=tuple(res[:, k]))
+        return Modes(dataclasses.replace(m, residues=tuple(res[:, k]))
                      for k, m in enumerate(self.modes))
 
     def to_control(self, pade_order=None, references=None):
@@ -324,26 +345,73 @@ def _check_datas(datas, weights):
     return datas, omega, np.array([d.response for d in datas]), wts
 
 
-def _check_numbers(integrator, delay_max, max_iter, n_vf_iter, progress, balance):
+def _check_numbers(integrator, delay_max, balance):
     """The scalar options of :func:`fit_shared` (OptionError naming the bad one)."""
-    flags = {"integrator": integrator, "progress": progress, "balance_channels": balance}
     if isinstance(integrator, (str, numbers.Integral)) and not isinstance(
             integrator, (bool, np.bool_)) and integrator not in (0, 1):
         raise OptionError(f"fit_shared takes integrator=True or False only, got "
                           f"{integrator!r}; for k poles (or zeros) at the origin fit each "
                           "channel with fc.fit(..., integrator=k), or divide the data by "
                           "(j omega)^k first")
-    for name, value in flags.items():
-        check_flag(name, value)
+    check_flag("integrator", integrator)
+    check_flag("balance_channels", balance)
     if delay_max is not None and (isinstance(delay_max, (bool, np.bool_))
                                   or not isinstance(delay_max, numbers.Real)
                                   or not (0 < delay_max < np.inf)):
         raise OptionError(f"delay_max must be a finite delay > 0 in seconds or None, got "
-                          f"{delay_max!r}")
-    for name, value, low in (("max_iter", max_iter, 1), ("n_vf_iter", n_vf_iter, 0)):
-        if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) \
-                or value < low:
-            raise OptionError(f"{name} must be an integer >= {low}, got {value!r}")
+                          f"{delay_max!r}; pass e.g. delay_max=0.01 (or None for the "
+                          "data's default)")
+
+
+def _check_count(name, value, low, fix):
+    """OptionError unless ``value`` is an integer >= ``low`` (not a bool)."""
+    if isinstance(value, (bool, np.bool_)) or not isinstance(value, numbers.Integral) \
+            or value < low:
+        raise OptionError(f"{name} must be an integer >= {low}, got {value!r}; {fix}")
+
+
+def _solver_options(method, vector_fitting, max_iter, n_vf_iter):
+    """``(IpoptOptions, VectorFittingOptions)`` of :func:`fit_shared` from ``method`` and
+    ``vector_fitting``, or from the old keywords ``max_iter`` / ``n_vf_iter`` (each with a
+    FutureWarning naming its new spelling; the same limits, so the same models)."""
+    if max_iter is not None:
+        if method is not None:
+            raise OptionError("max_iter and method both give the iteration limits; drop "
+                              "max_iter and pass method=IpoptOptions(max_iter=..., "
+                              "final_max_iter=...) only")
+        _check_count("max_iter", max_iter, 1, "pass method=IpoptOptions(max_iter=200, "
+                     "final_max_iter=400) instead")
+        warn_renamed("fit_shared", f"max_iter={max_iter!r}", "method=IpoptOptions("
+                     f"max_iter={int(max_iter)}, final_max_iter={2 * int(max_iter)})", 3)
+        method = IpoptOptions(max_iter=int(max_iter), final_max_iter=2 * int(max_iter))
+    if n_vf_iter is not None:
+        if vector_fitting is not None:
+            raise OptionError("n_vf_iter and vector_fitting both give the vector-fitting "
+                              "iterations; drop n_vf_iter and pass "
+                              "vector_fitting=VectorFittingOptions(n_iter=...) only")
+        _check_count("n_vf_iter", n_vf_iter, 0, "pass vector_fitting=VectorFittingOptions("
+                     "n_iter=10) instead")
+        warn_renamed("fit_shared", f"n_vf_iter={n_vf_iter!r}", "vector_fitting="
+                     f"VectorFittingOptions(n_iter={int(n_vf_iter)})", 3)
+        vector_fitting = VectorFittingOptions(n_iter=int(n_vf_iter))
+    return _check_method(method), _check_vector_fitting(vector_fitting)
+
+
+def _check_method(method):
+    """The IpoptOptions of ``method`` (None or "ipopt": :data:`DEFAULT_METHOD`); the
+    stages have their own exact Hessian, warm start and termination test, so only the
+    iteration limits may differ from IpoptOptions' defaults."""
+    return ipopt_limits("fit_shared", method, DEFAULT_METHOD, _USED_FIELDS)
+
+
+def _check_vector_fitting(options):
+    if options is None:
+        return VectorFittingOptions()
+    if not isinstance(options, VectorFittingOptions):
+        raise OptionError(f"vector_fitting must be a VectorFittingOptions (or None), got "
+                          f"{options!r:.80}; pass vector_fitting=VectorFittingOptions("
+                          "n_iter=10)")
+    return options
 
 
 def check_largest_order(datas, n_sections, options):
@@ -378,32 +446,32 @@ def _check_size(wts, n, k, delay):
 
 
 def _check_options(n_sections, delay, zeros, start, n_channels, channel_sections):
-    if isinstance(n_sections, bool) or not isinstance(n_sections, (int, np.integer)) \
-            or n_sections < 1:
-        raise OptionError(f"n_sections must be an integer >= 1, got {n_sections!r}")
-    if isinstance(channel_sections, bool) or \
-            not isinstance(channel_sections, (int, np.integer)) or channel_sections < 0:
-        raise OptionError(f"channel_sections must be an integer >= 0 (sections of each "
-                          f"channel's own beside the shared ones), got {channel_sections!r}")
-    if not (delay is False or isinstance(delay, str)) or delay not in DELAYS:
-        raise OptionError(f"delay must be one of {DELAYS}, got {delay!r}")
+    _check_count("n_sections", n_sections, 1, "pass the number of shared sections, e.g. "
+                 "n_sections=4 (one per mode in the band)")
+    _check_count("channel_sections", channel_sections, 0, "pass the sections of each "
+                 "channel's own beside the shared ones, e.g. channel_sections=1 (0: none)")
+    if delay is not False and (not isinstance(delay, str) or delay not in DELAYS):
+        # check_choice's message shape; False (the bool) is one of the choices
+        raise OptionError(f"unknown delay {delay!r}; choose one of per-channel, shared, "
+                          "False")
     try:
         zs = [zeros] * n_channels if isinstance(zeros, str) else list(zeros)
     except TypeError:
-        zs = None
-    if zs is None or len(zs) != n_channels or \
-            any(not isinstance(z, str) or z not in ZEROS for z in zs):
-        raise OptionError(f"zeros must be one of {ZEROS} or a list of them, one per channel "
-                          f"({n_channels}), got {zeros!r}")
-    if not isinstance(start, str) or start not in SHARED_STARTS:
-        raise OptionError(f"start must be one of {SHARED_STARTS}, got {start!r}")
+        zs = [zeros]
+    for z in zs:
+        check_choice("zeros", z, ZEROS)
+    if len(zs) != n_channels:
+        raise OptionError(f"zeros must be one of {', '.join(ZEROS)} or a list of them, one "
+                          f"per channel: got {len(zs)} for {n_channels} channels; pass "
+                          f"zeros='minimum-phase' (every channel) or a list of {n_channels}")
+    check_choice("start", start, SHARED_STARTS)
     return int(n_sections), tuple(zs), int(channel_sections)
 
 
 def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
                zeros="minimum-phase", weights=None, start="best", progress=False,
-               delay_max=None, max_iter=200, n_vf_iter=10, channel_sections=0,
-               balance_channels=False):
+               delay_max=None, method=None, vector_fitting=None, channel_sections=0,
+               balance_channels=False, max_iter=None, n_vf_iter=None):
     """Fit several FRFs of one structure with one shared set of poles.
 
     Parameters
@@ -435,14 +503,22 @@ def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
         noise, or when the data hold more than :data:`BEST_SEQUENTIAL_LIMIT` points over
         all channels (its cost grows with the sections there: pass start="sequential");
         ``details["start_skipped"]`` then says why.
-    progress : bool
-        Print one line per stage to stderr.
+    progress : bool, "lines" or callable
+        As for :func:`freqid_casadi.fit` (:mod:`freqid_casadi._progress`): True draws a
+        bar on a terminal (one tick per stage) and is silent otherwise; "lines" writes one
+        line per stage to stderr; a callable receives every :class:`SharedStage` record.
     delay_max : float, optional
         Largest delay (s); default :func:`~freqid_casadi.fitting.fit.default_delay_max`.
-    max_iter : int
-        IPOPT iterations per stage (twice that in the final stage).
-    n_vf_iter : int
-        Vector-fitting iterations of the rational start.
+    method : IpoptOptions, optional
+        The IPOPT iteration limits: ``max_iter`` of each stage, ``final_max_iter`` of the
+        final all-data stage (also of the rational start's polish and of each round of
+        ``balance_channels``); default :data:`DEFAULT_METHOD`,
+        ``IpoptOptions(max_iter=200, final_max_iter=400)`` ("ipopt" means the same). The
+        other fields must keep their defaults (the stages have their own exact Hessian,
+        warm start and termination test).
+    vector_fitting : VectorFittingOptions, optional
+        The vector-fitting start (``start="rational"`` and the rational half of "best");
+        default ``VectorFittingOptions(n_iter=10)``.
     channel_sections : int
         k >= 0 sections of each channel's own (own poles and zeros, stable, minimum phase
         unless the channel's zeros are "free"), beside the N shared ones: they stand in
@@ -463,9 +539,18 @@ def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
         grows); without channel sections the shared sections must also stand in for the
         out-of-band modes and the rounds may not reach every target (the result says).
 
+    max_iter : int, optional
+        Deprecated (FutureWarning): ``max_iter=k`` is
+        ``method=IpoptOptions(max_iter=k, final_max_iter=2 * k)``, the same limits.
+    n_vf_iter : int, optional
+        Deprecated (FutureWarning): ``n_vf_iter=k`` is
+        ``vector_fitting=VectorFittingOptions(n_iter=k)``.
+
     Returns
     -------
     SharedFitResult
+        ``status`` ("ok", "poor-fit", "not-converged"), ``message`` (one sentence with
+        the next step), the optimiser's numbers in ``details``.
 
     Raises
     ------
@@ -473,24 +558,25 @@ def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
     """
     from .._threads import single_threaded_blas
 
-    with single_threaded_blas():
+    solver, vf = _solver_options(method, vector_fitting, max_iter, n_vf_iter)
+    progress = check_progress(progress, "each SharedStage")
+    with single_threaded_blas(), channel(progress, stage_line) as emit:
         return _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start,
-                           progress, delay_max, max_iter, n_vf_iter, channel_sections,
-                           balance_channels)
+                           emit, delay_max, solver, vf, channel_sections, balance_channels)
 
 
-def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, progress,
-                delay_max, max_iter, n_vf_iter, channel_sections, balance):
+def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, emit,
+                delay_max, solver, vf, channel_sections, balance):
     t0 = time.perf_counter()
     datas, omega, phi, wts = _check_datas(datas, weights)
     n, zs, k = _check_options(n_sections, delay, zeros, start, len(datas), channel_sections)
-    _check_numbers(integrator, delay_max, max_iter, n_vf_iter, progress, balance)
+    _check_numbers(integrator, delay_max, balance)
     _check_size(wts, n, k, delay)
     free = np.array([z == "free" for z in zs])
     dmax = float(delay_max) if delay_max is not None else default_delay_max(omega)
     g = np.abs(phi[:, 0]) * (omega[0] if integrator else 1.0)
 
-    log = logger(progress)
+    log = logger(emit)
     base = phi * (1j * omega) if integrator else phi          # VF fits the rational part
 
     def run(w, which):
@@ -498,34 +584,53 @@ def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, pro
             with _interrupt.guard():    # CasADi expressions: see stages.StageSolver
                 return SharedProblem(omega, phi, w, g, wr, integrator, delay, free, dmax, wl)
         if which == "rational":
-            return rational_start(make, n, k, omega, base, w, free, log, max_iter, n_vf_iter)
-        return sequential_start(make, n, k, omega, w, log, max_iter)
+            return rational_start(make, n, k, omega, base, w, free, log,
+                                  solver.final_max_iter, vf.n_iter)
+        return sequential_start(make, n, k, omega, w, log, solver.max_iter,
+                                solver.final_max_iter)
 
     prob, z, lam, stages, won, start_errors, skipped = _run_starts(run, wts, start, datas,
                                                                    zs)
     options = {"n_sections": n, "channel_sections": k, "integrator": bool(integrator),
                "delay": delay, "zeros": list(zs), "start": start, "delay_max": dmax,
-               "balance_channels": bool(balance)}
+               "balance_channels": bool(balance), "max_iter": solver.max_iter,
+               "final_max_iter": solver.final_max_iter, "n_vf_iter": vf.n_iter}
     singles = ()
     if balance:
-        singles = np.array([_fit_shared([d], n, integrator, delay, [z], wts[c], start, False,
-                                        dmax, max_iter, n_vf_iter, k, False)
+        singles = np.array([_fit_shared([d], n, integrator, delay, [z], wts[c], start,
+                                        _ignore, dmax, solver, vf, k, False)
                             .max_rel_errors[0] for c, (d, z) in enumerate(zip(datas, zs))])
-        prob, z, more = lawson_rounds(prob, z, lam, singles, log, max_iter, BALANCE_ROUNDS)
+        prob, z, more = lawson_rounds(prob, z, lam, singles, log, solver.final_max_iter,
+                                      BALANCE_ROUNDS)
         stages += more
     res = _result(prob, z, datas, stages, zs, time.perf_counter() - t0, options)
-    res = _resolution(res, omega, phi)
     res = dataclasses.replace(res, details=dict(res.details, start=won,
                                                 start_max_rel_errors=start_errors,
                                                 **({"start_skipped": skipped} if skipped
                                                    else {})))
-    if not balance:
-        return res
+    if balance:
+        res = _balance_note(res, singles, k, max(len(more) - 1, 0))
+    return _resolution(res, omega, phi)
+
+
+def _ignore(record):
+    return None
+
+
+def _balance_note(res, singles, k, rounds):
+    """``res`` with ``balance_channels``' outcome in its message and details."""
     miss = np.flatnonzero(res.max_rel_errors > np.maximum(singles, 1e-8))
-    note = (f"; channels {miss.tolist()} exceed their own fit's max rel. error"
-            if miss.size else "; every channel within its own fit's max rel. error")
+    if miss.size:
+        note = (f"; channels {', '.join(map(str, miss.tolist()))} still exceed their own "
+                f"fit's max rel. error after {rounds} reweighted rounds — pass "
+                f"channel_sections={k + 1} so that each channel has sections of its own for "
+                "the modes outside the band")
+    else:
+        note = "; every channel is within its own fit's max rel. error"
+    details = dict(res.details, balance={"exceed": miss.tolist(), "rounds": int(rounds),
+                                         "targets": singles.tolist()})
     return dataclasses.replace(res, single_max_rel_errors=singles,
-                               message=res.message + note)
+                               message=res.message + note, details=details)
 
 
 def _resolution(res, omega, phi):
@@ -629,17 +734,66 @@ def _result(prob, z, datas, stages, zeros, wall, options):
     rel = np.abs(ratio)
     n = prob.n_sections
     checks = [residual_noise(ratio[c], d.omega, d.weights) for c, d in enumerate(datas)]
-    status = status_of(bool(stages[-1].success),
-                       bool(np.any(np.sqrt(np.mean(rel ** 2, axis=1)) >= 1.0)),
+    rms = np.sqrt(np.mean(rel ** 2, axis=1))
+    last = stages[-1]
+    status = status_of(bool(last.success), bool(np.any(rms >= 1.0)),
                        NoiseCheck(consistent=all(c.consistent for c in checks)))
+    limit = options["final_max_iter"]
+    final = {"stage": int(last.stage), "iterations": int(last.nit), "max_iter": int(limit),
+             "status": last.status.name, "solver_status": last.solver_status,
+             "message": last.message}
+    text = _message(status, last, limit, np.max(rel, axis=1), rms, checks, options,
+                    datas[0].unit)
     return SharedFitResult(
         models=models, datas=tuple(datas), poles=_section_poles(models[0], slice(0, n)),
         rel_errors=rel,
-        max_rel_errors=np.max(rel, axis=1), rms_rel_errors=np.sqrt(np.mean(rel ** 2, axis=1)),
-        success=bool(stages[-1].success), modes=modes_of_models(models, n),
-        message=stages[-1].message or stages[-1].solver_status,
-        status=status, details={"noise": [dict(c) for c in checks]},
+        max_rel_errors=np.max(rel, axis=1), rms_rel_errors=rms,
+        success=bool(last.success), modes=modes_of_models(models, n),
+        message=text, status=status,
+        details={"final_stage": final, "noise": [dict(c) for c in checks]},
         wall_time=wall, nit=int(sum(s.nit for s in stages
                                    if s.solver_status != "vector-fitting")),
         stages=tuple(stages), zeros=tuple(zeros), options=options,
         channel_poles=tuple(_section_poles(m, slice(n, None)) for m in models))
+
+
+def _message(status, last, limit, max_errs, rms, checks, options, unit):
+    """:attr:`SharedFitResult.message`: one sentence led by the status, with the errors
+    and the next step (the optimiser's own words are in ``details["final_stage"]``)."""
+    errors = (f"worst channel max rel. error {np.max(max_errs):.3g}, RMS "
+              f"{np.max(rms):.3g}")
+    n, k = options["n_sections"], options["channel_sections"]
+    if status == FitStatus.OK:
+        exact = all(c["rms"] <= ROUNDING_RMS for c in checks)
+        return (f"ok: converged; {errors}, consistent with the noise in every channel"
+                + (" (the fit is exact to rounding)" if exact else ""))
+    if status == FitStatus.POOR_FIT:
+        if np.any(rms >= 1.0):
+            bad = np.flatnonzero(rms >= 1.0).tolist()
+            return (f"poor-fit: channels {', '.join(map(str, bad))} have an RMS relative "
+                    "error >= 1, no better than an infinite-gain model; check their gain "
+                    "sign and pass zeros='free' for them, or use fewer sections")
+        ratios = [c["ratio"] if not c.consistent else -math.inf for c in checks]
+        c = int(np.argmax(ratios))
+        bad = [i for i, chk in enumerate(checks) if not chk.consistent]
+        w = checks[c]["worst_omega"]
+        return (f"poor-fit: converged, but the residual of channel"
+                f"{'s' if len(bad) > 1 else ''} {', '.join(map(str, bad))} is well above "
+                f"the noise (channel {c}: {checks[c]['ratio']:.3g} times, largest near "
+                f"omega = {w:.4g} {unit}); {errors} — pass n_sections={n + 1} or more for a "
+                f"mode the shared poles miss, or channel_sections={k + 1} for modes outside "
+                "the band")
+    if last.status == Status.MAX_ITER:
+        how = f"reached its iteration limit ({int(limit)})"
+        step = (f"pass method=IpoptOptions(final_max_iter={10 * int(limit)}) to let it run "
+                "further")
+    else:
+        how = ("stalled (the error stopped falling) at a point that is not stationary"
+               if last.status == Status.STALLED
+               else f"stopped ({TERMINATION_MESSAGES[last.status]})")
+        step = ("try start='best' (both starts, the better kept)" if options["start"] != "best"
+                else "try another number of shared sections")
+    state = ("usable: every channel's residual is consistent with its noise"
+             if all(c.consistent for c in checks)
+             else "the models are feasible and these errors are measured")
+    return f"not-converged: the final stage {how}; {errors} ({state}) — {step}"

@@ -11,9 +11,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .._progress import channel, check_progress
 from ..errors import OptionError
 
-__all__ = ["StabilizationPole", "StabilizationResult", "parse_orders", "stabilization",
+__all__ = ["StabilizationPole", "StabilizationOrder", "StabilizationResult", "parse_orders",
+           "stabilization",
            "stabilization_csv"]
 
 
@@ -40,6 +42,32 @@ class StabilizationPole:
     frequency_hz: float
     zeta: float
     status: str
+
+
+@dataclass(frozen=True, eq=False)
+class StabilizationOrder:
+    """The progress record of one order of :func:`stabilization` (what a ``progress``
+    callable receives).
+
+    Attributes
+    ----------
+    order : int
+        Model order (number of shared poles).
+    fit : SharedFitResult
+    statuses : tuple of str
+        Each mode's status against the order before ("new", "stable-frequency" or
+        "stable-frequency-damping").
+    """
+
+    order: int
+    fit: object
+    statuses: tuple
+
+    def line(self):
+        """One line of text (``progress="lines"``)."""
+        return (f"order {self.order}: {len(self.statuses)} modes, "
+                f"{self.statuses.count('stable-frequency-damping')} stable, fit "
+                f"{self.fit.status}")
 
 
 @dataclass(frozen=True, eq=False)
@@ -181,7 +209,10 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
         (each status compares an order with the one before, so at least
         ``min_stable + 1`` orders are needed: with fewer none is selected, and
         :attr:`StabilizationResult.selection_note` says why).
-    progress : bool
+    progress : bool, "lines" or callable
+        As for :func:`~freqid_casadi.modal.shared.fit_shared`, one record per order: True
+        draws a bar on a terminal (silent otherwise), "lines" writes one line per order to
+        stderr, a callable receives each :class:`StabilizationOrder`.
     **fit_options
         Passed to :func:`~freqid_casadi.modal.shared.fit_shared` (integrator, delay, zeros,
         channel_sections, balance_channels, ...). With ``channel_sections`` the order counts
@@ -199,20 +230,19 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
     if not (0 < freq_tol < 1 and 0 < damping_tol < 10):
         raise OptionError(f"freq_tol must be in (0, 1) and damping_tol in (0, 10), got "
                           f"{freq_tol}, {damping_tol}")
+    progress = check_progress(progress, "each StabilizationOrder")
     fits, poles, prev, history = [], [], [], []
-    for order in orders:
-        res = fit_shared(datas, order // 2, **fit_options)
-        fits.append(res)
-        cur = [(m.omega_n, m.zeta) for m in res.modes]
-        status, match = _match(prev, cur, freq_tol, damping_tol)
-        history.append((status, match))
-        poles += [StabilizationPole(order, w, w / (2 * np.pi), z, s)
-                  for (w, z), s in zip(cur, status)]
-        if progress:
-            import sys
-            print(f"  order {order}: {len(cur)} modes, "
-                  f"{status.count('stable-frequency-damping')} stable", file=sys.stderr)
-        prev = cur
+    with channel(progress, StabilizationOrder.line, total=len(orders), unit="order") as emit:
+        for order in orders:
+            res = fit_shared(datas, order // 2, **fit_options)
+            fits.append(res)
+            cur = [(m.omega_n, m.zeta) for m in res.modes]
+            status, match = _match(prev, cur, freq_tol, damping_tol)
+            history.append((status, match))
+            poles += [StabilizationPole(order, w, w / (2 * np.pi), z, s)
+                      for (w, z), s in zip(cur, status)]
+            emit(StabilizationOrder(order, res, tuple(status)))
+            prev = cur
     selected, note = _select(fits[-1].modes, history, min_stable, orders, fits)
     d0 = fits[0].datas
     return StabilizationResult(
@@ -251,8 +281,8 @@ def _select(last, history, min_stable, orders, fits):
     unconverged = [o for o, f in zip(orders[-k - 1:], fits[-k - 1:]) if not f.success]
     note = "; ".join(why)
     if why and unconverged:
-        note += (f"; orders {unconverged} did not converge (their poles may be off: raise "
-                 "max_iter or see each order's message)")
+        note += (f"; orders {unconverged} did not converge (their poles may be off): pass "
+                 "method=IpoptOptions(final_max_iter=4000), or see each order's message")
     return tuple(keep), note
 
 

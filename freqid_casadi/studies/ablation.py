@@ -307,8 +307,10 @@ def _run_variant(data, spec, variant):
     finite = math.isfinite(result.max_rel_error) and math.isfinite(result.rms_rel_error)
     rec.update(
         status="ok" if finite else "failed",
-        message=(result.stages[-1].solver_status if finite
-                 else "non-finite relative error"),
+        fit_status=str(result.status),
+        message=(result.message if finite else "the relative error is not finite; see the "
+                 "stage records (stages) for the first stage that failed"),
+        solver_status=result.stages[-1].solver_status,
         max_rel_error=float(result.max_rel_error),
         rms_rel_error=float(result.rms_rel_error),
         nit=int(sum(r.nit for r in result.stages)),

@@ -164,10 +164,21 @@ def _variant_row(r, first):
     cells = list(first)
     cells += [number(r.get(k)) for _, k in VARIANT_COLUMNS]
     if r["status"] == "ok":
-        status = "converged" if r["success"] else f"not converged ({r['message']})"
+        # the fit's status (ok / poor-fit / not-converged); its message is listed below the
+        # table (:func:`_message_lines`)
+        status = r.get("fit_status") or ("ok" if r["success"] else "not-converged")
     else:
         status = f"FAILED: {r['message']}"
     return cells + [status]
+
+
+def _message_lines(records):
+    """One bullet per variant whose fit is not "ok": its message (a sentence with the next
+    step, :attr:`FitResult.message`)."""
+    notes = [f"- {r['label']}: {r['message']}" for r in records
+             if r["status"] == "ok" and (r.get("fit_status") or "ok") != "ok"]
+    return (["Messages of the fits whose status is not ok:", ""] + notes + [""]) if notes \
+        else []
 
 
 def render_ablation(summary):
@@ -267,7 +278,7 @@ def _case_lines(name, case):
     method = [r for r in case["variants"] if r["group"] == "method"]
     lines += ["### IPOPT vs barrier-LM", "",
               markdown_table([_variant_row(r, (r["label"],)) for r in method], _HEADERS,
-                             _ALIGN), ""]
+                             _ALIGN), ""] + _message_lines(method)
     crows = [(c["lm_label"], number(c["lm_max_rel_error"]),
               _reach_text(c["ipopt_time_to_reach"]), number(c["ipopt_stage_to_reach"]),
               _reach_text(c["lm_time_to_reach"]), number(c["lm_stage_time"]),
@@ -302,6 +313,7 @@ def _ablation_lines(name, case):
                             + _HEADERS[1:], "llrr" + _ALIGN[1:]), "",
              "error ratio / time ratio: the variant's final max error / wall time "
              "divided by the default's (> 1: worse / slower).", ""]
+    lines += _message_lines(([base] if base is not None else []) + abl)
     notes = [f"- {r['label']}: {r['note']}" for r in abl if r.get("note")]
     lines += notes + ([""] if notes else [])
     return lines + [f"![ablations, {name}](ablation_{name}.png)", ""]

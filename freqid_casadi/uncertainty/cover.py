@@ -58,6 +58,7 @@ import numpy as np
 from ..core.data import as_frequency_data
 from ..core.model import RationalDelayModel, Structure
 from ..errors import DataError, OptionError
+from ..options import IpoptOptions
 from .weight import WeightResult, iter_weights
 
 __all__ = ["cover", "CoverResult", "DEFAULT_TIGHTNESS", "DEFAULT_MAX_ORDER", "MAX_POINTS",
@@ -483,8 +484,12 @@ def cover(model, datas, *, order=None, margin=0.0, pade_order=None, max_order=No
                           f"got {max_points!r}")
     idx = thinned(grid, env, int(max_points))
     weights = []
+    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) \
+            or max_iter < 1:
+        raise OptionError(f"max_iter must be an integer >= 1, got {max_iter!r}; pass e.g. "
+                          "max_iter=500")
     for wr in iter_weights(grid[idx], env[idx], max_order=top, margin=margin,
-                           min_damping=min_damping, max_iter=max_iter):
+                           min_damping=min_damping, method=IpoptOptions(max_iter=max_iter)):
         weights.append(_on_full_grid(wr, grid, env, margin))
         if fixed_order is None and _median_ratio(weights[-1], env) <= tightness:
             break                                  # the lowest order that is tight enough

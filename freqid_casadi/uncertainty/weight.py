@@ -86,12 +86,15 @@ import numpy as np
 
 from .. import _cplx
 from ..core.model import balanced_ss
+from .._progress import channel, check_progress
 from ..errors import DataError, OptionError
+from ..options import IpoptOptions, ipopt_limits, warn_renamed
 from ..solvers.common import SUCCESS_STATUSES, TERMINATION_MESSAGES, Status
 from ..solvers.ipopt import run_nlpsol
 
-__all__ = ["fit_uncertainty_weight", "weights_by_order", "iter_weights", "WeightResult",
-           "WeightSection", "Overbound", "MAX_DAMPING", "CORNER_DECADES", "E_FLOOR",
+__all__ = ["WEIGHT_METHOD", "fit_uncertainty_weight", "weights_by_order", "iter_weights",
+           "WeightResult", "WeightSection", "Overbound", "MAX_DAMPING", "CORNER_DECADES",
+           "E_FLOOR",
            "MAX_DECADES", "frequency_scale", "rescaled"]
 
 
@@ -384,7 +387,40 @@ def _vector(x, name):
     return arr
 
 
-def _validate(result_or_omega, rel_error, order, margin, max_iter, min_damping):
+#: The IPOPT options of the weight fit by default: at most 500 iterations per solve.
+WEIGHT_METHOD = IpoptOptions(max_iter=500)
+
+
+def _weight_options(function, method, max_iter, verbose):
+    """The weight fit's IpoptOptions from ``method`` (its ``max_iter`` and ``ipopt`` are
+    read) or the old keywords ``max_iter`` / ``verbose`` (FutureWarning each)."""
+    if (max_iter is not None or verbose is not None) and method is not None:
+        raise OptionError(f"{function}: max_iter/verbose and method both set the solver; "
+                          "drop the old keyword and pass method=IpoptOptions(max_iter=..., "
+                          "ipopt={'print_level': 5}) only")
+    if max_iter is None and verbose is None:
+        return ipopt_limits(function, method, WEIGHT_METHOD, ("max_iter", "ipopt"))
+    if max_iter is not None and (isinstance(max_iter, bool) or not isinstance(
+            max_iter, (int, np.integer)) or max_iter < 1):
+        raise OptionError(f"max_iter must be an integer >= 1, got {max_iter!r}; pass "
+                          "method=IpoptOptions(max_iter=500) instead")
+    limit = WEIGHT_METHOD.max_iter if max_iter is None else int(max_iter)
+    log = {"print_level": 5} if verbose else {}
+    new = f"method=IpoptOptions(max_iter={limit}" + (f", ipopt={log})" if log else ")") + (
+        "" if verbose is None else " (IPOPT's log; progress='lines' gives one line per order)")
+    old = ", ".join(f"{k}={v!r}" for k, v in (("max_iter", max_iter), ("verbose", verbose))
+                    if v is not None)
+    warn_renamed(function, old, new, 3)
+    return IpoptOptions(max_iter=limit, ipopt=log)
+
+
+def _order_line(w):
+    """One line of text for a :class:`WeightResult` (``progress="lines"``)."""
+    return (f"order {w.order}: objective {w.objective:.4g}, overbound max {w.overbound.max_db:.3g}"
+            f" dB, {w.nit} iterations, {'converged' if w.success else 'not converged'}")
+
+
+def _validate(result_or_omega, rel_error, order, margin, min_damping):
     if hasattr(result_or_omega, "rel_error") and hasattr(result_or_omega, "data"):
         if rel_error is not None:
             raise DataError("pass either a FitResult or (omega, rel_error), not both")
@@ -437,8 +473,6 @@ def _validate(result_or_omega, rel_error, order, margin, max_iter, min_damping):
             or not math.isfinite(margin) or margin < 0):
         raise OptionError(f"margin must be a finite number >= 0 (relative, 0.1 = 10%), "
                           f"got {margin!r}")
-    if isinstance(max_iter, bool) or not isinstance(max_iter, (int, np.integer)) or max_iter < 1:
-        raise OptionError(f"max_iter must be an integer >= 1, got {max_iter!r}")
     if (isinstance(min_damping, bool) or not isinstance(min_damping, (int, float, np.floating))
             or not (0 < min_damping < MAX_DAMPING)):
         raise OptionError(f"min_damping must be a number in (0, {MAX_DAMPING}), "
@@ -526,7 +560,7 @@ def _kinds(order):
     return (True,) * (order // 2) + (False,) * (order % 2)
 
 
-def _solve(prob, kinds, z_sections, max_iter, verbose):
+def _solve(prob, kinds, z_sections, solver):
     """One IPOPT solve from the sections' scaled variables ``z_sections``.
 
     Returns ``(x, status, return_status, nit)`` with ``x = [kappa, z...]`` inside the bounds.
@@ -548,9 +582,9 @@ def _solve(prob, kinds, z_sections, max_iter, verbose):
         "print_time": False,
         "error_on_fail": False,
         "ipopt": {
-            "print_level": 5 if verbose else 0,
+            "print_level": 0,
             "sb": "yes",
-            "max_iter": int(max_iter),
+            "max_iter": int(solver.max_iter),
             "tol": 1e-9,
             # stop once the objective has stalled at a feasible point: over-parametrised
             # weights (a cancelling pole/zero pair) otherwise crawl to max_iter
@@ -560,6 +594,7 @@ def _solve(prob, kinds, z_sections, max_iter, verbose):
             "acceptable_constr_viol_tol": 1e-5,
             "constr_viol_tol": 1e-10,
             "mu_strategy": "adaptive",
+            **dict(solver.ipopt),               # the user's IPOPT options over these
         },
     }
     res = run_nlpsol("uncertainty_weight", {"x": z, "f": f, "g": g_fun(z)}, opts, x0, lb, ub,
@@ -692,7 +727,8 @@ def _overbound(prob, mag):
 
 # ---------------------------------------------------------------------------- public
 def fit_uncertainty_weight(result_or_omega, rel_error=None, *, order=2, margin=0.0,
-                           min_damping=0.2, max_iter=500, verbose=False):
+                           min_damping=0.2, method=None, progress=False, max_iter=None,
+                           verbose=None):
     """Fit a stable, minimum-phase weight ``W(s)`` with ``|W(j w_i)| >= (1 + margin) e_i``.
 
     Parameters
@@ -710,10 +746,20 @@ def fit_uncertainty_weight(result_or_omega, rel_error=None, *, order=2, margin=0
     min_damping : float
         Lower bound of the dampings of second-order sections (keeps ``W`` free of sharp
         resonances and notches between the data points), in (0, MAX_DAMPING).
-    max_iter : int
-        IPOPT iteration limit per solve.
-    verbose : bool
-        Let IPOPT print its log.
+    method : IpoptOptions, optional
+        ``max_iter``: IPOPT's iteration limit per solve; ``ipopt``: IPOPT options over the
+        weight fit's own (e.g. ``{"print_level": 5}`` for IPOPT's log); default
+        :data:`WEIGHT_METHOD`, ``IpoptOptions(max_iter=500)``. The other fields must keep
+        their defaults.
+    progress : bool, "lines" or callable
+        One record per order solved (:mod:`freqid_casadi._progress`): True draws a bar on
+        a terminal (silent otherwise), "lines" writes a line per order to stderr, a
+        callable receives each order's :class:`WeightResult`.
+    max_iter : int, optional
+        Deprecated (FutureWarning): ``method=IpoptOptions(max_iter=k)``.
+    verbose : bool, optional
+        Deprecated (FutureWarning): ``verbose=True`` is
+        ``method=IpoptOptions(ipopt={"print_level": 5})``.
 
     Returns
     -------
@@ -726,7 +772,7 @@ def fit_uncertainty_weight(result_or_omega, rel_error=None, *, order=2, margin=0
     DataError
         Bad ``omega``/``rel_error`` (length mismatch, NaN, negative, all zero, unsorted).
     OptionError
-        Bad ``order``, ``margin``, ``min_damping`` or ``max_iter``.
+        Bad ``order``, ``margin``, ``min_damping``, ``method`` or ``progress``.
 
     Notes
     -----
@@ -736,12 +782,14 @@ def fit_uncertainty_weight(result_or_omega, rel_error=None, *, order=2, margin=0
     in turn (each from a fresh start and from the best weight of the order below), so
     ``objective`` does not increase with ``order`` (up to rounding).
     """
+    solver = _weight_options("fit_uncertainty_weight", method, max_iter, verbose)
     return weights_by_order(result_or_omega, rel_error, max_order=order, margin=margin,
-                            min_damping=min_damping, max_iter=max_iter, verbose=verbose)[-1]
+                            min_damping=min_damping, method=solver, progress=progress)[-1]
 
 
 def weights_by_order(result_or_omega, rel_error=None, *, max_order=2, margin=0.0,
-                     min_damping=0.2, max_iter=500, verbose=False):
+                     min_damping=0.2, method=None, progress=False, max_iter=None,
+                     verbose=None):
     """The weights of every order ``0..max_order`` that :func:`fit_uncertainty_weight`
     passes through (it solves the orders in turn, each from a fresh start and from the
     order below): ``weights_by_order(..., max_order=n)[n]`` is
@@ -749,7 +797,7 @@ def weights_by_order(result_or_omega, rel_error=None, *, max_order=2, margin=0.0
 
     Parameters
     ----------
-    result_or_omega, rel_error, margin, min_damping, max_iter, verbose
+    result_or_omega, rel_error, margin, min_damping, method, progress, max_iter, verbose
         As :func:`fit_uncertainty_weight`.
     max_order : int
         Highest McMillan degree (>= 0).
@@ -764,12 +812,13 @@ def weights_by_order(result_or_omega, rel_error=None, *, max_order=2, margin=0.0
     DataError, OptionError
         As :func:`fit_uncertainty_weight` (``max_order`` in place of ``order``).
     """
+    solver = _weight_options("weights_by_order", method, max_iter, verbose)
     return tuple(iter_weights(result_or_omega, rel_error, max_order=max_order, margin=margin,
-                              min_damping=min_damping, max_iter=max_iter, verbose=verbose))
+                              min_damping=min_damping, method=solver, progress=progress))
 
 
 def iter_weights(result_or_omega, rel_error=None, *, max_order=2, margin=0.0,
-                 min_damping=0.2, max_iter=500, verbose=False):
+                 min_damping=0.2, method=None, progress=False, max_iter=None, verbose=None):
     """:func:`weights_by_order` one order at a time (a generator: a caller that has what
     it needs stops the ladder early, e.g. :func:`~freqid_casadi.uncertainty.cover.cover`).
 
@@ -777,7 +826,7 @@ def iter_weights(result_or_omega, rel_error=None, *, max_order=2, margin=0.0,
 
     Parameters
     ----------
-    result_or_omega, rel_error, margin, min_damping, max_iter, verbose
+    result_or_omega, rel_error, margin, min_damping, method, progress, max_iter, verbose
         As :func:`fit_uncertainty_weight`.
     max_order : int
         Highest McMillan degree (>= 0).
@@ -787,32 +836,39 @@ def iter_weights(result_or_omega, rel_error=None, *, max_order=2, margin=0.0,
     WeightResult
         Orders 0, 1, ..., ``max_order``.
     """
-    omega, e = _validate(result_or_omega, rel_error, max_order, margin, max_iter, min_damping)
-    return _ladder(omega, e, int(max_order), float(margin), min_damping, max_iter, verbose)
+    solver = _weight_options("iter_weights", method, max_iter, verbose)
+    progress = check_progress(progress, "each WeightResult")
+    omega, e = _validate(result_or_omega, rel_error, max_order, margin, min_damping)
+    return _ladder(omega, e, int(max_order), float(margin), min_damping, solver, progress)
 
 
-def _ladder(omega, e, max_order, margin, min_damping, max_iter, verbose):
+def _ladder(omega, e, max_order, margin, min_damping, solver, progress):
     scale = frequency_scale(omega)              # solve at omega / scale, rescale after
     prob = _Problem(omega / scale, e, margin, min_damping)
 
-    # order 0 is closed form: W = max (1 + margin) e (verified like any other weight)
-    best = _candidate(prob, 0.0, (), Status.CONVERGED, "closed form (constant weight)")
-    nit = 0
-    yield _weight_result(prob, omega, e, scale, best, 0, margin, nit)
-    for n in range(1, max_order + 1):
-        best, it = _best_of_order(prob, best, n, max_iter, verbose)
-        nit += it
-        yield _weight_result(prob, omega, e, scale, best, n, margin, nit)
+    with channel(progress, _order_line, total=max_order + 1, unit="order") as emit:
+        # order 0 is closed form: W = max (1 + margin) e (verified like any other weight)
+        best = _candidate(prob, 0.0, (), Status.CONVERGED, "closed form (constant weight)")
+        nit = 0
+        out = _weight_result(prob, omega, e, scale, best, 0, margin, nit)
+        emit(out)
+        yield out
+        for n in range(1, max_order + 1):
+            best, it = _best_of_order(prob, best, n, solver)
+            nit += it
+            out = _weight_result(prob, omega, e, scale, best, n, margin, nit)
+            emit(out)
+            yield out
 
 
-def _best_of_order(prob, best, n, max_iter, verbose):
+def _best_of_order(prob, best, n, solver):
     """The best weight of order ``n`` from a fresh start and from ``best`` (order n - 1);
     returns ``(candidate, iterations)``."""
     kinds = _kinds(n)
     best_n, nit = None, 0
     for label, start in (("fresh", _shaped_start(prob, kinds)),
                          ("ladder", _ladder_start(prob, best.sections, n))):
-        xs, st, ipopt_msg, it = _solve(prob, kinds, prob.pack(start), max_iter, verbose)
+        xs, st, ipopt_msg, it = _solve(prob, kinds, prob.pack(start), solver)
         nit += it
         msg = f"{TERMINATION_MESSAGES[st]} (IPOPT: {ipopt_msg}; {label} start)"
         cand = _candidate(prob, float(xs[0]), prob.unpack(xs[1:], kinds), st, msg)
