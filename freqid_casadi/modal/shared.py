@@ -347,8 +347,9 @@ def _check_datas(datas, weights):
 
 def _check_numbers(integrator, delay_max, balance):
     """The scalar options of :func:`fit_shared` (OptionError naming the bad one)."""
-    if isinstance(integrator, (str, numbers.Integral)) and not isinstance(
-            integrator, (bool, np.bool_)) and integrator not in (0, 1):
+    if (isinstance(integrator, str) and integrator == "auto") or (
+            isinstance(integrator, numbers.Integral)
+            and not isinstance(integrator, (bool, np.bool_)) and integrator not in (0, 1)):
         raise OptionError(f"fit_shared takes integrator=True or False only, got "
                           f"{integrator!r}; for k poles (or zeros) at the origin fit each "
                           "channel with fc.fit(..., integrator=k), or divide the data by "
