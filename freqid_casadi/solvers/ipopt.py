@@ -22,7 +22,8 @@ from .common import (StageProblem, StageResult, Status, TERMINATION_MESSAGES, ch
 from .termination import StageMonitor, Termination, iteration_callback
 
 __all__ = ["HESSIANS", "solve_stage", "solve_least_squares", "solve_pnorm", "ipopt_status",
-           "run_nlpsol", "base_options", "PROJECTION_RTOL"]
+           "run_nlpsol", "base_options", "PROJECTION_RTOL",
+           "STEP_FAILURES", "MAX_HESSIAN_PERTURBATION"]
 
 _IPOPT_STATUS = {
     "Solve_Succeeded": Status.CONVERGED,
@@ -220,6 +221,11 @@ def base_options(max_iter, tol, verbose):
 #: A returned point outside the bounds whose projection onto them raises ``cost_of`` by
 #: more than this fraction is solved again (:func:`run_nlpsol`).
 PROJECTION_RTOL = 1e-2
+#: IPOPT statuses after which :func:`run_nlpsol` solves again with the Hessian's
+#: regularisation allowed up to :data:`MAX_HESSIAN_PERTURBATION`.
+STEP_FAILURES = frozenset({"Error_In_Step_Computation", "Restoration_Failed"})
+#: IPOPT's ``max_hessian_perturbation`` of that repeat (IPOPT's default 1e20).
+MAX_HESSIAN_PERTURBATION = 1e40
 
 
 def run_nlpsol(name, nlp, opts, x0, lb, ub, *, constrained=False, lam_x0=None,
@@ -239,6 +245,16 @@ def run_nlpsol(name, nlp, opts, x0, lb, ub, *, constrained=False, lam_x0=None,
     projected point is returned. Whether a slack gets that small depends on the last bits
     of the linear algebra (the BLAS kernel); solves that return a point within the bounds,
     or whose projection costs less, are not affected.
+
+    A solve that ends in a failed step computation (:data:`STEP_FAILURES`) is repeated
+    once, from the better of ``x0`` and its projected point, with IPOPT's
+    ``max_hessian_perturbation`` raised to :data:`MAX_HESSIAN_PERTURBATION`: the stages
+    scale the objective by 1 / (start cost), so near a zero residual the Hessian and the
+    regularisation its inertia correction needs grow past IPOPT's default limit 1e20
+    (measured on the same system under ``OPENBLAS_CORETYPE=Nehalem``: a restart at cost
+    1.2e-22 failed at its first iteration and returned the pushed start, cost 2.6e-11;
+    Prescott's run needed 1e20 exactly). If the solve still fails and ends above the
+    start's cost, the start is returned.
 
     Parameters
     ----------
@@ -268,7 +284,8 @@ def run_nlpsol(name, nlp, opts, x0, lb, ub, *, constrained=False, lam_x0=None,
         ``nit``/``nfev`` count both solves and ``message`` says so.
     stats : dict
         IPOPT's statistics (empty after an exception; of the solve returned, with
-        ``iter_count`` summed over both and ``"bound_retry"`` True after a repeat).
+        ``iter_count`` summed over both and ``"step_retry"`` or ``"bound_retry"`` True
+        after a repeat).
     t_build, t_solve : float
         Seconds building the solver(s) (from ``t0``) and solving.
     """
@@ -276,21 +293,24 @@ def run_nlpsol(name, nlp, opts, x0, lb, ub, *, constrained=False, lam_x0=None,
     first = _solve(name, nlp, opts, x0, lb, ub, constrained, lam_x0, cost_of)
     t_build, t_solve = first["t_build"] - t0, first["t_solve"]
     out, note = first, ""
-    if _projection_costs(first, cost_of):
-        ipopt = {**opts.get("ipopt", {}), "slack_move": 0.0}
-        again = _solve(name, nlp, {**opts, "ipopt": ipopt}, first["x"], lb, ub, constrained,
-                       first["lam_x"], cost_of)
+    plan = _retry_plan(first, x0, lam_x0, cost_of)
+    if plan is not None:
+        update, start, lam, why, key = plan
+        again = _solve(name, nlp, {**opts, "ipopt": {**opts.get("ipopt", {}), **update}},
+                       start, lb, ub, constrained, lam, cost_of)
         t_build += again["t_build"] - again["t_start"]
         t_solve += again["t_solve"]
-        better = again["status"] != Status.ERROR and again["cost"] < first["cost"]
+        better = _better(again, first, cost_of)
         out = again if better else first
-        out["stats"] = {**out["stats"], "bound_retry": True, "iter_count": sum(
+        out["stats"] = {**out["stats"], key: True, "iter_count": sum(
             int(d["stats"].get("iter_count", 0)) for d in (first, again))}
-        for key in ("nit", "nfev"):
-            out[key] = first[key] + again[key]
-        note = (f"; IPOPT's point was outside the bounds, projected cost {first['cost']:.3g}"
-                f" > {first['cost_raw']:.3g}: solved again with the bounds held exactly "
-                f"({again['return_status']}, {'kept' if better else 'not better'})")
+        for k in ("nit", "nfev"):
+            out[k] = first[k] + again[k]
+        note = f"; {why} ({again['return_status']}, {'kept' if better else 'not better'})"
+        if (cost_of is not None and not is_success(out["status"])
+                and not out["cost"] <= cost_of(x0)):
+            out.update(x=x0, cost=cost_of(x0), lam_x=np.zeros(x0.size))
+            note += "; the start kept (the failed solves ended higher)"
     if keep is not None:
         del keep[:]
     status = out["status"]
@@ -302,6 +322,37 @@ def run_nlpsol(name, nlp, opts, x0, lb, ub, *, constrained=False, lam_x0=None,
         active_mask=find_active_constraints(out["x"], lb, ub, rtol=1e-8),
         lam_x=out["lam_x"], solver_status=out["return_status"])
     return res, out["stats"], t_build, t_solve
+
+
+def _retry_plan(run, x0, lam_x0, cost_of):
+    """``(ipopt option update, start, lam_x0, why, stats key)`` of the one repeated solve
+    of :func:`run_nlpsol`, or None: after a step computation that failed
+    (:data:`STEP_FAILURES`) from the better of the start and the projected point with
+    ``max_hessian_perturbation`` raised; after a costly projection from the projected
+    point with the bounds held exactly."""
+    if run["return_status"] in STEP_FAILURES:
+        start, lam = x0, lam_x0
+        if cost_of is not None and run["cost"] < cost_of(x0):
+            start, lam = run["x"], run["lam_x"]
+        return ({"max_hessian_perturbation": MAX_HESSIAN_PERTURBATION}, start, lam,
+                f"IPOPT's step computation failed ({run['return_status']}): solved again "
+                f"with max_hessian_perturbation {MAX_HESSIAN_PERTURBATION:g}", "step_retry")
+    if _projection_costs(run, cost_of):
+        return ({"slack_move": 0.0}, run["x"], run["lam_x"],
+                f"IPOPT's point was outside the bounds, projected cost {run['cost']:.3g} > "
+                f"{run['cost_raw']:.3g}: solved again with the bounds held exactly",
+                "bound_retry")
+    return None
+
+
+def _better(again, first, cost_of):
+    """The repeated solve's result is kept: a lower finite cost (without ``cost_of``: it
+    succeeded where the first did not)."""
+    if again["status"] == Status.ERROR:
+        return False
+    if cost_of is None:
+        return is_success(again["status"]) and not is_success(first["status"])
+    return bool(again["cost"] < first["cost"])
 
 
 def _projection_costs(run, cost_of):
