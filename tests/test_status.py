@@ -92,7 +92,11 @@ def test_example_b_at_9_sections_is_a_poor_fit_and_a_at_17_ok():
     assert b.success and b.status == "poor-fit"
     assert b.details["noise"]["ratio"] > 100                          # measured 601
     a = fc.fit(fc.systems.G_A(), n_sections=17, integrator=True, start="sequential")
-    assert a.max_rel_error < 1e-12 and a.status == "ok", a.message
+    # A's exact fit ends at its rounding floor, whose level depends on the BLAS kernel:
+    # measured 3.5e-14 (Sandybridge), 4.0e-14 (Prescott), 4.8e-14 (SkylakeX), 1.19e-12
+    # (Nehalem), 1.284e-12 (Haswell, Zen) (OPENBLAS_CORETYPE per subprocess; B 0.33137
+    # and noise ratio 600.7 on all six); bound 4x the worst
+    assert a.max_rel_error < 5e-12 and a.status == "ok", a.message
 
 
 def test_details_hold_the_optimisers_numbers_and_the_message_none():
