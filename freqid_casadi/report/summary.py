@@ -443,4 +443,4 @@ def _stage_lines(stages, unit="rad/s"):
     return ["## Stages", "", text, "",
             markdown_table(srows, ("stage", "sections", "window", f"omega_c ({unit})",
                                    "max rel. error (all data)", "iterations", "time (s)",
-                                   "status (solver)"), "rrrrrrrl"), ""]
+                                   "status"), "rrrrrrrl"), ""]
