@@ -29,7 +29,11 @@ def test_noisy_a_default_fit_is_safe_between_the_samples(noisy_a):
         res = fc.fit(noisy, n_sections=17, integrator=True, delay=True)
     at, between = clean_errors(res.model, clean, dense)
     assert at.max() <= 0.06 and between.max() <= 0.1, (at.max(), between.max())
-    assert res.status == "ok" and res.resolution.ok
+    # its residual is at the noise; whether its last stage passes the termination test at
+    # the floor's active constraints depends on the BLAS kernel (ok here; under Prescott
+    # the iteration limit at the same point, RMS 0.0187443 both ways)
+    assert res.status in ("ok", "not-converged") and res.resolution.ok
+    assert res.details["noise"]["consistent"] and res.rms_rel_error < 0.019
     assert res.options.min_damping == "auto" and res.zeta_min == pytest.approx(
         res.details["resolution_guard"]["zeta_min"])
     guard = res.details["resolution_guard"]
