@@ -253,7 +253,9 @@ def test_bad_data_through_fit():
 @pytest.mark.slow
 def test_noisy_fit_is_not_returned_silently():
     """2 % complex noise on example A at the thesis's order: near-cancelling pairs narrower
-    than the frequency spacing are reported (FitResult.resolution and a warning)."""
+    than the frequency spacing are reported (FitResult.resolution and a warning) when the
+    resolution guard is off; by default the guard keeps the floored fit, which is
+    resolved (tests/test_guard.py)."""
     from freqid_casadi.errors import ResolutionWarning
 
     rng = np.random.default_rng(0)
@@ -261,8 +263,11 @@ def test_noisy_fit_is_not_returned_silently():
     noise = 0.02 * (rng.standard_normal(500) + 1j * rng.standard_normal(500)) / np.sqrt(2)
     noisy = fc.FrequencyData(data.omega, data.response * (1 + noise), "noisy A")
     with pytest.warns(ResolutionWarning, match="narrower than the frequency spacing"):
-        res = fc.fit(noisy, n_sections=17, integrator=True)
+        res = fc.fit(noisy, n_sections=17, integrator=True,
+                     loop=fc.LoopOptions(resolution_guard=False))
     assert not res.resolution.ok and len(res.resolution.flags) >= 1
+    guarded = fc.fit(noisy, n_sections=17, integrator=True)
+    assert guarded.resolution.ok and guarded.details["resolution_guard"]["kept"] == "floored"
 
 
 def test_clean_fit_passes_the_resolution_check():
