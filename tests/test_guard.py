@@ -52,10 +52,14 @@ def test_noisy_a_default_fit_is_safe_between_the_samples(noisy_a):
 
 
 def test_exact_data_keep_their_narrow_modes():
-    # example A exact: the resolution check passes, the guard does nothing
+    # example A exact: the resolution check passes and the guard does nothing (default
+    # kernel), or, where rounding leaves a feature narrower than the spacing (Haswell:
+    # 1.28e-12), the floored refit cannot explain exact data (RMS 1.7e-4) and the free
+    # fit stays
     data = systems.G_A()
     res = fc.fit(data, n_sections=17, integrator=True, delay=True, start="sequential")
-    assert res.max_rel_error <= 1e-10 and "resolution_guard" not in res.details
+    assert res.max_rel_error <= 1e-10
+    assert res.details.get("resolution_guard", {"kept": "free"})["kept"] == "free"
 
 
 def test_a_narrow_mode_the_data_determine_stays():
