@@ -408,7 +408,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
                                                dict(kw, integrator=check_origin_order(j)))
             if len(ks) > 1:
                 record = settle_by_fits(record, {j: r.rms_rel_error for j, r in results.items()})
-                _resolution_check(results[record["chosen"]].model, data.omega, 4)  # its warning
+                _warn_unresolved(results[record["chosen"]].resolution, 4)  # its warning
             return _with_origin_record(results[record["chosen"]], record,
                                        origin_diagnostics(record, data))
         return _fit_resolved(data_or_omega, response, n_sections, delay, fixed, weights,
@@ -484,9 +484,8 @@ def _fit_guarded(data_or_omega, response, *, progress, weights, **kw):
         return _fit_held(data_or_omega, response, progress=False, weights=weights,
                          **dict(kw, min_damping=min_damping))
 
-    result, _ = guard_resolution(result, refit, kw["min_damping"], result.method)
-    if result.resolution is not None and not result.resolution.ok:
-        _resolution_check(result.model, result.data.omega, stacklevel=6)
+    result, _ = guard_resolution(result, refit, kw["min_damping"])
+    _warn_unresolved(result.resolution, 6)
     return result
 
 
@@ -659,16 +658,23 @@ def _resolution_check(model, omega, stacklevel=7):
     if model.structure.basis != "second-order" or not model.n_sections:
         return None
     check = check_resolution(model, omega)
-    if not check.ok:
-        warnings.warn(
-            f"the model has {len(check.flags)} near-cancelling pole/zero pair(s) and "
-            f"{len(check.unresolved)} pole(s)/zero(s) narrower than the frequency spacing: "
-            "features between the samples that the data does not determine (typical of "
-            "noisy data); inspect FitResult.resolution, refit with min_damping='auto' (a "
-            "damping floor from the frequency spacing), remove them with "
-            "freqid_casadi.fitting.validation.prune_sections, or fit fewer sections",
-            ResolutionWarning, stacklevel=stacklevel)
+    _warn_unresolved(check, stacklevel + 1)
     return check
+
+
+def _warn_unresolved(check, stacklevel):
+    """The ResolutionWarning of a failed :func:`check_resolution` (nothing for None or a
+    passed check)."""
+    if check is None or check.ok:
+        return
+    warnings.warn(
+        f"the model has {len(check.flags)} near-cancelling pole/zero pair(s) and "
+        f"{len(check.unresolved)} pole(s)/zero(s) narrower than the frequency spacing: "
+        "features between the samples that the data does not determine (typical of "
+        "noisy data); inspect FitResult.resolution, refit with min_damping='auto' (a "
+        "damping floor from the frequency spacing), remove them with "
+        "freqid_casadi.fitting.validation.prune_sections, or fit fewer sections",
+        ResolutionWarning, stacklevel=stacklevel)
 
 
 def _unscale_record(rec, w_ref):

@@ -31,7 +31,7 @@ __all__ = ["guard_resolution", "GUARD_RMS_FACTOR"]
 GUARD_RMS_FACTOR = 1.25
 
 
-def guard_resolution(result, refit, min_damping, method):
+def guard_resolution(result, refit, min_damping):
     """``result``, or its refit with the damping floor when that explains the data too.
 
     Parameters
@@ -41,9 +41,8 @@ def guard_resolution(result, refit, min_damping, method):
     refit : callable
         ``refit(min_damping)`` runs the same fit with that ``min_damping``, quietly.
     min_damping : None, str or float
-        The user's ``min_damping``: the guard acts only when it is None.
-    method : str
-        The solver method (the floor needs "ipopt").
+        The user's ``min_damping``: the guard acts only when it is None (and the floor
+        needs ``result.method == "ipopt"``).
 
     Returns
     -------
@@ -53,7 +52,7 @@ def guard_resolution(result, refit, min_damping, method):
     """
     check = result.resolution
     loop = result.options.loop if result.options is not None else None
-    if (min_damping is not None or check is None or check.ok or method != "ipopt"
+    if (min_damping is not None or check is None or check.ok or result.method != "ipopt"
             or loop is None or not loop.resolution_guard or loop.gauge != "dc"
             or not result.success
             or result.model.structure.basis != "second-order"):

@@ -658,13 +658,14 @@ def _run_starts(run, wts, start, datas, zs):
     runs, skipped = {}, None
     for name in names:
         if name == "sequential" and start == "best":
-            skipped = _sequential_not_needed(runs["rational"][0], datas)
+            skipped = _sequential_not_needed(runs["rational"], datas)
             if skipped:
                 break
         prob, z, lam, stages = run(wts, name)
-        rel = np.abs(prob.ratio(z) - 1.0)
+        ratio = prob.ratio(z) - 1.0
+        rel = np.abs(ratio)
         runs[name] = ((prob, z, lam, stages), float(np.max(rel)),
-                      float(np.sqrt(np.mean(rel ** 2))), bool(stages[-1].success))
+                      float(np.sqrt(np.mean(rel ** 2))), bool(stages[-1].success), ratio)
     runs = {k: runs[k] for k in ("sequential", "rational") if k in runs}   # tie order
     lowest = min(r[1] for r in runs.values())
     near = [k for k, r in runs.items() if r[1] <= 1.1 * lowest] or list(runs)
@@ -674,18 +675,18 @@ def _run_starts(run, wts, start, datas, zs):
 
 def _sequential_not_needed(rational_run, datas):
     """Why ``start="best"`` keeps the rational start without running the sequential loop,
-    or None: the rational start converged and explains every channel to its noise (no
+    or None (``rational_run``: that start's entry in :func:`_run_starts`, its residual
+    ratio last): the rational start converged and explains every channel to its noise (no
     model can do meaningfully better), or the data hold more than
     :data:`BEST_SEQUENTIAL_LIMIT` points over all channels (the loop re-solves the whole
     problem once per section and costs several times the rational start there)."""
-    prob, z, _, stages = rational_run
+    stages, ratio = rational_run[0][3], rational_run[4]
     size = sum(d.omega.size for d in datas)
     if size > BEST_SEQUENTIAL_LIMIT:
         return (f"{size} points over the channels (more than {BEST_SEQUENTIAL_LIMIT}): the "
                 "sequential loop was not run; pass start='sequential' to run it")
     if not stages[-1].success:
         return None
-    ratio = prob.ratio(z) - 1.0
     if all(residual_noise(ratio[c], d.omega, d.weights).consistent
            for c, d in enumerate(datas)):
         return ("the rational start explains every channel to its noise: the sequential "
