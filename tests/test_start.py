@@ -132,6 +132,18 @@ def test_sweep_names_smallest_order_and_dense_error():
         sweep(data, [3], integrator=True)
 
 
+def test_sweep_rows_carry_the_fits_status():
+    # exact two-section data: one section misses a mode (poor-fit: measured max rel. error
+    # 1.2); two explain the data (ok: 4.6e-16); the order-6 row is the order-4 model
+    # extended, its status decided from its residual as fit decides a fit's
+    model, data = _two_section(100)
+    res = sweep(data, [2, 4, 6], integrator=True)
+    assert [r.start for r in res.rows] == ["sequential", "sequential", "extended"]
+    assert [r.status for r in res.rows] == ["poor-fit", "ok", "ok"]
+    assert res.rows[0].max_rel_error > 0.5 and res.rows[2].max_rel_error < 1e-10
+    assert res.as_dict()["rows"][2]["status"] == "ok"
+
+
 # ------------------------------------------------------------------ the targets
 _CACHE = {}
 

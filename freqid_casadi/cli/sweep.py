@@ -83,7 +83,8 @@ def run_cli(args, command):
 
     def report(row):
         if not args.quiet:
-            sys.stderr.write(f"order {row.order}: max rel. error {row.max_rel_error:.3e}, "
+            sys.stderr.write(f"order {row.order}: {row.status}, max rel. error "
+                             f"{row.max_rel_error:.3e}, "
                              f"delay {row.delay:.6g} {data.time_unit}, "
                              f"{row.wall_time:.1f} s\n")
 
@@ -92,9 +93,9 @@ def run_cli(args, command):
                    method=args.method, start=args.start)
     path = write_sweep_report(result, args.out, command=command, force=args.force)
     rows = [(r.order, _g(r.max_rel_error), _g(r.rms_rel_error), _g(r.max_rel_error_dense),
-             _g(r.delay, 6), f"{r.wall_time:.1f}") for r in result.rows]
+             _g(r.delay, 6), f"{r.wall_time:.1f}", str(r.status)) for r in result.rows]
     print(text_table(rows, ("order", "max rel. err", "RMS", "max (10x grid)", "delay (s)",
-                             "time (s)")))
+                             "time (s)", "status")))
     if args.target is not None:
         print(f"smallest order with max rel. error <= {args.target:g}: "
               f"{result.best_order if result.best_order is not None else 'none'}")

@@ -23,6 +23,7 @@ from .._progress import channel, check_progress
 from ..core.data import FrequencyData, dense_grid
 from ..errors import DataError, OptionError
 from .fit import fit
+from .verdict import FitStatus, residual_noise, status_of
 from ..core.metrics import relative_error
 from ..core.model import RationalDelayModel
 
@@ -55,6 +56,10 @@ class SweepRow:
     start : str
         Which start gave the kept model: the fit's (``FitResult.start``) or "extended"
         (the previous order's model with one more section, polished).
+    status : FitStatus
+        What the kept model means, as ``FitResult.status``: "ok" (converged, its residual
+        consistent with the noise), "poor-fit" (converged, residual well above the noise:
+        more sections, or another model class) or "not-converged".
     """
 
     order: int
@@ -66,6 +71,7 @@ class SweepRow:
     wall_time: float
     success: bool
     start: str
+    status: FitStatus = None
 
 
 @dataclass(frozen=True)
@@ -222,28 +228,32 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=Fa
             if not (follows and only_ext and chain[3] < 1.0):
                 res = fit(data, n_sections=o // per, **fit_options)
                 cand.append((res.model, res.max_rel_error, res.rms_rel_error, res.success,
-                             res.start))
+                             res.start, res.status))
             else:
                 res = chain[1]
             if follows:
                 cand.append(_extended(chain[0], res, data,
-                                      None if only_ext else EXTEND_MAX_ITER) + ("extended",))
+                                      None if only_ext else EXTEND_MAX_ITER)
+                            + ("extended", None))
             best = cand[0]
             for c in cand[1:]:
                 best = c if _better(c[1:3], best[1:3]) else best
             # the sequential loop continues from its best model; the row never gets worse
             chain = (best[0], res, best[3], best[1])
             if follows and shown is not None and shown[0].n_sections + 1 == o // per:
-                same = _identity_extension(shown[0], data) + (shown[3], "extended")
+                same = _identity_extension(shown[0], data) + (shown[3], "extended", None)
                 # the same model plus an identity section: the max error never increases
                 best = same if same[1] < best[1] or _better(same[1:3], best[1:3]) else best
-            model, mx, rms, success, start = best
+            model, mx, rms, success, start, status = best
+            if status is None:          # an extended model: its status from its residual
+                status = _status(model, data, success, rms)
             shown = best
             dense_err = (relative_error(model, dense, g_dense).max
                          if dense is not None else float("nan"))
             row = SweepRow(order=o, n_sections=o // per, max_rel_error=mx, rms_rel_error=rms,
                            max_rel_error_dense=dense_err, delay=model.delay,
-                           wall_time=time.perf_counter() - t0, success=success, start=start)
+                           wall_time=time.perf_counter() - t0, success=success, start=start,
+                           status=status)
             rows.append(row)
             emit(row)
     meeting = [r.order for r in rows if target is not None and r.max_rel_error <= target]
@@ -251,10 +261,19 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=Fa
                        best_order=min(meeting) if meeting else None, data_name=data.name)
 
 
+def _status(model, data, success, rms):
+    """The :class:`FitStatus` of ``model`` on ``data`` (``success``: its polish converged),
+    from its residual as :func:`~freqid_casadi.fitting.fit.fit` decides a fit's."""
+    with np.errstate(all="ignore"):
+        residual = data.response / model.frequency_response(data.omega) - 1.0
+    return status_of(bool(success), not rms < 1.0,
+                     residual_noise(residual, data.omega, data.weights))
+
+
 def _row_line(row):
     """One line of text for a sweep row (``progress="lines"`` and the bar's summary)."""
-    return (f"order {row.order}: max rel. error {row.max_rel_error:.3e}, delay "
-            f"{row.delay:.6g}, {row.wall_time:.1f} s")
+    return (f"order {row.order}: {row.status}, max rel. error {row.max_rel_error:.3e}, "
+            f"delay {row.delay:.6g}, {row.wall_time:.1f} s")
 
 
 def _integrator_check(integrator):

@@ -224,11 +224,12 @@ def write_sweep_report(result, out_dir, *, command, force=False):
     d = json_safe(result.as_dict())
     d["command"] = command
     headers = ["order", "sections", "max rel. error", "RMS rel. error",
-               "max rel. error (10x grid)", "delay (s)", "time (s)", "start", "converged"]
+               "max rel. error (10x grid)", "delay (s)", "time (s)", "start", "converged",
+               "status"]
     rows = [[r["order"], r["n_sections"], number(r["max_rel_error"]), number(r["rms_rel_error"]),
              number(r["max_rel_error_dense"]), number(r["delay"], 6), number(r["wall_time_s"]
              if "wall_time_s" in r else r["wall_time"]), r["start"],
-             "yes" if r["success"] else "no"] for r in d["rows"]]
+             "yes" if r["success"] else "no", r.get("status") or ""] for r in d["rows"]]
     target = d["target"]
     verdict = ("" if target is None else
                f"Smallest order with max relative error <= {target:g}: "
@@ -241,10 +242,10 @@ def write_sweep_report(result, out_dir, *, command, force=False):
                           json.dumps(d, indent=1, allow_nan=False) + "\n")
         atomic_write_text(os.path.join(tmp, "sweep.csv"), csv_text(
             ["order", "n_sections", "max_rel_error", "rms_rel_error", "max_rel_error_dense",
-             "delay", "wall_time", "start", "success"],
+             "delay", "wall_time", "start", "success", "status"],
             [[r["order"], r["n_sections"], r["max_rel_error"], r["rms_rel_error"],
               r["max_rel_error_dense"], r["delay"], r["wall_time"], r["start"],
-              r["success"]] for r in d["rows"]]))
+              r["success"], r.get("status") or ""] for r in d["rows"]]))
         from ..plots import save_figure, sweep as sweep_figure
 
         save_figure(sweep_figure(result), os.path.join(tmp, "sweep.png"))
