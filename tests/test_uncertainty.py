@@ -74,6 +74,25 @@ def test_success_and_status(weights):
         assert w.status >= 0
 
 
+def test_message_is_a_sentence_and_the_optimiser_words_are_in_details(weights):
+    for n, w in weights.items():
+        assert w.message.startswith("ok: "), w.message
+        assert "IPOPT" not in w.message and "Solve_" not in w.message
+        assert f"{w.overbound.mean_db:.2g} dB above the error on average" in w.message
+        assert w.details["solver_status"] in (("closed form",) if n == 0 else
+                                              ("Solve_Succeeded", "Solved_To_Acceptable_Level"))
+        assert w.details["start"] in (("closed form",) if n == 0 else ("fresh", "ladder"))
+    from freqid_casadi.options import IpoptOptions
+
+    short = fit_uncertainty_weight(OMEGA, REL_ERROR, order=2, method=IpoptOptions(max_iter=2))
+    assert not short.success and short.details["solver_status"] == "Maximum_Iterations_Exceeded"
+    assert short.message.startswith("not converged (iteration limit reached); the bound "
+                                    "holds all the same")
+    assert short.message.endswith("pass method=IpoptOptions(max_iter=20) to let it run "
+                                  "further")
+    assert np.all(short.magnitude >= short.rel_error * (1 - 1e-12))
+
+
 def test_higher_order_overbounds_less(weights):
     mean = {n: w.overbound.mean_db for n, w in weights.items()}
     print(f"mean overbound dB: {mean}; max dB: "

@@ -91,15 +91,14 @@ from ..errors import DataError, OptionError
 from ..options import IpoptOptions, ipopt_limits, warn_renamed
 from ..solvers.common import SUCCESS_STATUSES, TERMINATION_MESSAGES, Status
 from ..solvers.ipopt import run_nlpsol
+from ._weight_sections import MAX_DAMPING, WeightSection, _factor, _real_pair_section, \
+    _response, _section_log_abs2
 
 __all__ = ["WEIGHT_METHOD", "fit_uncertainty_weight", "weights_by_order", "iter_weights",
            "WeightResult", "WeightSection", "Overbound", "MAX_DAMPING", "CORNER_DECADES",
            "E_FLOOR",
            "MAX_DECADES", "frequency_scale", "rescaled"]
 
-
-MAX_DAMPING = 20.0
-"""Upper bound of every damping: real roots up to a ratio of ~1600 (3.2 decades) apart."""
 
 CORNER_DECADES = 2.0
 """Corner frequencies are bounded to the data range widened by this many decades each side."""
@@ -114,84 +113,7 @@ _LN10 = math.log(10.0)
 _GRID_PER_DECADE = 3      # ladder grid search over corner frequencies
 
 
-# ---------------------------------------------------------------------------- formulas
-def _factor(y, zeta):
-    """(re, im) of ``1 + 2 zeta (s/w) + (s/w)^2`` (or ``1 + s/w`` if zeta is None) at
-    ``s = j w y``, i.e. at the normalised frequency ``y = omega / w``. numpy or CasADi."""
-    if zeta is None:
-        return (1.0 + 0 * y, y)
-    return (1.0 - y * y, 2 * zeta * y)
-
-
-def _section_log_abs2(y_num, zeta_num, y_den, zeta_den, log):
-    """``ln|S(j omega)|^2`` of one section from its normalised frequencies (numpy or SX)."""
-    return (log(_cplx.abs2(_factor(y_num, zeta_num)))
-            - log(_cplx.abs2(_factor(y_den, zeta_den))))
-
-
-def _section_pair(y_num, zeta_num, y_den, zeta_den):
-    """``S(j omega)`` of one section as an (re, im) pair."""
-    return _cplx.div(_factor(y_num, zeta_num), _factor(y_den, zeta_den))
-
-
-def _quad_or_linear_roots(w, zeta):
-    """Roots of ``1 + 2 zeta s/w + (s/w)^2`` (or ``1 + s/w``), complex list."""
-    if zeta is None:
-        return [complex(-w)]
-    return list(np.roots([1.0, 2.0 * zeta * w, w * w]).astype(complex))
-
-
 # ---------------------------------------------------------------------------- results
-@dataclass(frozen=True)
-class WeightSection:
-    """One unit-DC section of the weight.
-
-    Attributes
-    ----------
-    omega_num, omega_den : float
-        Corner (natural) frequencies of numerator and denominator, rad/s, > 0.
-    zeta_num, zeta_den : float or None
-        Dampings (> 0) of a second-order section; None for a first-order section
-        ``(1 + s/omega_num) / (1 + s/omega_den)``.
-    """
-
-    omega_num: float
-    omega_den: float
-    zeta_num: float = None
-    zeta_den: float = None
-
-    @property
-    def order(self):
-        """1 (first-order section) or 2."""
-        return 1 if self.zeta_num is None else 2
-
-    @property
-    def num(self):
-        """Numerator coefficients in descending powers of s (constant term 1)."""
-        w, z = self.omega_num, self.zeta_num
-        return (1.0 / w, 1.0) if z is None else (1.0 / (w * w), 2.0 * z / w, 1.0)
-
-    @property
-    def den(self):
-        """Denominator coefficients in descending powers of s (constant term 1)."""
-        w, z = self.omega_den, self.zeta_den
-        return (1.0 / w, 1.0) if z is None else (1.0 / (w * w), 2.0 * z / w, 1.0)
-
-    def frequency_response(self, omega):
-        """``S(j omega)``; complex ndarray shaped like ``omega`` (rad/s)."""
-        omega = np.asarray(omega, dtype=float)
-        return _cplx.to_complex(_section_pair(omega / self.omega_num, self.zeta_num,
-                                              omega / self.omega_den, self.zeta_den))
-
-    def zeros(self):
-        """Zeros of the section, complex ndarray (1 or 2 entries, real parts < 0)."""
-        return np.array(_quad_or_linear_roots(self.omega_num, self.zeta_num), dtype=complex)
-
-    def poles(self):
-        """Poles of the section, complex ndarray (1 or 2 entries, real parts < 0)."""
-        return np.array(_quad_or_linear_roots(self.omega_den, self.zeta_den), dtype=complex)
-
-
 class Overbound(NamedTuple):
     """How far ``|W|`` lies above ``e`` at the data points, ``20 log10(|W(j w_i)| / e_i)``.
 
@@ -238,10 +160,16 @@ class WeightResult:
     status : Status
         Of the IPOPT solve that produced the weight (CONVERGED for order 0, closed form).
     message : str
+        One sentence: whether the solve converged, how far ``|W|`` lies above the error,
+        and the next step when it did not converge.
     success : bool
         ``status`` is a success status. The bound holds even when False.
     nit : int
         IPOPT iterations summed over all solves.
+    details : dict
+        The optimiser's own words: ``solver_status`` (IPOPT's return status, or "closed
+        form" for order 0), ``start`` ("fresh", "ladder" or "closed form") and
+        ``kept_start`` (True when IPOPT ended above its start and the start was kept).
 
     Notes
     -----
@@ -263,6 +191,7 @@ class WeightResult:
     message: str
     success: bool
     nit: int
+    details: dict = None
 
     def frequency_response(self, omega):
         """``W(j omega)``.
@@ -312,22 +241,6 @@ class WeightResult:
         for sec in self.sections:
             sys = ct.series(sys, ct.ss(ct.tf(list(sec.num), list(sec.den))))
         return balanced_ss(sys)
-
-
-def _response(gain, sections, omega):
-    """``W(j omega)`` as a complex ndarray (the one evaluation users see)."""
-    omega = np.asarray(omega, dtype=float)
-    z = (gain + 0 * omega, 0 * omega)
-    for sec in sections:
-        z = _cplx.mul(z, _section_pair(omega / sec.omega_num, sec.zeta_num,
-                                       omega / sec.omega_den, sec.zeta_den))
-    return _cplx.to_complex(z)
-
-
-def _real_pair_section(r1, r2):
-    """(omega, zeta) of ``(1 + s/r1)(1 + s/r2)``; zeta clipped to MAX_DAMPING."""
-    w = np.sqrt(r1 * r2)
-    return w, np.minimum((r1 + r2) / (2.0 * w), MAX_DAMPING)
 
 
 # ---------------------------------------------------------------------------- scaling
@@ -711,12 +624,31 @@ class _Candidate(NamedTuple):
     magnitude: np.ndarray
     correction: float
     status: Status
-    message: str
+    details: dict
 
 
-def _candidate(prob, kappa, sections, status, message):
+def _candidate(prob, kappa, sections, status, details):
     gain, mag, correction, objective = _finish(prob, kappa, sections)
-    return _Candidate(objective, gain, tuple(sections), mag, correction, status, message)
+    return _Candidate(objective, gain, tuple(sections), mag, correction, status, details)
+
+
+def _message(best, order, overbound, max_iter):
+    """:attr:`WeightResult.message`: one sentence, the solve's outcome, the over-bound and
+    the next step (IPOPT's own words are in ``details``)."""
+    closest = ("touching it at the closest point" if overbound.min_db < 0.01 else
+               f"{overbound.min_db:.2g} dB above it at the closest point")
+    above = f"|W| is {overbound.mean_db:.2g} dB above the error on average, {closest}"
+    if order == 0:
+        return f"ok: the constant weight (closed form); {above}"
+    fixed = (f"; the gain was raised {100 * (best.correction - 1):.2g} % so that the bound "
+             "holds" if best.correction > 1.0 + 1e-4 else "")
+    if best.status in SUCCESS_STATUSES:
+        return f"ok: converged; {above}{fixed}"
+    why = TERMINATION_MESSAGES[best.status]
+    step = (f"pass method=IpoptOptions(max_iter={10 * int(max_iter)}) to let it run further"
+            if best.status == Status.MAX_ITER else "try another order")
+    return (f"not converged ({why}); the bound holds all the same: {above}{fixed} — "
+            f"{step}")
 
 
 def _overbound(prob, mag):
@@ -848,7 +780,9 @@ def _ladder(omega, e, max_order, margin, min_damping, solver, progress):
 
     with channel(progress, _order_line, total=max_order + 1, unit="order") as emit:
         # order 0 is closed form: W = max (1 + margin) e (verified like any other weight)
-        best = _candidate(prob, 0.0, (), Status.CONVERGED, "closed form (constant weight)")
+        best = _candidate(prob, 0.0, (), Status.CONVERGED,
+                          {"solver_status": "closed form", "start": "closed form",
+                           "kept_start": False})
         nit = 0
         out = _weight_result(prob, omega, e, scale, best, 0, margin, nit)
         emit(out)
@@ -856,7 +790,8 @@ def _ladder(omega, e, max_order, margin, min_damping, solver, progress):
         for n in range(1, max_order + 1):
             best, it = _best_of_order(prob, best, n, solver)
             nit += it
-            out = _weight_result(prob, omega, e, scale, best, n, margin, nit)
+            out = _weight_result(prob, omega, e, scale, best, n, margin, nit,
+                                 solver.max_iter)
             emit(out)
             yield out
 
@@ -870,13 +805,13 @@ def _best_of_order(prob, best, n, solver):
                          ("ladder", _ladder_start(prob, best.sections, n))):
         xs, st, ipopt_msg, it = _solve(prob, kinds, prob.pack(start), solver)
         nit += it
-        msg = f"{TERMINATION_MESSAGES[st]} (IPOPT: {ipopt_msg}; {label} start)"
-        cand = _candidate(prob, float(xs[0]), prob.unpack(xs[1:], kinds), st, msg)
+        how = {"solver_status": ipopt_msg, "start": label, "kept_start": False}
+        cand = _candidate(prob, float(xs[0]), prob.unpack(xs[1:], kinds), st, how)
         if label == "ladder":
             # the ladder start is never worse than the order below; keep it if IPOPT
             # ended above it (as fit.py keeps a stage's start)
             kappa0 = prob.feasible_kappa(prob.pack(start), kinds)
-            kept = _candidate(prob, kappa0, start, st, msg + ", kept the start")
+            kept = _candidate(prob, kappa0, start, st, dict(how, kept_start=True))
             if kept.objective < cand.objective:
                 cand = kept
         if best_n is None or cand.objective < best_n.objective:
@@ -884,16 +819,19 @@ def _best_of_order(prob, best, n, solver):
     return best_n, nit
 
 
-def _weight_result(prob, omega, e, scale, best, order, margin, nit):
+def _weight_result(prob, omega, e, scale, best, order, margin, nit,
+                   max_iter=WEIGHT_METHOD.max_iter):
     mag = best.magnitude.copy()
     mag.setflags(write=False)
     om = omega.copy()
     om.setflags(write=False)
     ee = e.copy()
     ee.setflags(write=False)
+    over = _overbound(prob, mag)
     return WeightResult(
         omega=om, rel_error=ee, magnitude=mag, gain=float(best.gain),
-        sections=rescaled(best.sections, scale), order=order, overbound=_overbound(prob, mag),
+        sections=rescaled(best.sections, scale), order=order, overbound=over,
         margin=float(margin), gain_correction=float(best.correction),
-        objective=float(best.objective), status=best.status, message=best.message,
-        success=best.status in SUCCESS_STATUSES, nit=int(nit))
+        objective=float(best.objective), status=best.status,
+        message=_message(best, order, over, max_iter),
+        success=best.status in SUCCESS_STATUSES, nit=int(nit), details=dict(best.details))
