@@ -117,6 +117,45 @@ def test_auto_order_stops_at_max_sections():
     assert [s.n_sections for s in choice.steps] == [1, 2]
 
 
+def _rhp_pair_data():
+    """Two modes and a right-half-plane zero pair at 8 rad/s inside the band (exact)."""
+    w = np.geomspace(1, 100, 200)
+    s = 1j * w
+    g = 5 * (s * s - 0.8 * s + 64) / (s * s + 0.2 * s + 25) / (s * s + 1.2 * s + 400) * 6.25
+    return fc.FrequencyData(w, g)
+
+
+def test_a_minimum_phase_search_without_a_consistent_order_offers_the_free_zeros_one():
+    import dataclasses
+
+    from freqid_casadi.fitting.order import with_free_zeros
+
+    data = _rhp_pair_data()
+    opts = dict(integrator=False, delay=False)
+
+    def minimum_phase(n):           # its own per-fit alternative removed: the search's
+        res = fc.fit(data, n_sections=n, **opts)
+        return dataclasses.replace(res, alternatives={})
+    choice = choose_order(minimum_phase, max_sections=2)
+    assert choice.reason != "consistent" and choice.result.rms_rel_error > 0.3
+    res = with_free_zeros(choice, lambda n: fc.fit(data, n_sections=n, zeros="free", **opts),
+                          max_sections=2)
+    alt = res.alternatives["zeros=free"]
+    # measured: the free-zeros search chooses 2 sections at RMS 2.6e-16
+    assert alt.model.n_sections == 2 and alt.rms_rel_error < 1e-8 and alt.status == "ok"
+    assert res.model.structure.zeros == "minimum-phase"
+    assert res.message.endswith("zeros='free' reaches RMS "
+                                f"{alt.rms_rel_error:.3g} at 2 sections — pass zeros='free' "
+                                "(FitResult.alternatives['zeros=free'])")
+    diag = [d for d in res.diagnostics if d.code == "non-minimum-phase"][-1]
+    assert diag.severity == "warning" and diag.values["alternative_n_sections"] == 2
+    # a search that found a consistent order is left alone (no second search)
+    ok = choose_order(lambda n: fc.fit(data, n_sections=n, zeros="free", **opts),
+                      max_sections=3)
+    assert ok.reason == "consistent"
+    assert "zeros=free" not in with_free_zeros(ok, None, max_sections=3).alternatives
+
+
 @pytest.mark.parametrize("n", ["many", range(0, 3), range(1, 5, 2), range(2, 2)])
 def test_auto_order_bad_options(n):
     with pytest.raises(OptionError, match="positive integer, 'auto' or a range"):

@@ -47,7 +47,7 @@ from .fixed import check_fixed, fit_with_fixed
 from .diagnostics import check_gain_sign
 from .guard import guard_resolution
 from ..errors import FreqidError, OptionError, ResolutionWarning
-from .order import MAX_SECTIONS, choose_order, with_order_record
+from .order import MAX_SECTIONS, choose_order, with_free_zeros, with_order_record
 from .mainloop import LoopContext, minimax, rational, sequential
 from ..core.metrics import relative_error
 from ..core.model import (MAX_ORIGIN_ORDER, ZEROS, RationalDelayModel, Structure,
@@ -468,7 +468,16 @@ def _fit_auto_order(args):
     data, response = args.pop("data_or_omega"), args.pop("response")
     choice = choose_order(lambda k: fit(data, response, n_sections=k, **args),
                           max_sections=orders[-1], min_sections=orders[0])
-    return with_order_record(choice)
+    if args.get("zeros", "minimum-phase") != "minimum-phase":
+        return with_order_record(choice)
+
+    def fit_free(k):
+        with warnings.catch_warnings():       # a search the user did not ask for: quiet
+            warnings.simplefilter("ignore")
+            return fit(data, response, n_sections=k, **dict(args, zeros="free",
+                                                            progress=False))
+    return with_free_zeros(choice, fit_free, max_sections=orders[-1],
+                           min_sections=orders[0])
 
 
 def _fit_guarded(data_or_omega, response, *, progress, weights, **kw):
