@@ -211,7 +211,10 @@ def base_options(max_iter, tol, verbose):
     dict
         ``nlpsol`` options with an ``"ipopt"`` sub-dict.
     """
-    return {"print_time": False, "error_on_fail": False,
+    # a trial point where the residual is not finite is IPOPT's to cut back (the stage's
+    # status says ERROR only if the solve ends there): CasADi's own line per such
+    # evaluation ("nlp_grad_f failed: NaN detected") reached the user's terminal
+    return {"print_time": False, "error_on_fail": False, "show_eval_warnings": bool(verbose),
             "ipopt": {"print_level": 5 if verbose else 0, "sb": "yes",
                       "max_iter": int(max_iter), "tol": float(tol),
                       "bound_relax_factor": 0.0, "honor_original_bounds": "yes",

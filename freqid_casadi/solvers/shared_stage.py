@@ -232,7 +232,8 @@ def _solve_once(problem, x0, n_points, lam_x0, max_iter, tol, monitor):
         ipopt.update({"warm_start_init_point": "yes", "warm_start_bound_push": push,
                       "warm_start_bound_frac": push, "warm_start_mult_bound_push": 1e-9,
                       "mu_init": 1e-6})
-    opts = {"print_time": False, "error_on_fail": False, "grad_f": keep[1],
+    opts = {"print_time": False, "error_on_fail": False, "show_eval_warnings": False,
+            "grad_f": keep[1],
             "hess_lag": keep[2], "ipopt": ipopt}
     if monitor is not None:
         monitor.arm(RESCALE * cost0)
