@@ -208,3 +208,22 @@ def test_cli_modal_channel_sections(tmp_path, capsys):
     assert RationalDelayModel.load(out / "model_ch1.json").n_sections == 3
     assert main([*argv[:-3], "--channel-sections", "-1", "--force"]) == 2
     assert "--channel-sections" in capsys.readouterr().err
+
+
+def test_a_section_whose_zeros_cancel_its_poles_is_not_a_mode():
+    # the sequential loop parks identity sections (numerator = denominator) once the data
+    # are explained with fewer; measured under the Zen kernel: A at 17 sections ends with
+    # four at 15.36 rad/s, zeta 0.5, which came first in the modal table
+    from freqid_casadi.core.model import RationalDelayModel, Structure
+    from freqid_casadi.core.modes import modes
+
+    st = Structure(n_sections=2, delay=False, basis="second-order")
+    two = RationalDelayModel(st, np.array([0.0, 2.0, 1.0, 0.3, 5.0, 1.0, 0.01, 8.0,
+                                           1.0, 0.2, 40.0, 1.0, 0.02, 30.0]))
+    parked = RationalDelayModel(st.with_sections(3), np.concatenate(
+        [two.beta, [1.0, 0.5, 3.0, 1.0, 0.5, 3.0]]))
+    w = np.geomspace(1, 100, 50)
+    np.testing.assert_allclose(parked.frequency_response(w), two.frequency_response(w),
+                               rtol=1e-14)
+    assert [round(m.omega_n, 6) for m in modes(parked)] == [8.0, 30.0]
+    assert [round(m.omega_n, 6) for m in modes(two)] == [8.0, 30.0]

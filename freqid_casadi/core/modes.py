@@ -101,9 +101,23 @@ def _residue(model, pole, j):
     return complex(val)
 
 
+#: Relative difference below which a section's numerator equals its denominator.
+IDENTITY_RTOL = 1e-9
+
+
+def _identity(section):
+    """True when a section's numerator ``(a, zeta_n, omega_n)`` equals its denominator
+    ``(b, zeta_d, omega_d)`` to :data:`IDENTITY_RTOL`: a factor 1, no pole of the model
+    (the sequential loop parks such sections when the data are explained with fewer)."""
+    num, den = np.asarray(section[:3], float), np.asarray(section[3:], float)
+    return bool(np.all(np.abs(num - den) <= IDENTITY_RTOL * np.maximum(np.abs(den), 1e-300)))
+
+
 def modes_of_models(models, n_shared=None):
     """The underdamped poles of the first model's denominator sections (shared by all
-    ``models``) with every model's residue, by increasing frequency.
+    ``models``) with every model's residue, by increasing frequency. A section whose
+    numerator equals its denominator in every model (a factor 1: its zeros cancel its
+    poles) gives no mode.
 
     Parameters
     ----------
@@ -126,6 +140,8 @@ def modes_of_models(models, n_shared=None):
         zeta = zd / np.sqrt(b) if b > 0 else np.inf
         if zeta >= 1.0:                  # real poles (or one at infinity): not a mode
             continue
+        if all(_identity(m.sections()[j]) for m in models):
+            continue                     # its zeros cancel its poles in every model
         pole = complex(wd / np.sqrt(b) * (-zeta + 1j * np.sqrt(1.0 - zeta * zeta)))
         omega_n = abs(pole)
         out.append(Mode(omega_n=float(omega_n), frequency_hz=float(omega_n / (2 * np.pi)),

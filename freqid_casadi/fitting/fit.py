@@ -250,7 +250,6 @@ class FitResult:
                 f"delay {m.delay:.6g} {self.data.time_unit}, "
                 f"{self.wall_time:.2f} s, method {self.method}")
         return "\n".join([self.message, line] + [f"  {d.severity}: {d}" for d in self.diagnostics])
-        return "\n".join([line] + [f"  {d.severity}: {d}" for d in self.diagnostics])
 
 
 def _reject_old_keywords(function):
