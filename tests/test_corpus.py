@@ -156,6 +156,19 @@ def test_a_minimum_phase_search_without_a_consistent_order_offers_the_free_zeros
     assert "zeros=free" not in with_free_zeros(ok, None, max_sections=3).alternatives
 
 
+def test_auto_order_on_data_no_order_explains_stops_at_the_data_limit():
+    # white noise: every order stays near the trivial model (RMS ~1), so the search runs
+    # until the next order needs more parameters than 24 points give (fit raised that
+    # DataError through n_sections="auto")
+    rng = np.random.default_rng(0)
+    w = np.geomspace(1, 100, 24)
+    data = fc.FrequencyData(w, rng.standard_normal(24) + 1j * rng.standard_normal(24))
+    res = fc.fit(data, n_sections="auto")
+    rec = next(d for d in res.diagnostics if d.code == "order-chosen")
+    assert rec.values["reason"] == "data-limit" and rec.values["orders"] == [1, 2, 3]
+    assert res.status != "ok"
+
+
 @pytest.mark.parametrize("n", ["many", range(0, 3), range(1, 5, 2), range(2, 2)])
 def test_auto_order_bad_options(n):
     with pytest.raises(OptionError, match="positive integer, 'auto' or a range"):

@@ -36,7 +36,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import FreqidError, OptionError, StructureError
+from ..errors import DataError, FreqidError, OptionError, StructureError
 from .diagnostics import TRIVIAL_RMS, Diagnostic
 
 __all__ = ["OrderStep", "OrderChoice", "choose_order", "with_order_record", "whiteness",
@@ -201,7 +201,7 @@ def choose_order(fit_one, *, max_sections=MAX_SECTIONS, min_sections=1):
     while n <= max_sections:
         try:
             res = fit_one(n)
-        except StructureError:
+        except (StructureError, DataError):     # more parameters than the data have points
             if not results:
                 raise
             reason = "data-limit"
