@@ -350,7 +350,7 @@ def _batch_runs(paths):
     out = {"n": len(paths), "local": {}, "dask": {}}
     for jobs in (1, 2):
         t0 = time.perf_counter()
-        items = fit_many(paths, jobs=jobs, **opts)
+        items = fit_many(paths, n_jobs=jobs, **opts)
         out["local"][jobs] = time.perf_counter() - t0
         out.setdefault("ok", {})[f"local{jobs}"] = sum(1 for it in items if it.ok)
     out["local"]["speedup"] = out["local"][1] / out["local"][2]
