@@ -136,11 +136,12 @@ def modes_of_models(models, n_shared=None):
     if not models or models[0].structure.basis != "second-order":
         return Modes()
     out = []
-    for j, (a, zn, wn, b, zd, wd) in enumerate(models[0].sections()[:n_shared]):
+    sections = [m.sections() for m in models]
+    for j, (a, zn, wn, b, zd, wd) in enumerate(sections[0][:n_shared]):
         zeta = zd / np.sqrt(b) if b > 0 else np.inf
         if zeta >= 1.0:                  # real poles (or one at infinity): not a mode
             continue
-        if all(_identity(m.sections()[j]) for m in models):
+        if all(_identity(secs[j]) for secs in sections):
             continue                     # its zeros cancel its poles in every model
         pole = complex(wd / np.sqrt(b) * (-zeta + 1j * np.sqrt(1.0 - zeta * zeta)))
         omega_n = abs(pole)

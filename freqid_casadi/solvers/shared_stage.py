@@ -23,7 +23,7 @@ import time
 import numpy as np
 
 from .. import _interrupt
-from .shared_termination import SHARED_TERMINATION, SharedMonitor, verdict
+from .shared_termination import SHARED_TERMINATION, SharedMonitor, gradient_and_norms, verdict
 from .ipopt import run_nlpsol
 from .termination import iteration_callback
 
@@ -60,8 +60,6 @@ def warm_push(problem, x, n_points=None):
     float
         Absolute distance (the variables are in the dc gauge, of order one).
     """
-    from .shared_termination import gradient_and_norms
-
     cost, _, cn = gradient_and_norms(problem, x, n_points)
     big = float(np.max(cn)) if cn.size else 0.0
     if not (np.isfinite(cost) and np.isfinite(big) and big > 0.0):
