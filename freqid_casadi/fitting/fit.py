@@ -63,7 +63,7 @@ from .._progress import channel, check_progress
 from .._threads import single_threaded_blas
 from .stages import Kept, StageKind, StageRecord, StageSolver
 from .start import RationalStartError, rational_start_memo
-from .verdict import FitStatus
+from .verdict import FitStatus, residual_noise
 
 __all__ = ["fit", "FitResult", "FitStatus", "StageRecord", "Kept", "StageKind", "METHODS", "INITS",
            "WARM_STARTS", "STARTS", "OBJECTIVES", "GAIN_SIGNS", "default_delay_max",
@@ -316,16 +316,20 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
         as many points as parameters need a weight > 0; points of weight 0 below the first
         weighted one are left out of the loop's windows (their error is still reported).
     start : {"best", "sequential", "rational"}
-        "best" (default, as ``fit_shared`` and ``freqid fit``) runs both of the others
-        and keeps the better (below). "sequential" is the thesis's main loop (pass it to
+        "best" (default, as ``fit_shared`` and ``freqid fit``) runs the rational start,
+        then the sequential loop unless the rational start already explains the data to
+        their noise (``details["start_skipped"]`` then says so), and keeps the better
+        (below). "sequential" is the thesis's main loop (pass it to
         reproduce the thesis's numbers); "rational" fits all sections at once by
         vector fitting with the delay refined from the right-half-plane zeros
         (:mod:`freqid_casadi.fitting.start`), then polishes everything by one IPOPT stage on all
-        data; "best" runs both and keeps, among the models within 10 % of the lowest max
+        data; "best" keeps, among the models within 10 % of the lowest max
         relative error, a converged one if any, then the lower RMS error
         (:func:`~freqid_casadi.fitting.candidates.choose`; ``FitResult.start`` says which won).
         With a delay, every start also tries the same model at h = 0, polished without
-        the delay, so a fit with a delay is never worse than that fit at h = 0.
+        the delay, so a fit with a delay is never worse than that fit at h = 0 (not
+        needed, so not tried, for a rational start that explains the data to their
+        noise).
     objective : {"least-squares", "minimax"}
         "minimax" adds a polish of the max relative error: a continuation in p of the
         p-norm of the residuals (p = 4 ... 1024, :data:`PNORM_SCHEDULE`), each stage an
@@ -588,7 +592,8 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                          delay=bool(delay), basis=basis, method=solver.method, tol=tol,
                          start=start, objective=objective, min_damping=min_damping,
                          solver=solver, loop=loop)
-    param, z, records, won, errors, cand_errors = _run_starts(ctx, start, tol, fit_data)
+    param, z, records, won, errors, cand_errors, skipped = _run_starts(ctx, start, tol,
+                                                                       fit_data)
     if objective == "minimax":
         z, rec = minimax(ctx, param, z)
         records.append(rec)
@@ -612,6 +617,8 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
         residual = scaled_response / model_scaled.frequency_response(scaled_omega) - 1.0
     success, status, message, details, found = verdict(
         final[-1], stats, residual, data, found, int(n_sections))
+    if skipped:
+        details = dict(details, start_skipped=skipped)
     return FitResult(model=model, stages=tuple(records), data=data, rel_error=stats.values,
                      max_rel_error=stats.max, rms_rel_error=stats.rms,
                      success=success, message=message, wall_time=time.perf_counter() - t_start,
@@ -625,9 +632,7 @@ def _run_starts(ctx, start, tol, data):
     """Run the starts ``start`` asks for and keep one (:func:`candidates.choose`, the h = 0
     model of each start a candidate too); returns ``(param, z, records, won, errors,
     cand_errors)``."""
-    runs = {}
-    if start in ("sequential", "best"):
-        runs["sequential"] = sequential(ctx, tol)
+    runs, skipped = {}, None
     if start in ("rational", "best"):
         # the delay update of the rational start only sees a delay that is too small (it
         # shows as right-half-plane zeros), so it always starts from h = 0
@@ -636,8 +641,16 @@ def _run_starts(ctx, start, tol, data):
         except RationalStartError:
             if start == "rational":
                 raise
+    explained = "rational" in runs and explains_data(runs["rational"], data)
+    if start == "sequential" or (start == "best" and not explained):
+        runs = {"sequential": sequential(ctx, tol), **runs}    # (first: choose()'s ties)
+    elif start == "best":
+        skipped = ("the rational start explains the data to their noise: the sequential "
+                   "loop was not run; pass start='sequential' to run it")
     cands = [Candidate.of(name, run, data) for name, run in runs.items()]
     for cand in list(cands):
+        if cand.name == "rational" and explained:
+            continue            # at the noise already: no model at h = 0 can do better
         zero = zero_delay_run(ctx, cand.run, min(c.rank_max for c in cands))
         if zero is not None:
             cands.append(Candidate.of(f"{cand.name} at h=0", zero, data, cand.start))
@@ -657,7 +670,22 @@ def _run_starts(ctx, start, tol, data):
     param, z, lam, records = kept.run
     if kept.name.endswith(" at h=0"):
         ctx.callback(records[-1])
-    return param, z, records, won, errors, cand_errors
+    return param, z, records, won, errors, cand_errors, skipped
+
+
+def explains_data(run, data):
+    """True when the loop's ``run`` (``(param, z, lam, records)``) converged and its
+    relative residual on ``data`` is consistent with the data's noise
+    (:func:`~freqid_casadi.fitting.verdict.residual_noise`): no other start or candidate
+    can then do meaningfully better, and ``start="best"`` keeps it without running the
+    sequential loop (as :func:`~freqid_casadi.modal.shared.fit_shared` does)."""
+    param, z, _, records = run
+    if not records or not records[-1].success:
+        return False
+    with np.errstate(all="ignore"):
+        residual = data.response / param.to_model(z).frequency_response(data.omega) - 1.0
+    return bool(np.all(np.isfinite(residual))
+                and residual_noise(residual, data.omega, data.weights).consistent)
 
 
 def _resolution_check(model, omega, stacklevel=7):
