@@ -189,6 +189,9 @@ class StageProblem:
         ub = np.array(np.broadcast_to(np.asarray(self.ub, float), lb.shape))
         object.__setattr__(self, "lb", lb)
         object.__setattr__(self, "ub", ub)
+        # the last (z, cost, gradient): IPOPT's grad_f and the termination test after the
+        # iteration ask for the same point (one gradient product per iteration, not two)
+        object.__setattr__(self, "_last_gradient", (None, None, None))
 
     @property
     def n(self):
@@ -203,11 +206,18 @@ class StageProblem:
         return float(r @ r)
 
     def eval_gradient(self, z):
-        """``(cost, gradient)`` at ``z``."""
-        if self.gradient is not None:
-            return self.gradient(z)
-        r = np.asarray(self.residual(z), float)
-        return float(r @ r), 2.0 * np.asarray(self.jacobian(z), float).T @ r
+        """``(cost, gradient)`` at ``z`` (the gradient a new array the caller may keep;
+        the last point's values are reused: the same numbers)."""
+        key = np.asarray(z, float).tobytes()
+        last, cost, grad = self._last_gradient
+        if key != last:
+            if self.gradient is not None:
+                cost, grad = self.gradient(z)
+            else:
+                r = np.asarray(self.residual(z), float)
+                cost, grad = float(r @ r), 2.0 * np.asarray(self.jacobian(z), float).T @ r
+            object.__setattr__(self, "_last_gradient", (key, cost, grad))
+        return cost, np.array(grad, float)
 
     def eval_column_norms(self, z):
         """``||J_j||`` at ``z``, ndarray (n,)."""
