@@ -90,7 +90,8 @@ def add_cli(sub):
                    help="hold a known parameter exactly (repeatable): delay=H (s) or "
                         "dc_gain=K (K0 with --integrator, else G(0))")
     # a user's data: both starts (the sequential loop alone can end in a valley the
-    # rational start avoids, e.g. a zero pair drifting to infinity against the delay)
+    # rational start avoids, e.g. a zero pair drifting to infinity against the delay; the
+    # loop is skipped when the rational start already reaches the noise)
     _common(p, out_required=True, start="best")
     return p
 
