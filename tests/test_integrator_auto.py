@@ -161,3 +161,22 @@ def test_cli_integrator_spellings():
     assert p.parse_args(base + ["--integrator", "auto"]).integrator == "auto"
     with pytest.raises(Exception, match="integer k with"):   # the CLI's usage error
         p.parse_args(base + ["--integrator", "9"])
+
+
+def test_auto_with_several_contenders_keeps_the_chosen_ones_fit_bit_for_bit():
+    # the DaISy robot arm at 3 sections: the rational starts do not decide between three
+    # contenders; each one's fit settles the choice, and the layers after it (delay hold,
+    # resolution guard, alternatives) run for the chosen one only: its result is the
+    # explicit fit with that k, bit for bit
+    from freqid_casadi.experiment import robot_arm
+
+    data = robot_arm().data
+    auto = fc.fit(data, n_sections=3)
+    rec = auto.details["integrator"]
+    assert len(rec["contenders"]) > 1
+    assert set(rec["fit_rms"]) == set(rec["contenders"])
+    explicit = fc.fit(data, n_sections=3, integrator=rec["chosen"])
+    assert auto.model == explicit.model
+    assert auto.rms_rel_error == explicit.rms_rel_error
+    assert [d.code for d in auto.diagnostics if d.code != "integrator"] == \
+        [d.code for d in explicit.diagnostics if d.code != "integrator"]
