@@ -464,10 +464,13 @@ def _long_fit_file(folder):
 
 
 def _signal_mid_fit(folder, sig, method="ipopt"):
-    """Start a long fit, wait for its second stage, send ``sig``; return (rc, stderr, dt)."""
+    """Start a long fit, wait for its second stage, send ``sig``; return (rc, stderr, dt).
+    The thesis's loop (``--start sequential``): with the default start the rational start
+    explains exact data at once and the fit has no second stage."""
     _long_fit_file(folder)
     argv = [sys.executable, "-m", "freqid_casadi", "fit", "beam.csv", "--sections", "17",
-            "--integrator", "--method", method, "--progress", "--out", "rep"]
+            "--integrator", "--method", method, "--start", "sequential", "--progress",
+            "--out", "rep"]
     p = subprocess.Popen(argv, cwd=folder, env=_env(), stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True)
     sel = selectors.DefaultSelector()
