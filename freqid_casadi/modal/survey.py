@@ -121,9 +121,10 @@ class StabilizationResult:
         "rational" or "full" (:data:`ESTIMATORS`).
     polished : SharedFitResult or None
         With ``estimator="rational"`` and ``polish``: the
-        :func:`~freqid_casadi.fit_shared` fit (the survey's fit options) with one shared
-        section per selected mode, whose models are the survey's model; None when nothing
-        was selected, without ``polish``, or with ``estimator="full"``.
+        :func:`~freqid_casadi.fit_shared` fit (the survey's fit options) with a shared
+        section per pole of the highest order not "new" there (see :func:`stabilization`),
+        whose models are the survey's model; None when nothing was selected, without
+        ``polish``, or with ``estimator="full"``.
     selected_poles : tuple of StabilizationPole
         The poles of the highest order selected as modes (as the diagram shows them; with
         a polish, :attr:`modes` holds the polished values).
@@ -261,10 +262,14 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
         orders 2..40, against about 200 s for "full"). "full": each order is a whole
         :func:`~freqid_casadi.fit_shared` (warm restarts, IPOPT), the survey as it was.
     polish : bool
-        With ``estimator="rational"``: fit the selected modes once more with
-        :func:`~freqid_casadi.fit_shared` (``fit_options``, one shared section per
-        selected mode; :attr:`StabilizationResult.polished`) and report its modes
-        (default True). False: the estimate's modes, no model. No effect with "full".
+        With ``estimator="rational"`` (default True): one
+        :func:`~freqid_casadi.fit_shared` (``fit_options``) with a shared section per pole
+        of the highest order that is not "new" there (at least one per selected mode: a
+        persistent pole the selection did not keep keeps its section and does not bias
+        the selected ones; with one section for one selected mode of two, measured, the
+        damping moved 28 %), :attr:`StabilizationResult.polished`; the reported modes are
+        its modes matched to the selected poles. False: the estimate's modes, no model.
+        No effect with "full".
     n_jobs : int
         Worker processes for the orders (joblib's loky backend, one BLAS thread each);
         1 (default) runs them in this process. The result does not depend on it.
@@ -274,7 +279,8 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
         checked before any order is run. The estimator uses ``weights``, ``integrator``
         (the data times ``j omega``), ``vector_fitting`` (its iterations) and
         ``channel_sections`` (no constant per channel with them, as fit_shared's start);
-        the others shape the polish (or each fit with "full"). With ``channel_sections``
+        the others shape the polish (or each fit with "full"): a delay in particular is
+        left to the polish. With ``channel_sections``
         the order counts the shared poles only; each channel's own poles are not in the
         diagram.
 
