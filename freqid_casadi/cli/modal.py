@@ -11,9 +11,10 @@ Usage::
                  [--coordinates X1,X2,...|FILE] [--reference-shapes FILE]
 
 Reads one FRF per file (:func:`freqid_casadi.load`; all on one omega grid), estimates
-every order of ``--orders`` with shared poles (:func:`freqid_casadi.modal.survey.stabilization`:
-shared-pole vector fitting at each order, the selected modes then fitted once with
-``fit_shared``; ``--estimator full`` fits every order with ``fit_shared``; with
+every order of ``--orders`` with shared poles
+(:func:`freqid_casadi.modal.survey.stabilization`: shared-pole vector fitting at each
+order, the selected modes then fitted once with ``fit_shared``; ``--estimator full`` fits
+every order with ``fit_shared``; with
 ``--channel-sections K`` every channel also has K sections of its own standing in for the
 out-of-band modes, not counted in the order and not in the diagram) and
 writes the report folder ``DIR`` (built in a temporary folder, then moved into place; an

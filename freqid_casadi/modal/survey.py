@@ -9,7 +9,8 @@ by default: the shared-pole vector fitting that starts
 the orders in worker processes with ``n_jobs``; the selected modes are then polished by
 one :func:`~freqid_casadi.fit_shared` with as many shared sections as modes selected.
 ``estimator="full"`` fits every order with :func:`~freqid_casadi.fit_shared` instead (the
-survey before, about 25 times slower on 16 channels x 1000 points, orders 2..40).
+survey before: on 16 channels x 1000 points over orders 2..40, 1180 s of CPU against 6.5 s,
+the same ten modes within 2e-6 in frequency and 1e-4 in damping, relative).
 """
 
 import csv
@@ -258,9 +259,10 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
     estimator : {"rational", "full"}
         "rational" (default): each order is the shared-pole vector fitting that
         :func:`~freqid_casadi.fit_shared`'s rational start begins with
-        (:class:`OrderEstimate`, numpy only: 8 s of CPU for 16 channels x 1000 points over
-        orders 2..40, against about 200 s for "full"). "full": each order is a whole
-        :func:`~freqid_casadi.fit_shared` (warm restarts, IPOPT), the survey as it was.
+        (:class:`OrderEstimate`, numpy only: with the polish 6.5 s of CPU for 16 channels
+        x 1000 points over orders 2..40, against 1180 s for "full"). "full": each order is
+        a whole :func:`~freqid_casadi.fit_shared` (warm restarts, IPOPT), the survey as it
+        was.
     polish : bool
         With ``estimator="rational"`` (default True): one
         :func:`~freqid_casadi.fit_shared` (``fit_options``) with a shared section per pole
