@@ -7,7 +7,8 @@ As in modal practice (LSCF/PolyMAX), each order of the diagram is a cheap linear
 by default: the shared-pole vector fitting that starts
 :func:`freqid_casadi.fit_shared`'s rational start (:mod:`freqid_casadi.modal._estimate`),
 the orders in worker processes with ``n_jobs``; the selected modes are then polished by
-one :func:`~freqid_casadi.fit_shared` with as many shared sections as modes selected.
+one :func:`~freqid_casadi.fit_shared` with a shared section per pole that persists at the
+highest order (``StabilizationResult.polished``).
 ``estimator="full"`` fits every order with :func:`~freqid_casadi.fit_shared` instead (the
 survey before: on 16 channels x 1000 points over orders 2..40, 1180 s of CPU against 6.5 s,
 the same ten modes within 2e-6 in frequency and 1e-4 in damping, relative).
