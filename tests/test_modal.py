@@ -179,6 +179,8 @@ def test_cli_modal_writes_report_and_refuses_existing_out(tmp_path, capsys):
     assert (out / "modes.csv").read_text() == before
     assert main(argv + ["--force", "--zeros", "free,banana"]) == 2
     assert main([*argv[:-2], "--orders", "3:7:2", "--force"]) == 2
+    assert main([*argv, "--force", "--jobs", "0"]) == 2
+    assert "--max-iter and --jobs must be >= 1, got 2, 100, 0" in capsys.readouterr().err
 
 
 def test_import_does_not_load_matplotlib():

@@ -105,7 +105,8 @@ def add_cli(subparsers):
                         "modes (default 0)")
     p.add_argument("--balance-channels", action="store_true",
                    help="reweight so that no channel's max rel. error exceeds that of its "
-                        "own single-channel fit (C extra fits per order)")
+                        "own single-channel fit (C extra fits in the fit of the selected "
+                        "modes, or per order with --estimator full)")
     p.add_argument("--coordinates", metavar="X1,X2,...|FILE",
                    help="where each channel was measured (e.g. the hammer positions), one "
                         "number per file as a comma list, or a text/CSV file with one row "
@@ -219,9 +220,9 @@ def run_cli(args, command):
         datas = [load_data(args, f) for f in args.files]
     names = _channel_names(datas, args.files)
     delay = False if args.delay == "none" else args.delay
-    if args.min_stable < 1 or args.max_iter < 1:
-        raise OptionError(f"--min-stable and --max-iter must be >= 1, got "
-                          f"{args.min_stable}, {args.max_iter}")
+    if args.min_stable < 1 or args.max_iter < 1 or args.jobs < 1:
+        raise OptionError(f"--min-stable, --max-iter and --jobs must be >= 1, got "
+                          f"{args.min_stable}, {args.max_iter}, {args.jobs}")
     if args.channel_sections < 0:
         raise OptionError(f"--channel-sections must be >= 0, got {args.channel_sections}")
     coords = _coordinates(args.coordinates, len(datas))
