@@ -163,10 +163,10 @@ def test_cli_modal_writes_report_and_refuses_existing_out(tmp_path, capsys):
     assert [m["omega_n"] for m in summary["modes"]] == pytest.approx([5.0, 17.0], rel=1e-4)
     assert summary["estimator"] == "rational"
     assert summary["per_order"][-1]["message"].startswith("estimate: shared-pole vector")
-    # the models are the polish: a shared section per pole of order 8 not new there (the
-    # two selected modes and any pole stable in frequency beside them)
+    # the models are the polish: a shared section per pole of order 8 stable in frequency
+    # and damping there (the two selected modes and any such pole beside them)
     rows = list(csv.reader(io.StringIO((out / "stabilization.csv").read_text())))[1:]
-    n = sum(1 for r in rows if r[0] == "8" and r[4] != "new")
+    n = sum(1 for r in rows if r[0] == "8" and r[4] == "stable-frequency-damping")
     assert n >= 2 and summary["model"] == f"{n} shared sections (selected modes)"
     assert summary["model_message"].startswith("ok: converged")
     text = (out / "summary.md").read_text()

@@ -7,8 +7,8 @@ As in modal practice (LSCF/PolyMAX), each order of the diagram is a cheap linear
 by default: the shared-pole vector fitting that starts
 :func:`freqid_casadi.fit_shared`'s rational start (:mod:`freqid_casadi.modal._estimate`),
 the orders in worker processes with ``n_jobs``; the selected modes are then polished by
-one :func:`~freqid_casadi.fit_shared` with a shared section per pole that persists at the
-highest order (``StabilizationResult.polished``).
+one :func:`~freqid_casadi.fit_shared` with a shared section per pole stable in frequency
+and damping at the highest order (``StabilizationResult.polished``).
 ``estimator="full"`` fits every order with :func:`~freqid_casadi.fit_shared` instead (the
 survey before: on 16 channels x 1000 points over orders 2..40, 1180 s of CPU against 6.5 s,
 the same ten modes within 2e-6 in frequency and 1e-4 in damping, relative).
@@ -124,7 +124,7 @@ class StabilizationResult:
     polished : SharedFitResult or None
         With ``estimator="rational"`` and ``polish``: the
         :func:`~freqid_casadi.fit_shared` fit (the survey's fit options) with a shared
-        section per pole of the highest order not "new" there (see :func:`stabilization`),
+        section per stable pole of the highest order (see :func:`stabilization`),
         whose models are the survey's model; None when nothing was selected, without
         ``polish``, or with ``estimator="full"``.
     selected_poles : tuple of StabilizationPole
@@ -267,12 +267,14 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
     polish : bool
         With ``estimator="rational"`` (default True): one
         :func:`~freqid_casadi.fit_shared` (``fit_options``) with a shared section per pole
-        of the highest order that is not "new" there (at least one per selected mode: a
-        persistent pole the selection did not keep keeps its section and does not bias
-        the selected ones; with one section for one selected mode of two, measured, the
-        damping moved 28 %), :attr:`StabilizationResult.polished`; the reported modes are
-        its modes matched to the selected poles. False: the estimate's modes, no model.
-        No effect with "full".
+        of the highest order that is "stable-frequency-damping" there (at least one per
+        selected mode: a stable pole the selection did not keep, not yet stable over
+        ``min_stable`` orders, keeps its section and does not bias the selected ones; with
+        one section for one selected mode of two, measured, the damping moved 28 %. A pole
+        stable in frequency only, typically a heavily damped computational pole whose
+        damping wanders, gets none), :attr:`StabilizationResult.polished`; the reported
+        modes are its modes matched to the selected poles. False: the estimate's modes,
+        no model. No effect with "full".
     n_jobs : int
         Worker processes for the orders (joblib's loky backend, one BLAS thread each);
         1 (default) runs them in this process. The result does not depend on it.
@@ -330,7 +332,8 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
     chosen = tuple(p for p, m in zip(top, fits[-1].modes) if any(m is k for k in selected))
     polished = None
     if estimator == "rational" and polish and selected:
-        n_polish = max(len(selected), sum(st != "new" for st in history[-1][0]))
+        n_polish = max(len(selected),
+                       history[-1][0].count("stable-frequency-damping"))
         polished = fit_shared(checked[0], n_polish, **fit_options)
         selected, missed = _polished_modes(selected, polished, freq_tol)
         note = "; ".join(t for t in (note, missed) if t)
