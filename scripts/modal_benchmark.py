@@ -283,8 +283,8 @@ def stabilization_example():
     wi, _ = moheimani_modes(N_MODES)
     found = np.array([m.omega_n for m in res.modes])
     err = [float(np.min(np.abs(wi - w)) / w) for w in found]
-    # the selected modes' shapes (LSFD at the top order's poles) against the analytic ones
-    top = res.fits[-1]
+    # the selected modes' shapes (LSFD at the polished fit's poles) against the analytic ones
+    top = res.polished
     sh = top.mode_shapes(coordinates=[0.075] + list(np.linspace(0.11, 1.27, 5)))
     keep = [int(np.argmin([abs(m.omega_n - t.omega_n) for m in top.modes])) for t in res.modes]
     positions = [R1] + list(np.linspace(0.11, 1.27, 5))

@@ -161,17 +161,26 @@ def test_cli_modal_writes_report_and_refuses_existing_out(tmp_path, capsys):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["n_modes_selected"] == 2
     assert [m["omega_n"] for m in summary["modes"]] == pytest.approx([5.0, 17.0], rel=1e-4)
-    top = summary["per_order"][-1]
-    assert top["success"] and top["message"].startswith("ok: converged")
-    assert f"How the fit ended: {top['message']}" in (out / "summary.md").read_text()
+    assert summary["estimator"] == "rational"
+    assert summary["per_order"][-1]["message"].startswith("estimate: shared-pole vector")
+    # the models are the polish: a shared section per pole of order 8 stable in frequency
+    # and damping there (the two selected modes and any such pole beside them)
+    rows = list(csv.reader(io.StringIO((out / "stabilization.csv").read_text())))[1:]
+    n = sum(1 for r in rows if r[0] == "8" and r[4] == "stable-frequency-damping")
+    assert n >= 2 and summary["model"] == f"{n} shared sections (selected modes)"
+    assert summary["model_message"].startswith("ok: converged")
+    text = (out / "summary.md").read_text()
+    assert f"How the fit ended: {summary['model_message']}" in text
     model = RationalDelayModel.load(out / "model_ch2.json")
-    assert model.structure.zeros == "free"
+    assert model.structure.zeros == "free" and model.n_sections == n
     before = (out / "modes.csv").read_text()
     assert main(argv) == 2
     assert "exists" in capsys.readouterr().err
     assert (out / "modes.csv").read_text() == before
     assert main(argv + ["--force", "--zeros", "free,banana"]) == 2
     assert main([*argv[:-2], "--orders", "3:7:2", "--force"]) == 2
+    assert main([*argv, "--force", "--jobs", "0"]) == 2
+    assert "--max-iter and --jobs must be >= 1, got 2, 100, 0" in capsys.readouterr().err
 
 
 def test_import_does_not_load_matplotlib():
@@ -187,7 +196,7 @@ def test_cli_modal_channel_sections(tmp_path, capsys):
     files = _csv_files(tmp_path)
     out = tmp_path / "rep"
     argv = ["modal", *files, "--orders", "2,4", "--min-stable", "1", "--out", str(out),
-            "--channel-sections", "1", "--balance-channels"]
+            "--channel-sections", "1", "--balance-channels", "--estimator", "full"]
     assert main(argv) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["options"]["channel_sections"] == 1
@@ -205,8 +214,10 @@ def test_cli_modal_channel_sections(tmp_path, capsys):
                for n in top["max_rel_errors"])          # below 1e-8: exact (both ~1e-13)
     assert summary["per_order"][0]["nit"] < 400          # no rounds chasing rounding
     assert "section(s) of its own" in (out / "summary.md").read_text()
+    # --estimator full: the model of the highest order, 2 shared + 1 own sections
+    assert summary["model"] == "order 4"
     assert RationalDelayModel.load(out / "model_ch1.json").n_sections == 3
-    assert main([*argv[:-3], "--channel-sections", "-1", "--force"]) == 2
+    assert main([*argv[:-5], "--channel-sections", "-1", "--force"]) == 2
     assert "--channel-sections" in capsys.readouterr().err
 
 

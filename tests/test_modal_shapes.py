@@ -111,8 +111,10 @@ def test_selection_needs_min_stable_plus_one_orders_and_says_why():
                                method=LIMITS)
     assert one.modes == () and "at least 4 orders" in one.selection_note
     four = survey.stabilization(datas, orders=(2, 4, 6, 8), delay=False, zeros="free",
-                                method=LIMITS, min_stable=3)
+                                method=LIMITS, min_stable=3, estimator="full")
     # order 4 is the first with both modes: their chains break there (new against order 2)
+    # (with the default estimator="rational" the order-2 pole at 5 rad/s is stable in
+    # damping against order 4's and the mode at 5 rad/s is selected: tests/test_survey.py)
     assert four.modes == ()
     assert four.selection_note.count("at order 4 no pole of order 2") >= 1
     two = survey.stabilization(datas, orders=(2, 4, 6, 8), delay=False, zeros="free",

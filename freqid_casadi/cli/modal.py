@@ -6,11 +6,15 @@ Usage::
                  [--columns LIST] [--delay per-channel|shared|none]
                  [--zeros minimum-phase|free|LIST] [--integrator] [--freq-tol 0.01]
                  [--damping-tol 0.10] [--min-stable 3] [--max-iter 100]
-                 [--channel-sections K] [--balance-channels]
+                 [--channel-sections K] [--balance-channels] [--estimator rational|full]
+                 [--jobs N]
                  [--coordinates X1,X2,...|FILE] [--reference-shapes FILE]
 
-Reads one FRF per file (:func:`freqid_casadi.load`; all on one omega grid), fits every
-order of ``--orders`` with shared poles (:func:`freqid_casadi.modal.survey.stabilization`; with
+Reads one FRF per file (:func:`freqid_casadi.load`; all on one omega grid), estimates
+every order of ``--orders`` with shared poles
+(:func:`freqid_casadi.modal.survey.stabilization`: shared-pole vector fitting at each
+order, the selected modes then fitted once with ``fit_shared``; ``--estimator full`` fits
+every order with ``fit_shared``; with
 ``--channel-sections K`` every channel also has K sections of its own standing in for the
 out-of-band modes, not counted in the order and not in the diagram) and
 writes the report folder ``DIR`` (built in a temporary folder, then moved into place; an
@@ -26,7 +30,8 @@ existing ``DIR`` is refused without ``--force``):
 - ``mac.csv``: with ``--reference-shapes FILE`` (one row per channel, one column per
   reference mode, numbers only or a header line), the MAC matrix of the selected shapes
   (rows) against the reference shapes (columns);
-- ``bode_<channel>.png``, ``model_<channel>.json``: data and model of the highest order.
+- ``bode_<channel>.png``, ``model_<channel>.json``: data and model, the fit of the selected
+  modes (of the highest order with ``--estimator full``; none when no mode is selected).
 """
 
 import json
@@ -83,8 +88,16 @@ def add_cli(subparsers):
     p.add_argument("--min-stable", type=int, default=3,
                    help="orders a selected mode must have stayed stable (default 3)")
     p.add_argument("--max-iter", type=int, default=100,
-                   help="IPOPT iterations per order (twice in the final polish; default "
-                        "100: orders above the true one have flat directions)")
+                   help="IPOPT iterations per stage of the fit of the selected modes (of "
+                        "every order with --estimator full; twice in the final polish; "
+                        "default 100: orders above the true one have flat directions)")
+    p.add_argument("--estimator", default="rational", choices=["rational", "full"],
+                   help="each order of the diagram: shared-pole vector fitting, the selected "
+                        "modes then fitted once (rational, default), or a whole shared-pole "
+                        "fit per order (full, the slower survey of earlier versions)")
+    p.add_argument("--jobs", type=int, default=1, metavar="N",
+                   help="worker processes for the orders (default 1; n_jobs of "
+                        "stabilization)")
     p.add_argument("--channel-sections", type=int, default=0, metavar="K",
                    help="sections of each channel's own beside the shared ones, standing in "
                         "for the modes outside the band as that channel sees them (the "
@@ -92,7 +105,8 @@ def add_cli(subparsers):
                         "modes (default 0)")
     p.add_argument("--balance-channels", action="store_true",
                    help="reweight so that no channel's max rel. error exceeds that of its "
-                        "own single-channel fit (C extra fits per order)")
+                        "own single-channel fit (C extra fits in the fit of the selected "
+                        "modes, or per order with --estimator full)")
     p.add_argument("--coordinates", metavar="X1,X2,...|FILE",
                    help="where each channel was measured (e.g. the hammer positions), one "
                         "number per file as a comma list, or a text/CSV file with one row "
@@ -206,9 +220,9 @@ def run_cli(args, command):
         datas = [load_data(args, f) for f in args.files]
     names = _channel_names(datas, args.files)
     delay = False if args.delay == "none" else args.delay
-    if args.min_stable < 1 or args.max_iter < 1:
-        raise OptionError(f"--min-stable and --max-iter must be >= 1, got "
-                          f"{args.min_stable}, {args.max_iter}")
+    if args.min_stable < 1 or args.max_iter < 1 or args.jobs < 1:
+        raise OptionError(f"--min-stable, --max-iter and --jobs must be >= 1, got "
+                          f"{args.min_stable}, {args.max_iter}, {args.jobs}")
     if args.channel_sections < 0:
         raise OptionError(f"--channel-sections must be >= 0, got {args.channel_sections}")
     coords = _coordinates(args.coordinates, len(datas))
@@ -219,7 +233,8 @@ def run_cli(args, command):
                         method=IpoptOptions(max_iter=args.max_iter,
                                             final_max_iter=2 * args.max_iter),
                         channel_sections=args.channel_sections,
-                        balance_channels=args.balance_channels)
+                        balance_channels=args.balance_channels, estimator=args.estimator,
+                        n_jobs=args.jobs)
     with report_folder(args.out, args.force) as (tmp, path):
         _write_report(res, tmp, names, command, coords, ref)
     print(f"{len(res.modes)} modes selected; report in {path}")
@@ -257,15 +272,15 @@ def _write_report(res, folder, names, command, coords=None, ref=None):
     from ..plots import bode, save_figure
     from ..plots.modal import stabilization_diagram
 
-    top = res.fits[-1]
+    top, label = _model_fit(res)
     join = os.path.join
     atomic_write_text(join(folder, "modes.csv"), modes_csv(res.modes, names))
     atomic_write_text(join(folder, "modes.md"), modes_markdown(res.modes, names))
     atomic_write_text(join(folder, "stabilization.csv"), stabilization_csv(res))
     save_figure(stabilization_diagram(res), join(folder, "stabilization.png"))
-    for name, data, model in zip(names, top.datas, top.models):
+    for name, data, model in zip(names, top.datas if top else (), top.models if top else ()):
         model.save(join(folder, f"model_{name}.json"))
-        save_figure(bode(data, models={f"order {res.orders[-1]}": model},
+        save_figure(bode(data, models={label: model},
                          title=f"{name}: data and shared-pole model"),
                     join(folder, f"bode_{name}.png"))
     shapes, m = _write_shapes(res, folder, names, coords, ref)
@@ -283,12 +298,23 @@ def _write_report(res, folder, names, command, coords=None, ref=None):
     atomic_write_text(join(folder, "summary.md"), _markdown(summary, res, names))
 
 
+def _model_fit(res):
+    """``(SharedFitResult or None, label)``: the fit whose models the report writes, the
+    polish of the selected modes (the highest order's fit with ``--estimator full``)."""
+    if res.polished is not None:
+        return res.polished, f"{res.polished.n_shared} shared sections (selected modes)"
+    if res.estimator == "full":
+        return res.fits[-1], f"order {res.orders[-1]}"
+    return None, ""
+
+
 def _summary(res, names, command):
-    top = res.fits[-1]
+    top, label = _model_fit(res)
     return {
         "command": command, "orders": list(res.orders), "channels": names,
         "freq_tol": res.freq_tol, "damping_tol": res.damping_tol,
-        "options": {k: v for k, v in top.options.items()},
+        "estimator": res.estimator,
+        "options": dict((top or res.fits[-1]).options),
         "n_modes_selected": len(res.modes),
         "modes": [{"frequency_hz": m.frequency_hz, "omega_n": m.omega_n, "zeta": m.zeta}
                   for m in res.modes],
@@ -296,7 +322,9 @@ def _summary(res, names, command):
                        "success": f.success, "message": f.message,
                        "wall_time": f.wall_time, "nit": f.nit}
                       for o, f in zip(res.orders, res.fits)],
-        "top_order": {"max_rel_errors": dict(zip(names, map(float, top.max_rel_errors))),
+        "model": label, "model_message": top.message if top else "",
+        "top_order": None if top is None else {
+                      "max_rel_errors": dict(zip(names, map(float, top.max_rel_errors))),
                       "rms_rel_errors": dict(zip(names, map(float, top.rms_rel_errors))),
                       "delays": dict(zip(names, map(float, top.delays))),
                       "minimum_phase": dict(zip(names, [m.is_minimum_phase()
@@ -331,16 +359,23 @@ def _markdown(s, res, names):
              modes_markdown(res.modes, names)]
     if s.get("selection_note"):
         lines += [f"Not selected: {s['selection_note']}.", ""]
-    lines += ["## Fit of each order", "",
+    each = ("shared-pole vector fitting" if s["estimator"] == "rational"
+            else "shared-pole fit")
+    lines += [f"## Each order ({each})", "",
              "| order | worst max rel. error | converged | iterations | time (s) |",
              "|---:|---:|---|---:|---:|"]
     lines += [f"| {r['order']} | {r['max_rel_error']:.3g} | {'yes' if r['success'] else 'no'} "
               f"| {r['nit']} | {r['wall_time']:.2f} |" for r in s["per_order"]]
-    lines += ["", f"## Channels at order {s['orders'][-1]}", "",
-              f"How the fit ended: {s['per_order'][-1]['message']}", "",
+    t = s["top_order"]
+    if t is None:
+        lines += ["", "No model: no mode was selected (model files and Bode plots are "
+                  "written for the fit of the selected modes).", ""]
+        lines += _shape_lines(s, names)
+        return "\n".join(lines) + "\n"
+    lines += ["", f"## Channels, model of {s['model']}", "",
+              f"How the fit ended: {s['model_message']}", "",
               "| channel | max rel. error | RMS rel. error | delay (s) | minimum phase |",
               "|---|---:|---:|---:|---|"]
-    t = s["top_order"]
     lines += [f"| {n} | {t['max_rel_errors'][n]:.3g} | {t['rms_rel_errors'][n]:.3g} | "
               f"{t['delays'][n]:.6g} | {'yes' if t['minimum_phase'][n] else 'no'} |"
               for n in names]
