@@ -30,6 +30,14 @@ __all__ = ["VectorFit", "vectfit", "fit_residues", "initial_poles"]
 _REAL_RTOL = 1e-12
 # |dt| below this is fixed to it (with its sign) and sigma re-fitted without the relaxation.
 _DT_MIN = 1e-8
+# Frequencies above which each least-squares problem is reduced chunk by chunk to its R
+# factor (:func:`_r_factor`) instead of being formed whole: its (2M, p) matrix at 200 000
+# points is 32 MB per copy (formed, stacked, scaled, copied by LAPACK), and a QR of
+# cache-sized blocks costs a fraction of LAPACK's one pass over it. Below, the problem is
+# solved as it stands, as it always was (same numbers to the last bit).
+_TALL_POINTS = 16384
+# Frequencies per block of the chunked reduction (2 rows each: real and imaginary parts).
+_CHUNK_POINTS = 4096
 
 
 @dataclass(frozen=True)
@@ -159,6 +167,35 @@ def _lstsq_scaled(Mat, rhs):
     return x / scale
 
 
+def _r_factor(block, m, n_cols):
+    """R factor (n_cols, n_cols) of the stacked real matrix ``[Re A; Im A]`` (2M, n_cols),
+    ``A`` complex (M, n_cols) formed ``_CHUNK_POINTS`` rows at a time by ``block(i, j)``
+    (rows ``i:j``), each block's QR (LAPACK dgeqrf) folded into the running R: ``||A x -
+    b|| = ||R x - Q^T b||``, so a least-squares problem in A is one in R (same solution; the
+    rounding differs). Memory O(chunk x n_cols) instead of O(M x n_cols)."""
+    from scipy.linalg import lapack
+
+    # rows: the running R (n_cols), then the block's real and imaginary parts; a short
+    # last block leaves zero rows, which do not change R
+    buf = np.zeros((n_cols + 2 * _CHUNK_POINTS, n_cols), order="F")
+    lwork = None
+    for i in range(0, m, _CHUNK_POINTS):
+        a = block(i, min(i + _CHUNK_POINTS, m))
+        k = a.shape[0]
+        buf[n_cols:n_cols + k] = a.real
+        buf[n_cols + k:n_cols + 2 * k] = a.imag
+        if k < _CHUNK_POINTS:
+            buf[n_cols + 2 * k:] = 0.0
+        if lwork is None:
+            lwork = int(lapack.dgeqrf_lwork(*buf.shape)[0])
+        qr, _, _, info = lapack.dgeqrf(buf, lwork=lwork, overwrite_a=True)
+        if info != 0:                                        # pragma: no cover
+            raise np.linalg.LinAlgError(f"dgeqrf failed (info={info})")
+        buf = qr                                  # the same memory (overwrite_a, F order)
+        buf[:n_cols] = np.triu(buf[:n_cols])
+    return np.array(buf[:n_cols])
+
+
 def _check(omega, response, weights, weighting):
     """(omega (M,), response (C, M), row weights (C, M)) or a DataError/OptionError."""
     omega = np.asarray(omega, float)
@@ -260,8 +297,9 @@ def vectfit(omega, response, n_poles, *, weights=None, weighting="relative", n_i
         raise DataError(f"too few points ({omega.size}) for {n} poles: vector fitting needs "
                         f"2 M >= {n_own + n + 1} (real and imaginary parts); fit fewer poles")
     s = 1j * omega
+    relocate = _relocate_tall if omega.size > _TALL_POINTS else _relocate
     for _ in range(k_iter):
-        rp, cp = _relocate(s, phi, wt, rp, cp, fixed, nd, stable)
+        rp, cp = relocate(s, phi, wt, rp, cp, fixed, nd, stable)
     return _residues(s, phi, wt, [(rp, cp), fixed], nd, n)
 
 
@@ -286,7 +324,62 @@ def _relocate(s, phi, wt, rp, cp, fixed, nd, stable):
             rows.append(r[nl:nl + n + 1, nl:])
         K, lead = np.vstack(rows), 0
     norm = np.linalg.norm(wt * phi)
-    relax = np.concatenate([np.zeros(lead), np.real(np.sum(sig, axis=0))])
+    return _relocated(K, lead, norm, np.real(np.sum(sig, axis=0)), m, n, rp, cp, stable)
+
+
+def _relocate_tall(s, phi, wt, rp, cp, fixed, nd, stable):
+    """:func:`_relocate` of many frequencies (above ``_TALL_POINTS``): each channel's
+    matrix reduced block by block to its R factor (:func:`_r_factor`), which stands for it
+    in the same least-squares problems; memory O(chunk x unknowns)."""
+    m = s.size
+    n = rp.size + 2 * cp.size
+    has_fixed = fixed[0].size + fixed[1].size
+    nl = n + (fixed[0].size + 2 * fixed[1].size) + nd
+    colsum = np.zeros(n + 1)
+
+    def block(c, i, j):
+        a = np.empty((j - i, nl + n + 1), complex)
+        _basis_into(a[:, :n], s[i:j], rp, cp)                       # Phi
+        if has_fixed:
+            _basis_into(a[:, n:nl - nd], s[i:j], *fixed)
+        if nd:
+            a[:, nl - 1] = 1.0
+        a[:, nl:nl + n] = a[:, :n]                                  # sigma: Phi, 1
+        a[:, -1] = 1.0
+        if c == 0:
+            colsum[:] += np.real(np.sum(a[:, nl:], axis=0))
+        a[:, nl:] *= -phi[c, i:j, None]
+        a *= wt[c, i:j, None]
+        return a
+
+    rs = [_r_factor(lambda i, j, c=c: block(c, i, j), m, nl + n + 1)
+          for c in range(phi.shape[0])]
+    if phi.shape[0] == 1:
+        K, lead = rs[0], nl
+    else:
+        K, lead = np.vstack([r[nl:nl + n + 1, nl:] for r in rs]), 0
+    norm = np.linalg.norm(wt * phi)
+    return _relocated(K, lead, norm, colsum, m, n, rp, cp, stable)
+
+
+def _basis_into(out, s, rp, cp):
+    """:func:`_basis` written into ``out`` (K, n) (the same columns; a pair's two columns
+    from one pass over its two fractions)."""
+    k = rp.size
+    if k:
+        np.divide(1.0, s[:, None] - rp[None, :], out=out[:, :k])
+    if cp.size:
+        u = 1.0 / (s[:, None] - cp[None, :])
+        v = 1.0 / (s[:, None] - np.conj(cp)[None, :])
+        out[:, k::2] = u + v
+        out[:, k + 1::2] = 1j * u - 1j * v
+
+
+def _relocated(K, lead, norm, colsum, m, n, rp, cp, stable):
+    """The new poles from the stacked problem ``K`` (its first ``lead`` columns the
+    channel's own unknowns, then ct (n) and dt) with the relaxation row ``colsum * norm /
+    m`` (``colsum``: the real parts of the column sums of sigma's basis, (n + 1,))."""
+    relax = np.concatenate([np.zeros(lead), colsum])
     relax *= norm / m
     x = _lstsq_scaled(np.vstack([K, relax]), np.concatenate([np.zeros(K.shape[0]), [norm]]))
     ct, dt = x[lead:lead + n], x[-1]
@@ -304,6 +397,8 @@ def _relocate(s, phi, wt, rp, cp, fixed, nd, stable):
 def _coefficients(s, phi, wt, sets, nd, scaled=True):
     """Real basis coefficients (C, n_cols) of each channel at fixed poles: weighted linear
     least squares, real and imaginary parts stacked (columns of unit norm if ``scaled``)."""
+    if s.size > _TALL_POINTS:
+        return _coefficients_tall(s, phi, wt, sets, nd, scaled)
     cols = [_basis(s, rp, cp) for rp, cp in sets if rp.size + cp.size]
     cols = cols or [np.zeros((s.size, 0), complex)]
     left = np.hstack(cols + [np.ones((s.size, 1))]) if nd else np.hstack(cols)
@@ -314,6 +409,33 @@ def _coefficients(s, phi, wt, sets, nd, scaled=True):
         solve = _lstsq_scaled if scaled else (lambda a, b: scipy.linalg.lstsq(a, b)[0])
         out.append(solve(np.vstack([Mc.real, Mc.imag]), np.concatenate([f.real, f.imag])))
     return np.array(out).reshape(phi.shape[0], left.shape[1])
+
+
+def _coefficients_tall(s, phi, wt, sets, nd, scaled):
+    """:func:`_coefficients` of many frequencies: each channel's ``[A | f]`` reduced block
+    by block to its R factor (:func:`_r_factor`), whose leading block and last column
+    stand for ``A`` and ``f`` in the same least-squares problem."""
+
+    n_cols = sum(rp.size + 2 * cp.size for rp, cp in sets) + nd
+
+    def block(c, i, j):                            # [A | f] of channel c, rows i:j
+        a = np.empty((j - i, n_cols + 1), complex)
+        k = 0
+        for rp, cp in sets:
+            _basis_into(a[:, k:k + rp.size + 2 * cp.size], s[i:j], rp, cp)
+            k += rp.size + 2 * cp.size
+        if nd:
+            a[:, k] = 1.0
+        a[:, -1] = phi[c, i:j]
+        a *= wt[c, i:j, None]
+        return a
+
+    solve = _lstsq_scaled if scaled else (lambda a, b: scipy.linalg.lstsq(a, b)[0])
+    out = []
+    for c in range(phi.shape[0]):
+        r = _r_factor(lambda i, j, c=c: block(c, i, j), s.size, n_cols + 1)
+        out.append(solve(r[:n_cols, :n_cols], r[:n_cols, n_cols]))
+    return np.array(out).reshape(phi.shape[0], n_cols)
 
 
 def _residues(s, phi, wt, sets, nd, n_relocated, scaled=True):
