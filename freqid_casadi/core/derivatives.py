@@ -217,6 +217,9 @@ class StageFunctions:
                 self._neg_dnum_t = -np.stack([dnum.pop(i) for i in self._idx_num], axis=1)
                 self._dden_t = np.stack([dden.pop(i) for i in self._idx_den], axis=1)
             self._sl_num, self._sl_den = _as_slice(self._idx_num), _as_slice(self._idx_den)
+            # the (k, k) index grids of the Hessian's blocks, made once per stage
+            self._ix_num, self._ix_den = np.ix_(self._idx_num, self._idx_num), \
+                np.ix_(self._idx_den, self._idx_den)
             self._lg = np.empty((n, m), complex)
         else:
             d_point = _point_functions(param)
@@ -227,6 +230,7 @@ class StageFunctions:
             self.d_fun = ca.Function("derivatives", [z], [ca.densify(o) for o in outs],
                                      ["z"], ["r", "sq", "Ld", "Ln", "T2"])
             self.n_t2 = int(d_point.size2_out(4))
+            self._ix_full = np.ix_(range(ns), range(ns))
             # zero-copy evaluation: CasADi writes straight into these numpy buffers
             self._zbuf = np.zeros(n)
             self._outs = [np.zeros(2 * c) for c in (m, m, n * m, n * m, self.n_t2 * m)]
@@ -277,7 +281,8 @@ class StageFunctions:
         """Derivative pieces at ``z`` (cached on the bytes of ``z``):
 
         ``_r`` (M,) complex residual, ``_sq`` (M,) = sqrt_w q, ``_L`` (n, M) = dlog q/dz,
-        ``_blk``: per-section ``(indices, dlog factor/dv (nsec, len(indices), M), sign)``
+        ``_blk``: per-section ``(index grid, dlog factor/dv (nsec, k, M), sign)`` (the
+        grid ``np.ix_(indices, indices)`` of the k variables the factor depends on)
         (the numerator's entries may be negated: only their products are used)
         for the numerators (+1) and denominators (-1), and
         ``_t2`` (M, nsec ns^2) second-derivative terms or None.
@@ -316,7 +321,7 @@ class StageFunctions:
             ln = _product_into(self._neg_dnum_t, inum[:, None, :], sec, self._sl_num)
             ld = _product_into(self._dden_t, iden[:, None, :], sec, self._sl_den)
             # the blocks need products of two log-derivatives: the sign of -dnum cancels
-            self._blk = [(self._idx_num, ln, 1.0), (self._idx_den, ld, -1.0)]
+            self._blk = [(self._ix_num, ln, 1.0), (self._ix_den, ld, -1.0)]
         self._sq = q
         self._r = q - self._sw
         self._L, self._t2 = lg, None
@@ -335,7 +340,7 @@ class StageFunctions:
         self._L = np.ascontiguousarray((ld - ln).T)
         sln = np.ascontiguousarray(ln[:, 2:].reshape(m, nsec, ns).transpose(1, 2, 0))
         sld = np.ascontiguousarray(ld[:, 2:].reshape(m, nsec, ns).transpose(1, 2, 0))
-        full = list(range(ns))
+        full = self._ix_full
         self._blk = [] if not nsec else [(full, sln, 1.0), (full, sld, -1.0)]
         self._t2 = t2.reshape(m, self.n_t2).copy() if self.n_t2 else None
 
@@ -431,9 +436,13 @@ class StageFunctions:
                 # per-section blocks sum_i c_i (ln ln^T - ld ld^T), over the variables each
                 # factor depends on: (nsec, k, k) products contracted with c
                 blocks = np.zeros((nsec, ns, ns))
-                for idx, s_, sign in self._blk:
-                    pk = (s_[:, :, None] * s_[:, None, :]) @ c            # (nsec, k, k)
-                    blocks[:, np.ix_(idx, idx)[0], np.ix_(idx, idx)[1]] += sign * pk.real
+                for ix, s_, sign in self._blk:
+                    pk = None
+                    for sl in _blocks(lg.shape[1]):      # (nsec, k, k, block) at a time
+                        sb = s_[:, :, sl]
+                        part = (sb[:, :, None] * sb[:, None, :]) @ c[sl]  # (nsec, k, k)
+                        pk = part if pk is None else pk + part
+                    blocks[:, ix[0], ix[1]] += sign * pk.real
                 if self._t2 is not None:
                     blocks = blocks + (c @ self._t2).real.reshape(nsec, ns, ns)
                 diag = np.arange(nsec)
