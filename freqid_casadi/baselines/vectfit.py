@@ -170,9 +170,10 @@ def _lstsq_scaled(Mat, rhs):
 def _r_factor(block, m, n_cols):
     """R factor (n_cols, n_cols) of the stacked real matrix ``[Re A; Im A]`` (2M, n_cols),
     ``A`` complex (M, n_cols) formed ``_CHUNK_POINTS`` rows at a time by ``block(i, j)``
-    (rows ``i:j``), each block's QR (LAPACK dgeqrf) folded into the running R: ``||A x -
-    b|| = ||R x - Q^T b||``, so a least-squares problem in A is one in R (same solution; the
-    rounding differs). Memory O(chunk x n_cols) instead of O(M x n_cols)."""
+    (which returns ``A[i:j].T``, shape (n_cols, j - i)), each block's QR (LAPACK dgeqrf)
+    folded into the running R: ``||A x - b|| = ||R x - Q^T b||``, so a least-squares
+    problem in A is one in R (same solution; the rounding differs). Memory O(chunk x
+    n_cols) instead of O(M x n_cols)."""
     from scipy.linalg import lapack
 
     # rows: the running R (n_cols), then the block's real and imaginary parts; a short
@@ -181,11 +182,12 @@ def _r_factor(block, m, n_cols):
     lwork = None
     for i in range(0, m, _CHUNK_POINTS):
         a = block(i, min(i + _CHUNK_POINTS, m))
-        k = a.shape[0]
-        buf[n_cols:n_cols + k] = a.real
-        buf[n_cols + k:n_cols + 2 * k] = a.imag
+        k = a.shape[1]
+        cols = buf.T                              # (n_cols, rows), C order: a view
+        cols[:, n_cols:n_cols + k] = a.real
+        cols[:, n_cols + k:n_cols + 2 * k] = a.imag
         if k < _CHUNK_POINTS:
-            buf[n_cols + 2 * k:] = 0.0
+            cols[:, n_cols + 2 * k:] = 0.0
         if lwork is None:
             lwork = int(lapack.dgeqrf_lwork(*buf.shape)[0])
         qr, _, _, info = lapack.dgeqrf(buf, lwork=lwork, overwrite_a=True)
@@ -333,23 +335,25 @@ def _relocate_tall(s, phi, wt, rp, cp, fixed, nd, stable):
     in the same least-squares problems; memory O(chunk x unknowns)."""
     m = s.size
     n = rp.size + 2 * cp.size
-    has_fixed = fixed[0].size + fixed[1].size
-    nl = n + (fixed[0].size + 2 * fixed[1].size) + nd
+    n_fixed = fixed[0].size + 2 * fixed[1].size
+    nl = n + n_fixed + nd
     colsum = np.zeros(n + 1)
 
-    def block(c, i, j):
-        a = np.empty((j - i, nl + n + 1), complex)
-        _basis_into(a[:, :n], s[i:j], rp, cp)                       # Phi
-        if has_fixed:
-            _basis_into(a[:, n:nl - nd], s[i:j], *fixed)
-        if nd:
-            a[:, nl - 1] = 1.0
-        a[:, nl:nl + n] = a[:, :n]                                  # sigma: Phi, 1
-        a[:, -1] = 1.0
+    def block(c, i, j):                 # the matrix's rows i:j, transposed (columns, rows)
+        w, wphi = wt[c, i:j], -wt[c, i:j] * phi[c, i:j]
+        a = np.empty((nl + n + 1, j - i), complex)
+        _basis_rows(a[:n], s[i:j], rp, cp)                          # Phi
         if c == 0:
-            colsum[:] += np.real(np.sum(a[:, nl:], axis=0))
-        a[:, nl:] *= -phi[c, i:j, None]
-        a *= wt[c, i:j, None]
+            colsum[:n] += np.real(np.sum(a[:n], axis=1))
+            colsum[n] += j - i
+        np.multiply(a[:n], wphi, out=a[nl:nl + n])                  # sigma: Phi, 1
+        a[-1] = wphi
+        a[:n] *= w
+        if n_fixed:
+            _basis_rows(a[n:n + n_fixed], s[i:j], *fixed)
+            a[n:n + n_fixed] *= w
+        if nd:
+            a[nl - 1] = w
         return a
 
     rs = [_r_factor(lambda i, j, c=c: block(c, i, j), m, nl + n + 1)
@@ -362,17 +366,18 @@ def _relocate_tall(s, phi, wt, rp, cp, fixed, nd, stable):
     return _relocated(K, lead, norm, colsum, m, n, rp, cp, stable)
 
 
-def _basis_into(out, s, rp, cp):
-    """:func:`_basis` written into ``out`` (K, n) (the same columns; a pair's two columns
-    from one pass over its two fractions)."""
+def _basis_rows(out, s, rp, cp):
+    """:func:`_basis` transposed, written into ``out`` (n, K): ``1/(s - a)`` per real pole;
+    per pair, with ``d = (s - Re a)^2 + (Im a)^2 = (s - a)(s - conj a)``, ``2 (s - Re a)/d``
+    and ``-2 Im a / d`` (the sum and the rotated difference of its two fractions)."""
     k = rp.size
     if k:
-        np.divide(1.0, s[:, None] - rp[None, :], out=out[:, :k])
+        np.divide(1.0, s[None, :] - rp[:, None], out=out[:k])
     if cp.size:
-        u = 1.0 / (s[:, None] - cp[None, :])
-        v = 1.0 / (s[:, None] - np.conj(cp)[None, :])
-        out[:, k::2] = u + v
-        out[:, k + 1::2] = 1j * u - 1j * v
+        x = s[None, :] - cp.real[:, None]                          # (pairs, K)
+        inv = 1.0 / (x * x + (cp.imag ** 2)[:, None])
+        np.multiply(x, 2.0 * inv, out=out[k::2])
+        np.multiply(inv, -2.0 * cp.imag[:, None], out=out[k + 1::2])
 
 
 def _relocated(K, lead, norm, colsum, m, n, rp, cp, stable):
@@ -415,19 +420,18 @@ def _coefficients_tall(s, phi, wt, sets, nd, scaled):
     """:func:`_coefficients` of many frequencies: each channel's ``[A | f]`` reduced block
     by block to its R factor (:func:`_r_factor`), whose leading block and last column
     stand for ``A`` and ``f`` in the same least-squares problem."""
-
     n_cols = sum(rp.size + 2 * cp.size for rp, cp in sets) + nd
 
-    def block(c, i, j):                            # [A | f] of channel c, rows i:j
-        a = np.empty((j - i, n_cols + 1), complex)
+    def block(c, i, j):                   # [A | f] of channel c, rows i:j, transposed
+        a = np.empty((n_cols + 1, j - i), complex)
         k = 0
         for rp, cp in sets:
-            _basis_into(a[:, k:k + rp.size + 2 * cp.size], s[i:j], rp, cp)
+            _basis_rows(a[k:k + rp.size + 2 * cp.size], s[i:j], rp, cp)
             k += rp.size + 2 * cp.size
         if nd:
-            a[:, k] = 1.0
-        a[:, -1] = phi[c, i:j]
-        a *= wt[c, i:j, None]
+            a[k] = 1.0
+        a[-1] = phi[c, i:j]
+        a *= wt[c, i:j]
         return a
 
     solve = _lstsq_scaled if scaled else (lambda a, b: scipy.linalg.lstsq(a, b)[0])
