@@ -179,6 +179,7 @@ def _r_factor(block, m, n_cols):
     # rows: the running R (n_cols), then the block's real and imaginary parts; a short
     # last block leaves zero rows, which do not change R
     buf = np.zeros((n_cols + 2 * _CHUNK_POINTS, n_cols), order="F")
+    below = np.tril_indices(n_cols, -1)           # dgeqrf's reflectors below R's diagonal
     lwork = None
     for i in range(0, m, _CHUNK_POINTS):
         a = block(i, min(i + _CHUNK_POINTS, m))
@@ -194,7 +195,7 @@ def _r_factor(block, m, n_cols):
         if info != 0:                                        # pragma: no cover
             raise np.linalg.LinAlgError(f"dgeqrf failed (info={info})")
         buf = qr                                  # the same memory (overwrite_a, F order)
-        buf[:n_cols] = np.triu(buf[:n_cols])
+        buf[below] = 0.0
     return np.array(buf[:n_cols])
 
 
