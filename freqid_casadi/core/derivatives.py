@@ -401,6 +401,13 @@ class StageFunctions:
         block by block (no complex (M, n) copy beside it)."""
         self._eval(z)
         m, n = self.n_points, self._L.shape[0]
+        if m <= _BLOCK_POINTS:
+            # as it always was: a blockwise-filled array, equal entry by entry, sent the
+            # actuator's 2-section sequential fit down another path (same errors to 1e-13,
+            # other bits); the fits downstream depend on more than the entries
+            jc = self._L.T * self._sq[:, None]                       # complex J (M, n)
+            return (np.concatenate([self._r.real, self._r.imag]),
+                    np.vstack([jc.real, jc.imag]))
         jac = np.empty((2 * m, n))
         for sl in _blocks(m):
             jc = self._L[:, sl].T * self._sq[sl, None]                # complex J rows
