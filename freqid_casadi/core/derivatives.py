@@ -133,6 +133,11 @@ class StageFunctions:
       CasADi's AD of the per-point section formula, mapped over the points
       (:func:`_point_functions`).
 
+    The products over the points (Hessian, column norms; the Jacobian above 8192 points)
+    run over blocks of :data:`_BLOCK_POINTS` points with O(n x block) scratch, and above
+    :data:`_PIECES_COST_POINTS` points the residual and IPOPT's objective come from the
+    derivative pieces too: a stage holds the pieces (O(n M)) and no O(n M) scratch.
+
     Parameters
     ----------
     param : Parametrization
