@@ -420,6 +420,51 @@ class StageFunctions:
             jac[m + sl.start:m + sl.stop] = jc.imag
         return np.concatenate([self._r.real, self._r.imag]), jac
 
+    def projected_fraction(self, z, free, rcond=1e-10):
+        """``||P r|| / ||r||`` without forming the Jacobian: the part of the residual the
+        linearised model can remove, as :func:`freqid_casadi.solvers.termination.
+        projected_fraction` computes it from ``r`` and ``J`` (its SVD of the unit-column
+        ``J[:, free]``), here from a QR of ``[J[:, free] / ||J_j|| | r]`` reduced block by
+        block (:data:`_BLOCK_POINTS` points) to its R factor ``[[R, c], [0, rho]]``: the
+        singular values and left singular vectors ``U_R`` of ``R`` are those of the
+        unit-column Jacobian (``U = Q U_R``), so ``||U_k^T r|| = ||U_R,k^T c||``. Memory
+        O(block x n) instead of about four (2M, n) copies (at 200 000 points and 14
+        variables, 180 MB); the same number to rounding.
+
+        Parameters
+        ----------
+        z : ndarray of float, shape (n,)
+        free : ndarray of bool, shape (n,)
+            The variables the test counts as free.
+        rcond : float
+            Singular values below ``rcond`` times the largest are dropped.
+
+        Returns
+        -------
+        float
+        """
+        self._eval(z)
+        r, m = self._r, self.n_points
+        nr = float(np.sqrt(np.vdot(r, r).real))
+        idx = np.flatnonzero(np.asarray(free, bool))
+        if nr == 0.0 or idx.size == 0:
+            return 0.0
+        cn = self.column_norms(z)[idx]
+        idx, cn = idx[cn > 0], cn[cn > 0]
+        k = idx.size
+        if k == 0:
+            return 0.0
+        rt = np.zeros((0, k + 1))
+        for sl in _blocks(m):
+            a = np.empty((k + 1, sl.stop - sl.start), complex)       # [J_free / cn | r]^T
+            np.multiply(self._L[idx, sl], self._sq[sl], out=a[:k])
+            a[:k] /= cn[:, None]
+            a[k] = r[sl]
+            rt = np.linalg.qr(np.vstack([rt, a.real.T, a.imag.T]), mode="r")
+        u, sv, _ = np.linalg.svd(rt[:k, :k])
+        u = u[:, sv > rcond * sv[0]]
+        return float(np.linalg.norm(u.T @ rt[:k, k])) / nr
+
     def gradient(self, z):
         """``(cost, grad)`` with ``grad = 2 J^T r = 2 Re(L c)``, ``c = conj(r) sqrt_w q``."""
         self._eval(z)
