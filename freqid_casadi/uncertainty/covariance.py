@@ -469,6 +469,17 @@ def parameter_uncertainty(model, data=None, *, weights=None, noise_variance=None
     known to 30 % of itself or a mode narrower than the frequency spacing are beyond it;
     compare with :func:`bootstrap`).
     """
+    from .._threads import single_threaded_blas
+
+    # one BLAS thread, as in fit(): the SVDs are of a (2M, p) matrix, and OpenBLAS threads
+    # on a shared machine made them 5-40x slower (A at 17 sections: 0.33-2.7 s against
+    # 0.07 s); the numbers then do not depend on the thread count either
+    with single_threaded_blas():
+        return _parameter_uncertainty(model, data, weights, noise_variance, bound_tol,
+                                      noise_level)
+
+
+def _parameter_uncertainty(model, data, weights, noise_variance, bound_tol, noise_level):
     fit_result = model
     if noise_level not in ("auto", "constant", "local"):
         raise OptionError(f"noise_level must be 'auto', 'constant' or 'local', got "
@@ -521,8 +532,6 @@ def local_variance(r, w, g_abs2, n_free, p_value=HETEROSCEDASTIC_P):
         The absolute noise variance ``E|Phi_i - G_i|^2`` per point (the ``noise_variance``
         the sandwich takes), None when one level fits (or fewer than 50 weighted points).
     """
-    from scipy import stats
-
     on = np.flatnonzero(w > 0)
     m = on.size
     n_blocks = min(8, m // 25)
@@ -530,7 +539,7 @@ def local_variance(r, w, g_abs2, n_free, p_value=HETEROSCEDASTIC_P):
         return None
     x = np.sqrt(w[on]) * r[on]
     blocks = [np.concatenate([b.real, b.imag]) for b in np.array_split(x, n_blocks)]
-    if not float(stats.bartlett(*blocks).pvalue) < p_value:
+    if not _bartlett_pvalue(blocks) < p_value:
         return None
     k = max(11, m // n_blocks) | 1
     ones = np.convolve(np.ones(m), np.ones(k), mode="same")
@@ -539,6 +548,23 @@ def local_variance(r, w, g_abs2, n_free, p_value=HETEROSCEDASTIC_P):
     variance = np.ones(r.size)
     variance[on] = level / w[on] * g_abs2[on]
     return variance
+
+
+def _bartlett_pvalue(samples):
+    """p-value of Bartlett's test that the samples (a list of 1-D float arrays, at least
+    two of at least two values each) have one variance: scipy.stats.bartlett's statistic
+    and chi-square tail, written out (importing scipy.stats took 0.3-3 s, once per
+    process, the largest part of a first ``FitResult.uncertainty``)."""
+    from scipy.special import chdtrc
+
+    k = len(samples)
+    ni = np.array([s.size for s in samples], dtype=float)
+    ssq = np.array([np.var(s, ddof=1) for s in samples])
+    ntot = np.sum(ni)
+    spsq = np.sum((ni - 1) * ssq) / (ntot - k)
+    numer = (ntot - k) * np.log(spsq) - np.sum((ni - 1) * np.log(ssq))
+    denom = 1 + 1 / (3 * (k - 1)) * (np.sum(1 / (ni - 1)) - 1 / (ntot - k))
+    return float(chdtrc(k - 1, numer / denom))
 
 
 def with_status(rec, par, omega, unit="rad/s", fit_status=None):
