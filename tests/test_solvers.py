@@ -161,3 +161,36 @@ def test_non_finite_trial_points_leave_no_casadi_lines_on_stderr(capfd):
         res = fc.fit(data, n_sections=6, zeros="free")
     assert res.rms_rel_error < 0.5                  # measured 0.393 (poor-fit, 6 of 8 modes)
     assert "CasADi" not in capfd.readouterr().err
+
+
+@pytest.mark.parametrize("n_points", [500, 9000])
+def test_termination_projection_is_blockwise_only_above_the_threshold(n_points):
+    # above BLOCKWISE_PROJECTION_POINTS the test's ||P r|| / ||r|| comes from the stage
+    # functions' blockwise QR (no Jacobian formed); it agrees with the SVD of the whole
+    # Jacobian to rounding (measured 7e-15 relative; bound 1e-10)
+    import freqid_casadi as fc
+    from freqid_casadi.core.objective import Parametrization, stage_functions
+    from freqid_casadi.solvers.common import BLOCKWISE_PROJECTION_POINTS
+    from freqid_casadi.solvers.termination import (StageMonitor, Termination,
+                                                   projected_fraction)
+
+    data = fc.systems.G_A(np.logspace(-2, 3, n_points))
+    wr = tuple(np.logspace(0, 3, 3))
+    param = Parametrization(fc.Structure(3, True, True), "dc", wr,
+                            abs(data.response[0]) * data.omega[0], 0.1)
+    z = np.concatenate([[0.08, 1.0]] + [param.new_section(w, 0.01, 1.1 * w, 0.02, w)
+                                         for w in wr])
+    lb, ub = param.bounds()
+    funcs = stage_functions(param, data.omega, data.response)
+    problem = StageProblem.from_stage_functions(funcs, lb, ub)
+    assert (problem.projected_fraction is not None) == (n_points >= BLOCKWISE_PROJECTION_POINTS)
+    monitor = StageMonitor(problem, Termination(ftol=1.0))    # the cosine test passes
+    monitor.stationary(z)
+    cost, grad = problem.eval_gradient(z)
+    free = monitor.free_mask(z, cost, grad, problem.eval_column_norms(z))
+    r, jac = funcs.residual_jacobian(z)
+    svd = projected_fraction(r, jac, free)
+    assert 0.0 < svd <= 1.0
+    assert monitor.proj == pytest.approx(svd, rel=1e-10)
+    if n_points < BLOCKWISE_PROJECTION_POINTS:
+        assert monitor.proj == svd                              # the SVD path, bit for bit

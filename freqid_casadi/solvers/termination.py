@@ -326,9 +326,12 @@ class StageMonitor:
         self.proj = float("nan")
         if cmax > self.allowed:
             return False, cost
-        r = np.asarray(pb.residual(x), float)
-        jac = np.asarray(pb.jacobian(x), float)
-        self.proj = projected_fraction(r, jac, free, self.term.rcond)
+        if pb.projected_fraction is not None:
+            self.proj = float(pb.projected_fraction(x, free, self.term.rcond))
+        else:
+            r = np.asarray(pb.residual(x), float)
+            jac = np.asarray(pb.jacobian(x), float)
+            self.proj = projected_fraction(r, jac, free, self.term.rcond)
         self.proj_allowed = float(np.sqrt(self.term.ftol + noise))
         return self.proj <= self.proj_allowed, cost
 
