@@ -20,6 +20,7 @@ import numpy as np
 
 from ._checks import validate
 from .._progress import channel, check_progress
+from .._threads import single_threaded_blas
 from ..core.data import FrequencyData, dense_grid
 from ..errors import DataError, OptionError
 from .fit import fit
@@ -219,7 +220,11 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=Fa
     rows = []
     chain = shown = None        # the continued model, and the last row's (model, max, rms, ok)
     only_ext = incremental and fit_options.get("start", "sequential") == "sequential"
-    with channel(progress, _row_line, total=len(orders), unit="order") as emit:
+    # one BLAS thread, as fit() has: the relocated starts' least-squares problems are
+    # small, and OpenBLAS threads on a busy 2-core machine made each scipy lstsq of
+    # example A (1000 x 160) take 1.8 s instead of 8 ms (the whole sweep 94 s, not 2)
+    with single_threaded_blas(), \
+            channel(progress, _row_line, total=len(orders), unit="order") as emit:
         for o in orders:
             t0 = time.perf_counter()
             follows = chain is not None and chain[0].n_sections + 1 == o // per
