@@ -52,14 +52,19 @@ def report(command, ladders, rounds, seed, max_points, wall):
         v = verdicts[name]
         for label, sel in (("subset", [x for x in v if x["subset"]]),
                            ("other rounds", [x for x in v if not x["subset"]]),
-                           ("all", v)):
+                           ("all", v),
+                           ("all, true order at the floor", [x for x in v if x["floor"]])):
             if not sel:
                 continue
             hit = sum(x["right"] for x in sel)
             rows.append((name, label, len(sel), f"{hit} ({100 * hit / len(sel):.0f} %)",
                          sum(x["below"] for x in sel), sum(x["above"] for x in sel)))
     md += [markdown_table(rows, ["rule", "cases", "n", "in [true, true+1]", "below",
-                                 "above"], "llrrrr"), ""]
+                                 "above"], "llrrrr"), "",
+           "\"At the floor\": the fit at the true order reaches RMS <= 1.5 x the noise; "
+           "outside those cases the order search cannot find the true order whatever its "
+           "rule (a fit that fails at that order, or a system outside the minimum-phase "
+           "class).", ""]
     for name, (_, text) in RULES.items():
         md += [f"**{name}**: {text}", ""]
     md += ["## Misses", "", "Each rule's cases outside [true, true + 1]: the order chosen, "

@@ -21,7 +21,7 @@ from ..errors import DataError, StructureError
 from ..fitting.fit import fit
 from ..fitting.order import MAX_SECTIONS, OrderStep, whiteness
 from ..systems.corpus import FAMILIES, case
-from .corpus import CPU_BUDGET, FULL_CASES, SUBSET_EVERY, TimeLimit, _budget
+from .corpus import CPU_BUDGET, FLOOR_FACTOR, FULL_CASES, SUBSET_EVERY, TimeLimit, _budget
 
 __all__ = ["EXTRA", "SUBSET_ROUNDS", "RULES", "ladder", "run_ladders", "replay", "judge",
            "order_tasks"]
@@ -144,17 +144,22 @@ def replay(lad, decide=None, **kw):
 def judge(ladders, decide=None):
     """Replay ``decide`` over every ladder: list of dicts (case, family, true, chosen,
     reason, right: chosen in [true, true + 1], below, above, subset: a case of
-    :data:`SUBSET_ROUNDS`). A rule that asks for an order the ladder lacks chose above
+    :data:`SUBSET_ROUNDS`, floor: its fit at the true order reaches the noise floor, RMS at
+    most ``FLOOR_FACTOR`` times the noise, so that a miss is the rule's). A rule that asks
+    for an order the ladder lacks chose above
     true + 1 (the ladder reaches true + :data:`EXTRA`)."""
     out = []
     for d in ladders:
         n, reason = replay(d, decide)
         t = d["true_sections"]
+        at_true = next((o for o in d["orders"] if o["n_sections"] == t and "rms" in o), None)
         out.append({"case": d["case"], "family": d["family"], "true": t, "chosen": n,
                     "reason": reason, "right": n is not None and t <= n <= t + 1,
                     "below": n is not None and n < t,
                     "above": n is None and reason == "beyond" or n is not None and n > t + 1,
-                    "subset": d["task"][0] // len(FAMILIES) in SUBSET_ROUNDS})
+                    "subset": d["task"][0] // len(FAMILIES) in SUBSET_ROUNDS,
+                    "floor": at_true is not None
+                    and at_true["rms"] <= FLOOR_FACTOR * d["noise"]})
     return out
 
 
