@@ -2,7 +2,7 @@
 
 Usage::
 
-    python scripts/corpus_order.py [--rounds 0,8,16,24,32,4,12,20,28] [--seed 0]
+    python scripts/corpus_order.py [--rounds 0,8,16,...] [--seed 0]
                                    [--max-points 120] [--workers 2] [--out DIR] [--force]
 
 Fits every noisy case of the given rounds of the nine families (round r: corpus indices
@@ -86,7 +86,9 @@ def report(command, ladders, rounds, seed, max_points, wall):
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    ap.add_argument("--rounds", default="0,8,16,24,32,4,12,20,28")
+    ap.add_argument("--rounds", default="0,8,16,24,32,4,12,20,28,2,6,10,14,18,22,26,30",
+                    help="rounds of the nine families (default: the even rounds of the "
+                         "300-case corpus, the subset first)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--max-points", type=int, default=120)
     ap.add_argument("--workers", type=int, default=2)
