@@ -19,11 +19,12 @@ the data:
 
 Without a consistent order it stops after :data:`PATIENCE` orders in a row that do not
 lower the RMS significantly (for a structured residual the share fitting noise could take
-shrinks with the noise's share of its mean square, :func:`noise_share`) (``"no-improvement"``: the model class, not the order, limits
-the fit; the smallest of the best orders is kept; orders no better than the trivial model,
-RMS >= ``TRIVIAL_RMS``, do not count) or at ``max_sections``. When the minimum-phase search
-ends without a consistent order, :func:`with_free_zeros` runs it with ``zeros="free"`` and
-offers that model. The result's
+shrinks with the noise's share of its mean square, :func:`noise_share`;
+``"no-improvement"``: the model class, not the order, limits the fit; the smallest of the
+best orders is kept; orders no better than the trivial model, RMS >= ``TRIVIAL_RMS``, do
+not count) or at ``max_sections``. When the minimum-phase search ends without a consistent
+order, :func:`with_free_zeros` runs it with ``zeros="free"`` and offers that model. The
+result's
 diagnostics carry an ``order-chosen`` record with the reason, every order's RMS and
 roughness ratio.
 
@@ -40,9 +41,9 @@ import numpy as np
 from ..errors import DataError, FreqidError, OptionError, StructureError
 from .diagnostics import TRIVIAL_RMS, Diagnostic
 
-__all__ = ["OrderStep", "OrderChoice", "choose_order", "decide", "with_order_record", "whiteness",
-           "significant", "noise_share", "with_free_zeros", "WHITE_RATIO", "EXACT_RMS", "MODE_TOLERANCE",
-           "PATIENCE", "MAX_SECTIONS", "FREE_ZEROS_GAIN"]
+__all__ = ["OrderStep", "OrderChoice", "choose_order", "decide", "with_order_record",
+           "whiteness", "significant", "noise_share", "with_free_zeros", "WHITE_RATIO",
+           "EXACT_RMS", "MODE_TOLERANCE", "PATIENCE", "MAX_SECTIONS", "FREE_ZEROS_GAIN"]
 
 #: RMS / roughness of a residual consistent with white noise (1 for white noise; the
 #: estimate scatters by about 1/sqrt(M)).
