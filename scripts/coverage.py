@@ -300,6 +300,54 @@ def monte_carlo(fixed, candidates, n, replicates, jobs, checkpoint):
     return kept, excluded, recs, time.perf_counter() - t0, len(done) - before
 
 
+def from_json(path, known, candidates, jobs, checkpoint):
+    """The first stage of a previous run (its ``coverage.json``): the systems it kept (by
+    name, among ``known``), its records as recorded (estimates, stds, statuses), and the
+    corpus candidates it screened out (those drawn before its last kept one; their
+    replicate 0 is fitted again, or read from ``checkpoint``, for the status)."""
+    with open(path, encoding="utf-8") as fh:
+        old = json.load(fh)
+    by_name = {s["name"]: s for s in known}
+    names = [s["name"] for s in old["systems"]]
+    missing = [n for n in names if n not in by_name]
+    if missing:
+        raise SystemExit(f"error: {path} holds systems these options do not draw: "
+                         f"{missing}; pass its --systems / --overparametrised")
+    systems = [by_name[n] for n in names]
+    kept = set(names)
+    last = max((i for i, c in enumerate(candidates) if c["name"] in kept), default=-1)
+    screened = [c for c in candidates[:last + 1] if c["name"] not in kept]
+    done = _read_checkpoint(checkpoint)
+    before = len(done)
+    _run([(c, 0) for c in screened if (c["name"], 0) not in done], jobs, checkpoint, done,
+         time.perf_counter())
+    excluded = [(c, done[(c["name"], 0)].get("status"), done[(c["name"], 0)].get("rms"))
+                for c in screened]
+    return systems, excluded, old["records"], 0.0, len(done) - before
+
+
+#: A system gets the follow-up's fresh replicates when one of its pairs has an exact
+#: two-sided binomial p-value below this (evidence against 95 %, either side).
+FOLLOW_P = 0.1
+
+
+def follow_up(systems, rows, first, extra, jobs, checkpoint):
+    """Fresh replicates ``first ... first + extra - 1`` of every system with a pair whose
+    coverage is in doubt (``p_value < FOLLOW_P``): the records (resuming from
+    ``checkpoint``) and the new fits. Their coverage is independent of the selection, so
+    it tells a miscalibrated pair (still off) from binomial noise (back near 95 %)."""
+    doubt = {r["system"] for r in rows if r["p_value"] is not None
+             and r["p_value"] < FOLLOW_P}
+    chosen = [s for s in systems if s["name"] in doubt]
+    done = _read_checkpoint(checkpoint)
+    before = len(done)
+    todo = [(s, r) for r in range(first, first + extra) for s in chosen
+            if (s["name"], r) not in done]
+    _run(todo, jobs, checkpoint, done, time.perf_counter())
+    recs = [done[(s["name"], r)] for s in chosen for r in range(first, first + extra)]
+    return chosen, recs, len(done) - before
+
+
 # --------------------------------------------------------------------------- summary
 
 def _cov(hits):
@@ -323,6 +371,88 @@ def _consistent(c, n):
     95 % coverage) of the target range."""
     se = math.sqrt(0.95 * 0.05 / n)
     return TARGET[0] - 2 * se <= c <= TARGET[1] + 2 * se
+
+
+def _target_counts(n):
+    """The hit counts of ``n`` intervals whose coverage lies in the target."""
+    return range(math.ceil(TARGET[0] * n - 1e-9), math.floor(TARGET[1] * n + 1e-9) + 1)
+
+
+def p_in_target(n, level=LEVEL):
+    """Probability that ``n`` intervals of true coverage ``level`` cover inside the target
+    (0.885 for n = 50 at 95 %: 50 of 50 has probability 0.077, 44 or fewer 0.038)."""
+    from scipy import stats
+
+    k = _target_counts(n)
+    if len(k) == 0:
+        return 0.0
+    return float(stats.binom.cdf(k[-1], n, level) - stats.binom.cdf(k[0] - 1, n, level))
+
+
+def binomial_p(hits, n, level=LEVEL):
+    """Exact two-sided binomial p-value of ``hits`` covers in ``n`` under coverage
+    ``level`` (twice the smaller tail, at most 1)."""
+    from scipy import stats
+
+    if n == 0:
+        return None
+    return float(min(1.0, 2 * min(stats.binom.cdf(hits, n, level),
+                                  stats.binom.sf(hits - 1, n, level))))
+
+
+def _p_below(n, alpha, level=LEVEL):
+    """Probability that a calibrated pair of ``n`` intervals has ``binomial_p < alpha``."""
+    from scipy import stats
+
+    k = np.arange(n + 1)
+    pv = np.array([binomial_p(int(h), n, level) for h in k])
+    return float(np.sum(stats.binom.pmf(k, n, level)[pv < alpha]))
+
+
+def expectation(rows, alpha=0.01, level=LEVEL):
+    """What calibrated intervals (true coverage ``level``) would give, from each pair's own
+    number of reported replicates: pairs expected in the target (mean and SD: a sum of
+    Bernoulli), pairs expected with ``binomial_p < alpha``, and the Bonferroni bound
+    ``0.05 / pairs`` under which a pair's coverage is called miscalibrated."""
+    rep = [r for r in rows if r["reported"]]
+    p_in = [p_in_target(r["reported"], level) for r in rep]
+    p_lo = [_p_below(r["reported"], alpha, level) for r in rep]
+    return {"pairs": len(rep), "in_target": sum(1 for r in rep if r["in_target"]),
+            "expected_in_target": float(sum(p_in)),
+            "sd_in_target": float(math.sqrt(sum(p * (1 - p) for p in p_in))),
+            "alpha": alpha, "below_alpha": sum(1 for r in rep if r["p_value"] < alpha),
+            "expected_below_alpha": float(sum(p_lo)),
+            "bonferroni": 0.05 / max(len(rep), 1),
+            "miscalibrated": [(r["system"], r["parameter"]) for r in rep
+                              if r["p_value"] < 0.05 / len(rep)]}
+
+
+def standardized(systems, recs, keys=("kind", "family")):
+    """Standardized errors ``(estimate - truth) / std`` of the reported parameters, by
+    parameter kind (and family and kind): n, mean and SD, each with its standard error
+    under calibration (``1 / sqrt(n)``, ``1 / sqrt(2 (n - 1))``). A bias shows in the mean,
+    a wrong width in the SD, long before either moves the coverage of 50 replicates."""
+    truth = {s["name"]: truth_parameters(s) for s in systems}
+    family = {s["name"]: s["family"] for s in systems}
+    groups = {}
+    for r in recs:
+        for name, (v, sd, det, _) in r.get("params", {}).items():
+            if not det or sd is None or sd <= 0:
+                continue
+            z = (v - truth[r["system"]][name]) / sd
+            kind = name.split("_")[0]
+            groups.setdefault(kind, []).append(z)
+            if "family" in keys:
+                groups.setdefault(f"{family[r['system']]}: {kind}", []).append(z)
+    out = {}
+    for key, z in groups.items():
+        z = np.asarray(z)
+        n = z.size
+        out[key] = {"n": int(n), "mean": float(z.mean()), "mean_se": 1 / math.sqrt(n),
+                    "sd": float(z.std(ddof=1)) if n > 1 else None,
+                    "sd_se": 1 / math.sqrt(2 * (n - 1)) if n > 1 else None,
+                    "coverage": float(np.mean(np.abs(z) <= Z))}
+    return out
 
 
 def summarize(systems, recs):
@@ -355,6 +485,7 @@ def summarize(systems, recs):
                          "not_determined": sum(reasons.values()), "reasons": reasons,
                          "in_target": None if c is None else TARGET[0] <= c <= TARGET[1],
                          "consistent": None if c is None else _consistent(c, n),
+                         "p_value": binomial_p(int(round(c * n)), n) if n else None,
                          "in_target_all": None if ca is None else
                          TARGET[0] <= ca <= TARGET[1]})
     return rows
@@ -409,8 +540,52 @@ def figure(rows):
     return fig
 
 
+def _z_rows(zs):
+    def off(v):
+        return (abs(v["mean"]) > 3 * v["mean_se"]
+                or (v["sd"] is not None and abs(v["sd"] - 1) > 3 * v["sd_se"]))
+    keys = [k for k in zs if ":" not in k] + [k for k in zs if ":" in k and off(zs[k])]
+    return [(k, zs[k]["n"], f"{zs[k]['mean']:+.3f} ± {zs[k]['mean_se']:.3f}",
+             "–" if zs[k]["sd"] is None else f"{zs[k]['sd']:.3f} ± {zs[k]['sd_se']:.3f}",
+             f"{100 * zs[k]['coverage']:.1f}") for k in keys]
+
+
+def follow_up_lines(rows, fresh_rows, chosen, extra, replicates):
+    """The follow-up section: coverage of the doubted pairs on fresh replicates."""
+    if not chosen:
+        return []
+    fresh = {(r["system"], r["parameter"]): r for r in fresh_rows}
+    doubt = [r for r in rows if r["p_value"] is not None and r["p_value"] < FOLLOW_P]
+    table, still = [], []
+    for r in doubt:
+        f = fresh.get((r["system"], r["parameter"]))
+        if f is None or not f["reported"]:
+            continue
+        if f["p_value"] < 0.05 / len(doubt):
+            still.append(r)
+        table.append((r["system"], r["parameter"], f"{r['reported']}",
+                      _pct(r["coverage"]), f"{r['p_value']:.3f}", f"{f['reported']}",
+                      _pct(f["coverage"], f["se"]), f"{f['p_value']:.3f}"))
+    hits = sum(round(f["coverage"] * f["reported"]) for f in fresh_rows if f["reported"])
+    n = sum(f["reported"] for f in fresh_rows if f["reported"])
+    return ["## Follow-up: fresh replicates of the doubted systems", "",
+            f"Every system with a pair at binomial p < {FOLLOW_P:g} in the first "
+            f"{replicates} replicates ({len(chosen)} systems) got {extra} fresh replicates "
+            f"({replicates} ... {replicates + extra - 1}); their coverage does not depend on "
+            "the selection. A miscalibrated pair stays off; binomial noise comes back near "
+            f"95 %. Still off on the fresh replicates (p < 0.05 / {len(doubt)}): "
+            + (", ".join(f"{r['system']}: {r['parameter']}" for r in still) or "none")
+            + f". Every parameter of these systems pooled on the fresh replicates: "
+            f"{_pct(hits / n if n else None, math.sqrt(0.95 * 0.05 / n) if n else None)} "
+            f"% of {n}.", "",
+            markdown_table(table, ["system", "parameter", "reported", "coverage (%)", "p",
+                                   "fresh reported", "fresh coverage (%)", "fresh p"],
+                           "llrrrrrr"), ""]
+
+
 def report_lines(command, systems, rows, pool, wall, new, jobs, replicates, recs):
     """The Markdown report."""
+    zs = standardized(systems, recs)
     n_fail = sum(1 for r in recs if r.get("status") == "error")
     status = {}
     for r in recs:
@@ -420,6 +595,7 @@ def report_lines(command, systems, rows, pool, wall, new, jobs, replicates, recs
     inside = sum(1 for r in rep if r["in_target"])
     consistent = sum(1 for r in rep if r["consistent"])
     big = [r for r in rep if r["reported"] >= 20]
+    ex = expectation(rows)
     nd_rows = [r for r in rows if r["not_determined"]]
     never = [r for r in rows if not r["reported"]]
     n_over = sum(1 for s in systems if s["family"] == "over-parametrised")
@@ -442,16 +618,24 @@ def report_lines(command, systems, rows, pool, wall, new, jobs, replicates, recs
           "(the others come from the checkpoint).", "",
           "## Result", "",
           f"Reported (determined) parameters in the target [{TARGET[0]:.2f}, {TARGET[1]:.2f}]: "
-          f"**{inside} of {len(rep)}** system-parameter pairs; within 2 binomial standard "
-          f"errors of it: **{consistent} of {len(rep)}** (of the {len(big)} pairs reported "
-          f"in at least 20 replicates: {sum(1 for r in big if r['in_target'])} in the "
-          f"target, {sum(1 for r in big if r['consistent'])} within 2 SE). "
-          f"With {replicates} replicates "
-          f"the binomial standard error of a 95 % coverage is "
-          f"{100 * math.sqrt(0.95 * 0.05 / replicates):.1f} points, so a parameter whose "
-          f"true coverage is 95 % falls outside [90, 98] % by chance with probability "
-          f"{_p_outside(replicates):.2f}; the pooled coverages below are the sharper "
-          "test.", "",
+          f"**{inside} of {len(rep)}** system-parameter pairs. Were every interval "
+          f"calibrated (true coverage 95 %), the expected count is **"
+          f"{ex['expected_in_target']:.1f} ± {ex['sd_in_target']:.1f}** (from each pair's "
+          f"own number of reported replicates: with {replicates} a calibrated pair falls "
+          f"outside the target by chance with probability {_p_outside(replicates):.3f} -- "
+          f"{replicates} of {replicates} has probability {0.95 ** replicates:.3f}, "
+          f"{math.ceil(TARGET[0] * replicates) - 1} or fewer "
+          f"{_p_outside(replicates) - 0.95 ** replicates:.3f}; fewer replicates, more "
+          f"often). Within 2 binomial standard errors of the target: **{consistent} of "
+          f"{len(rep)}** (of the {len(big)} pairs reported in at least 20 replicates: "
+          f"{sum(1 for r in big if r['in_target'])} in the target, "
+          f"{sum(1 for r in big if r['consistent'])} within 2 SE).", "",
+          f"Exact two-sided binomial test of a 95 % coverage per pair: "
+          f"**{ex['below_alpha']}** pairs at p < {ex['alpha']:g} (expected by chance "
+          f"{ex['expected_below_alpha']:.1f}); miscalibrated at the Bonferroni level "
+          f"p < 0.05 / {ex['pairs']} = {ex['bonferroni']:.1e}: "
+          + (", ".join(f"{a}: {b}" for a, b in ex["miscalibrated"]) or "**none**")
+          + ". The standardized errors below are the sharper test.", "",
           f"Not determined: {sum(r['not_determined'] for r in rows)} parameter estimates of "
           f"{sum(r['replicates'] - r['unmatched'] for r in rows)} "
           f"({len(nd_rows)} system-parameter pairs in at least one replicate; "
@@ -461,6 +645,12 @@ def report_lines(command, systems, rows, pool, wall, new, jobs, replicates, recs
                            v["n_all"], _pct(v["coverage_all"])) for k, v in pool.items()],
                          ["parameter kind", "reported", "coverage (%) ± SE", "not determined",
                           "all with a std", "coverage of all (%)"], "lrrrrr"), "",
+          "### Standardized errors", "",
+          "`(estimate - truth) / std` of the reported parameters: calibrated intervals give "
+          "mean 0 and SD 1 (± the SE shown); a bias moves the mean, a wrong width the SD. "
+          "By parameter kind, then the family rows more than 3 SE off in either.", "",
+          markdown_table(_z_rows(zs), ["parameters", "n", "mean ± SE", "SD ± SE",
+                                       "coverage (%)"], "lrrrr"), "",
           "### Per system and parameter", "",
           "`reported`: replicates where the parameter is determined; `coverage`: of those "
           "(± binomial SE); `all`: coverage of every replicate's delta-method interval, "
@@ -475,10 +665,12 @@ def report_lines(command, systems, rows, pool, wall, new, jobs, replicates, recs
                       r["unmatched"], "–" if r["in_target"] is None else
                       ("yes" if r["in_target"] else "no"),
                       "–" if r["consistent"] is None else
-                      ("yes" if r["consistent"] else "no")))
+                      ("yes" if r["consistent"] else "no"),
+                      "–" if r["p_value"] is None else f"{r['p_value']:.3f}"))
     md += [markdown_table(table, ["system", "parameter", "truth", "reported",
                                   "coverage (%)", "all (%)", "not det.", "unmatched",
-                                  "in target", "within 2 SE"], "llrrrrlrll"), "",
+                                  "in target", "within 2 SE", "binomial p"],
+                          "llrrrrlrllr"), "",
            "`unmatched`: replicates whose fit has no mode within 25 % of the true one "
            "(a fit that missed the mode; no interval to test).", "",
            "![coverage](coverage.png)", "",
@@ -529,11 +721,19 @@ def main(argv=None):
     ap.add_argument("--checkpoint", default=None)
     ap.add_argument("--spare", type=int, default=SPARE,
                     help=f"corpus cases drawn beyond --systems for the screening ({SPARE})")
+    ap.add_argument("--follow-up", type=int, default=0, metavar="R",
+                    help=f"R fresh replicates of every system with a pair at binomial "
+                         f"p < {FOLLOW_P:g} (default 0: none)")
+    ap.add_argument("--from-json", metavar="PATH", default=None,
+                    help="take the first stage (systems, replicates and their recorded "
+                         "estimates) from a previous run's coverage.json instead of fitting "
+                         "it; with --follow-up the fresh replicates are fitted by this code")
     ap.add_argument("--rescore", action="store_true",
                     help="recompute every record's intervals from its stored fit")
     ap.add_argument("--force", action="store_true")
     args = ap.parse_args(argv)
-    for name, low in (("systems", 0), ("replicates", 1), ("jobs", 1), ("spare", 0)):
+    for name, low in (("systems", 0), ("replicates", 1), ("jobs", 1), ("spare", 0),
+                      ("follow_up", 0)):
         if getattr(args, name) < low:
             ap.error(f"--{name} must be >= {low}, got {getattr(args, name)}")
     if not 0 <= args.overparametrised <= 4:
@@ -551,14 +751,38 @@ def main(argv=None):
     candidates = corpus_systems(args.systems + args.spare) if args.systems else []
     ckpt = args.checkpoint or default_checkpoint(args.systems, args.overparametrised,
                                                  args.replicates)
-    systems, excluded, recs, wall, new = monte_carlo(fixed, candidates, args.systems,
-                                                     args.replicates, args.jobs, ckpt)
+    if args.from_json:
+        systems, excluded, recs, wall, new = from_json(args.from_json, fixed + candidates,
+                                                       candidates, args.jobs, ckpt)
+        args.replicates = max(r["rep"] for r in recs) + 1
+    else:
+        systems, excluded, recs, wall, new = monte_carlo(fixed, candidates, args.systems,
+                                                         args.replicates, args.jobs, ckpt)
     if args.rescore:
         recs = rescore(systems, recs)
     rows = summarize(systems, recs)
     pool = pooled(rows)
+    chosen, fresh, fresh_rows = [], [], []
+    if args.follow_up:
+        chosen, fresh, new_fresh = follow_up(systems, rows, args.replicates, args.follow_up,
+                                             args.jobs, ckpt)
+        new += new_fresh
+        if args.rescore:
+            fresh = rescore(systems, fresh)
+        fresh_rows = summarize(chosen, fresh)
     md = report_lines(command.strip(), systems, rows, pool, wall, new, args.jobs,
                       args.replicates, recs)
+    first = None
+    if args.from_json:
+        with open(args.from_json, encoding="utf-8") as fh:
+            prev = json.load(fh)
+        first = (prev.get("first_stage") or {}).get("command") or prev.get("command")
+        k = md.index("## Result")
+        md[k:k] = [f"First stage: the {len(recs)} records of `{args.from_json}` as that run "
+                   f"recorded them (`{first}`; no refit, its code's estimates and "
+                   "intervals); the follow-up's fresh replicates are fitted and scored by "
+                   "this code.", ""]
+    md += follow_up_lines(rows, fresh_rows, chosen, args.follow_up, args.replicates)
     md += excluded_lines(excluded, candidates)
     js = {"command": command.strip(), "level": LEVEL, "target": TARGET,
           "replicates": args.replicates, "wall_time_s": wall, "new_fits": new,
@@ -567,7 +791,15 @@ def main(argv=None):
                        "noise_rms": float(np.sqrt(np.mean(s["sigma"] ** 2))),
                        "weights_given": bool(s["weights_given"]),
                        "truth": truth_parameters(s)} for s in systems],
-          "rows": rows, "pooled": pool,
+          "first_stage": {"from": args.from_json, "command": first} if first else None,
+          "excluded": [{"name": c["name"], "status": st, "rms": rms}
+                       for c, st, rms in excluded],
+          "rows": rows, "pooled": pool, "expectation": expectation(rows),
+          "standardized": standardized(systems, recs),
+          "follow_up": {"replicates": args.follow_up, "systems": [c["name"] for c in chosen],
+                        "rows": fresh_rows,
+                        "records": [{k: v for k, v in r.items() if k != "fit"}
+                                    for r in fresh]},
           "records": [{k: v for k, v in r.items() if k != "fit"} for r in recs]}
     with report_folder(args.out, args.force) as (tmp, _):
         with open(os.path.join(tmp, "report.md"), "w", encoding="utf-8") as fh:

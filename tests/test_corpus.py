@@ -110,6 +110,36 @@ def test_auto_order_on_a_noisy_in_class_case():
     assert "chose 3 sections" in rec.message
 
 
+def test_a_replayed_ladder_chooses_what_the_live_search_chose():
+    # the same case and orders as above, fitted once each, the rule replayed over them
+    from freqid_casadi.studies.corpus_order import judge, ladder, replay
+
+    lad = ladder((0, 0, 5000), top=4)
+    assert [o["n_sections"] for o in lad["orders"]] == [1, 2, 3, 4]
+    assert replay(lad) == (3, "consistent")
+    assert replay(dict(lad, orders=lad["orders"][:3])) == (None, "beyond")
+    [v] = judge([lad])
+    assert v["right"] and not v["below"] and not v["above"] and v["subset"]
+
+
+def test_a_structured_residual_needs_only_the_floor_to_count_as_better():
+    from freqid_casadi.fitting.order import OrderStep, decide, noise_share
+
+    # negative-gain-148's ladder (63 points, 4 sections): RMS (x roughness) of 1..5 sections
+    measured = [(0.69, 4.7), (0.614, 3.4), (0.577, 9.0), (0.013, 0.9), (0.0129, 0.92)]
+    steps = [OrderStep(n, rms, ratio, True) for n, (rms, ratio) in enumerate(measured, 1)]
+    poles = [np.array([-1 + 10j, -1 - 10j])] * 5           # the same modes at every order
+    omega = np.array([1.0, 100.0])
+    assert noise_share(steps[3]) == 1.0
+    assert noise_share(steps[0]) == pytest.approx(1 / 4.7 ** 2)
+    # the previous rule asked every order for a 19 % fall (12 / 63) and stopped at 1 section
+    old = decide(steps[:3], poles[:3], omega, 63, share=lambda step: 1.0)
+    assert old == (0, "no-improvement")
+    # with the noise's share of each structured residual, 0.69 -> 0.614 (11 %) counts
+    assert all(decide(steps[:k], poles[:k], omega, 63) is None for k in (2, 3, 4))
+    assert decide(steps, poles, omega, 63) == (3, "consistent")
+
+
 def test_auto_order_stops_at_max_sections():
     c = case(3)                     # right-half-plane zeros: no order is consistent
     choice = choose_order(lambda n: fc.fit(c.data, n_sections=n), max_sections=2)

@@ -34,6 +34,7 @@ from ..core import physical as _physical
 from ..core.data import FrequencyData
 from ..errors import DataError, OptionError, StructureError
 from ..core.model import RationalDelayModel
+from .bias import with_unbiased_gain
 from .determined import determined_status
 
 __all__ = ["ModeEstimate", "ParameterUncertainty", "parameter_uncertainty", "held_parameters",
@@ -114,7 +115,8 @@ class ParameterUncertainty:
         See :mod:`freqid_casadi.core.physical` (``delay``, ``log_gain``, ``omega_den[k]``,
         ``zeta_den[k]``, ``omega_num[k]``, ...).
     values : ndarray of float, shape (P,)
-        The parameter values (s, ln gain, rad/s, 1).
+        The parameter values (s, ln gain, rad/s, 1); delta method: ``ln gain`` corrected
+        for the relative criterion's bias (:mod:`freqid_casadi.uncertainty.bias`).
     at_bound : ndarray of bool, shape (P,)
         Parameters at a bound, excluded from the inversion.
     covariance : ndarray of float, shape (P, P)
@@ -125,8 +127,9 @@ class ParameterUncertainty:
         Delay and its standard deviation, s (NaN std without a delay or at its bound).
     gain, gain_std : float
         Gain ``g`` (lowest coefficient of ``K s^(-k) P_N``: DC gain, K0 with poles at 0;
-        signed)
-        and its standard deviation ``g * std(log_gain)``.
+        signed; delta method: the model's times ``1 - ms``, corrected for the relative
+        criterion's bias, :mod:`freqid_casadi.uncertainty.bias`) and its standard
+        deviation ``g * std(log_gain)``.
     modes : tuple of ModeEstimate
         Every denominator quadratic with ``zeta < 1``, by increasing ``omega_n``.
     noise_source : str
@@ -501,6 +504,7 @@ def _parameter_uncertainty(model, data, weights, noise_variance, bound_tol, nois
     rec = covariance_record(model, par, cov, free, sigma2, dof, cond, source, "delta",
                             factor_free=factor)
     rec = dataclasses.replace(rec, fixed=held, heteroscedastic=hetero)
+    rec = with_unbiased_gain(rec, r, w)       # the relative criterion's 1 + sigma^2 (bias.py)
     return with_status(rec, par, data.omega, data.unit, status)
 
 
