@@ -178,15 +178,7 @@ class StageFunctions:
         self.r_fun = ca.Function("residual", [z], [ca.vertcat(ca.transpose(re),
                                                               ca.transpose(im))],
                                  ["z"], ["r"])
-        if derivatives is None:
-            derivatives = "affine" if param.gauge == "dc" else "casadi-map"
-        if derivatives not in ("affine", "casadi-map"):
-            raise OptionError(f"unknown derivatives {derivatives!r}; choose 'affine' or "
-                              "'casadi-map'")
-        if derivatives == "affine" and param.gauge != "dc":
-            raise OptionError("derivatives='affine' needs the 'dc' gauge (its sections are "
-                              "affine in the variables); use 'casadi-map'")
-        self.derivatives = derivatives
+        self.derivatives = derivatives = _derivative_path(derivatives, param.gauge)
         self._key = None
         self._work = {}              # scratch arrays of the Hessian and column norms, by shape
         self._cost_buf = None        # (Function, buffer, trigger, z, out) of nlp_cost
@@ -589,6 +581,20 @@ class PNormFunctions:
         h += 0.5 * (0.5 * self.p - 1.0) * ((ge * beta) @ ge.T)
         h -= self.p * np.outer(grad, grad)
         return (h + h.T) / 2.0
+
+
+def _derivative_path(derivatives, gauge):
+    """The derivative path of a stage ("affine" or "casadi-map"; None: "affine" in the dc
+    gauge, else "casadi-map"), checked against the gauge."""
+    if derivatives is None:
+        return "affine" if gauge == "dc" else "casadi-map"
+    if derivatives not in ("affine", "casadi-map"):
+        raise OptionError(f"unknown derivatives {derivatives!r}; choose 'affine' or "
+                          "'casadi-map'")
+    if derivatives == "affine" and gauge != "dc":
+        raise OptionError("derivatives='affine' needs the 'dc' gauge (its sections are "
+                          "affine in the variables); use 'casadi-map'")
+    return derivatives
 
 
 def _as_slice(idx):

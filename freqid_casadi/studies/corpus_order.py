@@ -38,7 +38,21 @@ SUBSET_ROUNDS = tuple(range(0, -(-FULL_CASES // len(FAMILIES)), SUBSET_EVERY))
 def order_tasks(seed=0, rounds=SUBSET_ROUNDS, max_points=120):
     """``(index, seed, max_points)`` of the noisy cases of the given rounds of the nine
     families (round r: indices 9 r ... 9 r + 8; rounds 0, 8, 16, 24, 32 are the corpus
-    run's automatic-order subset)."""
+    run's automatic-order subset).
+
+    Parameters
+    ----------
+    seed : int
+        Corpus seed.
+    rounds : iterable of int
+        Rounds of the nine families.
+    max_points : int
+        Points per case at most.
+
+    Returns
+    -------
+    list of tuple
+    """
     out = []
     for r in rounds:
         for i in range(len(FAMILIES) * r, len(FAMILIES) * (r + 1)):
@@ -50,6 +64,13 @@ def order_tasks(seed=0, rounds=SUBSET_ROUNDS, max_points=120):
 def ladder(task, top=None):
     """Fit case ``task = (index, seed, max_points)`` at N = 1 ... true + EXTRA sections
     (``top`` if given; default options otherwise), each within the corpus run's CPU budget.
+
+    Parameters
+    ----------
+    task : tuple
+        ``(index, seed, max_points)`` of :func:`order_tasks`.
+    top : int, optional
+        Largest number of sections fitted (default true + :data:`EXTRA`).
 
     Returns
     -------
@@ -85,7 +106,23 @@ def ladder(task, top=None):
 
 def run_ladders(tasks, path, workers=2, progress=None):
     """:func:`ladder` of every task not yet in the JSON-lines file ``path``, appended to it
-    as each ends; returns every ladder in the file that belongs to ``tasks``."""
+    as each ends; returns every ladder in the file that belongs to ``tasks``.
+
+    Parameters
+    ----------
+    tasks : list of tuple
+        :func:`order_tasks`.
+    path : str
+        JSON-lines checkpoint (read, then appended to).
+    workers : int
+        Worker processes.
+    progress : callable, optional
+        Receives each new ladder (dict).
+
+    Returns
+    -------
+    list of dict
+    """
     done = {}
     if os.path.exists(path):
         with open(path, encoding="utf-8") as f:
@@ -116,7 +153,21 @@ def replay(lad, decide=None, **kw):
     """The order ``decide`` (default :func:`freqid_casadi.fitting.order.decide`) chooses
     over a :func:`ladder`: ``(n_sections, reason)``, or ``(None, "beyond")`` when the rule
     asked for an order the ladder did not fit (a choice above ``true + 1`` in any case
-    unless the ladder ended at the data limit)."""
+    unless the ladder ended at the data limit).
+
+    Parameters
+    ----------
+    lad : dict
+        A :func:`ladder`.
+    decide : callable, optional
+        The stopping rule, as :func:`freqid_casadi.fitting.order.decide`.
+    **kw
+        Passed to ``decide``.
+
+    Returns
+    -------
+    (int or None, str)
+    """
     from ..fitting import order as _order
     decide = decide or _order.decide
     orders = {o["n_sections"]: o for o in lad["orders"]}
@@ -147,7 +198,19 @@ def judge(ladders, decide=None):
     :data:`SUBSET_ROUNDS`, floor: its fit at the true order reaches the noise floor, RMS at
     most ``FLOOR_FACTOR`` times the noise, so that a miss is the rule's). A rule that asks
     for an order the ladder lacks chose above
-    true + 1 (the ladder reaches true + :data:`EXTRA`)."""
+    true + 1 (the ladder reaches true + :data:`EXTRA`).
+
+    Parameters
+    ----------
+    ladders : list of dict
+        :func:`ladder` results.
+    decide : callable, optional
+        As for :func:`replay`.
+
+    Returns
+    -------
+    list of dict
+    """
     out = []
     for d in ladders:
         n, reason = replay(d, decide)
