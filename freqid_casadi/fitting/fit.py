@@ -397,61 +397,50 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
     with single_threaded_blas(), rational_start_memo(), \
             channel(progress, _stage_line) as emit:
         if auto:
-            return _fit_auto_origin(data_or_omega, response, n_sections, delay, fixed,
-                                    weights, emit, kw)
+            data = validate(data_or_omega, response, n_sections, basis, tol, False, weights)
+            check_choice("zeros", zeros, ZEROS)
+            k, record = choose_origin_order(data, n_sections, delay, basis, zeros)
+            ks = record["contenders"]
+            if len(ks) == 1 or fixed:
+                results = {}
+                for j in ks:         # several (the starts do not decide): quiet, the fits do
+                    with warnings.catch_warnings():
+                        if len(ks) > 1:
+                            warnings.simplefilter("ignore")
+                        results[j] = _fit_resolved(data_or_omega, response, n_sections,
+                                                   delay, fixed, weights,
+                                                   emit if j == k else False,
+                                                   dict(kw, integrator=check_origin_order(j)))
+                if len(ks) > 1:
+                    record = settle_by_fits(record, {j: r.rms_rel_error
+                                                     for j, r in results.items()})
+                    _warn_unresolved(results[record["chosen"]].resolution, 4)  # its warning
+                return _with_origin_record(results[record["chosen"]], record,
+                                           origin_diagnostics(record, data))
+            # several contenders (the starts do not decide): each one's fit of the starts
+            # and candidates settles the choice (quiet); the layers after it (the delay hold,
+            # the zeros="free" alternative, the resolution guard) run for the chosen one only,
+            # from its fit
+            core = {}
+            for j in ks:
+                with warnings.catch_warnings():
+                    warnings.simplefilter("ignore")
+                    core[j] = _fit(data_or_omega, response, n_sections=n_sections,
+                                   delay=delay, progress=emit if j == k else False,
+                                   weights=weights,
+                                   **dict(kw, integrator=check_origin_order(j)))
+            record = settle_by_fits(record, {j: r.rms_rel_error for j, r in core.items()})
+            chosen = record["chosen"]
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                result = _fit_resolved(data_or_omega, response, n_sections, delay, fixed,
+                                       weights, False,
+                                       dict(kw, integrator=check_origin_order(chosen)),
+                                       first=core[chosen])
+            _warn_unresolved(result.resolution, 4)                        # its warning
+            return _with_origin_record(result, record, origin_diagnostics(record, data))
         return _fit_resolved(data_or_omega, response, n_sections, delay, fixed, weights,
                              emit, kw)
-
-
-def _fit_auto_origin(data_or_omega, response, n_sections, delay, fixed, weights, emit, kw):
-    """``fit(integrator="auto")``: the poles at the origin chosen by the rational starts
-    (:func:`~freqid_casadi.fitting.origin.choose_origin_order`); when they do not decide,
-    each contender's fit of the starts and candidates settles the choice, and the layers
-    after it run for the chosen one only (``kw``: the fit's options; ``emit``: its
-    progress channel)."""
-    basis, zeros, tol = kw["basis"], kw["zeros"], kw["tol"]
-    data = validate(data_or_omega, response, n_sections, basis, tol, False, weights)
-    check_choice("zeros", zeros, ZEROS)
-    k, record = choose_origin_order(data, n_sections, delay, basis, zeros)
-    ks = record["contenders"]
-    if len(ks) == 1 or fixed:
-        results = {}
-        for j in ks:         # several (the starts do not decide): quiet, the fits do
-            with warnings.catch_warnings():
-                if len(ks) > 1:
-                    warnings.simplefilter("ignore")
-                results[j] = _fit_resolved(data_or_omega, response, n_sections,
-                                           delay, fixed, weights,
-                                           emit if j == k else False,
-                                           dict(kw, integrator=check_origin_order(j)))
-        if len(ks) > 1:
-            record = settle_by_fits(record, {j: r.rms_rel_error
-                                             for j, r in results.items()})
-            _warn_unresolved(results[record["chosen"]].resolution, 5)  # its warning
-        return _with_origin_record(results[record["chosen"]], record,
-                                   origin_diagnostics(record, data))
-    # several contenders (the starts do not decide): each one's fit of the starts
-    # and candidates settles the choice (quiet); the layers after it (the delay hold,
-    # the zeros="free" alternative, the resolution guard) run for the chosen one only,
-    # from its fit
-    core = {}
-    for j in ks:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            core[j] = _fit(data_or_omega, response, n_sections=n_sections,
-                           delay=delay, progress=emit if j == k else False,
-                           weights=weights,
-                           **dict(kw, integrator=check_origin_order(j)))
-    record = settle_by_fits(record, {j: r.rms_rel_error for j, r in core.items()})
-    chosen = record["chosen"]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        result = _fit_resolved(data_or_omega, response, n_sections, delay, fixed,
-                               weights, False,
-                               dict(kw, integrator=check_origin_order(chosen)),
-                               first=core[chosen])
-    _warn_unresolved(result.resolution, 5)                        # its warning
-    return _with_origin_record(result, record, origin_diagnostics(record, data))
 
 
 def _is_auto(integrator):
