@@ -70,6 +70,35 @@ def test_processes_and_a_fresh_interpreter_give_identical_json(serial):
     assert json.loads(out) == _jsons(serial)
 
 
+@pytest.mark.parametrize("path", ["fork", "loky"])
+def test_both_local_backends_match_serial(serial, monkeypatch, path):
+    """Forked workers (Linux, no other thread running) and joblib's loky (elsewhere, or
+    when another thread runs) give the serial JSON; the choice is the documented one."""
+    import multiprocessing
+    import threading
+
+    if path == "fork" and "fork" not in multiprocessing.get_all_start_methods():
+        pytest.skip("this platform cannot fork")
+    used = []
+    for name in ("_run_forked", "_run_joblib"):
+        original = getattr(batch, name)
+        monkeypatch.setattr(batch, name,
+                            lambda *a, _o=original, _n=name: used.append(_n) or _o(*a))
+    if path == "loky":
+        monkeypatch.setattr(threading, "active_count", lambda: 2)   # as with a live thread
+    items = fit_many(_datasets(), n_jobs=2, **OPTIONS)
+    assert used == ["_run_forked" if path == "fork" else "_run_joblib"]
+    assert _jsons(items) == _jsons(serial)
+
+
+def test_forked_workers_report_a_bad_file_and_go_on(tmp_path, serial):
+    bad = tmp_path / "bad.csv"
+    bad.write_text("not,a\nfrequency,response\n")
+    items = fit_many([bad, *_datasets()], n_jobs=2, **OPTIONS)
+    assert items[0].status == "error" and "bad" == items[0].name
+    assert _jsons(items[1:]) == _jsons(serial)
+
+
 def test_dask_local_cluster_matches_serial(serial):
     distributed = pytest.importorskip("distributed",
                                       reason="dask/distributed not installed (extra [dask])")
