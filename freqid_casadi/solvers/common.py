@@ -246,16 +246,19 @@ class StageProblem:
     def from_stage_functions(cls, funcs, lb, ub, constraints=None):
         """The problem of an :class:`~freqid_casadi.core.objective.StageFunctions` (its exact
         structured derivatives and its CasADi residual)."""
+        nlp_cost = (getattr(funcs, "nlp_cost", None)
+                    if getattr(funcs, "n_points", 0) >= CALLBACK_COST_POINTS else None)
         return cls(residual=funcs.residual,
                    jacobian=lambda z: funcs.residual_jacobian(z)[1],
                    lb=lb, ub=ub, gradient=funcs.gradient,
                    hessian=lambda z, exact=True: funcs.hessian(z, exact=exact),
                    cost=funcs.cost, constraints=constraints,
-                   casadi_residual=getattr(funcs, "r_fun", None),
+                   # the MX residual only where IPOPT's objective is built from it (asking
+                   # for it builds it)
+                   casadi_residual=(getattr(funcs, "r_fun", None) if nlp_cost is None
+                                    else None),
                    column_norms=getattr(funcs, "column_norms", None),
-                   nlp_cost=(getattr(funcs, "nlp_cost", None)
-                             if getattr(funcs, "n_points", 0) >= CALLBACK_COST_POINTS
-                             else None),
+                   nlp_cost=nlp_cost,
                    projected_fraction=(getattr(funcs, "projected_fraction", None)
                                        if getattr(funcs, "n_points", 0)
                                        >= BLOCKWISE_PROJECTION_POINTS else None))
