@@ -7,12 +7,12 @@ points for the structure, a solver exception) gives a :class:`BatchItem` with it
 message; the other fits go on. Option errors, which would fail every dataset alike, are
 raised once before any fit.
 
-Local parallelism forks worker processes where the platform can (Linux), so a worker starts
-with the package already imported (a spawned one spends about a second importing CasADi and
-SciPy: with 128 fits of 0.1 s that was most of what kept 2 jobs from a speed-up of 2); elsewhere,
-or when the calling process runs other threads, it uses joblib's ``loky`` backend. A
-``scheduler`` address runs the fits on a Dask ``distributed`` cluster. Both are imported only when needed; Dask is an
-optional extra (``pip install freqid_casadi[dask]``).
+Local parallelism forks worker processes where the platform can (Linux), so a worker
+starts with the package already imported (a spawned one spends about a second importing
+CasADi and SciPy: with 128 fits of 0.1 s that kept 2 jobs well below a speed-up of 2);
+elsewhere, or when the calling process runs other threads, it uses joblib's ``loky``
+backend. A ``scheduler`` address runs the fits on a Dask ``distributed`` cluster. Both are
+imported only when needed; Dask is an optional extra (``pip install freqid_casadi[dask]``).
 """
 
 import inspect
