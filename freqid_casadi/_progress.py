@@ -76,8 +76,10 @@ def channel(progress, describe, *, total=None, unit="stage", what="each record")
     bar = tqdm(total=total, unit=unit, file=sys.stderr, leave=False, dynamic_ncols=True)
     try:
         def tick(record):
-            bar.set_postfix_str(describe(record), refresh=False)
+            # every record is drawn (tqdm otherwise redraws at most every 0.1 s, and a fit
+            # whose records all came within that showed none before the bar closed)
             bar.update(1)
+            bar.set_postfix_str(describe(record), refresh=True)
         yield tick
     finally:
         bar.close()
