@@ -73,7 +73,12 @@ def channel(progress, describe, *, total=None, unit="stage", what="each record")
         return
     from tqdm import tqdm
 
-    bar = tqdm(total=total, unit=unit, file=sys.stderr, leave=False, dynamic_ncols=True)
+    class _Bar(tqdm):
+        # no monitor thread (it adjusts the redraw rate of slow loops; every record is drawn
+        # here): a fit with n_jobs forks its workers only when no other thread runs
+        monitor_interval = 0
+
+    bar = _Bar(total=total, unit=unit, file=sys.stderr, leave=False, dynamic_ncols=True)
     try:
         def tick(record):
             # every record is drawn (tqdm otherwise redraws at most every 0.1 s, and a fit

@@ -79,15 +79,17 @@ def test_both_local_backends_match_serial(serial, monkeypatch, path):
 
     if path == "fork" and "fork" not in multiprocessing.get_all_start_methods():
         pytest.skip("this platform cannot fork")
+    from freqid_casadi import _workers
+
     used = []
-    for name in ("_run_forked", "_run_joblib"):
-        original = getattr(batch, name)
-        monkeypatch.setattr(batch, name,
+    for module, name in ((_workers, "fork_submit"), (batch, "_run_joblib")):
+        original = getattr(module, name)
+        monkeypatch.setattr(module, name,
                             lambda *a, _o=original, _n=name: used.append(_n) or _o(*a))
     if path == "loky":
         monkeypatch.setattr(threading, "active_count", lambda: 2)   # as with a live thread
     items = fit_many(_datasets(), n_jobs=2, **OPTIONS)
-    assert used == ["_run_forked" if path == "fork" else "_run_joblib"]
+    assert used == ["fork_submit" if path == "fork" else "_run_joblib"]
     assert _jsons(items) == _jsons(serial)
 
 

@@ -180,3 +180,45 @@ def test_auto_with_several_contenders_keeps_the_chosen_ones_fit_bit_for_bit():
     assert auto.rms_rel_error == explicit.rms_rel_error
     assert [d.code for d in auto.diagnostics if d.code != "integrator"] == \
         [d.code for d in explicit.diagnostics if d.code != "integrator"]
+
+
+def test_contenders_in_worker_processes_give_the_same_fit(monkeypatch):
+    # n_jobs=2: the contenders' fits run in forked workers (where the platform forks); the
+    # result is the serial one, bit for bit, and the workers were used
+    import multiprocessing
+
+    from freqid_casadi import _workers
+
+    if "fork" not in multiprocessing.get_all_start_methods():
+        pytest.skip("this platform cannot fork: n_jobs runs the fits here")
+    from freqid_casadi.experiment import robot_arm
+
+    data = robot_arm().data
+    serial = fc.fit(data, n_sections=3)
+    used = []
+    original = _workers.fork_submit
+    monkeypatch.setattr(_workers, "fork_submit",
+                        lambda *a: used.append(len(a[2])) or original(*a))
+    records = []
+    parallel = fc.fit(data, n_sections=3, n_jobs=2, progress=records.append)
+    assert used == [len(serial.details["integrator"]["contenders"])] and used[0] > 1
+    assert parallel.model.to_json() == serial.model.to_json()
+    assert parallel.details["integrator"] == serial.details["integrator"]
+    assert records                                        # the chosen fit's records shown
+
+
+@pytest.mark.parametrize("bad", [0, -2, 1.5, True, "2"])
+def test_n_jobs_is_checked(bad):
+    w = np.logspace(-1, 1, 20)
+    with pytest.raises(fc.OptionError, match="n_jobs must be a positive integer"):
+        fc.fit(w, np.ones(20, complex), n_sections=1, n_jobs=bad)
+
+
+def test_cli_jobs_option():
+    p = build_parser()
+    base = ["fit", "data.csv", "--sections", "2", "--out", "o"]
+    assert p.parse_args(base).jobs == 1
+    assert p.parse_args(base + ["--jobs", "2"]).jobs == 2
+    assert p.parse_args(base + ["--jobs", "-1"]).jobs == -1
+    with pytest.raises(Exception, match="positive integer or -1"):   # the usage error
+        p.parse_args(base + ["--jobs", "0"])

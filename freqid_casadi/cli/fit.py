@@ -89,11 +89,27 @@ def add_cli(sub):
     p.add_argument("--fix", type=_fix_pair, action="append", metavar="KEY=VALUE",
                    help="hold a known parameter exactly (repeatable): delay=H (s) or "
                         "dc_gain=K (K0 with --integrator, else G(0))")
+    p.add_argument("--jobs", "--n-jobs", dest="jobs", type=_jobs, default=1, metavar="N",
+                   help="worker processes for the automatic integrator's fits when several "
+                        "contenders remain (default 1; -1: every core; the same model "
+                        "whatever N)")
     # a user's data: both starts (the sequential loop alone can end in a valley the
     # rational start avoids, e.g. a zero pair drifting to infinity against the delay; the
     # loop is skipped when the rational start already reaches the noise)
     _common(p, out_required=True, start="best")
     return p
+
+
+def _jobs(text):
+    """``--jobs``: a positive integer or -1 (every core)."""
+    try:
+        value = int(text)
+    except ValueError:
+        value = 0
+    if value < 1 and value != -1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer or -1 (every core), "
+                                         f"got {text!r}")
+    return value
 
 
 def run_cli(args, command):
@@ -122,7 +138,8 @@ def run_cli(args, command):
                          delay=args.delay, basis=args.basis, method=args.method, tol=args.tol,
                          progress=_progress(args), start=args.start, objective=args.objective,
                          min_damping=args.min_damping, gain_sign=args.gain_sign,
-                         zeros=args.zeros, **({"fixed": dict(args.fix)} if args.fix else {}))
+                         zeros=args.zeros, **({"fixed": dict(args.fix)} if args.fix else {}),
+                         **({"n_jobs": args.jobs} if args.jobs != 1 else {}))
     _resolution_warning(result)
     path = write_fit_report(result, args.out, command=command, force=args.force)
     print(result.summary())

@@ -246,61 +246,16 @@ def _item_line(item):
 
 
 def _run_local(n_jobs, names, items, options, load_options=None):
-    """``_fit_one_held`` over local worker processes, in input order; forked workers where
-    the platform has fork and this process runs no other Python thread (a fork then copies
-    no lock another thread holds), else joblib's loky."""
-    import multiprocessing
-    import threading
+    """``_fit_one_held`` over local worker processes, in input order: forked workers where
+    :func:`~freqid_casadi._workers.can_fork` (the workers fork here, before the progress
+    bar's thread starts), else joblib's loky."""
+    from .._workers import can_fork, collect, fork_submit
 
-    if "fork" in multiprocessing.get_all_start_methods() and threading.active_count() == 1:
-        return _run_forked(n_jobs, names, items, options, load_options)
+    if can_fork():
+        return collect(*fork_submit(n_jobs, _fit_one_held,
+                                    [(n, item, options, load_options)
+                                     for n, item in zip(names, items)]))
     return _run_joblib(n_jobs, names, items, options, load_options)
-
-
-def _worker_init():
-    """Forked worker's initializer: one BLAS thread for the worker's life (fit() limits its
-    own stages; loading and the rest then do not oversubscribe the cores either), and
-    Python's own signal handling instead of the command's inherited one: SIGTERM (from
-    :func:`_collect` when the batch stops) ends the worker quietly; Ctrl-C, which reaches the
-    whole process group, stops the running fit, as in a fit of one's own."""
-    import signal
-
-    from .._threads import single_threaded_blas
-
-    signal.signal(signal.SIGTERM, signal.SIG_DFL)
-    signal.signal(signal.SIGINT, signal.default_int_handler)
-    global _LIMITS
-    _LIMITS = single_threaded_blas()
-
-
-def _run_forked(n_jobs, names, items, options, load_options=None):
-    from concurrent.futures import ProcessPoolExecutor
-    import multiprocessing
-
-    pool = ProcessPoolExecutor(min(n_jobs, len(items)), multiprocessing.get_context("fork"),
-                               initializer=_worker_init)
-    with warnings.catch_warnings():
-        # Python >= 3.12 warns when forking a process with native threads (OpenBLAS's pool):
-        # OpenBLAS stops its threads around fork itself, and no Python thread runs (above).
-        warnings.filterwarnings("ignore", "This process .* is multi-threaded",
-                                DeprecationWarning)
-        futures = [pool.submit(_fit_one_held, n, item, options, load_options)
-                   for n, item in zip(names, items)]     # the workers fork at the first
-    return _collect(pool, futures)
-
-
-def _collect(pool, futures):
-    """Results of ``futures`` in order; on an exception or interruption the pending fits are
-    cancelled and the workers stopped (no orphan keeps fitting)."""
-    try:
-        for future in futures:
-            yield future.result()
-    except BaseException:
-        for proc in list((getattr(pool, "_processes", None) or {}).values()):
-            proc.terminate()
-        raise
-    finally:
-        pool.shutdown(wait=True, cancel_futures=True)
 
 
 def _run_joblib(n_jobs, names, items, options, load_options=None):

@@ -29,6 +29,8 @@ Every stage is one NLP (:mod:`freqid_casadi.fitting.stages`, :mod:`freqid_casadi
 import dataclasses
 import functools
 import math
+import numbers
+import os
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -271,7 +273,7 @@ def _reject_old_keywords(function):
 def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=True,
         basis="second-order", method="ipopt", tol=None, weights=None, start="best",
         objective="least-squares", min_damping=None, progress=False, loop=None,
-        gain_sign="auto", zeros="minimum-phase", fixed=None):
+        gain_sign="auto", zeros="minimum-phase", fixed=None, n_jobs=1):
     """Fit ``G_N(s) = exp(-h s) K s^(-k) P_N(s)`` to frequency-response data.
 
     Parameters
@@ -371,6 +373,12 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
         by an equality in a final stage on all data (gain variable fixed in the dc gauge,
         every other parameter refitted). Both may be given. ``FitResult.fixed`` records
         them; the covariance reports them as fixed. Other keys: OptionError.
+    n_jobs : int
+        Worker processes for the fits of ``integrator="auto"`` when the starts leave
+        several contenders (each contender's fit is independent): 1 (default) fits them
+        here, one after the other; -1 uses every core. The workers are forked (Linux,
+        and only when this process runs no other thread; elsewhere the fits run here):
+        the result is the same, bit for bit, whatever ``n_jobs``.
 
     Returns
     -------
@@ -390,6 +398,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
     integrator = "auto" if auto else check_origin_order(integrator, OptionError)
     delay = check_flag("delay", delay)
     progress = check_progress(progress, "each StageRecord")
+    n_jobs = check_jobs(n_jobs)
     fixed, gain_sign = check_fixed(fixed, delay=delay, gain_sign=gain_sign)
     kw = dict(integrator=integrator, basis=basis, method=method, tol=tol, start=start,
               objective=objective, min_damping=min_damping, loop=loop, gain_sign=gain_sign,
@@ -421,14 +430,9 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
             # and candidates settles the choice (quiet); the layers after it (the delay hold,
             # the zeros="free" alternative, the resolution guard) run for the chosen one only,
             # from its fit
-            core = {}
-            for j in ks:
-                with warnings.catch_warnings():
-                    warnings.simplefilter("ignore")
-                    core[j] = _fit(data_or_omega, response, n_sections=n_sections,
-                                   delay=delay, progress=emit if j == k else False,
-                                   weights=weights,
-                                   **dict(kw, integrator=check_origin_order(j)))
+            core = _contender_fits(ks, k, emit, n_jobs, data_or_omega, response,
+                                   dict(kw, n_sections=n_sections, delay=delay,
+                                        weights=weights))
             record = settle_by_fits(record, {j: r.rms_rel_error for j, r in core.items()})
             chosen = record["chosen"]
             with warnings.catch_warnings():
@@ -441,6 +445,43 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
             return _with_origin_record(result, record, origin_diagnostics(record, data))
         return _fit_resolved(data_or_omega, response, n_sections, delay, fixed, weights,
                              emit, kw)
+
+
+def check_jobs(n_jobs):
+    """``n_jobs`` checked: a positive integer, or -1 for every core (returned as the number
+    of cores); anything else is an OptionError."""
+    if isinstance(n_jobs, (bool, np.bool_)) or not isinstance(n_jobs, numbers.Integral) \
+            or not (n_jobs >= 1 or n_jobs == -1):
+        raise OptionError(f"n_jobs must be a positive integer (worker processes) or -1 (every "
+                          f"core), got {n_jobs!r}")
+    return int(os.cpu_count() or 1) if n_jobs == -1 else int(n_jobs)
+
+
+def _quiet_fit(data_or_omega, response, kw):
+    """:func:`_fit` with its warnings ignored (a contender's fit; the kept one warns)."""
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return _fit(data_or_omega, response, **kw)
+
+
+def _contender_fits(ks, k, emit, n_jobs, data_or_omega, response, kw):
+    """``{j: _fit(...)}`` for each contender ``j`` of ``integrator="auto"`` (``kw``: _fit's
+    keywords but ``integrator`` and ``progress``), quiet; the progress channel ``emit``
+    shows the fit of the provisional choice ``k``. With ``n_jobs > 1`` (and a process that
+    can fork) the fits run in forked workers, and ``k``'s records are shown as it returns."""
+    from .._workers import can_fork, collect, fork_submit
+
+    jobs = {j: dict(kw, integrator=check_origin_order(j)) for j in ks}
+    if n_jobs > 1 and can_fork():
+        pool, futures = fork_submit(n_jobs, _quiet_fit,
+                                    [(data_or_omega, response, dict(jobs[j], progress=False))
+                                     for j in ks])
+        core = dict(zip(ks, collect(pool, futures)))
+        for rec in core[k].stages:
+            emit(rec)
+        return core
+    return {j: _quiet_fit(data_or_omega, response,
+                          dict(jobs[j], progress=emit if j == k else False)) for j in ks}
 
 
 def _is_auto(integrator):

@@ -1,0 +1,91 @@
+"""Forked worker processes (root helper): :func:`fit_many` and ``fit(n_jobs=...)``.
+
+A forked worker starts with the package already imported; a spawned one (joblib's loky,
+multiprocessing's "spawn") spends about a second importing CasADi and SciPy, as long as a
+whole fit of a few hundred points. Forking is safe here only where the platform has it
+and this process runs no other Python thread (a fork copies no lock another thread holds);
+:func:`can_fork` says so, and callers keep another path for the rest.
+"""
+
+import multiprocessing
+import threading
+import warnings
+
+__all__ = ["can_fork", "fork_submit", "collect"]
+
+_LIMITS = None
+
+
+def can_fork():
+    """True where forked workers are safe: the platform has ``fork`` and this process runs
+    no Python thread besides the main one."""
+    return ("fork" in multiprocessing.get_all_start_methods()
+            and threading.active_count() == 1)
+
+
+def _worker_init():
+    """Forked worker's initializer: one BLAS thread for the worker's life (a fit limits its
+    own stages; the rest then does not oversubscribe the cores either), and Python's own
+    signal handling instead of a command's inherited one: SIGTERM (from :func:`collect`
+    when the caller stops) ends the worker quietly; Ctrl-C, which reaches the whole process
+    group, stops the running fit, as in a fit of one's own."""
+    import signal
+
+    from ._threads import single_threaded_blas
+
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    signal.signal(signal.SIGINT, signal.default_int_handler)
+    global _LIMITS
+    _LIMITS = single_threaded_blas()
+
+
+def fork_submit(n_workers, fn, jobs):
+    """Start ``n_workers`` forked workers and submit ``fn(*args)`` for each ``args`` of
+    ``jobs`` (the workers fork at once, before the caller starts any thread).
+
+    Parameters
+    ----------
+    n_workers : int
+        Worker processes (at most ``len(jobs)`` are started).
+    fn : callable
+        A module-level function (it and its arguments are pickled).
+    jobs : list of tuple
+
+    Returns
+    -------
+    (concurrent.futures.ProcessPoolExecutor, list of Future)
+        Hand both to :func:`collect`.
+    """
+    from concurrent.futures import ProcessPoolExecutor
+
+    pool = ProcessPoolExecutor(max(1, min(int(n_workers), len(jobs))),
+                               multiprocessing.get_context("fork"), initializer=_worker_init)
+    with warnings.catch_warnings():
+        # Python >= 3.12 warns when forking a process with native threads (OpenBLAS's pool):
+        # OpenBLAS stops its threads around fork itself, and no Python thread runs.
+        warnings.filterwarnings("ignore", "This process .* is multi-threaded",
+                                DeprecationWarning)
+        futures = [pool.submit(fn, *args) for args in jobs]
+    return pool, futures
+
+
+def collect(pool, futures):
+    """The results of ``futures`` in order, each as soon as it is done (a generator); on an
+    exception or an interruption the pending jobs are cancelled and the workers stopped
+    (no orphan keeps working).
+
+    Parameters
+    ----------
+    pool : concurrent.futures.ProcessPoolExecutor
+    futures : list of Future
+        As :func:`fork_submit` returns them.
+    """
+    try:
+        for future in futures:
+            yield future.result()
+    except BaseException:
+        for proc in list((getattr(pool, "_processes", None) or {}).values()):
+            proc.terminate()
+        raise
+    finally:
+        pool.shutdown(wait=True, cancel_futures=True)
