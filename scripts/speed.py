@@ -18,7 +18,8 @@ Parts (all by default):
     ``start="best"`` (the default of ``fit`` and the CLI), and the default with
     ``n_jobs=2`` (the automatic integrator's contender fits in 2 forked workers; its CPU
     seconds include theirs), beside scikit-rf's ``VectorFitting`` of the same order (2
-    poles per section) on the same data, with each model's max relative error.
+    poles per section) on the same data (on one BLAS thread, as the package's fits), with
+    each model's max relative error.
 ``iteration``
     One 5-section stage at 500 and 50 000 points: the seconds of one whole IPOPT iteration
     of the package (two capped solves, the difference of their times over the difference
@@ -131,13 +132,18 @@ def measured_sets():
 
 
 def part_fits(repeat):
+    from freqid_casadi._threads import single_threaded_blas
     from freqid_casadi.baselines import skrf_vector_fitting
     from freqid_casadi.core.metrics import relative_error
 
     rows = []
     for name, data in measured_sets().items():
         for n in FIT_SETS[name]:
-            model, wall, cpu = _timed(lambda: skrf_vector_fitting(data, 2 * n), repeat)
+            # on one BLAS thread, as every fit of the package runs: with the default threads
+            # its time swung 1-5x between runs with the machine's load (6.7 -> 33 ms on the
+            # robot arm at order 12), and the ratios with it
+            with single_threaded_blas():
+                model, wall, cpu = _timed(lambda: skrf_vector_fitting(data, 2 * n), repeat)
             err = relative_error(model, data)
             vf = {"wall": wall, "cpu": cpu, "max_rel_error": float(err.max)}
             for start, jobs in VARIANTS:
