@@ -54,7 +54,9 @@ Parts (all by default):
     ``fit_many`` with 1 and 2 local processes and, if Dask is installed, on a local Dask
     cluster of 1 and of 2 single-threaded workers.
 
-The machine (2 cores) is shared with other engineers: absolute times are noisy. Every
+The whole run holds BLAS at one thread, as every fit of the package runs (vector fitting
+and the numpy floor then do the same single-threaded work). The machine (2 cores) is shared
+with other engineers: absolute times are noisy. Every
 single-process time is the median of ``--repeat`` runs, the CPU seconds of this process
 (``time.process_time``) are given beside the wall time, and the report's conclusions are
 ratios measured in the same run. The load average is recorded before and after each part.
@@ -139,9 +141,10 @@ def part_fits(repeat):
     rows = []
     for name, data in measured_sets().items():
         for n in FIT_SETS[name]:
-            # on one BLAS thread, as every fit of the package runs: with the default threads
-            # its time swung 1-5x between runs with the machine's load (6.7 -> 33 ms on the
-            # robot arm at order 12), and the ratios with it
+            # on one BLAS thread, as every fit of the package runs (main() holds the limit
+            # for the run; here too when called alone): with the default threads its time
+            # swung 1-5x between runs with the machine's load (6.7 -> 33 ms on the robot
+            # arm at order 12), and the ratios with it
             with single_threaded_blas():
                 model, wall, cpu = _timed(lambda: skrf_vector_fitting(data, 2 * n), repeat)
             err = relative_error(model, data)
@@ -665,6 +668,12 @@ def main(argv=None):
     if unknown:
         ap.error(f"unknown part(s) {unknown}; choose from {', '.join(PARTS)}")
     warnings.simplefilter("ignore")
+    # one BLAS thread for the whole run, as every fit of the package runs: vector fitting and
+    # the numpy floor then do the same single-threaded work, and no idle OpenBLAS thread
+    # spins beside a timed call (it charged vector fitting up to twice its wall time in CPU)
+    from freqid_casadi._threads import single_threaded_blas
+
+    blas = single_threaded_blas()  # noqa: F841 (held for the run)
     command = "python scripts/speed.py" + "".join(
         f" --{k} {v}" for k, v in (("out", args.out), ("repeat", args.repeat),
                                    ("parts", args.parts)) if v != ap.get_default(k))
