@@ -83,9 +83,18 @@ def collect(pool, futures):
     try:
         for future in futures:
             yield future.result()
+    except GeneratorExit:
+        # closed by its caller: workers still busy are stopped, idle ones exit normally
+        if not all(f.done() for f in futures):
+            _terminate(pool)
+        raise
     except BaseException:
-        for proc in list((getattr(pool, "_processes", None) or {}).values()):
-            proc.terminate()
+        _terminate(pool)
         raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def _terminate(pool):
+    for proc in list((getattr(pool, "_processes", None) or {}).values()):
+        proc.terminate()

@@ -476,7 +476,7 @@ def _contender_fits(ks, k, emit, n_jobs, data_or_omega, response, kw):
         pool, futures = fork_submit(n_jobs, _quiet_fit,
                                     [(data_or_omega, response, dict(jobs[j], progress=False))
                                      for j in ks])
-        core = dict(zip(ks, collect(pool, futures)))
+        core = dict(zip(ks, list(collect(pool, futures))))     # (the workers exit here)
         for rec in core[k].stages:
             emit(rec)
         return core
