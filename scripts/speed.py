@@ -153,6 +153,11 @@ def part_fits(repeat):
                 res, wall, cpu = _timed(lambda: fc.fit(data, n_sections=n, delay=True,
                                                        start=start, n_jobs=jobs), repeat)
                 label = start if jobs == 1 else f"{start}, {jobs} jobs"
+                if jobs > 1:
+                    # after forked workers exit, OpenBLAS's threads in this process spin for
+                    # ~0.1 s: measured, the next vector fitting took 2-3x its time (CPU and
+                    # wall); the next timed call waits them out
+                    time.sleep(1.0)
                 rows.append({"data": name, "n_points": int(data.n_points), "n_sections": n,
                              "order": 2 * n, "start": label, "wall": wall, "cpu": cpu,
                              "nit": int(res.nit), "max_rel_error": float(res.max_rel_error),
