@@ -2,6 +2,8 @@
 (layer L6: its global refit calls :func:`freqid_casadi.fit`, above :mod:`.covariance`).
 """
 
+import os
+
 import numpy as np
 
 from ..core import physical as _physical
@@ -75,7 +77,8 @@ def bootstrap(model, data=None, *, n_boot=200, seed=0, n_jobs=1, refit=None, wei
         Replicate b draws from ``numpy.random.default_rng([seed, b])``: the result does not
         depend on ``n_jobs``.
     n_jobs : int
-        joblib workers (1: in this process; -1: all cores).
+        Worker processes (1: in this process; -1: all cores; -2: all but one, as joblib
+        counts): forked on Linux when no other thread runs, else joblib's loky.
     refit : None, "fit" or callable
         None: a warm-started local refit of the same structure from the model (scipy
         ``least_squares`` in the physical parameters, analytic Jacobian, parameters at a
@@ -114,13 +117,19 @@ def bootstrap(model, data=None, *, n_boot=200, seed=0, n_jobs=1, refit=None, wei
     pos = w > 0
     u = np.sqrt(w[pos]) * r[pos] * np.sqrt((2 * pos.sum()) / base.dof)
     progress = check_progress(progress, "each replicate's parameters")
+    from .._workers import can_fork, collect, fork_submit
+
+    jobs = [(b, seed, par, data, w, u, refit) for b in range(n_boot)]
     if n_jobs == 1:
-        rows = (_replicate(b, seed, par, data, w, u, refit) for b in range(n_boot))
+        rows = (_replicate(*job) for job in jobs)
+    elif can_fork():             # forked workers start with the package imported
+        workers = n_jobs if n_jobs > 0 else max(1, (os.cpu_count() or 1) + 1 + n_jobs)
+        rows = collect(*fork_submit(workers, _replicate, jobs))
     else:
         from joblib import Parallel, delayed
 
         rows = Parallel(n_jobs=n_jobs, return_as="generator")(
-            delayed(_replicate)(b, seed, par, data, w, u, refit) for b in range(n_boot))
+            delayed(_replicate)(*job) for job in jobs)
     with channel(progress, _replicate_line, total=n_boot, unit="refit") as emit:
         rows = [emit(row) or row for row in rows]
     samples = np.array(rows)

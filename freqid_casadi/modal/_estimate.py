@@ -156,7 +156,8 @@ def _held(task, args):
 def run_orders(task, arguments, n_jobs):
     """``task(*args)`` for each ``args`` of ``arguments``, yielded in their order: in this
     process for ``n_jobs=1`` (each as it is done), else in ``n_jobs`` worker processes
-    (joblib's loky backend, one BLAS thread each, as
+    (forked where :func:`~freqid_casadi._workers.can_fork`, else joblib's loky backend; one
+    BLAS thread each, as
     :func:`~freqid_casadi.fitting.batch.fit_many`; the last, costliest tasks handed out
     first, all yielded once all are done), the workers' warnings re-issued here. Each task
     runs with single-threaded BLAS in either case, so the results do not depend on
@@ -174,20 +175,31 @@ def run_orders(task, arguments, n_jobs):
         for args in arguments:
             yield task(*args)
         return
+    # the largest orders cost most: hand them out first, yield in the caller's order
+    first = sorted(range(len(arguments)), key=lambda i: -i)
+    from .._workers import can_fork, collect, fork_submit
+
+    if can_fork():               # forked workers start with the package imported
+        pool, futures = fork_submit(n_jobs, _held, [(task, arguments[i]) for i in first])
+        results = dict(zip(first, list(collect(pool, futures))))
+    else:
+        results = _loky(task, arguments, first, n_jobs)
+    for i in range(len(arguments)):
+        out, said = results[i]
+        for category, message in said:
+            warnings.warn(message, category, stacklevel=3)
+        yield out
+
+
+def _loky(task, arguments, first, n_jobs):
+    """``{i: _held(task, arguments[i])}`` over joblib's loky workers, ``first`` first."""
     try:
         from joblib import Parallel, delayed, parallel_config
     except ImportError:
         raise OptionError("n_jobs > 1 needs joblib: pip install joblib (or use n_jobs=1)") \
             from None
 
-    # the largest orders cost most: hand them out first, yield in the caller's order
-    first = sorted(range(len(arguments)), key=lambda i: -i)
     with parallel_config(backend="loky", inner_max_num_threads=1):
         done = Parallel(n_jobs=min(n_jobs, len(arguments)), return_as="generator")(
             delayed(_held)(task, arguments[i]) for i in first)
-        results = dict(zip(first, done))
-    for i in range(len(arguments)):
-        out, said = results[i]
-        for category, message in said:
-            warnings.warn(message, category, stacklevel=3)
-        yield out
+        return dict(zip(first, done))

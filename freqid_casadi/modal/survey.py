@@ -276,8 +276,9 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
         modes are its modes matched to the selected poles. False: the estimate's modes,
         no model. No effect with "full".
     n_jobs : int
-        Worker processes for the orders (joblib's loky backend, one BLAS thread each);
-        1 (default) runs them in this process. The result does not depend on it.
+        Worker processes for the orders (forked on Linux, else joblib's loky backend; one
+        BLAS thread each); 1 (default) runs them in this process. The result does not
+        depend on it.
     **fit_options
         Keywords of :func:`~freqid_casadi.modal.shared.fit_shared` (integrator, delay,
         zeros, weights, channel_sections, balance_channels, method, vector_fitting, ...),
