@@ -11,7 +11,7 @@ import numpy as np
 
 from .errors import OptionError
 
-__all__ = ["check_flag", "check_choice"]
+__all__ = ["check_flag", "check_choice", "check_jobs"]
 
 
 def check_flag(name, value, error=OptionError):
@@ -31,3 +31,19 @@ def check_choice(name, value, choices, error=OptionError, owner=None):
     if not isinstance(value, str) or value not in choices:
         where = f" ({owner}.{name})" if owner else ""
         raise error(f"unknown {name} {value!r}{where}; choose one of {', '.join(choices)}")
+
+
+def check_jobs(n_jobs, every_core=False, error=OptionError):
+    """``n_jobs`` (worker processes) as an int: a positive integer, or with ``every_core``
+    also -1 (returned as the number of cores); ``error`` otherwise (a bool or a float is
+    refused)."""
+    if isinstance(n_jobs, (bool, np.bool_)) or not isinstance(n_jobs, numbers.Integral) \
+            or not (n_jobs >= 1 or every_core and n_jobs == -1):
+        also = " or -1 (every core)" if every_core else ""
+        raise error(f"n_jobs must be a positive integer (worker processes){also}, got "
+                    f"{n_jobs!r}")
+    if n_jobs == -1:
+        import os
+
+        return int(os.cpu_count() or 1)
+    return int(n_jobs)

@@ -1,4 +1,5 @@
-"""Forked worker processes (root helper): :func:`fit_many` and ``fit(n_jobs=...)``.
+"""Worker processes (root helper): ``fit_many``, ``fit(n_jobs=...)``, the survey's orders
+and the bootstrap's replicates.
 
 A forked worker starts with the package already imported; a spawned one (joblib's loky,
 multiprocessing's "spawn") spends about a second importing CasADi and SciPy, as long as a
@@ -8,10 +9,13 @@ and this process runs no other Python thread (a fork copies no lock another thre
 """
 
 import multiprocessing
+import os
 import threading
 import warnings
 
-__all__ = ["can_fork", "fork_submit", "collect"]
+from .errors import OptionError
+
+__all__ = ["can_fork", "fork_submit", "collect", "local_map"]
 
 _LIMITS = None
 
@@ -93,6 +97,43 @@ def collect(pool, futures):
         raise
     finally:
         pool.shutdown(wait=True, cancel_futures=True)
+
+
+def local_map(fn, jobs, n_jobs):
+    """``fn(*args)`` for each ``args`` of ``jobs`` in ``n_jobs`` local worker processes,
+    yielded in the order of ``jobs`` as each is done: forked workers where
+    :func:`can_fork` (they fork here, at the call, before the caller starts a thread such
+    as a progress bar's), else joblib's loky backend; one BLAS thread per worker either way.
+
+    Parameters
+    ----------
+    fn : callable
+        A module-level function (it and its arguments are pickled).
+    jobs : list of tuple
+    n_jobs : int
+        Worker processes; a negative number counts as joblib does (-1: every core, -2:
+        all but one).
+
+    Returns
+    -------
+    iterator
+    """
+    if can_fork():
+        workers = n_jobs if n_jobs > 0 else max(1, (os.cpu_count() or 1) + 1 + n_jobs)
+        return collect(*fork_submit(workers, fn, jobs))
+    return _run_joblib(fn, jobs, n_jobs)
+
+
+def _run_joblib(fn, jobs, n_jobs):
+    try:
+        from joblib import Parallel, delayed, parallel_config
+    except ImportError:
+        raise OptionError("n_jobs > 1 needs joblib: pip install joblib (or use n_jobs=1)") \
+            from None
+    # inner_max_num_threads=1: BLAS/OpenMP at one thread per worker
+    with parallel_config(backend="loky", inner_max_num_threads=1):
+        yield from Parallel(n_jobs=min(n_jobs, len(jobs)) if n_jobs > 0 else n_jobs,
+                            return_as="generator")(delayed(fn)(*args) for args in jobs)
 
 
 def _terminate(pool):

@@ -60,6 +60,7 @@ from freqid_casadi import plots
 from freqid_casadi.core.data import FrequencyData
 from freqid_casadi.fitting.fit import fit
 from freqid_casadi.report.folder import generated_by_line, markdown_table, report_folder
+from freqid_casadi.studies.corpus import json_lines
 from freqid_casadi.systems.corpus import CorpusSystem, case
 from freqid_casadi.uncertainty.covariance import parameter_uncertainty
 
@@ -244,16 +245,7 @@ def _worker_init():
 
 
 def _read_checkpoint(path):
-    done = {}
-    if os.path.exists(path):
-        with open(path, encoding="utf-8") as fh:
-            for line in fh:
-                try:
-                    rec = json.loads(line)
-                except json.JSONDecodeError:              # a line cut by a kill
-                    continue
-                done[(rec["system"], rec["rep"])] = rec
-    return done
+    return {(rec["system"], rec["rep"]): rec for rec in json_lines(path)}
 
 
 def _run(todo, jobs, checkpoint, done, t0):

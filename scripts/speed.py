@@ -134,19 +134,16 @@ def measured_sets():
 
 
 def part_fits(repeat):
-    from freqid_casadi._threads import single_threaded_blas
     from freqid_casadi.baselines import skrf_vector_fitting
     from freqid_casadi.core.metrics import relative_error
 
     rows = []
     for name, data in measured_sets().items():
         for n in FIT_SETS[name]:
-            # on one BLAS thread, as every fit of the package runs (main() holds the limit
-            # for the run; here too when called alone): with the default threads its time
-            # swung 1-5x between runs with the machine's load (6.7 -> 33 ms on the robot
-            # arm at order 12), and the ratios with it
-            with single_threaded_blas():
-                model, wall, cpu = _timed(lambda: skrf_vector_fitting(data, 2 * n), repeat)
+            # on one BLAS thread (main() holds the limit for the run), as every fit of the
+            # package runs: with the default threads its time swung 1-5x between runs with
+            # the machine's load (6.7 -> 33 ms on the robot arm at order 12)
+            model, wall, cpu = _timed(lambda: skrf_vector_fitting(data, 2 * n), repeat)
             err = relative_error(model, data)
             vf = {"wall": wall, "cpu": cpu, "max_rel_error": float(err.max)}
             for start, jobs in VARIANTS:

@@ -82,9 +82,9 @@ def test_both_local_backends_match_serial(serial, monkeypatch, path):
     from freqid_casadi import _workers
 
     used = []
-    for module, name in ((_workers, "fork_submit"), (batch, "_run_joblib")):
-        original = getattr(module, name)
-        monkeypatch.setattr(module, name,
+    for name in ("fork_submit", "_run_joblib"):
+        original = getattr(_workers, name)
+        monkeypatch.setattr(_workers, name,
                             lambda *a, _o=original, _n=name: used.append(_n) or _o(*a))
     if path == "loky":
         monkeypatch.setattr(threading, "active_count", lambda: 2)   # as with a live thread

@@ -20,6 +20,7 @@ from .common import (_ASCII_FLOAT, _add_choices, _add_input, _add_model_argument
                      _checked, _common, _positive_int, _progress, _resolution_warning,
                      load_data)
 from ..errors import OptionError, ResolutionWarning
+from .._validate import check_jobs
 from ..fitting.fixed import FIXED_KEYS
 from ..report.folder import check_out_dir, write_fit_report
 
@@ -101,14 +102,13 @@ def add_cli(sub):
 
 
 def _jobs(text):
-    """``--jobs``: a positive integer or -1 (every core)."""
+    """``--jobs``: a positive integer or -1 (every core), as fit's ``n_jobs``."""
     try:
         value = int(text)
-    except ValueError:
-        value = 0
-    if value < 1 and value != -1:
+        check_jobs(value, every_core=True)
+    except (ValueError, OptionError):
         raise argparse.ArgumentTypeError(f"expected a positive integer or -1 (every core), "
-                                         f"got {text!r}")
+                                         f"got {text!r}") from None
     return value
 
 

@@ -16,12 +16,9 @@ imported only when needed; Dask is an optional extra (``pip install freqid_casad
 """
 
 import inspect
-import numbers
 import os
 import warnings
 from dataclasses import dataclass
-
-import numpy as np
 
 from ..core.data import FrequencyData
 from ..io.loaders import load
@@ -31,6 +28,8 @@ from .verdict import FitStatus
 from ..core.model import BASES, Structure
 from ..options import LEGACY_KEYWORDS, LoopOptions, legacy_message, solver_options
 from .._progress import channel, check_progress
+from .._validate import check_jobs
+from .._workers import local_map
 
 __all__ = ["fit_many", "BatchItem", "BATCH_STATUSES"]
 
@@ -93,13 +92,6 @@ def _check_options(options):
         raise StructureError(f"n_sections must be >= 1, got {n}")
     if not isinstance(options.get("loop", LoopOptions()), LoopOptions):
         raise OptionError(f"loop must be a LoopOptions, got {type(options['loop']).__name__}")
-
-
-def _check_jobs(n_jobs):
-    if isinstance(n_jobs, (bool, np.bool_)) or not isinstance(n_jobs, numbers.Integral) \
-            or n_jobs < 1:
-        raise OptionError(f"n_jobs must be a positive integer (worker processes), got "
-                          f"{n_jobs!r}")
 
 
 def _name_of(k, item):
@@ -199,7 +191,7 @@ def fit_many(datasets, *, n_jobs=1, scheduler=None, load_options=None, progress=
                         "worker processes across the package); pass n_jobs="
                         f"{options['jobs']!r}")
     _check_options(options)
-    _check_jobs(n_jobs)
+    check_jobs(n_jobs)
     progress = check_progress(progress, "each BatchItem")
     if load_options is not None and not isinstance(load_options, dict):
         raise OptionError(f"load_options must be a dict of load() keywords or None, got "
@@ -221,7 +213,8 @@ def fit_many(datasets, *, n_jobs=1, scheduler=None, load_options=None, progress=
         return []
     local = None
     if scheduler is None and n_jobs > 1 and len(items) > 1:   # before the bar's thread
-        local = _run_local(n_jobs, names, items, options, load_options)
+        local = local_map(_fit_one_held, [(n, item, options, load_options)
+                                          for n, item in zip(names, items)], n_jobs)
     with channel(progress, _item_line, total=len(items), unit="file") as emit:
         if scheduler is not None:
             held = _run_dask(scheduler, names, items, options, load_options)
@@ -243,34 +236,6 @@ def _item_line(item):
         return f"{item.name}: {item.status} ({item.error})"
     return (f"{item.name}: {item.status}, max rel. error {item.result.max_rel_error:.3e}, "
             f"{item.result.wall_time:.1f} s")
-
-
-def _run_local(n_jobs, names, items, options, load_options=None):
-    """``_fit_one_held`` over local worker processes, in input order: forked workers where
-    :func:`~freqid_casadi._workers.can_fork` (the workers fork here, before the progress
-    bar's thread starts), else joblib's loky."""
-    from .._workers import can_fork, collect, fork_submit
-
-    if can_fork():
-        return collect(*fork_submit(n_jobs, _fit_one_held,
-                                    [(n, item, options, load_options)
-                                     for n, item in zip(names, items)]))
-    return _run_joblib(n_jobs, names, items, options, load_options)
-
-
-def _run_joblib(n_jobs, names, items, options, load_options=None):
-    try:
-        from joblib import Parallel, delayed
-    except ImportError:
-        raise OptionError("n_jobs > 1 needs joblib: pip install joblib (or use n_jobs=1)") \
-            from None
-    # inner_max_num_threads=1: BLAS/OpenMP at one thread per worker (fit also enforces it)
-    from joblib import parallel_config
-
-    with parallel_config(backend="loky", inner_max_num_threads=1):
-        yield from Parallel(n_jobs=min(n_jobs, len(items)), return_as="generator")(
-            delayed(_fit_one_held)(n, item, options, load_options)
-            for n, item in zip(names, items))
 
 
 def _run_dask(scheduler, names, items, options, load_options=None):

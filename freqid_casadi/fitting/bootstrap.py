@@ -2,12 +2,11 @@
 (layer L6: its global refit calls :func:`freqid_casadi.fit`, above :mod:`.covariance`).
 """
 
-import os
-
 import numpy as np
 
 from ..core import physical as _physical
 from .._progress import channel, check_progress
+from .._workers import local_map
 from ..uncertainty.covariance import (covariance_inputs, covariance_record,
                                       parameter_uncertainty, residual_jacobian)
 from ..core.data import FrequencyData
@@ -117,19 +116,9 @@ def bootstrap(model, data=None, *, n_boot=200, seed=0, n_jobs=1, refit=None, wei
     pos = w > 0
     u = np.sqrt(w[pos]) * r[pos] * np.sqrt((2 * pos.sum()) / base.dof)
     progress = check_progress(progress, "each replicate's parameters")
-    from .._workers import can_fork, collect, fork_submit
-
     jobs = [(b, seed, par, data, w, u, refit) for b in range(n_boot)]
-    if n_jobs == 1:
-        rows = (_replicate(*job) for job in jobs)
-    elif can_fork():             # forked workers start with the package imported
-        workers = n_jobs if n_jobs > 0 else max(1, (os.cpu_count() or 1) + 1 + n_jobs)
-        rows = collect(*fork_submit(workers, _replicate, jobs))
-    else:
-        from joblib import Parallel, delayed
-
-        rows = Parallel(n_jobs=n_jobs, return_as="generator")(
-            delayed(_replicate)(*job) for job in jobs)
+    rows = ((_replicate(*job) for job in jobs) if n_jobs == 1
+            else local_map(_replicate, jobs, n_jobs))
     with channel(progress, _replicate_line, total=n_boot, unit="refit") as emit:
         rows = [emit(row) or row for row in rows]
     samples = np.array(rows)

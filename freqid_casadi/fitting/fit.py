@@ -29,8 +29,6 @@ Every stage is one NLP (:mod:`freqid_casadi.fitting.stages`, :mod:`freqid_casadi
 import dataclasses
 import functools
 import math
-import numbers
-import os
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -40,7 +38,7 @@ import numpy as np
 from .candidates import NEAR, Candidate, choose, zero_delay_run
 from ._checks import (GAIN_SIGNS, after_fit, check_model_class, validate, verdict,
                       zeta_min_of)
-from .._validate import check_choice, check_flag
+from .._validate import check_choice, check_flag, check_jobs
 from ..core.data import FrequencyData
 from .delay_hold import hold_undetermined_delay
 from .delay_search import delay_search_run
@@ -398,7 +396,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
     integrator = "auto" if auto else check_origin_order(integrator, OptionError)
     delay = check_flag("delay", delay)
     progress = check_progress(progress, "each StageRecord")
-    n_jobs = check_jobs(n_jobs)
+    n_jobs = check_jobs(n_jobs, every_core=True)
     fixed, gain_sign = check_fixed(fixed, delay=delay, gain_sign=gain_sign)
     kw = dict(integrator=integrator, basis=basis, method=method, tol=tol, start=start,
               objective=objective, min_damping=min_damping, loop=loop, gain_sign=gain_sign,
@@ -445,16 +443,6 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
             return _with_origin_record(result, record, origin_diagnostics(record, data))
         return _fit_resolved(data_or_omega, response, n_sections, delay, fixed, weights,
                              emit, kw)
-
-
-def check_jobs(n_jobs):
-    """``n_jobs`` checked: a positive integer, or -1 for every core (returned as the number
-    of cores); anything else is an OptionError."""
-    if isinstance(n_jobs, (bool, np.bool_)) or not isinstance(n_jobs, numbers.Integral) \
-            or not (n_jobs >= 1 or n_jobs == -1):
-        raise OptionError(f"n_jobs must be a positive integer (worker processes) or -1 (every "
-                          f"core), got {n_jobs!r}")
-    return int(os.cpu_count() or 1) if n_jobs == -1 else int(n_jobs)
 
 
 def _quiet_fit(data_or_omega, response, kw):

@@ -191,7 +191,7 @@ def _start_at(vector_fitting, data, structure, base, h, n_poles, n_iter, floor):
     omega, phi = data.omega, data.response
     s = 1j * omega
     sub = _subsample(omega.size)
-    vf = vector_fitting(FrequencyData(omega[sub], (base * np.exp(s * h))[sub]), n_poles,
+    vf = vector_fitting(FrequencyData(omega[sub], base[sub] * np.exp(s[sub] * h)), n_poles,
                         n_iter=n_iter, enforce_stable_poles=True)
     poles = vf.poles()
     d = float(np.squeeze(vf.D))

@@ -21,8 +21,8 @@ import numpy as np
 
 from ..baselines import vectfit
 from ..core.modes import Mode, Modes
-from ..errors import OptionError
 from .._threads import single_threaded_blas
+from .._workers import local_map
 from ._start import peak_poles
 
 __all__ = ["OrderEstimate", "estimate_order", "run_orders"]
@@ -177,29 +177,10 @@ def run_orders(task, arguments, n_jobs):
         return
     # the largest orders cost most: hand them out first, yield in the caller's order
     first = sorted(range(len(arguments)), key=lambda i: -i)
-    from .._workers import can_fork, collect, fork_submit
-
-    if can_fork():               # forked workers start with the package imported
-        pool, futures = fork_submit(n_jobs, _held, [(task, arguments[i]) for i in first])
-        results = dict(zip(first, list(collect(pool, futures))))
-    else:
-        results = _loky(task, arguments, first, n_jobs)
+    results = dict(zip(first, list(local_map(_held, [(task, arguments[i]) for i in first],
+                                             n_jobs))))
     for i in range(len(arguments)):
         out, said = results[i]
         for category, message in said:
             warnings.warn(message, category, stacklevel=3)
         yield out
-
-
-def _loky(task, arguments, first, n_jobs):
-    """``{i: _held(task, arguments[i])}`` over joblib's loky workers, ``first`` first."""
-    try:
-        from joblib import Parallel, delayed, parallel_config
-    except ImportError:
-        raise OptionError("n_jobs > 1 needs joblib: pip install joblib (or use n_jobs=1)") \
-            from None
-
-    with parallel_config(backend="loky", inner_max_num_threads=1):
-        done = Parallel(n_jobs=min(n_jobs, len(arguments)), return_as="generator")(
-            delayed(_held)(task, arguments[i]) for i in first)
-        return dict(zip(first, done))

@@ -48,7 +48,7 @@ from ..systems.corpus import FAMILIES, case, corpus
 __all__ = ["CONFIGS", "CaseFit", "run_corpus", "fit_case", "summarize", "EXACT_FLOOR",
            "FLOOR_FACTOR", "DISHONEST_FACTOR", "DENSE", "QUICK_CASES", "FULL_CASES",
            "FULL_MAX_POINTS", "AUTO", "NOISY_ONLY", "HALF_ONLY", "COMPARE_EVERY",
-           "SUBSET_EVERY", "CPU_BUDGET", "TimeLimit"]
+           "SUBSET_EVERY", "CPU_BUDGET", "TimeLimit", "json_lines"]
 
 #: The configurations compared in one run: today's defaults, and the defaults before the
 #: corpus issue (start="sequential", integrator=False, no resolution guard; the gain sign
@@ -297,23 +297,41 @@ def _plain(x):
     return x.item() if hasattr(x, "item") else str(x)
 
 
-def _read_checkpoint(path, todo):
-    """The :class:`CaseFit` records of a checkpoint file that belong to ``todo`` (seed and
-    point cap included: the key is the task)."""
+def json_lines(path):
+    """The records of the JSON-lines checkpoint ``path`` (appended to record by record), each
+    a decoded line; a line that does not decode (cut when a run was killed) is skipped, and
+    a missing file (or None) has none.
+
+    Parameters
+    ----------
+    path : str or os.PathLike or None
+
+    Returns
+    -------
+    list
+    """
     if path is None or not os.path.exists(path):
         return []
-    keys = {(t[0], t[3]): t for t in todo}
     out = []
     with open(path, encoding="utf-8") as f:
         for line in f:
             try:
-                d = json.loads(line)
+                out.append(json.loads(line))
             except ValueError:
-                continue                    # a line cut by the stop
-            task = keys.get((d.get("index"), d.get("config")))
-            if task is not None and d.get("task") == list(task):
-                d["diagnostics"] = tuple(d["diagnostics"])
-                out.append(CaseFit(**d))
+                continue
+    return out
+
+
+def _read_checkpoint(path, todo):
+    """The :class:`CaseFit` records of a checkpoint file that belong to ``todo`` (seed and
+    point cap included: the key is the task)."""
+    keys = {(t[0], t[3]): t for t in todo}
+    out = []
+    for d in json_lines(path):              # (a line cut by the stop is skipped)
+        task = keys.get((d.get("index"), d.get("config")))
+        if task is not None and d.get("task") == list(task):
+            d["diagnostics"] = tuple(d["diagnostics"])
+            out.append(CaseFit(**d))
     return out
 
 

@@ -11,7 +11,6 @@ rule can then be judged on many cases for the cost of fitting them once.
 
 import json
 import multiprocessing
-import os
 import time
 import warnings
 
@@ -21,7 +20,8 @@ from ..errors import DataError, StructureError
 from ..fitting.fit import fit
 from ..fitting.order import MAX_SECTIONS, OrderStep, whiteness
 from ..systems.corpus import FAMILIES, case
-from .corpus import CPU_BUDGET, FLOOR_FACTOR, FULL_CASES, SUBSET_EVERY, TimeLimit, _budget
+from .corpus import (CPU_BUDGET, FLOOR_FACTOR, FULL_CASES, SUBSET_EVERY, TimeLimit, _budget,
+                     json_lines)
 
 __all__ = ["EXTRA", "SUBSET_ROUNDS", "RULES", "ladder", "run_ladders", "replay", "judge",
            "order_tasks"]
@@ -123,15 +123,7 @@ def run_ladders(tasks, path, workers=2, progress=None):
     -------
     list of dict
     """
-    done = {}
-    if os.path.exists(path):
-        with open(path, encoding="utf-8") as f:
-            for line in f:
-                try:
-                    d = json.loads(line)
-                except ValueError:
-                    continue
-                done[tuple(d["task"])] = d
+    done = {tuple(d["task"]): d for d in json_lines(path)}
     todo = [t for t in tasks if tuple(t) not in done]
     if todo:
         ctx = multiprocessing.get_context("spawn")
