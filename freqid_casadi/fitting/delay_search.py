@@ -19,58 +19,9 @@ import time
 import numpy as np
 
 from .stages import StageKind
+from .start import MAX_TRIALS, PROBE_PHASE, search_delay
 
 __all__ = ["search_delay", "delay_search_run", "PROBE_PHASE", "MAX_TRIALS"]
-
-#: Probe step, in rad of phase at the highest frequency (``PROBE_PHASE / omega[-1]`` s).
-PROBE_PHASE = 0.1
-#: Most vector fits one search makes.
-MAX_TRIALS = 17
-
-
-def search_delay(trial, h0, step, delay_max, max_trials=MAX_TRIALS):
-    """Local search of ``trial(h)`` (an error, inf when unusable) over the delay.
-
-    Probes ``h0 +- k step`` for k = 1, 2, 4, 8, then a compass search around the best
-    probe with steps ``step / 2, step / 4, ...`` (halved when neither side improves).
-
-    Parameters
-    ----------
-    trial : callable
-        ``h -> float``.
-    h0 : float
-        Start (s); probed first.
-    step : float
-        Probe step (s), > 0.
-    delay_max : float
-        Probes are clipped into ``[0, delay_max]`` (s).
-    max_trials : int
-        Most calls of ``trial``.
-
-    Returns
-    -------
-    dict
-        ``{h: trial(h)}`` of every probe.
-    """
-    seen = {}
-
-    def probe(h):
-        h = float(np.clip(h, 0.0, delay_max))
-        if h not in seen and len(seen) < max_trials:
-            seen[h] = float(trial(h))
-        return seen.get(h, np.inf)
-
-    probe(h0)
-    for sign in (1.0, -1.0):
-        for k in (1, 2, 4, 8):
-            probe(h0 + sign * k * step)
-    d = 0.5 * step
-    while len(seen) < max_trials and d >= step / 64:
-        best = min(seen, key=seen.get)
-        if min(probe(best + d), probe(best - d)) >= seen[best]:
-            d *= 0.5
-    return seen
-
 
 def delay_search_run(ctx, run):
     """The candidate "the rational start at the best nearby delay" of an unconverged run.
