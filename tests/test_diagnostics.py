@@ -57,6 +57,20 @@ def test_check_gain_sign_forced_positive_on_inverted_data_warns():
     assert "gain_sign='auto'" in diags[0].message
 
 
+def test_check_gain_sign_removes_the_delay_phase_of_a_band_far_from_zero():
+    """Corpus case 130: a sign-inverted plant whose linear band starts where its delay
+    (1.3 us) has turned the phase by 10.8 rad: the lowest bins looked in phase (41 deg)
+    and flat, and the sign was taken as positive (fit RMS 0.985 against the noise 0.010).
+    With the group delay's phase removed they are at 180 deg and the fits decide."""
+    case = fc.systems.case(130, max_points=120)
+    data = case.data
+    st = Structure(case.n_sections, False, True, gain_sign=1)
+    sign, recs = dg.check_gain_sign(data, False, "auto", st)
+    assert case.gain_sign == -1 and sign == -1
+    assert recs[0].values["delay_removed"] == pytest.approx(case.delay, rel=0.02)
+    assert abs(recs[0].values["low_frequency_phase_deg"]) > 135
+
+
 def test_signed_gain_in_the_model():
     m = true_model(gain_sign=-1)
     assert m.gain == -2.0 and m.beta[1] == 2.0

@@ -115,7 +115,7 @@ def _low_points(omega, n_min=3, n_max=20, fraction=0.05):
     return min(m, omega.size)
 
 
-def low_frequency_phase(data, integrator):
+def low_frequency_phase(data, integrator, delay=0.0):
     """Phase (rad) of the data's static part at the lowest frequencies.
 
     The integrator's -90 deg is removed (the response is multiplied by ``j omega``); the
@@ -125,7 +125,11 @@ def low_frequency_phase(data, integrator):
     Parameters
     ----------
     data : FrequencyData
-    integrator : bool
+    integrator : bool or int
+        Poles at the origin to remove (negative: zeros).
+    delay : float, optional
+        A delay (s) to remove too (the response is multiplied by ``exp(j omega delay)``):
+        a band that starts far from 0 can carry turns of delay phase at its lowest bins.
 
     Returns
     -------
@@ -139,7 +143,8 @@ def low_frequency_phase(data, integrator):
         g = g * 1j * data.omega[:m]
     elif k:
         g = times_jw_power(g, data.omega[:m], k)
-    unit = np.exp(1j * np.angle(g))       # no division: subnormal or huge responses
+    # no division (subnormal or huge responses)
+    unit = np.exp(1j * (np.angle(g) + data.omega[:m] * float(delay)))
     return float(np.angle(np.mean(unit)))
 
 
@@ -223,6 +228,17 @@ def rational_gain_sign(data, structure, decisive=0.5):
     return None
 
 
+def _data_delay(data):
+    """The data's group delay (s) when its phase at the highest frequency exceeds
+    :data:`~freqid_casadi.fitting.start.GROUP_DELAY_PHASE`, else 0."""
+    from .start import GROUP_DELAY_PHASE, group_delay_estimate
+
+    if data.omega.size < 3:
+        return 0.0
+    h = group_delay_estimate(data.omega, data.response)
+    return h if h * float(data.omega[-1]) > GROUP_DELAY_PHASE else 0.0
+
+
 def check_gain_sign(data, integrator, gain_sign="auto", structure=None):
     """The gain sign to fit, and the record that says why.
 
@@ -232,7 +248,9 @@ def check_gain_sign(data, integrator, gain_sign="auto", structure=None):
     integrator : bool
     gain_sign : {"auto", "positive", "negative"}
         "auto": positive when the data are flat and within :data:`CLEAR_PHASE_DEG` of 0 deg
-        at the lowest bins; else the sign under which the rational start of ``structure``
+        at the lowest bins, with a delay whose phase there is below that too (a delay of
+        more than half a turn at the band edge is estimated from the group delay and its
+        phase removed); else the sign under which the rational start of ``structure``
         explains the data (:func:`rational_gain_sign`), or, without ``structure`` (or with free zeros,
         which fit either sign) or when that does not decide, the sign of the
         low-frequency response (phase within 90 deg of 0: positive; of 180 deg: negative).
@@ -247,18 +265,24 @@ def check_gain_sign(data, integrator, gain_sign="auto", structure=None):
         A ``negative-gain`` record when the data look sign-inverted: "info" when the fit
         uses the negative gain, "warning" when ``gain_sign="positive"`` forces the other.
     """
-    phase = low_frequency_phase(data, integrator)
+    # a delay of more than half a turn at the band edge (the rational start's threshold)
+    # is estimated from the group delay and its phase removed from the lowest bins: a
+    # band far from 0 (linear spacing) can carry turns of delay phase there
+    h = _data_delay(data)
+    phase = low_frequency_phase(data, integrator, h)
     deg = math.degrees(phase)
     slope = low_frequency_slope(data, integrator)
-    values = {"low_frequency_phase_deg": deg, "n_points": _low_points(data.omega),
-              "omega_max_used": float(data.omega[_low_points(data.omega) - 1]),
-              "low_frequency_slope": slope}
+    m = _low_points(data.omega)
+    values = {"low_frequency_phase_deg": deg, "n_points": m,
+              "omega_max_used": float(data.omega[m - 1]), "low_frequency_slope": slope,
+              "delay_removed": h}
     rational = None
     # flat and in phase at the lowest bins: positive without a doubt (a stable minimum-
     # phase factor with a flat magnitude has no phase there, Bode's gain-phase relation);
     # otherwise the phase may come from a delay and poles below the band, or from zeros
     # at the origin, and the fits decide
-    clear = abs(deg) <= CLEAR_PHASE_DEG and abs(slope) <= 0.5
+    clear = (abs(deg) <= CLEAR_PHASE_DEG and abs(slope) <= 0.5
+             and math.degrees(h * values["omega_max_used"]) <= CLEAR_PHASE_DEG)
     if (structure is not None and structure.zeros != "free" and gain_sign == "auto"
             and not clear):
         rational = rational_gain_sign(data, structure)
@@ -272,7 +296,8 @@ def check_gain_sign(data, integrator, gain_sign="auto", structure=None):
                f"is {deg:.1f} deg)")
     else:
         looks_negative = abs(phase) > math.pi / 2
-        what = "with the integrator removed, " if integrator else ""
+        what = "".join(f"with {x} removed, " for x, on in
+                       (("the integrator", integrator), (f"the delay {h:.4g} s", h)) if on)
         origin = (f" (the magnitude rises as omega^{slope:.1f} there: part of this phase "
                   "comes from zeros at the origin, as in an accelerance, which the unit-DC "
                   "factors can only approach; dividing the data by (j omega)^k before "
