@@ -44,7 +44,7 @@ from .delay_hold import hold_undetermined_delay
 from .delay_search import delay_search_run
 from .far_roots import far_root_run
 from .fixed import check_fixed, fit_with_fixed
-from .diagnostics import check_gain_sign
+from .diagnostics import Diagnostic, gain_sign_decision
 from .guard import guard_resolution
 from ..errors import FreqidError, OptionError, ResolutionWarning
 from .order import MAX_SECTIONS, choose_order, with_free_zeros, with_order_record
@@ -355,8 +355,10 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
         the data far better (both signs tried, vector fitting only:
         :func:`~freqid_casadi.fitting.diagnostics.rational_gain_sign`), not the phase at
         the lowest bins (which a delay and a pole below the band turn past
-        -90 deg); a negative gain (a sign-inverted sensor or transmissibility) is fitted
-        as ``-(fit of -Phi)`` and stated by a ``negative-gain`` diagnostic.
+        -90 deg); when neither start does, both signs are fitted and the lower RMS is
+        kept (``details["gain_sign"]`` gives both). A negative gain (a sign-inverted
+        sensor or transmissibility) is fitted as ``-(fit of -Phi)`` and stated by a
+        ``negative-gain`` diagnostic.
     zeros : {"minimum-phase", "free"}
         "minimum-phase" (the thesis's class): every zero in the closed left half plane.
         "free": the numerators are unbounded (zeros anywhere, e.g. non-collocated sensors
@@ -609,7 +611,9 @@ def _with_alternatives(result, data_or_omega, response, weights, kw):
 
 
 def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, method, tol,
-         progress, weights, start, objective, min_damping, loop, gain_sign, zeros):
+         progress, weights, start, objective, min_damping, loop, gain_sign, zeros,
+         sign=None):
+    # sign: +1 or -1 fits that sign without a gain-sign record (_fit_either_sign's fits)
     t_start = time.perf_counter()
     solver = solver_options(method)
     loop = LoopOptions() if loop is None else loop
@@ -620,8 +624,17 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     check_choice("start", start, STARTS)
     check_choice("objective", objective, OBJECTIVES)
     check_model_class(gain_sign, zeros, solver.method, loop.gauge, min_damping)
-    sign, found = check_gain_sign(data, integrator, gain_sign, Structure(
-        int(n_sections), integrator, delay, basis, zeros))
+    if sign is None:
+        sign, found, guess = gain_sign_decision(data, integrator, gain_sign, Structure(
+            int(n_sections), integrator, delay, basis, zeros))
+        if guess:
+            return _fit_either_sign(sign, dict(
+                data_or_omega=data_or_omega, response=response, n_sections=n_sections,
+                integrator=integrator, delay=delay, basis=basis, method=method, tol=tol,
+                progress=progress, weights=weights, start=start, objective=objective,
+                min_damping=min_damping, loop=loop, gain_sign=gain_sign, zeros=zeros))
+    else:
+        found = ()
     user_data = data
     if sign == -1:                  # a negative gain: fit -Phi, the model gets gain_sign -1
         data = FrequencyData(data.omega, -data.response, data.name, data.weights)
@@ -684,6 +697,30 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                      resolution=check, start_max_rel_errors=errors,
                      candidate_max_rel_errors=cand_errors, delay_max=dmax / w_ref,
                      zeta_min=zeta_min, diagnostics=found, status=status, details=details)
+
+
+def _fit_either_sign(guess, kw):
+    """Both gain signs fitted, the lower RMS kept (``guess``, the low-frequency phase's
+    sign, on a tie), when the rational starts did not decide the sign: a band far from
+    the static gain (a transmission measurement at 140-220 GHz, a reflection) shows a
+    phase there that a delay, poles below the band and zeros at the origin have turned;
+    the sign is then a model choice the fits make, and the result says so."""
+    fits = {s: _fit(**kw, sign=s) for s in (guess, -guess)}
+    kept = min(fits, key=lambda s: (fits[s].rms_rel_error, s != guess))
+    res, other = fits[kept], fits[-kept]
+    both = {"K > 0" if s > 0 else "K < 0": float(fits[s].rms_rel_error) for s in fits}
+    record = {"chosen": kept, "by": "fits", "rms": both}
+    text = "; ".join(f"{k}: RMS {v:.3g}" for k, v in both.items())
+    found = res.diagnostics
+    if kept < 0:
+        found = (Diagnostic("negative-gain", (
+            "the rational starts did not decide the gain sign, so both signs were fitted "
+            f"({text}): fitted with a negative gain (gain_sign='auto'; pass "
+            "gain_sign='positive' to force K > 0)"), "info",
+            {"rms_positive": both["K > 0"], "rms_negative": both["K < 0"]}),) + found
+    return dataclasses.replace(
+        res, diagnostics=found, details=dict(res.details, gain_sign=record),
+        wall_time=res.wall_time + other.wall_time)
 
 
 def _run_starts(ctx, start, tol, data):
