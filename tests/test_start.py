@@ -63,6 +63,21 @@ def test_rational_start_finds_a_delay_of_many_turns_from_the_group_delay(monkeyp
     assert rational_start(data, structure, delay_max=dmax).max_rel_error > 0.5  # 1.02
 
 
+def test_group_delay_search_probes_every_kth_point_of_large_data():
+    """Above PROBE_POINTS frequencies the probes see every k-th point and only the best
+    is made again on all of them: the delay is found as on fewer points."""
+    import freqid_casadi.fitting.start as start
+
+    structure = fc.Structure(2, False, True)
+    model = fc.RationalDelayModel(structure, np.r_[0.2, BETA[1:]])
+    w = np.linspace(0.5, 300, 3 * start.PROBE_POINTS)
+    data = fc.FrequencyData(w, model.frequency_response(w))
+    rs = rational_start(data, structure, delay_max=np.pi / np.max(np.diff(w)))
+    assert rs.delay == pytest.approx(0.2, rel=1e-3)
+    assert rs.max_rel_error < 0.01
+    assert rs.delays.size <= 12 + 1          # the updates from 0, then the search's best
+
+
 def test_default_fit_of_a_delay_of_many_turns_reaches_the_noise():
     """Corpus case 1 (two collocated modes, 626 s of delay: 76 rad at the band's top,
     0.34 % noise): RMS 0.983 and status poor-fit before the group-delay search."""
