@@ -624,17 +624,16 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     check_choice("start", start, STARTS)
     check_choice("objective", objective, OBJECTIVES)
     check_model_class(gain_sign, zeros, solver.method, loop.gauge, min_damping)
+    found = ()
     if sign is None:
         sign, found, guess = gain_sign_decision(data, integrator, gain_sign, Structure(
             int(n_sections), integrator, delay, basis, zeros))
         if guess:
             return _fit_either_sign(sign, dict(
-                data_or_omega=data_or_omega, response=response, n_sections=n_sections,
-                integrator=integrator, delay=delay, basis=basis, method=method, tol=tol,
-                progress=progress, weights=weights, start=start, objective=objective,
-                min_damping=min_damping, loop=loop, gain_sign=gain_sign, zeros=zeros))
-    else:
-        found = ()
+                n_sections=n_sections, integrator=integrator, delay=delay, basis=basis,
+                method=method, tol=tol, progress=progress, weights=weights, start=start,
+                objective=objective, min_damping=min_damping, loop=loop,
+                gain_sign=gain_sign, zeros=zeros), data_or_omega, response)
     user_data = data
     if sign == -1:                  # a negative gain: fit -Phi, the model gets gain_sign -1
         data = FrequencyData(data.omega, -data.response, data.name, data.weights)
@@ -699,13 +698,13 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                      zeta_min=zeta_min, diagnostics=found, status=status, details=details)
 
 
-def _fit_either_sign(guess, kw):
+def _fit_either_sign(guess, kw, data_or_omega, response):
     """Both gain signs fitted, the lower RMS kept (``guess``, the low-frequency phase's
     sign, on a tie), when the rational starts did not decide the sign: a band far from
     the static gain (a transmission measurement at 140-220 GHz, a reflection) shows a
     phase there that a delay, poles below the band and zeros at the origin have turned;
     the sign is then a model choice the fits make, and the result says so."""
-    fits = {s: _fit(**kw, sign=s) for s in (guess, -guess)}
+    fits = {s: _fit(data_or_omega, response, **kw, sign=s) for s in (guess, -guess)}
     kept = min(fits, key=lambda s: (fits[s].rms_rel_error, s != guess))
     res, other = fits[kept], fits[-kept]
     both = {"K > 0" if s > 0 else "K < 0": float(fits[s].rms_rel_error) for s in fits}
