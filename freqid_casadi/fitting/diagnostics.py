@@ -54,8 +54,10 @@ CODES = ("negative-gain", "non-minimum-phase", "delay-undetermined", "no-better-
 #: within 0.5) have a positive gain without asking the fits (:func:`check_gain_sign`).
 CLEAR_PHASE_DEG = 45.0
 
-#: Max relative error of a rational start that explains the data exactly: the gain-sign
-#: check then does not try the other sign (:func:`rational_gain_sign`).
+#: Error of a rational start that explains the data exactly (to rounding): the gain-sign
+#: check (:func:`rational_gain_sign`, its max relative error) and ``integrator="auto"``
+#: (:data:`~freqid_casadi.fitting.origin.DECISIVE_RMS`, its RMS) then do not try the other
+#: sign.
 EXACT_START = 1e-8
 
 #: Fraction of the lowest data frequency below which a root is "far below the band".
@@ -234,17 +236,6 @@ def rational_gain_sign(data, structure, decisive=0.5):
     return None
 
 
-def _data_delay(data):
-    """The data's group delay (s) when its phase at the highest frequency exceeds
-    :data:`~freqid_casadi.fitting.start.GROUP_DELAY_PHASE`, else 0."""
-    from .start import GROUP_DELAY_PHASE, group_delay_estimate
-
-    if data.omega.size < 3:
-        return 0.0
-    h = group_delay_estimate(data.omega, data.response)
-    return h if h * float(data.omega[-1]) > GROUP_DELAY_PHASE else 0.0
-
-
 def check_gain_sign(data, integrator, gain_sign="auto", structure=None):
     """The gain sign to fit, and the record that says why.
 
@@ -294,7 +285,9 @@ def gain_sign_decision(data, integrator, gain_sign="auto", structure=None):
     # a delay of more than half a turn at the band edge (the rational start's threshold)
     # is estimated from the group delay and its phase removed from the lowest bins: a
     # band far from 0 (linear spacing) can carry turns of delay phase there
-    h = _data_delay(data)
+    from .start import significant_group_delay
+
+    h = significant_group_delay(data)
     phase = low_frequency_phase(data, integrator, h)
     deg = math.degrees(phase)
     slope = low_frequency_slope(data, integrator)

@@ -31,7 +31,7 @@ from ..core.data import FrequencyData
 from ..core.model import MAX_ORIGIN_ORDER, Structure
 from ..core.resolution import default_delay_max
 from ..core.scaling import reference_scales, scale_data
-from .diagnostics import BELOW_BAND, Diagnostic, low_frequency_slope, spell_origin
+from .diagnostics import BELOW_BAND, EXACT_START, Diagnostic, low_frequency_slope, spell_origin
 from .start import RationalStartError, rational_start
 
 __all__ = ["choose_origin_order", "origin_candidates", "settle_by_fits", "origin_diagnostics",
@@ -44,12 +44,12 @@ PREFER_FACTOR = 1.5
 #: ambiguous (an ``integrator`` warning with the errors of each choice).
 AMBIGUOUS_FACTOR = 3.0
 #: RMS error of the positive-gain start below which the negative sign is not tried (the
-#: data explained to rounding). It was 0.25: on a 140-220 GHz transmission measurement
+#: data explained to rounding; the gain-sign check's cut-off, :data:`EXACT_START`). It was 0.25: on a 140-220 GHz transmission measurement
 #: (tx190_s21, 5 sections) the positive start at RMS 0.16 then hid the negative one at
 #: 0.0086 and the fit ended at 0.0111 with two zeros at the origin instead of 0.0073.
 #: fit's own sign check runs the same starts (rational_start_memo), so trying both costs
 #: at most one start per candidate.
-DECISIVE_RMS = 1e-8
+DECISIVE_RMS = EXACT_START
 #: Most full fits an ambiguous choice runs (the contenders within AMBIGUOUS_FACTOR).
 MAX_FITS = 3
 

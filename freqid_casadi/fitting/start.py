@@ -29,8 +29,8 @@ from ..errors import OptionError, SolverError
 from ..core.model import RationalDelayModel, times_jw_power
 
 __all__ = ["RationalStart", "RationalStartError", "rational_start", "rational_start_memo",
-           "sections_from_roots", "group_delay_estimate", "search_delay", "GROUP_DELAY_PHASE",
-           "PROBE_PHASE", "MAX_TRIALS"]
+           "sections_from_roots", "group_delay_estimate", "significant_group_delay",
+           "search_delay", "GROUP_DELAY_PHASE", "PROBE_PHASE", "MAX_TRIALS"]
 
 
 class RationalStartError(SolverError):
@@ -398,9 +398,12 @@ def _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_ite
     n_poles = structure.n_sections * (2 if structure.basis == "second-order" else 1)
     floor = 1e-6 * data.omega[0]
 
-    def trial(h):
+    def trial(on, on_base, h):
+        """The start at delay ``h`` on the data ``on`` (``on_base``: its response times
+        ``(j omega)^k``): ``(model, max rel. error, n_rhp, step)``, unusable as inf."""
         try:
-            return _start_at(vector_fitting, data, structure, base, h, n_poles, n_iter, floor)
+            return _start_at(vector_fitting, on, structure, on_base, h, n_poles, n_iter,
+                             floor)
         except (ValueError, np.linalg.LinAlgError, ArithmeticError):
             return None, np.inf, 1, 0.0
 
@@ -408,22 +411,19 @@ def _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_ite
 
     def run(h):
         if h not in trials:
-            trials[h] = trial(h)
+            trials[h] = trial(data, base, h)
         return trials[h]
 
     _delay_updates(run, float(np.clip(delay0, 0.0, delay_max)) if structure.delay else 0.0,
                    delay_max, max_delay_updates if structure.delay else 1)
     h_gd = _group_delay_start(data, structure, delay_max, max_delay_updates)
-    best = min(trials, key=lambda h: trials[h][1])
+    best = _best(trials)
     # the search, unless a trial is exact or the updates already found a delay within a
     # quarter turn (at the highest frequency) of the group delay
-    if (h_gd is not None and trials[best][1] >= 1e-9
-            and abs(best - h_gd) * float(data.omega[-1]) > 0.5 * np.pi):
-        _search(run, data, structure, base, h_gd, delay_max, max_delay_updates,
-                lambda d, b, h: _start_at(vector_fitting, d, structure, b, h, n_poles,
-                                          n_iter, floor))
-    usable = [h for h, t in trials.items() if t[0] is not None]
-    best = min(usable, key=lambda h: trials[h][1]) if usable else None   # (first of ties)
+    if (h_gd is not None and (best is None or trials[best][1] >= 1e-9)
+            and abs((best or 0.0) - h_gd) * float(data.omega[-1]) > 0.5 * np.pi):
+        _search(run, trial, data, base, h_gd, delay_max, max_delay_updates)
+        best = _best(trials)
     if best is None:
         raise RationalStartError("the rational start failed (vector fitting gave no usable model); "
                           "use start='sequential'")
@@ -434,10 +434,16 @@ def _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_ite
                          n_rhp_zeros_reflected=n_rhp)
 
 
-def _search(run, data, structure, base, h_gd, delay_max, max_delay_updates, start_at):
+def _best(trials):
+    """The delay of the usable trial with the lowest error (the first of ties), or None."""
+    usable = [h for h, t in trials.items() if t[0] is not None]
+    return min(usable, key=lambda h: trials[h][1]) if usable else None
+
+
+def _search(run, trial, data, base, h_gd, delay_max, max_delay_updates):
     """Probe the delay around ``h_gd`` (:func:`search_delay`), then the updates from the
-    best probe; above :data:`PROBE_POINTS` frequencies on every k-th point, its best trial
-    then made on the data by ``run``."""
+    best probe; above :data:`PROBE_POINTS` frequencies on every k-th point (``trial(data,
+    base, h)``), its best trial then made on the data by ``run``."""
     sub = _subsample(data.omega.size, PROBE_POINTS)
     if isinstance(sub, slice):
         probe_run = run
@@ -447,29 +453,41 @@ def _search(run, data, structure, base, h_gd, delay_max, max_delay_updates, star
 
         def probe_run(h):
             if h not in seen:
-                try:
-                    seen[h] = start_at(coarse, base[sub], h)
-                except (ValueError, np.linalg.LinAlgError, ArithmeticError):
-                    seen[h] = None, np.inf, 1, 0.0
+                seen[h] = trial(coarse, base[sub], h)
             return seen[h]
 
     step = PROBE_PHASE / float(data.omega[-1])
     probes = search_delay(lambda h: probe_run(h)[1], h_gd, step, delay_max)
     _delay_updates(probe_run, min(probes, key=probes.get), delay_max, max_delay_updates)
-    if probe_run is not run:
-        usable = [h for h, t in seen.items() if t[0] is not None]
-        if usable:
-            run(min(usable, key=lambda h: seen[h][1]))
+    if probe_run is not run and _best(seen) is not None:
+        run(_best(seen))
+
+
+def significant_group_delay(data):
+    """The data's group delay (s, :func:`group_delay_estimate`) when its phase at the
+    highest frequency exceeds :data:`GROUP_DELAY_PHASE` (more than half a turn), else 0.
+
+    Parameters
+    ----------
+    data : FrequencyData
+
+    Returns
+    -------
+    float
+        Seconds (0 with fewer than 3 frequencies).
+    """
+    if data.omega.size < 3:
+        return 0.0
+    h = group_delay_estimate(data.omega, data.response)
+    return h if h * float(data.omega[-1]) > GROUP_DELAY_PHASE else 0.0
 
 
 def _group_delay_start(data, structure, delay_max, max_delay_updates):
     """The data's group delay (s) when a delay search should start there, else None."""
-    if not structure.delay or max_delay_updates <= 1 or data.omega.size < 3:
+    if not structure.delay or max_delay_updates <= 1:
         return None
-    h = group_delay_estimate(data.omega, data.response)
-    if h * float(data.omega[-1]) > GROUP_DELAY_PHASE and h < delay_max:
-        return h
-    return None
+    h = significant_group_delay(data)
+    return h if 0.0 < h < delay_max else None
 
 
 def _delay_updates(run, h, delay_max, max_updates):
