@@ -34,7 +34,9 @@ over all with a finite std ("delta method, all"), each with its binomial standar
 
 Runs in a process pool of ``--jobs`` workers under ``nice``; every finished replicate is
 appended to the checkpoint file (default in the temporary folder, named by the settings),
-so a killed run started again with the same options goes on where it stopped; each
+so a killed run started again with the same options and the same code goes on where it
+stopped (records made by other code, told by a fingerprint of the package's source, are
+fitted again); each
 record keeps its pickled FitResult, and ``--rescore`` recomputes the intervals and
 statuses from them (after a change of :mod:`freqid_casadi.uncertainty`) without refitting.
 Writes
@@ -59,7 +61,8 @@ import numpy as np
 from freqid_casadi import plots
 from freqid_casadi.core.data import FrequencyData
 from freqid_casadi.fitting.fit import fit
-from freqid_casadi.report.folder import generated_by_line, markdown_table, report_folder
+from freqid_casadi.report.folder import (code_fingerprint, generated_by_line, markdown_table,
+                                         report_folder)
 from freqid_casadi.studies.corpus import json_lines
 from freqid_casadi.systems.corpus import CorpusSystem, case
 from freqid_casadi.uncertainty.covariance import parameter_uncertainty
@@ -210,7 +213,7 @@ def run_replicate(system, r):
     """Fit replicate ``r`` of ``system``; a JSON-ready record of its tracked parameters,
     with the pickled FitResult (base64, ``"fit"``) for :func:`rescore`."""
     t0 = time.perf_counter()
-    rec = {"system": system["name"], "rep": int(r), "params": {}}
+    rec = {"system": system["name"], "rep": int(r), "params": {}, "code": code_fingerprint()}
     try:
         res = fit(replicate_data(system, r), n_sections=system["n_sections"])
         score(system, res, rec)
@@ -245,7 +248,15 @@ def _worker_init():
 
 
 def _read_checkpoint(path):
-    return {(rec["system"], rec["rep"]): rec for rec in json_lines(path)}
+    """The checkpoint's records made by this code (:func:`code_fingerprint`), by (system,
+    replicate); records of other code are set aside (said on stderr), to be fitted again."""
+    code = code_fingerprint()
+    recs = json_lines(path)
+    mine = {(rec["system"], rec["rep"]): rec for rec in recs if rec.get("code") == code}
+    if len(mine) < len(recs):
+        print(f"{len(recs) - len(mine)} records of {path} were made by other code "
+              f"(not {code}) and are set aside", file=sys.stderr, flush=True)
+    return mine
 
 
 def _run(todo, jobs, checkpoint, done, t0):

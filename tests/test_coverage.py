@@ -159,6 +159,17 @@ def test_script_smallest_run_writes_its_report_and_resumes(tmp_path):
                    timeout=600)
     js = json.loads((out / "coverage.json").read_text(encoding="utf-8"))
     assert js["new_fits"] == 0 and len(js["records"]) == 8
+    # two records as if made by other code: those two are fitted again, and said so
+    lines = ckpt.read_text(encoding="utf-8").splitlines()
+    recs = [json.loads(line) for line in lines]
+    for rec in recs[:2]:
+        rec["code"] = "0" * 16
+    ckpt.write_text("".join(json.dumps(r) + "\n" for r in recs), encoding="utf-8")
+    run = subprocess.run(args + ["--force"], check=True, capture_output=True, cwd=ROOT,
+                         timeout=600, text=True)
+    js = json.loads((out / "coverage.json").read_text(encoding="utf-8"))
+    assert js["new_fits"] == 2 and len(js["records"]) == 8
+    assert "2 records of" in run.stderr and "made by other code" in run.stderr
 
 
 # ------------------------------------------------------------------ noise level, weak factor

@@ -36,11 +36,31 @@ from .summary import (REPORT_FILES, REPORT_FORMAT, REPORT_VERSION, dense_error, 
 
 __all__ = ["write_fit_report", "write_sweep_report", "report_folder", "fit_summary",
            "render_fit_summary", "dense_error", "check_out_dir", "markdown_table",
-           "generated_by_line", "atomic_write_text", "REPORT_FILES", "REPORT_FORMAT",
-           "REPORT_VERSION"]
+           "generated_by_line", "atomic_write_text", "code_fingerprint", "REPORT_FILES",
+           "REPORT_FORMAT", "REPORT_VERSION"]
 
 
 # ----------------------------------------------------------------------------- helpers
+
+
+def code_fingerprint():
+    """A fingerprint of this package's source: the first 16 hex digits of the SHA-256 of
+    every ``.py`` file under ``freqid_casadi/`` (relative path and bytes, in sorted
+    order). A study's checkpoint records it, so fits made by other code are not resumed.
+
+    Returns
+    -------
+    str
+    """
+    import hashlib
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    digest = hashlib.sha256()
+    for path in sorted(root.rglob("*.py")):
+        digest.update(path.relative_to(root).as_posix().encode("utf-8") + b"\0")
+        digest.update(path.read_bytes() + b"\0")
+    return digest.hexdigest()[:16]
 
 
 def check_out_dir(out_dir, force=False):
