@@ -21,7 +21,9 @@ Two starts (:mod:`freqid_casadi.modal._stages`), both tried by the default
 
 ``"rational"``
     vector fitting with one common pole set over all channels
-    (:mod:`freqid_casadi.modal._start`), with channel sections one vector fitting per
+    (:mod:`freqid_casadi.modal._start`; a channel delay of more than half a turn at the
+    highest frequency, estimated from its group delay, is removed first), with channel
+    sections one vector fitting per
     channel for its own poles (the shared ones fixed), right-half-plane zeros of
     minimum-phase channels reflected (their group delay moved to the delay), then one IPOPT
     polish on all data;
@@ -51,6 +53,7 @@ from ..core.scaling import normalised_weights
 from ..core.model import RationalDelayModel, Structure
 from ..core.modes import Modes
 from ..fitting.verdict import ROUNDING_RMS, FitStatus, NoiseCheck, residual_noise, status_of
+from ..fitting.start import significant_group_delay
 from ..options import IpoptOptions, VectorFittingOptions, ipopt_limits, warn_renamed
 from ..solvers.common import TERMINATION_MESSAGES, Status
 from ._nlp import SharedProblem
@@ -586,7 +589,8 @@ def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, emi
                 return SharedProblem(omega, phi, w, g, wr, integrator, delay, free, dmax, wl)
         if which == "rational":
             return rational_start(make, n, k, omega, base, w, free, log,
-                                  solver.final_max_iter, vf.n_iter)
+                                  solver.final_max_iter, vf.n_iter,
+                                  _group_delays(omega, base, delay, dmax))
         return sequential_start(make, n, k, omega, w, log, solver.max_iter,
                                 solver.final_max_iter)
 
@@ -612,6 +616,18 @@ def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, emi
     if balance:
         res = _balance_note(res, singles, k, max(len(more) - 1, 0))
     return _resolution(res, omega, phi)
+
+
+def _group_delays(omega, phi, delay, delay_max):
+    """Per channel, the delay (s) the rational start removes before its vector fitting:
+    the channel's group delay when its phase at the highest frequency exceeds half a turn
+    (:func:`~freqid_casadi.fitting.start.significant_group_delay`), else 0; with
+    ``delay="shared"`` their median for every channel; none without a delay."""
+    if delay is False:
+        return np.zeros(phi.shape[0])
+    h = np.array([significant_group_delay(FrequencyData(omega, row)) for row in phi])
+    h = np.clip(h, 0.0, delay_max)
+    return np.full_like(h, np.median(h)) if delay == "shared" else h
 
 
 def _ignore(record):
