@@ -57,7 +57,7 @@ def report(command, ladders, rounds, seed, max_points, wall):
             if not sel:
                 continue
             hit = sum(x["right"] for x in sel)
-            rows.append((name, label, len(sel), f"{hit} ({100 * hit / len(sel):.0f} %)",
+            rows.append((name, label, len(sel), f"{hit} ({100 * hit / len(sel):.1f} %)",
                          sum(x["below"] for x in sel), sum(x["above"] for x in sel)))
     md += [markdown_table(rows, ["rule", "cases", "n", "in [true, true+1]", "below",
                                  "above"], "llrrrr"), "",

@@ -122,6 +122,30 @@ def test_a_replayed_ladder_chooses_what_the_live_search_chose():
     assert v["right"] and not v["below"] and not v["above"] and v["subset"]
 
 
+def test_a_mode_the_noise_share_misses_is_kept_by_the_f_test():
+    from freqid_casadi.fitting.order import OrderStep, beats_noise, decide
+
+    # negative-gain-40's ladder (55 points, 6 sections true): RMS (x roughness) of 1..7
+    measured = [(0.727, 2.19), (0.588, 2.22), (0.26, 1.05), (0.154, 1.02), (0.00378, 1.12),
+                (0.00307, 0.96), (0.00299, 0.97)]
+    steps = [OrderStep(n, rms, ratio, True) for n, (rms, ratio) in enumerate(measured, 1)]
+    poles = [np.array([-1 + 10j, -1 - 10j])] * 7
+    omega = np.array([1.0, 100.0])
+    # 5 -> 6 sections lower the consistent residual's RMS by 19 %: the 12 / M share asks
+    # 22 % and stopped at 5; the F-test (F = 10.8 on 4 and 84 degrees of freedom, 1 %
+    # quantile 3.5) keeps the sixth mode, and 6 -> 7 (2.6 %, below MIN_FALL) stops there
+    assert decide(steps[:6], poles[:6], omega, 55, alpha=0.0) == (4, "consistent")
+    assert decide(steps[:6], poles[:6], omega, 55) is None
+    assert decide(steps, poles, omega, 55) == (5, "consistent")
+    # on 10 000 points a 2 % fall passes the F-test (F = 206) but not the practical floor
+    a, b = OrderStep(4, 0.0100, 1.0, True), OrderStep(5, 0.0098, 1.0, True)
+    assert not beats_noise(a, b, 10000) and beats_noise(a, b, 10000, min_fall=0.0)
+    # a 3.5 % fall on 120 points: F = 4.0 on (4, 218) against 3.4 at 1 %, 4.8 at 0.1 %
+    c = OrderStep(5, 0.00721 * 0.965, 1.0, True)
+    before = OrderStep(4, 0.00721, 1.0, True)
+    assert beats_noise(before, c, 120) and not beats_noise(before, c, 120, alpha=0.001)
+
+
 def test_a_structured_residual_needs_only_the_floor_to_count_as_better():
     from freqid_casadi.fitting.order import OrderStep, decide, noise_share
 

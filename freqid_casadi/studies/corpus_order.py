@@ -220,7 +220,7 @@ def judge(ladders, decide=None):
 
 def _previous(steps, poles, omega, n_points, *, end=None):
     from ..fitting.order import decide
-    return decide(steps, poles, omega, n_points, end=end, share=lambda step: 1.0)
+    return decide(steps, poles, omega, n_points, end=end, alpha=0.0)
 
 
 #: The rules compared: name -> (decide callable or None for today's, one-line description).
@@ -228,7 +228,9 @@ RULES = {
     "today": (None, "`freqid_casadi.fitting.order.decide`: one more section counts as an "
                     "improvement when the RMS falls by max(0.1, 12 / M x (sigma / RMS)^2), the "
                     "noise share (sigma / RMS)^2 = 1 / ratio^2 for a structured residual, 1 for "
-                    "one consistent with the noise"),
-    "previous": (_previous, "the same with the noise share 1 throughout: a fall of max(0.1, "
-                            "12 / M) whatever the residual (the rule of results/corpus)"),
+                    "one consistent with the noise; or, when the lower order's residual is "
+                    "consistent with the noise, when the nested-model F-test at level 0.01 "
+                    "says so and the RMS falls by at least 3 %"),
+    "previous": (_previous, "the same without the F-test (the rule of the previous "
+                            "results/corpus)"),
 }
