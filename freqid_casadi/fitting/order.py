@@ -88,8 +88,9 @@ class OrderStep:
         RMS / point-to-point roughness of the residual (about 1: white).
     success : bool
     n_params : int
-        Real parameters of the model (0: unknown, taken as ``2 + 4 n_sections``, the
-        second-order basis).
+        Real parameters the data determine: the gain, the delay, and one per pole and per
+        zero (4 per second-order section, 2 per first-order one; the unit-DC gauge fixes
+        the rest of ``Structure.n_params``). 0: unknown, taken as ``2 + 4 n_sections``.
     """
 
     n_sections: int
@@ -236,8 +237,10 @@ def _step(res):
     weights = res.data.weights
     residual = res.data.response / res.model.frequency_response(res.data.omega) - 1
     rms, ratio = whiteness(residual, weights)
+    s = res.model.structure
+    per = 2 if s.basis == "second-order" else 1      # poles (and zeros) per section
     return OrderStep(res.model.n_sections, rms, ratio, bool(res.success),
-                     int(res.model.structure.n_params))
+                     1 + int(bool(s.delay)) + 2 * per * s.n_sections)
 
 
 def _consistent(step):
