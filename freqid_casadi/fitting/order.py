@@ -200,8 +200,8 @@ def beats_noise(before, after, n_points, alpha=ORDER_ALPHA, min_fall=MIN_FALL):
     """
     from scipy.special import fdtri
 
-    p_before = before.n_params or 2 + 4 * before.n_sections
-    p_after = after.n_params or 2 + 4 * after.n_sections
+    p_before = before.n_params or _determined(before.n_sections)
+    p_after = after.n_params or _determined(after.n_sections)
     q, dof = p_after - p_before, 2 * int(n_points) - p_after
     if not (alpha > 0 and q > 0 and dof > 0 and 0 < after.rms < before.rms * (1 - min_fall)):
         return False
@@ -238,9 +238,14 @@ def _step(res):
     residual = res.data.response / res.model.frequency_response(res.data.omega) - 1
     rms, ratio = whiteness(residual, weights)
     s = res.model.structure
-    per = 2 if s.basis == "second-order" else 1      # poles (and zeros) per section
     return OrderStep(res.model.n_sections, rms, ratio, bool(res.success),
-                     1 + int(bool(s.delay)) + 2 * per * s.n_sections)
+                     _determined(s.n_sections, s.basis, s.delay))
+
+
+def _determined(n_sections, basis="second-order", delay=True):
+    """Real parameters the data determine: the gain, the delay, one per pole and zero."""
+    per = 2 if basis == "second-order" else 1        # poles (and zeros) per section
+    return 1 + int(bool(delay)) + 2 * per * int(n_sections)
 
 
 def _consistent(step):

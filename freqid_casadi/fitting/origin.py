@@ -44,9 +44,10 @@ PREFER_FACTOR = 1.5
 #: ambiguous (an ``integrator`` warning with the errors of each choice).
 AMBIGUOUS_FACTOR = 3.0
 #: RMS error of the positive-gain start below which the negative sign is not tried (the
-#: data explained to rounding; the gain-sign check's cut-off, :data:`EXACT_START`). It was 0.25: on a 140-220 GHz transmission measurement
-#: (tx190_s21, 5 sections) the positive start at RMS 0.16 then hid the negative one at
-#: 0.0086 and the fit ended at 0.0111 with two zeros at the origin instead of 0.0073.
+#: data explained to rounding; the gain-sign check's cut-off, :data:`EXACT_START`). It
+#: was 0.25: on a 140-220 GHz transmission measurement (tx190_s21, 5 sections) the
+#: positive start at RMS 0.16 then hid the negative one at 0.0086 and the fit ended at
+#: 0.0111 with two zeros at the origin instead of 0.0073.
 #: fit's own sign check runs the same starts (rational_start_memo), so trying both costs
 #: at most one start per candidate.
 DECISIVE_RMS = EXACT_START

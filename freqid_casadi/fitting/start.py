@@ -30,7 +30,8 @@ from ..core.model import RationalDelayModel, times_jw_power
 
 __all__ = ["RationalStart", "RationalStartError", "rational_start", "rational_start_memo",
            "sections_from_roots", "group_delay_estimate", "significant_group_delay",
-           "search_delay", "GROUP_DELAY_PHASE", "PROBE_PHASE", "MAX_TRIALS"]
+           "search_delay", "GROUP_DELAY_PHASE", "PROBE_PHASE", "MAX_TRIALS",
+           "EXACT_TRIAL"]
 
 
 class RationalStartError(SolverError):
@@ -340,6 +341,10 @@ def group_delay_estimate(omega, response):
 #: reached the noise in 25, the search in all 51 (9 fits had ended near RMS 1).
 GROUP_DELAY_PHASE = np.pi
 
+#: Max relative error of a trial start that explains the data exactly: the delay updates
+#: stop there and the group-delay search does not run.
+EXACT_TRIAL = 1e-9
+
 #: Probe step, in rad of phase at the highest frequency (``PROBE_PHASE / omega[-1]`` s).
 PROBE_PHASE = 0.1
 #: Most vector fits one search makes.
@@ -420,7 +425,7 @@ def _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_ite
     best = _best(trials)
     # the search, unless a trial is exact or the updates already found a delay within a
     # quarter turn (at the highest frequency) of the group delay
-    if (h_gd is not None and (best is None or trials[best][1] >= 1e-9)
+    if (h_gd is not None and (best is None or trials[best][1] >= EXACT_TRIAL)
             and abs((best or 0.0) - h_gd) * float(data.omega[-1]) > 0.5 * np.pi):
         _search(run, trial, data, base, h_gd, delay_max, max_delay_updates)
         best = _best(trials)
@@ -459,8 +464,9 @@ def _search(run, trial, data, base, h_gd, delay_max, max_delay_updates):
     step = PROBE_PHASE / float(data.omega[-1])
     probes = search_delay(lambda h: probe_run(h)[1], h_gd, step, delay_max)
     _delay_updates(probe_run, min(probes, key=probes.get), delay_max, max_delay_updates)
-    if probe_run is not run and _best(seen) is not None:
-        run(_best(seen))
+    coarse_best = None if probe_run is run else _best(seen)
+    if coarse_best is not None:
+        run(coarse_best)
 
 
 def significant_group_delay(data):
@@ -505,7 +511,7 @@ def _delay_updates(run, h, delay_max, max_updates):
         else:
             hi = min(hi, h)                  # minimum phase already: not too small
             new_h = 0.5 * (lo + hi)
-            if err < 1e-9 or hi - lo <= 1e-3 * max(hi, 1e-12):
+            if err < EXACT_TRIAL or hi - lo <= 1e-3 * max(hi, 1e-12):
                 return
         if abs(new_h - h) <= 1e-12 * max(1.0, h):
             return

@@ -22,6 +22,7 @@ says (:func:`fit_summary`, :func:`render_fit_summary`) is :mod:`freqid_casadi.re
 """
 
 import contextlib
+import functools
 import json
 import os
 
@@ -43,10 +44,12 @@ __all__ = ["write_fit_report", "write_sweep_report", "report_folder", "fit_summa
 # ----------------------------------------------------------------------------- helpers
 
 
+@functools.lru_cache(maxsize=None)
 def code_fingerprint():
     """A fingerprint of this package's source: the first 16 hex digits of the SHA-256 of
     every ``.py`` file under ``freqid_casadi/`` (relative path and bytes, in sorted
-    order). A study's checkpoint records it, so fits made by other code are not resumed.
+    order), computed once per process. A study's checkpoint records it, so fits made by
+    other code are not resumed.
 
     Returns
     -------
