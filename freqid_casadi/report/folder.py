@@ -44,7 +44,6 @@ __all__ = ["write_fit_report", "write_sweep_report", "report_folder", "fit_summa
 # ----------------------------------------------------------------------------- helpers
 
 
-@functools.lru_cache(maxsize=None)
 def code_fingerprint():
     """A fingerprint of this package's source: the first 16 hex digits of the SHA-256 of
     every ``.py`` file under ``freqid_casadi/`` (relative path and bytes, in sorted
@@ -55,6 +54,11 @@ def code_fingerprint():
     -------
     str
     """
+    return _source_digest()
+
+
+@functools.lru_cache(maxsize=None)
+def _source_digest():
     import hashlib
     from pathlib import Path
 
