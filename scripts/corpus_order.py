@@ -30,13 +30,18 @@ from freqid_casadi.studies.corpus_order import (EXTRA, RULES, SUBSET_ROUNDS, jud
 
 
 def _line(d):
-    return " ".join(f"{o['n_sections']}: {o['rms']:.3g} (x{o['ratio']:.2g})" if "rms" in o
-                    else f"{o['n_sections']}: {o['error'].split(':')[0]}" for o in d["orders"])
+    def one(o):
+        if "rms" not in o:
+            return f"{o['n_sections']}: {o['error'].split(':')[0]}"
+        free = (f" [free zeros {o['free']['rms']:.3g} (x{o['free']['ratio']:.2g})]"
+                if "free" in o else "")
+        return f"{o['n_sections']}: {o['rms']:.3g} (x{o['ratio']:.2g}){free}"
+    return " ".join(one(o) for o in d["orders"])
 
 
 def report(command, ladders, rounds, seed, max_points, wall):
     """Markdown lines and the JSON dict of the comparison."""
-    verdicts = {name: judge(ladders, rule) for name, (rule, _) in RULES.items()}
+    verdicts = {name: judge(ladders, rule, **opts) for name, (rule, _, opts) in RULES.items()}
     md = [generated_by_line(command), "",
           "# The automatic order on the noisy corpus cases (issue 26, item 6)", "",
           f"{len(ladders)} noisy cases of corpus seed {seed} (rounds "
@@ -48,7 +53,7 @@ def report(command, ladders, rounds, seed, max_points, wall):
           f"order table. {wall:.0f} s of fitting in this invocation.", "",
           "## Order in [true, true + 1]", ""]
     rows = []
-    for name, (_, text) in RULES.items():
+    for name in RULES:
         v = verdicts[name]
         for label, sel in (("subset", [x for x in v if x["subset"]]),
                            ("other rounds", [x for x in v if not x["subset"]]),
@@ -65,10 +70,11 @@ def report(command, ladders, rounds, seed, max_points, wall):
            "outside those cases the order search cannot find the true order whatever its "
            "rule (a fit that fails at that order, or a system outside the minimum-phase "
            "class).", ""]
-    for name, (_, text) in RULES.items():
+    for name, (_, text, _) in RULES.items():
         md += [f"**{name}**: {text}", ""]
     md += ["## Misses", "", "Each rule's cases outside [true, true + 1]: the order chosen, "
-           "why, and every order's RMS (x its roughness ratio).", ""]
+           "why, and every order's RMS (x its roughness ratio; in brackets the zeros='free' "
+           "model the fit offers, when it offers one).", ""]
     by_case = {d["case"]: d for d in ladders}
     for name in RULES:
         miss = [x for x in verdicts[name] if not x["right"]]
@@ -79,7 +85,7 @@ def report(command, ladders, rounds, seed, max_points, wall):
                               ["case", "true", "chosen", "reason", "subset", "orders"],
                               "lrrlll") if miss else "none.", ""]
     js = {"command": command, "seed": seed, "rounds": list(rounds), "max_points": max_points,
-          "rules": {n: t for n, (_, t) in RULES.items()}, "verdicts": verdicts}
+          "rules": {n: t for n, (_, t, _) in RULES.items()}, "verdicts": verdicts}
     return md, js
 
 

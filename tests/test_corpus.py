@@ -222,6 +222,38 @@ def test_a_minimum_phase_search_without_a_consistent_order_offers_the_free_zeros
     assert "zeros=free" not in with_free_zeros(ok, None, max_sections=3).alternatives
 
 
+def test_auto_order_stops_where_the_offered_free_zeros_model_explains_the_data():
+    # the minimum-phase fits stay at RMS 0.35 from 2 sections on; the 2-section fit's
+    # non-minimum-phase check offers the free-zeros model, exact: the search stops there
+    # (before: "no-improvement" after 4 orders, the offered model not named by the order)
+    res = fc.fit(_rhp_pair_data(), n_sections="auto", integrator=False, delay=False)
+    rec = next(d for d in res.diagnostics if d.code == "order-chosen")
+    assert rec.values["reason"] == "free-zeros" and rec.values["orders"] == [1, 2, 3]
+    assert rec.values["free_zeros"] == [False, True, True]
+    assert res.model.n_sections == 2 and res.model.structure.zeros == "minimum-phase"
+    assert res.status == "poor-fit" and res.rms_rel_error > 0.3
+    alt = res.alternatives["zeros=free"]
+    assert alt.model.n_sections == 2 and alt.rms_rel_error < 1e-8
+    assert "with free zeros RMS" in rec.message and "pass zeros='free'" in res.message
+
+
+def test_explaining_step_takes_the_offered_model_only_where_it_explains_more():
+    from freqid_casadi.fitting.order import OrderStep, decide, explaining_step
+
+    mp, free = OrderStep(5, 0.18, 9.0, True), OrderStep(5, 0.00245, 0.95, True)
+    assert explaining_step(mp) is mp and explaining_step(mp, free).free
+    # a consistent minimum-phase fit is kept; an alternative not halving the RMS is not used
+    ok = OrderStep(5, 0.0025, 1.0, True)
+    assert explaining_step(ok, free) is ok
+    assert explaining_step(mp, OrderStep(5, 0.1, 1.0, True)) is mp
+    # modal-noncollocated-39's orders 4-6 (measured): 4 minimum phase only, 5 and 6 offered
+    steps = [OrderStep(4, 0.217, 2.3, True), explaining_step(mp, free),
+             explaining_step(OrderStep(6, 0.155, 7.6, True), OrderStep(6, 0.00245, 0.95, True))]
+    poles = [np.array([-1 + 10j, -1 - 10j])] * 3
+    assert decide(steps[:2], poles[:2], np.array([1.0, 100.0]), 100) is None
+    assert decide(steps, poles, np.array([1.0, 100.0]), 100) == (1, "free-zeros")
+
+
 def test_auto_order_on_data_no_order_explains_stops_at_the_data_limit():
     # white noise: every order stays near the trivial model (RMS ~1), so the search runs
     # until the next order needs more parameters than 24 points give (fit raised that

@@ -31,6 +31,15 @@ result's
 diagnostics carry an ``order-chosen`` record with the reason, every order's RMS and
 roughness ratio.
 
+Data outside the class: when an order's minimum-phase fit is not consistent with the noise
+but the ``zeros="free"`` model that fit offers (``FitResult.alternatives``, computed when
+its ``non-minimum-phase`` check fires) reaches at most :data:`FREE_ZEROS_GAIN` times its
+RMS, the rule reads that order's residual and poles from the offered model
+(:func:`explaining_step`). The search then stops at the smallest order whose offered model
+explains the data (reason ``"free-zeros"``: the result is that order's minimum-phase fit,
+its ``alternatives["zeros=free"]`` the model to use) instead of adding minimum-phase
+sections that imitate right-half-plane zeros up to ``max_sections``.
+
 This module takes the fit as a callable (``fit_one(n) -> FitResult``), so the pipeline
 (:mod:`freqid_casadi.fitting.fit`) dispatches to it without an import cycle.
 """
@@ -45,6 +54,7 @@ from ..errors import DataError, FreqidError, OptionError, StructureError
 from .diagnostics import TRIVIAL_RMS, Diagnostic
 
 __all__ = ["OrderStep", "OrderChoice", "choose_order", "decide", "with_order_record",
+           "explaining_step",
            "whiteness", "significant", "beats_noise", "noise_share", "with_free_zeros",
            "WHITE_RATIO", "EXACT_RMS", "MODE_TOLERANCE", "PATIENCE", "MAX_SECTIONS",
            "FREE_ZEROS_GAIN", "ORDER_ALPHA", "MIN_FALL"]
@@ -91,6 +101,9 @@ class OrderStep:
         Real parameters the data determine: the gain, the delay, and one per pole and per
         zero (4 per second-order section, 2 per first-order one; the unit-DC gauge fixes
         the rest of ``Structure.n_params``). 0: unknown, taken as ``2 + 4 n_sections``.
+    free : bool
+        The numbers are those of the order's ``zeros="free"`` alternative, the model that
+        explains the data better (:func:`explaining_step`).
     """
 
     n_sections: int
@@ -98,6 +111,7 @@ class OrderStep:
     ratio: float
     success: bool
     n_params: int = 0
+    free: bool = False
 
 
 @dataclass(frozen=True, eq=False)
@@ -109,7 +123,9 @@ class OrderChoice:
     result : FitResult
         The fit at the chosen order.
     n_sections : int
-    reason : {"consistent", "no-improvement", "max-sections", "data-limit"}
+    reason : {"consistent", "free-zeros", "no-improvement", "max-sections", "data-limit"}
+        ``"free-zeros"``: the order's minimum-phase fit is not consistent with the noise,
+        its ``zeros="free"`` alternative is.
     steps : tuple of OrderStep
         Every order tried, in order.
     message : str
@@ -233,13 +249,43 @@ def noise_share(step):
     return min(1.0, 1.0 / step.ratio ** 2)
 
 
-def _step(res):
+def explaining_step(step, free=None):
+    """The step the order rule reads for one order: ``step`` (the minimum-phase fit), or
+    ``free`` (its ``zeros="free"`` alternative) when ``step`` is not consistent with the
+    noise and ``free`` reaches at most :data:`FREE_ZEROS_GAIN` times its RMS.
+
+    Parameters
+    ----------
+    step : OrderStep
+        The order's fit.
+    free : OrderStep, optional
+        The fit's ``zeros="free"`` alternative, when it offers one.
+
+    Returns
+    -------
+    OrderStep
+        ``step``, or ``free`` with ``free=True``.
+    """
+    if free is None or _consistent(step) or not free.rms <= FREE_ZEROS_GAIN * step.rms:
+        return step
+    return dataclasses.replace(free, free=True)
+
+
+def _numbers(res):
     weights = res.data.weights
     residual = res.data.response / res.model.frequency_response(res.data.omega) - 1
     rms, ratio = whiteness(residual, weights)
     s = res.model.structure
     return OrderStep(res.model.n_sections, rms, ratio, bool(res.success),
                      _determined(s.n_sections, s.basis, s.delay))
+
+
+def _step(res):
+    """The order's :class:`OrderStep` (:func:`explaining_step` of the fit and its
+    ``zeros="free"`` alternative) and the poles of the model it describes."""
+    alt = getattr(res, "alternatives", {}).get("zeros=free")
+    step = explaining_step(_numbers(res), None if alt is None else _numbers(alt))
+    return step, (alt if step.free else res).model.poles()
 
 
 def _determined(n_sections, basis="second-order", delay=True):
@@ -318,13 +364,17 @@ def decide(steps, poles, omega, n_points, *, end=None, share=noise_share, alpha=
         exact = cur.rms <= EXACT_RMS and prev.rms <= EXACT_RMS
         if _consistent(prev) and (not better or exact) and _modes_stable(
                 poles[-2], poles[-1], omega) <= MODE_TOLERANCE:
-            return len(steps) - 2, "consistent"
+            return len(steps) - 2, _explained(prev)
         if _stale(steps, n_points, share) >= PATIENCE:
             return _best(steps, n_points, share), "no-improvement"
         return None
     if steps and _consistent(steps[-1]):
-        return len(steps) - 1, "consistent"
+        return len(steps) - 1, _explained(steps[-1])
     return _best(steps, n_points, share), end
+
+
+def _explained(step):
+    return "free-zeros" if step.free else "consistent"
 
 
 def choose_order(fit_one, *, max_sections=MAX_SECTIONS, min_sections=1):
@@ -366,8 +416,9 @@ def choose_order(fit_one, *, max_sections=MAX_SECTIONS, min_sections=1):
             end = "data-limit"
             break
         results.append(res)
-        steps.append(_step(res))
-        poles.append(res.model.poles())
+        step, p = _step(res)
+        steps.append(step)
+        poles.append(p)
         verdict = decide(steps, poles, results[0].data.omega, results[0].data.omega.size)
         if verdict is not None:
             break
@@ -379,6 +430,9 @@ def choose_order(fit_one, *, max_sections=MAX_SECTIONS, min_sections=1):
 
 _WHY = {
     "consistent": "the residual is consistent with the noise",
+    "free-zeros": "the minimum-phase model's residual is not consistent with the noise, the "
+                  "residual of its model with free zeros is (the data need right-half-plane "
+                  "zeros: use FitResult.alternatives['zeros=free'], or pass zeros='free')",
     "no-improvement": "no residual is consistent with the noise, and more sections stopped "
                       "lowering it (the model class, not the order, limits this fit: see the "
                       "other diagnostics)",
@@ -391,7 +445,8 @@ _WHY = {
 
 def _choice(results, steps, poles, k, reason, omega):
     step = steps[k]
-    tried = ", ".join(f"{s.n_sections}: RMS {s.rms:.3g} (x{s.ratio:.2g})" for s in steps)
+    tried = ", ".join(f"{s.n_sections}: RMS {s.rms:.3g}{'*' if s.free else ''} "
+                      f"(x{s.ratio:.2g})" for s in steps)
     nxt = ""
     if k + 1 < len(steps):
         drop = 1 - steps[k + 1].rms / step.rms if step.rms > 0 else 0.0
@@ -399,16 +454,21 @@ def _choice(results, steps, poles, k, reason, omega):
         nxt = (f"; {steps[k + 1].n_sections} sections lower the RMS by {100 * drop:.2g} % "
                f"and move its in-band poles by at most {100 * moved:.2g} %")
     plural = "s" if step.n_sections != 1 else ""
+    own = f"RMS {step.rms:.3g}, {step.ratio:.3g} times its point-to-point roughness"
+    if step.free:
+        own = (f"with free zeros {own}; minimum phase RMS "
+               f"{results[k].rms_rel_error:.3g}")
     message = (f"n_sections='auto' chose {step.n_sections} section{plural}: {_WHY[reason]} "
-               f"(RMS {step.rms:.3g}, {step.ratio:.3g} times its point-to-point roughness){nxt}; "
-               f"orders tried (RMS, x roughness) {tried}")
+               f"({own}){nxt}; "
+               f"orders tried (RMS, x roughness; * with free zeros) {tried}")
     return OrderChoice(result=results[k], n_sections=step.n_sections, reason=reason,
                        steps=tuple(steps), message=message)
 
 
 def with_order_record(choice):
     """``choice.result`` with an ``order-chosen`` diagnostic (severity "info") appended:
-    the reason and every order's RMS and roughness ratio in its values.
+    the reason and every order's RMS and roughness ratio in its values (``free_zeros``:
+    which of them are the order's ``zeros="free"`` alternative's).
 
     Parameters
     ----------
@@ -421,7 +481,8 @@ def with_order_record(choice):
     d = Diagnostic("order-chosen", choice.message, "info", {
         "n_sections": choice.n_sections, "reason": choice.reason,
         "orders": [s.n_sections for s in choice.steps],
-        "rms": [s.rms for s in choice.steps], "ratio": [s.ratio for s in choice.steps]})
+        "rms": [s.rms for s in choice.steps], "ratio": [s.ratio for s in choice.steps],
+        "free_zeros": [s.free for s in choice.steps]})
     try:
         return dataclasses.replace(choice.result, diagnostics=tuple(choice.result.diagnostics)
                                    + (d,))
@@ -457,7 +518,8 @@ def with_free_zeros(choice, fit_free, *, max_sections, min_sections=1):
     FitResult
     """
     result = with_order_record(choice)
-    if choice.reason == "consistent" or "zeros=free" in getattr(result, "alternatives", {}):
+    if choice.reason in ("consistent", "free-zeros") \
+            or "zeros=free" in getattr(result, "alternatives", {}):
         return result
     try:
         alt = with_order_record(choose_order(fit_free, max_sections=max_sections,

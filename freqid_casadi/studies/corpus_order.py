@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import DataError, StructureError
 from ..fitting.fit import fit
-from ..fitting.order import MAX_SECTIONS, OrderStep, whiteness
+from ..fitting.order import MAX_SECTIONS, OrderStep, explaining_step, whiteness
 from ..systems.corpus import FAMILIES, case
 from .corpus import (CPU_BUDGET, FLOOR_FACTOR, FULL_CASES, SUBSET_EVERY, TimeLimit, _budget,
                      json_lines)
@@ -76,8 +76,9 @@ def ladder(task, top=None):
     -------
     dict
         The case (name, family, true sections, noise, points, in_class) and ``orders``: per
-        order ``n_sections, rms, ratio, success, status, poles`` (pairs re, im) or
-        ``error`` (the exception, then the ladder ends).
+        order ``n_sections, rms, ratio, success, status, poles`` (pairs re, im) and, when
+        the fit offers a ``zeros="free"`` alternative, ``free`` (its ``rms, ratio,
+        success, status, poles``), or ``error`` (the exception, then the ladder ends).
     """
     index, seed, max_points = task
     c = case(index, seed, max_points=max_points)
@@ -93,15 +94,20 @@ def ladder(task, top=None):
         except (StructureError, DataError, TimeLimit) as exc:
             out["orders"].append(dict(n_sections=n, error=f"{type(exc).__name__}: {exc}"[:200]))
             break
-        residual = res.data.response / res.model.frequency_response(res.data.omega) - 1
-        rms, ratio = whiteness(residual, res.data.weights)
-        p = res.model.poles()
-        out["orders"].append(dict(
-            n_sections=n, rms=rms, ratio=ratio, success=bool(res.success),
-            status=str(res.status), poles=[[float(z.real), float(z.imag)] for z in p],
-            wall_time=time.perf_counter() - t0))
+        row = dict(n_sections=n, **_numbers(res), wall_time=time.perf_counter() - t0)
+        alt = res.alternatives.get("zeros=free")
+        if alt is not None:
+            row["free"] = _numbers(alt)
+        out["orders"].append(row)
     out["omega"] = [float(c.data.omega[0]), float(c.data.omega[-1])]
     return out
+
+
+def _numbers(res):
+    residual = res.data.response / res.model.frequency_response(res.data.omega) - 1
+    rms, ratio = whiteness(residual, res.data.weights)
+    return dict(rms=rms, ratio=ratio, success=bool(res.success), status=str(res.status),
+                poles=[[float(z.real), float(z.imag)] for z in res.model.poles()])
 
 
 def run_ladders(tasks, path, workers=2, progress=None):
@@ -141,7 +147,7 @@ class _Beyond(Exception):
     pass
 
 
-def replay(lad, decide=None, **kw):
+def replay(lad, decide=None, *, free_zeros=True, **kw):
     """The order ``decide`` (default :func:`freqid_casadi.fitting.order.decide`) chooses
     over a :func:`ladder`: ``(n_sections, reason)``, or ``(None, "beyond")`` when the rule
     asked for an order the ladder did not fit (a choice above ``true + 1`` in any case
@@ -153,6 +159,10 @@ def replay(lad, decide=None, **kw):
         A :func:`ladder`.
     decide : callable, optional
         The stopping rule, as :func:`freqid_casadi.fitting.order.decide`.
+    free_zeros : bool
+        Read an order from its ``zeros="free"`` alternative where
+        :func:`~freqid_casadi.fitting.order.explaining_step` does (as ``choose_order``);
+        False: from the minimum-phase fit alone (the rule before it).
     **kw
         Passed to ``decide``.
 
@@ -174,8 +184,12 @@ def replay(lad, decide=None, **kw):
                 return None, "error"
             k, reason = decide(steps, poles, omega, lad["n_points"], end="data-limit")
             return steps[k].n_sections, reason
-        steps.append(OrderStep(n, o["rms"], o["ratio"], o["success"]))
-        poles.append(np.array([complex(a, b) for a, b in o["poles"]]))
+        free = o.get("free") if free_zeros else None
+        step = explaining_step(OrderStep(n, o["rms"], o["ratio"], o["success"]),
+                               free and OrderStep(n, free["rms"], free["ratio"],
+                                                  free["success"]))
+        steps.append(step)
+        poles.append(np.array([complex(a, b) for a, b in (free if step.free else o)["poles"]]))
         verdict = decide(steps, poles, omega, lad["n_points"], **kw)
         if verdict is not None:
             k, reason = verdict
@@ -184,7 +198,7 @@ def replay(lad, decide=None, **kw):
     return steps[k].n_sections, reason
 
 
-def judge(ladders, decide=None):
+def judge(ladders, decide=None, **options):
     """Replay ``decide`` over every ladder: list of dicts (case, family, true, chosen,
     reason, right: chosen in [true, true + 1], below, above, subset: a case of
     :data:`SUBSET_ROUNDS`, floor: its fit at the true order reaches the noise floor, RMS at
@@ -198,6 +212,8 @@ def judge(ladders, decide=None):
         :func:`ladder` results.
     decide : callable, optional
         As for :func:`replay`.
+    **options
+        :func:`replay`'s keywords (``free_zeros``).
 
     Returns
     -------
@@ -205,7 +221,7 @@ def judge(ladders, decide=None):
     """
     out = []
     for d in ladders:
-        n, reason = replay(d, decide)
+        n, reason = replay(d, decide, **options)
         t = d["true_sections"]
         at_true = next((o for o in d["orders"] if o["n_sections"] == t and "rms" in o), None)
         out.append({"case": d["case"], "family": d["family"], "true": t, "chosen": n,
@@ -218,19 +234,19 @@ def judge(ladders, decide=None):
     return out
 
 
-def _previous(steps, poles, omega, n_points, *, end=None):
-    from ..fitting.order import decide
-    return decide(steps, poles, omega, n_points, end=end, alpha=0.0)
-
-
-#: The rules compared: name -> (decide callable or None for today's, one-line description).
+#: The rules compared: name -> (decide callable or None for today's, one-line description,
+#: :func:`judge`'s options).
 RULES = {
     "today": (None, "`freqid_casadi.fitting.order.decide`: one more section counts as an "
                     "improvement when the RMS falls by max(0.1, 12 / M x (sigma / RMS)^2), the "
                     "noise share (sigma / RMS)^2 = 1 / ratio^2 for a structured residual, 1 for "
                     "one consistent with the noise; or, when the lower order's residual is "
                     "consistent with the noise, when the nested-model F-test at level 0.01 "
-                    "says so and the RMS falls by at least 3 %"),
-    "previous": (_previous, "the same without the F-test (the rule of the previous "
-                            "results/corpus)"),
+                    "says so and the RMS falls by at least 3 %. An order whose minimum-phase "
+                    "fit is not consistent with the noise is read from the zeros='free' model "
+                    "that fit offers, when that reaches at most half its RMS "
+                    "(`explaining_step`): the search stops where the offered model explains "
+                    "the data", {}),
+    "previous": (None, "the same, every order read from its minimum-phase fit alone (the "
+                       "rule of the previous results/corpus-order)", {"free_zeros": False}),
 }
