@@ -250,13 +250,7 @@ def _worker_init():
 def _read_checkpoint(path):
     """The checkpoint's records made by this code (:func:`code_fingerprint`), by (system,
     replicate); records of other code are set aside (said on stderr), to be fitted again."""
-    code = code_fingerprint()
-    recs = json_lines(path)
-    mine = {(rec["system"], rec["rep"]): rec for rec in recs if rec.get("code") == code}
-    if len(mine) < len(recs):
-        print(f"{len(recs) - len(mine)} records of {path} were made by other code "
-              f"(not {code}) and are set aside", file=sys.stderr, flush=True)
-    return mine
+    return {(rec["system"], rec["rep"]): rec for rec in json_lines(path, code_fingerprint())}
 
 
 def _run(todo, jobs, checkpoint, done, t0):

@@ -7,6 +7,7 @@ fits take a minute or two), fitted at the true order by
 the comments; the thresholds keep a stated margin below them.
 """
 
+import json
 import math
 
 import numpy as np
@@ -345,3 +346,23 @@ def test_run_corpus_resumes_from_its_checkpoint(tmp_path):
                        checkpoint=path, progress=lambda done, total, rec: seen.append(rec))
     assert seen == [] and len(path.read_text().splitlines()) == 1
     assert again[0].rms == first[0].rms and again[0].diagnostics == first[0].diagnostics
+    # a record made by other code (another fingerprint) is set aside and fitted again
+    rec = json.loads(path.read_text())
+    path.write_text(json.dumps(dict(rec, code="0" * 16)) + "\n")
+    seen.clear()
+    run_corpus(1, 0, max_points=50, workers=1, configs=["today"], auto=False,
+               checkpoint=path, progress=lambda done, total, rec: seen.append(rec))
+    assert len(seen) == 1 and len(path.read_text().splitlines()) == 2
+
+
+def test_json_lines_keeps_the_records_of_this_code(tmp_path, capsys):
+    from freqid_casadi.report.folder import code_fingerprint
+    from freqid_casadi.studies.corpus import json_lines
+
+    path = tmp_path / "c.jsonl"
+    mine, other = {"a": 1, "code": code_fingerprint()}, {"a": 2, "code": "x"}
+    path.write_text(f"{json.dumps(mine)}\n{json.dumps(other)}\n{{\"cut\n")
+    assert json_lines(path) == [mine, other]          # a cut line is skipped
+    assert json_lines(path, code_fingerprint()) == [mine]
+    assert "1 of its 2 records were made by other code" in capsys.readouterr().err
+    assert json_lines(tmp_path / "none.jsonl", "x") == []

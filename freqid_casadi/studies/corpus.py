@@ -34,6 +34,7 @@ order right (auto)
 import json
 import multiprocessing
 import os
+import sys
 import time
 import warnings
 from dataclasses import asdict, dataclass
@@ -43,6 +44,7 @@ import numpy as np
 from ..core.data import dense_grid
 from ..fitting.fit import fit
 from ..options import LoopOptions
+from ..report.folder import code_fingerprint
 from ..systems.corpus import FAMILIES, case, corpus
 
 __all__ = ["CONFIGS", "CaseFit", "run_corpus", "fit_case", "summarize", "EXACT_FLOOR",
@@ -264,7 +266,8 @@ def run_corpus(n=FULL_CASES, seed=0, *, max_points=FULL_MAX_POINTS, workers=2,
         Called with ``(done, total, CaseFit)`` after each fit.
     checkpoint : str or os.PathLike, optional
         A JSON-lines file: each fit is appended as it is done, and the fits it already
-        holds (same case, seed and configuration) are not run again (a run that was
+        holds (same case, seed and configuration, made by the same code:
+        :func:`~freqid_casadi.report.folder.code_fingerprint`) are not run again (a run that was
         stopped resumes).
     """
     todo = tasks(n, seed, max_points, configs, auto)
@@ -283,7 +286,8 @@ def run_corpus(n=FULL_CASES, seed=0, *, max_points=FULL_MAX_POINTS, workers=2,
             out.append(rec)
             if checkpoint is not None:
                 with open(checkpoint, "a", encoding="utf-8") as f:
-                    f.write(json.dumps(asdict(rec), default=_plain) + "\n")
+                    f.write(json.dumps(dict(asdict(rec), code=code_fingerprint()),
+                                       default=_plain) + "\n")
             if progress is not None:
                 progress(len(out), total, rec)
     finally:
@@ -297,7 +301,7 @@ def _plain(x):
     return x.item() if hasattr(x, "item") else str(x)
 
 
-def json_lines(path):
+def json_lines(path, code=None):
     """The records of the JSON-lines checkpoint ``path`` (appended to record by record), each
     a decoded line; a line that does not decode (cut when a run was killed) is skipped, and
     a missing file (or None) has none.
@@ -305,6 +309,10 @@ def json_lines(path):
     Parameters
     ----------
     path : str or os.PathLike or None
+    code : str, optional
+        Keep only the records whose ``"code"`` is this
+        (:func:`~freqid_casadi.report.folder.code_fingerprint`): records made by another
+        version of the package are set aside, to be made again, and stderr says how many.
 
     Returns
     -------
@@ -319,7 +327,13 @@ def json_lines(path):
                 out.append(json.loads(line))
             except ValueError:
                 continue
-    return out
+    if code is None:
+        return out
+    mine = [d for d in out if isinstance(d, dict) and d.get("code") == code]
+    if len(mine) < len(out):
+        print(f"{path}: {len(out) - len(mine)} of its {len(out)} records were made by other "
+              f"code (not {code}); set aside, to be made again", file=sys.stderr, flush=True)
+    return mine
 
 
 def _read_checkpoint(path, todo):
@@ -327,7 +341,8 @@ def _read_checkpoint(path, todo):
     point cap included: the key is the task)."""
     keys = {(t[0], t[3]): t for t in todo}
     out = []
-    for d in json_lines(path):              # (a line cut by the stop is skipped)
+    for d in json_lines(path, code_fingerprint()):   # (a line cut by the stop is skipped)
+        d.pop("code")
         task = keys.get((d.get("index"), d.get("config")))
         if task is not None and d.get("task") == list(task):
             d["diagnostics"] = tuple(d["diagnostics"])

@@ -19,6 +19,7 @@ import numpy as np
 from ..errors import DataError, StructureError
 from ..fitting.fit import fit
 from ..fitting.order import MAX_SECTIONS, OrderStep, explaining_step, whiteness
+from ..report.folder import code_fingerprint
 from ..systems.corpus import FAMILIES, case
 from .corpus import (CPU_BUDGET, FLOOR_FACTOR, FULL_CASES, SUBSET_EVERY, TimeLimit, _budget,
                      json_lines)
@@ -84,7 +85,8 @@ def ladder(task, top=None):
     c = case(index, seed, max_points=max_points)
     top = min(MAX_SECTIONS, c.n_sections + EXTRA) if top is None else int(top)
     out = dict(task=list(task), case=c.name, family=c.family, true_sections=c.n_sections,
-               noise=c.noise, n_points=c.n_points, in_class=c.in_class, orders=[])
+               noise=c.noise, n_points=c.n_points, in_class=c.in_class,
+               code=code_fingerprint(), orders=[])
     for n in range(1, top + 1):
         t0 = time.perf_counter()
         try:
@@ -129,7 +131,7 @@ def run_ladders(tasks, path, workers=2, progress=None):
     -------
     list of dict
     """
-    done = {tuple(d["task"]): d for d in json_lines(path)}
+    done = {tuple(d["task"]): d for d in json_lines(path, code_fingerprint())}
     todo = [t for t in tasks if tuple(t) not in done]
     if todo:
         ctx = multiprocessing.get_context("spawn")
