@@ -56,7 +56,7 @@ class MeasuredFit:
         The order chosen (0 when the fit raised).
     order_reason : str
         Why the order search stopped (``order-chosen`` diagnostic: "consistent",
-        "no-improvement", "max-sections", "data-limit"), "" if absent.
+        "free-zeros", "no-improvement", "max-sections", "data-limit"), "" if absent.
     status : str
         ``res.status`` ("ok", "poor-fit", "not-converged"), or "error".
     rms, max_rel_error : float
