@@ -255,6 +255,33 @@ def test_explaining_step_takes_the_offered_model_only_where_it_explains_more():
     assert decide(steps, poles, np.array([1.0, 100.0]), 100) == (1, "free-zeros")
 
 
+def test_replay_reads_the_offered_free_zeros_model_as_the_live_search_does():
+    from freqid_casadi.studies.corpus_order import judge, replay
+
+    pole = [[-1.0, 10.0], [-1.0, -10.0]]
+
+    def order(n, rms, ratio, free=None):
+        o = dict(n_sections=n, rms=rms, ratio=ratio, success=True, status="poor-fit",
+                 poles=pole)
+        if free is not None:
+            o["free"] = dict(rms=free[0], ratio=free[1], success=True, status="ok",
+                             poles=pole)
+        return o
+    # modal-noncollocated-39's ladder (measured, 5 sections true): minimum phase never at
+    # the noise; orders 5 and 6 offer a free-zeros model at it
+    lad = dict(task=[39, 0, 120], case="modal-noncollocated-39", family="modal-noncollocated",
+               true_sections=5, noise=0.00245, n_points=100, in_class=False,
+               omega=[1.0, 100.0],
+               orders=[order(1, 0.999, 58), order(2, 0.466, 2.7), order(3, 0.322, 2.3),
+                       order(4, 0.217, 2.3), order(5, 0.179, 9, (0.00245, 0.95)),
+                       order(6, 0.155, 7.6, (0.00245, 0.95)), order(7, 0.138, 5.9),
+                       order(8, 0.137, 7.0)])
+    assert replay(lad) == (5, "free-zeros")
+    assert replay(lad, free_zeros=False) == (None, "beyond")     # needs orders above 8
+    [v] = judge([lad])
+    assert v["right"] and not v["floor"]
+
+
 def test_auto_order_on_data_no_order_explains_stops_at_the_data_limit():
     # white noise: every order stays near the trivial model (RMS ~1), so the search runs
     # until the next order needs more parameters than 24 points give (fit raised that
