@@ -38,7 +38,8 @@ so a killed run started again with the same options and the same code goes on wh
 stopped (records made by other code, told by a fingerprint of the package's source, are
 fitted again); each
 record keeps its pickled FitResult, and ``--rescore`` recomputes the intervals and
-statuses from them (after a change of :mod:`freqid_casadi.uncertainty`) without refitting.
+statuses from them (after a change of :mod:`freqid_casadi.uncertainty`) without refitting,
+the checkpoint's fits of other code included (the report names the code that made them).
 Writes
 ``--out`` atomically: ``report.md`` (first line: the command), ``coverage.json`` (every
 number and every replicate) and ``coverage.png``.
@@ -247,10 +248,18 @@ def _worker_init():
         pass
 
 
-def _read_checkpoint(path):
+def _read_checkpoint(path, rescore=False):
     """The checkpoint's records made by this code (:func:`code_fingerprint`), by (system,
-    replicate); records of other code are set aside (said on stderr), to be fitted again."""
-    return {(rec["system"], rec["rep"]): rec for rec in json_lines(path, code_fingerprint())}
+    replicate); records of other code are set aside (said on stderr), to be fitted again.
+    With ``rescore`` every record is kept (this code's where both exist): their fits are
+    scored again by this code, which is what ``--rescore`` is for."""
+    if not rescore:
+        return {(r["system"], r["rep"]): r for r in json_lines(path, code_fingerprint())}
+    code = code_fingerprint()
+    out = {}
+    for rec in sorted(json_lines(path), key=lambda r: r.get("code") == code):
+        out[(rec["system"], rec["rep"])] = rec
+    return out
 
 
 def _run(todo, jobs, checkpoint, done, t0):
@@ -269,7 +278,7 @@ def _run(todo, jobs, checkpoint, done, t0):
                       file=sys.stderr, flush=True)
 
 
-def monte_carlo(fixed, candidates, n, replicates, jobs, checkpoint):
+def monte_carlo(fixed, candidates, n, replicates, jobs, checkpoint, rescore=False):
     """Screen, then run every replicate (resuming from ``checkpoint``).
 
     Replicate 0 of every system is fitted first; the ``fixed`` systems are all kept, of
@@ -279,7 +288,7 @@ def monte_carlo(fixed, candidates, n, replicates, jobs, checkpoint):
     replicate-0 status, every record of the kept ones, the wall time (s) and the number
     of new fits.
     """
-    done = _read_checkpoint(checkpoint)
+    done = _read_checkpoint(checkpoint, rescore)
     before = len(done)
     t0 = time.perf_counter()
     screen = [(s, 0) for s in fixed + candidates if (s["name"], 0) not in done]
@@ -328,7 +337,7 @@ def from_json(path, known, candidates, jobs, checkpoint):
 FOLLOW_P = 0.1
 
 
-def follow_up(systems, rows, first, extra, jobs, checkpoint):
+def follow_up(systems, rows, first, extra, jobs, checkpoint, rescore=False):
     """Fresh replicates ``first ... first + extra - 1`` of every system with a pair whose
     coverage is in doubt (``p_value < FOLLOW_P``): the records (resuming from
     ``checkpoint``) and the new fits. Their coverage is independent of the selection, so
@@ -336,7 +345,7 @@ def follow_up(systems, rows, first, extra, jobs, checkpoint):
     doubt = {r["system"] for r in rows if r["p_value"] is not None
              and r["p_value"] < FOLLOW_P}
     chosen = [s for s in systems if s["name"] in doubt]
-    done = _read_checkpoint(checkpoint)
+    done = _read_checkpoint(checkpoint, rescore)
     before = len(done)
     todo = [(s, r) for r in range(first, first + extra) for s in chosen
             if (s["name"], r) not in done]
@@ -612,7 +621,7 @@ def report_lines(command, systems, rows, pool, wall, new, jobs, replicates, recs
           f"; {n_fail} raised). This invocation: {new} new fits in {wall:.0f} s ({jobs} "
           f"workers under nice, 2-core machine, load average {os.getloadavg()[0]:.1f} at "
           f"the end); the fits' own wall times summed over all replicates {fit_time:.0f} s "
-          "(the others come from the checkpoint).", "",
+          f"(the others come from the checkpoint).{_codes_line(recs)}", "",
           "## Result", "",
           f"Reported (determined) parameters in the target [{TARGET[0]:.2f}, {TARGET[1]:.2f}]: "
           f"**{inside} of {len(rep)}** system-parameter pairs. Were every interval "
@@ -701,6 +710,19 @@ def excluded_lines(excluded, candidates):
             markdown_table(rows, ["case", "status", "RMS rel. error"], "llr"), ""]
 
 
+def _codes_line(recs):
+    """" Fits made by code ...": the source fingerprints of the records' fits when one is
+    not this code's (a ``--rescore`` of an earlier run's fits)."""
+    from collections import Counter
+
+    codes = Counter(r.get("code", "unknown") for r in recs)
+    if set(codes) <= {code_fingerprint()}:
+        return ""
+    made = ", ".join(f"{n} by code {c}" for c, n in codes.most_common())
+    return (f" Fits made {made} (this code: {code_fingerprint()}); their intervals and "
+            "statuses computed by this code (`--rescore`).")
+
+
 def default_checkpoint(n_systems, n_over, replicates):
     """Checkpoint file named by the settings, in the temporary folder."""
     return os.path.join(tempfile.gettempdir(), f"freqid_coverage_s{n_systems}_o{n_over}"
@@ -726,7 +748,8 @@ def main(argv=None):
                          "estimates) from a previous run's coverage.json instead of fitting "
                          "it; with --follow-up the fresh replicates are fitted by this code")
     ap.add_argument("--rescore", action="store_true",
-                    help="recompute every record's intervals from its stored fit")
+                    help="recompute every record's intervals from its stored fit (the "
+                         "checkpoint's fits of other code too: they are scored by this code)")
     ap.add_argument("--force", action="store_true")
     args = ap.parse_args(argv)
     for name, low in (("systems", 0), ("replicates", 1), ("jobs", 1), ("spare", 0),
@@ -754,7 +777,8 @@ def main(argv=None):
         args.replicates = max(r["rep"] for r in recs) + 1
     else:
         systems, excluded, recs, wall, new = monte_carlo(fixed, candidates, args.systems,
-                                                         args.replicates, args.jobs, ckpt)
+                                                         args.replicates, args.jobs, ckpt,
+                                                         args.rescore)
     if args.rescore:
         recs = rescore(systems, recs)
     rows = summarize(systems, recs)
@@ -762,7 +786,7 @@ def main(argv=None):
     chosen, fresh, fresh_rows = [], [], []
     if args.follow_up:
         chosen, fresh, new_fresh = follow_up(systems, rows, args.replicates, args.follow_up,
-                                             args.jobs, ckpt)
+                                             args.jobs, ckpt, args.rescore)
         new += new_fresh
         if args.rescore:
             fresh = rescore(systems, fresh)
