@@ -55,6 +55,7 @@ import shlex
 import sys
 import tempfile
 import time
+from collections import Counter
 from concurrent.futures import ProcessPoolExecutor, as_completed
 
 import numpy as np
@@ -710,11 +711,27 @@ def excluded_lines(excluded, candidates):
             markdown_table(rows, ["case", "status", "RMS rel. error"], "llr"), ""]
 
 
+def _json_text(js):
+    """``js`` as indented JSON with each replicate record on one line (thousands of records
+    indented one value per line made a file of 400 000 lines)."""
+    held = {}
+
+    def hold(records):
+        key = f"@records-{len(held)}@"
+        held[key] = "[\n" + ",\n".join(json.dumps(r) for r in records) + "\n]"
+        return key
+    out = dict(js, records=hold(js["records"]))
+    if js.get("follow_up"):
+        out["follow_up"] = dict(js["follow_up"], records=hold(js["follow_up"]["records"]))
+    text = json.dumps(out, indent=1)
+    for key, value in held.items():
+        text = text.replace(json.dumps(key), value, 1)
+    return text + "\n"
+
+
 def _codes_line(recs):
     """" Fits made by code ...": the source fingerprints of the records' fits when one is
     not this code's (a ``--rescore`` of an earlier run's fits)."""
-    from collections import Counter
-
     codes = Counter(r.get("code", "unknown") for r in recs)
     if set(codes) <= {code_fingerprint()}:
         return ""
@@ -826,7 +843,7 @@ def main(argv=None):
         with open(os.path.join(tmp, "report.md"), "w", encoding="utf-8") as fh:
             fh.write("\n".join(md) + "\n")
         with open(os.path.join(tmp, "coverage.json"), "w", encoding="utf-8") as fh:
-            json.dump(js, fh, indent=1)
+            fh.write(_json_text(js))
         plots.save_figure(figure(rows), os.path.join(tmp, "coverage.png"))
     for k, v in pool.items():
         print(f"{k:6s} reported {v['reported']:5d} coverage {_pct(v['coverage'])} % "

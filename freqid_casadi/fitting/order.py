@@ -50,11 +50,12 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..core.objective import relative_residual
 from ..errors import DataError, FreqidError, OptionError, StructureError
 from .diagnostics import TRIVIAL_RMS, Diagnostic
 
 __all__ = ["OrderStep", "OrderChoice", "choose_order", "decide", "with_order_record",
-           "explaining_step",
+           "explaining_step", "fit_step",
            "whiteness", "significant", "beats_noise", "noise_share", "with_free_zeros",
            "WHITE_RATIO", "EXACT_RMS", "MODE_TOLERANCE", "PATIENCE", "MAX_SECTIONS",
            "FREE_ZEROS_GAIN", "ORDER_ALPHA", "MIN_FALL"]
@@ -271,10 +272,21 @@ def explaining_step(step, free=None):
     return dataclasses.replace(free, free=True)
 
 
-def _numbers(res):
-    weights = res.data.weights
-    residual = res.data.response / res.model.frequency_response(res.data.omega) - 1
-    rms, ratio = whiteness(residual, weights)
+def fit_step(res):
+    """The :class:`OrderStep` of one fit: its relative residual's RMS and roughness ratio
+    (:func:`whiteness`, with the data's weights), ``success`` and the parameters the data
+    determine.
+
+    Parameters
+    ----------
+    res : FitResult
+
+    Returns
+    -------
+    OrderStep
+    """
+    residual = relative_residual(res.model, res.data.omega, res.data.response)
+    rms, ratio = whiteness(residual, res.data.weights)
     s = res.model.structure
     return OrderStep(res.model.n_sections, rms, ratio, bool(res.success),
                      _determined(s.n_sections, s.basis, s.delay))
@@ -284,7 +296,7 @@ def _step(res):
     """The order's :class:`OrderStep` (:func:`explaining_step` of the fit and its
     ``zeros="free"`` alternative) and the poles of the model it describes."""
     alt = getattr(res, "alternatives", {}).get("zeros=free")
-    step = explaining_step(_numbers(res), None if alt is None else _numbers(alt))
+    step = explaining_step(fit_step(res), None if alt is None else fit_step(alt))
     return step, (alt if step.free else res).model.poles()
 
 

@@ -18,7 +18,7 @@ import numpy as np
 
 from ..errors import DataError, StructureError
 from ..fitting.fit import fit
-from ..fitting.order import MAX_SECTIONS, OrderStep, explaining_step, whiteness
+from ..fitting.order import MAX_SECTIONS, OrderStep, explaining_step, fit_step
 from ..report.folder import code_fingerprint
 from ..systems.corpus import FAMILIES, case
 from .corpus import (CPU_BUDGET, FLOOR_FACTOR, FULL_CASES, SUBSET_EVERY, TimeLimit, _budget,
@@ -106,9 +106,8 @@ def ladder(task, top=None):
 
 
 def _numbers(res):
-    residual = res.data.response / res.model.frequency_response(res.data.omega) - 1
-    rms, ratio = whiteness(residual, res.data.weights)
-    return dict(rms=rms, ratio=ratio, success=bool(res.success), status=str(res.status),
+    step = fit_step(res)
+    return dict(rms=step.rms, ratio=step.ratio, success=step.success, status=str(res.status),
                 poles=[[float(z.real), float(z.imag)] for z in res.model.poles()])
 
 

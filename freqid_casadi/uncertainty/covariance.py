@@ -566,9 +566,8 @@ def _local_linear(y, k):
     end.
     """
     m = y.size
-    h = min(k, m) // 2 if min(k, m) % 2 else (min(k, m) - 1) // 2
-    k = 2 * h + 1
-    ones, d = np.ones(k), np.arange(-h, h + 1, dtype=float)
+    h = (min(k, m) - 1) // 2                    # the window fits in the data
+    ones, d = np.ones(2 * h + 1), np.arange(-h, h + 1, dtype=float)
 
     def window_sum(v, kernel):                  # sum over j in the window of kernel(j - i) v_j
         return np.convolve(v, kernel[::-1], mode="same")
