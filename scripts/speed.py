@@ -527,9 +527,14 @@ def _batch_runs(paths):
             # local worker starts with it (a spawned worker's first task would import it,
             # about 0.8 s on every worker at once: the cluster's start-up, not the batch)
             client.run(importlib.import_module, "freqid_casadi.fitting.batch")
-            t0 = time.perf_counter()
+            w0, c0, t0 = client.run(time.process_time), time.process_time(), time.perf_counter()
             items = fit_many(paths, scheduler=client, **opts)
             out["dask"][workers] = time.perf_counter() - t0
+            w1 = client.run(time.process_time)
+            # CPU seconds of this process (the client and the cluster's scheduler) and of
+            # each worker during the batch: what the workers did not get of the cores
+            out["dask"][f"cpu{workers}"] = {"here": time.process_time() - c0,
+                                            "workers": sorted(w1[k] - w0[k] for k in w0)}
             out["ok"][f"dask{workers}"] = sum(1 for it in items if it.ok)
     out["dask"]["speedup"] = out["dask"][1] / out["dask"][2]
     return out
@@ -662,6 +667,16 @@ def _batch_md(b):
                      f"speed-up **{d['speedup']:.2f}** (target >= 1.8; the workers started "
                      "and the package imported in them before the clock, as a forked local "
                      "worker starts with it).")
+        cpu = d.get("cpu2")
+        if cpu:
+            share = cpu["here"] / d[2]
+            lines.append(
+                f"During the 2-worker batch this process (the client and the cluster's "
+                f"scheduler) used {cpu['here']:.2f} CPU s, the workers "
+                f"{' and '.join(f'{w:.2f}' for w in cpu['workers'])}: with the scheduler on "
+                f"the same {os.cpu_count()} cores, the workers have at most "
+                f"{os.cpu_count() - share:.2f} of them (the nannies' housekeeping not "
+                "counted).")
     lines.append(f"Fits that succeeded: {b.get('ok')}.")
     return lines
 
