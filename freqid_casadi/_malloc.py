@@ -1,4 +1,4 @@
-"""The C heap during batch fits in a process told to return memory at once (root helper).
+"""The C heap during a fit in a process told to return memory at once (root helper).
 
 Dask's nanny starts every worker with ``MALLOC_TRIM_THRESHOLD_=65536``. On glibc, fixing
 that threshold also freezes the mmap threshold at 128 KiB, so every array above it (a
@@ -8,10 +8,11 @@ page fault per 4 KiB touched. Measured on 64 fits of the batch benchmark in a 1-
 Dask cluster: 6.8-7.4 s CPU and 550 000-640 000 page faults, against 5.0-5.4 s and about
 1 000 with both thresholds raised for the fits, as in a plain process (4.9 s).
 
-:func:`heap_kept` raises them for the duration of the fits, then restores the values the
-environment set and returns the free heap to the system (``malloc_trim``), so the worker
-keeps the memory behaviour its cluster asked for between tasks. It does nothing off
-glibc, or when the environment fixes no trim threshold or fixes the mmap threshold itself.
+:func:`heap_kept` (entered by every :func:`freqid_casadi.fit`) raises them for the
+duration of the fit, then restores the values the environment set and returns the free
+heap to the system (``malloc_trim``), so the worker keeps the memory behaviour its cluster
+asked for between tasks. It does nothing off glibc, or when the environment fixes no trim
+threshold or fixes the mmap threshold itself.
 """
 
 import contextlib

@@ -21,7 +21,7 @@ PACKAGE = "freqid_casadi"
 ROOT = Path(freqid_casadi.__file__).resolve().parent
 README = ROOT.parent / "README.md"
 #: private modules at the package root that every package may use (docs/style.md §2)
-ROOT_HELPERS = {"_cplx", "_interrupt", "_progress", "_textio", "_threads", "_validate",
+ROOT_HELPERS = {"_cplx", "_interrupt", "_malloc", "_progress", "_textio", "_threads", "_validate",
                 "_workers"}
 MAX_ROOT_MODULES = 12
 MAX_MODULE_LINES = 900

@@ -30,7 +30,6 @@ from ..options import LEGACY_KEYWORDS, LoopOptions, legacy_message, solver_optio
 from .._progress import channel, check_progress
 from .._validate import check_jobs
 from .._workers import local_map
-from .._malloc import heap_kept
 
 __all__ = ["fit_many", "BatchItem", "BATCH_STATUSES"]
 
@@ -122,10 +121,8 @@ def _fit_one(name, item, options, load_options=None):
 def _fit_one_held(name, item, options, load_options=None):
     """Worker: :func:`_fit_one` with its warnings caught; returns ``(BatchItem, [(category,
     message), ...])`` so that the caller re-issues them in its own process (a worker
-    process would print them in Python's raw format, beside the command's own lines). The
-    C heap is kept during the fit where the worker's environment fixes malloc's trim
-    threshold, as Dask's does (:func:`freqid_casadi._malloc.heap_kept`)."""
-    with warnings.catch_warnings(record=True) as caught, heap_kept():
+    process would print them in Python's raw format, beside the command's own lines)."""
+    with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         item = _fit_one(name, item, options, load_options)
     said = [(w.category, str(w.message)) for w in caught]

@@ -60,6 +60,7 @@ from ..core.scaling import (check_finite_result, reference_scales, scale_data, u
                       weighted_span)
 from ..core.resolution import check_resolution, default_delay_max, resolution_damping
 from .._progress import channel, check_progress
+from .._malloc import heap_kept
 from .._threads import single_threaded_blas
 from .stages import Kept, StageKind, StageRecord, StageSolver
 from .start import RationalStartError, rational_start_memo
@@ -403,7 +404,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
     kw = dict(integrator=integrator, basis=basis, method=method, tol=tol, start=start,
               objective=objective, min_damping=min_damping, loop=loop, gain_sign=gain_sign,
               zeros=zeros)
-    with single_threaded_blas(), rational_start_memo(), \
+    with single_threaded_blas(), heap_kept(), rational_start_memo(), \
             channel(progress, _stage_line) as emit:
         if auto:
             data = validate(data_or_omega, response, n_sections, basis, tol, False, weights)
