@@ -162,3 +162,27 @@ def test_many_points_recover_the_known_system():
     fit = vectfit(omega, phi, 5)
     assert np.max(np.abs(_sorted(fit.poles) - _sorted(POLES)) / np.abs(POLES).min()) < 1e-10
     assert np.max(np.abs(fit.response(omega)[0] / phi - 1)) < 1e-10
+
+
+def test_lstsq_is_scipys_to_the_last_bit():
+    """The relocations' least squares call LAPACK's dgelsd directly (workspace sizes kept
+    per shape): the same numbers as scipy.linalg.lstsq, tall, wide, rank-deficient and
+    badly scaled; non-finite input is a ValueError, as there."""
+    import importlib
+
+    import scipy.linalg
+
+    lstsq = importlib.import_module("freqid_casadi.baselines.vectfit")._lstsq
+    rng = np.random.default_rng(7)
+    for _ in range(300):
+        m, n = int(rng.integers(1, 200)), int(rng.integers(1, 30))
+        a = rng.standard_normal((m, n)) * 10.0 ** rng.uniform(-8, 8, n)
+        if n > 1 and rng.random() < 0.3:
+            a[:, -1] = a[:, 0]                                  # rank-deficient
+        if rng.random() < 0.3:
+            a = np.asfortranarray(a)
+        b = rng.standard_normal(m)
+        x = lstsq(a, b)
+        assert x.shape == (n,) and np.array_equal(x, scipy.linalg.lstsq(a, b)[0])
+    with pytest.raises(ValueError, match="infs or NaNs"):
+        lstsq(np.array([[np.nan, 1.0]]), np.ones(1))
