@@ -263,3 +263,51 @@ def test_example_b_9_sections_minimax():
     assert res.max_rel_error <= 0.25
     assert res.stages[-1].kept == "minimax"
     assert res.model.is_stable() and res.model.is_minimum_phase()
+
+
+def _actuator():
+    from freqid_casadi.studies.measured import actuator_frf
+
+    return actuator_frf().data
+
+
+def test_vector_fitting_is_exactly_odd_in_the_data():
+    """The property the negated start's reuse rests on: the fit of -x is -C, -D with the
+    same A, B, to the last bit (relative weights; rows and columns change sign)."""
+    from freqid_casadi.baselines import vector_fitting
+
+    data = _actuator()
+    s = 1j * data.omega
+    for n_poles, h in ((2, 0.0), (4, 7e-3), (8, 3e-3)):
+        x = data.response * np.exp(s * h)
+        fits = [vector_fitting(fc.FrequencyData(data.omega, sign * x), n_poles,
+                               enforce_stable_poles=True) for sign in (1, -1)]
+        mats = [[np.asarray(getattr(f, m)) for m in "ABCD"] for f in fits]
+        assert np.array_equal(mats[0][0], mats[1][0]) and np.array_equal(mats[0][1], mats[1][1])
+        assert np.array_equal(mats[0][2], -mats[1][2]) and np.array_equal(mats[0][3], -mats[1][3])
+
+
+def test_the_negated_start_reuses_the_vector_fittings_of_the_positive_one(monkeypatch):
+    import freqid_casadi.baselines as baselines
+    from freqid_casadi.core.resolution import default_delay_max
+    from freqid_casadi.fitting.start import rational_start_memo
+
+    data = _actuator()
+    neg = fc.FrequencyData(data.omega, -data.response)
+    structure = fc.Structure(2, False, True)
+    dmax = default_delay_max(data.omega)
+    calls = []
+    real = baselines.vector_fitting
+    monkeypatch.setattr(baselines, "vector_fitting",
+                        lambda *a, **k: calls.append(1) or real(*a, **k))
+    alone = rational_start(neg, structure, delay_max=dmax)       # no memo: its own fits
+    n_alone = len(calls)
+    with rational_start_memo():
+        rational_start(data, structure, delay_max=dmax)
+        n_pos = len(calls) - n_alone
+        shared = rational_start(neg, structure, delay_max=dmax)
+    assert n_alone == n_pos == 12                   # the delay updates' 12 trials each
+    assert len(calls) == n_alone + n_pos            # the negated start fitted nothing anew
+    assert np.array_equal(shared.delays, alone.delays)
+    assert np.array_equal(shared.errors, alone.errors)
+    assert np.array_equal(np.asarray(shared.model.beta), np.asarray(alone.model.beta))

@@ -20,6 +20,7 @@ data. Below it nothing is subsampled.
 
 import contextlib
 import contextvars
+import hashlib
 from dataclasses import dataclass
 
 import numpy as np
@@ -197,23 +198,54 @@ def _subsample(n, most=START_POINTS):
     return np.unique(np.linspace(0, n - 1, most).round().astype(int))
 
 
-def _start_at(vector_fitting, data, structure, base, h, n_poles, n_iter, floor):
-    """Vector fit at trial delay h -> (model, max rel. error, rhp zeros, group-delay step)."""
-    omega, phi = data.omega, data.response
-    s = 1j * omega
-    sub = _subsample(omega.size)
-    vf = vector_fitting(FrequencyData(omega[sub], base[sub] * np.exp(s[sub] * h)), n_poles,
-                        n_iter=n_iter, enforce_stable_poles=True)
+def _fitted_roots(vector_fitting, omega, x, scale, n_poles, n_iter):
+    """Poles and finite zeros of the stable vector fitting of ``x`` (complex (M,)) at
+    ``omega`` (rad/s, (M,)); ``scale``: the largest ``|x|`` before the delay's phase.
+
+    Within :func:`rational_start_memo` (one fit) the roots are kept, and those of ``-x``
+    are the same roots: vector fitting with relative weights is exactly odd in the data
+    (its row weights ``1/|x|`` are even, its least-squares problems change sign in
+    whole rows and columns, which IEEE rounding follows to the last bit: the fit of ``-x``
+    is ``-C``, ``-D`` with the same ``A``, ``B``), and the zeros ``eig(A - B C / D)`` do
+    not see the sign. The gain-sign check and ``integrator="auto"`` run the rational start
+    on both signs of the data, mostly at the same trial delays: the negated start reuses
+    the vector fittings of the positive one.
+    """
+    memo = _MEMO.get()
+    if memo is not None:
+        key = ("roots", vector_fitting, n_poles, n_iter, float(scale), _digest(omega))
+        for sign in (1.0, -1.0):
+            hit = memo.get(key + (_digest(sign * x),))
+            if hit is not None:
+                return hit
+    vf = vector_fitting(FrequencyData(omega, x), n_poles, n_iter=n_iter,
+                        enforce_stable_poles=True)
     poles = vf.poles()
     d = float(np.squeeze(vf.D))
-    scale = float(np.max(np.abs(base)))
     if abs(d) > 1e-10 * scale:
         # zeros of C (sI - A)^-1 B + D: eig(A - B C / D), exact for a biproper SISO fit and
         # much faster than the general pencil (SLICOT AB08ND)
         zeros = np.linalg.eigvals(np.asarray(vf.A) - np.outer(vf.B, vf.C) / d)
     else:
         zeros = vf.zeros()
-    zeros = zeros[np.isfinite(zeros)]
+    roots = poles, zeros[np.isfinite(zeros)]
+    if memo is not None:
+        memo[key + (_digest(x),)] = roots
+    return roots
+
+
+def _digest(a):
+    """A short key of an array's bytes (the memo keeps no copy of the data)."""
+    return hashlib.blake2b(np.ascontiguousarray(a).tobytes(), digest_size=16).digest()
+
+
+def _start_at(vector_fitting, data, structure, base, h, n_poles, n_iter, floor):
+    """Vector fit at trial delay h -> (model, max rel. error, rhp zeros, group-delay step)."""
+    omega, phi = data.omega, data.response
+    s = 1j * omega
+    sub = _subsample(omega.size)
+    poles, zeros = _fitted_roots(vector_fitting, omega[sub], base[sub] * np.exp(s[sub] * h),
+                                 float(np.max(np.abs(base))), n_poles, n_iter)
     free = structure.zeros == "free"
     # with free zeros only the right-half-plane zeros beyond the band stand for a delay
     # (their phase is nearly linear in omega there); those inside are kept as zeros
