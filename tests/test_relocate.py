@@ -121,13 +121,16 @@ def test_example_c_sequential_is_more_accurate_with_fewer_stages_at_their_limit(
     # C's result moves with rounding (issue 27, results/reproducibility.md): the delay
     # search's vector fits are erratic in the delay and its polish ends at its limit in a
     # narrow curved valley. Measured over the six OpenBLAS kernels and data perturbed by
-    # 1e-15: max rel. error 4.9e-11..3.3e-7 (1.09e-10 on one machine before), 1600..1835
-    # IPOPT iterations (peak: 4.94e-5, 2754). Bounds: the worst case times ~6 and 1.15.
+    # 1e-15 (on an AVX-512 machine): max rel. error 4.9e-11..3.3e-7, 1600..1835 IPOPT
+    # iterations, 3-4 stages at their limit. On an AVX2 machine (numpy's AVX2 functions)
+    # the loop's first section settles at a delay of 0.10 s for 0.026 s and the loop ends
+    # at 1.18 after 3014 iterations; the delay search's trial of the rational start
+    # rescues it: 7.98e-7, 3237 iterations, 9 stages at their limit (7 sections, the
+    # final stage, the polish); with numpy's baseline functions there, 7.42e-11, 1805, 3.
+    # Bounds: the worst case times 2.5 and 1.15, and the worst + 1.
     assert fit_c.max_rel_error <= 2e-6
-    assert fit_c.nit <= 2100
-    # section stage 20, the loop's final stage, the delay search's polish (peak: 11 of 29);
-    # with OPENBLAS_CORETYPE=Prescott also section stage 22: 4. Bound: the worst + 1
-    assert len(_at_limit(fit_c)) <= 5
+    assert fit_c.nit <= 3700
+    assert len(_at_limit(fit_c)) <= 10
     assert len([s for s in fit_c.stages if s.kind == "section"]) == 27
     assert fit_c.stages[-1].kind == "delay-search"
 

@@ -8,7 +8,9 @@ iterations). Vector fitting at a *fixed* trial delay tells the delays apart: its
 relative error on C is 3.5e-6 at 0.0260 s, 1.3e-4 at 0.0261 s and 1.1e-8 at 0.0262 s
 (erratic in the delay, so a search must probe rather than follow a slope). For a candidate
 whose last stage did not converge, :func:`delay_search_run` probes the vector fit at
-delays around the candidate's own, polishes the best trial on all data (one stage, as
+delays around the candidate's own (and, for a run of the sequential loop alone, tries the
+rational start of the whole fit, whose delay updates and group-delay search reach delays
+turns of the phase away), polishes the best trial on all data (one stage, as
 ``start="rational"``) and offers the result as one more candidate to
 :func:`~freqid_casadi.fitting.candidates.choose`, which keeps it only when it is better: a fit
 that converged is never touched, and the search can never make a fit worse.
@@ -23,7 +25,7 @@ from .start import MAX_TRIALS, PROBE_PHASE, search_delay
 
 __all__ = ["search_delay", "delay_search_run", "PROBE_PHASE", "MAX_TRIALS"]
 
-def delay_search_run(ctx, run):
+def delay_search_run(ctx, run, with_rational_start=False):
     """The candidate "the rational start at the best nearby delay" of an unconverged run.
 
     Tried when ``run``'s last stage did not converge, its structure has a delay and
@@ -38,6 +40,12 @@ def delay_search_run(ctx, run):
     ctx : mainloop.LoopContext
     run : tuple
         ``(param, z, lam, records)``.
+    with_rational_start : bool
+        Also try the rational start of the whole fit (:func:`~freqid_casadi.fitting.start.
+        rational_start` from h = 0, as ``start="rational"`` makes it): for a run of the
+        sequential loop alone (``start="sequential"``), whose delay may have settled turns
+        of the phase away from the data's. The other starts have that start as a
+        candidate of their own already.
 
     Returns
     -------
@@ -68,6 +76,19 @@ def delay_search_run(ctx, run):
 
     h0 = float(param.to_model(z).delay)
     seen = search_delay(trial, h0, PROBE_PHASE / float(data.omega[-1]), ctx.delay_max)
+    if with_rational_start:
+        # the run's valley may lie turns of the phase from the data's delay, where no probe
+        # near it reaches (example C with numpy's AVX2 functions: the sequential loop's
+        # first section took 0.10 s for 0.026 s and the run ended at max rel. error 1.18);
+        # the rational start as start="rational" makes it (its delay updates from h = 0,
+        # and its search around the data's group delay) is one more trial
+        try:
+            rs = rational_start(data, st, delay_max=ctx.delay_max)
+        except RationalStartError:
+            rs = None
+        if rs is not None and rs.delay not in starts:
+            starts[rs.delay] = rs
+            seen[rs.delay] = rs.max_rel_error
     if not starts:
         return None
     best = starts[min(starts, key=lambda h: starts[h].max_rel_error)]

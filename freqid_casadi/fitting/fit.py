@@ -751,7 +751,8 @@ def _run_starts(ctx, start, tol, data):
             cands.append(Candidate.of(f"{cand.name} at h=0", zero, data, cand.start))
     # rescues of an unconverged fit, each from the candidate the fit would then keep (the
     # starts' delays are close: a delay search from each would probe the same delays)
-    for label, rescue in (("delay search", delay_search_run), ("far roots", far_root_run)):
+    searched = functools.partial(delay_search_run, with_rational_start="rational" not in runs)
+    for label, rescue in (("delay search", searched), ("far roots", far_root_run)):
         first = choose(cands) if cands else None
         if first is not None and not first.success:
             found = rescue(ctx, first.run)             # (reports its own records)
