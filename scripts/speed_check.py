@@ -122,8 +122,12 @@ def main(argv=None):
                 print(f"  {key} run {i + 1}: {runs[key][-1][0]:.1f} s", file=sys.stderr)
     base, t_base = _least(runs["base"])
     now, t_now = _least(runs["now"])
-    rev = subprocess.run(["git", "-C", here, "describe", "--always", "--dirty"],
+    rev = subprocess.run(["git", "-C", here, "rev-parse", "--short", "HEAD"],
                          capture_output=True, text=True).stdout.strip()
+    # the tree measured is HEAD's unless code changed (not the reports this writes)
+    changed = subprocess.run(["git", "-C", here, "status", "--porcelain", "--", ".",
+                              ":(exclude)results"], capture_output=True, text=True).stdout
+    rev += "-dirty" if changed.strip() else ""
     command = f"python scripts/speed_check.py --base {args.base}" + (
         f" --repeat {args.repeat}" if args.repeat > 1 else "") + (
         "" if args.out == os.path.join("results", "speed_check.md") else f" --out {args.out}")
