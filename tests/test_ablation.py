@@ -88,7 +88,12 @@ def test_quick_run_is_complete(quick):
     assert comp["ipopt_max_rel_error"] < 1e-12 and comp["lm_max_rel_error"] < 1e-12
     nit = {r["key"]: r["nit"] for r in summary["cases"]["A"]["variants"]}
     assert 10 * nit["ipopt"] < nit["lm-marquardt"]
-    assert comp["ipopt_time_to_reach"] is not None
+    # at machine precision which of the two ends lower is rounding: on a machine where
+    # numpy takes its AVX2 functions, A's LM ended at 4.35e-14 and IPOPT at 4.53e-14, so
+    # IPOPT never reached LM's last digits. The time to reach is asserted where the errors
+    # are above rounding (fractional: both 0.50810, IPOPT at 0.21 s on that machine)
+    frac = summary["cases"]["fractional"]["comparison"][0]
+    assert frac["lm_max_rel_error"] > 1e-3 and frac["ipopt_time_to_reach"] is not None
 
 
 # ----------------------------------------------------------------------------- tables vs JSON

@@ -68,8 +68,10 @@ def test_stage_enums_compare_and_serialise_as_words():
     res = fc.fit(data, n_sections=1, integrator=True, start="sequential",
                  loop=fc.LoopOptions(init="peak", delay_search=False))
     kinds = [s.kind for s in res.stages]
-    assert kinds[0] == StageKind.GAIN_DELAY and kinds[-1] == StageKind.FINAL
-    d = res.stages[-1].as_dict()
+    # (the kept model may be the h = 0 candidate, whose record then comes last: so on a
+    # machine where numpy takes its AVX2 functions)
+    assert kinds[0] == StageKind.GAIN_DELAY and StageKind.FINAL in kinds
+    d = next(s for s in res.stages if s.kind == StageKind.FINAL).as_dict()
     assert json.loads(json.dumps(d))["kept"] in {k.value for k in Kept}
     assert json.loads(json.dumps(d))["kind"] == "final"
 
