@@ -22,6 +22,7 @@ same problem (the solution agrees to rounding). At 200 000 points and 4 poles on
 relocation costs 21 ms and a few MB instead of 270 ms and four 32 MB copies.
 """
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -173,9 +174,17 @@ def _lstsq_scaled(Mat, rhs):
     return x / scale
 
 
-#: dgelsd's workspace sizes by problem shape (m, n), asked of LAPACK once per shape, and
-#: under "routines" the (gelsd, gelsd_lwork) pair scipy.linalg.lstsq uses for float64.
-_GELSD_WORK = {}
+@functools.lru_cache(maxsize=None)
+def _gelsd(m, n):
+    """(dgelsd, lwork, liwork) for a real (m, n) problem with one right-hand side and
+    ``rcond = eps``: the routine and workspace sizes scipy.linalg.lstsq asks LAPACK for,
+    asked once per shape."""
+    gelsd, gelsd_lwork = scipy.linalg.get_lapack_funcs(("gelsd", "gelsd_lwork"),
+                                                        dtype=np.float64)
+    work, iwork, info = gelsd_lwork(m, n, 1, np.finfo(np.float64).eps)
+    if info != 0:                                                       # pragma: no cover
+        raise ValueError(f"LAPACK dgelsd's workspace query failed (info={info})")
+    return gelsd, int(work.real), int(iwork)
 
 
 def _lstsq(a, b):
@@ -185,23 +194,13 @@ def _lstsq(a, b):
     much as the solve at the sizes of a relocation (a few hundred rows, ten columns) and
     made a third of a vector fitting's time. Non-finite input raises ValueError, as lstsq
     does."""
-    from scipy.linalg import lapack
-
-    compute_lwork = getattr(lapack, "_compute_lwork", None)
-    if compute_lwork is None or a.dtype != np.float64 or b.ndim != 1:   # pragma: no cover
-        return scipy.linalg.lstsq(a, b)[0]
     if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
         raise ValueError("array must not contain infs or NaNs")
     m, n = a.shape
-    eps = np.finfo(np.float64).eps
-    gelsd, gelsd_lwork = _GELSD_WORK.get("routines") or _GELSD_WORK.setdefault(
-        "routines", scipy.linalg.get_lapack_funcs(("gelsd", "gelsd_lwork"), (a, b)))
-    work = _GELSD_WORK.get((m, n))
-    if work is None:
-        work = _GELSD_WORK[(m, n)] = compute_lwork(gelsd_lwork, m, n, 1, eps)
+    gelsd, lwork, liwork = _gelsd(m, n)
     if m < n:                                # room for the (n,) solution, as lstsq makes
         b = np.concatenate([b, np.zeros(n - m)])
-    x, _, _, info = gelsd(a, b, work[0], work[1], eps, False, False)
+    x, _, _, info = gelsd(a, b, lwork, liwork, np.finfo(np.float64).eps, False, False)
     if info > 0:
         raise np.linalg.LinAlgError("SVD did not converge in Linear Least Squares")
     if info < 0:                                                        # pragma: no cover

@@ -214,10 +214,10 @@ def _fitted_roots(vector_fitting, omega, x, scale, n_poles, n_iter):
     memo = _MEMO.get()
     if memo is not None:
         key = ("roots", vector_fitting, n_poles, n_iter, float(scale), _digest(omega))
-        for sign in (1.0, -1.0):
-            hit = memo.get(key + (_digest(sign * x),))
-            if hit is not None:
-                return hit
+        mine, negated = key + (_digest(x),), key + (_digest(-x),)
+        hit = memo.get(mine) or memo.get(negated)
+        if hit is not None:
+            return hit
     vf = vector_fitting(FrequencyData(omega, x), n_poles, n_iter=n_iter,
                         enforce_stable_poles=True)
     poles = vf.poles()
@@ -230,7 +230,7 @@ def _fitted_roots(vector_fitting, omega, x, scale, n_poles, n_iter):
         zeros = vf.zeros()
     roots = poles, zeros[np.isfinite(zeros)]
     if memo is not None:
-        memo[key + (_digest(x),)] = roots
+        memo[mine] = roots
     return roots
 
 
