@@ -1,4 +1,5 @@
-"""Spread of the headline fits over OpenBLAS kernels and rounding-level data perturbations.
+"""Spread of the headline fits over OpenBLAS kernels, numpy's SIMD paths and rounding-level
+data perturbations.
 
 Usage::
 
@@ -17,17 +18,24 @@ machine)) in worker subprocesses, at most ``--jobs`` (<= 2) at a time:
   threadpoolctl which kernel OpenBLAS actually loaded;
 * once per seed 0..9 with the machine's own kernel and every data point multiplied by
   ``1 + 1e-15 (a + i b) / sqrt(2)``, a and b standard normal (a relative perturbation at
-  the rounding level).
+  the rounding level);
+* once as the machine runs it, and once per level of numpy's SIMD dispatch this CPU has
+  (X86_V3 = AVX2, X86_V4 = AVX-512, ...): that level and those above it switched off with
+  ``NPY_DISABLE_CPU_FEATURES`` in the worker's environment, so the run takes the functions
+  (``exp``, ``sin``, ``cos``, complex arithmetic) of the next level down, as a CPU without
+  it would. The worker records which level numpy dispatched.
 
 Writes ``reproducibility.md`` (first line: this command) and ``reproducibility.json`` to
 ``--out``: per fit, min / median / max of the max relative error, the delay and the IPOPT
-iterations, and the statuses, over the kernels, over the perturbations, and over both.
-``--quick`` (development): examples A and B only, two kernels, two seeds.
+iterations, and the statuses, over the kernels, over the perturbations, over numpy's
+SIMD levels, and over all. ``--quick`` (development): examples A and B only, two kernels,
+two seeds (and every SIMD level).
 """
 
 import argparse
 import json
 import os
+import signal
 import subprocess
 import sys
 import time
@@ -39,6 +47,30 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 KERNELS = ("Haswell", "SkylakeX", "Zen", "Sandybridge", "Nehalem", "Prescott")
 SEEDS = tuple(range(10))
 PERTURBATION = 1e-15
+
+
+def numpy_levels():
+    """numpy's SIMD dispatch levels this CPU has, lowest first (e.g. ``["X86_V3"]``).
+
+    Empty where numpy does not say (a build without runtime dispatch, a numpy that moved
+    the table): the study then has no numpy axis.
+    """
+    try:
+        from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+    except ImportError:
+        return []
+    return [f for f in __cpu_dispatch__ if __cpu_features__.get(f)]
+
+
+def _numpy_dispatch():
+    """The target numpy dispatched for a few of the fits' hot functions (float64/complex128)."""
+    try:
+        from numpy.lib.introspect import opt_func_info
+    except ImportError:          # numpy < 2.0
+        return {}
+    info = opt_func_info(func_name="^(exp|sin|cos|multiply)$", signature="float64|complex128")
+    return {f"{name} {sig}": t["current"] for name, d in sorted(info.items())
+            for sig, t in d.items() if sig in ("dd", "DDD")}
 
 
 def _perturbed(data, seed):
@@ -146,6 +178,9 @@ def worker(seed, quick, path):
     info = [{"prefix": i.get("prefix"), "architecture": i.get("architecture"),
              "version": i.get("version")}
             for i in threadpoolctl.threadpool_info() if i.get("internal_api") == "openblas"]
+    where = os.environ.get("OPENBLAS_CORETYPE") or (
+        f"numpy without {os.environ['NPY_DISABLE_CPU_FEATURES']}"
+        if os.environ.get("NPY_DISABLE_CPU_FEATURES") else "default")
     fits = {}
     for group in (_examples, _measured, _modal, _sweep):
         fits.update(group(seed, quick))
@@ -156,17 +191,22 @@ def worker(seed, quick, path):
         except fc.errors.FreqidError as exc:      # recorded, not fatal: a row says why
             rows[name] = {"max_rel_error": None, "delay": None, "nit": None,
                           "status": f"error: {type(exc).__name__}: {exc}"}
-        print(f"  [{os.environ.get('OPENBLAS_CORETYPE', 'default')}, seed {seed}] {name}: "
+        print(f"  [{where}, seed {seed}] {name}: "
               f"{rows[name]['max_rel_error']}", file=sys.stderr, flush=True)
     with open(path, "w", encoding="utf-8") as fh:
-        json.dump({"openblas": info, "rows": rows}, fh, indent=1)
+        json.dump({"openblas": info, "numpy_dispatch": _numpy_dispatch(), "rows": rows},
+                  fh, indent=1)
 
 
-def _configs(quick, n_seeds=len(SEEDS)):
+def _configs(quick, n_seeds=len(SEEDS), levels=()):
+    """The workers to run: kernels, seeds, then numpy's SIMD levels (``numpy``: the
+    features to switch off, "" for the machine as it is, None outside that axis)."""
     kernels = KERNELS[:2] if quick else KERNELS
     seeds = SEEDS[:2] if quick else SEEDS[:n_seeds]
-    return ([{"kernel": k, "seed": None} for k in kernels]
-            + [{"kernel": None, "seed": s} for s in seeds])
+    simd = [" ".join(levels[i:]) for i in range(len(levels) - 1, -1, -1)]
+    return ([{"kernel": k, "seed": None, "numpy": None} for k in kernels]
+            + [{"kernel": None, "seed": s, "numpy": None} for s in seeds]
+            + [{"kernel": None, "seed": None, "numpy": n} for n in ([""] + simd if simd else [])])
 
 
 def _run_all(configs, quick, jobs, tmp):
@@ -186,8 +226,11 @@ def _run_all(configs, quick, jobs, tmp):
             i, c = pending.pop(0)
             env = dict(os.environ)
             env.pop("OPENBLAS_CORETYPE", None)
+            env.pop("NPY_DISABLE_CPU_FEATURES", None)
             if c["kernel"]:
                 env["OPENBLAS_CORETYPE"] = c["kernel"]
+            if c.get("numpy"):
+                env["NPY_DISABLE_CPU_FEATURES"] = c["numpy"]
             env["PYTHONPATH"] = ROOT + os.pathsep + env.get("PYTHONPATH", "")
             path = os.path.join(tmp, f"worker{i}.json")
             cmd = [sys.executable, os.path.abspath(__file__), "--worker", "--json", path]
@@ -204,6 +247,12 @@ def _run_all(configs, quick, jobs, tmp):
                 continue
             running.remove(item)
             log.close()
+            if proc.returncode == -signal.SIGILL:       # a kernel this CPU cannot run
+                done[i] = dict(c, skipped="illegal instruction: this CPU lacks the "
+                               "instructions of that kernel", openblas=[], rows={})
+                print(f"[{time.perf_counter() - t0:6.0f} s] skip  {_label(c)}: illegal "
+                      "instruction on this CPU", flush=True)
+                continue
             if proc.returncode != 0:
                 with open(log.name, encoding="utf-8") as fh:
                     raise SystemExit(f"worker {_label(c)} failed:\n{fh.read()[-3000:]}")
@@ -215,8 +264,12 @@ def _run_all(configs, quick, jobs, tmp):
 
 
 def _label(c):
-    return (f"OPENBLAS_CORETYPE={c['kernel']}" if c["kernel"]
-            else f"default kernel, perturbation seed {c['seed']}")
+    if c["kernel"]:
+        return f"OPENBLAS_CORETYPE={c['kernel']}"
+    if c["seed"] is not None:
+        return f"default kernel, perturbation seed {c['seed']}"
+    return (f"NPY_DISABLE_CPU_FEATURES={c['numpy']!r}" if c.get("numpy")
+            else "the machine as it is")
 
 
 def _stats(values):
@@ -228,9 +281,12 @@ def _stats(values):
 
 def summarise(runs):
     """Per fit and per group ('kernels', 'perturbations', 'all'): min/median/max and statuses."""
+    runs = [r for r in runs if not r.get("skipped")]
     names = list(runs[0]["rows"])
     groups = {"kernels": [r for r in runs if r["kernel"]],
-              "perturbations": [r for r in runs if r["seed"] is not None], "all": runs}
+              "perturbations": [r for r in runs if r["seed"] is not None],
+              "numpy": [r for r in runs if r.get("numpy") is not None], "all": runs}
+    groups = {g: rs for g, rs in groups.items() if rs}
     out = {}
     for name in names:
         out[name] = {}
@@ -252,9 +308,64 @@ def _fmt(s, f):
     return " / ".join(f(s[k]) for k in ("min", "median", "max"))
 
 
+def _machine():
+    """One line: the CPU, numpy's SIMD levels, the versions."""
+    import platform
+
+    cpu = platform.processor() or platform.machine()
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8") as fh:
+            cpu = next(ln.split(":", 1)[1].strip() for ln in fh if ln.startswith("model name"))
+    except (OSError, StopIteration):
+        pass
+    levels = numpy_levels()
+    return (f"Machine: {cpu}, {os.cpu_count()} CPUs; numpy {np.__version__} with SIMD levels "
+            f"{', '.join(levels) if levels else 'none beyond its baseline'}; Python "
+            f"{platform.python_version()}.")
+
+
+def _numpy_table(runs):
+    """Which functions numpy dispatched in each run of the SIMD axis (markdown lines)."""
+    rs = [r for r in runs if r.get("numpy") is not None]
+    if not rs:
+        return ["numpy's SIMD levels: numpy does not report them here; not varied.", ""]
+    keys = list(rs[0].get("numpy_dispatch", {}))
+    lines = ["numpy's SIMD levels: `NPY_DISABLE_CPU_FEATURES` set in the worker's environment "
+             "only (the level and those above it off); the target numpy dispatched, read in "
+             "the worker:", "",
+             "| switched off | " + " | ".join(f"`{k}`" for k in keys) + " |",
+             "|---|" + "---|" * len(keys)]
+    for r in rs:
+        d = r.get("numpy_dispatch", {})
+        lines.append(f"| {r['numpy'] or 'nothing (the machine as it is)'} | "
+                     + " | ".join(str(d.get(k, "-")) for k in keys) + " |")
+    return lines + [""]
+
+
+def _per_level(runs, summary):
+    """Each fit's max relative error and IPOPT iterations at each numpy SIMD level."""
+    rs = [r for r in runs if r.get("numpy") is not None]
+    if not rs:
+        return []
+    heads = [f"without {r['numpy']}" if r["numpy"] else "as it is" for r in rs]
+    lines = ["## Per numpy SIMD level", "",
+             "Max rel. error (IPOPT iterations) of each run.", "",
+             "| fit | " + " | ".join(heads) + " |", "|---|" + "---:|" * len(rs)]
+    for name in summary:
+        cells = []
+        for r in rs:
+            x = r["rows"][name]
+            err = x["max_rel_error"]
+            cells.append("-" if err is None else f"{err:.3g}"
+                         + (f" ({x['nit']})" if x.get("nit") is not None else ""))
+        lines.append(f"| {name} | " + " | ".join(cells) + " |")
+    return lines + [""]
+
+
 def render(command, runs, summary):
     lines = [f"<!-- generated by: {command} -->", "",
-             "# Reproducibility: spread over OpenBLAS kernels and rounding-level perturbations",
+             "# Reproducibility: spread over OpenBLAS kernels, numpy's SIMD paths and "
+             "rounding-level perturbations", "", _machine(),
              "", "Each configuration ran in its own subprocess (at most 2 at a time). Kernels: "
              "`OPENBLAS_CORETYPE` set in that subprocess's environment only; the kernel "
              "OpenBLAS actually loaded, read by threadpoolctl in the worker:", "",
@@ -262,20 +373,24 @@ def render(command, runs, summary):
              "|---|---|"]
     for r in runs:
         if r["kernel"]:
-            lines.append(f"| {r['kernel']} | "
-                         + " / ".join(str(i["architecture"]) for i in r["openblas"]) + " |")
+            lines.append(f"| {r['kernel']} | " + (
+                f"not run: {r['skipped']}" if r.get("skipped")
+                else " / ".join(str(i["architecture"]) for i in r["openblas"])) + " |")
     base = [r for r in runs if r["seed"] is not None]
     if base:
         lines += ["", "Perturbations: the machine's own kernel ("
                   + " / ".join(str(i["architecture"]) for i in base[0]["openblas"])
                   + f"), every data point times 1 + {PERTURBATION:g} (a + i b)/sqrt(2), a, b "
                   f"standard normal, seeds {', '.join(str(r['seed']) for r in base)}.", ""]
+    lines += _numpy_table(runs)
     e = lambda x: f"{x:.3g}"              # noqa: E731
     d = lambda x: f"{x:.7g}"              # noqa: E731
     i = lambda x: f"{x:.0f}"              # noqa: E731
-    for g, title in (("kernels", "Over the OpenBLAS kernels"),
-                     ("perturbations", "Over the perturbed data (machine's kernel)"),
-                     ("all", "Over both")):
+    titles = {"kernels": "Over the OpenBLAS kernels",
+              "perturbations": "Over the perturbed data (machine's kernel)",
+              "numpy": "Over numpy's SIMD levels (machine's kernel)", "all": "Over all"}
+    for g in next(iter(summary.values())):
+        title = titles[g]
         lines += [f"## {title}", "", "min / median / max.", "",
                   "| fit | runs | max rel. error | max/min | delay | IPOPT iterations | "
                   "statuses (count) |", "|---|---:|---|---:|---|---|---|"]
@@ -287,6 +402,7 @@ def render(command, runs, summary):
             lines.append(f"| {name} | {x['n']} | {_fmt(err, e)} | {ratio} | "
                          f"{_fmt(x['delay'], d)} | {_fmt(x['nit'], i)} | {st} |")
         lines.append("")
+    lines += _per_level(runs, summary)
     lines += ["Delays in s for the examples and the actuator, in samples for the robot arm; "
               "the modal fit has no delay; the sweep's iterations are not collected.", ""]
     return "\n".join(lines)
@@ -320,12 +436,15 @@ def main(argv=None):
     command = "python scripts/reproducibility.py" + (" --quick" if args.quick else "") + (
         f" --seeds {args.seeds}" if args.seeds != len(SEEDS) else "")
     t0 = time.perf_counter()
+    levels = numpy_levels()
     if args.keep:
         os.makedirs(args.keep, exist_ok=True)
-        runs = _run_all(_configs(args.quick, args.seeds), args.quick, args.jobs, args.keep)
+        runs = _run_all(_configs(args.quick, args.seeds, levels), args.quick, args.jobs,
+                        args.keep)
     else:
         with tempfile.TemporaryDirectory() as tmp:
-            runs = _run_all(_configs(args.quick, args.seeds), args.quick, args.jobs, tmp)
+            runs = _run_all(_configs(args.quick, args.seeds, levels), args.quick, args.jobs,
+                            tmp)
     summary = summarise(runs)
     os.makedirs(args.out, exist_ok=True)
     result = {"command": command, "perturbation": PERTURBATION, "runs": runs,
