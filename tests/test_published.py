@@ -16,10 +16,12 @@ from freqid_casadi.systems.examples import EXAMPLES
 #: The test's own tolerances per example (the structure and the thesis's numbers come from
 #: the catalogue): how close our delay must be to the true one (s).
 DELAY_TOL = {"A": 5e-4, "C": 2e-3}
-#: Our max relative error as measured: (this machine's OpenBLAS kernel, the worst over the
-#: kernels Haswell, SkylakeX, Zen and Prescott and rounding-level perturbations of the
-#: data; results/reproducibility.md). C's curved valley makes it move with rounding.
-MEASURED = {"A": (4.8e-14, 1.3e-12), "B": (0.331, 0.331), "C": (1.1e-10, 1.5e-7)}
+#: Our max relative error as measured: (an AVX-512 machine's OpenBLAS kernel, the worst
+#: over the OpenBLAS kernels, numpy's SIMD levels and rounding-level perturbations of the
+#: data on that machine and on an AVX2 machine; results/reproducibility.md). C's curved
+#: valley makes it move with rounding: on the AVX2 machine numpy's AVX2 functions send the
+#: sequential loop astray and the delay search's rational-start trial brings it to 8.0e-7.
+MEASURED = {"A": (4.8e-14, 1.4e-12), "B": (0.331, 0.331), "C": (1.1e-10, 8.0e-7)}
 #: How far above the worst measured value a row may land before it counts as a regression.
 FACTOR = 10.0
 
