@@ -141,8 +141,10 @@ def _fit_time_limited(data, limit, **kw):
 
     def progress(rec):
         stages.append(rec)
-        log.info("  %s stage %d: %d sections, max rel. error %.3e, %.1f s", kw.get("method"),
-                 rec.stage, rec.n_sections, rec.max_rel_error, time.perf_counter() - t0)
+        method = kw.get("method", "ipopt")      # a name, or an options object with its name
+        log.info("  %s stage %d: %d sections, max rel. error %.3e, %.1f s",
+                 getattr(method, "method", method), rec.stage, rec.n_sections,
+                 rec.max_rel_error, time.perf_counter() - t0)
         if time.perf_counter() - t0 > limit:
             raise _TimeLimit(f"stopped after {time.perf_counter() - t0:.0f} s at stage "
                              f"{rec.stage}")
