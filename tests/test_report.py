@@ -283,3 +283,26 @@ def test_import_does_not_load_matplotlib():
     proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True,
                           timeout=120)
     assert proc.returncode == 0, proc.stdout + proc.stderr
+
+
+def test_reports_state_where_they_were_computed(written):
+    """summary.json records the versions, numpy's SIMD level and the BLAS kernel (the
+    run-time paths that move a fit's last digits); summary.md says it in one line."""
+    from numpy.lib.introspect import opt_func_info
+    from threadpoolctl import threadpool_info
+
+    from freqid_casadi.report.environment import environment, environment_line
+
+    with open(os.path.join(written, "summary.json"), encoding="utf-8") as fh:
+        env = json.load(fh)["environment"]
+    assert env == json.loads(json.dumps(environment()))          # the same in this process
+    assert env["numpy"] == np.__version__
+    assert env["numpy_simd"] == opt_func_info("^exp$", "float64")["exp"]["dd"]["current"]
+    kernels = {i.get("architecture") for i in threadpool_info() if i["user_api"] == "blas"}
+    assert {b["kernel"] for b in env["blas"]} == kernels and env["blas"]
+    with open(os.path.join(written, "summary.md"), encoding="utf-8") as fh:
+        md = fh.read()
+    line = environment_line(env)
+    assert f"| computed on | `{line}` |" in md
+    assert f"numpy {np.__version__} (SIMD {env['numpy_simd']})" in line
+    assert all(f"({k} kernel)" in line for k in kernels if k)

@@ -25,6 +25,7 @@ import numpy as np
 
 from ..core.model import BASES, MAX_ORIGIN_ORDER, ZEROS
 from ..fitting.fit import GAIN_SIGNS, METHODS, OBJECTIVES, STARTS
+from ..fitting.verdict import ROUNDING_RMS
 from ..io import NUMBER, decode_text, parse_columns, read_regular_file
 from ..report.formatting import number
 from ..core.data import FrequencyData
@@ -456,7 +457,12 @@ _g = partial(number, missing="-")
 def _resolution_warning(result):
     check = getattr(result, "resolution", None)
     if check is not None and not check.ok:
+        exact = result.rms_rel_error <= ROUNDING_RMS      # spare sections, not noise
         print(f"warning: {len(check.flags)} near-cancelling pole/zero pair(s) and "
               f"{len(check.unresolved)} unresolved pole(s)/zero(s) are narrower than the "
-              "frequency spacing (not determined by the data); refit with --min-damping auto, "
-              "fit fewer sections, or prune them with freqid_casadi.fitting.validation.prune_sections")
+              "frequency spacing (not determined by the data); " + (
+                  "the fit is exact to rounding, so they are spare sections: fit fewer "
+                  "sections, or prune them with "
+                  "freqid_casadi.fitting.validation.prune_sections" if exact else
+                  "refit with --min-damping auto, fit fewer sections, or prune them with "
+                  "freqid_casadi.fitting.validation.prune_sections"))

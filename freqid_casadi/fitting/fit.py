@@ -424,7 +424,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
                 if len(ks) > 1:
                     record = settle_by_fits(record, {j: r.rms_rel_error
                                                      for j, r in results.items()})
-                    _warn_unresolved(results[record["chosen"]].resolution, 4)  # its warning
+                    _warn_unresolved(results[record["chosen"]], 4)            # its warning
                 return _with_origin_record(results[record["chosen"]], record,
                                            origin_diagnostics(record, data))
             # several contenders (the starts do not decide): each one's fit of the starts
@@ -442,7 +442,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
                                        weights, False,
                                        dict(kw, integrator=check_origin_order(chosen)),
                                        first=core[chosen])
-            _warn_unresolved(result.resolution, 4)                        # its warning
+            _warn_unresolved(result, 4)                                   # its warning
             return _with_origin_record(result, record, origin_diagnostics(record, data))
         return _fit_resolved(data_or_omega, response, n_sections, delay, fixed, weights,
                              emit, kw)
@@ -556,7 +556,7 @@ def _fit_guarded(data_or_omega, response, *, progress, weights, first=None, **kw
                          **dict(kw, min_damping=min_damping))
 
     result, _ = guard_resolution(result, refit, kw["min_damping"])
-    _warn_unresolved(result.resolution, 6)
+    _warn_unresolved(result, 6)
     return result
 
 
@@ -682,7 +682,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                            # no overflow of the model at the user's extreme omega)
     final = [r for r in records if r.kept != Kept.MINIMAX_REJECTED
              and r.kind != StageKind.RATIONAL_START] or records
-    check = _resolution_check(model, data.omega)
+    check = _resolution_check(model, data.omega, stats.rms)
     with np.errstate(all="ignore"):     # extreme user scales: a check may give up, not warn
         found += after_fit(model, data, stats, dmax / w_ref)
         residual = scaled_response / model_scaled.frequency_response(scaled_omega) - 1.0
@@ -793,29 +793,43 @@ def explains_data(run, data):
     return bool(check["rms"] <= ROUNDING_RMS or check["ratio"] <= NEAR)
 
 
-def _resolution_check(model, omega, stacklevel=7):
+def _resolution_check(model, omega, rms, stacklevel=7):
     """The model checked against the frequency spacing (None for first-order sections,
-    whose real roots are never narrow), with a ResolutionWarning when it fails."""
+    whose real roots are never narrow), with a ResolutionWarning when it fails (``rms``:
+    the fit's RMS relative error, which says why)."""
     if model.structure.basis != "second-order" or not model.n_sections:
         return None
     check = check_resolution(model, omega)
-    _warn_unresolved(check, stacklevel + 1)
+    _warn_unresolved(check, stacklevel + 1, rms)
     return check
 
 
-def _warn_unresolved(check, stacklevel):
+def _warn_unresolved(result_or_check, stacklevel, rms=None):
     """The ResolutionWarning of a failed :func:`check_resolution` (nothing for None or a
-    passed check)."""
+    passed check), given a FitResult or the check and the fit's RMS relative error.
+
+    Its advice follows the cause: on a fit exact to rounding (RMS <= ROUNDING_RMS) the
+    pairs are spare sections, which a damping floor does not remove; otherwise they are
+    features between the samples (typical of noisy data)."""
+    check = getattr(result_or_check, "resolution", result_or_check)
+    rms = getattr(result_or_check, "rms_rel_error", rms)
     if check is None or check.ok:
         return
+    if rms is not None and rms <= ROUNDING_RMS:
+        why = ("the fit is exact to rounding, so these are spare sections (more than the "
+               "data need), placed where the data do not determine them; fit fewer "
+               "sections, or remove them with freqid_casadi.fitting.validation."
+               "prune_sections (FitResult.resolution lists them)")
+    else:
+        why = ("features between the samples that the data does not determine (typical "
+               "of noisy data); inspect FitResult.resolution, refit with "
+               "min_damping='auto' (a damping floor from the frequency spacing), remove "
+               "them with freqid_casadi.fitting.validation.prune_sections, or fit fewer "
+               "sections")
     warnings.warn(
         f"the model has {len(check.flags)} near-cancelling pole/zero pair(s) and "
         f"{len(check.unresolved)} pole(s)/zero(s) narrower than the frequency spacing: "
-        "features between the samples that the data does not determine (typical of "
-        "noisy data); inspect FitResult.resolution, refit with min_damping='auto' (a "
-        "damping floor from the frequency spacing), remove them with "
-        "freqid_casadi.fitting.validation.prune_sections, or fit fewer sections",
-        ResolutionWarning, stacklevel=stacklevel)
+        + why, ResolutionWarning, stacklevel=stacklevel)
 
 
 def _unscale_record(rec, w_ref):

@@ -12,8 +12,10 @@ from . import outputs as _outputs
 from .._textio import md_text
 from ..core.data import TIME_UNITS, dense_grid
 from ..errors import FreqidError, OptionError
+from .environment import environment, environment_line
 from .formatting import generated_by_line, json_safe, markdown_table, number
 from ..core.metrics import relative_error
+from ..fitting.verdict import ROUNDING_RMS
 
 __all__ = ["fit_summary", "render_fit_summary", "dense_error", "REPORT_FILES",
            "REPORT_FORMAT", "REPORT_VERSION"]
@@ -83,6 +85,7 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
         "delay": float(model.delay),
         "gain": float(model.gain),
         "wall_time": float(result.wall_time),
+        "environment": environment(),
         "status": str(getattr(getattr(result, "status", None), "value", "") or ""),
         "success": bool(result.success),
         "message": str(getattr(result, "message", "") or ""),
@@ -288,6 +291,8 @@ def _overview_rows(s):
         ("delay h", f"{number(s['delay'], 6)} {tu}"),
         ("gain K (model.gain, in front of the sections)", number(s["gain"], 6)),
         ("wall time", f"{number(s['wall_time'])} s"),
+        *([("computed on", f"`{environment_line(s['environment'])}`")]
+          if s.get("environment") else []),
         ("iterations (all stages, polish steps included)", number(s["nit"])),
         ("success (final stage converged)", ("yes" if s["success"] else "NO") + (
             f": {md_text(s['message'])}" if s.get("message") and not s["success"]
@@ -309,7 +314,10 @@ def _overview_rows(s):
                      if res["ok"] else
                      f"FAILED: {res['n_flagged_pairs']} near-cancelling pair(s), "
                      f"{res['n_unresolved']} unresolved pole(s)/zero(s) narrower than the "
-                     "frequency spacing (try min_damping='auto')"))
+                     "frequency spacing " + (
+                         "(spare sections: the fit is exact to rounding; fit fewer sections)"
+                         if s["rms_rel_error"] <= ROUNDING_RMS
+                         else "(try min_damping='auto')")))
     return rows
 
 

@@ -23,6 +23,7 @@ import time
 import numpy as np
 
 from .. import plots
+from ..report.environment import environment, environment_line
 from ..report.formatting import generated_by_line, json_safe, markdown_table, number
 from ..report.folder import atomic_write_text, check_out_dir, report_folder
 from .thesis_matlab import transcription_lines, transcription_rows
@@ -119,6 +120,10 @@ def render_reproduction(summary):
                   "report; the numbers are NOT comparable with the thesis.", ""]
     lines += [f"Total wall time {number(s['wall_time'])} s. Every number below is in "
               "`report.json` at full precision; the plotted curves are in `curves.json`.", ""]
+    if s.get("environment"):
+        lines += [f"Computed on `{environment_line(s['environment'])}`. Another "
+                  "BLAS kernel or numpy SIMD level can move the last digits, and example C "
+                  "more (docs/guide/reproducibility.md).", ""]
     if s["examples"]:
         lines += _table_lines(s)
         for k, v in s["examples"].items():
@@ -384,6 +389,7 @@ def _summary(run, command):
     """report.json without figures, files and wall time (added by the writer)."""
     summary = {"format": REPRODUCE_FORMAT, "version": 1,
                "command": " ".join(str(command).split()), "quick": run.quick,
+               "environment": environment(),
                "examples_run": list(run.examples_run), "barrier_lm": run.barrier_lm,
                "examples": {k: ex.summary for k, ex in run.examples.items()},
                "fractional": run.fractional.summary if run.fractional else None,
