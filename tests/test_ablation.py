@@ -62,6 +62,12 @@ def test_first_line_names_the_command(quick):
     command = f"freqid ablation --quick --quiet --out {out}"
     assert md.splitlines()[0] == report.generated_by_line(command)
     assert summary["command"] == command
+    # and where it was computed (the kernel and SIMD level that move the last digits)
+    from freqid_casadi.report.environment import environment_line
+
+    env = summary["settings"]["environment"]
+    assert env["numpy"] and isinstance(env["blas"], list)
+    assert f"Computed on `{environment_line(env)}`." in md.splitlines()
 
 
 def test_quick_run_is_complete(quick):

@@ -31,6 +31,7 @@ import numpy as np
 
 from ..errors import OptionError
 from ..fitting.fit import fit
+from ..report.environment import environment
 from ..report.formatting import json_safe
 from ..options import BarrierLMOptions, IpoptOptions, LoopOptions
 
@@ -406,7 +407,8 @@ def run_ablation(examples, *, quick=False, progress=False):
     settings = {"default": dict(DEFAULT_OPTIONS), "lm_options": _lm_options(quick),
                 "near_bound": NEAR_BOUND, "quick": dict(QUICK) if quick else None,
                 "machine": {"cpu_count": os.cpu_count(), "python": platform.python_version(),
-                            "platform": platform.platform()}}
+                            "platform": platform.platform()},
+                "environment": environment()}
     return AblationResult(bool(quick), settings, cases, fits, time.perf_counter() - t_start)
 
 

@@ -21,6 +21,7 @@ import os
 from functools import partial
 
 from .. import plots
+from ..report.environment import environment_line
 from ..report.formatting import generated_by_line, markdown_table, number, ratio
 from ..report.folder import atomic_write_text, check_out_dir, report_folder
 from .thesis_matlab import transcription_lines, transcription_rows
@@ -219,6 +220,8 @@ def _intro_lines(s):
              f"Command: `{s['command']}`. Total run time {number(s['total_wall_time'])} s on "
              f"{s['settings']['machine']['cpu_count']} CPUs (Python "
              f"{s['settings']['machine']['python']}).", "",
+             *([f"Computed on `{environment_line(s['settings']['environment'])}`.", ""]
+               if s["settings"].get("environment") else []),
              "Default (every ablation changes one factor from it): IPOPT, "
              + ", ".join(f"{k}={v}" for k, v in s["settings"]["default"].items()
                          if k != "method")
