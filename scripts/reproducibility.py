@@ -309,19 +309,13 @@ def _fmt(s, f):
 
 
 def _machine():
-    """One line: the CPU, numpy's SIMD levels, the versions."""
-    import platform
+    """One line: the CPU, numpy's SIMD levels, the versions (the package's environment())."""
+    from freqid_casadi.report.environment import environment
 
-    cpu = platform.processor() or platform.machine()
-    try:
-        with open("/proc/cpuinfo", encoding="utf-8") as fh:
-            cpu = next(ln.split(":", 1)[1].strip() for ln in fh if ln.startswith("model name"))
-    except (OSError, StopIteration):
-        pass
-    levels = numpy_levels()
-    return (f"Machine: {cpu}, {os.cpu_count()} CPUs; numpy {np.__version__} with SIMD levels "
-            f"{', '.join(levels) if levels else 'none beyond its baseline'}; Python "
-            f"{platform.python_version()}.")
+    env, levels = environment(), numpy_levels()
+    return (f"Machine: {env['cpu']}, {env['cpu_count']} CPUs; numpy {env['numpy']} with SIMD "
+            f"levels {', '.join(levels) if levels else 'none beyond its baseline'}; Python "
+            f"{env['python']}.")
 
 
 def _numpy_table(runs):

@@ -281,15 +281,13 @@ def test_resolution_warning_names_the_cause(rms, says, not_says):
     example A at 17 sections on a machine without AVX-512 puts a spare pole 0.06 rad/s
     from an antiresonance) is spare sections, which a damping floor does not remove; the
     noise wording and its min_damping advice are for the rest."""
-    from types import SimpleNamespace
-
     from freqid_casadi.core.resolution import ResolutionCheck
     from freqid_casadi.errors import ResolutionWarning
     from freqid_casadi.fitting.fit import _warn_unresolved
 
     check = ResolutionCheck(ok=False, flags=(None,), narrow=(), n_sections=3, factor=1.0)
     with pytest.warns(ResolutionWarning) as caught:
-        _warn_unresolved(SimpleNamespace(resolution=check, rms_rel_error=rms), 2)
+        _warn_unresolved(check, rms, 2)
     text = str(caught[0].message)
     assert text.startswith("the model has 1 near-cancelling pole/zero pair(s)")
     assert says in text and not_says not in text

@@ -424,7 +424,8 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
                 if len(ks) > 1:
                     record = settle_by_fits(record, {j: r.rms_rel_error
                                                      for j, r in results.items()})
-                    _warn_unresolved(results[record["chosen"]], 4)            # its warning
+                    kept = results[record["chosen"]]
+                    _warn_unresolved(kept.resolution, kept.rms_rel_error, 4)  # its warning
                 return _with_origin_record(results[record["chosen"]], record,
                                            origin_diagnostics(record, data))
             # several contenders (the starts do not decide): each one's fit of the starts
@@ -442,7 +443,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
                                        weights, False,
                                        dict(kw, integrator=check_origin_order(chosen)),
                                        first=core[chosen])
-            _warn_unresolved(result, 4)                                   # its warning
+            _warn_unresolved(result.resolution, result.rms_rel_error, 4)  # its warning
             return _with_origin_record(result, record, origin_diagnostics(record, data))
         return _fit_resolved(data_or_omega, response, n_sections, delay, fixed, weights,
                              emit, kw)
@@ -556,7 +557,7 @@ def _fit_guarded(data_or_omega, response, *, progress, weights, first=None, **kw
                          **dict(kw, min_damping=min_damping))
 
     result, _ = guard_resolution(result, refit, kw["min_damping"])
-    _warn_unresolved(result, 6)
+    _warn_unresolved(result.resolution, result.rms_rel_error, 6)
     return result
 
 
@@ -800,22 +801,20 @@ def _resolution_check(model, omega, rms, stacklevel=7):
     if model.structure.basis != "second-order" or not model.n_sections:
         return None
     check = check_resolution(model, omega)
-    _warn_unresolved(check, stacklevel + 1, rms)
+    _warn_unresolved(check, rms, stacklevel + 1)
     return check
 
 
-def _warn_unresolved(result_or_check, stacklevel, rms=None):
+def _warn_unresolved(check, rms, stacklevel):
     """The ResolutionWarning of a failed :func:`check_resolution` (nothing for None or a
-    passed check), given a FitResult or the check and the fit's RMS relative error.
+    passed check); ``rms``: the fit's RMS relative error.
 
     Its advice follows the cause: on a fit exact to rounding (RMS <= ROUNDING_RMS) the
     pairs are spare sections, which a damping floor does not remove; otherwise they are
     features between the samples (typical of noisy data)."""
-    check = getattr(result_or_check, "resolution", result_or_check)
-    rms = getattr(result_or_check, "rms_rel_error", rms)
     if check is None or check.ok:
         return
-    if rms is not None and rms <= ROUNDING_RMS:
+    if rms <= ROUNDING_RMS:
         why = ("the fit is exact to rounding, so these are spare sections (more than the "
                "data need), placed where the data do not determine them; fit fewer "
                "sections, or remove them with freqid_casadi.fitting.validation."
