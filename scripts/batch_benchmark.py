@@ -39,8 +39,8 @@ import time
 import numpy as np
 
 import freqid_casadi as fc
-from freqid_casadi._textio import atomic_write_text
-from freqid_casadi.report.folder import generated_by_line, markdown_table
+from freqid_casadi.report.environment import computed_on, environment
+from freqid_casadi.report.folder import atomic_write_text, generated_by_line, markdown_table
 
 SEED = 8
 N_POINTS = 400
@@ -160,7 +160,7 @@ def main(argv=None):
         n_sections=N_SECTIONS, seed=SEED,
         machine=f"{platform.machine()}, {os.cpu_count()} cores, "
                 f"Python {platform.python_version()}",
-        load_average=load_before,
+        environment=environment(), load_average=load_before,
         wall_s_jobs1=runs[1]["wall_s"], wall_s_jobs2=runs[2]["wall_s"], speedup=speedup,
         cpu_s_jobs1=runs[1]["cpu_s"], cpu_s_jobs2=runs[2]["cpu_s"],
         control=control, achievable_speedup=achievable,
@@ -183,7 +183,8 @@ def main(argv=None):
         f"{N_SECTIONS} sections, integrator and delay; seed {SEED}), each run in a fresh "
         f"interpreter. Machine: {payload['machine']}; load average (1, 5, 15 min) before "
         f"the runs {_load(payload['load_average'])}, after "
-        f"{_load(payload['load_average_after'])}.", "", table, "",
+        f"{_load(payload['load_average_after'])}.", "", computed_on(payload["environment"]),
+        "", table, "",
         f"Speed-up {speedup:.2f} (target >= 1.6: "
         f"{'met' if payload['meets_target'] else 'NOT met'}). Model files identical "
         f"between the runs: {'yes' if identical else 'NO'}. Converged: {n_conv}/"

@@ -24,6 +24,7 @@ import shlex
 import sys
 import time
 
+from freqid_casadi.report.environment import computed_on, environment
 from freqid_casadi.report.folder import generated_by_line, markdown_table
 from freqid_casadi.studies.corpus_order import (EXTRA, RULES, SUBSET_ROUNDS, judge,
                                                 order_tasks, run_ladders)
@@ -42,6 +43,7 @@ def _line(d):
 def report(command, ladders, rounds, seed, max_points, wall):
     """Markdown lines and the JSON dict of the comparison."""
     verdicts = {name: judge(ladders, rule, **opts) for name, (rule, _, opts) in RULES.items()}
+    env = environment()
     md = [generated_by_line(command), "",
           "# The automatic order on the noisy corpus cases (issue 26, item 6)", "",
           f"{len(ladders)} noisy cases of corpus seed {seed} (rounds "
@@ -51,6 +53,7 @@ def report(command, ladders, rounds, seed, max_points, wall):
           "(`freqid_casadi.studies.corpus_order`). The subset: rounds "
           f"{', '.join(map(str, SUBSET_ROUNDS))}, the cases of results/corpus's automatic-"
           f"order table. {wall:.0f} s of fitting in this invocation.", "",
+          computed_on(env), "",
           "## Order in [true, true + 1]", ""]
     rows = []
     for name in RULES:
@@ -85,7 +88,7 @@ def report(command, ladders, rounds, seed, max_points, wall):
                               ["case", "true", "chosen", "reason", "subset", "orders"],
                               "lrrlll") if miss else "none.", ""]
     js = {"command": command, "seed": seed, "rounds": list(rounds), "max_points": max_points,
-          "rules": {n: t for n, (_, t, _) in RULES.items()}, "verdicts": verdicts}
+          "rules": {n: t for n, (_, t, _) in RULES.items()}, "verdicts": verdicts, "environment": env}
     return md, js
 
 

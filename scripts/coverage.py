@@ -63,6 +63,7 @@ import numpy as np
 from freqid_casadi import plots
 from freqid_casadi.core.data import FrequencyData
 from freqid_casadi.fitting.fit import fit
+from freqid_casadi.report.environment import environment, environment_line
 from freqid_casadi.report.folder import (code_fingerprint, generated_by_line, markdown_table,
                                          report_folder)
 from freqid_casadi.studies.corpus import json_lines
@@ -622,7 +623,8 @@ def report_lines(command, systems, rows, pool, wall, new, jobs, replicates, recs
           f"; {n_fail} raised). This invocation: {new} new fits in {wall:.0f} s ({jobs} "
           f"workers under nice, 2-core machine, load average {os.getloadavg()[0]:.1f} at "
           f"the end); the fits' own wall times summed over all replicates {fit_time:.0f} s "
-          f"(the others come from the checkpoint).{_codes_line(recs)}", "",
+          f"(the others come from the checkpoint).{_codes_line(recs)} This invocation ran "
+          f"on `{environment_line(environment())}`.", "",
           "## Result", "",
           f"Reported (determined) parameters in the target [{TARGET[0]:.2f}, {TARGET[1]:.2f}]: "
           f"**{inside} of {len(rep)}** system-parameter pairs. Were every interval "

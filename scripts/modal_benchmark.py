@@ -32,6 +32,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 import freqid_casadi as fc  # noqa: E402
+from freqid_casadi.report.environment import computed_on, environment  # noqa: E402
 from freqid_casadi.report.formatting import generated_by_line  # noqa: E402
 from freqid_casadi.core.modes import modes_markdown  # noqa: E402
 from freqid_casadi.modal.survey import stabilization, stabilization_csv  # noqa: E402
@@ -243,7 +244,8 @@ def main():
               "t_eval_32/t_eval_16": evals[32] / evals[16]}
     print("ratios (linear growth = 2.0):", {k: round(v, 2) for k, v in ratios.items()})
     result = {"command": command, "runs": runs, "eval_time": evals, "ratios": ratios,
-              "target": "16 channels x 1000 points x 10 modes in <= 30 s"}
+              "target": "16 channels x 1000 points x 10 modes in <= 30 s",
+              "environment": environment()}
     if not args.quick:
         result["stabilization"] = stabilization_example()
         datas, phi = roving_hammer_test()
@@ -310,6 +312,7 @@ def render(r):
              "sensors spread over the beam, 1000 log points 5..2000 rad/s, 0.2 % noise; "
              "10 shared sections, delay none, collocated channel minimum phase, the others "
              "zeros='free'. 2-core machine shared with other jobs: timings are noisy.", "",
+             *([computed_on(r["environment"]), ""] if r.get("environment") else []),
              "Wall time and time per iteration: fastest of 3 runs in the same process.", "",
              "| channels | wall time (s) | IPOPT iterations (polish) | ms / iteration | "
              "CPU ms / iteration | worst max rel. error | worst freq. error | "

@@ -423,7 +423,7 @@ def main(argv=None):
         ap.error(f"--jobs must be 1 or 2 (got {args.jobs}): the machine has 2 cores")
     import tempfile
 
-    from freqid_casadi._textio import atomic_write_text
+    from freqid_casadi.report.folder import atomic_write_text
 
     if not 1 <= args.seeds <= len(SEEDS):
         ap.error(f"--seeds must be 1..{len(SEEDS)} (got {args.seeds})")

@@ -35,6 +35,7 @@ import numpy as np
 
 import freqid_casadi as fc
 from freqid_casadi.fitting.far_roots import roots_to_infinity
+from freqid_casadi.report.environment import computed_on, environment
 
 WN = np.array([4.0, 15.0, 38.0])       # rad/s: mode frequencies of the nominal unit
 ZETA = np.array([0.02, 0.015, 0.01])   # modal dampings
@@ -324,6 +325,7 @@ def write_report(folder, command, s):
              f"+-{DAMPING_SPREAD:.0%}, {NOISE:.0%} complex noise, {OMEGA.size} points "
              f"from {OMEGA[0]:g} to {OMEGA[-1]:g} rad/s; seed {s['seed']}. Runtime "
              f"{s['wall_time']:.0f} s.", "",
+             *([computed_on(s["environment"]), ""] if s.get("environment") else []),
              "## Nominal and cover", "",
              f"- Nominal: `fc.fit(nominal unit, n_sections=3)`: max rel. error "
              f"{_f(s['nominal']['max_rel_error'])}, delay {_f(s['nominal']['delay'] * 1e3, 4)} ms "
@@ -440,6 +442,7 @@ def run(folder, n_members, seed, command, progress):
             (1 / (1 + l_dense), l_dense / (1 + l_dense)), steps, des)
     summary = {
         "command": command, "seed": seed, "n_members": n_members, "member_params": params,
+        "environment": environment(),
         "nominal": {"max_rel_error": float(nom.max_rel_error), "delay": nom.model.delay,
                     "beta": nominal.beta.tolist(), "moved": moved},
         "cover": {"order": cov.order, "median_ratio": cov.median_ratio,

@@ -219,6 +219,7 @@ def _plot(rows, path):
 
 def _markdown(command, rows, fits, meta):
     sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    from freqid_casadi.report.environment import computed_on
     from freqid_casadi.report.folder import generated_by_line, markdown_table
 
     def g(x, d=3):
@@ -259,6 +260,7 @@ def _markdown(command, rows, fits, meta):
         f"t({ITER_LO} it)) / (iterations difference); IPOPT with exact Hessian, barrier-LM "
         f"with one barrier step (t = 1) and max_inner = {ITER_HI}. BLAS at one thread. "
         f"Machine: {meta['machine']}; total run {meta['total_s']:.0f} s.", "",
+        *([computed_on(meta["environment"]), ""] if meta.get("environment") else []),
         "## Fitted exponents (log-log slopes)", "", ftable, "", *verdict, "",
         "## Measurements", "", table, "",
         "Peak RSS is `resource.getrusage(RUSAGE_SELF).ru_maxrss` of the point's process "
@@ -307,13 +309,15 @@ def main(argv=None):
                              r["method"], r["n_points"], r["n_sections"]))
     fits = analyse(rows)
     base = [r["base_rss_mb"] for r in rows if "base_rss_mb" in r]
+    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
+    from freqid_casadi.report.environment import environment
+
     meta = dict(machine=f"{platform.processor() or platform.machine()}, "
                         f"{os.cpu_count()} cores, Python {platform.python_version()}",
-                total_s=time.perf_counter() - t_start,
+                total_s=time.perf_counter() - t_start, environment=environment(),
                 base_rss_mb=float(np.median(base)) if base else float("nan"))
     os.makedirs(args.out, exist_ok=True)
-    sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    from freqid_casadi._textio import atomic_write_text
+    from freqid_casadi.report.folder import atomic_write_text
 
     payload = dict(command=command, meta=meta, exponents=fits, rows=rows,
                    settings=dict(iter_lo=ITER_LO, iter_hi=ITER_HI, delay_max=DELAY_MAX,

@@ -84,7 +84,8 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 import freqid_casadi as fc  # noqa: E402
-from freqid_casadi._textio import atomic_write_text  # noqa: E402
+from freqid_casadi.report.environment import computed_on, environment  # noqa: E402
+from freqid_casadi.report.folder import atomic_write_text  # noqa: E402
 
 PARTS = ("fits", "iteration", "layers", "fixed", "large", "sweep", "survey", "batch")
 FIT_SETS = {"actuator": (1, 2, 3), "robot arm": (1, 3, 5), "resonator_36mm_s21": (2,),
@@ -688,7 +689,8 @@ def markdown(command, out):
              f"{platform.python_version()}. Absolute times are noisy; single-process "
              f"numbers are medians of {out['repeat']} repeats, with CPU seconds beside the "
              "wall time, and the conclusions are ratios measured in this run. Every number is "
-             "in `speed.json`.", ""]
+             "in `speed.json`.", "",
+             *([computed_on(out["environment"]), ""] if out.get("environment") else [])]
     if "fits" in out:
         lines += _fits_md(out["fits"]) + [""]
     if "iteration" in out:
@@ -738,7 +740,8 @@ def main(argv=None):
         f" --{k} {v}" for k, v in (("out", args.out), ("repeat", args.repeat),
                                    ("parts", args.parts)) if v != ap.get_default(k))
     out = {"command": command, "repeat": args.repeat, "load": [os.getloadavg()[0]],
-           "machine": {"cpus": os.cpu_count(), "python": platform.python_version()}}
+           "machine": {"cpus": os.cpu_count(), "python": platform.python_version()},
+           "environment": environment()}
     runners = {"fits": part_fits, "iteration": part_iteration, "layers": part_layers,
                "fixed": part_fixed,
                "large": lambda r: part_large(r, args.timeout), "sweep": part_sweep,

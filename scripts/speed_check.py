@@ -100,6 +100,13 @@ def same(a, b):
             and abs(a["delay"] - b["delay"]) <= DELAY_ATOL)
 
 
+def _computed_on():
+    """The machine line of the report (both trees ran here, in fresh interpreters)."""
+    from freqid_casadi.report.environment import computed_on
+
+    return computed_on()
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--base", default="HEAD~1")
@@ -138,7 +145,7 @@ def main(argv=None):
              f"{FLOOR:g}), delay to {DELAY_ATOL:g} s; `bits`: the same model to the last bit. "
              f"Wall time of all fits: {t_base:.1f} s -> {t_now:.1f} s (fresh interpreters, "
              "least over the runs; 2-core shared machine, times noisy: the table gives each "
-             "fit's CPU seconds, least over the runs).", "",
+             "fit's CPU seconds, least over the runs).", "", _computed_on(), "",
              "| fit | max rel. error before | after | RMS before | after | delay before (s) "
              "| after | iterations | CPU before (s) | after | same | bits |",
              "|---|---:|---:|---:|---:|---:|---:|---|---:|---:|---|---|"]

@@ -21,8 +21,9 @@ import time
 import warnings
 
 import freqid_casadi as fc
-from freqid_casadi._textio import atomic_write_text
 from freqid_casadi.fitting.sweep import parse_orders, sweep
+from freqid_casadi.report.environment import computed_on, environment
+from freqid_casadi.report.folder import atomic_write_text
 
 
 def main(argv=None):
@@ -44,7 +45,7 @@ def main(argv=None):
              "success": bool(r.success), "wall_time": r.wall_time} for r in res.rows]
     errs = [r["max_rel_error"] for r in rows]
     out = {"orders": args.orders, "wall_time": t_now, "target_s": 15.0,
-           "non_increasing": all(b <= a for a, b in zip(errs, errs[1:])), "rows": rows}
+           "non_increasing": all(b <= a for a, b in zip(errs, errs[1:])), "rows": rows, "environment": environment()}
     if not args.no_baseline:
         t0 = time.perf_counter()
         base = [fc.fit(data, n_sections=o // 2, integrator=True, start="sequential",
@@ -73,7 +74,8 @@ def _markdown(out):
              f"); max relative error non-increasing with order: "
              f"**{out['non_increasing']}**. Load average (1 min) before / after / at the end: "
              + " / ".join(f"{x:.2f}" for x in out["load_average"])
-             + " (2-core shared machine: times vary +-30 %).", ""]
+             + " (2-core shared machine: times vary +-30 %).", "",
+             computed_on(out["environment"]), ""]
     b = out.get("baseline")
     if b:
         lines += [f"Baseline in the same run (fit() one by one, IpoptOptions(ftol=0), "

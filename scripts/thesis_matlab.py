@@ -26,6 +26,7 @@ from pathlib import Path
 import numpy as np
 
 import freqid_casadi as fc
+from freqid_casadi.report.environment import computed_on, environment
 from freqid_casadi.studies import thesis_matlab as tm
 
 log = logging.getLogger("thesis_matlab")
@@ -196,6 +197,8 @@ def report_md(command, result):
          f"Command: `{command}`. Total run time {_g(result['total_wall_time'], 4)} s on a "
          f"shared, loaded 2-core machine (timings are noisy). Module: "
          "`freqid_casadi.studies.thesis_matlab` (issue 18).", "",
+         *([computed_on(result["settings"]["environment"]), ""]
+           if result["settings"].get("environment") else []),
          f"Caps not in the printed code: max_inner = {result['settings']['max_inner']} "
          "iterations per LM loop (None: as printed, each loop stops only on its own tests and "
          "the tenfold growth of tol1 every 1000 iterations), time budget "
@@ -349,7 +352,8 @@ def main(argv=None):
                               omega=omega.tolist())
     result = dict(command=command, format="freqid_casadi.thesis_matlab_report", version=1,
                   settings=dict(max_inner=args.max_inner, time_budget=args.time_budget,
-                                cpu_count=os.cpu_count(), python=sys.version.split()[0]),
+                                cpu_count=os.cpu_count(), python=sys.version.split()[0],
+                                environment=environment()),
                   examples=examples, conclusions=conclusions(examples),
                   jacobian_differences=list(JACOBIAN_DIFFERENCES),
                   readings=[list(r) for r in tm.READINGS],

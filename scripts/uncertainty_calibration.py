@@ -44,6 +44,7 @@ from freqid_casadi.core.data import FrequencyData
 from freqid_casadi.fitting.fit import fit
 from freqid_casadi.core.model import RationalDelayModel, Structure
 from freqid_casadi.plots.uncertainty import bode_band, rel_error_band, render_markdown
+from freqid_casadi.report.environment import computed_on, environment
 from freqid_casadi.report.folder import generated_by_line, markdown_table, report_folder
 
 NOISE = 0.01
@@ -344,11 +345,12 @@ def run(n, jobs, out, command, force=False, actuator=True):
     summary = summarize(val, std)
     boot, res0, unc0 = bootstrap_comparison(jobs=jobs)
     js = {"command": command, "calibration": summary, "wall_time_s": wall, "jobs": jobs,
-          "bootstrap": boot, "truth": truth_values()}
+          "bootstrap": boot, "truth": truth_values(), "environment": environment()}
     md = [generated_by_line(command), "", "# Calibration of the parameter uncertainty "
           "(issue 17)", "", "A known 2-mode system with a 5 ms delay (modes 5 Hz / zeta 0.02 "
           "and 17 Hz / zeta 0.03, zero pairs at 60 and 300 rad/s) on 400 log-spaced points "
-          "over 2-600 rad/s, with 1 % complex Gaussian noise (E|n|^2 = 1e-4).", ""]
+          "over 2-600 rad/s, with 1 % complex Gaussian noise (E|n|^2 = 1e-4).", "",
+          computed_on(js["environment"]), ""]
     md += calibration_section(summary, wall, jobs, boot)
     md += ["### Modal table of replicate 0", "", render_markdown(unc0)]
     figures = {"calibration.png": calibration_figure(summary),

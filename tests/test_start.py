@@ -4,6 +4,8 @@ The slow rows check the issue's targets on the thesis's examples (max relative e
 the 500 points, and the delay).
 """
 
+import os
+
 import numpy as np
 import pytest
 
@@ -200,6 +202,22 @@ def test_sweep_rows_carry_the_fits_status():
     assert [r.status for r in res.rows] == ["poor-fit", "ok", "ok"]
     assert res.rows[0].max_rel_error > 0.5 and res.rows[2].max_rel_error < 1e-10
     assert res.as_dict()["rows"][2]["status"] == "ok"
+
+
+def test_sweep_report_says_where_it_was_computed(tmp_path):
+    # the folder of `freqid sweep`: sweep.json records the environment, sweep.md states it
+    import json
+
+    from freqid_casadi.report.environment import computed_on, environment
+    from freqid_casadi.report.folder import write_sweep_report
+
+    _, data = _two_section(60)
+    out = write_sweep_report(sweep(data, [2], integrator=True), tmp_path / "s", command="x")
+    with open(os.path.join(out, "sweep.json"), encoding="utf-8") as fh:
+        env = json.load(fh)["environment"]
+    assert env == json.loads(json.dumps(environment()))
+    with open(os.path.join(out, "sweep.md"), encoding="utf-8") as fh:
+        assert computed_on(env) in fh.read()
 
 
 # ------------------------------------------------------------------ the issue's targets

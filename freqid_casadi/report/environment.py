@@ -13,7 +13,7 @@ import platform
 
 import numpy as np
 
-__all__ = ["environment", "environment_line"]
+__all__ = ["environment", "environment_line", "computed_on"]
 
 
 def _version(dist):
@@ -109,3 +109,21 @@ def environment_line(env):
     if blas:
         parts.append("BLAS: " + ", ".join(blas))
     return "; ".join(parts)
+
+
+def computed_on(env=None):
+    """The sentence a report states its machine with: ``Computed on `<line>`.``.
+
+    Parameters
+    ----------
+    env : dict, optional
+        As :func:`environment` returns it, recorded when the numbers were computed (a
+        report re-rendered from a checkpoint states the machine of its fits); default:
+        this process's.
+
+    Returns
+    -------
+    str
+        One Markdown sentence (the line in a code span).
+    """
+    return f"Computed on `{environment_line(env or environment())}`."

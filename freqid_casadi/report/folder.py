@@ -31,6 +31,7 @@ import numpy as np
 from . import outputs as _outputs
 from .._textio import atomic_write_text, md_text
 from ..errors import FreqidError, OptionError
+from .environment import computed_on, environment
 from .formatting import csv_text, generated_by_line, json_safe, markdown_table, number
 from .summary import (REPORT_FILES, REPORT_FORMAT, REPORT_VERSION, dense_error, fit_summary,
                       render_fit_summary)
@@ -250,6 +251,7 @@ def write_sweep_report(result, out_dir, *, command, force=False):
     path = check_out_dir(out_dir, force)
     d = json_safe(result.as_dict())
     d["command"] = command
+    d["environment"] = json_safe(environment())
     headers = ["order", "sections", "max rel. error", "RMS rel. error",
                "max rel. error (10x grid)", "delay (s)", "time (s)", "start", "converged",
                "status"]
@@ -262,7 +264,8 @@ def write_sweep_report(result, out_dir, *, command, force=False):
                f"Smallest order with max relative error <= {target:g}: "
                f"{d['best_order'] if d['best_order'] is not None else 'none of those tried'}.")
     md = "\n".join([generated_by_line(command), f"# Order sweep: {md_text(d['data'] or 'data')}", "",
-                     markdown_table(rows, headers), "", verdict, ""])
+                     markdown_table(rows, headers), "", verdict, "",
+                     computed_on(d["environment"]), ""])
     with report_folder(out_dir, force) as (tmp, _):
         atomic_write_text(os.path.join(tmp, "sweep.md"), md)
         atomic_write_text(os.path.join(tmp, "sweep.json"),

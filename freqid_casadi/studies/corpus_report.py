@@ -15,6 +15,7 @@ import time
 
 import numpy as np
 
+from ..report.environment import computed_on, environment
 from ..report.formatting import generated_by_line, json_safe, markdown_table, number
 from ..report.folder import atomic_write_text, check_out_dir, report_folder
 from ..systems.corpus import FAMILIES
@@ -135,6 +136,7 @@ def render_corpus(command, summary, meta, records):
              f"on {meta['workers']} worker processes, {meta.get('fit_time_total', float('nan')):.0f} s "
              f"of fitting summed over the fits (this command's wall time {meta['wall_time']:.0f}"
              " s; with --resume the fits of the checkpoint are not timed again).",
+             *(["", computed_on(meta["environment"])] if meta.get("environment") else []),
              "", "Every case is fitted at its true order (`fc.fit(data, n_sections=<true>, "
              "**config)`, every other option at its default), by each configuration, in "
              "this one run. Definitions (`freqid_casadi.studies.corpus`):", "",
@@ -288,7 +290,8 @@ def write_corpus_report(out_dir, *, command, n, seed=0, max_points=5000, workers
             "n_fits": len(records), "wall_time": wall,
             "fit_time_total": float(sum(r["wall_time"] for r in records)),
             "n_points_total": int(sum(points)),
-            "n_points_min": int(min(points)), "n_points_max": int(max(points))}
+            "n_points_min": int(min(points)), "n_points_max": int(max(points)),
+            "environment": environment()}
     summary = summarize([_Rec(r) for r in records])
     out = {"command": command, "meta": meta, "summary": summary, "fits": records}
     if measured:
@@ -322,7 +325,7 @@ def _write_measured_only(out_dir, command, force, run_kw):
     t0 = time.perf_counter()
     records = measured_dicts(run_measured(**run_kw))
     meta = {"workers": run_kw["workers"], "measured_wall_time": time.perf_counter() - t0,
-            "measured_max_sections": run_kw["max_sections"]}
+            "measured_max_sections": run_kw["max_sections"], "environment": environment()}
     out = json_safe({"command": command, "meta": meta, "measured": records})
     with report_folder(out_dir, force) as (tmp, _):
         atomic_write_text(os.path.join(tmp, "report.json"),
@@ -336,7 +339,9 @@ def _measured_only_md(out):
             "# Validation corpus: the measured FRFs only", "",
             f"{len(out['measured'])} fits on {out['meta']['workers']} worker processes, "
             f"{out['meta']['measured_wall_time']:.0f} s wall time (the synthetic corpus is "
-            "not in this run: `python scripts/corpus.py` without --measured-only).", ""]
+            "not in this run: `python scripts/corpus.py` without --measured-only).", "",
+            *([computed_on(out["meta"]["environment"]), ""]
+              if out["meta"].get("environment") else [])]
     return "\n".join(head + render_measured(out["measured"]))
 
 

@@ -12,6 +12,7 @@ import os
 import numpy as np
 
 from .. import plots
+from ..report.environment import computed_on, environment
 from ..report.formatting import generated_by_line, json_safe, markdown_table, number
 from ..core.metrics import relative_error
 from ..report.folder import atomic_write_text, check_out_dir, report_folder
@@ -119,6 +120,7 @@ def render_measured(summary):
     """
     lines = [generated_by_line(summary["command"]), "",
              "# Measured data: the actuator from raw records, and the robot arm", "",
+             *([computed_on(summary.get("environment")), ""] if summary.get("environment") else []),
              f"Command: `{summary['command']}` ({number(summary['wall_time'])} s). Ours: "
              "`fit(data, n_sections=N, delay=True, start='best')` (stable by construction, "
              "minimum phase, a delay, the gain sign found from the data); peers at the same "
@@ -213,6 +215,7 @@ def write_measured_report(out_dir, *, command, force=False, progress=None):
     check_out_dir(out_dir, force)
     study = run_measured(progress)
     summary = json_safe({"command": command, "wall_time": study.wall_time,
+                         "environment": environment(),
                          "settings": study.settings,
                          "actuator": _ds_summary(study.actuator),
                          "robot_arm": _ds_summary(study.robot_arm)})

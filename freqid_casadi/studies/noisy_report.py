@@ -9,6 +9,7 @@ import json
 import os
 
 from .. import plots
+from ..report.environment import computed_on, environment
 from ..report.formatting import generated_by_line, json_safe, markdown_table, number
 from ..report.folder import atomic_write_text, check_out_dir, report_folder
 from .noisy import DENSE, NOISE, SEED, SIGMA_RANGE, run_noisy
@@ -43,6 +44,7 @@ def render_noisy(command, s):
     f = a["floor"]
     head = _HEAD
     lines = [generated_by_line(command), "", "# Example A on noisy data", "",
+             *([computed_on(s.get("environment")), ""] if s.get("environment") else []),
              f"G_A on the thesis grid ({s['n_points']} points, 1e-2..1e3 rad/s) times "
              f"(1 + n), n complex Gaussian with RMS {100 * NOISE:g} % (seed {SEED}; measured "
              f"RMS {number(s['noise_rms'])}, max |n| {number(s['noise_max'])}). Fit: {a['n_sections']} "
@@ -252,7 +254,7 @@ def write_noisy_report(out_dir, *, command, n_sections=17, force=False):
     """
     check_out_dir(out_dir, force)                 # early: before the long study
     result = run_noisy(n_sections)
-    summary = json_safe({"command": command, **result.summary,
+    summary = json_safe({"command": command, **result.summary, "environment": environment(),
                          "weights_effect": weights_effect(n_sections, result.summary)})
     with report_folder(out_dir, force) as (tmp, _):
         plots.save_figure(_clean_figure(result.curves, n_sections),

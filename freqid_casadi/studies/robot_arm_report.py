@@ -13,6 +13,7 @@ import numpy as np
 
 from .. import plots
 from ..io.loaders import save_csv
+from ..report.environment import computed_on, environment
 from ..report.formatting import generated_by_line, json_safe, markdown_table, number
 from ..report.folder import atomic_write_text, check_out_dir, report_folder
 from .robot_arm import CITATION, CRITERION, WITHIN, low_frequency, run_robot_arm
@@ -47,7 +48,7 @@ def _summary(study, command):
     rows = study.rows
     peaks = est.bins[np.argsort(-np.abs(est.data.response))[:2]]
     summary = {
-        "command": command, "citation": CITATION,
+        "command": command, "citation": CITATION, "environment": environment(),
         "data": {"n_samples": int(est.period * est.n_periods), "n_points": est.data.n_points,
                  "bin_min": int(est.bins[0]), "bin_max": int(est.bins[-1]),
                  "omega_min": float(est.data.omega[0]), "omega_max": float(est.data.omega[-1]),
@@ -134,6 +135,7 @@ def render_robot_arm(command, summary):
     p = s["chosen"]
     lf = s["low_frequency"]
     lines = [generated_by_line(command), "", "# Flexible robot arm (DaISy 96-009)", "",
+             *([computed_on(s.get("environment")), ""] if s.get("environment") else []),
              f"Data: {CITATION} Input: measured reaction torque; output: arm acceleration; "
              f"{s['data']['n_samples']} samples, one period, sampling time not given, so "
              "frequencies are normalised (rad/sample) and the delay is in samples.", "",
