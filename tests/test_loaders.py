@@ -181,10 +181,10 @@ def test_mat_errors(tmp_path):
         load(tmp_path / "bad.mat")
 
 
-def _uff_set(pyuff, x, z, node, label="Hz", ident="NONE"):
+def _uff_set(pyuff, x, z, node, label="Hz", ident="NONE", func_type=4, abscissa=18):
     return pyuff.prepare_58(
-        binary=0, func_type=4, rsp_node=node, rsp_dir=1, ref_node=1, ref_dir=1, ord_data_type=6,
-        abscissa_spacing=0, abscissa_spec_data_type=18, abscissa_axis_units_lab=label,
+        binary=0, func_type=func_type, rsp_node=node, rsp_dir=1, ref_node=1, ref_dir=1, ord_data_type=6,
+        abscissa_spacing=0, abscissa_spec_data_type=abscissa, abscissa_axis_units_lab=label,
         ordinate_spec_data_type=12, orddenom_spec_data_type=13, z_axis_spec_data_type=0,
         x=x, data=z, id1=ident)
 
@@ -208,6 +208,41 @@ def test_uff_written_by_pyuff_several_records(tmp_path):
     np.testing.assert_allclose(load(path, record=1).response, 2 * RESP, rtol=1e-11)
     with pytest.raises(DataError, match=r"record=2 is out of range"):
         load(path, record=2)
+
+
+def test_uff_records_that_are_not_frequency_responses_are_named(tmp_path):
+    # an analyser's export holds the FRF beside its coherence and a PSD (function types 4,
+    # 6, 9): the FRF is read, the others skipped with a note naming them; a file of a PSD
+    # or a time record alone is refused, saying what it holds
+    pyuff = pytest.importorskip("pyuff")
+    mixed = tmp_path / "mixed.uff"
+    pyuff.UFF(str(mixed)).write_sets([
+        _uff_set(pyuff, F_UFF, np.abs(RESP), 1, ident="coh", func_type=6),
+        _uff_set(pyuff, F_UFF, RESP, 2, ident="H 2/1"),
+        _uff_set(pyuff, F_UFF, np.abs(RESP) ** 2, 3, ident="psd", func_type=9)],
+        mode="overwrite")
+    with pytest.warns(DataWarning, match=r"skipped 2 of its 3 dataset-58 records, which are "
+                      r"not frequency responses \(1 coherence, 1 power spectral density\); "
+                      r"kept its 1 frequency-response record"):
+        (frf,) = load_uff(mixed)
+    assert frf.name == "H 2/1"
+    np.testing.assert_allclose(frf.response, RESP, rtol=1e-11)
+    with pytest.warns(DataWarning, match="skipped 2"):
+        np.testing.assert_array_equal(load(mixed).response, frf.response)
+    psd = tmp_path / "psd.uff"
+    pyuff.UFF(str(psd)).write_sets([_uff_set(pyuff, F_UFF, np.abs(RESP) ** 2, 1,
+                                             func_type=9)], mode="overwrite")
+    with pytest.raises(DataError, match=r"psd\.uff' record 0: a power spectral density \(UFF "
+                       r"function type 9\), not a frequency response; export the FRF"):
+        load(psd)
+    time_rec = tmp_path / "time.uff"
+    pyuff.UFF(str(time_rec)).write_sets([
+        _uff_set(pyuff, F_UFF, RESP.real, 1, func_type=1, abscissa=17),
+        _uff_set(pyuff, F_UFF, RESP.real, 2, func_type=1, abscissa=17)], mode="overwrite")
+    with pytest.raises(DataError, match=r"record 0: abscissa type 17 is not frequency \(18\)"
+                       r".* \(and no other of its 2 records is a frequency response: 2 time "
+                       r"record\)"):
+        load_uff(time_rec)
 
 
 UFF_58 = """    -1

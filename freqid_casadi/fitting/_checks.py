@@ -104,10 +104,13 @@ def validate(data, response, n_sections, basis, tol, integrator, weights=None):
     structure = Structure(int(n_sections), integrator, True, basis)
     n_params = structure.n_params
     if data.n_points < n_params:
+        most = (data.n_points - 2) // structure.section_size
+        advice = (f"use fewer sections (at most {most}) or more data" if most >= 1 else
+                  f"even one section needs {Structure(1, integrator, True, basis).n_params}"
+                  " points: measure more frequencies")
         raise DataError(
             f"too few data points for {n_sections} sections: {data.n_points} points for "
-            f"{n_params} parameters; use fewer sections (at most "
-            f"{max((data.n_points - 2) // structure.section_size, 0)}) or more data")
+            f"{n_params} parameters; {advice}")
     if weights is not None:
         data = data.with_weights(weights)
     check_weighted_points(data, n_params, n_sections)

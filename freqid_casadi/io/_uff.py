@@ -4,12 +4,31 @@ pyuff (MIT) is an optional dependency (extra ``freqid_casadi[uff]``), imported o
 UFF file is read. Re-exported by :mod:`freqid_casadi.io.loaders`.
 """
 
+import warnings
+
 import numpy as np
 
+from ._readfile import DataWarning
 from ._table import parse_freq_unit
 from ..errors import DataError
 
-__all__ = ["load_uff"]
+__all__ = ["load_uff", "UFF_FUNCTION_TYPES", "RESPONSE_TYPES"]
+
+#: Dataset 58's function types (record 6, field 1), as the UFF standard names them.
+UFF_FUNCTION_TYPES = {
+    0: "general or unknown function", 1: "time response", 2: "auto spectrum",
+    3: "cross spectrum", 4: "frequency response function", 5: "transmissibility",
+    6: "coherence", 7: "auto-correlation", 8: "cross-correlation",
+    9: "power spectral density", 10: "energy spectral density",
+    11: "probability density function", 12: "spectrum",
+    13: "cumulative frequency distribution", 14: "peaks valley", 15: "stress/cycles",
+    16: "strain/cycles", 17: "orbit", 18: "mode indicator function", 19: "force pattern",
+    20: "partial power", 21: "partial coherence", 22: "eigenvalue", 23: "eigenvector",
+    24: "shock response spectrum", 25: "finite impulse response filter",
+    26: "multiple coherence", 27: "order function", 28: "phase compensation"}
+#: The function types read as frequency responses: an FRF, a transmissibility (an FRF
+#: between two responses) and "general" (0), which some analysers write for FRFs.
+RESPONSE_TYPES = (0, 4, 5)
 
 
 def load_uff(path, *, freq_unit=None, band=None):
@@ -27,14 +46,18 @@ def load_uff(path, *, freq_unit=None, band=None):
     Returns
     -------
     tuple of FrequencyData
-        One per dataset-58 record whose abscissa is a frequency, in file order, named
-        ``"<stem>:<k>"`` or after the record's first ID line.
+        One per frequency-response record of dataset 58 (a frequency abscissa and a
+        function type in :data:`RESPONSE_TYPES`: FRF, transmissibility or general), in
+        file order, named after the record's first ID line or ``"<stem>:<k>"`` (``k``: the
+        record's number among the file's dataset-58 records). Other records (coherence,
+        spectra, time records) are skipped with a :class:`DataWarning` naming them.
 
     Raises
     ------
     DataError
         pyuff missing (install the extra ``freqid_casadi[uff]``), a file pyuff cannot read,
-        no dataset-58 records, a record over time or with bad values.
+        no frequency-response record (the error names what the records are), a record
+        with bad values.
     """
     from ._readfile import parse_band, read_regular_file
 
@@ -56,17 +79,52 @@ def load_uff(path, *, freq_unit=None, band=None):
     if not sets:
         raise DataError(f"{path!r} holds no dataset-58 (function) records; export the FRFs "
                         "as UFF 58")
-    return tuple(_uff_record(path, k, s, freq_unit, band) for k, s in enumerate(sets))
+    kinds = [_kind(s) for s in sets]
+    keep = [k for k, kind in enumerate(kinds) if kind is None]
+    if not keep:
+        # the first record's reason, as a file of one record of that kind is told
+        raise DataError(f"{path!r} record 0: {kinds[0]}" + (
+            "" if len(sets) == 1 else
+            f" (and no other of its {len(sets)} records is a frequency response: "
+            f"{_tally(kinds)})"))
+    if len(keep) < len(sets):
+        warnings.warn(f"{path!r}: skipped {len(sets) - len(keep)} of its {len(sets)} "
+                      f"dataset-58 records, which are not frequency responses ({_tally(kinds)}"
+                      f"); kept its {len(keep)} frequency-response record(s), numbered 0.."
+                      f"{len(keep) - 1} for record=", DataWarning,
+                      stacklevel=2)
+    return tuple(_uff_record(path, k, sets[k], freq_unit, band) for k in keep)
+
+
+def _kind(dset):
+    """None for a frequency-response record of dataset 58, else why it is not one."""
+    kind = int(dset.get("abscissa_spec_data_type", 18) or 0)
+    if kind not in (0, 18):
+        return (f"abscissa type {kind} is not frequency (18); export a frequency response "
+                "(FRF), not a time record")
+    func = int(dset.get("func_type", 0) or 0)
+    if func not in RESPONSE_TYPES:
+        name = UFF_FUNCTION_TYPES.get(func, "an unknown function type")
+        return (f"a {name} (UFF function type {func}), not a frequency response; export "
+                "the FRF (type 4) or a transmissibility (type 5)")
+    return None
+
+
+def _tally(kinds):
+    """'2 coherence, 1 time record' of the records that are not frequency responses."""
+    counts = {}
+    for why in kinds:
+        if why is not None:
+            label = ("time record" if why.startswith("abscissa")
+                     else why.split(" (UFF")[0].removeprefix("a "))
+            counts[label] = counts.get(label, 0) + 1
+    return ", ".join(f"{n} {label}" for label, n in counts.items())
 
 
 def _uff_record(path, k, dset, freq_unit, band=None):
     from ._readfile import _finish, _stem
 
     where = f"{path!r} record {k}"
-    kind = int(dset.get("abscissa_spec_data_type", 18) or 0)
-    if kind not in (0, 18):
-        raise DataError(f"{where}: abscissa type {kind} is not frequency (18); export a "
-                        "frequency response (FRF), not a time record")
     try:
         x = np.asarray(dset["x"], float)
         z = np.asarray(dset["data"])
