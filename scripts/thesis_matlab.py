@@ -16,9 +16,7 @@ import argparse
 import json
 import logging
 import os
-import shutil
 import sys
-import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
@@ -27,6 +25,7 @@ import numpy as np
 
 import freqid_casadi as fc
 from freqid_casadi.report.environment import computed_on, environment
+from freqid_casadi.report.folder import atomic_write_text, report_folder
 from freqid_casadi.studies import thesis_matlab as tm
 
 log = logging.getLogger("thesis_matlab")
@@ -272,16 +271,14 @@ def rerender(out):
     result["conclusions"] = conclusions(result["examples"])
     result["jacobian_differences"] = list(JACOBIAN_DIFFERENCES)
     result["readings"] = [list(r) for r in tm.READINGS]
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=out.parent))
-    for name, ex in result["examples"].items():
-        labels = {"transcription": _tr_label(ex["transcription"]), "ipopt": "ours, ipopt",
-                  "barrier-lm": "ours, barrier-lm"}
-        curves = {k: (labels[k], np.array(v)) for k, v in ex["rel_error"].items()}
-        figure(tmp / f"rel_error_{name}.png", name, curves, np.array(ex["omega"]))
-    (tmp / "thesis_matlab.json").write_text(json.dumps(result, indent=1) + "\n",
-                                             encoding="utf-8")
-    (tmp / "report.md").write_text(report_md(result["command"], result), encoding="utf-8")
-    _move_into_place(tmp, out, True)
+    with report_folder(out, True) as (tmp, _):
+        tmp = Path(tmp)
+        for name, ex in result["examples"].items():
+            labels = {"transcription": _tr_label(ex["transcription"]),
+                      "ipopt": "ours, ipopt", "barrier-lm": "ours, barrier-lm"}
+            curves = {k: (labels[k], np.array(v)) for k, v in ex["rel_error"].items()}
+            figure(tmp / f"rel_error_{name}.png", name, curves, np.array(ex["omega"]))
+        _write(tmp, result)
     print("\n".join(result["conclusions"]))
 
 
@@ -302,14 +299,10 @@ def _parse(argv):
     return p.parse_args(argv)
 
 
-def _move_into_place(tmp, out, force):
-    if out.exists():
-        old = out.with_name(out.name + ".old")
-        os.replace(out, old)
-        os.replace(tmp, out)
-        shutil.rmtree(old)
-    else:
-        os.replace(tmp, out)
+def _write(folder, result):
+    """thesis_matlab.json and report.md of ``result`` into ``folder``."""
+    atomic_write_text(folder / "thesis_matlab.json", json.dumps(result, indent=1) + "\n")
+    atomic_write_text(folder / "report.md", report_md(result["command"], result))
 
 
 def main(argv=None):
@@ -324,7 +317,6 @@ def main(argv=None):
         sys.argv[1:] if argv is None else argv)
     t0 = time.perf_counter()
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out.name}-", dir=out.parent))
     names = args.examples.split(",")
     tasks = [("transcription", n, None) for n in names]
     if not args.no_fits:
@@ -335,7 +327,7 @@ def main(argv=None):
         futures = {task: pool.submit(_task, task, args.max_inner, args.time_budget)
                    for task in tasks}
         done = {task: fut.result() for task, fut in futures.items()}
-    examples = {}
+    examples, figures = {}, {}
     for name in names:
         tr, rel = done[("transcription", name, None)]
         curves = {"transcription": (_tr_label(tr), rel)}
@@ -345,7 +337,7 @@ def main(argv=None):
                 methods[key], r = done[("fit", name, key)]
                 curves[key] = (f"ours, {key}", r)
         omega = getattr(fc.systems, f"G_{name}")().omega
-        figure(tmp / f"rel_error_{name}.png", name, curves, omega)
+        figures[name] = (curves, omega)
         examples[name] = dict(thesis=dict(tm.TABLE_4_1[name]), transcription=tr,
                               methods=methods, ablation=ablation_rows(name),
                               rel_error={k: v[1].tolist() for k, v in curves.items()},
@@ -358,10 +350,11 @@ def main(argv=None):
                   jacobian_differences=list(JACOBIAN_DIFFERENCES),
                   readings=[list(r) for r in tm.READINGS],
                   total_wall_time=time.perf_counter() - t0)
-    (tmp / "thesis_matlab.json").write_text(json.dumps(result, indent=1) + "\n",
-                                             encoding="utf-8")
-    (tmp / "report.md").write_text(report_md(command, result), encoding="utf-8")
-    _move_into_place(tmp, out, args.force)
+    with report_folder(out, args.force) as (tmp, _):
+        tmp = Path(tmp)
+        for name, (curves, omega) in figures.items():
+            figure(tmp / f"rel_error_{name}.png", name, curves, omega)
+        _write(tmp, result)
     print("\n".join(result["conclusions"]))
 
 
