@@ -480,3 +480,79 @@ def test_cli_batch_passes_freq_unit_and_prints_notes(tmp_path, monkeypatch, caps
     assert "Warning" not in err
     error = float(re.search(r"hz\.csv: .*max rel\. error ([-+.e0-9]+)", out).group(1))
     assert error < 1e-6                               # Hz read as Hz: the model fits
+
+
+# ------------------------------------------------------------------ analysers' traces
+
+_BODE100_SETUP = ("---Measurement Setup-------------------------------------------\r\n"
+                  "Device Type: Bode100\r\nStart Frequency (Hz): 1\r\nStop Frequency (Hz): "
+                  "64\r\nNumber of Points: 6\r\nSweep Mode: Logarithmic\r\nReference Signal: "
+                  "CH1\r\n---------------------------------------------------------------\r\n")
+
+
+def _bode100(tmp_path, header, columns, name="bode.csv"):
+    """A file laid out as the Bode Analyzer Suite exports it (CRLF, a setup preamble,
+    one column per trace and format), of the response RESP at F_UFF Hz."""
+    rows = [",".join(repr(float(v)) for v in [f] + [col(g) for col in columns])
+            for f, g in zip(F_UFF, RESP)]
+    return _write(tmp_path, _BODE100_SETUP + header + "\r\n" + "\r\n".join(rows) + "\r\n",
+                  name)
+
+
+def test_bode100_export_with_two_traces_of_one_gain_is_read_as_written(tmp_path):
+    # the gain in real/imag/dB (trace 1) and real/imag/degree (trace 2): real and imag of
+    # trace 1 are read, the other four columns checked against them and named in a note
+    path = _bode100(tmp_path, "Frequency (Hz),TR1: Gain (Real),TR1: Gain (Imag),TR1: Gain "
+                    "(dB),TR2: Gain (Real),TR2: Gain (Imag),TR2: Gain (Degree)",
+                    [np.real, np.imag, lambda g: 20 * np.log10(abs(g)), np.real, np.imag,
+                     lambda g: np.degrees(np.angle(g))])
+    with pytest.warns(DataWarning) as notes:
+        data = load(path)
+    np.testing.assert_array_equal(data.omega, 2 * np.pi * F_UFF)
+    np.testing.assert_array_equal(data.response, RESP)
+    said = " ".join(str(w.message) for w in notes)
+    assert "skipped 8 line(s) of metadata before the header on line 9" in said
+    assert ("read 'Frequency (Hz)', 'TR1: Gain (Real)', 'TR1: Gain (Imag)'; columns "
+            "'TR1: Gain (dB)', 'TR2: Gain (Real)', 'TR2: Gain (Imag)', 'TR2: Gain (Degree)' "
+            "give the same response in another form") in said
+
+
+def test_bode100_traces_of_different_quantities_are_refused_with_the_columns_to_pass(
+        tmp_path):
+    # an impedance with its series inductance Ls (not the impedance in another form): the
+    # error says so and gives the columns= that reads the impedance, which then works
+    path = _bode100(tmp_path, "Frequency (Hz),TR2: Impedance (Real),TR2: Impedance (Imag),"
+                    "TR2: Impedance (Ls)", [np.real, np.imag, lambda g: 1e-3 * abs(g)])
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        with pytest.raises(DataError, match=r"bode\.csv' line 10: column 'TR2: Impedance \(Ls\)'"
+                           r" is not the response of columns 'TR2: Impedance \(Real\)', 'TR2: "
+                           r"Impedance \(Imag\)' in another form .* e\.g\. "
+                           r"columns='freq_hz,re,im,skip'"):
+            load(path)
+        data = load(path, columns="freq_hz,re,im,skip")
+    np.testing.assert_array_equal(data.response, RESP)
+
+
+@pytest.mark.parametrize("header, columns", [
+    ("Frequency (Hz),TR1: Gain (dB),TR2: Gain (Degree)",
+     [lambda g: 20 * np.log10(abs(g)), lambda g: np.degrees(np.angle(g))]),
+    ("Frequency (Hz),TR1: Impedance (absolut),TR2: Impedance (Degree)",
+     [abs, lambda g: np.degrees(np.angle(g))]),
+    ("Frequency (Hz),Trace 1: Magnitude (dB),Trace 2: Phase (°)",
+     [lambda g: 20 * np.log10(abs(g)), lambda g: np.degrees(np.angle(g))]),
+])
+def test_traces_in_magnitude_and_phase_are_one_response(tmp_path, header, columns):
+    path = _bode100(tmp_path, header, columns)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        data = load(path)
+    np.testing.assert_allclose(data.response, RESP, rtol=1e-13)
+
+
+def test_two_complete_traces_of_different_quantities_stay_ambiguous(tmp_path):
+    path = _bode100(tmp_path, "Frequency (Hz),TR1: Gain (Real),TR1: Gain (Imag),"
+                    "TR2: Impedance (Real),TR2: Impedance (Imag)",
+                    [np.real, np.imag, np.real, np.imag])
+    with pytest.raises(DataError, match=r"two columns are 're'"):
+        load(path)

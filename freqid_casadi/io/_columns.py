@@ -11,7 +11,8 @@ from dataclasses import dataclass
 
 from ..errors import OptionError
 
-__all__ = ["Column", "recognise", "parse_columns", "parse_freq_unit", "COLUMN_HELP"]
+__all__ = ["Column", "recognise", "parse_columns", "parse_freq_unit", "COLUMN_HELP",
+           "one_layout", "columns_option"]
 
 _UNIT_RE = re.compile(r"^(.*?)[\s_]*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
 
@@ -19,7 +20,11 @@ _UNITS = {"": None, "hz": "hz", "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad
           "rad/sample": "rad/sample",
           "rad/sec": "rad/s", "radians/s": "rad/s", "db": "db", "deg": "deg",
           "degree": "deg", "degrees": "deg", "°": "deg", "rad": "rad", "radian": "rad",
-          "radians": "rad", "lin": "lin", "linear": "lin"}
+          "radians": "rad", "lin": "lin", "linear": "lin",
+          # a response's part named as its unit: "Gain (Real)", "TR1: Gain (Imag)"
+          "real": "re", "re": "re", "imag": "im", "imaginary": "im", "im": "im",
+          "abs": "lin", "absolut": "lin", "absolute": "lin", "magnitude": "lin",
+          "mag": "lin"}
 _SUFFIXES = ("_rad_sample", "_rad_s", "_rads", "_hz", "_db", "_degrees", "_deg", "_radians", "_rad")
 _FREQ = {"omega": "rad/s", "w": "rad/s", "f": None, "freq": None, "frequency": None,
          "hz": "hz"}
@@ -27,7 +32,8 @@ _RE = {"re", "real"}
 _IM = {"im", "imag", "imaginary"}
 _MAG = {"mag", "magnitude", "abs", "amplitude", "amp", "gain", "modulus"}
 _PHASE = {"phase", "phi", "arg", "angle", "ph"}
-_COMPLEX = {"complex", "response", "h", "g", "frf", "z", "h1", "h2", "hv", "txy", "tf"}
+_COMPLEX = {"complex", "response", "h", "g", "frf", "z", "h1", "h2", "hv", "txy", "tf",
+            "impedance", "admittance"}
 _SKIP = {"skip", "_", "-", "ignore", "coherence", "coh"}
 _LAYOUTS = ({"freq", "re", "im"}, {"freq", "mag", "phase"}, {"freq", "complex"})
 
@@ -40,15 +46,27 @@ COLUMN_HELP = ("name each column: omega or w (rad/s), freq_hz or 'f [Hz]' (Hz), 
 @dataclass(frozen=True)
 class Column:
     """One column: ``role`` in freq/re/im/mag/phase/complex/skip, its ``unit`` (freq:
-    'hz'/'rad/s'/None, mag: 'lin'/'db', phase: 'deg'/'rad'/None) and its ``label``."""
+    'hz'/'rad/s'/None, mag: 'lin'/'db', phase: 'deg'/'rad'/None) and its ``label``;
+    ``same``: for a skipped column that gives the response again in another form (an
+    analyser's second trace), the role it would have had (:func:`one_layout`)."""
 
     role: str
     unit: str = None
     label: str = ""
+    same: str = None
 
 
 def recognise(label):
-    """The :class:`Column` a header cell or a name stands for, or None if unknown."""
+    """The :class:`Column` a header cell or a name stands for, or None if unknown.
+
+    A trace or channel prefix ending in a colon (``TR1: Gain (dB)``, as the Bode 100
+    writes) is read past; a gain or response named with its part or angle as the unit
+    (``Gain (Real)``, ``Gain (Imag)``, ``Gain (Degree)``) is that part or the phase."""
+    head, colon, rest = label.rpartition(":")
+    if colon and head.strip() and rest.strip():
+        col = recognise(rest)
+        if col is not None:
+            return Column(col.role, col.unit, label.strip())
     s = label.strip().strip("\"'").strip().lower()
     unit = ""
     m = _UNIT_RE.match(s)
@@ -70,17 +88,68 @@ def recognise(label):
         unit = "db" if unit.startswith("db") else "lin" if s in _MAG else ""
     unit = _UNITS[unit]
     name = label.strip()
+    if s in _MAG | _COMPLEX and unit in ("re", "im"):
+        return Column(unit, None, name)
+    if s in _MAG | _COMPLEX and unit in ("deg", "rad"):
+        return Column("phase", unit, name)
     if s in _FREQ and unit in (None, "hz", "rad/s", "rad/sample"):
         return Column("freq", unit or _FREQ[s], name)
     if s in _SKIP and unit is None:
         return Column("skip", None, name)
     if s in _RE | _IM | _COMPLEX and unit is None:
         return Column("re" if s in _RE else "im" if s in _IM else "complex", None, name)
-    if s == "db" and unit is None or s in _MAG and unit in (None, "db", "lin"):
+    if s == "db" and unit is None or s in _MAG and unit in (None, "db", "lin") \
+            or s in _COMPLEX and unit in ("db", "lin"):
         return Column("mag", "db" if s == "db" or unit == "db" else "lin", name)
     if s in _PHASE and unit in (None, "deg", "rad"):
         return Column("phase", unit, name)
     return None
+
+
+def _quantity(label):
+    """The measured quantity a response column names: ``gain`` of ``TR2: Gain (Degree)``."""
+    s = label.rpartition(":")[2].strip().strip("\"'").lower()
+    m = _UNIT_RE.match(s)
+    return (m.group(1) if m else s).strip()
+
+
+def one_layout(cols):
+    """``cols`` reduced to one layout when they give one response in several forms.
+
+    Analysers export a measurement as several traces (the Bode 100: ``TR1: Gain (Real)``,
+    ``TR1: Gain (Imag)``, ``TR1: Gain (dB)``, ``TR2: Gain (Degree)``, ...). When every
+    response column names the same quantity, the first complete layout is read (real and
+    imaginary, else a complex column, else magnitude and phase) and the other response
+    columns become ``skip`` columns that remember their role (``Column.same``), so that
+    the reader checks they agree. Otherwise, or with one layout already, ``cols`` as given.
+    """
+    if None in cols or _layout_problem(cols) is None:
+        return cols
+    freq = [c for c in cols if c.role == "freq"]
+    resp = [c for c in cols if c.role not in ("freq", "skip")]
+    if len(freq) != 1 or len({_quantity(c.label) for c in resp}) != 1:
+        return cols
+    roles = [c.role for c in resp]
+    for want in (("re", "im"), ("complex",), ("mag", "phase")):
+        if all(r in roles for r in want):
+            keep = {id(next(c for c in resp if c.role == r)) for r in want}
+            return tuple(c if c.role in ("freq", "skip") or id(c) in keep
+                         else Column("skip", c.unit, c.label, c.role) for c in cols)
+    return cols
+
+
+def columns_option(cols):
+    """The ``columns=`` string that reads ``cols`` as they are read now (``skip`` for
+    the others): ``'freq_hz,re,im,skip'``."""
+    def name(c):
+        if c.role == "freq":
+            return {"hz": "freq_hz", "rad/s": "omega"}.get(c.unit, "f")
+        if c.role == "mag":
+            return "mag_db" if c.unit == "db" else "mag"
+        if c.role == "phase":
+            return {"deg": "phase_deg", "rad": "phase_rad"}.get(c.unit, "phase")
+        return c.role
+    return ",".join(name(c) for c in cols)
 
 
 def _layout_problem(cols):

@@ -13,8 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._columns import (_UNITS, COLUMN_HELP, Column, _layout_problem, parse_columns,
-                       parse_freq_unit, recognise)
+from ._columns import (_UNITS, COLUMN_HELP, Column, _layout_problem, columns_option,
+                       one_layout, parse_columns, parse_freq_unit, recognise)
 from ._readfile import DataWarning
 from ..errors import DataError
 
@@ -241,14 +241,14 @@ def _comment_header(rows, comment):
         return rows
     cells = _splitter(sep)(comment[1]) if sep and sep in comment[1] else \
         _split_space(comment[1])
-    cols = [recognise(_clean(c)) for c in cells]
+    cols = one_layout([recognise(_clean(c)) for c in cells])
     if len(cells) != len(first) or None in cols or _layout_problem(cols):
         return rows
     return [(comment[0], (sep or " ").join(cells))] + rows
 
 
 def _header_columns(path, cells):
-    cols = [recognise(_clean(c)) for c in cells]
+    cols = one_layout([recognise(_clean(c)) for c in cells])
     problem = None
     if any(c is None for c in cols):
         bad = cells[[c is None for c in cols].index(True)]
@@ -394,7 +394,7 @@ def _header_at(text, sep, ncols):
         if how is not None and how not in text:
             continue
         cells = _splitter(how)(text)
-        cols = [recognise(_clean(c)) for c in cells]
+        cols = one_layout([recognise(_clean(c)) for c in cells])
         if len(cells) == ncols and None not in cols and not _layout_problem(cols):
             return cells
     return None
@@ -546,7 +546,58 @@ def read_table(path, payload, columns, freq_unit, max_rows):
             v[dc] = 1.0
     table = Table(path, cols, values, np.array([r[0] for r in rows]))
     _check_finite(table)
+    if any(c.same for c in cols):
+        _check_same(table, rows, split)
     return table
+
+
+#: How closely a column that repeats the response in another form (an analyser's second
+#: trace, its dB or degree column) must agree with the response read: the printing
+#: precision of such columns (0.01 dB is 0.12 %, 0.01 degree 1.7e-4 rad) with a wide
+#: margin; two different measurements differ by far more.
+SAME_RTOL, SAME_DEGREES = 0.01, 1.0
+
+
+def _check_same(table, rows, split):
+    """The skipped columns that give the response again (``Column.same``) agree with the
+    response read, to :data:`SAME_RTOL` of ``|G|`` and :data:`SAME_DEGREES`; a
+    :class:`DataWarning` says which columns were read."""
+    response = _response(table)
+    size, phase = np.abs(response), np.angle(response)
+    for j, col in enumerate(table.columns):
+        if col.same is None or col.same == "phase" and col.unit is None:
+            continue
+        as_read = Column(col.same, col.unit, col.label)
+        x = np.array([_parse_cell(table.path, line, as_read, split(text)[j])
+                      for line, text in rows])
+        with np.errstate(over="ignore", invalid="ignore"):
+            if col.same == "phase":
+                turn = np.angle(np.exp(1j * ((x if col.unit == "rad" else np.deg2rad(x))
+                                             - phase)))
+                off = np.abs(turn) > np.deg2rad(SAME_DEGREES)
+            else:
+                y = {"re": response.real, "im": response.imag, "complex": response,
+                     "mag": size}[col.same]
+                x = 10.0 ** (x / 20.0) if col.same == "mag" and col.unit == "db" else x
+                off = ~(np.abs(x - y) <= SAME_RTOL * size)
+        off &= table.values["freq"] != 0
+        if off.any():
+            i = int(np.flatnonzero(off)[0])
+            read = ", ".join(repr(c.label) for c in table.columns
+                             if c.role not in ("skip", "freq"))
+            raise DataError(
+                f"{table.at(i)}: column {col.label!r} is not the response of columns {read} "
+                f"in another form (they differ by more than {SAME_RTOL:.0%} or "
+                f"{SAME_DEGREES:g} degree): the file holds two measurements; name the "
+                f"columns to read, e.g. columns='{columns_option(table.columns)}' (command "
+                "line --columns), 'skip' for the others")
+    same = [repr(c.label) for c in table.columns if c.same]
+    read = ", ".join(repr(c.label) for c in table.columns if c.role != "skip")
+    one = len(same) == 1
+    warnings.warn(f"{table.path!r}: read {read}; {'column' if one else 'columns'} "
+                  f"{', '.join(same)} {'gives' if one else 'give'} the same response in "
+                  f"another form (checked: within {SAME_RTOL:.0%} and {SAME_DEGREES:g} "
+                  "degree)", DataWarning, stacklevel=4)
 
 
 def _slow_values(path, rows, cols, split):
