@@ -556,3 +556,25 @@ def test_two_complete_traces_of_different_quantities_stay_ambiguous(tmp_path):
                     [np.real, np.imag, np.real, np.imag])
     with pytest.raises(DataError, match=r"two columns are 're'"):
         load(path)
+
+
+def test_network_analyser_channels_get_the_columns_that_read_the_response(tmp_path):
+    # the Digilent WaveForms network analyser's layout: '#' setup lines, the reference
+    # channel's magnitude beside the measured channel's magnitude and phase. Which one is
+    # the system's response is the user's to say: the error offers the one channel whose
+    # columns make a response, and those columns read it
+    text = ("#Digilent WaveForms Network Analyzer\r\n#Device Name: Discovery2\r\n"
+            "Frequency (Hz),Channel 1 Magnitude (dB),Channel 2 Magnitude (dB),"
+            "Channel 2 Phase (deg)\r\n" + "".join(
+                f"{float(f)!r},0.0,{float(d)!r},{float(p)!r}\r\n"
+                for f, d, p in zip(F_UFF, DB, DEG)))
+    path = _write(tmp_path, text, "network.csv")
+    with pytest.raises(DataError, match=r"two columns are 'mag'; to read channel 2, the one "
+                       r"whose columns make a response, pass "
+                       r"columns='freq_hz,skip,mag_db,phase_deg'"):
+        load(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        data = load(path, columns="freq_hz,skip,mag_db,phase_deg")
+    np.testing.assert_allclose(data.response, RESP, rtol=1e-12)
+    np.testing.assert_array_equal(data.omega, 2 * np.pi * F_UFF)

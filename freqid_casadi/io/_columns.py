@@ -12,8 +12,12 @@ from dataclasses import dataclass
 from ..errors import OptionError
 
 __all__ = ["Column", "recognise", "parse_columns", "parse_freq_unit", "COLUMN_HELP",
-           "one_layout", "columns_option"]
+           "one_layout", "columns_option", "one_channel"]
 
+#: A channel or trace number before a column's name: ``Channel 2 Phase (deg)``, ``Ch1 Re``.
+_CHANNEL = re.compile(r"^\s*(?:channel|chan|ch|trace|tr)\s*(\d+)\s*[:\-]?\s+(\S.*)$",
+                      re.IGNORECASE)
+_CHANNEL_NO = re.compile(r"^\s*(?:channel|chan|ch|trace|tr)\s*(\d+)", re.IGNORECASE)
 _UNIT_RE = re.compile(r"^(.*?)[\s_]*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
 
 _UNITS = {"": None, "hz": "hz", "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad/s",
@@ -65,6 +69,11 @@ def recognise(label):
     head, colon, rest = label.rpartition(":")
     if colon and head.strip() and rest.strip():
         col = recognise(rest)
+        if col is not None:
+            return Column(col.role, col.unit, label.strip())
+    channel = _CHANNEL.match(label)
+    if channel:
+        col = recognise(channel.group(2))
         if col is not None:
             return Column(col.role, col.unit, label.strip())
     s = label.strip().strip("\"'").strip().lower()
@@ -136,6 +145,36 @@ def one_layout(cols):
             return tuple(c if c.role in ("freq", "skip") or id(c) in keep
                          else Column("skip", c.unit, c.label, c.role) for c in cols)
     return cols
+
+
+def _channel_of(label):
+    """The channel or trace number a column's label starts with (``TR2: ...``,
+    ``Channel 2 ...``), or None."""
+    m = _CHANNEL_NO.match(label)
+    return int(m.group(1)) if m else None
+
+
+def one_channel(cols):
+    """``(channel, columns=)`` reading the one channel or trace whose columns form a
+    complete layout (``Channel 2 Magnitude (dB)`` with ``Channel 2 Phase (deg)`` beside
+    ``Channel 1 Magnitude (dB)``, as the Digilent WaveForms network analyser writes), or
+    None: what an error can offer when a header gives several channels (which channel is
+    the system's response is the user's to say)."""
+    if None in cols or [c.role for c in cols].count("freq") != 1:
+        return None
+    freq = next(c for c in cols if c.role == "freq")
+    groups = {}
+    for c in cols:
+        if c.role not in ("freq", "skip"):
+            groups.setdefault(_channel_of(c.label), []).append(c)
+    complete = [k for k, g in groups.items()
+                if k is not None and _layout_problem([freq] + g) is None]
+    if len(complete) != 1 or len(groups) < 2:
+        return None
+    k = complete[0]
+    return k, columns_option(tuple(
+        c if c.role == "freq" or c.role != "skip" and _channel_of(c.label) == k
+        else Column("skip") for c in cols))
 
 
 def columns_option(cols):

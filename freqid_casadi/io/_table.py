@@ -14,7 +14,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._columns import (_UNITS, COLUMN_HELP, Column, _layout_problem, columns_option,
-                       one_layout, parse_columns, parse_freq_unit, recognise)
+                       one_channel, one_layout, parse_columns, parse_freq_unit, recognise)
 from ._readfile import DataWarning
 from ..errors import DataError
 
@@ -255,6 +255,10 @@ def _header_columns(path, cells):
         problem = f"column {_clean(bad)!r} is not a known name"
     else:
         problem = _layout_problem(cols)
+        choice = one_channel(cols) if problem else None
+        if choice:
+            problem += (f"; to read channel {choice[0]}, the one whose columns make a "
+                        f"response, pass columns='{choice[1]}'")
     if problem:
         raise DataError(
             f"{path!r}: unrecognised header {','.join(_clean(c) for c in cells)!r} "
