@@ -88,7 +88,8 @@ def report(command, ladders, rounds, seed, max_points, wall):
                               ["case", "true", "chosen", "reason", "subset", "orders"],
                               "lrrlll") if miss else "none.", ""]
     js = {"command": command, "seed": seed, "rounds": list(rounds), "max_points": max_points,
-          "rules": {n: t for n, (_, t, _) in RULES.items()}, "verdicts": verdicts, "environment": env}
+          "rules": {n: t for n, (_, t, _) in RULES.items()}, "verdicts": verdicts,
+          "environment": env}
     return md, js
 
 

@@ -45,7 +45,8 @@ def main(argv=None):
              "success": bool(r.success), "wall_time": r.wall_time} for r in res.rows]
     errs = [r["max_rel_error"] for r in rows]
     out = {"orders": args.orders, "wall_time": t_now, "target_s": 15.0,
-           "non_increasing": all(b <= a for a, b in zip(errs, errs[1:])), "rows": rows, "environment": environment()}
+           "non_increasing": all(b <= a for a, b in zip(errs, errs[1:])), "rows": rows,
+           "environment": environment()}
     if not args.no_baseline:
         t0 = time.perf_counter()
         base = [fc.fit(data, n_sections=o // 2, integrator=True, start="sequential",

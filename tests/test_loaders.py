@@ -183,7 +183,8 @@ def test_mat_errors(tmp_path):
 
 def _uff_set(pyuff, x, z, node, label="Hz", ident="NONE", func_type=4, abscissa=18):
     return pyuff.prepare_58(
-        binary=0, func_type=func_type, rsp_node=node, rsp_dir=1, ref_node=1, ref_dir=1, ord_data_type=6,
+        binary=0, func_type=func_type, rsp_node=node, rsp_dir=1, ref_node=1, ref_dir=1,
+        ord_data_type=6,
         abscissa_spacing=0, abscissa_spec_data_type=abscissa, abscissa_axis_units_lab=label,
         ordinate_spec_data_type=12, orddenom_spec_data_type=13, z_axis_spec_data_type=0,
         x=x, data=z, id1=ident)

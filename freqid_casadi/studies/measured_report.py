@@ -120,7 +120,8 @@ def render_measured(summary):
     """
     lines = [generated_by_line(summary["command"]), "",
              "# Measured data: the actuator from raw records, and the robot arm", "",
-             *([computed_on(summary.get("environment")), ""] if summary.get("environment") else []),
+             *([computed_on(summary["environment"]), ""]
+               if summary.get("environment") else []),
              f"Command: `{summary['command']}` ({number(summary['wall_time'])} s). Ours: "
              "`fit(data, n_sections=N, delay=True, start='best')` (stable by construction, "
              "minimum phase, a delay, the gain sign found from the data); peers at the same "

@@ -44,7 +44,7 @@ def render_noisy(command, s):
     f = a["floor"]
     head = _HEAD
     lines = [generated_by_line(command), "", "# Example A on noisy data", "",
-             *([computed_on(s.get("environment")), ""] if s.get("environment") else []),
+             *([computed_on(s["environment"]), ""] if s.get("environment") else []),
              f"G_A on the thesis grid ({s['n_points']} points, 1e-2..1e3 rad/s) times "
              f"(1 + n), n complex Gaussian with RMS {100 * NOISE:g} % (seed {SEED}; measured "
              f"RMS {number(s['noise_rms'])}, max |n| {number(s['noise_max'])}). Fit: {a['n_sections']} "

@@ -135,7 +135,7 @@ def render_robot_arm(command, summary):
     p = s["chosen"]
     lf = s["low_frequency"]
     lines = [generated_by_line(command), "", "# Flexible robot arm (DaISy 96-009)", "",
-             *([computed_on(s.get("environment")), ""] if s.get("environment") else []),
+             *([computed_on(s["environment"]), ""] if s.get("environment") else []),
              f"Data: {CITATION} Input: measured reaction torque; output: arm acceleration; "
              f"{s['data']['n_samples']} samples, one period, sampling time not given, so "
              "frequencies are normalised (rad/sample) and the delay is in samples.", "",
