@@ -99,7 +99,9 @@ def add_data_options(parser, records=False):
     if records:
         parser.add_argument(
             "--record", type=_record, metavar="K",
-            help="UFF file (.uff/.unv) with several function records: which one (0-based)")
+            help="UFF file (.uff/.unv) with several frequency-response records: which one "
+                 "(0-based, counting only the FRF records; coherences and spectra are "
+                 "skipped)")
         parser.add_argument(
             "--parameter", metavar="S21",
             help="Touchstone file (.s1p, .s2p, ..., .sNp, or version 2 .ts): which "

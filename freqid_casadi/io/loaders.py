@@ -64,7 +64,9 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
         Names of the columns of a text file or of a ``.mat`` matrix, e.g. ``"f,re,im"`` or
         ``("freq_hz", "mag_db", "phase_deg")``; see :func:`load_text`.
     record : int, optional
-        For a UFF file with several function records: which one (0-based).
+        For a UFF file with several frequency-response records: which one (0-based,
+        counting the records :func:`load_uff` returns: records that are not frequency
+        responses are skipped).
     parameter : str, optional
         For a Touchstone file (``.sNp`` of any number of ports, or a Touchstone 2.0
         ``.ts``): which parameter (default S11), e.g. "S21".
