@@ -157,7 +157,8 @@ def determined_status(par, values, cov, std, omega, unit="rad/s", fit_status=Non
         Frequency unit named in the reasons.
     fit_status : str, optional
         The fit's ``FitResult.status``; other than None or "ok", every parameter is not
-        determined (the residual is not noise: the intervals describe a model error).
+        determined (poor-fit: the residual is not noise, the intervals describe a model
+        error; not-converged: the point is not an optimum, where the intervals hold).
 
     Returns
     -------
@@ -169,8 +170,12 @@ def determined_status(par, values, cov, std, omega, unit="rad/s", fit_status=Non
     reasons = [""] * p
     omega_min, omega_max = float(np.min(omega)), float(np.max(omega))
     if fit_status not in (None, "ok"):
-        why = (f"the fit's status is {fit_status!r}: its residual is not the noise, so the "
-               "intervals do not describe the data's uncertainty")
+        why = (f"the fit's status is {fit_status!r}: " + (
+            "it stopped before an optimum (the final stage did not converge), where the "
+            "intervals, which hold at an optimum, do not apply; continue it (a higher "
+            "final_max_iter) to get them" if str(fit_status) == "not-converged" else
+            "its residual is not the noise, so the intervals describe a model error, "
+            "not the data's uncertainty"))
         determined = np.zeros(p, dtype=bool)
         determined.setflags(write=False)
         return determined, tuple([why] * p)
