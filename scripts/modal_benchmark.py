@@ -225,9 +225,18 @@ def main():
                     help="skip the stabilization example and the modal test")
     ap.add_argument("--measured", metavar="DIR",
                     help="also fit ModeLAB's measured beam (its Example/SignalCalc folder)")
+    ap.add_argument("--out", metavar="DIR",
+                    help="folder to write (default results/modal, the full run's; a --quick "
+                         "run needs a folder of its own)")
     args = ap.parse_args()
+    global OUT
+    if args.out:
+        OUT = os.path.abspath(args.out)
+    elif args.quick:
+        ap.error("--quick writes part of the report only, which would replace the full run's "
+                 "in results/modal: pass --out DIR")
     command = "python scripts/modal_benchmark.py" + (" --quick" if args.quick else "") + \
-        (" --measured DIR" if args.measured else "")
+        (" --measured DIR" if args.measured else "") + (f" --out {args.out}" if args.out else "")
     os.makedirs(OUT, exist_ok=True)
     runs = [timed_fit(c) for c in (8, 16, 32)]
     evals = {c: eval_time(c) for c in (8, 16, 32)}
