@@ -406,7 +406,9 @@ def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--quick", action="store_true", help="A and B only, 2 kernels, 2 seeds")
     ap.add_argument("--jobs", type=int, default=2, help="workers at a time (1 or 2)")
-    ap.add_argument("--out", default=os.path.join(ROOT, "results"))
+    ap.add_argument("--out", default=None,
+                    help="folder of reproducibility.md/.json (default results; a --quick run "
+                         "needs its own)")
     ap.add_argument("--seeds", type=int, default=len(SEEDS),
                     help=f"perturbation seeds 0..N-1 (default {len(SEEDS)}, at most that)")
     ap.add_argument("--keep", metavar="DIR",
@@ -421,6 +423,10 @@ def main(argv=None):
         return 0
     if not 1 <= args.jobs <= 2:
         ap.error(f"--jobs must be 1 or 2 (got {args.jobs}): the machine has 2 cores")
+    if args.out is None and args.quick:
+        ap.error("--quick runs A and B on 2 kernels only, which would replace the full "
+                 "run's results/reproducibility.md: pass --out DIR")
+    given_out, args.out = args.out, args.out or os.path.join(ROOT, "results")
     import tempfile
 
     from freqid_casadi.report.folder import atomic_write_text
@@ -428,7 +434,8 @@ def main(argv=None):
     if not 1 <= args.seeds <= len(SEEDS):
         ap.error(f"--seeds must be 1..{len(SEEDS)} (got {args.seeds})")
     command = "python scripts/reproducibility.py" + (" --quick" if args.quick else "") + (
-        f" --seeds {args.seeds}" if args.seeds != len(SEEDS) else "")
+        f" --seeds {args.seeds}" if args.seeds != len(SEEDS) else "") + (
+        f" --out {given_out}" if given_out else "")
     t0 = time.perf_counter()
     levels = numpy_levels()
     if args.keep:

@@ -2,7 +2,7 @@
 
 Usage::
 
-    python scripts/scaling.py [--out results/scaling] [--quick]
+    python scripts/scaling.py [--out results/scaling] [--quick --out DIR]
 
 For example A's system (G_A with integrator and delay) on a log grid of M points from 1e-2
 to 1e3 rad/s, one stage NLP with ``n_sections`` sections (the stage functions of
@@ -272,11 +272,16 @@ def _markdown(command, rows, fits, meta):
 
 def main(argv=None):
     parser = argparse.ArgumentParser(description=__doc__.split("\n")[0])
-    parser.add_argument("--out", default="results/scaling")
+    parser.add_argument("--out", default=None,
+                        help="folder (default results/scaling; a --quick run needs its own)")
     parser.add_argument("--quick", action="store_true", help="small sizes only (smoke test)")
     parser.add_argument("--point", nargs=3, metavar=("METHOD", "M", "N"),
                         help=argparse.SUPPRESS)
     args = parser.parse_args(argv)
+    if args.out is None and args.quick and not args.point:
+        parser.error("--quick measures the small sizes only, which would replace the full "
+                     "run's results/scaling: pass --out DIR")
+    args.out = args.out or "results/scaling"
     if args.point:
         method, m, n = args.point
         print(json.dumps(run_point(method, int(m), int(n))))
