@@ -32,7 +32,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 import freqid_casadi as fc  # noqa: E402
-from freqid_casadi.report.environment import computed_on, environment  # noqa: E402
+from freqid_casadi.report.environment import computed_on_lines, environment  # noqa: E402
 from freqid_casadi.report.formatting import generated_by_line  # noqa: E402
 from freqid_casadi.core.modes import modes_markdown  # noqa: E402
 from freqid_casadi.modal.survey import stabilization, stabilization_csv  # noqa: E402
@@ -321,7 +321,7 @@ def render(r):
              "sensors spread over the beam, 1000 log points 5..2000 rad/s, 0.2 % noise; "
              "10 shared sections, delay none, collocated channel minimum phase, the others "
              "zeros='free'. 2-core machine shared with other jobs: timings are noisy.", "",
-             *([computed_on(r["environment"]), ""] if r.get("environment") else []),
+             *computed_on_lines(r.get("environment")),
              "Wall time and time per iteration: fastest of 3 runs in the same process.", "",
              "| channels | wall time (s) | IPOPT iterations (polish) | ms / iteration | "
              "CPU ms / iteration | worst max rel. error | worst freq. error | "

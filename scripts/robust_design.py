@@ -35,7 +35,7 @@ import numpy as np
 
 import freqid_casadi as fc
 from freqid_casadi.fitting.far_roots import roots_to_infinity
-from freqid_casadi.report.environment import computed_on, environment
+from freqid_casadi.report.environment import computed_on_lines, environment
 
 WN = np.array([4.0, 15.0, 38.0])       # rad/s: mode frequencies of the nominal unit
 ZETA = np.array([0.02, 0.015, 0.01])   # modal dampings
@@ -325,7 +325,7 @@ def write_report(folder, command, s):
              f"+-{DAMPING_SPREAD:.0%}, {NOISE:.0%} complex noise, {OMEGA.size} points "
              f"from {OMEGA[0]:g} to {OMEGA[-1]:g} rad/s; seed {s['seed']}. Runtime "
              f"{s['wall_time']:.0f} s.", "",
-             *([computed_on(s["environment"]), ""] if s.get("environment") else []),
+             *computed_on_lines(s.get("environment")),
              "## Nominal and cover", "",
              f"- Nominal: `fc.fit(nominal unit, n_sections=3)`: max rel. error "
              f"{_f(s['nominal']['max_rel_error'])}, delay {_f(s['nominal']['delay'] * 1e3, 4)} ms "

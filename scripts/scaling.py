@@ -219,7 +219,7 @@ def _plot(rows, path):
 
 def _markdown(command, rows, fits, meta):
     sys.path.insert(0, os.path.dirname(os.path.dirname(os.path.abspath(__file__))))
-    from freqid_casadi.report.environment import computed_on
+    from freqid_casadi.report.environment import computed_on_lines
     from freqid_casadi.report.folder import generated_by_line, markdown_table
 
     def g(x, d=3):
@@ -260,7 +260,7 @@ def _markdown(command, rows, fits, meta):
         f"t({ITER_LO} it)) / (iterations difference); IPOPT with exact Hessian, barrier-LM "
         f"with one barrier step (t = 1) and max_inner = {ITER_HI}. BLAS at one thread. "
         f"Machine: {meta['machine']}; total run {meta['total_s']:.0f} s.", "",
-        *([computed_on(meta["environment"]), ""] if meta.get("environment") else []),
+        *computed_on_lines(meta.get("environment")),
         "## Fitted exponents (log-log slopes)", "", ftable, "", *verdict, "",
         "## Measurements", "", table, "",
         "Peak RSS is `resource.getrusage(RUSAGE_SELF).ru_maxrss` of the point's process "

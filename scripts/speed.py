@@ -84,7 +84,7 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 import freqid_casadi as fc  # noqa: E402
-from freqid_casadi.report.environment import computed_on, environment  # noqa: E402
+from freqid_casadi.report.environment import computed_on_lines, environment  # noqa: E402
 from freqid_casadi.report.folder import atomic_write_text  # noqa: E402
 
 PARTS = ("fits", "iteration", "layers", "fixed", "large", "sweep", "survey", "batch")
@@ -690,7 +690,7 @@ def markdown(command, out):
              f"numbers are medians of {out['repeat']} repeats, with CPU seconds beside the "
              "wall time, and the conclusions are ratios measured in this run. Every number is "
              "in `speed.json`.", "",
-             *([computed_on(out["environment"]), ""] if out.get("environment") else [])]
+             *computed_on_lines(out.get("environment"))]
     if "fits" in out:
         lines += _fits_md(out["fits"]) + [""]
     if "iteration" in out:

@@ -102,9 +102,9 @@ def same(a, b):
 
 def _computed_on():
     """The machine line of the report (both trees ran here, in fresh interpreters)."""
-    from freqid_casadi.report.environment import computed_on
+    from freqid_casadi.report.environment import computed_on, environment
 
-    return computed_on()
+    return computed_on(environment())
 
 
 def main(argv=None):

@@ -24,7 +24,7 @@ from pathlib import Path
 import numpy as np
 
 import freqid_casadi as fc
-from freqid_casadi.report.environment import computed_on, environment
+from freqid_casadi.report.environment import computed_on_lines, environment
 from freqid_casadi.report.folder import atomic_write_text, report_folder
 from freqid_casadi.studies import thesis_matlab as tm
 
@@ -196,8 +196,7 @@ def report_md(command, result):
          f"Command: `{command}`. Total run time {_g(result['total_wall_time'], 4)} s on a "
          f"shared, loaded 2-core machine (timings are noisy). Module: "
          "`freqid_casadi.studies.thesis_matlab` (issue 18).", "",
-         *([computed_on(result["settings"]["environment"]), ""]
-           if result["settings"].get("environment") else []),
+         *computed_on_lines(result["settings"].get("environment")),
          f"Caps not in the printed code: max_inner = {result['settings']['max_inner']} "
          "iterations per LM loop (None: as printed, each loop stops only on its own tests and "
          "the tenfold growth of tol1 every 1000 iterations), time budget "
@@ -271,14 +270,7 @@ def rerender(out):
     result["conclusions"] = conclusions(result["examples"])
     result["jacobian_differences"] = list(JACOBIAN_DIFFERENCES)
     result["readings"] = [list(r) for r in tm.READINGS]
-    with report_folder(out, True) as (tmp, _):
-        tmp = Path(tmp)
-        for name, ex in result["examples"].items():
-            labels = {"transcription": _tr_label(ex["transcription"]),
-                      "ipopt": "ours, ipopt", "barrier-lm": "ours, barrier-lm"}
-            curves = {k: (labels[k], np.array(v)) for k, v in ex["rel_error"].items()}
-            figure(tmp / f"rel_error_{name}.png", name, curves, np.array(ex["omega"]))
-        _write(tmp, result)
+    _write(out, True, result)
     print("\n".join(result["conclusions"]))
 
 
@@ -299,10 +291,18 @@ def _parse(argv):
     return p.parse_args(argv)
 
 
-def _write(folder, result):
-    """thesis_matlab.json and report.md of ``result`` into ``folder``."""
-    atomic_write_text(folder / "thesis_matlab.json", json.dumps(result, indent=1) + "\n")
-    atomic_write_text(folder / "report.md", report_md(result["command"], result))
+def _write(out, force, result):
+    """The folder ``out`` of ``result``: a figure per example (from the curves the result
+    holds), thesis_matlab.json and report.md."""
+    with report_folder(out, force) as (tmp, _):
+        tmp = Path(tmp)
+        for name, ex in result["examples"].items():
+            labels = {"transcription": _tr_label(ex["transcription"]),
+                      "ipopt": "ours, ipopt", "barrier-lm": "ours, barrier-lm"}
+            curves = {k: (labels[k], np.array(v)) for k, v in ex["rel_error"].items()}
+            figure(tmp / f"rel_error_{name}.png", name, curves, np.array(ex["omega"]))
+        atomic_write_text(tmp / "thesis_matlab.json", json.dumps(result, indent=1) + "\n")
+        atomic_write_text(tmp / "report.md", report_md(result["command"], result))
 
 
 def main(argv=None):
@@ -327,21 +327,18 @@ def main(argv=None):
         futures = {task: pool.submit(_task, task, args.max_inner, args.time_budget)
                    for task in tasks}
         done = {task: fut.result() for task, fut in futures.items()}
-    examples, figures = {}, {}
+    examples = {}
     for name in names:
         tr, rel = done[("transcription", name, None)]
-        curves = {"transcription": (_tr_label(tr), rel)}
+        curves = {"transcription": rel}
         methods = {}
         for key in ("ipopt", "barrier-lm"):
             if ("fit", name, key) in done:
-                methods[key], r = done[("fit", name, key)]
-                curves[key] = (f"ours, {key}", r)
-        omega = getattr(fc.systems, f"G_{name}")().omega
-        figures[name] = (curves, omega)
+                methods[key], curves[key] = done[("fit", name, key)]
         examples[name] = dict(thesis=dict(tm.TABLE_4_1[name]), transcription=tr,
                               methods=methods, ablation=ablation_rows(name),
-                              rel_error={k: v[1].tolist() for k, v in curves.items()},
-                              omega=omega.tolist())
+                              rel_error={k: v.tolist() for k, v in curves.items()},
+                              omega=getattr(fc.systems, f"G_{name}")().omega.tolist())
     result = dict(command=command, format="freqid_casadi.thesis_matlab_report", version=1,
                   settings=dict(max_inner=args.max_inner, time_budget=args.time_budget,
                                 cpu_count=os.cpu_count(), python=sys.version.split()[0],
@@ -350,11 +347,7 @@ def main(argv=None):
                   jacobian_differences=list(JACOBIAN_DIFFERENCES),
                   readings=[list(r) for r in tm.READINGS],
                   total_wall_time=time.perf_counter() - t0)
-    with report_folder(out, args.force) as (tmp, _):
-        tmp = Path(tmp)
-        for name, (curves, omega) in figures.items():
-            figure(tmp / f"rel_error_{name}.png", name, curves, omega)
-        _write(tmp, result)
+    _write(out, args.force, result)
     print("\n".join(result["conclusions"]))
 
 

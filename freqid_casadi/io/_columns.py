@@ -14,10 +14,10 @@ from ..errors import OptionError
 __all__ = ["Column", "recognise", "parse_columns", "parse_freq_unit", "COLUMN_HELP",
            "one_layout", "columns_option", "one_channel"]
 
-#: A channel or trace number before a column's name: ``Channel 2 Phase (deg)``, ``Ch1 Re``.
-_CHANNEL = re.compile(r"^\s*(?:channel|chan|ch|trace|tr)\s*(\d+)\s*[:\-]?\s+(\S.*)$",
-                      re.IGNORECASE)
+#: A channel or trace number before a column's name: ``Channel 2 Phase (deg)``, ``Ch1 Re``
+#: (``_CHANNEL``: the number and the name after it).
 _CHANNEL_NO = re.compile(r"^\s*(?:channel|chan|ch|trace|tr)\s*(\d+)", re.IGNORECASE)
+_CHANNEL = re.compile(_CHANNEL_NO.pattern + r"\s*[:\-]?\s+(\S.*)$", re.IGNORECASE)
 _UNIT_RE = re.compile(r"^(.*?)[\s_]*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
 
 _UNITS = {"": None, "hz": "hz", "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad/s",
@@ -67,13 +67,10 @@ def recognise(label):
     writes) is read past; a gain or response named with its part or angle as the unit
     (``Gain (Real)``, ``Gain (Imag)``, ``Gain (Degree)``) is that part or the phase."""
     head, colon, rest = label.rpartition(":")
-    if colon and head.strip() and rest.strip():
-        col = recognise(rest)
-        if col is not None:
-            return Column(col.role, col.unit, label.strip())
     channel = _CHANNEL.match(label)
-    if channel:
-        col = recognise(channel.group(2))
+    for name in (rest if colon and head.strip() and rest.strip() else None,
+                 channel.group(2) if channel else None):
+        col = recognise(name) if name else None
         if col is not None:
             return Column(col.role, col.unit, label.strip())
     s = label.strip().strip("\"'").strip().lower()
@@ -138,12 +135,13 @@ def one_layout(cols):
     resp = [c for c in cols if c.role not in ("freq", "skip")]
     if len(freq) != 1 or len({_quantity(c.label) for c in resp}) != 1:
         return cols
-    roles = [c.role for c in resp]
+    roles = [c.role for c in cols]
     for want in (("re", "im"), ("complex",), ("mag", "phase")):
         if all(r in roles for r in want):
-            keep = {id(next(c for c in resp if c.role == r)) for r in want}
-            return tuple(c if c.role in ("freq", "skip") or id(c) in keep
-                         else Column("skip", c.unit, c.label, c.role) for c in cols)
+            keep = {roles.index(r) for r in want}          # the first column of each role
+            return tuple(c if c.role in ("freq", "skip") or j in keep
+                         else Column("skip", c.unit, c.label, c.role)
+                         for j, c in enumerate(cols))
     return cols
 
 

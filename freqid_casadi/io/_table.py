@@ -568,12 +568,12 @@ def _check_same(table, rows, split):
     :class:`DataWarning` says which columns were read."""
     response = _response(table)
     size, phase = np.abs(response), np.angle(response)
+    cells = [(line, split(text)) for line, text in rows]
     for j, col in enumerate(table.columns):
         if col.same is None or col.same == "phase" and col.unit is None:
             continue
         as_read = Column(col.same, col.unit, col.label)
-        x = np.array([_parse_cell(table.path, line, as_read, split(text)[j])
-                      for line, text in rows])
+        x = np.array([_parse_cell(table.path, line, as_read, row[j]) for line, row in cells])
         with np.errstate(over="ignore", invalid="ignore"):
             if col.same == "phase":
                 turn = np.angle(np.exp(1j * ((x if col.unit == "rad" else np.deg2rad(x))

@@ -4,6 +4,7 @@ pyuff (MIT) is an optional dependency (extra ``freqid_casadi[uff]``), imported o
 UFF file is read. Re-exported by :mod:`freqid_casadi.io.loaders`.
 """
 
+import collections
 import warnings
 
 import numpy as np
@@ -83,7 +84,7 @@ def load_uff(path, *, freq_unit=None, band=None):
     keep = [k for k, kind in enumerate(kinds) if kind is None]
     if not keep:
         # the first record's reason, as a file of one record of that kind is told
-        raise DataError(f"{path!r} record 0: {kinds[0]}" + (
+        raise DataError(f"{path!r} record 0: {kinds[0][1]}" + (
             "" if len(sets) == 1 else
             f" (and no other of its {len(sets)} records is a frequency response: "
             f"{_tally(kinds)})"))
@@ -97,27 +98,23 @@ def load_uff(path, *, freq_unit=None, band=None):
 
 
 def _kind(dset):
-    """None for a frequency-response record of dataset 58, else why it is not one."""
+    """None for a frequency-response record of dataset 58, else ``(what it is, why it is
+    not read)``."""
     kind = int(dset.get("abscissa_spec_data_type", 18) or 0)
     if kind not in (0, 18):
-        return (f"abscissa type {kind} is not frequency (18); export a frequency response "
-                "(FRF), not a time record")
+        return "time record", (f"abscissa type {kind} is not frequency (18); export a "
+                               "frequency response (FRF), not a time record")
     func = int(dset.get("func_type", 0) or 0)
     if func not in RESPONSE_TYPES:
-        name = UFF_FUNCTION_TYPES.get(func, "an unknown function type")
-        return (f"a {name} (UFF function type {func}), not a frequency response; export "
-                "the FRF (type 4) or a transmissibility (type 5)")
+        name = UFF_FUNCTION_TYPES.get(func, "non-standard function")
+        return name, (f"a {name} (UFF function type {func}), not a frequency response; "
+                      "export the FRF (type 4) or a transmissibility (type 5)")
     return None
 
 
 def _tally(kinds):
     """'2 coherence, 1 time record' of the records that are not frequency responses."""
-    counts = {}
-    for why in kinds:
-        if why is not None:
-            label = ("time record" if why.startswith("abscissa")
-                     else why.split(" (UFF")[0].removeprefix("a "))
-            counts[label] = counts.get(label, 0) + 1
+    counts = collections.Counter(kind[0] for kind in kinds if kind is not None)
     return ", ".join(f"{n} {label}" for label, n in counts.items())
 
 

@@ -13,7 +13,7 @@ import platform
 
 import numpy as np
 
-__all__ = ["environment", "environment_line", "computed_on"]
+__all__ = ["environment", "environment_line", "computed_on", "computed_on_lines"]
 
 
 def _version(dist):
@@ -111,19 +111,33 @@ def environment_line(env):
     return "; ".join(parts)
 
 
-def computed_on(env=None):
+def computed_on(env):
     """The sentence a report states its machine with: ``Computed on `<line>`.``.
 
     Parameters
     ----------
-    env : dict, optional
+    env : dict
         As :func:`environment` returns it, recorded when the numbers were computed (a
-        report re-rendered from a checkpoint states the machine of its fits); default:
-        this process's.
+        report re-rendered from its JSON states the machine of its fits).
 
     Returns
     -------
     str
         One Markdown sentence (the line in a code span).
     """
-    return f"Computed on `{environment_line(env or environment())}`."
+    return f"Computed on `{environment_line(env)}`."
+
+
+def computed_on_lines(env):
+    """``[computed_on(env), ""]``, the lines a Markdown report inserts, or ``[]`` when
+    ``env`` is None (a report rendered from a JSON written before it was recorded).
+
+    Parameters
+    ----------
+    env : dict or None
+
+    Returns
+    -------
+    list of str
+    """
+    return [computed_on(env), ""] if env else []

@@ -15,7 +15,7 @@ import time
 
 import numpy as np
 
-from ..report.environment import computed_on, environment
+from ..report.environment import computed_on_lines, environment
 from ..report.formatting import generated_by_line, json_safe, markdown_table, number
 from ..report.folder import atomic_write_text, check_out_dir, report_folder
 from ..systems.corpus import FAMILIES
@@ -135,9 +135,9 @@ def render_corpus(command, summary, meta, records):
              f"({meta['n_points_min']}-{meta['n_points_max']} per case); {meta['n_fits']} fits "
              f"on {meta['workers']} worker processes, {meta.get('fit_time_total', float('nan')):.0f} s "
              f"of fitting summed over the fits (this command's wall time {meta['wall_time']:.0f}"
-             " s; with --resume the fits of the checkpoint are not timed again).",
-             *(["", computed_on(meta["environment"])] if meta.get("environment") else []),
-             "", "Every case is fitted at its true order (`fc.fit(data, n_sections=<true>, "
+             " s; with --resume the fits of the checkpoint are not timed again).", "",
+             *computed_on_lines(meta.get("environment")),
+             "Every case is fitted at its true order (`fc.fit(data, n_sections=<true>, "
              "**config)`, every other option at its default), by each configuration, in "
              "this one run. Definitions (`freqid_casadi.studies.corpus`):", "",
              f"- noise level ν: the RMS of the case's relative noise, at least {EXACT_FLOOR:g} "
@@ -340,8 +340,7 @@ def _measured_only_md(out):
             f"{len(out['measured'])} fits on {out['meta']['workers']} worker processes, "
             f"{out['meta']['measured_wall_time']:.0f} s wall time (the synthetic corpus is "
             "not in this run: `python scripts/corpus.py` without --measured-only).", "",
-            *([computed_on(out["meta"]["environment"]), ""]
-              if out["meta"].get("environment") else [])]
+            *computed_on_lines(out["meta"].get("environment"))]
     return "\n".join(head + render_measured(out["measured"]))
 
 

@@ -12,7 +12,7 @@ import os
 import numpy as np
 
 from .. import plots
-from ..report.environment import computed_on, environment
+from ..report.environment import computed_on_lines, environment
 from ..report.formatting import generated_by_line, json_safe, markdown_table, number
 from ..core.metrics import relative_error
 from ..report.folder import atomic_write_text, check_out_dir, report_folder
@@ -120,8 +120,7 @@ def render_measured(summary):
     """
     lines = [generated_by_line(summary["command"]), "",
              "# Measured data: the actuator from raw records, and the robot arm", "",
-             *([computed_on(summary["environment"]), ""]
-               if summary.get("environment") else []),
+             *computed_on_lines(summary.get("environment")),
              f"Command: `{summary['command']}` ({number(summary['wall_time'])} s). Ours: "
              "`fit(data, n_sections=N, delay=True, start='best')` (stable by construction, "
              "minimum phase, a delay, the gain sign found from the data); peers at the same "

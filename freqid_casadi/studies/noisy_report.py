@@ -9,7 +9,7 @@ import json
 import os
 
 from .. import plots
-from ..report.environment import computed_on, environment
+from ..report.environment import computed_on_lines, environment
 from ..report.formatting import generated_by_line, json_safe, markdown_table, number
 from ..report.folder import atomic_write_text, check_out_dir, report_folder
 from .noisy import DENSE, NOISE, SEED, SIGMA_RANGE, run_noisy
@@ -44,7 +44,7 @@ def render_noisy(command, s):
     f = a["floor"]
     head = _HEAD
     lines = [generated_by_line(command), "", "# Example A on noisy data", "",
-             *([computed_on(s["environment"]), ""] if s.get("environment") else []),
+             *computed_on_lines(s.get("environment")),
              f"G_A on the thesis grid ({s['n_points']} points, 1e-2..1e3 rad/s) times "
              f"(1 + n), n complex Gaussian with RMS {100 * NOISE:g} % (seed {SEED}; measured "
              f"RMS {number(s['noise_rms'])}, max |n| {number(s['noise_max'])}). Fit: {a['n_sections']} "

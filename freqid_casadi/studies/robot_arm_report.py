@@ -13,7 +13,7 @@ import numpy as np
 
 from .. import plots
 from ..io.loaders import save_csv
-from ..report.environment import computed_on, environment
+from ..report.environment import computed_on_lines, environment
 from ..report.formatting import generated_by_line, json_safe, markdown_table, number
 from ..report.folder import atomic_write_text, check_out_dir, report_folder
 from .robot_arm import CITATION, CRITERION, WITHIN, low_frequency, run_robot_arm
@@ -135,7 +135,7 @@ def render_robot_arm(command, summary):
     p = s["chosen"]
     lf = s["low_frequency"]
     lines = [generated_by_line(command), "", "# Flexible robot arm (DaISy 96-009)", "",
-             *([computed_on(s["environment"]), ""] if s.get("environment") else []),
+             *computed_on_lines(s.get("environment")),
              f"Data: {CITATION} Input: measured reaction torque; output: arm acceleration; "
              f"{s['data']['n_samples']} samples, one period, sampling time not given, so "
              "frequencies are normalised (rad/sample) and the delay is in samples.", "",
