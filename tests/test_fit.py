@@ -264,8 +264,8 @@ def test_noisy_fit_is_not_returned_silently():
     data = fc.systems.G_A()
     noise = 0.02 * (rng.standard_normal(500) + 1j * rng.standard_normal(500)) / np.sqrt(2)
     noisy = fc.FrequencyData(data.omega, data.response * (1 + noise), "noisy A")
-    with pytest.warns(ResolutionWarning, match="spacing: features between the samples .*"
-                      "typical of noisy data.*min_damping='auto'"):
+    with pytest.warns(ResolutionWarning, match="spacing: features between the samples that "
+                      "the noisy data do not determine.*min_damping='auto'"):
         res = fc.fit(noisy, n_sections=17, integrator=True,
                      loop=fc.LoopOptions(resolution_guard=False))
     assert not res.resolution.ok and len(res.resolution.flags) >= 1
@@ -273,24 +273,58 @@ def test_noisy_fit_is_not_returned_silently():
     assert guarded.resolution.ok and guarded.details["resolution_guard"]["kept"] == "floored"
 
 
-@pytest.mark.parametrize("rms, says, not_says", [
-    (1e-13, "the fit is exact to rounding, so these are spare sections", "min_damping"),
-    (2e-8, "typical of noisy data", "exact to rounding")])
-def test_resolution_warning_names_the_cause(rms, says, not_says):
-    """A failed resolution check on a fit exact to rounding (RMS <= ROUNDING_RMS = 1e-8;
-    example A at 17 sections on a machine without AVX-512 puts a spare pole 0.06 rad/s
-    from an antiresonance) is spare sections, which a damping floor does not remove; the
-    noise wording and its min_damping advice are for the rest."""
+@pytest.mark.parametrize("rms, ratio, success, says, not_says", [
+    (1e-13, 0.9, True, "the fit is exact to rounding, so these are spare sections",
+     "min_damping"),
+    (2e-3, 1.1, False, "the noisy data do not determine (the residual is at the noise: "
+     "RMS 1.1 times it)", "exact to rounding"),
+    (2e-3, 30.0, False, "residual that is not noise (RMS 30 times the noise its point-to-"
+     "point differences show): the fit stopped on its way", "noisy data"),
+    (2e-3, 30.0, True, "the fit misses something", "final_max_iter"),
+    (2e-3, float("nan"), False, "(no noise level could be estimated)", "noisy data")])
+def test_resolution_warning_names_the_cause(rms, ratio, success, says, not_says):
+    """A failed resolution check's advice follows what the residual says. Exact to
+    rounding (RMS <= ROUNDING_RMS = 1e-8; example A at 17 sections on a machine without
+    AVX-512 puts a spare pole 0.06 rad/s from an antiresonance): spare sections, which a
+    damping floor does not remove. At the noise (RMS at most twice the point-to-point
+    noise): features the noisy data do not determine. Neither (barrier-LM on example C
+    stopped at RMS 1e-9 of exact data, which the warning called "typical of noisy data"):
+    sections the fit has not placed, with "continue the fit" when it did not converge."""
+    from types import SimpleNamespace
+
     from freqid_casadi.core.resolution import ResolutionCheck
     from freqid_casadi.errors import ResolutionWarning
     from freqid_casadi.fitting.fit import _warn_unresolved
 
     check = ResolutionCheck(ok=False, flags=(None,), narrow=(), n_sections=3, factor=1.0)
+    result = SimpleNamespace(resolution=check, rms_rel_error=rms, success=success,
+                             details={"noise": {"ratio": ratio}})
     with pytest.warns(ResolutionWarning) as caught:
-        _warn_unresolved(check, rms, 2)
+        _warn_unresolved(result, 2)
     text = str(caught[0].message)
     assert text.startswith("the model has 1 near-cancelling pole/zero pair(s)")
     assert says in text and not_says not in text
+    assert ("continue the fit (a higher final_max_iter)" in text) == (
+        not ratio <= 2 and not success)
+
+
+@pytest.mark.parametrize("fixed", [None, {"delay": 0.0}])
+def test_one_resolution_warning_at_the_callers_line(monkeypatch, fixed):
+    """A fit whose resolution check fails warns once, for the fit it returns, at the
+    caller's line (the warnings filter's "default" action shows each line once), with a
+    fixed parameter too (its fit is composed after the inner fits, which stay quiet)."""
+    import freqid_casadi.fitting.fit as fit_module
+    from freqid_casadi.core.resolution import ResolutionCheck
+    from freqid_casadi.errors import ResolutionWarning
+
+    failed = ResolutionCheck(ok=False, flags=(None,), narrow=(), n_sections=2, factor=1.0)
+    monkeypatch.setattr(fit_module, "check_resolution", lambda model, omega: failed)
+    _, data = two_section_data(n_points=100)
+    with pytest.warns(ResolutionWarning) as caught:
+        res = fc.fit(data, n_sections=2, integrator=True, fixed=fixed,
+                     loop=fc.LoopOptions(resolution_guard=False))
+    assert res.resolution is failed
+    assert len(caught) == 1 and caught[0].filename == __file__
 
 
 def test_clean_fit_passes_the_resolution_check():

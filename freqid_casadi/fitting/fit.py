@@ -64,7 +64,7 @@ from .._malloc import heap_kept
 from .._threads import single_threaded_blas
 from .stages import Kept, StageKind, StageRecord, StageSolver
 from .start import RationalStartError, rational_start_memo
-from .verdict import ROUNDING_RMS, FitStatus, residual_noise
+from .verdict import CONSISTENT_RATIO, ROUNDING_RMS, FitStatus, residual_noise
 
 __all__ = ["fit", "FitResult", "FitStatus", "StageRecord", "Kept", "StageKind", "METHODS", "INITS",
            "WARM_STARTS", "STARTS", "OBJECTIVES", "GAIN_SIGNS", "default_delay_max",
@@ -425,7 +425,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
                     record = settle_by_fits(record, {j: r.rms_rel_error
                                                      for j, r in results.items()})
                     kept = results[record["chosen"]]
-                    _warn_unresolved(kept.resolution, kept.rms_rel_error, 4)  # its warning
+                    _warn_unresolved(kept, 4)                             # its warning
                 return _with_origin_record(results[record["chosen"]], record,
                                            origin_diagnostics(record, data))
             # several contenders (the starts do not decide): each one's fit of the starts
@@ -443,7 +443,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
                                        weights, False,
                                        dict(kw, integrator=check_origin_order(chosen)),
                                        first=core[chosen])
-            _warn_unresolved(result.resolution, result.rms_rel_error, 4)  # its warning
+            _warn_unresolved(result, 4)                                   # its warning
             return _with_origin_record(result, record, origin_diagnostics(record, data))
         return _fit_resolved(data_or_omega, response, n_sections, delay, fixed, weights,
                              emit, kw)
@@ -510,10 +510,14 @@ def _fit_resolved(data_or_omega, response, n_sections, delay, fixed, weights, em
     if fixed:
         data = validate(data_or_omega, response, n_sections, kw["basis"], kw["tol"],
                         kw["integrator"], weights)
-        return fit_with_fixed(
-            lambda d, dl: _fit_held(d, None, n_sections=n_sections, delay=dl,
-                                    progress=emit, weights=None, **kw),
-            data, fixed, delay=delay, loop=kw["loop"], method=kw["method"])
+        with warnings.catch_warnings():
+            warnings.filterwarnings("ignore", category=ResolutionWarning)
+            result = fit_with_fixed(
+                lambda d, dl: _fit_held(d, None, n_sections=n_sections, delay=dl,
+                                        progress=emit, weights=None, **kw),
+                data, fixed, delay=delay, loop=kw["loop"], method=kw["method"])
+        _warn_unresolved(result, 5)
+        return result
     return _fit_guarded(data_or_omega, response, n_sections=n_sections, delay=delay,
                         progress=emit, weights=weights, first=first, **kw)
 
@@ -557,7 +561,7 @@ def _fit_guarded(data_or_omega, response, *, progress, weights, first=None, **kw
                          **dict(kw, min_damping=min_damping))
 
     result, _ = guard_resolution(result, refit, kw["min_damping"])
-    _warn_unresolved(result.resolution, result.rms_rel_error, 6)
+    _warn_unresolved(result, 6)
     return result
 
 
@@ -683,7 +687,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                            # no overflow of the model at the user's extreme omega)
     final = [r for r in records if r.kept != Kept.MINIMAX_REJECTED
              and r.kind != StageKind.RATIONAL_START] or records
-    check = _resolution_check(model, data.omega, stats.rms)
+    check = _resolution_check(model, data.omega)
     with np.errstate(all="ignore"):     # extreme user scales: a check may give up, not warn
         found += after_fit(model, data, stats, dmax / w_ref)
         residual = scaled_response / model_scaled.frequency_response(scaled_omega) - 1.0
@@ -794,37 +798,51 @@ def explains_data(run, data):
     return bool(check["rms"] <= ROUNDING_RMS or check["ratio"] <= NEAR)
 
 
-def _resolution_check(model, omega, rms, stacklevel=7):
+def _resolution_check(model, omega):
     """The model checked against the frequency spacing (None for first-order sections,
-    whose real roots are never narrow), with a ResolutionWarning when it fails (``rms``:
-    the fit's RMS relative error, which says why)."""
+    whose real roots are never narrow); :func:`_warn_unresolved` warns of a failed one."""
     if model.structure.basis != "second-order" or not model.n_sections:
         return None
-    check = check_resolution(model, omega)
-    _warn_unresolved(check, rms, stacklevel + 1)
-    return check
+    return check_resolution(model, omega)
 
 
-def _warn_unresolved(check, rms, stacklevel):
-    """The ResolutionWarning of a failed :func:`check_resolution` (nothing for None or a
-    passed check); ``rms``: the fit's RMS relative error.
+def _warn_unresolved(result, stacklevel):
+    """The ResolutionWarning of a fit whose :func:`check_resolution` failed (nothing for
+    None or a passed check).
 
-    Its advice follows the cause: on a fit exact to rounding (RMS <= ROUNDING_RMS) the
-    pairs are spare sections, which a damping floor does not remove; otherwise they are
-    features between the samples (typical of noisy data)."""
+    Its advice follows the cause, which the residual tells: on a fit exact to rounding
+    (RMS <= ROUNDING_RMS) the pairs are spare sections, which a damping floor does not
+    remove; on a fit at the noise (the residual's RMS at most CONSISTENT_RATIO times the
+    noise its point-to-point differences show) they are features between the samples
+    that the noisy data do not determine; otherwise the residual is systematic (a fit
+    stopped on its way, or a model that misses something), and the pairs are sections the
+    fit has not yet put where the data determine them."""
+    check = result.resolution
     if check is None or check.ok:
         return
-    if rms <= ROUNDING_RMS:
+    ratio = float((result.details or {}).get("noise", {}).get("ratio", math.nan))
+    prune = "freqid_casadi.fitting.validation.prune_sections"
+    if result.rms_rel_error <= ROUNDING_RMS:
         why = ("the fit is exact to rounding, so these are spare sections (more than the "
                "data need), placed where the data do not determine them; fit fewer "
-               "sections, or remove them with freqid_casadi.fitting.validation."
-               "prune_sections (FitResult.resolution lists them)")
+               f"sections, or remove them with {prune} (FitResult.resolution lists them)")
+    elif ratio <= CONSISTENT_RATIO:
+        why = ("features between the samples that the noisy data do not determine (the "
+               f"residual is at the noise: RMS {ratio:.3g} times it); inspect "
+               "FitResult.resolution, refit with min_damping='auto' (a damping floor from "
+               f"the frequency spacing), remove them with {prune}, or fit fewer sections")
     else:
-        why = ("features between the samples that the data does not determine (typical "
-               "of noisy data); inspect FitResult.resolution, refit with "
-               "min_damping='auto' (a damping floor from the frequency spacing), remove "
-               "them with freqid_casadi.fitting.validation.prune_sections, or fit fewer "
-               "sections")
+        noise = (f"RMS {ratio:.3g} times the noise its point-to-point differences show"
+                 if math.isfinite(ratio) else "no noise level could be estimated")
+        why = (f"features between the samples that the data do not determine, beside a "
+               f"residual that is not noise ({noise}): the fit "
+               f"{'stopped on its way' if not result.success else 'misses something'}, and "
+               "these are sections it has not put where the data determine them; inspect "
+               "FitResult.resolution and FitResult.message, "
+               + ("continue the fit (a higher final_max_iter), " if not result.success
+                  else "") +
+               f"fit fewer sections, remove them with {prune}, or refit with "
+               "min_damping='auto'")
     warnings.warn(
         f"the model has {len(check.flags)} near-cancelling pole/zero pair(s) and "
         f"{len(check.unresolved)} pole(s)/zero(s) narrower than the frequency spacing: "
