@@ -17,6 +17,7 @@ from ..core.model import BASES, ZEROS, Structure
 from ..core.resolution import resolution_damping
 from .._validate import check_choice
 from ..solvers.common import TERMINATION_MESSAGES, Status
+from ..solvers.termination import noise_stall_text
 from .verdict import FitStatus, ROUNDING_RMS, poor_fit_diagnostic, residual_noise, status_of
 
 __all__ = ["GAIN_SIGNS", "validate", "zeta_min_of", "check_model_class", "after_fit",
@@ -168,7 +169,17 @@ def success_of(last, stats):
                        "start='rational', another structure or fewer sections")
     if last.success:
         return True, last.message or "converged"
+    if at_noise(last):
+        return True, noise_stall_text(last.details["noise_stall"])
     return False, _not_converged(last, stats)
+
+
+def at_noise(last):
+    """True when the final stage ``last`` (a StageRecord) failed the strict stationarity
+    test but is converged to the data's noise
+    (:class:`~freqid_casadi.solvers.termination.NoiseStall`; ``IpoptOptions.noise_stall``):
+    the fit's verdict counts it converged."""
+    return not last.success and "noise_stall" in (last.details or {})
 
 
 def _next_step(last, stats):
@@ -240,7 +251,7 @@ def verdict(last, stats, residual, data, found, n_sections):
     success, message = success_of(last, stats)
     check = residual_noise(residual, data.omega, data.weights)
     errors = [d for d in found if d.severity == "error"]
-    converged = bool(last.success)
+    converged = bool(last.success) or at_noise(last)
     status = status_of(converged, bool(errors) or not stats.rms < 1.0, check)
     details = {"final_stage": dict(last.details, message=last.message, stage=last.stage,
                                    iterations=int(last.nit)),
@@ -259,7 +270,8 @@ def verdict(last, stats, residual, data, found, n_sections):
     elif status == FitStatus.NOT_CONVERGED:
         message = f"not-converged: {message}"
     elif status == FitStatus.OK:
-        message = (f"ok: converged; max rel. error {stats.max:.3g}, RMS {stats.rms:.3g}, "
+        how = "converged to the noise" if at_noise(last) else "converged"
+        message = (f"ok: {how}; max rel. error {stats.max:.3g}, RMS {stats.rms:.3g}, "
                    "consistent with the noise"
                    + (" (the fit is exact to rounding)" if check["rms"] <= ROUNDING_RMS
                       else f" ({check['noise_rms']:.3g} from the residual's scatter)"))

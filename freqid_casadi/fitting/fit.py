@@ -91,9 +91,12 @@ class FitResult:
         True when the final model is at a (local) optimum within tolerance: the final
         all-data stage converged (IPOPT's tolerance, or the scale-free relative
         stationarity test of :mod:`freqid_casadi.solvers.termination`, which a fit at
-        machine precision passes) and the model is better than an infinite gain (RMS
-        relative error < 1). ``message`` says why not. Whether the model explains the
-        data is ``status``.
+        machine precision passes, or, on noisy data, converged to the noise: its last
+        iterations moved the model by far less than its standard errors with the
+        residual at the noise, ``IpoptOptions.noise_stall``; ``details["final_stage"]
+        ["noise_stall"]`` then holds the numbers) and the model is better than an
+        infinite gain (RMS relative error < 1). ``message`` says why not. Whether the
+        model explains the data is ``status``.
     status : FitStatus
         The verdict (a ``str`` enum, :mod:`freqid_casadi.fitting.verdict`): "ok"
         (converged and the residual is consistent with the noise, estimated from the

@@ -223,7 +223,8 @@ def stage_record(stage, param, z, data, window, omega_c, res, nit, nfev, wall, k
 
 
 #: Keys of ``StageResult.extra`` that go to ``StageRecord.details``.
-_DETAIL_KEYS = ("termination", "ipopt_status", "ipopt_iterations", "polish_steps", "max_iter")
+_DETAIL_KEYS = ("termination", "ipopt_status", "ipopt_iterations", "polish_steps", "max_iter",
+                "noise_stall")
 
 
 def stage_details(res):
@@ -238,19 +239,42 @@ def stage_details(res):
     return out
 
 
-def _termination(ftol, onto_bounds=False, stall=None, newton=False, abandon=None):
+def _termination(ftol, onto_bounds=False, stall=None, newton=False, abandon=None,
+                 noise_stall=None):
     """The stages' :class:`~freqid_casadi.solvers.termination.Termination` for
     ``IpoptOptions.ftol`` (0: the test and its polishes off), the optional stall rule
-    ``stall = (window, ftol)``, the final stages' Newton polish and the optional
-    ``abandon = (k, rms)`` rule of a screened candidate."""
+    ``stall = (window, ftol)``, the final stages' Newton polish, the optional
+    ``abandon = (k, rms)`` rule of a screened candidate and the final stages'
+    :class:`~freqid_casadi.solvers.termination.NoiseStall` (or None)."""
     from ..solvers.termination import Termination
 
     kw = {} if stall is None else dict(stall_window=int(stall[0]), stall_ftol=float(stall[1]))
     if abandon is not None:
         kw["abandon"] = (int(abandon[0]), float(abandon[1]))
+    if noise_stall is not None:
+        kw["noise_stall"] = noise_stall
     if ftol > 0:
         return Termination(ftol=float(ftol), onto_bounds=onto_bounds, newton=newton, **kw)
     return Termination(ftol=0.0, noise_factor=0.0, polish_steps=0, **kw)
+
+
+def _noise_stall(opts, wdata):
+    """The :class:`~freqid_casadi.solvers.termination.NoiseStall` of a final stage on
+    ``wdata`` from ``IpoptOptions.noise_stall`` (None when off): its rounding floor is
+    :data:`~freqid_casadi.fitting.verdict.ROUNDING_RMS` in the stage's units (relative
+    residuals times the square roots of the weights), its noise ratio that of
+    :func:`~freqid_casadi.fitting.verdict.residual_noise`."""
+    from ..solvers.termination import NoiseStall
+    from .verdict import CONSISTENT_RATIO, ROUNDING_RMS, residual_noise
+
+    if getattr(opts, "noise_stall", None) is None:
+        return None
+    w = wdata.weights
+    scale = 1.0 if w is None else float(np.sqrt(np.mean(w)))
+    omega = wdata.omega
+    return NoiseStall(window=opts.noise_stall[0], chi2=opts.noise_stall[1],
+                      rms_floor=ROUNDING_RMS * scale, max_ratio=CONSISTENT_RATIO,
+                      noise_ratio=lambda e: residual_noise(e, omega)["ratio"])
 
 
 class StageSolver:
@@ -305,8 +329,9 @@ class StageSolver:
                               hessian=opts.hessian, max_iter=max_iter or opts.max_iter,
                               warm_start=opts.warm_start != "none",
                               ipopt_options=opts.ipopt_dict(),
-                              termination=_termination(opts.ftol, self.onto_bounds, stall,
-                                                       final, abandon))
+                              termination=_termination(
+                                  opts.ftol, self.onto_bounds, stall, final, abandon,
+                                  _noise_stall(opts, wdata) if final else None))
             if cons is not None:
                 # IPOPT meets g >= 0 to its tolerance; make the floor exact
                 res = dataclasses.replace(res, x=param.project_damping(res.x, self.zeta_min))

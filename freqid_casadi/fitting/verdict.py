@@ -9,7 +9,9 @@
     structure well above the noise: the model class, the order, the gain sign or the
     delay is wrong, and a ``poor-fit`` :class:`~.diagnostics.Diagnostic` says which;
 ``"not-converged"``
-    the final all-data stage did not reach its termination test.
+    the final all-data stage did not reach its termination test (a stage whose residual
+    is the noise and whose last iterations moved the model by far less than its standard
+    errors counts as converged: :class:`~freqid_casadi.solvers.termination.NoiseStall`).
 
 The noise is estimated from the residual itself (:func:`residual_noise`): the relative
 residual ``e_i = Phi_i / G_N(j w_i) - 1`` of a model that explains the data is the data's

@@ -3,7 +3,7 @@
 IPOPT's tolerances are absolute on its scaled NLP, whose objective scale is fixed at the
 stage's start (the cost there). On exact data the cost falls by 10..20 orders within a
 stage; the scaled gradient is then dominated by rounding noise, IPOPT's ``tol`` cannot be
-met and every such stage ran to its iteration limit (measured: /work/notes/convergence.md).
+met and every such stage ran to its iteration limit.
 :class:`StageMonitor` checks a test that is invariant to the scale of the residuals and of
 the variables after every IPOPT iteration (a CasADi ``iteration_callback``) and once more
 at the returned point, where a point that fails it gets a short Levenberg-Marquardt polish
@@ -18,8 +18,9 @@ import numpy as np
 from .. import _interrupt
 from .common import Status, TERMINATION_MESSAGES
 
-__all__ = ["Termination", "StageMonitor", "free_variables", "relative_stationarity",
-           "projected_fraction", "moved_onto_bounds", "rounding_level", "hold_tol"]
+__all__ = ["Termination", "NoiseStall", "noise_stall_text", "StageMonitor", "free_variables",
+           "relative_stationarity", "projected_fraction", "moved_onto_bounds",
+           "rounding_level", "hold_tol"]
 
 EPS = float(np.finfo(float).eps)
 
@@ -67,6 +68,9 @@ class Termination:
         ``(k, rms)``: stop at iteration ``k`` when the RMS residual ``sqrt(cost / M)`` is
         still above ``rms`` (a candidate that cannot catch up: its stage returns unsolved,
         ``extra["abandoned"]`` True, without the polish of a stopped stage). None: off.
+    noise_stall : NoiseStall or None
+        At the end of a stage that fails the test: is it converged to the noise
+        (:class:`NoiseStall`)? None: not asked.
     """
 
     ftol: float = 1e-12
@@ -78,6 +82,49 @@ class Termination:
     onto_bounds: bool = False
     newton: bool = False
     abandon: tuple = None
+    noise_stall: object = None
+
+
+@dataclass(frozen=True)
+class NoiseStall:
+    """The test that calls a stage converged to the data's noise.
+
+    On noisy data a fit reaches its optimum only to within the noise: along a valley the
+    cost may still fall by a few parts in a million per iteration, a move by a tiny
+    fraction of the model's standard errors, and the strict test of :class:`Termination`
+    (a Gauss-Newton model that promises at most ``ftol`` = 1e-12 of the cost) then runs the
+    stage to its iteration limit, or IPOPT stops at its step tolerance first. Such a stage,
+    at its end, is *converged to the noise* when its last ``window`` iterations lowered the
+    cost by at most ``chi2`` noise variances, ``(c_old - c) / s^2 <= chi2`` with
+    ``s^2 = c / (M ratio^2)`` the noise variance per point that ``ratio`` (the residual's
+    RMS over the noise its point-to-point differences show) gives, and its residual is at
+    the noise (``ratio <= max_ratio``). A fall of 0.01 noise variances is that of a move by
+    a tenth of a standard error along the best-determined direction. Exact data are left to
+    the strict test: the test applies only when the RMS residual ``sqrt(c / M)`` is above
+    ``rms_floor``. The stage's result stays unconverged (``success`` False, so a fit's
+    choice among its candidates is unchanged) and carries the numbers in
+    ``extra["noise_stall"]``; the fit's verdict reads them for its final stage.
+
+    Parameters
+    ----------
+    window : int
+        Iterations over which the fall is measured, >= 1.
+    chi2 : float
+        Largest fall, in noise variances, > 0.
+    rms_floor : float
+        RMS residual (the stage's units) at or below which the test does not apply.
+    noise_ratio : callable
+        ``noise_ratio(e) -> float`` for the complex residual ``e`` (M,) in frequency order:
+        its RMS over its noise level (NaN when it cannot be estimated).
+    max_ratio : float
+        Largest ``ratio`` of a residual at the noise.
+    """
+
+    window: int
+    chi2: float
+    rms_floor: float
+    noise_ratio: object
+    max_ratio: float = 2.0
 
 
 def _reach(col_norms, distance):
@@ -355,6 +402,28 @@ class StageMonitor:
                 return True
         return False
 
+    def at_noise(self, x):
+        """The :class:`NoiseStall` test at the end of a stage that failed the strict test,
+        at its returned point ``x``: the numbers (``window``, ``chi2``, ``chi2_allowed``,
+        ``noise_ratio``) when it passes, else None."""
+        ns, hist = self.term.noise_stall, [c for c in self.history if np.isfinite(c)]
+        if ns is None or len(hist) <= ns.window:
+            return None
+        pb = self.problem
+        x = np.clip(np.asarray(x, float), pb.lb, pb.ub)
+        r = np.asarray(pb.residual(x), float)
+        half = r.size // 2
+        cost, m = float(r @ r), max(half, 1)
+        if not (np.isfinite(cost) and cost / m > ns.rms_floor ** 2):
+            return None                       # exact data: the strict test decides
+        ratio = float(ns.noise_ratio(r[:half] + 1j * r[half:]))
+        fall = max(hist[-ns.window - 1] - min(hist[-1], cost), 0.0)
+        chi2 = fall * m * ratio ** 2 / cost
+        if not (np.isfinite(ratio) and ratio <= ns.max_ratio and chi2 <= ns.chi2):
+            return None
+        return {"window": int(ns.window), "chi2": float(chi2),
+                "chi2_allowed": float(ns.chi2), "noise_ratio": ratio}
+
     def at_start(self, x0, lam_x0, t0):
         """The result of a stage whose start ``x0`` passes the test (no solve).
 
@@ -467,6 +536,12 @@ class StageMonitor:
         its = (f"{nit0} iteration{'s' * (nit0 != 1)}"
                + (f" and {steps} polish step{'s' * (steps != 1)}" if steps else ""))
         msg = f"{TERMINATION_MESSAGES[status]} after {its}; {self._plain(False, False)}"
+        noise = self.at_noise(res.x) if self.term.noise_stall is not None else None
+        if noise is not None:
+            # (the stage stays unconverged for the fit's choices among its candidates; the
+            # fit's verdict reads this: see freqid_casadi.fitting._checks.success_of)
+            extra["noise_stall"] = noise
+            msg = f"{msg}; {noise_stall_text(noise)}"
         return dataclasses.replace(res, status=status, success=False, message=msg,
                                    extra=extra)
 
@@ -483,6 +558,25 @@ class StageMonitor:
                                        nit=res.nit + steps), True
         self.stationary(res.x)                  # (the message's numbers at res.x)
         return res, False
+
+
+def noise_stall_text(numbers):
+    """The plain clause of a stage converged to the noise (:class:`NoiseStall`).
+
+    Parameters
+    ----------
+    numbers : dict
+        The stage's ``extra["noise_stall"]``: ``window``, ``chi2``, ``chi2_allowed``,
+        ``noise_ratio``.
+
+    Returns
+    -------
+    str
+    """
+    return (f"converged to the noise (the last {numbers['window']} iterations lowered the "
+            f"cost by {numbers['chi2']:.2g} noise variances, at most "
+            f"{numbers['chi2_allowed']:.2g}: a move far below the fit's standard errors; "
+            f"the residual at the noise, RMS {numbers['noise_ratio']:.3g} times it)")
 
 
 def iteration_callback(monitor, n, ng):

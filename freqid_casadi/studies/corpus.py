@@ -1,9 +1,10 @@
 """The validation corpus run: the default pipeline over seeded synthetic FRFs (issue 26).
 
 Every case of :func:`freqid_casadi.systems.corpus.corpus` is fitted at its true order by
-each configuration of :data:`CONFIGS` (today's defaults and the previous ones, in the
-same run; those of :data:`NOISY_ONLY` on a subset of the noisy cases), and a subset of the
-noisy cases once more with ``n_sections="auto"``. Each fit gives one
+today's defaults and, on every :data:`COMPARE_EVERY`-th round of the families, by each
+candidate of :data:`CONFIGS` (:data:`HALF_ONLY`: the previous defaults and the strict
+termination test), in the same run, and a subset of the noisy cases once more with
+``n_sections="auto"``. Each fit gives one
 :class:`CaseFit` record; :func:`summarize` turns them into the per-family table of
 :mod:`freqid_casadi.studies.corpus_report`.
 
@@ -43,7 +44,7 @@ import numpy as np
 
 from ..core.data import dense_grid
 from ..fitting.fit import fit
-from ..options import LoopOptions
+from ..options import IpoptOptions, LoopOptions
 from ..report.folder import code_fingerprint
 from ..systems.corpus import FAMILIES, case, corpus
 
@@ -52,20 +53,23 @@ __all__ = ["CONFIGS", "CaseFit", "run_corpus", "fit_case", "summarize", "EXACT_F
            "FULL_MAX_POINTS", "AUTO", "NOISY_ONLY", "HALF_ONLY", "COMPARE_EVERY",
            "SUBSET_EVERY", "CPU_BUDGET", "TimeLimit", "json_lines"]
 
-#: The configurations compared in one run: today's defaults, and the defaults before the
+#: The configurations compared in one run: today's defaults, the defaults before the
 #: corpus issue (start="sequential", integrator=False, no resolution guard; the gain sign
-#: from the fits and the screened h = 0 candidate are today's in both).
+#: from the fits and the screened h = 0 candidate are today's in both), and today's with
+#: the strict termination only (no stop of a final stage at the noise,
+#: ``IpoptOptions(noise_stall=None)``).
 CONFIGS = {
     "today": {},
     "previous defaults": {"start": "sequential", "integrator": False,
                           "loop": LoopOptions(resolution_guard=False)},
+    "strict termination": {"method": IpoptOptions(noise_stall=None)},
 }
 #: Configurations run on the noisy subset only (:data:`SUBSET_EVERY`; none today).
 NOISY_ONLY = ()
 #: Configurations run on every :data:`COMPARE_EVERY`-th round of the nine families only
 #: (exact and noisy cases alike: the comparison with today's fits of the same cases; the
 #: run's time budget on a shared 2-core machine).
-HALF_ONLY = ("previous defaults",)
+HALF_ONLY = ("previous defaults", "strict termination")
 COMPARE_EVERY = 2
 #: The subset of the automatic order and of :data:`NOISY_ONLY`: the noisy cases of every
 #: this-many-th round of the nine families (``(index // 9) % SUBSET_EVERY == 0``: every

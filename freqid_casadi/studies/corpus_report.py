@@ -79,8 +79,10 @@ def _verdict(summary, records):
         a, b = _floor_stats(mine), _floor_stats(base)
         out.append(f"- `{c}` ({len(mine)} fits): in-class cases at the floor {_pct(a[0])} "
                    f"against today's {_pct(b[0])} on the same cases, all {_pct(a[1])} "
-                   f"against {_pct(b[1])}; dishonest {a[2]} against {b[2]}; median time "
-                   f"{number(a[3], 2)} s against {number(b[3], 2)} s.")
+                   f"against {_pct(b[1])}; claims ok {_pct(a[4])} against {_pct(b[4])}; "
+                   f"dishonest {a[2]} against {b[2]}; median time {number(a[3], 2)} s "
+                   f"against {number(b[3], 2)} s, in all {number(a[5], 3)} s against "
+                   f"{number(b[5], 3)} s." + _moved(mine, base))
     if AUTO in summary:
         s = summary[AUTO]["all"]
         ok = _identifiable(records)
@@ -102,12 +104,34 @@ def _identifiable(records):
 
 
 def _floor_stats(recs):
-    """(in-class fraction at the floor, all at the floor, dishonest, median time)."""
+    """(in-class fraction at the floor, all at the floor, dishonest, median time, claims
+    ok, summed time)."""
     inc = [r["at_floor"] for r in recs if r["in_class"]]
+    times = [r["wall_time"] for r in recs if np.isfinite(r["wall_time"])]
     return (float(np.mean(inc)) if inc else float("nan"),
             float(np.mean([r["at_floor"] for r in recs])) if recs else float("nan"),
             int(sum(r["dishonest"] for r in recs)),
-            float(np.median([r["wall_time"] for r in recs])) if recs else float("nan"))
+            float(np.median([r["wall_time"] for r in recs])) if recs else float("nan"),
+            float(np.mean([r["claims_ok"] for r in recs])) if recs else float("nan"),
+            float(np.sum(times)))
+
+
+def _moved(mine, base):
+    """How far today's fits moved from a candidate's on the same noisy cases at the
+    floor, in noise variances: ``M (rms_today^2 - rms_candidate^2) / nu^2`` (positive:
+    today's fit is worse), its median and extremes (empty when no case is both)."""
+    theirs = {r["case"]: r for r in mine if not r["error"]}
+    moved = [r["n_points"] * (r["rms"] ** 2 - theirs[r["case"]]["rms"] ** 2) / r["nu"] ** 2
+             for r in base if r["case"] in theirs and r["noise"] > 0 and not r["error"]
+             and r["at_floor"] and theirs[r["case"]]["at_floor"]]
+    if not moved:
+        return ""
+    q = np.quantile(moved, [0.0, 0.05, 0.5, 0.95, 1.0])
+    return (f" On the {len(moved)} noisy cases both fit to the floor, today's cost is the "
+            f"candidate's plus (noise variances, M (RMS^2 - RMS'^2) / ν^2) "
+            f"{number(q[2], 2)} at the median, {number(q[1], 2)} .. {number(q[3], 2)} for "
+            f"90 % of them, {number(q[0], 2)} .. {number(q[4], 2)} at the extremes "
+            "(1 is a move by one standard error).")
 
 
 def render_corpus(command, summary, meta, records):
