@@ -14,6 +14,7 @@ import pytest  # noqa: E402
 
 from freqid_casadi.report.outputs import MARKER  # noqa: E402
 from freqid_casadi.cli import app as cli  # noqa: E402
+import freqid_casadi as fc  # noqa: E402
 from freqid_casadi.report import folder as report  # noqa: E402
 from freqid_casadi.core.data import FrequencyData  # noqa: E402
 from freqid_casadi.io.loaders import save_csv  # noqa: E402
@@ -218,6 +219,38 @@ def test_fit_min_damping_option(workdir, capsys, fake_fit, fast_figures):
                              bad, "--out", "rep3")
         assert code == 2 and err.startswith("error:") and "--min-damping" in err
         assert "Traceback" not in err
+
+
+@pytest.mark.parametrize("method, options", [("ipopt", fc.IpoptOptions),
+                                             ("barrier-lm", fc.BarrierLMOptions)])
+def test_fit_final_max_iter_option(workdir, capsys, fake_fit, fast_figures, method, options):
+    code, _, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--method", method,
+                       "--final-max-iter", "2000", "--out", "rep")
+    assert code == 0, err
+    assert fake_fit[0][1]["method"] == options(final_max_iter=2000)
+    for bad in ("0", "-5", "2.5", "many"):
+        code, _, err = run(capsys, "fit", "plant.csv", "--sections", "2",
+                           "--final-max-iter", bad, "--out", "rep2")
+        assert code == 2 and err.startswith("error:") and "--final-max-iter" in err
+        assert "Traceback" not in err
+
+
+def test_fit_at_its_iteration_limit_says_which_option_continues_it(
+        workdir, capsys, monkeypatch, cached_result, fast_figures):
+    """The fit's message names the Python option (method=IpoptOptions(final_max_iter=N));
+    the command adds the same advice as its own option."""
+    import dataclasses
+
+    stopped = dataclasses.replace(cached_result, message=(
+        "not-converged: the final stage reached its iteration limit (200) ... — pass "
+        "method=IpoptOptions(final_max_iter=2000) to continue"))
+    monkeypatch.setattr(cli, "fit", lambda data, **kwargs: stopped)
+    code, out, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--out", "rep")
+    assert code == 0, err
+    assert "to continue: run the same command with --final-max-iter 2000" in out
+    monkeypatch.setattr(cli, "fit", lambda data, **kwargs: cached_result)
+    code, out, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--out", "rep2")
+    assert code == 0 and "--final-max-iter" not in out
 
 
 @pytest.mark.parametrize("name, n_sections, integrator, delay, basis", [

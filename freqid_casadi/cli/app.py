@@ -4,7 +4,8 @@ Commands (one module of :mod:`freqid_casadi.cli` each, listed in :data:`COMMANDS
 
     freqid example {A,B,C,fractional} [--sections N] [--method M] [--out DIR] [--force]
     freqid fit FILE --sections N [--integrator [K|auto]] [--no-delay] [--basis B] [--method M]
-                    [--gain-sign S] [--zeros Z] [--tol X] --out DIR [--force]
+                    [--gain-sign S] [--zeros Z] [--tol X] [--final-max-iter N] --out DIR
+                    [--force]
     freqid reproduce [--examples LIST] [--quick] [--out DIR]    (studies.reproduce_report)
     freqid sweep FILE|example:X --orders SPEC [--target X] --out DIR
     freqid ablation [--examples LIST] [--quick] [--out DIR]     (studies.ablation)

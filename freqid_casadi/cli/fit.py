@@ -4,7 +4,8 @@
 
     freqid fit FILE --sections N|auto [--max-sections N] [--integrator [K|auto]] [--no-delay]
                [--basis B] [--tol X] [--gain-sign S] [--zeros Z] [--min-damping auto|ZETA]
-               [--fix KEY=VALUE] [--method M] [--start S] [--objective O] --out DIR [--force]
+               [--fix KEY=VALUE] [--jobs N] [--final-max-iter N] [--method M] [--start S]
+               [--objective O] --out DIR [--force]
 
 Reads the file (:func:`freqid_casadi.cli.common.load_data`), fits it
 (:func:`freqid_casadi.fitting.fit.fit`, through ``app.fit``), writes a report folder and
@@ -12,7 +13,9 @@ prints the result's summary.
 """
 
 import argparse
+import dataclasses
 import math
+import re
 import warnings
 
 from . import app
@@ -22,6 +25,7 @@ from .common import (_ASCII_FLOAT, _add_choices, _add_input, _add_model_argument
 from ..errors import OptionError, ResolutionWarning
 from .._validate import check_jobs
 from ..fitting.fixed import FIXED_KEYS
+from ..options import solver_options
 from ..report.folder import check_out_dir, write_fit_report
 
 __all__ = ["add_cli", "run_cli"]
@@ -94,6 +98,9 @@ def add_cli(sub):
                    help="worker processes for the automatic integrator's fits when several "
                         "contenders remain (default 1; -1: every core; the same model "
                         "whatever N)")
+    p.add_argument("--final-max-iter", type=_positive_int, default=None, metavar="N",
+                   help="iteration limit of the final all-data stage (default 200); a fit "
+                        "that stops there says so and gives the N to continue with")
     # a user's data: both starts (the sequential loop alone can end in a valley the
     # rational start avoids, e.g. a zero pair drifting to infinity against the delay; the
     # loop is skipped when the rational start already reaches the noise)
@@ -135,7 +142,7 @@ def run_cli(args, command):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ResolutionWarning)   # reported below, one line
         result = app.fit(data, n_sections=args.sections, integrator=args.integrator,
-                         delay=args.delay, basis=args.basis, method=args.method, tol=args.tol,
+                         delay=args.delay, basis=args.basis, method=_method(args), tol=args.tol,
                          progress=_progress(args), start=args.start, objective=args.objective,
                          min_damping=args.min_damping, gain_sign=args.gain_sign,
                          zeros=args.zeros, **({"fixed": dict(args.fix)} if args.fix else {}),
@@ -143,5 +150,17 @@ def run_cli(args, command):
     _resolution_warning(result)
     path = write_fit_report(result, args.out, command=command, force=args.force)
     print(result.summary())
+    continue_with = re.search(r"final_max_iter=(\d+)\) to continue", result.message)
+    if continue_with:                    # the message's advice, as this command's option
+        print(f"to continue: run the same command with --final-max-iter "
+              f"{continue_with.group(1)}")
     print(f"report: {path}")
     return 0
+
+
+def _method(args):
+    """``--method`` with ``--final-max-iter`` (the method's options object), or the
+    method's name when the limit is not given."""
+    if args.final_max_iter is None:
+        return args.method
+    return dataclasses.replace(solver_options(args.method), final_max_iter=args.final_max_iter)
