@@ -46,6 +46,19 @@ def test_a_fit_at_the_noise_is_converged_there(index, n_sections, ipopt_status):
     assert res.nit == strict.nit
 
 
+def test_the_report_says_converged_to_the_noise(tmp_path):
+    """summary.md's success row says how the final stage converged."""
+    from freqid_casadi.report.folder import write_fit_report
+
+    res = fc.fit(case(34, 0, max_points=120).data, n_sections=2)
+    folder = write_fit_report(res, tmp_path / "rep", command="test")
+    text = (tmp_path / "rep" / "summary.md").read_text()
+    assert str(folder).endswith("rep")
+    assert "**Status: ok.** ok: converged to the noise" in text
+    assert ("| success (final stage converged) | yes, to the noise: its last 10 iterations "
+            "lowered the cost by") in text
+
+
 def test_a_fit_still_falling_stays_not_converged():
     """Corpus case accelerance-123: IPOPT stops at its step tolerance after 11 iterations
     with the error still falling 3.6 % per iteration: not converged, whatever the noise."""

@@ -296,7 +296,7 @@ def _overview_rows(s):
         ("iterations (all stages, polish steps included)", number(s["nit"])),
         ("success (final stage converged)", ("yes" if s["success"] else "NO") + (
             f": {md_text(s['message'])}" if s.get("message") and not s["success"]
-            and not s.get("status") else "")),
+            and not s.get("status") else "") + _to_the_noise(s)),
         ("P_N stable", _roots_check(ck["stable"], ck["max_pole_real_part"],
                                     ck["min_pole_damping"], "pole", fu) + (
             f", {ck['n_poles_on_axis']} pole(s) on the imaginary axis (undamped, zeta = 0: "
@@ -319,6 +319,17 @@ def _overview_rows(s):
                          if s["rms_rel_error"] <= ROUNDING_RMS
                          else "(try min_damping='auto')")))
     return rows
+
+
+def _to_the_noise(s):
+    """", to the noise (...)" for a fit whose final stage is converged to the data's noise
+    (``details["final_stage"]["noise_stall"]``), else ""."""
+    stall = ((s.get("details") or {}).get("final_stage") or {}).get("noise_stall")
+    if not (s.get("success") and stall):
+        return ""
+    return (f", to the noise: its last {stall['window']} iterations lowered the cost by "
+            f"{number(stall['chi2'])} noise variances (at most {number(stall['chi2_allowed'])})"
+            "; the strict stationarity test did not pass")
 
 
 def _diagnostic_lines(s):
