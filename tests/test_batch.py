@@ -193,6 +193,24 @@ def _listing(path):
     return sorted(str(p.relative_to(path)) for p in path.rglob("*"))
 
 
+def test_cli_batch_final_max_iter_reaches_every_fit(folder, batch_cli, capsys, monkeypatch):
+    """--final-max-iter N gives each fit method=IpoptOptions(final_max_iter=N), as in
+    freqid fit."""
+    seen = []
+
+    def fake(files, **kw):
+        seen.append(kw["method"])
+        return [BatchItem(os.path.basename(str(f)), None, "not run", "error", str(f))
+                for f in files]
+
+    monkeypatch.setattr(cli_batch, "fit_many", fake)
+    cli.main(["batch", "data", "--out", "rep", "--sections", "1", "--final-max-iter", "900"])
+    assert seen == [fc.IpoptOptions(final_max_iter=900)]
+    code = cli.main(["batch", "data", "--out", "rep2", "--sections", "1",
+                     "--final-max-iter", "0"])
+    assert code == 2 and "--final-max-iter" in capsys.readouterr().err
+
+
 def test_cli_batch_writes_models_and_summaries(folder, batch_cli, capsys, serial):
     code = cli.main(["batch", "data", "--out", "rep", "--sections", "1", "--jobs", "1"])
     out, err = capsys.readouterr()

@@ -3,7 +3,8 @@
 ::
 
     freqid batch DIR --out DIR --sections N [--jobs N] [--scheduler ADDRESS]
-                 [--integrator] [--no-delay] [--basis B] [--method M] [--tol X] [--force]
+                 [--integrator] [--no-delay] [--basis B] [--method M] [--final-max-iter N]
+                 [--tol X] [--force]
 
 Every ``.csv`` and ``.npz`` file directly inside ``DIR`` is fitted with the same options by
 :func:`freqid_casadi.fitting.batch.fit_many`. The output folder holds::
@@ -28,10 +29,11 @@ import os
 import stat
 import warnings
 
-from .common import load_options, notes_to_stderr
+from .common import load_options, method_option, notes_to_stderr
 from .._textio import atomic_write_text, csv_row, one_line
 from ..fitting.batch import BATCH_STATUSES, fit_many
-from .common import _add_input, _add_model_arguments, _positive_int   # the CLI's own helpers
+from .common import (_add_final_max_iter, _add_input, _add_model_arguments,  # the CLI's
+                     _positive_int)                                      # own helpers
 from ..report.outputs import MARKER
 from ..errors import DataError
 from ..fitting.fit import METHODS
@@ -79,6 +81,7 @@ def add_cli(subparsers):
     _add_model_arguments(p, integrator=False)
     p.add_argument("--method", choices=METHODS, default="ipopt",
                    help="stage solver (default ipopt)")
+    _add_final_max_iter(p)
     p.add_argument("--force", action="store_true",
                    help="replace an existing output folder (after the new one is complete)")
     return p
@@ -241,7 +244,8 @@ def run_cli(args, command):
         items = fit_many(files, n_jobs=args.jobs, scheduler=args.scheduler,
                          load_options=load_options(args),
                          n_sections=args.sections, integrator=args.integrator,
-                         delay=args.delay, basis=args.basis, method=args.method, tol=args.tol)
+                         delay=args.delay, basis=args.basis, method=method_option(args),
+                         tol=args.tol)
     path = write_batch_report(items, files, args.out, command=command, force=args.force)
     n_ok = sum(i.status in _CONVERGED for i in items)
     for item, f in zip(items, files):

@@ -14,6 +14,7 @@ instead of Python warning text.
 
 import argparse
 import contextlib
+import dataclasses
 import math
 import os
 import re
@@ -31,9 +32,11 @@ from ..report.formatting import number
 from ..core.data import FrequencyData
 from ..io.loaders import DataWarning, is_touchstone, load
 from ..errors import DataError, OptionError
+from ..options import solver_options
 
 __all__ = ["add_data_options", "parse_band_text", "load_data", "load_options",
-           "notes_to_stderr", "grouped_notes", "with_weights", "error_line", "os_exit"]
+           "notes_to_stderr", "grouped_notes", "with_weights", "error_line", "os_exit",
+           "method_option"]
 
 
 def _columns(text):
@@ -373,6 +376,31 @@ _CHOICE_OPTIONS = {
                                         "poles stable (for excess phase a delay cannot "
                                         "explain)"),
 }
+
+
+def _add_final_max_iter(p):
+    """``--final-max-iter N`` (:func:`method_option` reads it)."""
+    p.add_argument("--final-max-iter", type=_positive_int, default=None, metavar="N",
+                   help="iteration limit of the final all-data stage (default 200); a fit "
+                        "that stops there says so and gives the N to continue with")
+
+
+def method_option(args):
+    """The fit's ``method`` from ``--method`` and ``--final-max-iter``: the method's name,
+    or its options object with that iteration limit.
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+        With ``method`` and ``final_max_iter`` (None: not given).
+
+    Returns
+    -------
+    str or IpoptOptions or BarrierLMOptions
+    """
+    if getattr(args, "final_max_iter", None) is None:
+        return args.method
+    return dataclasses.replace(solver_options(args.method), final_max_iter=args.final_max_iter)
 
 
 def _add_choices(p, *flags, defaults=None):

@@ -13,19 +13,17 @@ prints the result's summary.
 """
 
 import argparse
-import dataclasses
 import math
 import re
 import warnings
 
 from . import app
-from .common import (_ASCII_FLOAT, _add_choices, _add_input, _add_model_arguments, _ascii,
-                     _checked, _common, _positive_int, _progress, _resolution_warning,
-                     load_data)
+from .common import (_ASCII_FLOAT, _add_choices, _add_final_max_iter, _add_input,
+                     _add_model_arguments, _ascii, _checked, _common, _positive_int,
+                     _progress, _resolution_warning, load_data, method_option)
 from ..errors import OptionError, ResolutionWarning
 from .._validate import check_jobs
 from ..fitting.fixed import FIXED_KEYS
-from ..options import solver_options
 from ..report.folder import check_out_dir, write_fit_report
 
 __all__ = ["add_cli", "run_cli"]
@@ -98,9 +96,7 @@ def add_cli(sub):
                    help="worker processes for the automatic integrator's fits when several "
                         "contenders remain (default 1; -1: every core; the same model "
                         "whatever N)")
-    p.add_argument("--final-max-iter", type=_positive_int, default=None, metavar="N",
-                   help="iteration limit of the final all-data stage (default 200); a fit "
-                        "that stops there says so and gives the N to continue with")
+    _add_final_max_iter(p)
     # a user's data: both starts (the sequential loop alone can end in a valley the
     # rational start avoids, e.g. a zero pair drifting to infinity against the delay; the
     # loop is skipped when the rational start already reaches the noise)
@@ -142,7 +138,7 @@ def run_cli(args, command):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ResolutionWarning)   # reported below, one line
         result = app.fit(data, n_sections=args.sections, integrator=args.integrator,
-                         delay=args.delay, basis=args.basis, method=_method(args), tol=args.tol,
+                         delay=args.delay, basis=args.basis, method=method_option(args), tol=args.tol,
                          progress=_progress(args), start=args.start, objective=args.objective,
                          min_damping=args.min_damping, gain_sign=args.gain_sign,
                          zeros=args.zeros, **({"fixed": dict(args.fix)} if args.fix else {}),
@@ -156,11 +152,3 @@ def run_cli(args, command):
               f"{continue_with.group(1)}")
     print(f"report: {path}")
     return 0
-
-
-def _method(args):
-    """``--method`` with ``--final-max-iter`` (the method's options object), or the
-    method's name when the limit is not given."""
-    if args.final_max_iter is None:
-        return args.method
-    return dataclasses.replace(solver_options(args.method), final_max_iter=args.final_max_iter)
