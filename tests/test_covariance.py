@@ -389,6 +389,28 @@ def test_fit_report_figures_carry_the_bands(fitted):
     plt.close("all")
 
 
+def test_a_fit_stopped_before_an_optimum_gets_no_band(fitted):
+    """A not-converged fit's intervals do not apply (its parameters are "not determined",
+    summary.md says why): its figures show the error and the response without a band (the
+    C example's report drew one)."""
+    import dataclasses
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from freqid_casadi import plots
+    from freqid_casadi.report import folder as report
+
+    stopped = dataclasses.replace(fitted, status=fc.FitStatus.NOT_CONVERGED, success=False)
+    bode, rel = plots.bode(stopped), plots.relative_error(stopped)
+    before = [len(ax.collections) for fig in (bode, rel) for ax in fig.axes]
+    report._add_bands(stopped, bode, rel)
+    assert [len(ax.collections) for fig in (bode, rel) for ax in fig.axes] == before
+    plt.close("all")
+
+
 def test_an_exactly_cancelling_section_is_undetermined_but_leaves_the_band_alone():
     """A model with a third, exactly cancelling section (pole = zero): the Jacobian has a
     numerically null direction (condition 1e16). Its parameters are undetermined (huge

@@ -133,9 +133,12 @@ def _write_figures(result, folder, summary, truth=None):
 def _add_bands(result, bode, rel):
     """The 95 % confidence bands of the response and of the relative error
     (:attr:`FitResult.uncertainty`) on the two figures; none when the covariance cannot be
-    formed (then summary.md says why)."""
+    formed, nor for a fit that stopped before an optimum (status "not-converged": the
+    intervals, which hold at an optimum, do not apply); summary.md says why."""
     from ..plots.uncertainty import bode_band, rel_error_band
 
+    if str(getattr(result, "status", "")) == "not-converged":
+        return
     try:
         unc = result.uncertainty
         with np.errstate(all="ignore"):
