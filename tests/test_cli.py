@@ -228,6 +228,10 @@ def test_fit_final_max_iter_option(workdir, capsys, fake_fit, fast_figures, meth
                        "--final-max-iter", "2000", "--out", "rep")
     assert code == 0, err
     assert fake_fit[0][1]["method"] == options(final_max_iter=2000)
+    code, _, err = run(capsys, "example", "B", "--method", method, "--final-max-iter", "300",
+                       "--out", "rep_example")
+    assert code == 0, err
+    assert fake_fit[1][1]["method"] == options(final_max_iter=300)
     for bad in ("0", "-5", "2.5", "many"):
         code, _, err = run(capsys, "fit", "plant.csv", "--sections", "2",
                            "--final-max-iter", bad, "--out", "rep2")
@@ -246,6 +250,9 @@ def test_fit_at_its_iteration_limit_says_which_option_continues_it(
         "method=IpoptOptions(final_max_iter=2000) to continue"))
     monkeypatch.setattr(cli, "fit", lambda data, **kwargs: stopped)
     code, out, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--out", "rep")
+    assert code == 0, err
+    assert "to continue: run the same command with --final-max-iter 2000" in out
+    code, out, err = run(capsys, "example", "A", "--out", "rep_example")
     assert code == 0, err
     assert "to continue: run the same command with --final-max-iter 2000" in out
     monkeypatch.setattr(cli, "fit", lambda data, **kwargs: cached_result)

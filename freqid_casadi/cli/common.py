@@ -36,7 +36,7 @@ from ..options import solver_options
 
 __all__ = ["add_data_options", "parse_band_text", "load_data", "load_options",
            "notes_to_stderr", "grouped_notes", "with_weights", "error_line", "os_exit",
-           "method_option"]
+           "method_option", "print_continue_hint"]
 
 
 def _columns(text):
@@ -403,6 +403,19 @@ def method_option(args):
     return dataclasses.replace(solver_options(args.method), final_max_iter=args.final_max_iter)
 
 
+def print_continue_hint(result):
+    """Print the fit's advice to raise ``final_max_iter`` (its message names the Python
+    option) as the command's option ``--final-max-iter N``, when the message gives it.
+
+    Parameters
+    ----------
+    result : FitResult
+    """
+    found = re.search(r"final_max_iter=(\d+)\) to continue", result.message or "")
+    if found:
+        print(f"to continue: run the same command with --final-max-iter {found.group(1)}")
+
+
 def _add_choices(p, *flags, defaults=None):
     """Add the options ``flags`` of :data:`_CHOICE_OPTIONS` to ``p``, in that order;
     ``defaults`` (flag -> value) overrides their defaults."""
@@ -415,6 +428,7 @@ def _add_choices(p, *flags, defaults=None):
 
 def _common(p, *, out_required, start="sequential"):
     _add_choices(p, "--method", "--start", "--objective", defaults={"--start": start})
+    _add_final_max_iter(p)
     if out_required:
         p.add_argument("--out", required=True, metavar="DIR",
                        help="report folder to create (must not exist unless --force)")

@@ -2,8 +2,8 @@
 
 ::
 
-    freqid example {A,B,C,fractional} [--sections N] [--method M] [--start S] [--out DIR]
-                   [--force]
+    freqid example {A,B,C,fractional} [--sections N] [--method M] [--start S]
+                   [--final-max-iter N] [--out DIR] [--force]
 
 Fits the example's data with the thesis's loop (``--start sequential``, its published
 numbers), writes a report folder (:func:`freqid_casadi.report.folder.write_fit_report`)
@@ -13,7 +13,8 @@ with the thesis's numbers beside ours and prints a one-row table.
 import warnings
 
 from . import app
-from .common import _common, _g, _positive_int, _progress, _resolution_warning
+from .common import (_common, _g, _positive_int, _progress, _resolution_warning,
+                     method_option, print_continue_hint)
 from ..errors import ResolutionWarning
 from ..report.folder import check_out_dir, dense_error, write_fit_report
 from ..report.formatting import text_table
@@ -63,7 +64,8 @@ def run_cli(args, command):
     data = ex.data()
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ResolutionWarning)   # reported below, one line
-        result = app.fit(data, **structure, method=args.method, progress=_progress(args),
+        result = app.fit(data, **structure, method=method_option(args),
+                         progress=_progress(args),
                          start=args.start, objective=args.objective)
     thesis = ex.thesis.as_dict() if ex.thesis is not None else None
     path = write_fit_report(result, out, command=command, force=args.force,
@@ -81,5 +83,6 @@ def run_cli(args, command):
                               "RMS rel. err", "delay (s)", "time (s)", "thesis order",
                               "thesis max", "thesis delay")))
     _resolution_warning(result)
+    print_continue_hint(result)
     print(f"report: {path}")
     return 0

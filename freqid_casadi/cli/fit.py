@@ -14,13 +14,12 @@ prints the result's summary.
 
 import argparse
 import math
-import re
 import warnings
 
 from . import app
-from .common import (_ASCII_FLOAT, _add_choices, _add_final_max_iter, _add_input,
-                     _add_model_arguments, _ascii, _checked, _common, _positive_int,
-                     _progress, _resolution_warning, load_data, method_option)
+from .common import (_ASCII_FLOAT, _add_choices, _add_input, _add_model_arguments, _ascii,
+                     _checked, _common, _positive_int, _progress, _resolution_warning,
+                     load_data, method_option, print_continue_hint)
 from ..errors import OptionError, ResolutionWarning
 from .._validate import check_jobs
 from ..fitting.fixed import FIXED_KEYS
@@ -96,7 +95,6 @@ def add_cli(sub):
                    help="worker processes for the automatic integrator's fits when several "
                         "contenders remain (default 1; -1: every core; the same model "
                         "whatever N)")
-    _add_final_max_iter(p)
     # a user's data: both starts (the sequential loop alone can end in a valley the
     # rational start avoids, e.g. a zero pair drifting to infinity against the delay; the
     # loop is skipped when the rational start already reaches the noise)
@@ -146,9 +144,6 @@ def run_cli(args, command):
     _resolution_warning(result)
     path = write_fit_report(result, args.out, command=command, force=args.force)
     print(result.summary())
-    continue_with = re.search(r"final_max_iter=(\d+)\) to continue", result.message)
-    if continue_with:                    # the message's advice, as this command's option
-        print(f"to continue: run the same command with --final-max-iter "
-              f"{continue_with.group(1)}")
+    print_continue_hint(result)
     print(f"report: {path}")
     return 0
