@@ -175,9 +175,9 @@ class IpoptOptions:
         (:class:`~freqid_casadi.solvers.termination.NoiseStall`). Its status is then
         "ok" instead of "not-converged"; its model is the same (the choice among its
         candidates reads the stationarity test only) unless a layer that runs for
-        converged fits only, the delay hold or the resolution guard, changes it. Default ``(10, 0.01)``;
-        ``None``: not-converged, as before (on the validation corpus, 5 of the 247
-        in-class fits, all at their noise).
+        converged fits only, the delay hold or the resolution guard, changes it. Default
+        ``(10, 0.01)``; ``None``: not-converged, as before (on the validation corpus, 5 of
+        the 247 in-class fits, all at their noise).
     """
 
     hessian: str = "exact"

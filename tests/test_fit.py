@@ -298,7 +298,7 @@ def test_resolution_warning_names_the_cause(rms, ratio, success, says, not_says)
 
     check = ResolutionCheck(ok=False, flags=(None,), narrow=(), n_sections=3, factor=1.0)
     result = SimpleNamespace(resolution=check, rms_rel_error=rms, success=success,
-                             details={"noise": {"ratio": ratio}})
+                             details={"noise": {"ratio": ratio, "consistent": ratio <= 2}})
     with pytest.warns(ResolutionWarning) as caught:
         _warn_unresolved(result, 2)
     text = str(caught[0].message)

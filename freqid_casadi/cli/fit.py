@@ -136,7 +136,8 @@ def run_cli(args, command):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ResolutionWarning)   # reported below, one line
         result = app.fit(data, n_sections=args.sections, integrator=args.integrator,
-                         delay=args.delay, basis=args.basis, method=method_option(args), tol=args.tol,
+                         delay=args.delay, basis=args.basis, method=method_option(args),
+                         tol=args.tol,
                          progress=_progress(args), start=args.start, objective=args.objective,
                          min_damping=args.min_damping, gain_sign=args.gain_sign,
                          zeros=args.zeros, **({"fixed": dict(args.fix)} if args.fix else {}),

@@ -64,7 +64,7 @@ from .._malloc import heap_kept
 from .._threads import single_threaded_blas
 from .stages import Kept, StageKind, StageRecord, StageSolver
 from .start import RationalStartError, rational_start_memo
-from .verdict import CONSISTENT_RATIO, ROUNDING_RMS, FitStatus, residual_noise
+from .verdict import ROUNDING_RMS, FitStatus, residual_noise
 
 __all__ = ["fit", "FitResult", "FitStatus", "StageRecord", "Kept", "StageKind", "METHODS", "INITS",
            "WARM_STARTS", "STARTS", "OBJECTIVES", "GAIN_SIGNS", "default_delay_max",
@@ -816,29 +816,31 @@ def _warn_unresolved(result, stacklevel):
     Its advice follows the cause, which the residual tells: on a fit exact to rounding
     (RMS <= ROUNDING_RMS) the pairs are spare sections, which a damping floor does not
     remove; on a fit at the noise (the residual's RMS at most CONSISTENT_RATIO times the
-    noise its point-to-point differences show) they are features between the samples
+    noise its point-to-point differences show: the verdict's ``details["noise"]
+    ["consistent"]``) they are features between the samples
     that the noisy data do not determine; otherwise the residual is systematic (a fit
     stopped on its way, or a model that misses something), and the pairs are sections the
     fit has not yet put where the data determine them."""
     check = result.resolution
     if check is None or check.ok:
         return
-    ratio = float((result.details or {}).get("noise", {}).get("ratio", math.nan))
+    noise = (result.details or {}).get("noise", {})
+    ratio = float(noise.get("ratio", math.nan))
     prune = "freqid_casadi.fitting.validation.prune_sections"
     if result.rms_rel_error <= ROUNDING_RMS:
         why = ("the fit is exact to rounding, so these are spare sections (more than the "
                "data need), placed where the data do not determine them; fit fewer "
                f"sections, or remove them with {prune} (FitResult.resolution lists them)")
-    elif ratio <= CONSISTENT_RATIO:
+    elif noise.get("consistent"):
         why = ("features between the samples that the noisy data do not determine (the "
                f"residual is at the noise: RMS {ratio:.3g} times it); inspect "
                "FitResult.resolution, refit with min_damping='auto' (a damping floor from "
                f"the frequency spacing), remove them with {prune}, or fit fewer sections")
     else:
-        noise = (f"RMS {ratio:.3g} times the noise its point-to-point differences show"
+        level = (f"RMS {ratio:.3g} times the noise its point-to-point differences show"
                  if math.isfinite(ratio) else "no noise level could be estimated")
         why = (f"features between the samples that the data do not determine, beside a "
-               f"residual that is not noise ({noise}): the fit "
+               f"residual that is not noise ({level}): the fit "
                f"{'stopped on its way' if not result.success else 'misses something'}, and "
                "these are sections it has not put where the data determine them; inspect "
                "FitResult.resolution and FitResult.message, "

@@ -267,7 +267,7 @@ def _noise_stall(opts, wdata):
     from ..solvers.termination import NoiseStall
     from .verdict import CONSISTENT_RATIO, ROUNDING_RMS, residual_noise
 
-    if getattr(opts, "noise_stall", None) is None:
+    if opts.noise_stall is None:
         return None
     w = wdata.weights
     scale = 1.0 if w is None else float(np.sqrt(np.mean(w)))

@@ -137,7 +137,7 @@ def _add_bands(result, bode, rel):
     intervals, which hold at an optimum, do not apply); summary.md says why."""
     from ..plots.uncertainty import bode_band, rel_error_band
 
-    if str(getattr(result, "status", "")) == "not-converged":
+    if result.status == "not-converged":
         return
     try:
         unc = result.uncertainty

@@ -536,7 +536,7 @@ class StageMonitor:
         its = (f"{nit0} iteration{'s' * (nit0 != 1)}"
                + (f" and {steps} polish step{'s' * (steps != 1)}" if steps else ""))
         msg = f"{TERMINATION_MESSAGES[status]} after {its}; {self._plain(False, False)}"
-        noise = self.at_noise(res.x) if self.term.noise_stall is not None else None
+        noise = self.at_noise(res.x)
         if noise is not None:
             # (the stage stays unconverged for the fit's choices among its candidates; the
             # fit's verdict reads this: see freqid_casadi.fitting._checks.success_of)

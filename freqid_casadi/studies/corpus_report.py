@@ -77,12 +77,14 @@ def _verdict(summary, records):
         names = {r["case"] for r in mine}
         base = [r for r in records if r["config"] == "today" and r["case"] in names]
         a, b = _floor_stats(mine), _floor_stats(base)
-        out.append(f"- `{c}` ({len(mine)} fits): in-class cases at the floor {_pct(a[0])} "
-                   f"against today's {_pct(b[0])} on the same cases, all {_pct(a[1])} "
-                   f"against {_pct(b[1])}; claims ok {_pct(a[4])} against {_pct(b[4])}; "
-                   f"dishonest {a[2]} against {b[2]}; median time {number(a[3], 2)} s "
-                   f"against {number(b[3], 2)} s, in all {number(a[5], 3)} s against "
-                   f"{number(b[5], 3)} s." + _moved(mine, base))
+        out.append(f"- `{c}` ({len(mine)} fits): in-class cases at the floor "
+                   f"{_pct(a['in_class'])} against today's {_pct(b['in_class'])} on the same "
+                   f"cases, all {_pct(a['all'])} against {_pct(b['all'])}; claims ok "
+                   f"{_pct(a['claims_ok'])} against {_pct(b['claims_ok'])}; dishonest "
+                   f"{a['dishonest']} against {b['dishonest']}; median time "
+                   f"{number(a['median_time'], 2)} s against {number(b['median_time'], 2)} s, "
+                   f"in all {number(a['total_time'], 3)} s against "
+                   f"{number(b['total_time'], 3)} s." + _moved(mine, base))
     if AUTO in summary:
         s = summary[AUTO]["all"]
         ok = _identifiable(records)
@@ -104,16 +106,19 @@ def _identifiable(records):
 
 
 def _floor_stats(recs):
-    """(in-class fraction at the floor, all at the floor, dishonest, median time, claims
-    ok, summed time)."""
-    inc = [r["at_floor"] for r in recs if r["in_class"]]
-    times = [r["wall_time"] for r in recs if np.isfinite(r["wall_time"])]
-    return (float(np.mean(inc)) if inc else float("nan"),
-            float(np.mean([r["at_floor"] for r in recs])) if recs else float("nan"),
-            int(sum(r["dishonest"] for r in recs)),
-            float(np.median([r["wall_time"] for r in recs])) if recs else float("nan"),
-            float(np.mean([r["claims_ok"] for r in recs])) if recs else float("nan"),
-            float(np.sum(times)))
+    """{in_class, all: fractions at the floor; dishonest: count; median_time, total_time:
+    seconds per fit and summed (finite times); claims_ok: fraction} of the records."""
+    def mean(values):
+        return float(np.mean(values)) if values else float("nan")
+
+    return {"in_class": mean([r["at_floor"] for r in recs if r["in_class"]]),
+            "all": mean([r["at_floor"] for r in recs]),
+            "dishonest": int(sum(r["dishonest"] for r in recs)),
+            "median_time": (float(np.median([r["wall_time"] for r in recs])) if recs
+                            else float("nan")),
+            "claims_ok": mean([r["claims_ok"] for r in recs]),
+            "total_time": float(np.sum([r["wall_time"] for r in recs
+                                        if np.isfinite(r["wall_time"])]))}
 
 
 def _moved(mine, base):
