@@ -11,6 +11,7 @@ at the returned point, where a point that fails it gets a short Levenberg-Marqua
 """
 
 import dataclasses
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -362,11 +363,14 @@ class StageMonitor:
     def stationary(self, x):
         """(stationary?, cost) at ``x``: the cheap cosine test, then the projection."""
         pb = self.problem
-        x = np.clip(np.asarray(x, float), pb.lb, pb.ub)
+        # np.clip's numbers in a third of its time (the test runs after every iteration)
+        x = np.minimum(np.maximum(np.asarray(x, float), pb.lb), pb.ub)
         cost, grad = pb.eval_gradient(x)
         if not np.isfinite(cost):
             return False, cost
         cn = pb.eval_column_norms(x)
+        if self._fails_fast(x, cost, grad, cn):
+            return False, cost
         free, noise = self._free(x, cost, grad, cn)
         cmax, _ = relative_stationarity(grad, cn, cost, free, self.n_points, pb.n)
         self.cos, self.allowed = cmax, np.sqrt(self.term.ftol) + noise
@@ -381,6 +385,35 @@ class StageMonitor:
             self.proj = projected_fraction(r, jac, free, self.term.rcond)
         self.proj_allowed = float(np.sqrt(self.term.ftol + noise))
         return self.proj <= self.proj_allowed, cost
+
+    def _fails_fast(self, x, cost, grad, cn):
+        """True when the cosine test fails on the variable of the largest cosine of all
+        and that variable is free: then it is also the largest over the free variables
+        (the same number as the full test's, its decision the same) and the free mask of
+        every variable is not needed. About a third of the test's numpy calls, in the
+        iteration where the test runs at every step and nearly always fails; anything
+        else (a held variable, a zero column, the first call) goes to the full test."""
+        if self.n_points is None or not cost > 0.0 or not cn.min() > 0.0:
+            return False
+        norm_r = math.sqrt(cost)
+        cos = np.abs(grad) / (2.0 * cn * norm_r)
+        j = int(np.argmax(cos))
+        cj = float(cos[j])
+        term, pb = self.term, self.problem
+        noise = term.noise_factor * rounding_level(cost, self.n_points, pb.n)
+        allowed = math.sqrt(term.ftol) + noise
+        if not cj > allowed:
+            return False
+        lo, hi, xj, gj, big = float(pb.lb[j]), float(pb.ub[j]), float(x[j]), float(grad[j]), \
+            hold_tol(term, noise) * norm_r
+        if not lo < hi:
+            return False
+        held = ((gj > 0 and math.isfinite(xj - lo) and float(cn[j]) * (xj - lo) <= big)
+                or (gj < 0 and math.isfinite(hi - xj) and float(cn[j]) * (hi - xj) <= big))
+        if held:
+            return False
+        self.cos, self.allowed, self.proj = cj, allowed, float("nan")
+        return True
 
     def check(self, x):
         """After an iteration at ``x``: True to stop (stationary, stalled or abandoned)."""
