@@ -53,7 +53,9 @@ Parts (all by default):
 ``batch``
     128 FRFs (4 sections, 400 points, as ``scripts/batch_benchmark.py``) by
     ``fit_many`` with 1 and 2 local processes and, if Dask is installed, on a local Dask
-    cluster of 1 and of 2 single-threaded workers.
+    cluster of 1 and of 2 single-threaded workers: ``--repeat`` pairs of each (1, then 2,
+    back to back), the median of the pairs' speed-ups (one pair varied 1.78 .. 1.98 between
+    runs on the 2-core machine).
 
 The whole run holds BLAS at one thread, as every fit of the package runs (vector fitting
 and the numpy floor then do the same single-threaded work). The machine (2 cores) is shared
@@ -498,47 +500,71 @@ def _batch_data(n):
 def part_batch(repeat):
     paths = _batch_data(N_BATCH)
     try:
-        return _batch_runs(paths)
+        return _batch_runs(paths, repeat)
     finally:
         import shutil
 
         shutil.rmtree(os.path.dirname(paths[0]), ignore_errors=True)
 
 
-def _batch_runs(paths):
+def _speedups(runs):
+    """Median of each pair's speed-up (1 over 2), the pairs' speed-ups, and the median
+    times (a pair runs back to back, so that a slow spell of the shared machine falls on
+    both of its runs)."""
+    ratios = [r[1] / r[2] for r in runs]
+    return {1: _median([r[1] for r in runs]), 2: _median([r[2] for r in runs]),
+            "speedup": _median(ratios), "speedups": ratios}
+
+
+def _batch_runs(paths, repeat):
     from freqid_casadi.fitting.batch import fit_many
 
     opts = dict(n_sections=4, integrator=True)
-    out = {"n": len(paths), "local": {}, "dask": {}}
-    for jobs in (1, 2):
-        t0 = time.perf_counter()
-        items = fit_many(paths, n_jobs=jobs, **opts)
-        out["local"][jobs] = time.perf_counter() - t0
-        out.setdefault("ok", {})[f"local{jobs}"] = sum(1 for it in items if it.ok)
-    out["local"]["speedup"] = out["local"][1] / out["local"][2]
+    out = {"n": len(paths), "repeat": repeat, "ok": {}}
+    runs = []
+    for _ in range(repeat):
+        runs.append({})
+        for jobs in (1, 2):
+            t0 = time.perf_counter()
+            items = fit_many(paths, n_jobs=jobs, **opts)
+            runs[-1][jobs] = time.perf_counter() - t0
+            out["ok"][f"local{jobs}"] = sum(1 for it in items if it.ok)
+    out["local"] = _speedups(runs)
     try:
         from distributed import Client, LocalCluster
     except ImportError:
         out["dask"] = {"error": "dask not installed"}
         return out
-    for workers in (1, 2):
-        with LocalCluster(n_workers=workers, threads_per_worker=1, processes=True,
-                          dashboard_address=None) as cluster, Client(cluster) as client:
-            # the workers up and the package imported before the clock starts, as a forked
-            # local worker starts with it (a spawned worker's first task would import it,
-            # about 0.8 s on every worker at once: the cluster's start-up, not the batch)
-            client.run(importlib.import_module, "freqid_casadi.fitting.batch")
-            w0, c0, t0 = client.run(time.process_time), time.process_time(), time.perf_counter()
-            items = fit_many(paths, scheduler=client, **opts)
-            out["dask"][workers] = time.perf_counter() - t0
-            w1 = client.run(time.process_time)
-            # CPU seconds of this process (the client and the cluster's scheduler) and of
-            # each worker during the batch: what the workers did not get of the cores
-            out["dask"][f"cpu{workers}"] = {"here": time.process_time() - c0,
-                                            "workers": sorted(w1[k] - w0[k] for k in w0)}
-            out["ok"][f"dask{workers}"] = sum(1 for it in items if it.ok)
-    out["dask"]["speedup"] = out["dask"][1] / out["dask"][2]
+    runs, cpus = [], {}
+    for _ in range(repeat):
+        runs.append({})
+        for workers in (1, 2):
+            runs[-1][workers], cpus[workers], out["ok"][f"dask{workers}"] = _dask_batch(
+                Client, LocalCluster, workers, paths, opts)
+    out["dask"] = _speedups(runs)
+    out["dask"].update({f"cpu{w}": c for w, c in cpus.items()})
     return out
+
+
+def _dask_batch(client_cls, cluster_cls, workers, paths, opts):
+    """(wall seconds, CPU seconds {here, workers}, fits ok) of one batch on a fresh local
+    cluster of ``workers`` single-threaded worker processes."""
+    from freqid_casadi.fitting.batch import fit_many
+
+    with cluster_cls(n_workers=workers, threads_per_worker=1, processes=True,
+                     dashboard_address=None) as cluster, client_cls(cluster) as client:
+        # the workers up and the package imported before the clock starts, as a forked
+        # local worker starts with it (a spawned worker's first task would import it,
+        # about 0.8 s on every worker at once: the cluster's start-up, not the batch)
+        client.run(importlib.import_module, "freqid_casadi.fitting.batch")
+        w0, c0, t0 = client.run(time.process_time), time.process_time(), time.perf_counter()
+        items = fit_many(paths, scheduler=client, **opts)
+        wall = time.perf_counter() - t0
+        w1 = client.run(time.process_time)
+        # CPU seconds of this process (the client and the cluster's scheduler) and of each
+        # worker during the batch: what the workers did not get of the cores
+        cpu = {"here": time.process_time() - c0, "workers": sorted(w1[k] - w0[k] for k in w0)}
+    return wall, cpu, sum(1 for it in items if it.ok)
 
 
 # ----------------------------------------------------------------------------- report
@@ -656,23 +682,30 @@ def _one_md(title, row, keys):
 
 
 def _batch_md(b):
-    lines = ["## Batch of 128 FRFs, 2 jobs against 1", ""]
+    pairs = b.get("repeat", 1)
+    lines = [f"## Batch of {b['n']} FRFs, 2 jobs against 1", "",
+             f"{pairs} pairs of batches (1 job, then 2 jobs, back to back); the median of "
+             "the pairs' speed-ups, each pair's in parentheses, and the median times.", ""]
+
+    def each(d):
+        return ", ".join(f"{x:.2f}" for x in d.get("speedups", [d["speedup"]]))
+
     loc = b["local"]
     lines.append(f"Local processes: 1 job {loc[1]:.1f} s, 2 jobs {loc[2]:.1f} s, speed-up "
-                 f"**{loc['speedup']:.2f}** (target >= 1.8).")
+                 f"**{loc['speedup']:.2f}** ({each(loc)}; target >= 1.8).")
     d = b.get("dask", {})
     if "error" in d:
         lines.append(f"Dask: {d['error']}.")
     elif d:
         lines.append(f"Local Dask cluster: 1 worker {d[1]:.1f} s, 2 workers {d[2]:.1f} s, "
-                     f"speed-up **{d['speedup']:.2f}** (target >= 1.8; the workers started "
-                     "and the package imported in them before the clock, as a forked local "
-                     "worker starts with it).")
+                     f"speed-up **{d['speedup']:.2f}** ({each(d)}; target >= 1.8; the "
+                     "workers started and the package imported in them before the clock, as "
+                     "a forked local worker starts with it).")
         cpu = d.get("cpu2")
         if cpu:
             share = cpu["here"] / d[2]
             lines.append(
-                f"During the 2-worker batch this process (the client and the cluster's "
+                f"During the last 2-worker batch this process (the client and the cluster's "
                 f"scheduler) used {cpu['here']:.2f} CPU s, the workers "
                 f"{' and '.join(f'{w:.2f}' for w in cpu['workers'])}: with the scheduler on "
                 f"the same {os.cpu_count()} cores, the workers have at most "
