@@ -136,3 +136,31 @@ def test_heap_kept_stops_the_page_faults_of_a_fixed_trim_threshold_and_restores_
     before, during, after = map(int, out.split())
     assert before > 40_000 and after > 40_000
     assert during < 2_000
+
+
+def test_single_threaded_blas_limits_every_blas_and_restores_it(monkeypatch):
+    # the limiter reuses one library scan (1.6 ms each, measured) and scans again after an
+    # import; either way every loaded BLAS runs one thread inside and its own count after
+    import sys
+
+    from threadpoolctl import threadpool_info, threadpool_limits
+
+    from freqid_casadi import _threads
+
+    def counts():
+        return [i["num_threads"] for i in threadpool_info() if i["user_api"] == "blas"]
+
+    with threadpool_limits(limits=2, user_api="blas"):      # two: the limit shows
+        before = counts()
+        assert before and before == [2] * len(before)
+        with _threads.single_threaded_blas():
+            assert counts() == [1] * len(before)
+            first = _threads._blas_controller()
+        assert counts() == before
+        assert _threads._blas_controller() is first                       # kept
+        monkeypatch.setitem(sys.modules, "freqid_test_new_module", sys)   # an import
+        assert _threads._blas_controller() is not first                   # scanned again
+        limiter = _threads.single_threaded_blas()                         # a worker's hold
+        assert counts() == [1] * len(before)
+        limiter.restore_original_limits()
+        assert counts() == before
