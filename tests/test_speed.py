@@ -40,6 +40,33 @@ def test_nlp_cost_is_the_mx_objective_bit_for_bit():
         assert funcs.nlp_cost(x) == float(mx(x))
 
 
+@pytest.mark.parametrize("integrator, charts, scaled, weighted", [
+    (True, (), True, False), (-2, ((0, 2), (1, 0)), True, True), (False, (), False, True)])
+def test_stages_share_a_residual_template_with_the_numbers_of_their_own(integrator, charts,
+                                                                         scaled, weighted):
+    # two stages of one structure with other references and data share one kept formula;
+    # each stage's MX residual gives the numpy residual's numbers bit for bit
+    from freqid_casadi.core import derivatives
+
+    structure = fc.Structure(2, integrator, True)
+    omega = np.logspace(-1, 2, 120)
+    built = []
+    for k, wr in enumerate(((1.0, 30.0), (2.5, 11.0))):
+        data = fc.systems.G_A(omega * (1.0 + 0.1 * k))
+        weights = np.linspace(1.0, 3.0, omega.size) if weighted else None
+        param = Parametrization(structure, "dc", wr, 0.3 + k, 0.05 * (k + 1), scaled=scaled,
+                                charts=charts)
+        funcs = stage_functions(param, data.omega, data.response, weights=weights)
+        z = np.concatenate([[0.4, 1.1]] + [param.new_section(w, 0.02, 1.2 * w, 0.05, w)
+                                            for w in wr])
+        want = np.concatenate(param.residual_pair(
+            z, data.omega, (data.response.real, data.response.imag),
+            None if weights is None else np.sqrt(weights)))
+        np.testing.assert_array_equal(np.asarray(funcs.r_fun(z)).ravel(), want)
+        built.append(derivatives.residual_template(param, omega.size))
+    assert built[0] is built[1]
+
+
 def test_a_stage_solved_with_the_cost_callback_ends_where_the_mx_objective_does():
     param, funcs, z0 = _stage(CALLBACK_COST_POINTS)
     lb, ub = param.bounds()

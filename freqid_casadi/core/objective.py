@@ -208,15 +208,14 @@ class Parametrization:
                                           scale_l)
 
     # ---------------------------------------------------------------- formula
-    def _sections(self, z):
+    def _sections(self, z, wr):
         """Yield (num, den) (re, im)-pair builders per section as functions of w."""
         n = self.section_size
-        _, _, wr = self._refs()
         for k in range(self.structure.n_sections):
             v = [z[2 + n * k + i] for i in range(n)]
             yield k, v, wr[k], self.chart(k)
 
-    def ratio(self, z, omega, response_pair):
+    def ratio(self, z, omega, response_pair, refs=None):
         """Phi / G_N(j w) as an (re, im) pair; numpy or CasADi.
 
         Parameters
@@ -224,8 +223,12 @@ class Parametrization:
         z : sequence of length n_vars (numpy array or CasADi SX/MX vector)
         omega : float or ndarray, rad/s
         response_pair : (re, im) of Phi at omega
+        refs : (h_ref, k_ref, wr), optional
+            The references (delay, gain, each section's frequency); None: this
+            parametrization's. CasADi symbols make a formula for every parametrization of
+            this structure (:func:`~freqid_casadi.core.derivatives.residual_template`).
         """
-        h_ref, k_ref, _ = self._refs()
+        h_ref, k_ref, wr = self._refs() if refs is None else refs
         h = h_ref * z[0]
         gain = k_ref * z[1]
         cos, sin = _trig(z)
@@ -238,14 +241,14 @@ class Parametrization:
                 q = (_cplx.mul if k > 0 else _cplx.div)(q, (0 * omega, omega))
         q = (q[0] / gain, q[1] / gain)
         gauge = self.gauge_obj
-        for k, v, wr, chart in self._sections(z):
-            num, den = gauge.pairs(v, omega / wr, chart)
+        for k, v, w_k, chart in self._sections(z, wr):
+            num, den = gauge.pairs(v, omega / w_k, chart)
             q = _cplx.mul(q, _cplx.div(den, num))
         return q
 
-    def residual_pair(self, z, omega, response_pair, sqrt_weights=None):
-        """Weighted (re, im) residual of ``Phi/G_N - 1``."""
-        re, im = self.ratio(z, omega, response_pair)
+    def residual_pair(self, z, omega, response_pair, sqrt_weights=None, refs=None):
+        """Weighted (re, im) residual of ``Phi/G_N - 1`` (``refs``: as :meth:`ratio`)."""
+        re, im = self.ratio(z, omega, response_pair, refs)
         re = re - 1.0
         if sqrt_weights is not None:
             re, im = re * sqrt_weights, im * sqrt_weights
@@ -306,7 +309,7 @@ class Parametrization:
         gain = k_ref * z[1]
         secs = []
         gauge = self.gauge_obj
-        for k, v, wr, chart in self._sections(z):
+        for k, v, wr, chart in self._sections(z, wr_all):
             theta, factor = gauge.to_thesis(v, wr, chart)
             if factor is not None:
                 gain *= factor
