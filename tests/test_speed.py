@@ -150,17 +150,22 @@ print(before, during, after)
 """
 
 
+def _with_dask_trim(code):
+    """What ``code`` prints in a fresh interpreter whose environment fixes the trim
+    threshold as Dask's nanny does (and leaves the mmap threshold free)."""
+    env = dict(os.environ, MALLOC_TRIM_THRESHOLD_="65536")
+    env.pop("MALLOC_MMAP_THRESHOLD_", None)
+    return subprocess.run([sys.executable, "-c", code], env=env, capture_output=True,
+                          text=True, check=True).stdout
+
+
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="glibc's malloc only")
 def test_heap_kept_stops_the_page_faults_of_a_fixed_trim_threshold_and_restores_it():
     # Dask's nanny starts workers with MALLOC_TRIM_THRESHOLD_=65536: every 1 MiB array is
     # then mapped afresh (256 page faults each, about 51 000 for 200 arrays); kept, the
     # heap re-uses the same pages (a few hundred faults at most), and after the block the
     # environment's setting is back
-    env = dict(os.environ, MALLOC_TRIM_THRESHOLD_="65536")
-    env.pop("MALLOC_MMAP_THRESHOLD_", None)
-    out = subprocess.run([sys.executable, "-c", _FAULTS], env=env, capture_output=True,
-                         text=True, check=True).stdout
-    before, during, after = map(int, out.split())
+    before, during, after = map(int, _with_dask_trim(_FAULTS).split())
     assert before > 40_000 and after > 40_000
     assert during < 2_000
 
@@ -189,11 +194,7 @@ def test_heap_kept_returns_the_free_heap_only_above_what_a_fit_may_keep():
     # of 4 MiB of holes returned, 101 of 100 MiB)
     from freqid_casadi import _malloc
 
-    env = dict(os.environ, MALLOC_TRIM_THRESHOLD_="65536")
-    env.pop("MALLOC_MMAP_THRESHOLD_", None)
-    out = subprocess.run([sys.executable, "-c", _RETURNED], env=env, capture_output=True,
-                         text=True, check=True).stdout
-    small, large = map(int, out.split())
+    small, large = map(int, _with_dask_trim(_RETURNED).split())
     assert small <= 1
     assert large >= 80
     assert _malloc._free_heap(object()) is None        # no mallinfo2: always returned

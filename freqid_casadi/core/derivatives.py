@@ -8,6 +8,8 @@ objective; :func:`stage_functions` builds one. The formula of a section is the g
 :class:`~freqid_casadi.core.objective.Parametrization`.
 """
 
+import dataclasses
+import functools
 import threading
 
 import numpy as np
@@ -115,15 +117,15 @@ def _origin_removed(x, omega, k):
     return x * (1j * omega if k else 1.0) if k in (0, 1) else times_jw_power(x, omega, k)
 
 
-_TEMPLATES = {}
-_TEMPLATES_LOCK = threading.Lock()
+#: Inlining a kept template reads its nodes: one thread at a time.
+_INLINE_LOCK = threading.Lock()
 
 
 def residual_template(param, n_points):
     """The weighted residual as one CasADi MX Function of ``(z (n,), refs (2 + N,),
     omega (1, M), Re phi (1, M), Im phi (1, M), sqrt_w (1, M)) -> r (2M,)``, ``refs`` the
     parametrization's ``(h_ref, k_ref, wr_1 .. wr_N)``; one per structure, gauge, charts
-    and number of points, kept for the process (a few per fit).
+    and number of points, kept for the process (the 256 last used).
 
     Building a stage's MX residual from the formula took 2-4 ms (3-8 % of a default fit's
     CPU on the measured sets, measured); a stage now inlines the kept formula with its data
@@ -139,26 +141,24 @@ def residual_template(param, n_points):
     -------
     casadi.Function
     """
+    # the formula does not depend on the references (inputs) or the bounds: one key
+    canonical = dataclasses.replace(param, omega_ref=(1.0,) * param.structure.n_sections,
+                                    gain_ref=1.0, delay_max=1.0, scaled=True, root_floor=0.0)
+    return _residual_template(canonical, int(n_points))
+
+
+@functools.lru_cache(maxsize=256)
+def _residual_template(param, n_points):
     import casadi as ca
 
     n_sec = param.structure.n_sections
-    key = (param.structure, param.gauge, tuple(param.chart(k) for k in range(n_sec)),
-           int(n_points))
-    with _TEMPLATES_LOCK:
-        fun = _TEMPLATES.get(key)
-        if fun is None:
-            z, refs = ca.MX.sym("z", param.n_vars), ca.MX.sym("refs", 2 + n_sec)
-            omega, re, im, sw = (ca.MX.sym(name, 1, int(n_points))
-                                 for name in ("omega", "re", "im", "sqrt_w"))
-            rr, ri = param.residual_pair(z, omega, (re, im), sw,
-                                         refs=(refs[0], refs[1],
-                                               [refs[2 + k] for k in range(n_sec)]))
-            fun = ca.Function("residual_template", [z, refs, omega, re, im, sw],
-                              [ca.vertcat(ca.transpose(rr), ca.transpose(ri))])
-            if len(_TEMPLATES) >= 256:                    # bounded: long sessions, sweeps
-                _TEMPLATES.pop(next(iter(_TEMPLATES)))
-            _TEMPLATES[key] = fun
-    return fun
+    z, refs = ca.MX.sym("z", param.n_vars), ca.MX.sym("refs", 2 + n_sec)
+    omega, re, im, sw = (ca.MX.sym(name, 1, n_points) for name in ("omega", "re", "im",
+                                                                   "sqrt_w"))
+    rr, ri = param.residual_pair(z, omega, (re, im), sw,
+                                 refs=(refs[0], refs[1], [refs[2 + k] for k in range(n_sec)]))
+    return ca.Function("residual_template", [z, refs, omega, re, im, sw],
+                       [ca.vertcat(ca.transpose(rr), ca.transpose(ri))])
 
 
 class StageFunctions:
@@ -302,11 +302,10 @@ class StageFunctions:
             row = lambda a: ca.DM(np.asarray(a, float).reshape(1, -1))  # noqa: E731
             # inlined: the stage's graph is the template's (no call node, whose evaluation
             # took 1.5 us more per call at 500 points), built in 0.2 ms instead of 4
-            # (under the lock: threads share the template's nodes)
             args = [z, ca.DM([h_ref, k_ref, *wr]), row(self._omega), row(self._resp.real),
                     row(self._resp.imag), row(self._sw)]
             template = residual_template(param, self.n_points)
-            with _TEMPLATES_LOCK:
+            with _INLINE_LOCK:
                 r = template.call(args, True, False)
             self._r_fun = ca.Function("residual", [z], r, ["z"], ["r"])
         return self._r_fun

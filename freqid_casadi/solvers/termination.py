@@ -186,6 +186,17 @@ def free_variables(grad, x, lb, ub, col_norms, norm_r, tol=1e-4):
     return ~(at_lb | at_ub) & (lb < ub)
 
 
+def _free_one(g, x, lo, hi, cn, big):
+    """:func:`free_variables`' rule for one variable (floats; ``big = tol * ||r||``): the
+    termination test's fast path asks it of one variable per iteration, where the array
+    version's numpy calls cost as much as for all of them."""
+    if not lo < hi:
+        return False
+    at_lb = g > 0 and math.isfinite(x - lo) and cn * (x - lo) <= big
+    at_ub = g < 0 and math.isfinite(hi - x) and cn * (hi - x) <= big
+    return not (at_lb or at_ub)
+
+
 def relative_stationarity(grad, col_norms, cost, free, n_points, n_factors):
     """``(max cos_j, noise / rms)`` over the ``free`` variables (see :class:`Termination`).
 
@@ -345,20 +356,23 @@ class StageMonitor:
         return ("not stationary: the gradient is small, but a Gauss-Newton step still "
                 f"promises a {100 * min(self.proj, 1.0) ** 2:.3g} % lower cost")
 
-    def _free(self, x, cost, grad, cn):
-        """(free variables, noise) at ``x``: those the test does not hold at a bound."""
+    def _noise(self, x, cost):
+        """The residual's rounding level times ``noise_factor`` at ``x`` of this cost (the
+        first call counts the stage's residuals)."""
         pb = self.problem
         if self.n_points is None:
             self.n_points = max(np.asarray(pb.residual(x), float).size // 2, 1)
-        noise = self.term.noise_factor * rounding_level(cost, self.n_points, pb.n)
-        norm_r = float(np.sqrt(max(cost, 0.0)))
-        return free_variables(grad, x, pb.lb, pb.ub, cn, norm_r,
-                              hold_tol(self.term, noise)), noise
+        return self.term.noise_factor * rounding_level(cost, self.n_points, pb.n)
+
+    def _free_mask(self, x, cost, grad, cn, noise):
+        pb = self.problem
+        return free_variables(grad, x, pb.lb, pb.ub, cn, float(np.sqrt(max(cost, 0.0))),
+                              hold_tol(self.term, noise))
 
     def free_mask(self, x, cost, grad, cn):
         """Mask of the variables the test counts as free at ``x`` (its cost, gradient and
         column norms given), shape (n,)."""
-        return self._free(x, cost, grad, cn)[0]
+        return self._free_mask(x, cost, grad, cn, self._noise(x, cost))
 
     def stationary(self, x):
         """(stationary?, cost) at ``x``: the cheap cosine test, then the projection."""
@@ -369,13 +383,13 @@ class StageMonitor:
         if not np.isfinite(cost):
             return False, cost
         cn = pb.eval_column_norms(x)
-        if self._fails_fast(x, cost, grad, cn):
+        noise = self._noise(x, cost)
+        self.allowed, self.proj = np.sqrt(self.term.ftol) + noise, float("nan")
+        if self._fails_fast(x, cost, grad, cn, noise):
             return False, cost
-        free, noise = self._free(x, cost, grad, cn)
-        cmax, _ = relative_stationarity(grad, cn, cost, free, self.n_points, pb.n)
-        self.cos, self.allowed = cmax, np.sqrt(self.term.ftol) + noise
-        self.proj = float("nan")
-        if cmax > self.allowed:
+        free = self._free_mask(x, cost, grad, cn, noise)
+        self.cos, _ = relative_stationarity(grad, cn, cost, free, self.n_points, pb.n)
+        if self.cos > self.allowed:
             return False, cost
         if pb.projected_fraction is not None:
             self.proj = float(pb.projected_fraction(x, free, self.term.rcond))
@@ -386,33 +400,23 @@ class StageMonitor:
         self.proj_allowed = float(np.sqrt(self.term.ftol + noise))
         return self.proj <= self.proj_allowed, cost
 
-    def _fails_fast(self, x, cost, grad, cn):
+    def _fails_fast(self, x, cost, grad, cn, noise):
         """True when the cosine test fails on the variable of the largest cosine of all
-        and that variable is free: then it is also the largest over the free variables
-        (the same number as the full test's, its decision the same) and the free mask of
-        every variable is not needed. About a third of the test's numpy calls, in the
-        iteration where the test runs at every step and nearly always fails; anything
-        else (a held variable, a zero column, the first call) goes to the full test."""
-        if self.n_points is None or not cost > 0.0 or not cn.min() > 0.0:
+        and that variable is free (:func:`_free_one`): then it is also the largest over the
+        free variables (the same number as the full test's, its decision the same) and the
+        free mask of every variable is not needed; sets ``cos``. Anything else (a held or
+        fixed variable, a zero column, a passing cosine) goes to the full test."""
+        if not (cost > 0.0 and cn.min() > 0.0):
             return False
         norm_r = math.sqrt(cost)
         cos = np.abs(grad) / (2.0 * cn * norm_r)
         j = int(np.argmax(cos))
-        cj = float(cos[j])
-        term, pb = self.term, self.problem
-        noise = term.noise_factor * rounding_level(cost, self.n_points, pb.n)
-        allowed = math.sqrt(term.ftol) + noise
-        if not cj > allowed:
+        pb = self.problem
+        if not (cos[j] > self.allowed and _free_one(
+                float(grad[j]), float(x[j]), float(pb.lb[j]), float(pb.ub[j]),
+                float(cn[j]), hold_tol(self.term, noise) * norm_r)):
             return False
-        lo, hi, xj, gj, big = float(pb.lb[j]), float(pb.ub[j]), float(x[j]), float(grad[j]), \
-            hold_tol(term, noise) * norm_r
-        if not lo < hi:
-            return False
-        held = ((gj > 0 and math.isfinite(xj - lo) and float(cn[j]) * (xj - lo) <= big)
-                or (gj < 0 and math.isfinite(hi - xj) and float(cn[j]) * (hi - xj) <= big))
-        if held:
-            return False
-        self.cos, self.allowed, self.proj = cj, allowed, float("nan")
+        self.cos = float(cos[j])
         return True
 
     def check(self, x):
