@@ -37,8 +37,14 @@ _PIECES_COST_POINTS = 8192
 
 
 def _blocks(m):
-    """Slices of ``range(m)`` of at most :data:`_BLOCK_POINTS` points, in order."""
-    return [slice(i, min(i + _BLOCK_POINTS, m)) for i in range(0, m, _BLOCK_POINTS)]
+    """Slices of ``range(m)`` of at most :data:`_BLOCK_POINTS` points, in order (a tuple,
+    kept: the Hessian and the column norms ask for it several times per iteration)."""
+    return _block_slices(m, _BLOCK_POINTS)
+
+
+@functools.lru_cache(maxsize=64)
+def _block_slices(m, size):
+    return tuple(slice(i, min(i + size, m)) for i in range(0, m, size))
 
 
 def _point_functions(param):
@@ -82,7 +88,6 @@ def _point_functions(param):
     ln = [(0, 0), (0, 0)]
     t2 = []
     ns = param.section_size
-    second = param.structure.basis == "second-order"
     for k in range(param.structure.n_sections):
         v = [z[2 + ns * k + i] for i in range(ns)]
         num, den = param.gauge_obj.pairs(v, w / wr[k], param.chart(k))
@@ -264,8 +269,8 @@ class StageFunctions:
                 self._dden_t = np.stack([dden.pop(i) for i in self._idx_den], axis=1)
             self._sl_num, self._sl_den = _as_slice(self._idx_num), _as_slice(self._idx_den)
             # the (k, k) index grids of the Hessian's blocks, made once per stage
-            self._ix_num, self._ix_den = np.ix_(self._idx_num, self._idx_num), \
-                np.ix_(self._idx_den, self._idx_den)
+            self._ix_num, self._ix_den = _block_index(self._idx_num), \
+                _block_index(self._idx_den)
             self._lg = np.empty((n, m), complex)
         else:
             d_point = _point_functions(param)
@@ -277,7 +282,7 @@ class StageFunctions:
             self.d_fun = ca.Function("derivatives", [z], [ca.densify(o) for o in outs],
                                      ["z"], ["r", "sq", "Ld", "Ln", "T2"])
             self.n_t2 = int(d_point.size2_out(4))
-            self._ix_full = np.ix_(range(ns), range(ns))
+            self._ix_full = _block_index(range(ns))
             # zero-copy evaluation: CasADi writes straight into these numpy buffers
             self._zbuf = np.zeros(n)
             self._outs = [np.zeros(2 * c) for c in (m, m, n * m, n * m, self.n_t2 * m)]
@@ -360,8 +365,8 @@ class StageFunctions:
         """Derivative pieces at ``z`` (cached on the bytes of ``z``):
 
         ``_r`` (M,) complex residual, ``_sq`` (M,) = sqrt_w q, ``_L`` (n, M) = dlog q/dz,
-        ``_blk``: per-section ``(index grid, dlog factor/dv (nsec, k, M), sign)`` (the
-        grid ``np.ix_(indices, indices)`` of the k variables the factor depends on)
+        ``_blk``: per-section ``(index, dlog factor/dv (nsec, k, M), sign)`` (the
+        index (:func:`_block_index`) of the k variables the factor depends on)
         (the numerator's entries may be negated: only their products are used)
         for the numerators (+1) and denominators (-1), and
         ``_t2`` (M, nsec ns^2) second-derivative terms or None.
@@ -390,11 +395,14 @@ class StageFunctions:
         self._blk = []
         if nsec:
             v = z[2:].reshape(nsec, ns)
-            vn = v[:, self._idx_num, None]                                  # (nsec, kn, 1)
-            vd = v[:, self._idx_den, None]
-            inum = 1.0 / (self._n0 - np.sum(vn * self._neg_dnum_t, axis=1))  # (nsec, M)
-            iden = 1.0 / (self._d0 + np.sum(vd * self._dden_t, axis=1))
-            q = q * np.prod(inum / iden, axis=0)
+            # complex before the products (the values cast as the products cast them): a
+            # real factor makes numpy cast it in buffers, point by point; the ufuncs'
+            # reduce is what np.sum and np.prod call, without their Python wrapper
+            vn = v[:, self._idx_num, None].astype(complex)                  # (nsec, kn, 1)
+            vd = v[:, self._idx_den, None].astype(complex)
+            inum = 1.0 / (self._n0 - np.add.reduce(vn * self._neg_dnum_t, axis=1))
+            iden = 1.0 / (self._d0 + np.add.reduce(vd * self._dden_t, axis=1))  # (nsec, M)
+            q = q * np.multiply.reduce(inum / iden, axis=0)
             # dlog q/dv straight into L's rows: -dnum/num and +dden/den, (nsec, k, M) views
             sec = lg[2:].reshape(nsec, ns, m)
             ln = _product_into(self._neg_dnum_t, inum[:, None, :], sec, self._sl_num)
@@ -549,6 +557,8 @@ class StageFunctions:
         c = np.conj(self._r) * self._sq
         if point_weights is not None:
             a, c = a * point_weights, c * point_weights
+        # complex, as the product casts it (a real factor is cast in buffers, point by point)
+        a = a.astype(complex)
         y, t = self._scratch((lg.shape[0], min(lg.shape[1], _BLOCK_POINTS)), complex, 2)
         h = None
         for sl in _blocks(lg.shape[1]):                  # one block up to _BLOCK_POINTS
@@ -573,13 +583,13 @@ class StageFunctions:
                         sb = s_[:, :, sl]
                         part = (sb[:, :, None] * sb[:, None, :]) @ c[sl]  # (nsec, k, k)
                         pk = part if pk is None else pk + part
-                    blocks[:, ix[0], ix[1]] += sign * pk.real
+                    blocks[(slice(None),) + ix] += sign * pk.real
                 if self._t2 is not None:
                     blocks = blocks + (c @ self._t2).real.reshape(nsec, ns, ns)
                 diag = np.arange(nsec)
                 hv = h[2:, 2:].reshape(nsec, ns, nsec, ns)        # a view: h is C-ordered
                 hv[diag, :, diag, :] += blocks
-            h[1, 1] += np.sum(c).real / self._z[1] ** 2
+            h[1, 1] += np.add.reduce(c).real / self._z[1] ** 2
         return 2.0 * h
 
 
@@ -668,6 +678,13 @@ def _as_slice(idx):
     if idx and list(idx) == list(range(idx[0], idx[-1] + 1)):
         return slice(idx[0], idx[-1] + 1)
     return list(idx)
+
+
+def _block_index(idx):
+    """The index of the (k, k) block of ``idx`` in a (.., ns, ns) array: two slices for a
+    run of consecutive indices (a view), else the grid ``np.ix_(idx, idx)``."""
+    sl = _as_slice(list(idx))
+    return (sl, sl) if isinstance(sl, slice) else np.ix_(sl, sl)
 
 
 def _product_into(a, b, sec, sl):
