@@ -375,6 +375,11 @@ def _solve(name, nlp, opts, x0, lb, ub, constrained, lam_x0, cost_of):
     import casadi as ca
 
     t_start = time.perf_counter()
+    if nlp.get("g") is None or int(nlp["g"].numel()) == 0:
+        # no constraints but the bounds: a second-order correction re-solves the rejected
+        # step's own system (nothing to correct) and tries the same point again, up to
+        # max_soc (4) times: an objective evaluation and a back-solve each, never accepted
+        opts = {**opts, "ipopt": {"max_soc": 1, **opts.get("ipopt", {})}}
     # one iteration callback: a stage's termination monitor (which also stops on Ctrl-C /
     # SIGTERM), else the interrupt hook alone
     with _interrupt.guard():        # (CasADi calls the Python callbacks while it builds)
