@@ -224,6 +224,13 @@ def base_options(max_iter, tol, verbose):
 #: A returned point outside the bounds whose projection onto them raises ``cost_of`` by
 #: more than this fraction is solved again (:func:`run_nlpsol`).
 PROJECTION_RTOL = 1e-2
+#: IPOPT's ``max_soc`` for an NLP without constraints (bounds only; a user's value wins).
+#: There a second-order correction solves the rejected first trial step's own system again
+#: (no constraint violation to correct; only the iterative refinement is skipped) and tests
+#: that point; IPOPT's default 4 repeats the identical attempt three more times, an
+#: objective evaluation and a back-solve each, since its loop test (violation 0 <= 0.99 *
+#: 0) never ends it. One attempt keeps IPOPT's path exactly.
+BOUNDS_ONLY_MAX_SOC = 1
 #: IPOPT statuses after which :func:`run_nlpsol` solves again with the Hessian's
 #: regularisation allowed up to :data:`MAX_HESSIAN_PERTURBATION`.
 STEP_FAILURES = frozenset({"Error_In_Step_Computation", "Restoration_Failed"})
@@ -376,10 +383,7 @@ def _solve(name, nlp, opts, x0, lb, ub, constrained, lam_x0, cost_of):
 
     t_start = time.perf_counter()
     if nlp.get("g") is None or int(nlp["g"].numel()) == 0:
-        # no constraints but the bounds: a second-order correction re-solves the rejected
-        # step's own system (nothing to correct) and tries the same point again, up to
-        # max_soc (4) times: an objective evaluation and a back-solve each, never accepted
-        opts = {**opts, "ipopt": {"max_soc": 1, **opts.get("ipopt", {})}}
+        opts = {**opts, "ipopt": {"max_soc": BOUNDS_ONLY_MAX_SOC, **opts.get("ipopt", {})}}
     # one iteration callback: a stage's termination monitor (which also stops on Ctrl-C /
     # SIGTERM), else the interrupt hook alone
     with _interrupt.guard():        # (CasADi calls the Python callbacks while it builds)
