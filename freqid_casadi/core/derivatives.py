@@ -366,7 +366,8 @@ class StageFunctions:
 
         ``_r`` (M,) complex residual, ``_sq`` (M,) = sqrt_w q, ``_L`` (n, M) = dlog q/dz,
         ``_blk``: per-section ``(index, dlog factor/dv (nsec, k, M), sign)`` (the
-        index (:func:`_block_index`) of the k variables the factor depends on)
+        index (:func:`_block_index`) of the k variables the factor depends on, in a
+        (nsec, ns, ns) array)
         (the numerator's entries may be negated: only their products are used)
         for the numerators (+1) and denominators (-1), and
         ``_t2`` (M, nsec ns^2) second-derivative terms or None.
@@ -398,8 +399,8 @@ class StageFunctions:
             # complex before the products (the values cast as the products cast them): a
             # real factor makes numpy cast it in buffers, point by point; the ufuncs'
             # reduce is what np.sum and np.prod call, without their Python wrapper
-            vn = v[:, self._idx_num, None].astype(complex)                  # (nsec, kn, 1)
-            vd = v[:, self._idx_den, None].astype(complex)
+            vn = v[:, self._sl_num, None].astype(complex)                   # (nsec, kn, 1)
+            vd = v[:, self._sl_den, None].astype(complex)
             inum = 1.0 / (self._n0 - np.add.reduce(vn * self._neg_dnum_t, axis=1))
             iden = 1.0 / (self._d0 + np.add.reduce(vd * self._dden_t, axis=1))  # (nsec, M)
             q = q * np.multiply.reduce(inum / iden, axis=0)
@@ -583,7 +584,7 @@ class StageFunctions:
                         sb = s_[:, :, sl]
                         part = (sb[:, :, None] * sb[:, None, :]) @ c[sl]  # (nsec, k, k)
                         pk = part if pk is None else pk + part
-                    blocks[(slice(None),) + ix] += sign * pk.real
+                    blocks[ix] += sign * pk.real
                 if self._t2 is not None:
                     blocks = blocks + (c @ self._t2).real.reshape(nsec, ns, ns)
                 diag = np.arange(nsec)
@@ -681,10 +682,10 @@ def _as_slice(idx):
 
 
 def _block_index(idx):
-    """The index of the (k, k) block of ``idx`` in a (.., ns, ns) array: two slices for a
+    """The index of the (k, k) blocks of ``idx`` in a (nsec, ns, ns) array: slices for a
     run of consecutive indices (a view), else the grid ``np.ix_(idx, idx)``."""
     sl = _as_slice(list(idx))
-    return (sl, sl) if isinstance(sl, slice) else np.ix_(sl, sl)
+    return (slice(None),) + ((sl, sl) if isinstance(sl, slice) else np.ix_(sl, sl))
 
 
 def _product_into(a, b, sec, sl):

@@ -100,12 +100,15 @@ def _hess_class(ca):
             lam_f = float(np.frombuffer(arg[2], dtype=np.float64)[0])
             if res[0] is None:
                 return 0
-            h = lam_f * self.hessian(x, exact=self.exact)
+            # the upper triangle straight into CasADi's buffer, then scaled there (the same
+            # products as scaling first: one multiplication per entry)
+            out = np.frombuffer(res[0], dtype=np.float64)
+            np.take(self.hessian(x, exact=self.exact).ravel(), self.flat, out=out)
+            out *= lam_f
             if self.ng:
                 lam_g = (np.zeros(self.ng) if arg[3] is None
                          else np.frombuffer(arg[3], dtype=np.float64))
-                h = h + self.hess_g(x, lam_g).full()
-            np.copyto(np.frombuffer(res[0], dtype=np.float64), h.ravel().take(self.flat))
+                out += self.hess_g(x, lam_g).full().ravel().take(self.flat)
             return 0
 
     return Hess
