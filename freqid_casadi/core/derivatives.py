@@ -410,7 +410,7 @@ class StageFunctions:
             ld = _product_into(self._dden_t, iden[:, None, :], sec, self._sl_den)
             # the blocks need products of two log-derivatives: the sign of -dnum cancels
             self._blk = [(self._ix_num, ln, 1.0), (self._ix_den, ld, -1.0)]
-        self._sq = q
+        self._sq, self._a = q, None
         self._r = q - self._sw
         self._L, self._t2 = lg, None
 
@@ -423,7 +423,7 @@ class StageFunctions:
         # a (2, K) output in column-major order is K interleaved (re, im) pairs; the
         # mapped (2, n) blocks come side by side, so (2, n*M) -> complex (M, n)
         r, sq, ld, ln, t2 = (o.view(complex) for o in self._outs)
-        self._r, self._sq = r.copy(), sq.copy()
+        self._r, self._sq, self._a = r.copy(), sq.copy(), None
         ld, ln = ld.reshape(m, n), ln.reshape(m, n)
         self._L = np.ascontiguousarray((ld - ln).T)
         sln = np.ascontiguousarray(ln[:, 2:].reshape(m, nsec, ns).transpose(1, 2, 0))
@@ -445,7 +445,7 @@ class StageFunctions:
         ndarray of float, shape (n,)
         """
         self._eval(z)
-        a = self._sq.real ** 2 + self._sq.imag ** 2
+        a = self._abs2()
         lg = self._L
         lr, li = self._scratch((lg.shape[0], min(lg.shape[1], _BLOCK_POINTS)), float, 2)
         total = None
@@ -457,6 +457,13 @@ class StageFunctions:
             part = br @ a[sl]
             total = part if total is None else total + part
         return np.sqrt(total)
+
+    def _abs2(self):
+        """``|sqrt_w q|^2`` at the current point, (M,), computed once per point (the column
+        norms and the Hessian both need it; the caller must not write into it)."""
+        if self._a is None:
+            self._a = self._sq.real ** 2 + self._sq.imag ** 2
+        return self._a
 
     def _scratch(self, shape, dtype, count):
         """``count`` scratch arrays of ``shape`` and ``dtype``, allocated once per stage:
@@ -554,7 +561,7 @@ class StageFunctions:
         """
         self._eval(z)
         lg = self._L
-        a = self._sq.real ** 2 + self._sq.imag ** 2                   # |sqrt_w q|^2
+        a = self._abs2()                                              # |sqrt_w q|^2
         c = np.conj(self._r) * self._sq
         if point_weights is not None:
             a, c = a * point_weights, c * point_weights
