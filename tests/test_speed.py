@@ -94,6 +94,12 @@ def test_hessian_scratch_arrays_do_not_leak_between_calls(derivatives):
         np.testing.assert_array_equal(a, b)
     np.testing.assert_array_equal(funcs.hessian(z0), saved[0])
     assert not np.array_equal(h1, saved[0])
+    # what is kept per point (|sqrt_w q|^2, shared by both) follows the point: the values
+    # at z1 reached from z0 are a fresh stage's
+    _, fresh, _ = _stage(200, derivatives=derivatives)
+    np.testing.assert_array_equal(h1, fresh.hessian(z1))
+    funcs.column_norms(z0)
+    np.testing.assert_array_equal(funcs.column_norms(z1), fresh.column_norms(z1))
     # against the products written without scratch arrays
     funcs._eval(z0)
     lg, sq = funcs._L, funcs._sq
