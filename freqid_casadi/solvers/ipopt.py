@@ -382,7 +382,7 @@ def _solve(name, nlp, opts, x0, lb, ub, constrained, lam_x0, cost_of):
     import casadi as ca
 
     t_start = time.perf_counter()
-    if nlp.get("g") is None or int(nlp["g"].numel()) == 0:
+    if not constrained:
         opts = {**opts, "ipopt": {"max_soc": BOUNDS_ONLY_MAX_SOC, **opts.get("ipopt", {})}}
     # one iteration callback: a stage's termination monitor (which also stops on Ctrl-C /
     # SIGTERM), else the interrupt hook alone
