@@ -150,7 +150,8 @@ def test_labview_lvm_tags_are_skipped_with_columns(tmp_path):
         fc.load(path)
     data, notes = _load(path, columns="f,re,im", freq_unit="Hz")
     np.testing.assert_array_equal(data.response, H[1:])
-    assert any("skipped 15 line(s) of metadata before the data" in n for n in notes)
+    # (15 lines before the header: the two ***End_of_Header*** lines are comment lines)
+    assert any("skipped 13 line(s) of metadata before the data" in n for n in notes)
 
 
 def test_key_value_preamble_before_headerless_data(tmp_path):

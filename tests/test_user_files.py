@@ -108,6 +108,48 @@ def test_header_in_the_last_comment_line_is_read(tmp_path, comment):
         load(path)                                 # only the comment right before the data
 
 
+def test_room_eq_wizard_exports_are_read(tmp_path):
+    """Room EQ Wizard writes a preamble of '*' lines whose last names the columns (an SPL in
+    dB, the phase in degrees; some exports put a lone '*' after it), and an impedance as
+    its magnitude in ohms beside the phase."""
+    pre = ("* Measurement data measured by REW V5.20.13\n* Source: ASIO, L, R\n"
+           "* Dated: 03-Dec-2026 10:11:12\n* Smoothing: None\n* Frequency Step: 48 ppo\n*\n")
+    rows = zip(F_HZ.tolist(), DB.tolist(), np.abs(RESP).tolist(), DEG.tolist())
+    spl, ohms = zip(*((f"{f!r} {d!r} {p!r}\n", f"{f!r} {m!r} {p!r}\n") for f, d, m, p in rows))
+    path = tmp_path / "driver.txt"
+    for after in ("", "*\n"):
+        path.write_text(f"{pre}* Freq(Hz) SPL(dB) Phase(degrees)\n{after}{''.join(spl)}",
+                        encoding="latin-1")
+        _same(load(path), rtol=1e-12)
+    path.write_text(f"{pre}* Freq(Hz) Impedance(ohms) Phase(degrees)\n{''.join(ohms)}")
+    _same(load(path), rtol=1e-12)
+
+
+@pytest.mark.parametrize("sep", [" ", "\t", ", "])
+def test_room_eq_wizard_exports_in_other_layouts_and_locales_are_read(tmp_path, sep):
+    """The same export with tabs or ', ' between the columns, Windows line ends, a
+    Windows-1252 preamble, and (space or tab) with decimal commas, as a German locale
+    writes it."""
+    pre = "* Source: LINE_IN (Hauptlautstärke), L\r\n*\r\n"
+    head = sep.join(["* Freq(Hz)", "SPL(dB)", "Phase(degrees)"]) + "\r\n"
+    cells = [[f"{v:.12e}" for v in row] for row in zip(F_HZ, DB, DEG)]
+    path = tmp_path / "rew.txt"
+    for comma in ((False, True) if sep != ", " else (False,)):
+        body = "".join(sep.join(c.replace(".", ",") if comma else c for c in row) + "\r\n"
+                       for row in cells)
+        path.write_bytes((pre + head + body).encode("cp1252"))
+        with pytest.warns(DataWarning, match="read as Windows-1252"):
+            _same(load(path), rtol=1e-10)
+
+
+def test_decimal_commas_need_every_cell_a_number_when_spaces_separate(tmp_path):
+    path = tmp_path / "mixed.txt"
+    path.write_text("f_hz mag_db phase_deg\n1,5 2,0 3\n2,5 2.0 3\n3,5 2,0 3\n")
+    with pytest.raises(DataError, match="decimal commas are read only in a file separated by "
+                                        "semicolons, tabs or spaces with no decimal points"):
+        load(path)
+
+
 def test_headerless_three_columns_say_how_they_are_read(tmp_path):
     path = tmp_path / "h.txt"
     path.write_text("".join(f"{f} {m} {p}\n" for f, m, p in zip(F_HZ, DB, DEG)))

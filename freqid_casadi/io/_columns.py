@@ -34,7 +34,8 @@ _FREQ = {"omega": "rad/s", "w": "rad/s", "f": None, "freq": None, "frequency": N
          "hz": "hz"}
 _RE = {"re", "real"}
 _IM = {"im", "imag", "imaginary"}
-_MAG = {"mag", "magnitude", "abs", "amplitude", "amp", "gain", "modulus"}
+#: (``spl``: a sound pressure level, ``SPL(dB)`` in Room EQ Wizard's exports)
+_MAG = {"mag", "magnitude", "abs", "amplitude", "amp", "gain", "modulus", "spl"}
 _PHASE = {"phase", "phi", "arg", "angle", "ph"}
 _COMPLEX = {"complex", "response", "h", "g", "frf", "z", "h1", "h2", "hv", "txy", "tf",
             "impedance", "admittance"}
@@ -128,8 +129,15 @@ def one_layout(cols):
     imaginary, else a complex column, else magnitude and phase) and the other response
     columns become ``skip`` columns that remember their role (``Column.same``), so that
     the reader checks they agree. Otherwise, or with one layout already, ``cols`` as given.
+    A response named as a complex quantity beside a phase column is its magnitude
+    (``Impedance(ohms)`` and ``Phase(degrees)``, as Room EQ Wizard exports an impedance).
     """
-    if None in cols or _layout_problem(cols) is None:
+    if None in cols:
+        return cols
+    if sorted(c.role for c in cols) == ["complex", "freq", "phase"]:
+        cols = tuple(Column("mag", "lin", c.label) if c.role == "complex" else c
+                     for c in cols)
+    if _layout_problem(cols) is None:
         return cols
     freq = [c for c in cols if c.role == "freq"]
     resp = [c for c in cols if c.role not in ("freq", "skip")]

@@ -25,6 +25,11 @@ _F = r"(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][+-]?\d+)?"
 NUMBER = re.compile(rf"[+-]?(?:{_F}|inf|infinity|nan)", re.ASCII | re.IGNORECASE)
 _CPLX = re.compile(rf"[+-]?{_F}(?:[+-](?:{_F})?j)?|[+-]?(?:{_F})?j", re.ASCII)
 _DECIMAL_COMMA = re.compile(r"(?<=\d),(?=\d)", re.ASCII)
+#: Marks of a comment line: ``#``, ``%`` (MATLAB), ``!`` (Touchstone) and ``*`` (Room EQ
+#: Wizard's and ARTA's exports, FRD files).
+COMMENTS = ("#", "%", "!", "*")
+#: One whitespace-separated cell of a line with decimal commas: ``-14,210``, ``20``, ``1,5e-3``.
+_COMMA_CELL = re.compile(r"[+-]?\d+(?:,\d+)?(?:[eE][+-]?\d+)?", re.ASCII)
 
 
 @dataclass
@@ -145,7 +150,17 @@ def _fallback(path, payload, exc):
 
 
 def _separator(first):
+    if _spaced_commas(first):
+        return None
     return next((sep for sep in (";", "\t", ",") if sep in first), None)
+
+
+def _spaced_commas(text):
+    """True for a line of two or more whitespace-separated numbers written with decimal
+    commas and no points (``20,000 72,431 -14,210``: Room EQ Wizard's export in a German
+    locale); a comma-separated line (``20, 0, 6``, ``1,2,3``) is not one."""
+    cells = text.split()
+    return len(cells) >= 2 and "," in text and all(_COMMA_CELL.fullmatch(c) for c in cells)
 
 
 def _splitter(sep):
@@ -218,8 +233,9 @@ def _content(path, text, max_rows):
     rows, comment = [], None
     for k, line in enumerate(text.split("\n")):
         line = line.rstrip()
-        if line.lstrip().startswith(("#", "%", "!")):
-            comment = (k + 1, line.lstrip()[1:].strip()) if not rows else comment
+        if line.lstrip().startswith(COMMENTS):
+            note = line.lstrip()[1:].strip()
+            comment = (k + 1, note) if not rows and note else comment
         elif line.strip():
             rows.append((k + 1, line))
             if len(rows) > max_rows + 1:
@@ -236,7 +252,7 @@ def _comment_header(rows, comment):
     """``rows`` led by the last comment line before the data when the data have no header
     and that line names every column (``% f [Hz]  Re  Im``, as analysers write)."""
     sep = _separator(rows[0][1])
-    first = _splitter(sep)(rows[0][1])
+    first = _row_cells(rows[0][1])
     if comment is None or not all(_is_value(c) for c in first):
         return rows
     cells = _splitter(sep)(comment[1]) if sep and sep in comment[1] else \
@@ -324,8 +340,8 @@ def _parse_cell(table_path, line, col, cell):
     if "_" in cell or any(ord(ch) > 127 for ch in cell):
         hint = " (only ASCII decimal numbers such as 1.5e-3 are read)"
     elif "," in cell:
-        hint = (" (decimal commas are read only in a file separated by semicolons or tabs "
-                "with no decimal points; save the file with decimal points)")
+        hint = (" (decimal commas are read only in a file separated by semicolons, tabs or "
+                "spaces with no decimal points; save the file with decimal points)")
     what = "a complex number like 1+2j" if col.role == "complex" else "a number"
     raise DataError(f"{table_path!r} line {line}, column {col.label!r}: {shown_cell(cell)} is not "
                     f"{what}{hint}")
@@ -333,12 +349,16 @@ def _parse_cell(table_path, line, col, cell):
 
 def _decimal_commas(rows, sep):
     """``rows`` with decimal commas (``0,5``) written as points, when the separator is a
-    semicolon or a tab (a European spreadsheet's export) and no row holding one also holds
-    a point (which would make the comma a thousands separator); else ``rows`` unchanged."""
-    if sep not in (";", "\t"):
+    semicolon or a tab (a European spreadsheet's export), or whitespace with every row
+    holding one made of numbers only (:func:`_spaced_commas`), and no row holding one also
+    holds a point (which would make the comma a thousands separator); else ``rows``
+    unchanged."""
+    if sep not in (";", "\t", None):
         return rows
     marked = [bool(_DECIMAL_COMMA.search(text)) for _, text in rows]
     if not any(marked) or any(m and "." in text for m, (_, text) in zip(marked, rows)):
+        return rows
+    if sep is None and not all(_spaced_commas(t) for m, (_, t) in zip(marked, rows) if m):
         return rows
     return [(k, _DECIMAL_COMMA.sub(".", text)) for k, text in rows]
 
@@ -366,7 +386,7 @@ def _row_cells(text):
     """Cells of one line split by its own separator (decimal commas read as points in a
     semicolon- or tab-separated line)."""
     sep = _separator(text)
-    if sep in (";", "\t") and "." not in text:
+    if sep in (";", "\t") and "." not in text or sep is None and _spaced_commas(text):
         text = _DECIMAL_COMMA.sub(".", text)
     return _splitter(sep)(text)
 

@@ -138,9 +138,10 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None):
         Text in UTF-8 (a leading byte-order mark is accepted), UTF-16 with a byte-order
         mark, the encoding the file declares (``# encoding: ...``), else Windows-1252 /
         Latin-1 (a fallback is stated by a DataWarning). Separator: semicolon, tab, comma
-        or whitespace, taken from the data rows. Lines starting with ``#``, ``%`` or ``!``
-        and blank lines are skipped; metadata lines before the header (an analyser's
-        preamble) are skipped with a DataWarning.
+        or whitespace, taken from the data rows; decimal commas in a file separated by
+        semicolons, tabs or spaces without decimal points. Lines starting with ``#``, ``%``,
+        ``!`` or ``*`` (Room EQ Wizard) and blank lines are skipped; metadata lines before
+        the header (an analyser's preamble) are skipped with a DataWarning.
     name : str, optional
         Name of the data (default: the file's stem).
     freq_unit : {"Hz", "rad/s"}, optional
@@ -180,10 +181,11 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None):
     of numbers) the nearest line that names every column is the header; the lines before
     it are a preamble (``Units: Ratio``, channel lines, as SignalCalc exports) and a line
     between it and the data whose first word is a frequency unit (``Hz  (m/s²)(N)``) gives
-    the units; headerless data take the last comment
-    line before them as header when it names every column (``% f [Hz]  Re  Im``). Decimal
-    commas are read in a semicolon- or tab-separated file without decimal points; rows in
-    descending frequency order are reversed (with a :class:`DataWarning`). Header
+    the units; headerless data take the last non-empty comment line before them as
+    header when it names every column (``% f [Hz]  Re  Im``, ``* Freq(Hz) SPL(dB)
+    Phase(degrees)``). Decimal commas are read in a semicolon-, tab- or space-separated
+    file without decimal points; rows in descending frequency order are reversed (with a
+    :class:`DataWarning`). Header
     ``omega,real,imag`` and ``omega,magnitude_db,phase_deg`` are the layouts
     :func:`save_csv` and earlier versions wrote. A headerless file with three columns is
     frequency, real, imaginary; with two columns of which the second holds complex
