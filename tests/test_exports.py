@@ -215,7 +215,8 @@ def test_cli_band_and_parameter_reach_the_reader(tmp_path, capsys):
     for bad in ("5:2", "abc", "1", "1:inf"):
         with pytest.raises(SystemExit):
             _parser().parse_args(["--band", bad])
-    with pytest.raises(OptionError, match="--parameter chooses a parameter of a Touchstone"):
+    with pytest.raises(OptionError, match="parameter='S21' chooses an S-parameter of a "
+                                          "Touchstone file or of a table whose columns"):
         cli_common.load_data(_parser().parse_args(["--parameter", "S21"]), str(path))
 
 

@@ -217,9 +217,56 @@ def test_cli_record_and_parameter_are_refused_for_other_files(tmp_path):
     path.write_text(_table(","))
     with pytest.raises(OptionError, match="--record chooses a record of a UFF file"):
         cli_common.load_data(_args(path, "--record", "0"), str(path))
-    with pytest.raises(OptionError, match="--parameter chooses a parameter of a Touchstone"):
+    with pytest.raises(OptionError, match="parameter='S21' chooses an S-parameter of a "
+                                          "Touchstone file or of a table whose columns name "
+                                          "them; .*d.csv.: its columns name no S-parameter"):
         cli_common.load_data(_args(path, "--parameter", "S21"), str(path))
+    mat = tmp_path / "d.mat"
+    with pytest.raises(OptionError, match="--parameter chooses a parameter of a Touchstone"):
+        cli_common.load_data(_args(mat, "--parameter", "S21"), str(mat))
     assert cli.main(["fit", str(path), "--sections", "1", "--out", "r", "--record", "-1"]) == 2
+
+
+KEYSIGHT = ("!CSV A.01.01\r\n!Keysight Technologies,N5247B,US00000000,A.17.30.08\r\n"
+            "!Date: Friday, September 11, 2026 14:48:21\r\n!Source: Standard\r\n\r\n"
+            "BEGIN CH1_DATA\r\n{header}\r\n{rows}END\r\n\r\n")
+
+
+def _keysight(tmp_path, header, columns):
+    rows = "".join(",".join(f"{v!r}" for v in row) + "\r\n"
+                   for row in zip(F_HZ.tolist(), *(np.asarray(c).tolist() for c in columns)))
+    path = tmp_path / "vna.csv"
+    path.write_text(KEYSIGHT.format(header=header, rows=rows), newline="")
+    return path
+
+
+@pytest.mark.filterwarnings("ignore::freqid_casadi.io.loaders.DataWarning")
+def test_network_analyser_csv_reads_the_s_parameter_asked_for(tmp_path):
+    """A Keysight network analyser's CSV (``!`` lines, BEGIN CH1_DATA ... END) of four
+    S-parameters: without parameter= the error names them and the option; with it, that
+    one is read (the command line's --parameter too)."""
+    other = 0.5 * RESP
+    path = _keysight(tmp_path, "Freq(Hz),S21(REAL),S21(IMAG),S11(REAL),S11(IMAG),S22(REAL),"
+                     "S22(IMAG),S12(REAL),S12(IMAG)",
+                     [RESP.real, RESP.imag] + [other.real, other.imag] * 3)
+    with pytest.raises(DataError, match=r"its columns give 4 S-parameters \(S21, S11, S22, "
+                                        r"S12\): pass parameter='S21' \(command line "
+                                        r"--parameter S21\)"):
+        load(path)
+    with pytest.warns(DataWarning, match="after the data"):
+        _same(load(path, parameter="S21"), rtol=1e-15)
+        np.testing.assert_allclose(load(path, parameter="s11").response, other, rtol=1e-15)
+        _same(cli_common.load_data(_args(path, "--parameter", "S21"), str(path)), rtol=1e-15)
+    with pytest.raises(OptionError, match="vna.csv': its columns name S21, S11, S22, S12"):
+        load(path, parameter="S31")
+
+
+@pytest.mark.parametrize("header", ["Freq(Hz),S21 Log Mag(dB),S21 Phase(deg)",
+                                    "Freq(Hz),S21(DB),S21(DEG)"])
+def test_network_analyser_csv_in_log_magnitude_and_phase(tmp_path, header):
+    path = _keysight(tmp_path, header, [DB, DEG])
+    with pytest.warns(DataWarning):
+        _same(load(path), rtol=1e-12)
 
 
 def test_fit_help_tells_the_formats_and_how_to_declare_units(capsys):

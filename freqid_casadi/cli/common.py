@@ -30,7 +30,7 @@ from ..fitting.verdict import ROUNDING_RMS
 from ..io import NUMBER, decode_text, parse_columns, read_regular_file
 from ..report.formatting import number
 from ..core.data import FrequencyData
-from ..io.loaders import DataWarning, is_touchstone, load
+from ..io.loaders import DataWarning, load
 from ..errors import DataError, OptionError
 from ..options import solver_options
 
@@ -109,7 +109,8 @@ def add_data_options(parser, records=False):
             "--parameter", metavar="S21",
             help="Touchstone file (.s1p, .s2p, ..., .sNp, or version 2 .ts): which "
                  "parameter (default S11; S21 is the transfer from port 1 to port 2; S10,11 "
-                 "for ten and more ports)")
+                 "for ten and more ports); also which S-parameter of a network analyser's "
+                 "CSV whose header names several (S21(REAL),S21(IMAG),S11(REAL),...)")
         parser.add_argument(
             "--weights", metavar="STATS.csv",
             help="weights of the data's frequencies: the <stem>.stats.csv that 'freqid frf' "
@@ -232,9 +233,10 @@ def load_data(args, path):
     if "record" in opts and not lower.endswith((".uff", ".unv", ".uf")):
         raise OptionError(f"--record chooses a record of a UFF file (.uff/.unv), not of "
                           f"{path!r}; drop it")
-    if "parameter" in opts and not is_touchstone(lower):
+    if "parameter" in opts and lower.endswith((".npz", ".mat", ".uff", ".unv", ".uf")):
         raise OptionError(f"--parameter chooses a parameter of a Touchstone file "
-                          f"(.s1p, .s2p, ..., .sNp, .ts), not of {path!r}; drop it")
+                          f"(.s1p, .s2p, ..., .sNp, .ts) or of a text table whose header "
+                          f"names S-parameters, not of {path!r}; drop it")
     with notes_to_stderr():
         data = load(path, **opts)
     weights = getattr(args, "weights", None)

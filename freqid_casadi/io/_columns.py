@@ -12,7 +12,8 @@ from dataclasses import dataclass
 from ..errors import OptionError
 
 __all__ = ["Column", "recognise", "parse_columns", "parse_freq_unit", "COLUMN_HELP",
-           "one_layout", "columns_option", "one_channel"]
+           "one_layout", "columns_option", "one_channel", "sparameter_of",
+           "with_parameter"]
 
 #: A channel or trace number before a column's name: ``Channel 2 Phase (deg)``, ``Ch1 Re``
 #: (``_CHANNEL``: the number and the name after it).
@@ -39,6 +40,11 @@ _MAG = {"mag", "magnitude", "abs", "amplitude", "amp", "gain", "modulus", "spl"}
 _PHASE = {"phase", "phi", "arg", "angle", "ph"}
 _COMPLEX = {"complex", "response", "h", "g", "frf", "z", "h1", "h2", "hv", "txy", "tf",
             "impedance", "admittance"}
+#: A network analyser's scattering parameter (``S21``), a complex response like ``_COMPLEX``.
+_SPARAM = re.compile(r"s\d\d")
+#: A response's display format after its name, as Keysight's network analysers write a trace
+#: (``S21 Log Mag(dB)``, ``S21 Lin Mag(U)``, ``S21 Phase(deg)``, ``S21 Real(U)``).
+_FORMAT = re.compile(r"^(.+?)_(log_mag|lin_mag|phase|real|imag)$")
 _SKIP = {"skip", "_", "-", "ignore", "coherence", "coh"}
 _LAYOUTS = ({"freq", "re", "im"}, {"freq", "mag", "phase"}, {"freq", "complex"})
 
@@ -89,6 +95,11 @@ def recognise(label):
                 break
     unit = unit.replace(" ", "").replace("_", "/") if "/" in unit or unit in (
         "rad_s", "rad_sample") else unit.replace(" ", "")
+    if _SPARAM.fullmatch(s):
+        s = "response"
+    fmt = _FORMAT.match(s)
+    if fmt and (fmt.group(1) in _COMPLEX | _MAG or _SPARAM.fullmatch(fmt.group(1))):
+        return _formatted(fmt.group(2), _UNITS.get(unit, "lin"), label.strip())
     if unit not in _UNITS:       # a physical unit ("Real [g/N]") scales re, im and |H|
         if s not in _RE | _IM | _COMPLEX | _MAG:
             return None
@@ -113,11 +124,54 @@ def recognise(label):
     return None
 
 
+def sparameter_of(label):
+    """The scattering parameter a column's label names, lower case (``"s21"`` of
+    ``S21(REAL)`` or ``S21 Log Mag(dB)``), or None."""
+    m = re.match(r"\s*[\"']?\s*(s\d\d)(?![\d])", label, re.IGNORECASE)
+    return m.group(1).lower() if m else None
+
+
+def with_parameter(cols, parameter, where):
+    """``cols`` with the response columns of the S-parameter ``parameter`` kept and every
+    other response column skipped; ``where`` names the file for the error.
+
+    Raises
+    ------
+    OptionError
+        ``parameter`` is not one the columns name (the message lists those they name).
+    """
+    want = str(parameter).strip().lower().replace(",", "").replace("_", "")
+    named = list(dict.fromkeys(p for p in map(sparameter_of, (c.label for c in cols)) if p))
+    if want not in named:
+        what = (f"its columns name {', '.join(p.upper() for p in named)}" if named else
+                "its columns name no S-parameter (S21(REAL), S21 Log Mag(dB), ...)")
+        raise OptionError(f"parameter={parameter!r} chooses an S-parameter of a Touchstone "
+                          f"file or of a table whose columns name them; {where}: {what}")
+    return tuple(c if c.role in ("freq", "skip") or sparameter_of(c.label) == want
+                 else Column("skip", None, c.label) for c in cols)
+
+
+def _formatted(fmt, unit, name):
+    """The column of a response named with its display format (:data:`_FORMAT`), or None
+    when the unit contradicts it; ``unit``: the label's unit read as a key of ``_UNITS``
+    (a physical unit, ``U``: "lin")."""
+    if fmt in ("real", "imag"):
+        return Column("re" if fmt == "real" else "im", None, name) if unit not in (
+            "db", "deg", "rad") else None
+    if fmt == "phase":
+        return Column("phase", unit, name) if unit in (None, "deg", "rad") else None
+    if fmt == "log_mag":
+        return Column("mag", "db", name) if unit in (None, "db") else None
+    return Column("mag", "lin", name) if unit in (None, "lin") else None
+
+
 def _quantity(label):
-    """The measured quantity a response column names: ``gain`` of ``TR2: Gain (Degree)``."""
+    """The measured quantity a response column names: ``gain`` of ``TR2: Gain (Degree)``,
+    ``s21`` of ``S21 Log Mag(dB)``."""
     s = label.rpartition(":")[2].strip().strip("\"'").lower()
     m = _UNIT_RE.match(s)
-    return (m.group(1) if m else s).strip()
+    s = (m.group(1) if m else s).strip()
+    return re.sub(r"[\s_\-]+(log[\s_\-]*mag|lin[\s_\-]*mag|phase|real|imag)$", "", s).strip()
 
 
 def one_layout(cols):

@@ -14,7 +14,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._columns import (_UNITS, COLUMN_HELP, Column, _layout_problem, columns_option,
-                       one_channel, one_layout, parse_columns, parse_freq_unit, recognise)
+                       one_channel, one_layout, parse_columns, parse_freq_unit, recognise,
+                       sparameter_of, with_parameter)
 from ._readfile import DataWarning
 from ..errors import DataError
 
@@ -263,8 +264,11 @@ def _comment_header(rows, comment):
     return [(comment[0], (sep or " ").join(cells))] + rows
 
 
-def _header_columns(path, cells):
-    cols = one_layout([recognise(_clean(c)) for c in cells])
+def _header_columns(path, cells, parameter=None):
+    cols = [recognise(_clean(c)) for c in cells]
+    if parameter is not None and None not in cols:
+        cols = with_parameter(cols, parameter, repr(path))
+    cols = one_layout(cols)
     problem = None
     if any(c is None for c in cols):
         bad = cells[[c is None for c in cols].index(True)]
@@ -275,6 +279,11 @@ def _header_columns(path, cells):
         if choice:
             problem += (f"; to read channel {choice[0]}, the one whose columns make a "
                         f"response, pass columns='{choice[1]}'")
+        named = list(dict.fromkeys(p.upper() for p in map(sparameter_of, cells) if p))
+        if problem and len(named) > 1:
+            problem += (f"; its columns give {len(named)} S-parameters ({', '.join(named)}): "
+                        f"pass parameter='{named[0]}' (command line --parameter "
+                        f"{named[0]}) to read one")
     if problem:
         raise DataError(
             f"{path!r}: unrecognised header {','.join(_clean(c) for c in cells)!r} "
@@ -536,7 +545,7 @@ def _note_units(path, between, cells):
                   f"{', '.join(cells)}", DataWarning, stacklevel=5)
 
 
-def read_table(path, payload, columns, freq_unit, max_rows):
+def read_table(path, payload, columns, freq_unit, max_rows, parameter=None):
     """Parse delimited UTF-8 text into a :class:`Table` (see ``loaders.load_text``)."""
     rows = _footer(path, _preamble(path, _content(path, decode_text(path, payload),
                                                   max_rows), columns))
@@ -550,9 +559,11 @@ def read_table(path, payload, columns, freq_unit, max_rows):
     if columns is not None:
         cols = columns
     elif header:
-        cols = _header_columns(path, first)
+        cols = _header_columns(path, first, parameter)
     else:
         cols = _default_columns(path, first)
+    if parameter is not None and not (header and columns is None):
+        with_parameter(cols, parameter, repr(path))     # (raises: no header names one)
     if header:
         rows = rows[1:]
         if not rows:

@@ -69,7 +69,9 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
         responses are skipped).
     parameter : str, optional
         For a Touchstone file (``.sNp`` of any number of ports, or a Touchstone 2.0
-        ``.ts``): which parameter (default S11), e.g. "S21".
+        ``.ts``): which parameter (default S11), e.g. "S21". For a text table whose
+        header names S-parameters (a network analyser's CSV: ``S21(REAL)``, ``S21(IMAG)``,
+        ``S11(REAL)``, ...): which one to read (see :func:`load_text`).
     band : (float, float), optional
         Keep only the points with ``lo <= f <= hi``, in the file's frequency unit (Hz for a
         header ``Frequency (Hz)`` or a unit line ``Hz``, rad/s for ``omega``, the option
@@ -126,10 +128,11 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
                             f"{len(found)} record(s), numbered 0..{len(found) - 1}")
         data = found[record]
         return data if name is None else FrequencyData(data.omega, data.response, name)
-    return load_text(path, name, freq_unit=freq_unit, columns=cols, band=band)
+    return load_text(path, name, freq_unit=freq_unit, columns=cols, band=band,
+                     parameter=parameter)
 
 
-def load_text(path, name=None, *, freq_unit=None, columns=None, band=None):
+def load_text(path, name=None, *, freq_unit=None, columns=None, band=None, parameter=None):
     """Read frequency-response data from delimited text.
 
     Parameters
@@ -159,6 +162,11 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None):
         - ``skip`` for a column to ignore.
     band : (float, float), optional
         Keep only the rows with ``lo <= f <= hi`` in the file's frequency unit.
+    parameter : str, optional
+        The S-parameter to read from a header that names several (``"S21"`` of a network
+        analyser's ``Freq(Hz),S21(REAL),S21(IMAG),S11(REAL),...``; ``S21(DB)``,
+        ``S21 Log Mag(dB)``, ``S21 Phase(deg)`` are read too); the other responses'
+        columns are skipped.
 
     Returns
     -------
@@ -173,6 +181,8 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None):
         ``freq_unit``, wrong column count, a cell that is not an ASCII decimal number
         (``1_0`` and non-ASCII digits are refused), non-finite values, dB values that
         overflow, negative or unsorted frequencies, zero responses.
+    OptionError
+        ``parameter`` is not one of the S-parameters the header names.
 
     Notes
     -----
@@ -194,7 +204,7 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None):
     band = parse_band(band)
     path, payload = read_regular_file(path)
     table = read_table(path, payload, parse_columns(columns), parse_freq_unit(freq_unit),
-                       max_rows=MAX_ROWS)
+                       max_rows=MAX_ROWS, parameter=parameter)
     omega, response = table_response(table)
     unit = "rad/sample" if table.unit("freq") == "rad/sample" else "rad/s"
     return _finish(path, omega, response, name, lines=table.lines, unit=unit, band=band,
