@@ -269,6 +269,27 @@ def test_network_analyser_csv_in_log_magnitude_and_phase(tmp_path, header):
         _same(load(path), rtol=1e-12)
 
 
+@pytest.mark.parametrize("encoding", ["cp1252", "utf-16"])
+def test_ltspice_ac_export_is_read_in_hz(tmp_path, encoding):
+    """LTspice's 'Export data as text' of an AC analysis: 'Freq.' (Hz) and one column per
+    trace, polar (dB and degrees) or Cartesian; two traces need columns= to pick one."""
+    rows = list(zip(F_HZ.tolist(), DB.tolist(), DEG.tolist(), RESP.tolist()))
+    polar = "".join(f"{f:.14e}\t({d:.14e}dB,{p:.14e}\u00b0)\n" for f, d, p, _ in rows)
+    cartesian = "".join(f"{f:.14e}\t{z.real:.14e},{z.imag:.14e}\n" for f, _, _, z in rows)
+    path = tmp_path / "ac.txt"
+    for trace, body in (("V(out)", polar), ("V(out)/V(in)", cartesian), ("I(R1)", polar)):
+        path.write_bytes(f"Freq.\t{trace}\n{body}".encode(encoding))
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DataWarning)      # (Windows-1252: a note)
+            _same(load(path), rtol=1e-12)
+    two = "".join(f"{line}\t(0.0e+000dB,0.0e+000\u00b0)\n" for line in polar.splitlines())
+    path.write_bytes(f"Freq.\tV(out)\tV(in)\n{two}".encode(encoding))
+    with pytest.raises(DataError, match="columns='freq_hz,complex,skip'"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DataWarning)
+            load(path)
+
+
 def test_fit_help_tells_the_formats_and_how_to_declare_units(capsys):
     assert cli.main(["fit", "--help"]) == 0
     text = " ".join(capsys.readouterr().out.split())

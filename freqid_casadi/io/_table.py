@@ -6,7 +6,9 @@ ASCII decimal literals only: Python's ``float`` would also take ``1_0`` and non-
 digits, which a data file never means.
 """
 
+import cmath
 import codecs
+import math
 import re
 import warnings
 from dataclasses import dataclass
@@ -29,6 +31,15 @@ _DECIMAL_COMMA = re.compile(r"(?<=\d),(?=\d)", re.ASCII)
 #: Marks of a comment line: ``#``, ``%`` (MATLAB), ``!`` (Touchstone) and ``*`` (Room EQ
 #: Wizard's and ARTA's exports, FRD files).
 COMMENTS = ("#", "%", "!", "*")
+#: LTspice's export of an AC analysis: a polar cell ``(<dB>dB,<deg>°)`` (the degree sign
+#: in any encoding's reading), a Cartesian cell ``<re>,<im>`` (both in exponent form, as
+#: LTspice writes them: a decimal comma ``1,5`` is not one), and a trace name ``V(out)``,
+#: ``I(R1)``, ``V(out)/V(in)`` beside the header's ``Freq.`` (Hz).
+_LT_POLAR = re.compile(rf"\(\s*([+-]?{_F})\s*(dB)?\s*,\s*([+-]?{_F})\s*[^\d\s,()]{{1,2}}\s*\)",
+                       re.ASCII)
+_LT_CARTESIAN = re.compile(r"([+-]?\d+\.\d*[eE][+-]?\d+),([+-]?\d+\.\d*[eE][+-]?\d+)",
+                           re.ASCII)
+_LT_TRACE = re.compile(r"[VI][a-z]?\(.+\).*", re.IGNORECASE)
 #: One whitespace-separated cell of a line with decimal commas: ``-14,210``, ``20``, ``1,5e-3``.
 _COMMA_CELL = re.compile(r"[+-]?\d+(?:,\d+)?(?:[eE][+-]?\d+)?", re.ASCII)
 
@@ -222,7 +233,21 @@ def _complex_text(cell):
 
 def _is_value(cell):
     cell = _clean(cell)
-    return bool(NUMBER.fullmatch(cell) or _CPLX.fullmatch(_complex_text(cell)))
+    return bool(NUMBER.fullmatch(cell) or _CPLX.fullmatch(_complex_text(cell))
+                or _ltspice_value(cell) is not None)
+
+
+def _ltspice_value(cell):
+    """The complex number of an LTspice export's cell, or None: polar ``(-6.02e+000dB,
+    -1.80e+002°)`` (dB or, without it, linear magnitude; the phase in degrees) or
+    Cartesian ``-5.0e-001,-6.1e-017``."""
+    m = _LT_POLAR.fullmatch(cell)
+    if m:
+        mag = float(m.group(1))
+        mag = 10.0 ** (mag / 20.0) if m.group(2) else mag
+        return complex(mag * cmath.exp(1j * math.radians(float(m.group(3)))))
+    m = _LT_CARTESIAN.fullmatch(cell)
+    return complex(float(m.group(1)), float(m.group(2))) if m else None
 
 
 def shown_cell(cell):
@@ -266,6 +291,12 @@ def _comment_header(rows, comment):
 
 def _header_columns(path, cells, parameter=None):
     cols = [recognise(_clean(c)) for c in cells]
+    if _clean(cells[0]) == "Freq." and len(cells) > 1 \
+            and all(_LT_TRACE.fullmatch(_clean(c)) for c in cells[1:]):
+        # LTspice's export of an AC analysis: frequencies in Hz, each trace one complex
+        # column (polar dB and degrees, or Cartesian)
+        cols = [Column("freq", "hz", "Freq.")] + [Column("complex", None, _clean(c))
+                                                  for c in cells[1:]]
     if parameter is not None and None not in cols:
         cols = with_parameter(cols, parameter, repr(path))
     cols = one_layout(cols)
@@ -343,6 +374,9 @@ def _parse_cell(table_path, line, col, cell):
         text = _complex_text(cell)
         if _CPLX.fullmatch(text):
             return complex(text)
+        value = _ltspice_value(cell)
+        if value is not None:
+            return value
     elif NUMBER.fullmatch(cell):
         return float(cell)
     hint = ""
