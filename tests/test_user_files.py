@@ -125,6 +125,16 @@ def test_room_eq_wizard_exports_are_read(tmp_path):
     _same(load(path), rtol=1e-12)
 
 
+@pytest.mark.parametrize("header", ["Freq[Hz]     dBSPL  Phase[Deg]",
+                                    "f [Hz]\tdB SPL\tPhase [deg]"])
+def test_a_level_in_db_spl_is_a_magnitude_in_db(tmp_path, header):
+    path = tmp_path / "spl.frd"
+    sep = "\t" if "\t" in header else " "
+    path.write_text(header + "\n" + "".join(f"{f!r}{sep}{d!r}{sep}{p!r}\n" for f, d, p in zip(
+        F_HZ.tolist(), DB.tolist(), DEG.tolist())))
+    _same(load(path), rtol=1e-12)
+
+
 @pytest.mark.parametrize("sep", [" ", "\t", ", "])
 def test_room_eq_wizard_exports_in_other_layouts_and_locales_are_read(tmp_path, sep):
     """The same export with tabs or ', ' between the columns, Windows line ends, a

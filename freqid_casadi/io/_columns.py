@@ -37,6 +37,8 @@ _RE = {"re", "real"}
 _IM = {"im", "imag", "imaginary"}
 #: (``spl``: a sound pressure level, ``SPL(dB)`` in Room EQ Wizard's exports)
 _MAG = {"mag", "magnitude", "abs", "amplitude", "amp", "gain", "modulus", "spl"}
+#: A magnitude in decibels named by its unit alone (``dB``, ``dBSPL`` as ARTA writes it).
+_DB = {"db", "dbspl", "db_spl", "dbv", "dbu", "dbr"}
 _PHASE = {"phase", "phi", "arg", "angle", "ph"}
 _COMPLEX = {"complex", "response", "h", "g", "frf", "z", "h1", "h2", "hv", "txy", "tf",
             "impedance", "admittance"}
@@ -116,9 +118,9 @@ def recognise(label):
         return Column("skip", None, name)
     if s in _RE | _IM | _COMPLEX and unit is None:
         return Column("re" if s in _RE else "im" if s in _IM else "complex", None, name)
-    if s == "db" and unit is None or s in _MAG and unit in (None, "db", "lin") \
+    if s in _DB and unit is None or s in _MAG and unit in (None, "db", "lin") \
             or s in _COMPLEX and unit in ("db", "lin"):
-        return Column("mag", "db" if s == "db" or unit == "db" else "lin", name)
+        return Column("mag", "db" if s in _DB or unit == "db" else "lin", name)
     if s in _PHASE and unit in (None, "deg", "rad"):
         return Column("phase", unit, name)
     return None
