@@ -225,7 +225,9 @@ def test_cli_record_chooses_a_uff_record(tmp_path):
 def test_cli_record_and_parameter_are_refused_for_other_files(tmp_path):
     path = tmp_path / "d.csv"
     path.write_text(_table(","))
-    with pytest.raises(OptionError, match="--record chooses a record of a UFF file"):
+    with pytest.raises(OptionError, match="record=0 chooses a record of a UFF file or a run "
+                                          "of an LTspice export with .step runs; .*d.csv. "
+                                          "has none"):
         cli_common.load_data(_args(path, "--record", "0"), str(path))
     with pytest.raises(OptionError, match="parameter='S21' chooses an S-parameter of a "
                                           "Touchstone file or of a table whose columns name "
@@ -298,6 +300,27 @@ def test_ltspice_ac_export_is_read_in_hz(tmp_path, encoding):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DataWarning)
             load(path)
+
+
+def test_ltspice_step_runs_are_chosen_by_record(tmp_path):
+    """An AC analysis with .step writes a 'Step Information' line before each run: one run
+    is read as it is, several need record= (--record), and the error lists them."""
+    def run(z):
+        return "".join(f"{f:.14e}\t{v.real:.14e},{v.imag:.14e}\n"
+                       for f, v in zip(F_HZ.tolist(), z.tolist()))
+    path = tmp_path / "stepped.txt"
+    path.write_text("Freq.\tV(out)\nStep Information: R=1k  (Step: 1/1)\n" + run(RESP))
+    _same(load(path), rtol=1e-12)
+    path.write_text("Freq.\tV(out)\nStep Information: R=1k  (Step: 1/2)\n" + run(2 * RESP)
+                    + "Step Information: R=2k  (Step: 2/2)\n" + run(RESP))
+    with pytest.raises(DataError, match=r"holds 2 runs of an LTspice .step \(0: R=1k; 1: R=2k\)"
+                                        r": pass record=0..1 to load\(\) \(command line "
+                                        r"--record K\)"):
+        load(path)
+    _same(load(path, record=1), rtol=1e-12)
+    _same(cli_common.load_data(_args(path, "--record", "1"), str(path)), rtol=1e-12)
+    with pytest.raises(OptionError, match="record=2 is out of range"):
+        load(path, record=2)
 
 
 def test_fit_help_tells_the_formats_and_how_to_declare_units(capsys):

@@ -30,7 +30,7 @@ from ..fitting.verdict import ROUNDING_RMS
 from ..io import NUMBER, decode_text, parse_columns, read_regular_file
 from ..report.formatting import number
 from ..core.data import FrequencyData
-from ..io.loaders import DataWarning, load
+from ..io.loaders import DataWarning, is_touchstone, load
 from ..errors import DataError, OptionError
 from ..options import solver_options
 
@@ -104,7 +104,7 @@ def add_data_options(parser, records=False):
             "--record", type=_record, metavar="K",
             help="UFF file (.uff/.unv) with several frequency-response records: which one "
                  "(0-based, counting only the FRF records; coherences and spectra are "
-                 "skipped)")
+                 "skipped); also which run of an LTspice export with .step runs")
         parser.add_argument(
             "--parameter", metavar="S21",
             help="Touchstone file (.s1p, .s2p, ..., .sNp, or version 2 .ts): which "
@@ -230,9 +230,9 @@ def load_data(args, path):
     """
     opts = load_options(args)
     lower = str(path).lower()
-    if "record" in opts and not lower.endswith((".uff", ".unv", ".uf")):
-        raise OptionError(f"--record chooses a record of a UFF file (.uff/.unv), not of "
-                          f"{path!r}; drop it")
+    if "record" in opts and (lower.endswith((".npz", ".mat")) or is_touchstone(lower)):
+        raise OptionError(f"--record chooses a record of a UFF file (.uff/.unv) or a run of "
+                          f"an LTspice export with .step runs, not of {path!r}; drop it")
     if "parameter" in opts and lower.endswith((".npz", ".mat", ".uff", ".unv", ".uf")):
         raise OptionError(f"--parameter chooses a parameter of a Touchstone file "
                           f"(.s1p, .s2p, ..., .sNp, .ts) or of a text table whose header "

@@ -19,7 +19,7 @@ from ._columns import (_UNITS, COLUMN_HELP, Column, _layout_problem, columns_opt
                        one_channel, one_layout, parse_columns, parse_freq_unit, recognise,
                        sparameter_of, with_parameter)
 from ._readfile import DataWarning
-from ..errors import DataError
+from ..errors import DataError, OptionError
 
 __all__ = ["Column", "Table", "parse_columns", "parse_freq_unit", "read_table",
            "table_response", "COLUMN_HELP"]
@@ -40,6 +40,9 @@ _LT_POLAR = re.compile(rf"\(\s*([+-]?{_F})\s*(dB)?\s*,\s*([+-]?{_F})\s*[^\d\s,()
 _LT_CARTESIAN = re.compile(r"([+-]?\d+\.\d*[eE][+-]?\d+),([+-]?\d+\.\d*[eE][+-]?\d+)",
                            re.ASCII)
 _LT_TRACE = re.compile(r"[VI][a-z]?\(.+\).*", re.IGNORECASE)
+#: The line before each run of an LTspice export with ``.step`` (``.mc``: ``Run: 1/100``).
+_LT_STEP = re.compile(r"\s*Step Information:\s*(.*?)\s*(?:\(\s*(?:Step|Run):\s*\d+\s*/\s*"
+                      r"\d+\s*\))?\s*$", re.IGNORECASE)
 #: One whitespace-separated cell of a line with decimal commas: ``-14,210``, ``20``, ``1,5e-3``.
 _COMMA_CELL = re.compile(r"[+-]?\d+(?:,\d+)?(?:[eE][+-]?\d+)?", re.ASCII)
 
@@ -541,6 +544,38 @@ _END = re.compile(r"^\s*(?:\[.*\]|\**\s*end\b.*|[^,;\t\d.+-][^,;\t]{0,59}?\s*[:=
                   re.IGNORECASE)
 
 
+def _one_run(path, rows, record):
+    """``rows`` of one run of an LTspice export with ``.step`` runs (a ``Step Information:
+    Hu=40 T=0  (Step: 1/2)`` line before each): run ``record`` (0-based; the only one when
+    None). ``rows`` unchanged when it has no such line.
+
+    Raises
+    ------
+    DataError
+        Several runs and no ``record``: the message lists them.
+    OptionError
+        ``record`` out of range, or given for a file without runs.
+    """
+    marks = [k for k, (_, text) in enumerate(rows) if _LT_STEP.match(text)]
+    if not marks:
+        if record is not None:
+            raise OptionError(f"record={record!r} chooses a record of a UFF file or a run of "
+                              f"an LTspice export with .step runs; {path!r} has none: drop it")
+        return rows
+    runs = [rows[a + 1:b] for a, b in zip(marks, marks[1:] + [len(rows)])]
+    names = [_LT_STEP.match(rows[k][1]).group(1) or f"run {j + 1}" for j, k in enumerate(marks)]
+    if record is None and len(runs) > 1:
+        shown = "; ".join(f"{j}: {n}" for j, n in enumerate(names[:6]))
+        raise DataError(f"{path!r} holds {len(runs)} runs of an LTspice .step ({shown}"
+                        f"{'; ...' if len(runs) > 6 else ''}): pass record=0..{len(runs) - 1} "
+                        "to load() (command line --record K) to read one")
+    k = 0 if record is None else record
+    if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(runs):
+        raise OptionError(f"record={record!r} is out of range: {path!r} holds {len(runs)} "
+                          f"run(s), numbered 0..{len(runs) - 1}")
+    return rows[:marks[0]] + runs[k]
+
+
 def _footer(path, rows):
     """``rows`` without up to 5 closing lines after the data that are no data (``[End]``,
     ``End of data``, ``Key: value``), stated by a DataWarning."""
@@ -579,10 +614,10 @@ def _note_units(path, between, cells):
                   f"{', '.join(cells)}", DataWarning, stacklevel=5)
 
 
-def read_table(path, payload, columns, freq_unit, max_rows, parameter=None):
+def read_table(path, payload, columns, freq_unit, max_rows, parameter=None, record=None):
     """Parse delimited UTF-8 text into a :class:`Table` (see ``loaders.load_text``)."""
-    rows = _footer(path, _preamble(path, _content(path, decode_text(path, payload),
-                                                  max_rows), columns))
+    rows = _one_run(path, _content(path, decode_text(path, payload), max_rows), record)
+    rows = _footer(path, _preamble(path, rows, columns))
     sep = _separator(rows[0][1])
     rows = _decimal_commas(rows, sep)
     split = _splitter(sep)

@@ -66,7 +66,8 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
     record : int, optional
         For a UFF file with several frequency-response records: which one (0-based,
         counting the records :func:`load_uff` returns: records that are not frequency
-        responses are skipped).
+        responses are skipped). For LTspice's text export of an AC analysis with ``.step``
+        runs: which run (:func:`load_text`).
     parameter : str, optional
         For a Touchstone file (``.sNp`` of any number of ports, or a Touchstone 2.0
         ``.ts``): which parameter (default S11), e.g. "S21". For a text table whose
@@ -129,10 +130,11 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
         data = found[record]
         return data if name is None else FrequencyData(data.omega, data.response, name)
     return load_text(path, name, freq_unit=freq_unit, columns=cols, band=band,
-                     parameter=parameter)
+                     parameter=parameter, record=record)
 
 
-def load_text(path, name=None, *, freq_unit=None, columns=None, band=None, parameter=None):
+def load_text(path, name=None, *, freq_unit=None, columns=None, band=None, parameter=None,
+              record=None):
     """Read frequency-response data from delimited text.
 
     Parameters
@@ -167,6 +169,9 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None, param
         analyser's ``Freq(Hz),S21(REAL),S21(IMAG),S11(REAL),...``; ``S21(DB)``,
         ``S21 Log Mag(dB)``, ``S21 Phase(deg)`` are read too); the other responses'
         columns are skipped.
+    record : int, optional
+        For LTspice's export of an AC analysis with ``.step`` runs (a ``Step Information:``
+        line before each): which run (0-based); required when there are several.
 
     Returns
     -------
@@ -182,7 +187,8 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None, param
         (``1_0`` and non-ASCII digits are refused), non-finite values, dB values that
         overflow, negative or unsorted frequencies, zero responses.
     OptionError
-        ``parameter`` is not one of the S-parameters the header names.
+        ``parameter`` is not one of the S-parameters the header names; ``record`` is out of
+        range or the file has no runs.
 
     Notes
     -----
@@ -204,7 +210,7 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None, param
     band = parse_band(band)
     path, payload = read_regular_file(path)
     table = read_table(path, payload, parse_columns(columns), parse_freq_unit(freq_unit),
-                       max_rows=MAX_ROWS, parameter=parameter)
+                       max_rows=MAX_ROWS, parameter=parameter, record=record)
     omega, response = table_response(table)
     unit = "rad/sample" if table.unit("freq") == "rad/sample" else "rad/s"
     return _finish(path, omega, response, name, lines=table.lines, unit=unit, band=band,
