@@ -300,6 +300,15 @@ def test_ltspice_ac_export_is_read_in_hz(tmp_path, encoding):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DataWarning)
             load(path)
+    three = "".join(f"{line}\t1.0e+000,0.0e+000\n" for line in two.splitlines())
+    path.write_bytes(f"Freq.\tV(a)\tV(out)/V(in)\tV(b)\n{three}".encode(encoding))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        with pytest.raises(DataError, match=r"LTspice wrote 3 traces \(V\(a\), V\(out\)/V\(in\)"
+                                            r", V\(b\)\): pass columns='freq_hz,complex,skip,"
+                                            r"skip' to read V\(a\)"):
+            load(path)
+        _same(load(path, columns="freq_hz,complex,skip,skip"), rtol=1e-12)
 
 
 def test_ltspice_step_runs_are_chosen_by_record(tmp_path):

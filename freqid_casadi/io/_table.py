@@ -294,8 +294,9 @@ def _comment_header(rows, comment):
 
 def _header_columns(path, cells, parameter=None):
     cols = [recognise(_clean(c)) for c in cells]
-    if _clean(cells[0]) == "Freq." and len(cells) > 1 \
-            and all(_LT_TRACE.fullmatch(_clean(c)) for c in cells[1:]):
+    traces = [_clean(c) for c in cells[1:]]
+    ltspice = _clean(cells[0]) == "Freq." and traces and all(map(_LT_TRACE.fullmatch, traces))
+    if ltspice:
         # LTspice's export of an AC analysis: frequencies in Hz, each trace one complex
         # column (polar dB and degrees, or Cartesian)
         cols = [Column("freq", "hz", "Freq.")] + [Column("complex", None, _clean(c))
@@ -318,6 +319,10 @@ def _header_columns(path, cells, parameter=None):
             problem += (f"; its columns give {len(named)} S-parameters ({', '.join(named)}): "
                         f"pass parameter='{named[0]}' (command line --parameter "
                         f"{named[0]}) to read one")
+        if problem and ltspice:
+            problem += (f"; LTspice wrote {len(traces)} traces ({', '.join(traces)}): pass "
+                        f"columns='freq_hz,complex{',skip' * (len(traces) - 1)}' to read "
+                        f"{traces[0]} ('complex' in another trace's place reads that one)")
     if problem:
         raise DataError(
             f"{path!r}: unrecognised header {','.join(_clean(c) for c in cells)!r} "
