@@ -91,6 +91,21 @@ def test_auto_on_corpus_families(index):
     assert ("integrator" in codes) == (want != 0)
 
 
+def test_auto_tries_the_k_a_start_effectively_has():
+    """Seed 11's band-pass case 170 (exact, one zero at the origin, 258 points from 0.54
+    times the lowest pole): the lowest bins rise at slope 2.6 into two resonances, so the
+    slope proposed 0, -2 and -3 only; the k = 0 start put its zero at 1e-3 of the lowest
+    frequency (effectively k = -1), where the fit's root floor held it: poor-fit at RMS
+    1.52e-4. Now k = -1 is tried and chosen, and the fit is exact (measured 2.3e-14)."""
+    c = case(170, 11, max_points=400)
+    assert c.integrators - c.zeros_at_origin == -1
+    res = fc.fit(c.data, n_sections=c.n_sections)
+    rec = res.details["integrator"]
+    assert rec["low_frequency_slope"] > 2.5 and rec["effective"][0] == -1
+    assert rec["candidates"] == [0, -1, -2, -3] and rec["chosen"] == -1
+    assert res.status == "ok" and res.rms_rel_error < 1e-10
+
+
 def test_auto_k0_is_bitwise_integrator_false():
     c = case(18, 0, max_points=120)
     auto = fc.fit(c.data, n_sections=c.n_sections)

@@ -16,7 +16,9 @@ puts poles or zeros far below the band (below ``BELOW_BAND`` times the lowest fr
 the data cannot tell them from roots at the origin) counts as the k it effectively has and
 yields to the candidate that has them at the origin (a k = 0 start of accelerance data
 with two zeros near 0 is the k = -2 model reached the hard way: the fit's bounds stop such
-roots at a floor). When another candidate, not effectively the same, is within
+roots at a floor); that k is tried too when the slope did not propose it (a band-pass
+whose lowest bins sit just below two resonances: slope 2.6, candidates 0, -2, -3, and the
+k = 0 start's zero at 1e-3 of the lowest frequency asks for k = -1). When another candidate, not effectively the same, is within
 :data:`AMBIGUOUS_FACTOR` of the winner, the choice is ambiguous: both are fitted (the full
 fit) and the lower RMS wins; when the fits too are within that factor (typically: the data
 end too high to show the low-frequency asymptote) an ``integrator`` warning gives the
@@ -141,8 +143,16 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
     w_ref, g_ref = reference_scales(data)
     scaled = scale_data(data, w_ref, g_ref)
     dmax = default_delay_max(scaled.omega)
-    errors = {k: _start_error(scaled, Structure(int(n_sections), k, delay, basis, zeros), dmax)
-              for k in cands}
+    def start(k):
+        return _start_error(scaled, Structure(int(n_sections), k, delay, basis, zeros), dmax)
+
+    errors = {k: start(k) for k in cands}
+    # a start whose roots far below the band make it effectively another k asks for that
+    # k: it is tried too (the slope's candidates may miss it)
+    for k in sorted({errors[k][2] for k in cands} - set(cands), key=lambda k: (abs(k), k)):
+        if abs(k) <= MAX_ORIGIN_ORDER:
+            errors[k] = start(k)
+    cands = tuple(sorted(errors, key=lambda k: (abs(k), k)))
     rms = {k: errors[k][0] for k in cands}
     eff = {k: errors[k][2] for k in cands}
     best = min(cands, key=lambda k: (rms[k], abs(k)))
