@@ -174,6 +174,10 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
         (int(k) for k in close if k != runner), key=lambda k: rms[k])[:MAX_FITS - 2]
     if runner is not None and ambiguous:
         contenders.insert(1, int(runner))
+    if ambiguous and 0 in cands and 0 not in contenders and len(contenders) < MAX_FITS:
+        # the starts rank the candidates only as well as vector fitting finds each model:
+        # the model without roots at the origin is fitted too when there is room
+        contenders.append(0)
     record = {"auto": True, "chosen": int(chosen), "candidates": [int(k) for k in cands],
               "contenders": contenders if ambiguous else [int(chosen)],
               "rms": {int(k): rms[k] for k in cands},
