@@ -18,9 +18,11 @@ yields to the candidate that has them at the origin (a k = 0 start of acceleranc
 with two zeros near 0 is the k = -2 model reached the hard way: the fit's bounds stop such
 roots at a floor); that k is tried too when the slope did not propose it (a band-pass
 whose lowest bins sit just below two resonances: slope 2.6, candidates 0, -2, -3, and the
-k = 0 start's zero at 1e-3 of the lowest frequency asks for k = -1). When another candidate, not effectively the same, is within
-:data:`AMBIGUOUS_FACTOR` of the winner, the choice is ambiguous: both are fitted (the full
-fit) and the lower RMS wins; when the fits too are within that factor (typically: the data
+k = 0 start's zero at 1e-3 of the lowest frequency asks for k = -1). When another
+candidate, not effectively the same, is within :data:`AMBIGUOUS_FACTOR` of the winner, the
+choice is ambiguous: both are fitted (the full fit; k = 0 too when there is room among
+:data:`MAX_FITS`, since a start is only as good as vector fitting's model) and the lower
+RMS wins; when the fits too are within that factor (typically: the data
 end too high to show the low-frequency asymptote) an ``integrator`` warning gives the
 errors of each choice and the switch ``integrator=...``.
 """
@@ -134,7 +136,7 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
         (either gain sign), for ``FitResult.details["integrator"]``.
     When ``record["ambiguous"]``, the caller fits each k of ``record["contenders"]`` (the
     chosen k, the runner-up and, up to :data:`MAX_FITS`, the others within
-    :data:`AMBIGUOUS_FACTOR`) and settles it (:func:`settle_by_fits`); :func:`origin_diagnostics` then states it: an
+    :data:`AMBIGUOUS_FACTOR`, then k = 0) and settles it (:func:`settle_by_fits`); :func:`origin_diagnostics` then states it: an
     ``integrator`` record, "info" when a k other than 0 is chosen clearly, "warning" (with
     the errors of each choice and ``pass integrator=...``) when it stays ambiguous.
     """

@@ -13,7 +13,7 @@ from ..errors import OptionError
 
 __all__ = ["Column", "recognise", "parse_columns", "parse_freq_unit", "COLUMN_HELP",
            "one_layout", "columns_option", "one_channel", "sparameter_of",
-           "with_parameter"]
+           "sparameters", "with_parameter"]
 
 #: A channel or trace number before a column's name: ``Channel 2 Phase (deg)``, ``Ch1 Re``
 #: (``_CHANNEL``: the number and the name after it).
@@ -133,6 +133,11 @@ def sparameter_of(label):
     return m.group(1).lower() if m else None
 
 
+def sparameters(labels):
+    """The S-parameters ``labels`` name, lower case, each once, in order."""
+    return list(dict.fromkeys(p for p in map(sparameter_of, labels) if p))
+
+
 def with_parameter(cols, parameter, where):
     """``cols`` with the response columns of the S-parameter ``parameter`` kept and every
     other response column skipped; ``where`` names the file for the error.
@@ -143,7 +148,7 @@ def with_parameter(cols, parameter, where):
         ``parameter`` is not one the columns name (the message lists those they name).
     """
     want = str(parameter).strip().lower().replace(",", "").replace("_", "")
-    named = list(dict.fromkeys(p for p in map(sparameter_of, (c.label for c in cols)) if p))
+    named = sparameters(c.label for c in cols)
     if want not in named:
         what = (f"its columns name {', '.join(p.upper() for p in named)}" if named else
                 "its columns name no S-parameter (S21(REAL), S21 Log Mag(dB), ...)")

@@ -17,7 +17,7 @@ import numpy as np
 
 from ._columns import (_UNITS, COLUMN_HELP, Column, _layout_problem, columns_option,
                        one_channel, one_layout, parse_columns, parse_freq_unit, recognise,
-                       sparameter_of, with_parameter)
+                       sparameters, with_parameter)
 from ._readfile import DataWarning
 from ..errors import DataError, OptionError
 
@@ -314,7 +314,7 @@ def _header_columns(path, cells, parameter=None):
         if choice:
             problem += (f"; to read channel {choice[0]}, the one whose columns make a "
                         f"response, pass columns='{choice[1]}'")
-        named = list(dict.fromkeys(p.upper() for p in map(sparameter_of, cells) if p))
+        named = [p.upper() for p in sparameters(cells)]
         if problem and len(named) > 1:
             problem += (f"; its columns give {len(named)} S-parameters ({', '.join(named)}): "
                         f"pass parameter='{named[0]}' (command line --parameter "
@@ -561,7 +561,9 @@ def _one_run(path, rows, record):
     OptionError
         ``record`` out of range, or given for a file without runs.
     """
-    marks = [k for k, (_, text) in enumerate(rows) if _LT_STEP.match(text)]
+    # (only LTspice writes them, below its header 'Freq.': other files are not scanned)
+    ltspice = rows[0][1].lstrip().startswith("Freq.")
+    marks = [k for k, (_, text) in enumerate(rows) if ltspice and _LT_STEP.match(text)]
     if not marks:
         if record is not None:
             raise OptionError(f"record={record!r} chooses a record of a UFF file or a run of "
