@@ -110,7 +110,7 @@ def test_freq_unit_that_contradicts_the_header(tmp_path):
 
 def test_zero_frequency_rows_are_dropped_with_a_note(tmp_path):
     text = "omega,real,imag\n0,5,0\n" + _rows(OMEGA, RESP.real, RESP.imag)
-    with pytest.warns(DataWarning, match=r"dropped 1 row\(s\) at zero frequency \(lines 2\)"):
+    with pytest.warns(DataWarning, match=r"dropped 1 row\(s\) at zero frequency \(line 2\)"):
         data = load(_write(tmp_path, text))
     _same(data, rtol=0)
 
@@ -398,7 +398,7 @@ def test_cli_fit_reads_hz_text_with_freq_unit_and_columns(tmp_path, monkeypatch,
                      "--columns", "f,mag_db,phase_deg", "--quiet"])
     out, err = capsys.readouterr()
     assert code == 0, err
-    assert err.startswith("note: 'm.txt': dropped 1 row(s) at zero frequency (lines 1)")
+    assert err.startswith("note: 'm.txt': dropped 1 row(s) at zero frequency (line 1)")
     assert "Warning" not in err
     assert os.path.isfile("rep/model.json")
     model = fc.RationalDelayModel.load("rep/model.json")
@@ -423,7 +423,7 @@ S1P = """! hand-written 1-port, MHz, dB/angle
 
 def test_touchstone_s1p_hand_written(tmp_path):
     path = _write(tmp_path, S1P, "res.s1p")
-    with pytest.warns(DataWarning, match=r"dropped 1 row\(s\) at zero frequency \(lines 3\)"):
+    with pytest.warns(DataWarning, match=r"dropped 1 row\(s\) at zero frequency \(line 3\)"):
         data = load(path)
     np.testing.assert_allclose(data.omega, 2 * np.pi * np.array([1.5e6, 3e6]), rtol=1e-15)
     np.testing.assert_allclose(data.response, [0.5j, 10 * np.exp(-0.25j * np.pi)], rtol=1e-12)

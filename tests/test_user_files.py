@@ -125,6 +125,20 @@ def test_room_eq_wizard_exports_are_read(tmp_path):
     _same(load(path), rtol=1e-12)
 
 
+def test_sr785_script_export_with_a_doubled_comment_header_is_read(tmp_path):
+    """The SR785 acquisition scripts of gravitational-wave labs write '#' setup lines, then
+    '## Freqency(Hz) Magnitude(dB) Phase(deg) Coherence' (so spelt), then the rows from
+    0 Hz with a space after the last cell."""
+    pre = ("# SR785 Transfer Function Measurement\n#Title: beam\n#Unit: dB, deg, \n#\n"
+           "#---------- Instrument Data -----------\n")
+    rows = "".join(f"{f:.7e} {d:.7e} {p:.7e} {0.99:.7e} \n"
+                   for f, d, p in zip([0.0, *F_HZ], [DB[0], *DB], [0.0, *DEG]))
+    path = tmp_path / "tf.txt"
+    path.write_text(pre + "## Freqency(Hz) Magnitude(dB) Phase(deg) Coherence\n" + rows)
+    with pytest.warns(DataWarning, match=r"dropped 1 row\(s\) at zero frequency \(line 7\)"):
+        _same(load(path), rtol=1e-6)
+
+
 @pytest.mark.parametrize("header", ["Freq[Hz]     dBSPL  Phase[Deg]",
                                     "f [Hz]\tdB SPL\tPhase [deg]"])
 def test_a_level_in_db_spl_is_a_magnitude_in_db(tmp_path, header):
@@ -566,7 +580,7 @@ def test_a_non_finite_dc_bin_is_dropped_like_any_zero_frequency_row(tmp_path, dc
     body = _table(",", header=("freq_hz", "mag_db", "phase_deg"))
     head, rest = body.split("\n", 1)
     path.write_text(f"{head}\n{dc_row}\n{rest}", encoding="utf-8")
-    with pytest.warns(DataWarning, match=r"dropped 1 row\(s\) at zero frequency \(lines 2\)"):
+    with pytest.warns(DataWarning, match=r"dropped 1 row\(s\) at zero frequency \(line 2\)"):
         _same(load(path))
     path.write_text(f"{head}\n{rest}0.7,nan,0\n", encoding="utf-8")
     with pytest.raises(DataError, match=r"line 10, column 'mag_db': nan is not finite"):

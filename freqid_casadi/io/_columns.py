@@ -31,8 +31,9 @@ _UNITS = {"": None, "hz": "hz", "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad
           "abs": "lin", "absolut": "lin", "absolute": "lin", "magnitude": "lin",
           "mag": "lin"}
 _SUFFIXES = ("_rad_sample", "_rad_s", "_rads", "_hz", "_db", "_degrees", "_deg", "_radians", "_rad")
+#: (``freqency``: as the SR785 acquisition scripts of gravitational-wave labs spell it)
 _FREQ = {"omega": "rad/s", "w": "rad/s", "f": None, "freq": None, "frequency": None,
-         "hz": "hz"}
+         "freqency": None, "hz": "hz"}
 _RE = {"re", "real"}
 _IM = {"im", "imag", "imaginary"}
 #: (``spl``: a sound pressure level, ``SPL(dB)`` in Room EQ Wizard's exports)

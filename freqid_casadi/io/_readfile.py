@@ -169,7 +169,8 @@ def _finish(path, omega, response, name, weights=None, lines=None, unit="rad/s",
     omega = np.asarray(omega, float)
     zero = omega == 0
     if zero.any():
-        where = (f"lines {', '.join(str(lines[i]) for i in np.flatnonzero(zero)[:5])}"
+        where = (f"line{'s' if zero.sum() > 1 else ''} "
+                 f"{', '.join(str(lines[i]) for i in np.flatnonzero(zero)[:5])}"
                  if lines is not None else f"index {int(np.flatnonzero(zero)[0])}")
         warnings.warn(f"{path!r}: dropped {int(zero.sum())} row(s) at zero frequency ({where}): "
                       "the fit uses omega > 0 only (an integrator is a model option)",

@@ -263,7 +263,7 @@ def _content(path, text, max_rows):
     for k, line in enumerate(text.split("\n")):
         line = line.rstrip()
         if line.lstrip().startswith(COMMENTS):
-            note = line.lstrip()[1:].strip()
+            note = line.lstrip().lstrip("".join(COMMENTS)).strip()  # '## f re im' too
             comment = (k + 1, note) if not rows and note else comment
         elif line.strip():
             rows.append((k + 1, line))
