@@ -287,6 +287,30 @@ def test_network_analyser_csv_reads_the_s_parameter_asked_for(tmp_path):
         load(path, parameter="S31")
 
 
+@pytest.mark.filterwarnings("ignore::freqid_casadi.io.loaders.DataWarning")
+def test_network_analyser_csv_with_semicolons_and_receiver_ratios(tmp_path):
+    """A two-port calibration export (semicolons, ``FREQ(HZ)``, the receiver ratios
+    ``A2/A1`` and ``A1/A2`` beside the S-parameters): parameter= chooses a ratio as it
+    chooses an S-parameter, and the error lists both kinds."""
+    other = 0.5 * RESP
+    names = ("S11", "S21", "A2/A1", "S22", "S12", "A1/A2")
+    header = ";".join(["FREQ(HZ)"] + [f"{p}({part})" for p in names for part in ("REAL",
+                                                                                 "IMAG")])
+    resp = {p: RESP if p == "A2/A1" else other for p in names}
+    body = "".join(";".join(f"{v:.15E}" for v in (f, *(x for p in names for x in (
+        resp[p][k].real, resp[p][k].imag)))) + "\n" for k, f in enumerate(F_HZ))
+    path = tmp_path / "thru.csv"
+    path.write_text(f"BEGIN CH1_DATA\n{header}\n{body}END\n")
+    with pytest.raises(DataError, match=r"6 S-parameters and ratios \(S11, S21, A2/A1, S22, "
+                                        r"S12, A1/A2\)"):
+        load(path)
+    with pytest.warns(DataWarning, match=r"skipped 1 line\(s\) after the data \(line 11, "
+                                         r"the first 'END'\)"):
+        _same(load(path, parameter="A2/A1"), rtol=1e-14)
+    with pytest.raises(OptionError, match="its columns name S11, S21, A2/A1, S22, S12, A1/A2"):
+        load(path, parameter="B/R1")
+
+
 @pytest.mark.parametrize("header", ["Freq(Hz),S21 Log Mag(dB),S21 Phase(deg)",
                                     "Freq(Hz),S21(DB),S21(DEG)"])
 def test_network_analyser_csv_in_log_magnitude_and_phase(tmp_path, header):

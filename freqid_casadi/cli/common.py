@@ -109,8 +109,9 @@ def add_data_options(parser, records=False):
             "--parameter", metavar="S21",
             help="Touchstone file (.s1p, .s2p, ..., .sNp, or version 2 .ts): which "
                  "parameter (default S11; S21 is the transfer from port 1 to port 2; S10,11 "
-                 "for ten and more ports); also which S-parameter of a network analyser's "
-                 "CSV whose header names several (S21(REAL),S21(IMAG),S11(REAL),...)")
+                 "for ten and more ports); also which S-parameter or receiver ratio of a "
+                 "network analyser's CSV whose header names several (S21(REAL),S21(IMAG),"
+                 "S11(REAL),...,A2/A1(REAL),...)")
         parser.add_argument(
             "--weights", metavar="STATS.csv",
             help="weights of the data's frequencies: the <stem>.stats.csv that 'freqid frf' "

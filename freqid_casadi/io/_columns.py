@@ -43,8 +43,10 @@ _DB = {"db", "dbspl", "db_spl", "dbv", "dbu", "dbr"}
 _PHASE = {"phase", "phi", "arg", "angle", "ph"}
 _COMPLEX = {"complex", "response", "h", "g", "frf", "z", "h1", "h2", "hv", "txy", "tf",
             "impedance", "admittance"}
-#: A network analyser's scattering parameter (``S21``), a complex response like ``_COMPLEX``.
-_SPARAM = re.compile(r"s\d\d")
+#: A network analyser's scattering parameter (``S21``) or receiver ratio (``A2/A1``,
+#: ``B/R1``, as Keysight's analysers name a ratioed measurement), a complex response like
+#: ``_COMPLEX``.
+_SPARAM = re.compile(r"s\d\d|[abr]\d?/[abr]\d?")
 #: A response's display format after its name, as Keysight's network analysers write a trace
 #: (``S21 Log Mag(dB)``, ``S21 Lin Mag(U)``, ``S21 Phase(deg)``, ``S21 Real(U)``).
 _FORMAT = re.compile(r"^(.+?)_(log_mag|lin_mag|phase|real|imag)$")
@@ -128,20 +130,23 @@ def recognise(label):
 
 
 def sparameter_of(label):
-    """The scattering parameter a column's label names, lower case (``"s21"`` of
-    ``S21(REAL)`` or ``S21 Log Mag(dB)``), or None."""
-    m = re.match(r"\s*[\"']?\s*(s\d\d)(?![\d])", label, re.IGNORECASE)
+    """The scattering parameter or receiver ratio a column's label names, lower case
+    (``"s21"`` of ``S21(REAL)`` or ``S21 Log Mag(dB)``, ``"a2/a1"`` of ``A2/A1(REAL)``), or
+    None."""
+    m = re.match(r"\s*[\"']?\s*(s\d\d|[abr]\d?/[abr]\d?)(?![\d])", label, re.IGNORECASE)
     return m.group(1).lower() if m else None
 
 
 def sparameters(labels):
-    """The S-parameters ``labels`` name, lower case, each once, in order."""
+    """The S-parameters (and receiver ratios) ``labels`` name, lower case, each once, in
+    order."""
     return list(dict.fromkeys(p for p in map(sparameter_of, labels) if p))
 
 
 def with_parameter(cols, parameter, where):
-    """``cols`` with the response columns of the S-parameter ``parameter`` kept and every
-    other response column skipped; ``where`` names the file for the error.
+    """``cols`` with the response columns of the S-parameter (or receiver ratio)
+    ``parameter`` kept and every other response column skipped; ``where`` names the file
+    for the error.
 
     Raises
     ------
@@ -152,7 +157,8 @@ def with_parameter(cols, parameter, where):
     named = sparameters(c.label for c in cols)
     if want not in named:
         what = (f"its columns name {', '.join(p.upper() for p in named)}" if named else
-                "its columns name no S-parameter (S21(REAL), S21 Log Mag(dB), ...)")
+                "its columns name no S-parameter (S21(REAL), S21 Log Mag(dB), ...) or "
+                "receiver ratio (A2/A1(REAL), ...)")
         raise OptionError(f"parameter={parameter!r} chooses an S-parameter of a Touchstone "
                           f"file or of a table whose columns name them; {where}: {what}")
     return tuple(c if c.role in ("freq", "skip") or sparameter_of(c.label) == want

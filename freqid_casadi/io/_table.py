@@ -316,7 +316,9 @@ def _header_columns(path, cells, parameter=None):
                         f"response, pass columns='{choice[1]}'")
         named = [p.upper() for p in sparameters(cells)]
         if problem and len(named) > 1:
-            problem += (f"; its columns give {len(named)} S-parameters ({', '.join(named)}): "
+            kinds = "S-parameters and ratios" if any("/" in p for p in named) else \
+                "S-parameters"
+            problem += (f"; its columns give {len(named)} {kinds} ({', '.join(named)}): "
                         f"pass parameter='{named[0]}' (command line --parameter "
                         f"{named[0]}) to read one")
         if problem and ltspice:
@@ -592,8 +594,9 @@ def _footer(path, rows):
         k -= 1
     if k == n or not all(_is_value(c) for c in _row_cells(rows[k - 1][1])):
         return rows
-    warnings.warn(f"{path!r}: skipped {n - k} line(s) after the data (lines "
-                  f"{rows[k][0]}-{rows[-1][0]}, the first {shown_cell(rows[k][1].strip())})",
+    warnings.warn(f"{path!r}: skipped {n - k} line(s) after the data "
+                  f"({_lines(rows[k][0], rows[-1][0])}, the first "
+                  f"{shown_cell(rows[k][1].strip())})",
                   DataWarning, stacklevel=5)
     return rows[:k]
 
@@ -611,8 +614,13 @@ def _unit_line(text):
 def _note_preamble(path, skipped, what):
     first = " ".join(skipped[0][1].split())
     warnings.warn(f"{path!r}: skipped {len(skipped)} line(s) of metadata before {what} "
-                  f"(lines {skipped[0][0]}-{skipped[-1][0]}, the first {shown_cell(first)})",
-                  DataWarning, stacklevel=5)
+                  f"({_lines(skipped[0][0], skipped[-1][0])}, the first "
+                  f"{shown_cell(first)})", DataWarning, stacklevel=5)
+
+
+def _lines(first, last):
+    """``'line 3'`` or ``'lines 3-7'``."""
+    return f"line {first}" if first == last else f"lines {first}-{last}"
 
 
 def _note_units(path, between, cells):

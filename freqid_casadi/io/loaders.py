@@ -72,7 +72,8 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
         For a Touchstone file (``.sNp`` of any number of ports, or a Touchstone 2.0
         ``.ts``): which parameter (default S11), e.g. "S21". For a text table whose
         header names S-parameters (a network analyser's CSV: ``S21(REAL)``, ``S21(IMAG)``,
-        ``S11(REAL)``, ...): which one to read (see :func:`load_text`).
+        ``S11(REAL)``, ...) or receiver ratios (``A2/A1(REAL)``): which one to read (see
+        :func:`load_text`).
     band : (float, float), optional
         Keep only the points with ``lo <= f <= hi``, in the file's frequency unit (Hz for a
         header ``Frequency (Hz)`` or a unit line ``Hz``, rad/s for ``omega``, the option
@@ -167,8 +168,9 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None, param
     parameter : str, optional
         The S-parameter to read from a header that names several (``"S21"`` of a network
         analyser's ``Freq(Hz),S21(REAL),S21(IMAG),S11(REAL),...``; ``S21(DB)``,
-        ``S21 Log Mag(dB)``, ``S21 Phase(deg)`` are read too); the other responses'
-        columns are skipped.
+        ``S21 Log Mag(dB)``, ``S21 Phase(deg)`` are read too), or a receiver ratio
+        (``"A2/A1"`` of ``A2/A1(REAL)``, ``"B/R1"``); the other responses' columns are
+        skipped.
     record : int, optional
         For LTspice's export of an AC analysis with ``.step`` runs (a ``Step Information:``
         line before each): which run (0-based); required when there are several.
