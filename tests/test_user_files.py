@@ -253,6 +253,26 @@ def test_cli_record_and_parameter_are_refused_for_other_files(tmp_path):
     assert cli.main(["fit", str(path), "--sections", "1", "--out", "r", "--record", "-1"]) == 2
 
 
+def test_load_refuses_options_that_do_not_apply_to_the_file(tmp_path):
+    """fc.load refuses parameter=, record= and columns= where they would be ignored, as the
+    command line does; in a batch that refusal is the one file's error."""
+    from freqid_casadi.fitting.batch import fit_many
+    npz, csv = tmp_path / "a.npz", tmp_path / "b.csv"
+    np.savez(npz, freq_hz=F_HZ, response=RESP)
+    csv.write_text(_table(","))
+    for kw, what in ((dict(parameter="S21"), "parameter= chooses a parameter of a Touchstone"),
+                     (dict(record=0), "record= chooses a record of a UFF file"),
+                     (dict(columns="f,re,im"), "columns= names the columns of a text table")):
+        with pytest.raises(OptionError, match=what + ".*a.npz"):
+            load(npz, **kw)
+    with pytest.raises(OptionError, match="--columns names the columns"):
+        cli_common.load_data(_args(npz, "--columns", "f,re,im"), str(npz))
+    items = fit_many([npz, csv], n_sections=1,
+                     load_options=dict(columns="freq_hz,mag_db,phase_deg"))
+    assert [i.status for i in items][0] == "error" and items[1].result is not None
+    assert "columns= names the columns" in items[0].error
+
+
 KEYSIGHT = ("!CSV A.01.01\r\n!Keysight Technologies,N5247B,US00000000,A.17.30.08\r\n"
             "!Date: Friday, September 11, 2026 14:48:21\r\n!Source: Standard\r\n\r\n"
             "BEGIN CH1_DATA\r\n{header}\r\n{rows}END\r\n\r\n")

@@ -30,7 +30,7 @@ from ..fitting.verdict import ROUNDING_RMS
 from ..io import NUMBER, decode_text, parse_columns, read_regular_file
 from ..report.formatting import number
 from ..core.data import FrequencyData
-from ..io.loaders import DataWarning, is_touchstone, load
+from ..io.loaders import DataWarning, load, refuse_options
 from ..errors import DataError, OptionError
 from ..options import solver_options
 
@@ -230,14 +230,8 @@ def load_data(args, path):
         As :func:`freqid_casadi.io.loaders.load`; no note is printed before an error.
     """
     opts = load_options(args)
-    lower = str(path).lower()
-    if "record" in opts and (lower.endswith((".npz", ".mat")) or is_touchstone(lower)):
-        raise OptionError(f"--record chooses a record of a UFF file (.uff/.unv) or a run of "
-                          f"an LTspice export with .step runs, not of {path!r}; drop it")
-    if "parameter" in opts and lower.endswith((".npz", ".mat", ".uff", ".unv", ".uf")):
-        raise OptionError(f"--parameter chooses a parameter of a Touchstone file "
-                          f"(.s1p, .s2p, ..., .sNp, .ts) or of a text table whose header "
-                          f"names S-parameters, not of {path!r}; drop it")
+    refuse_options(path, record=opts.get("record"), parameter=opts.get("parameter"),
+                   columns=opts.get("columns"), flag=True)
     with notes_to_stderr():
         data = load(path, **opts)
     weights = getattr(args, "weights", None)

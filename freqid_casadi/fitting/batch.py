@@ -21,6 +21,7 @@ import warnings
 from dataclasses import dataclass
 
 from ..core.data import FrequencyData
+from ..io import parse_band, parse_columns, parse_freq_unit
 from ..io.loaders import load
 from ..errors import DataError, OptionError, StructureError
 from .fit import FitResult, fit
@@ -108,14 +109,24 @@ def _fit_one(name, item, options, load_options=None):
     """Worker: load (if a path) and fit one dataset; never raises a FreqidError."""
     source = None if isinstance(item, FrequencyData) else os.fspath(item)
     try:
+        # a load option that does not apply to this file (columns= of a .npz) is this
+        # file's error, as a file it cannot read: fit_many checked the options' forms
         data = item if source is None else load(source, name, **(load_options or {}))
+    except Exception as exc:  # noqa: BLE001 - one failing dataset must not stop the batch
+        return _failed(name, exc, source)
+    try:
         result = fit(data, **options)
     except OptionError:
         raise                                   # the same for every dataset: not per item
-    except Exception as exc:  # noqa: BLE001 - one failing dataset must not stop the batch
-        message = " ".join(str(exc).split())
-        return BatchItem(name, None, f"{type(exc).__name__}: {message}", "error", source)
+    except Exception as exc:  # noqa: BLE001
+        return _failed(name, exc, source)
     return BatchItem(name, result, None, FitStatus(result.status), source)
+
+
+def _failed(name, exc, source):
+    """The BatchItem of a dataset that could not be loaded or fitted."""
+    message = " ".join(str(exc).split())
+    return BatchItem(name, None, f"{type(exc).__name__}: {message}", "error", source)
 
 
 def _fit_one_held(name, item, options, load_options=None):
@@ -201,6 +212,9 @@ def fit_many(datasets, *, n_jobs=1, scheduler=None, load_options=None, progress=
     if unknown:
         raise OptionError(f"unknown load option(s) {', '.join(map(repr, unknown))}; choose "
                           f"from {', '.join(sorted(known))}")
+    for key, parse in (("freq_unit", parse_freq_unit), ("columns", parse_columns),
+                       ("band", parse_band)):
+        parse((load_options or {}).get(key))     # OptionError once, not per file
     if isinstance(datasets, (str, os.PathLike, FrequencyData)):
         datasets = [datasets]
     try:

@@ -101,6 +101,7 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
     cols = parse_columns(columns)
     band = parse_band(band)
     lower = os.fspath(path).lower() if isinstance(path, (str, os.PathLike)) else ""
+    refuse_options(path, record=record, parameter=parameter, columns=cols)
     if lower.endswith(".npz"):
         return load_npz(path, name, freq_unit=freq_unit, band=band)
     if is_touchstone(lower):
@@ -132,6 +133,26 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
         return data if name is None else FrequencyData(data.omega, data.response, name)
     return load_text(path, name, freq_unit=freq_unit, columns=cols, band=band,
                      parameter=parameter, record=record)
+
+
+def refuse_options(path, *, record=None, parameter=None, columns=None, flag=False):
+    """Raise if an option given to :func:`load` does not apply to ``path``'s kind of file
+    (it would be ignored): ``record`` but for UFF and text (LTspice runs), ``parameter``
+    but for Touchstone and text, ``columns`` for .npz and UFF. ``flag``: name the options
+    as the command line spells them (``--record``)."""
+    lower = os.fspath(path).lower() if isinstance(path, (str, os.PathLike)) else ""
+    spell = (lambda k: f"--{k}") if flag else (lambda k: f"{k}=")
+    if record is not None and (lower.endswith((".npz", ".mat")) or is_touchstone(lower)):
+        raise OptionError(f"{spell('record')} chooses a record of a UFF file (.uff/.unv) or "
+                          f"a run of an LTspice export with .step runs, not of {path!r}; "
+                          "drop it")
+    if parameter is not None and lower.endswith((".npz", ".mat") + _UFF_EXT):
+        raise OptionError(f"{spell('parameter')} chooses a parameter of a Touchstone file "
+                          "(.s1p, .s2p, ..., .sNp, .ts) or of a text table whose header "
+                          f"names S-parameters, not of {path!r}; drop it")
+    if columns is not None and lower.endswith((".npz",) + _UFF_EXT):
+        raise OptionError(f"{spell('columns')} names the columns of a text table or a .mat "
+                          f"matrix; {path!r} names its own arrays or records: drop it")
 
 
 def load_text(path, name=None, *, freq_unit=None, columns=None, band=None, parameter=None,
