@@ -139,6 +139,23 @@ def test_sr785_script_export_with_a_doubled_comment_header_is_read(tmp_path):
         _same(load(path), rtol=1e-6)
 
 
+def test_mlssa_speaker_file_names_its_phase_by_the_unit(tmp_path):
+    """An MLSSA speaker file (the format SigmaStudio reads): a quoted title, then
+    '      "Hz"  "Mag (dB)"       "deg"' over comma-separated rows; a unit line of the same
+    words under a header of names stays a unit line."""
+    path = tmp_path / "woofer.txt"
+    body = "".join(f"{f:0.5f},   {d:0.5f},   {p:0.5f}\n" for f, d, p in zip(F_HZ, DB, DEG))
+    path.write_text('"Woofer dB SPL (8 ohms, @0.50 meters) (High)"\n'
+                    '      "Hz"  "Mag (dB)"       "deg"\n' + body)
+    with pytest.warns(DataWarning, match="skipped 1 line.s. of metadata before the header on "
+                                         "line 2 .line 1, the first '.Woofer"):
+        _same(load(path), rtol=2e-5)
+    path.write_text("Frequency\tMagnitude\tPhase\nHz\tdB\tdeg\n" + body.replace(",", "\t"))
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")             # the file's own layout: no note
+        _same(load(path), rtol=2e-5)
+
+
 @pytest.mark.parametrize("header", ["Freq[Hz]     dBSPL  Phase[Deg]",
                                     "f [Hz]\tdB SPL\tPhase [deg]"])
 def test_a_level_in_db_spl_is_a_magnitude_in_db(tmp_path, header):

@@ -41,6 +41,9 @@ _MAG = {"mag", "magnitude", "abs", "amplitude", "amp", "gain", "modulus", "spl"}
 #: A magnitude in decibels named by its unit alone (``dB``, ``dBSPL`` as ARTA writes it).
 _DB = {"db", "dbspl", "db_spl", "dbv", "dbu", "dbr"}
 _PHASE = {"phase", "phi", "arg", "angle", "ph"}
+#: A phase named by its unit alone (``"Hz"  "Mag (dB)"  "deg"``, as MLSSA files head theirs).
+_PHASE_UNIT = {"deg": "deg", "degree": "deg", "degrees": "deg", "°": "deg", "rad": "rad",
+               "radian": "rad", "radians": "rad"}
 _COMPLEX = {"complex", "response", "h", "g", "frf", "z", "h1", "h2", "hv", "txy", "tf",
             "impedance", "admittance"}
 #: A network analyser's scattering parameter (``S21``) or receiver ratio (``A2/A1``,
@@ -126,6 +129,8 @@ def recognise(label):
         return Column("mag", "db" if s in _DB or unit == "db" else "lin", name)
     if s in _PHASE and unit in (None, "deg", "rad"):
         return Column("phase", unit, name)
+    if s in _PHASE_UNIT and unit is None:
+        return Column("phase", _PHASE_UNIT[s], name)
     return None
 
 

@@ -521,8 +521,10 @@ def _preamble(path, rows, columns):
         return rows
     sep = _separator(rows[i][1])
     ncols = len(_row_cells(rows[i][1]))
-    h = next((k for k in range(i - 1, max(-1, i - 1 - _HEADER_GAP), -1)
-              if _header_at(rows[k][1], sep, ncols)), None)
+    found = [k for k in range(i - 1, max(-1, i - 1 - _HEADER_GAP), -1)
+             if _header_at(rows[k][1], sep, ncols)]
+    # a unit line names every column too ('Hz  dB  deg'): the names above it come first
+    h = next((k for k in found if not _unit_line(rows[k][1])), found[0] if found else None)
     if h is None or columns is not None:
         if i > 1 and columns is not None or _metadata(rows[:i]):
             _note_preamble(path, rows[:i], "the data")
