@@ -70,6 +70,20 @@ class RecoveryMixin:
         assert res.wall_time >= sum(s.wall_time for s in res.stages) * 0.5
 
 
+@pytest.mark.parametrize("n_sections", [2, range(1, 3)])
+def test_wall_time_is_the_whole_call(n_sections):
+    """FitResult.wall_time counts the whole fit() call: the automatic integrator's
+    contenders, the layers after the core fit and, with an order range, every order
+    (before, only the kept core fit's seconds: 0.19 and 0.01 of the call on a measured
+    beam FRF at 2 sections and at 'auto')."""
+    import time
+    _, data = two_section_data(n_points=120)
+    t0 = time.perf_counter()
+    res = fc.fit(data, n_sections=n_sections)
+    elapsed = time.perf_counter() - t0
+    assert 0.8 * elapsed <= res.wall_time <= elapsed
+
+
 class TestIpopt(RecoveryMixin):
     method = "ipopt"
     solver = "ipopt"

@@ -105,7 +105,8 @@ class FitResult:
         ``poor-fit`` diagnostic says why: model class, order, sign or delay) or
         "not-converged" (the final stage did not converge).
     wall_time : float
-        Seconds for the whole fit.
+        Seconds for the whole :func:`fit` call (with ``integrator="auto"``, its
+        contenders' fits; with ``n_sections="auto"``, every order tried).
     method : str
         "ipopt" or "barrier-lm" (the type of ``options.solver``).
     options : FitOptions
@@ -256,22 +257,27 @@ class FitResult:
         return "\n".join([self.message, line] + [f"  {d.severity}: {d}" for d in self.diagnostics])
 
 
-def _reject_old_keywords(function):
-    """Wrap ``function`` so that a keyword it no longer takes raises a TypeError naming
-    the option object it moved to (:data:`~freqid_casadi.options.LEGACY_KEYWORDS`);
-    ``__wrapped__`` keeps the real signature for :func:`inspect.signature`."""
+def _public(function):
+    """Wrap :func:`fit` so that a keyword it no longer takes raises a TypeError naming
+    the option object it moved to (:data:`~freqid_casadi.options.LEGACY_KEYWORDS`), and
+    its result's ``wall_time`` counts the whole call (the automatic integrator's
+    contenders, the layers after the core fit, every order of ``n_sections="auto"``);
+    ``__wrapped__`` keeps the real signature for :func:`inspect.signature`. (One frame
+    for both: the warnings' ``stacklevel`` counts it.)"""
 
     @functools.wraps(function)
     def wrapper(*args, **kwargs):
         for name in kwargs:
             if name in LEGACY_KEYWORDS:
                 raise TypeError(legacy_message(function.__name__, name, kwargs[name]))
-        return function(*args, **kwargs)
+        t_start = time.perf_counter()
+        result = function(*args, **kwargs)
+        return dataclasses.replace(result, wall_time=time.perf_counter() - t_start)
 
     return wrapper
 
 
-@_reject_old_keywords
+@_public
 def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=True,
         basis="second-order", method="ipopt", tol=None, weights=None, start="best",
         objective="least-squares", min_damping=None, progress=False, loop=None,
