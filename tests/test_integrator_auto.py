@@ -92,18 +92,42 @@ def test_auto_on_corpus_families(index):
 
 
 def test_auto_tries_the_k_a_start_effectively_has():
-    """Seed 11's band-pass case 170 (exact, one zero at the origin, 258 points from 0.54
-    times the lowest pole): the lowest bins rise at slope 2.6 into two resonances, so the
-    slope proposed 0, -2 and -3 only; the k = 0 start put its zero at 1e-3 of the lowest
-    frequency (effectively k = -1), where the fit's root floor held it: poor-fit at RMS
-    1.52e-4. Now k = -1 is tried and chosen, and the fit is exact (measured 2.3e-14)."""
-    c = case(170, 11, max_points=400)
+    """Seed 0's band-pass case 125 (exact, one zero at the origin, a pole pair below the
+    band): its lowest bins fall on a clean line of slope -1.01 (informative), which
+    proposed k = 0, 1 and 2 only; the k = 0 start puts its zero far below the lowest
+    frequency (effectively k = -1), so k = -1 is tried too, chosen, and the fit is exact
+    (measured 2.4e-15; before: not-converged at RMS 1.0e-4)."""
+    c = case(125, 0, max_points=120)
     assert c.integrators - c.zeros_at_origin == -1
     res = fc.fit(c.data, n_sections=c.n_sections)
     rec = res.details["integrator"]
-    assert rec["low_frequency_slope"] > 2.5 and rec["effective"][0] == -1
-    assert rec["candidates"] == [0, -1, -2, -3] and rec["chosen"] == -1
+    assert rec["slope_informative"] is True and -1.1 < rec["low_frequency_slope"] < -0.9
+    assert rec["effective"][0] == -1
+    assert rec["candidates"] == [0, -1, 1, 2] and rec["chosen"] == -1
     assert res.status == "ok" and res.rms_rel_error < 1e-10
+
+
+def test_a_resonance_in_the_lowest_bins_does_not_decide_the_candidates():
+    """Seed 37's integrator case 122 (exact, one pole at the origin, a linear grid from
+    0.66 times the lowest pole): its lowest 5 % of bins span the resonance and the
+    antiresonance after it, so their slope (-4.5) proposed k = 0, 2, 3 only, and the fit
+    ended poor-fit at RMS 0.49 with two poles at the origin and a negative gain. The
+    bins' scatter about their line (0.87 in log|G|) marks the slope as not informative:
+    every |k| <= 2 is tried too, k = 1 wins and the fit is exact (measured 1.5e-14)."""
+    from freqid_casadi.fitting.origin import SLOPE_SCATTER, slope_informative
+    c = case(122, 37, max_points=800)
+    assert c.integrators - c.zeros_at_origin == 1
+    res = fc.fit(c.data, n_sections=c.n_sections)
+    rec = res.details["integrator"]
+    assert rec["low_frequency_slope"] < -4 and rec["slope_informative"] is False
+    assert set(rec["candidates"]) == {0, 1, -1, 2, -2, 3} and rec["chosen"] == 1
+    assert res.status == "ok" and res.rms_rel_error < 1e-10
+    # a clean integrator's lowest bins lie on their line: informative, as before
+    w = np.logspace(0, 2, 200)
+    h = 1.0 / (1j * w) * _pair(1j * w, 40.0, 0.02)
+    data = fc.FrequencyData(w, h)
+    assert slope_informative(data, -1.0) and SLOPE_SCATTER == 0.2
+    assert not slope_informative(data, 5.0)            # no origin order has slope 5
 
 
 def test_an_ambiguous_choice_also_fits_the_model_without_roots_at_the_origin():

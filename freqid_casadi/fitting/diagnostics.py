@@ -45,7 +45,7 @@ from ..core.model import times_jw_power
 __all__ = ["Diagnostic", "CODES", "TRIVIAL_RMS", "low_frequency_phase", "low_frequency_slope",
            "check_gain_sign", "gain_sign_decision", "rational_gain_sign",
            "check_trivial", "check_delay", "check_minimum_phase", "rhp_zeros_note",
-           "check_roots_below_band", "BELOW_BAND", "spell_origin"]
+           "check_roots_below_band", "BELOW_BAND", "spell_origin", "low_points"]
 
 CODES = ("negative-gain", "non-minimum-phase", "delay-undetermined", "no-better-than-trivial",
          "root-below-band", "order-chosen", "integrator")
@@ -116,7 +116,8 @@ def spell_origin(k):
     return "True" if k == 1 else "False" if k == 0 else str(int(k))
 
 
-def _low_points(omega, n_min=3, n_max=20, fraction=0.05):
+def low_points(omega, n_min=3, n_max=20, fraction=0.05):
+    """How many of the lowest points the low-frequency phase and slope use (5 %, 3 to 20)."""
     m = int(np.clip(round(fraction * omega.size), n_min, n_max))
     return min(m, omega.size)
 
@@ -142,7 +143,7 @@ def low_frequency_phase(data, integrator, delay=0.0):
     float
         In (-pi, pi]; near 0 for a positive static gain, near +-pi for a negative one.
     """
-    m = _low_points(data.omega)
+    m = low_points(data.omega)
     g = data.response[:m]
     k = int(integrator)
     if k == 1:
@@ -169,7 +170,7 @@ def low_frequency_slope(data, integrator):
     float
         d log|G| / d log omega (nan with fewer than 2 distinct points).
     """
-    m = max(_low_points(data.omega), 2)
+    m = max(low_points(data.omega), 2)
     if data.omega.size < 2:
         return float("nan")
     log_w = np.log(data.omega[:m])
@@ -294,7 +295,7 @@ def gain_sign_decision(data, integrator, gain_sign="auto", structure=None):
     phase = low_frequency_phase(data, integrator, h)
     deg = math.degrees(phase)
     slope = low_frequency_slope(data, integrator)
-    m = _low_points(data.omega)
+    m = low_points(data.omega)
     values = {"low_frequency_phase_deg": deg, "n_points": m,
               "omega_max_used": float(data.omega[m - 1]), "low_frequency_slope": slope,
               "delay_removed": h}
