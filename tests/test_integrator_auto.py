@@ -92,8 +92,8 @@ def test_auto_on_corpus_families(index):
 
 
 def test_auto_tries_the_k_a_start_effectively_has():
-    """Seed 0's band-pass case 125 (exact, one zero at the origin, a pole pair below the
-    band): its lowest bins fall on a clean line of slope -1.01 (informative), which
+    """Seed 0's band-pass case 125 (exact, one zero at the origin, an antiresonance just
+    above the lowest bins): those bins fall on a clean line of slope -1.01 (informative), which
     proposed k = 0, 1 and 2 only; the k = 0 start puts its zero far below the lowest
     frequency (effectively k = -1), so k = -1 is tried too, chosen, and the fit is exact
     (measured 2.4e-15; before: not-converged at RMS 1.0e-4)."""

@@ -19,8 +19,9 @@ the data cannot tell them from roots at the origin) counts as the k it effective
 yields to the candidate that has them at the origin (a k = 0 start of accelerance data
 with two zeros near 0 is the k = -2 model reached the hard way: the fit's bounds stop such
 roots at a floor); that k is tried too when the slope did not propose it (a band-pass
-whose lowest bins sit just below two resonances: slope 2.6, candidates 0, -2, -3, and the
-k = 0 start's zero at 1e-3 of the lowest frequency asks for k = -1). When another
+whose lowest bins fall into an antiresonance just above them, on a clean line of slope
+-1: candidates 0, 1, 2, and the k = 0 start's zero far below the lowest frequency asks
+for k = -1). When another
 candidate, not effectively the same, is within :data:`AMBIGUOUS_FACTOR` of the winner, the
 choice is ambiguous: both are fitted (the full fit, up to :data:`MAX_FITS` close
 candidates, and k = 0 in any case, since a start is only as good as vector fitting's
