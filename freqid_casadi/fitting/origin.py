@@ -8,26 +8,25 @@ decide k (a pole below the band looks like an integrator; a resonance near the l
 bends the slope), so the slope only proposes the candidates: k = -round(slope) and its two
 neighbours, and k = 0, within ``|k| <= MAX_ORIGIN_ORDER``; when the lowest bins do not lie
 on a line of a slope an origin order can have (a resonance among them:
-:func:`slope_informative`), every ``|k| <= 2`` is a candidate too. Each candidate is judged by the
-rational start (:func:`~freqid_casadi.fitting.start.rational_start`: vector fitting of
-``data * (j omega)^k`` with the delay refined; no IPOPT, a fraction of a fit's time) with
+:func:`slope_informative`), every ``|k| <= 2`` is a candidate too. Each candidate is judged
+by the rational start (:func:`~freqid_casadi.fitting.start.rational_start`: vector fitting
+of ``data * (j omega)^k`` with the delay refined; no IPOPT, a fraction of a fit's time) with
 either gain sign, by its RMS relative error on the data. Of the candidates within
 :data:`PREFER_FACTOR` of the lowest error, the one with the smallest ``|k|`` wins (the
 simpler model, when the data do not tell them apart), except that a candidate whose start
-puts poles or zeros far below the band (below ``BELOW_BAND`` times the lowest frequency:
-the data cannot tell them from roots at the origin) counts as the k it effectively has and
-yields to the candidate that has them at the origin (a k = 0 start of accelerance data
-with two zeros near 0 is the k = -2 model reached the hard way: the fit's bounds stop such
-roots at a floor); that k is tried too when the slope did not propose it (a band-pass
-whose lowest bins fall into an antiresonance just above them, on a clean line of slope
--1: candidates 0, 1, 2, and the k = 0 start's zero far below the lowest frequency asks
-for k = -1). When another
-candidate, not effectively the same, is within :data:`AMBIGUOUS_FACTOR` of the winner, the
-choice is ambiguous: both are fitted (the full fit, up to :data:`MAX_FITS` close
-candidates, and k = 0 in any case, since a start is only as good as vector fitting's
-model) and the lower RMS wins; when the fits too are within that factor (typically: the
-data end too high to show the low-frequency asymptote) an ``integrator`` warning gives the
-errors of each choice and the switch ``integrator=...``.
+puts poles or zeros far below the band (below ``BELOW_BAND`` times the lowest frequency: the
+data cannot tell them from roots at the origin) counts as the k it effectively has and
+yields to the candidate that has them at the origin (a k = 0 start of accelerance data with
+two zeros near 0 is the k = -2 model reached the hard way: the fit's bounds stop such roots
+at a floor); that k is tried too when the slope did not propose it (a band-pass whose lowest
+bins fall into an antiresonance just above them, on a clean line of slope -1: candidates 0,
+1, 2, and the k = 0 start's zero far below the lowest frequency asks for k = -1). When
+another candidate, not effectively the same, is within :data:`AMBIGUOUS_FACTOR` of the
+winner, the choice is ambiguous: both are fitted (the full fit, up to :data:`MAX_FITS` close
+candidates, and k = 0 in any case, since a start is only as good as vector fitting's model)
+and the lower RMS wins; when the fits too are within that factor (typically: the data end
+too high to show the low-frequency asymptote) an ``integrator`` warning gives the errors of
+each choice and the switch ``integrator=...``.
 """
 
 import math
@@ -185,10 +184,9 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
     When ``record["ambiguous"]``, the caller fits each k of ``record["contenders"]`` (the
     chosen k, the runner-up and, up to :data:`MAX_FITS`, the others within
     :data:`AMBIGUOUS_FACTOR`, then k = 0 in any case) and settles it
-    (:func:`settle_by_fits`);
-    :func:`origin_diagnostics` then states it: an ``integrator`` record, "info" when a k
-    other than 0 is chosen clearly, "warning" (with the errors of each choice and ``pass
-    integrator=...``) when it stays ambiguous.
+    (:func:`settle_by_fits`); :func:`origin_diagnostics` then states it: an
+    ``integrator`` record, "info" when a k other than 0 is chosen clearly, "warning"
+    (with the errors of each choice and ``pass integrator=...``) when it stays ambiguous.
     """
     slope = low_frequency_slope(data, 0)
     informative = slope_informative(data, slope)

@@ -90,7 +90,8 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
     DataError
         Anything wrong with the file, naming the file, line, column and fix.
     OptionError
-        An invalid ``freq_unit`` or ``columns``.
+        An invalid ``freq_unit`` or ``columns``; ``record``, ``parameter`` or ``columns``
+        given for a kind of file they do not apply to (:func:`refuse_options`).
 
     Warns
     -----
@@ -136,10 +137,24 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
 
 
 def refuse_options(path, *, record=None, parameter=None, columns=None, flag=False):
-    """Raise if an option given to :func:`load` does not apply to ``path``'s kind of file
-    (it would be ignored): ``record`` but for UFF and text (LTspice runs), ``parameter``
-    but for Touchstone and text, ``columns`` for .npz and UFF. ``flag``: name the options
-    as the command line spells them (``--record``)."""
+    """Refuse an option given to :func:`load` for a kind of file it does not apply to
+    (it would be ignored): ``record`` of a .npz, .mat or Touchstone file (it chooses a UFF
+    record or an LTspice run), ``parameter`` of a .npz, .mat or UFF file (it chooses a
+    Touchstone or text table's S-parameter), ``columns`` of a .npz or UFF file.
+
+    Parameters
+    ----------
+    path : str or path-like
+    record, parameter, columns : optional
+        The options as given (None: not given).
+    flag : bool, optional
+        Name the options as the command line spells them (``--record``).
+
+    Raises
+    ------
+    OptionError
+        An option that does not apply, with what it chooses and "drop it".
+    """
     lower = os.fspath(path).lower() if isinstance(path, (str, os.PathLike)) else ""
     spell = (lambda k: f"--{k}") if flag else (lambda k: f"{k}=")
     if record is not None and (lower.endswith((".npz", ".mat")) or is_touchstone(lower)):
