@@ -117,7 +117,22 @@ def spell_origin(k):
 
 
 def low_points(omega, n_min=3, n_max=20, fraction=0.05):
-    """How many of the lowest points the low-frequency phase and slope use (5 %, 3 to 20)."""
+    """How many of the lowest points the low-frequency phase and slope use.
+
+    Parameters
+    ----------
+    omega : ndarray, shape (n,)
+        The data's frequencies (rad/s), ascending.
+    n_min, n_max : int, optional
+        Fewest and most points.
+    fraction : float, optional
+        Share of the points (5 %).
+
+    Returns
+    -------
+    int
+        ``round(fraction * n)`` within ``[n_min, n_max]``, at most ``n``.
+    """
     m = int(np.clip(round(fraction * omega.size), n_min, n_max))
     return min(m, omega.size)
 
