@@ -45,7 +45,7 @@ from ..core.model import times_jw_power
 __all__ = ["Diagnostic", "CODES", "TRIVIAL_RMS", "low_frequency_phase", "low_frequency_slope",
            "check_gain_sign", "gain_sign_decision", "rational_gain_sign",
            "check_trivial", "check_delay", "check_minimum_phase", "rhp_zeros_note",
-           "check_roots_below_band", "BELOW_BAND", "spell_origin", "low_points"]
+           "check_roots_below_band", "BELOW_BAND", "spell_origin", "low_frequency_line"]
 
 CODES = ("negative-gain", "non-minimum-phase", "delay-undetermined", "no-better-than-trivial",
          "root-below-band", "order-chosen", "integrator")
@@ -116,7 +116,7 @@ def spell_origin(k):
     return "True" if k == 1 else "False" if k == 0 else str(int(k))
 
 
-def low_points(omega, n_min=3, n_max=20, fraction=0.05):
+def _low_points(omega, n_min=3, n_max=20, fraction=0.05):
     """How many of the lowest points the low-frequency phase and slope use.
 
     Parameters
@@ -158,7 +158,7 @@ def low_frequency_phase(data, integrator, delay=0.0):
     float
         In (-pi, pi]; near 0 for a positive static gain, near +-pi for a negative one.
     """
-    m = low_points(data.omega)
+    m = _low_points(data.omega)
     g = data.response[:m]
     k = int(integrator)
     if k == 1:
@@ -185,14 +185,35 @@ def low_frequency_slope(data, integrator):
     float
         d log|G| / d log omega (nan with fewer than 2 distinct points).
     """
-    m = max(low_points(data.omega), 2)
+    return low_frequency_line(data, integrator)[0]
+
+
+def low_frequency_line(data, integrator):
+    """The line :func:`low_frequency_slope` fits to ``log|G|`` over the lowest points: its
+    slope and the RMS scatter of the points about it (natural log of ``|G|``).
+
+    Parameters
+    ----------
+    data : FrequencyData
+    integrator : bool or int
+        Poles at the origin to remove (negative: zeros).
+
+    Returns
+    -------
+    (float, float)
+        Slope and scatter (both nan with fewer than 2 distinct points).
+    """
+    m = max(_low_points(data.omega), 2)
     if data.omega.size < 2:
-        return float("nan")
+        return float("nan"), float("nan")
     log_w = np.log(data.omega[:m])
     with np.errstate(divide="ignore"):      # logs: no overflow at extreme scales
         k = int(integrator)
         log_g = np.log(np.abs(data.response[:m])) + (log_w if k == 1 else k * log_w)
-    return float(np.polyfit(log_w, log_g, 1)[0])
+    line = np.polyfit(log_w, log_g, 1)
+    with np.errstate(invalid="ignore"):
+        scatter = np.sqrt(np.mean((log_g - np.polyval(line, log_w)) ** 2))
+    return float(line[0]), float(scatter)
 
 
 def rational_gain_sign(data, structure, decisive=0.5):
@@ -310,7 +331,7 @@ def gain_sign_decision(data, integrator, gain_sign="auto", structure=None):
     phase = low_frequency_phase(data, integrator, h)
     deg = math.degrees(phase)
     slope = low_frequency_slope(data, integrator)
-    m = low_points(data.omega)
+    m = _low_points(data.omega)
     values = {"low_frequency_phase_deg": deg, "n_points": m,
               "omega_max_used": float(data.omega[m - 1]), "low_frequency_slope": slope,
               "delay_removed": h}

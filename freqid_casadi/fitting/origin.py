@@ -37,7 +37,7 @@ from ..core.data import FrequencyData
 from ..core.model import MAX_ORIGIN_ORDER, Structure
 from ..core.resolution import default_delay_max
 from ..core.scaling import reference_scales, scale_data
-from .diagnostics import (BELOW_BAND, EXACT_START, Diagnostic, low_frequency_slope, low_points,
+from .diagnostics import (BELOW_BAND, EXACT_START, Diagnostic, low_frequency_line,
                           spell_origin)
 from .start import RationalStartError, rational_start
 
@@ -97,7 +97,7 @@ def origin_candidates(slope, informative=True):
     return tuple(sorted(ks, key=lambda k: (abs(k), k)))
 
 
-def slope_informative(data, slope):
+def slope_informative(data, slope, scatter=None):
     """Whether the low-frequency slope can propose the origin order: its magnitude at most
     ``MAX_ORIGIN_ORDER + 0.5`` and the lowest points' ``log|G|`` within
     :data:`SLOPE_SCATTER` (RMS) of the fitted line. A resonance among the lowest bins
@@ -110,6 +110,9 @@ def slope_informative(data, slope):
     data : FrequencyData
     slope : float
         :func:`~freqid_casadi.fitting.diagnostics.low_frequency_slope` of ``data``.
+    scatter : float, optional
+        The lowest points' scatter about that line when already known
+        (:func:`~freqid_casadi.fitting.diagnostics.low_frequency_line`).
 
     Returns
     -------
@@ -117,12 +120,8 @@ def slope_informative(data, slope):
     """
     if not math.isfinite(slope) or abs(slope) > MAX_ORIGIN_ORDER + 0.5:
         return False
-    m = min(max(low_points(data.omega), 2), data.omega.size)
-    log_w = np.log(data.omega[:m])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        log_g = np.log(np.abs(data.response[:m]))
-        scatter = np.sqrt(np.mean((log_g - np.polyval(np.polyfit(log_w, log_g, 1),
-                                                      log_w)) ** 2))
+    if scatter is None:
+        scatter = low_frequency_line(data, 0)[1]
     return bool(scatter <= SLOPE_SCATTER)
 
 
@@ -188,8 +187,8 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
     ``integrator`` record, "info" when a k other than 0 is chosen clearly, "warning"
     (with the errors of each choice and ``pass integrator=...``) when it stays ambiguous.
     """
-    slope = low_frequency_slope(data, 0)
-    informative = slope_informative(data, slope)
+    slope, scatter = low_frequency_line(data, 0)         # one line fit for both
+    informative = slope_informative(data, slope, scatter)
     cands = origin_candidates(slope, informative)
     w_ref, g_ref = reference_scales(data)
     scaled = scale_data(data, w_ref, g_ref)
