@@ -130,6 +130,19 @@ def test_a_resonance_in_the_lowest_bins_does_not_decide_the_candidates():
     assert not slope_informative(data, 5.0)            # no origin order has slope 5
 
 
+def test_a_band_pass_below_two_resonances_keeps_its_exact_fit():
+    """Seed 11's band-pass case 170 (exact, one zero at the origin; the last stop's
+    effective-k fix, measured 2.3e-14): its lowest bins rise at slope 2.6 into two
+    resonances, which the slope rule now marks as not informative; k = -1 is still chosen
+    and the fit is still exact."""
+    c = case(170, 11, max_points=400)
+    res = fc.fit(c.data, n_sections=c.n_sections)
+    rec = res.details["integrator"]
+    assert rec["low_frequency_slope"] > 2.5 and rec["slope_informative"] is False
+    assert rec["effective"][0] == -1 and rec["chosen"] == -1
+    assert res.status == "ok" and res.rms_rel_error < 1e-10
+
+
 def test_an_ambiguous_choice_also_fits_the_model_without_roots_at_the_origin():
     """Seed 23's in-class case 117 (k = 0, a zero pair at 65 rad/s just below the band's
     87 rad/s, noise 0.17 %): the lowest bins rise at slope 2.2, and vector fitting's k = 0
