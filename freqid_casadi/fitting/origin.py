@@ -8,7 +8,9 @@ decide k (a pole below the band looks like an integrator; a resonance near the l
 bends the slope), so the slope only proposes the candidates: k = -round(slope) and its two
 neighbours, and k = 0, within ``|k| <= MAX_ORIGIN_ORDER``; when the lowest bins do not lie
 on a line of a slope an origin order can have (a resonance among them:
-:func:`slope_informative`), every ``|k| <= 2`` is a candidate too. Each candidate is judged
+:func:`slope_informative`), or when no start of the slope's candidates explains the data
+(RMS above :data:`POOR_START`; the starts then also try the data's group delay as their
+delay), every ``|k| <= 2`` is a candidate too. Each candidate is judged
 by the rational start (:func:`~freqid_casadi.fitting.start.rational_start`: vector fitting
 of ``data * (j omega)^k`` with the delay refined; no IPOPT, a fraction of a fit's time) with
 either gain sign, by its RMS relative error on the data. Of the candidates within
@@ -43,7 +45,7 @@ from .start import RationalStartError, rational_start
 
 __all__ = ["choose_origin_order", "origin_candidates", "slope_informative", "settle_by_fits",
            "origin_diagnostics", "describe_origin", "PREFER_FACTOR", "AMBIGUOUS_FACTOR",
-           "MAX_FITS", "SLOPE_SCATTER"]
+           "MAX_FITS", "SLOPE_SCATTER", "POOR_START"]
 
 #: A candidate with a smaller ``|k|`` whose start's RMS error is within this factor of the
 #: best candidate's is chosen instead (the simpler model when the data do not decide).
@@ -67,8 +69,15 @@ MAX_FITS = 3
 #: the log scatter of the noisiest corpus data (5 % noise); the lowest bins of 58 of 765
 #: corpus FRFs (seeds 0, 11, 23, 37) exceed it, a resonance among them.
 SLOPE_SCATTER = 0.2
-#: The k tried too when the slope is not informative.
+#: The k tried too when the slope is not informative, or when no start of the slope's
+#: candidates explains the data (:data:`POOR_START`).
 UNINFORMED = (0, 1, -1, 2, -2)
+#: RMS relative error of the best start above which the slope's candidates are taken to
+#: have missed the origin order and every ``|k| <= 2`` is tried too: four times the
+#: noisiest corpus data's 5 % (a motor's k = 2 data whose lowest bins rise at slope +1
+#: on a clean line, from a zero pair just above them: candidates 0, -1, -2, best start
+#: 0.57; the k = 2 start fits to the noise).
+POOR_START = 0.2
 
 
 def origin_candidates(slope, informative=True):
@@ -125,7 +134,7 @@ def slope_informative(data, slope, scatter=None):
     return bool(scatter <= SLOPE_SCATTER)
 
 
-def _start_error(scaled, structure, dmax):
+def _start_error(scaled, structure, dmax, group_delay_trial=False):
     """(RMS, max, effective k) of the rational start of ``structure`` on ``scaled``, the
     better of the two gain signs (the negative one only when the positive start's RMS is
     not below :data:`DECISIVE_RMS`; inf when neither start is usable); the effective k
@@ -137,7 +146,8 @@ def _start_error(scaled, structure, dmax):
         target = FrequencyData(scaled.omega, sign * scaled.response, None, scaled.weights)
         try:
             with np.errstate(all="ignore"):
-                start = rational_start(target, structure, delay_max=dmax)
+                start = rational_start(target, structure, delay_max=dmax,
+                                       group_delay_trial=group_delay_trial)
                 err = np.abs(start.model.relative_error(target))
         except (RationalStartError, ValueError, ArithmeticError, np.linalg.LinAlgError):
             continue
@@ -177,7 +187,8 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
     record : dict
         ``{"auto": True, "chosen": k, "candidates": [k, ...], "rms": {k: RMS}, "max":
         {k: max}, "effective": {k: k + roots below the band}, "low_frequency_slope": slope,
-        "slope_informative": bool, "ambiguous": bool, "runner_up": k or None}``, the
+        "slope_informative": bool, "poor_starts": bool, "ambiguous": bool, "runner_up": k
+        or None}``, the
         errors being those of each candidate's rational start on the data (either gain
         sign), for ``FitResult.details["integrator"]``.
     When ``record["ambiguous"]``, the caller fits each k of ``record["contenders"]`` (the
@@ -193,8 +204,9 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
     w_ref, g_ref = reference_scales(data)
     scaled = scale_data(data, w_ref, g_ref)
     dmax = default_delay_max(scaled.omega)
-    def start(k):
-        return _start_error(scaled, Structure(int(n_sections), k, delay, basis, zeros), dmax)
+    def start(k, group_delay_trial=False):
+        return _start_error(scaled, Structure(int(n_sections), k, delay, basis, zeros), dmax,
+                            group_delay_trial)
 
     errors = {k: start(k) for k in cands}
     # a start whose roots far below the band make it effectively another k asks for that
@@ -202,6 +214,12 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
     for k in sorted({errors[k][2] for k in cands} - set(cands), key=lambda k: (abs(k), k)):
         if abs(k) <= MAX_ORIGIN_ORDER:
             errors[k] = start(k)
+    # no start explains the data: the slope may have proposed the wrong orders, and the
+    # starts' delay updates may have run off (each start tries the data's group delay too)
+    poor = not min(e[0] for e in errors.values()) <= POOR_START
+    if poor:
+        for k in sorted(set(errors) | set(UNINFORMED), key=lambda k: (abs(k), k)):
+            errors[k] = start(k, group_delay_trial=True)
     cands = tuple(sorted(errors, key=lambda k: (abs(k), k)))
     rms = {k: errors[k][0] for k in cands}
     eff = {k: errors[k][2] for k in cands}
@@ -235,6 +253,7 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
               "max": {int(k): errors[k][1] for k in cands},
               "effective": {int(k): int(eff[k]) for k in cands},
               "low_frequency_slope": float(slope), "slope_informative": informative,
+              "poor_starts": poor,
               "ambiguous": ambiguous,
               "runner_up": None if runner is None else int(runner)}
     return int(chosen), record

@@ -271,7 +271,7 @@ def _start_at(vector_fitting, data, structure, base, h, n_poles, n_iter, floor):
 
 
 def rational_start(data, structure, *, delay_max, delay0=0.0, max_delay_updates=12,
-                   n_iter=10):
+                   n_iter=10, group_delay_trial=False):
     """Stable, minimum-phase start for all sections at once (see the module docstring).
 
     Parameters
@@ -297,6 +297,10 @@ def rational_start(data, structure, *, delay_max, delay0=0.0, max_delay_updates=
         the best probe.
     n_iter : int
         Vector-fitting iterations per trial delay.
+    group_delay_trial : bool
+        When the trials' best is poor (max relative error above :data:`POOR_TRIAL`), also
+        try the data's group delay, however small its phase (the updates take a poor
+        fit's right-half-plane zeros for too small a delay and can run off).
 
     Returns
     -------
@@ -305,11 +309,13 @@ def rational_start(data, structure, *, delay_max, delay0=0.0, max_delay_updates=
     """
     key = (data.omega.tobytes(), data.response.tobytes(),
            None if data.weights is None else data.weights.tobytes(), repr(structure),
-           float(delay_max), float(delay0), int(max_delay_updates), int(n_iter))
+           float(delay_max), float(delay0), int(max_delay_updates), int(n_iter),
+           bool(group_delay_trial))
     memo = _MEMO.get()
     if memo is not None and key in memo:       # fit's gain-sign check ran this start
         return memo[key]
-    result = _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_iter)
+    result = _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_iter,
+                             group_delay_trial)
     if memo is not None:
         memo[key] = result
     return result
@@ -377,6 +383,14 @@ GROUP_DELAY_PHASE = np.pi
 #: stop there and the group-delay search does not run.
 EXACT_TRIAL = 1e-9
 
+#: Max relative error of the best trial above which a start asked for it
+#: (``group_delay_trial``) also tries the data's group delay: the updates take
+#: right-half-plane zeros for too small a delay, which a fit too poor to model the
+#: rational part breaks (an integrator with one lightly damped pole-zero pair and 2 rad of
+#: delay at the band's top: every trial of its k = 1 start above 1.0, the group delay's
+#: 0.18).
+POOR_TRIAL = 0.5
+
 #: Probe step, in rad of phase at the highest frequency (``PROBE_PHASE / omega[-1]`` s).
 PROBE_PHASE = 0.1
 #: Most vector fits one search makes.
@@ -428,7 +442,8 @@ def search_delay(trial, h0, step, delay_max, max_trials=MAX_TRIALS):
 
 
 
-def _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_iter):
+def _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_iter,
+                    group_delay_trial=False):
     from ..baselines import vector_fitting
 
     base = times_jw_power(data.response, data.omega, structure.origin_order)
@@ -461,6 +476,11 @@ def _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_ite
             and abs((best or 0.0) - h_gd) * float(data.omega[-1]) > 0.5 * np.pi):
         _search(run, trial, data, base, h_gd, delay_max, max_delay_updates)
         best = _best(trials)
+    if group_delay_trial and (best is None or trials[best][1] > POOR_TRIAL):
+        h = _group_delay_start(data, structure, delay_max, max_delay_updates, any_phase=True)
+        if h is not None and h not in trials:
+            run(h)
+            best = _best(trials)
     if best is None:
         raise RationalStartError("the rational start failed (vector fitting gave no usable model); "
                           "use start='sequential'")
@@ -520,11 +540,16 @@ def significant_group_delay(data):
     return h if h * float(data.omega[-1]) > GROUP_DELAY_PHASE else 0.0
 
 
-def _group_delay_start(data, structure, delay_max, max_delay_updates):
-    """The data's group delay (s) when a delay search should start there, else None."""
+def _group_delay_start(data, structure, delay_max, max_delay_updates, any_phase=False):
+    """The data's group delay (s) when a delay search should start there, else None; with
+    ``any_phase`` also when its phase at the highest frequency is below
+    :data:`GROUP_DELAY_PHASE`."""
     if not structure.delay or max_delay_updates <= 1:
         return None
-    h = significant_group_delay(data)
+    if any_phase and data.omega.size >= 3:
+        h = group_delay_estimate(data.omega, data.response)
+    else:
+        h = significant_group_delay(data)
     return h if 0.0 < h < delay_max else None
 
 
