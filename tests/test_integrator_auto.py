@@ -193,7 +193,7 @@ def test_poor_starts_also_try_the_group_delay():
     dmax = default_delay_max(scaled.omega)
     plain = rational_start(scaled, structure, delay_max=dmax)
     tried = rational_start(scaled, structure, delay_max=dmax, group_delay_trial=True)
-    assert plain.max_rel_error > 1.0                     # as before, unless asked
+    assert plain.max_rel_error > POOR_TRIAL              # measured 1.01, unless asked
     err = np.abs(tried.model.relative_error(scaled))
     assert np.sqrt(np.mean(err ** 2)) < 0.15             # measured 0.102 (plain: 1.0)
     res = fc.fit(c.data, n_sections=c.n_sections)
