@@ -290,6 +290,25 @@ def test_load_refuses_options_that_do_not_apply_to_the_file(tmp_path):
     assert "columns= names the columns" in items[0].error
 
 
+def test_cli_batch_spells_a_refused_option_as_the_command_line(tmp_path, monkeypatch, capsys):
+    """freqid batch --columns on a folder of a .npz and a .csv: the .csv is fitted and the
+    .npz's error names --columns (fit_many's own error spells the API's columns=)."""
+    monkeypatch.chdir(tmp_path)
+    folder = tmp_path / "in"
+    folder.mkdir()
+    np.savez(folder / "a.npz", freq_hz=F_HZ, response=RESP)
+    (folder / "b.csv").write_text(_table(","))
+    code = cli.main(["batch", "in", "--out", "rep", "--sections", "1",
+                     "--columns", "freq_hz,mag_db,phase_deg"])
+    out, err = capsys.readouterr()
+    assert code == 1, out + err                        # one file failed
+    line = next(ln for ln in out.splitlines() if "a.npz" in ln)
+    assert line.startswith("error: a.npz: OptionError: --columns names the columns"), line
+    assert "columns=" not in line and "drop it" in line
+    assert re.search(r"^(ok|poor-fit|not-converged): b\.csv: ", out, re.M), out
+    assert "--columns names the columns" in (tmp_path / "rep" / "summary.md").read_text()
+
+
 KEYSIGHT = ("!CSV A.01.01\r\n!Keysight Technologies,N5247B,US00000000,A.17.30.08\r\n"
             "!Date: Friday, September 11, 2026 14:48:21\r\n!Source: Standard\r\n\r\n"
             "BEGIN CH1_DATA\r\n{header}\r\n{rows}END\r\n\r\n")

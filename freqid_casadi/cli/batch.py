@@ -24,6 +24,7 @@ file failed or did not converge (the summary says which), 2 on a usage, option o
 Registered in :data:`freqid_casadi.cli.app.COMMANDS` (its :func:`add_cli` and :func:`run_cli`).
 """
 
+import dataclasses
 import math
 import os
 import stat
@@ -35,7 +36,8 @@ from ..fitting.batch import BATCH_STATUSES, fit_many
 from .common import (_add_final_max_iter, _add_input, _add_model_arguments,  # the CLI's
                      _positive_int)                                      # own helpers
 from ..report.outputs import MARKER
-from ..errors import DataError
+from ..errors import DataError, OptionError
+from ..io.loaders import refuse_options
 from ..fitting.fit import METHODS
 from ..report.formatting import number as _num
 from ..report.folder import check_out_dir, generated_by_line, markdown_table, report_folder
@@ -227,6 +229,21 @@ def _markdown(rows, command):
         f"{len(rows)} files: {counts}.", "", table, ""])
 
 
+def _as_flag_refusal(item, opts):
+    """``item`` whose error is a load option refused for its file (``columns=`` of a .npz)
+    with the refusal spelt as the command line's option (``--columns``)."""
+    if item.result is not None or not item.source or \
+            not (item.error or "").startswith("OptionError"):
+        return item
+    try:
+        refuse_options(item.source, record=opts.get("record"),
+                       parameter=opts.get("parameter"), columns=opts.get("columns"),
+                       flag=True)
+    except OptionError as exc:
+        return dataclasses.replace(item, error=f"OptionError: {one_line(str(exc))}")
+    return item
+
+
 def run_cli(args, command):
     """Run ``freqid batch`` from parsed ``args``; returns the exit code (0, or 1 if a file
     failed or did not converge). FreqidError/OSError propagate to ``cli.main`` (exit 2).
@@ -240,12 +257,14 @@ def run_cli(args, command):
     """
     files = data_files(args.folder)
     check_out_dir(args.out, args.force)              # before the (long) fits
+    opts = load_options(args)
     with notes_to_stderr():                          # zero-frequency rows dropped, ...
         items = fit_many(files, n_jobs=args.jobs, scheduler=args.scheduler,
-                         load_options=load_options(args),
+                         load_options=opts,
                          n_sections=args.sections, integrator=args.integrator,
                          delay=args.delay, basis=args.basis, method=method_option(args),
                          tol=args.tol)
+    items = [_as_flag_refusal(item, opts) for item in items]
     path = write_batch_report(items, files, args.out, command=command, force=args.force)
     n_ok = sum(i.status in _CONVERGED for i in items)
     for item, f in zip(items, files):
