@@ -30,14 +30,13 @@ import os
 import stat
 import warnings
 
-from .common import load_options, method_option, notes_to_stderr
+from .common import load_options, method_option, notes_to_stderr, refuse_flags
 from .._textio import atomic_write_text, csv_row, one_line
 from ..fitting.batch import BATCH_STATUSES, fit_many
 from .common import (_add_final_max_iter, _add_input, _add_model_arguments,  # the CLI's
                      _positive_int)                                      # own helpers
 from ..report.outputs import MARKER
 from ..errors import DataError, OptionError
-from ..io.loaders import refuse_options
 from ..fitting.fit import METHODS
 from ..report.formatting import number as _num
 from ..report.folder import check_out_dir, generated_by_line, markdown_table, report_folder
@@ -231,14 +230,12 @@ def _markdown(rows, command):
 
 def _as_flag_refusal(item, opts):
     """``item`` whose error is a load option refused for its file (``columns=`` of a .npz)
-    with the refusal spelt as the command line's option (``--columns``)."""
-    if item.result is not None or not item.source or \
-            not (item.error or "").startswith("OptionError"):
+    with the refusal spelt as the command line's option (``--columns``): load() refuses
+    before it reads the file, so a refusal here was that item's error."""
+    if item.result is not None or not item.source:
         return item
     try:
-        refuse_options(item.source, record=opts.get("record"),
-                       parameter=opts.get("parameter"), columns=opts.get("columns"),
-                       flag=True)
+        refuse_flags(item.source, opts)
     except OptionError as exc:
         return dataclasses.replace(item, error=f"OptionError: {one_line(str(exc))}")
     return item

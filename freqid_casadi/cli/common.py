@@ -34,7 +34,7 @@ from ..io.loaders import DataWarning, load, refuse_options
 from ..errors import DataError, OptionError
 from ..options import solver_options
 
-__all__ = ["add_data_options", "parse_band_text", "load_data", "load_options",
+__all__ = ["add_data_options", "parse_band_text", "load_data", "load_options", "refuse_flags",
            "notes_to_stderr", "grouped_notes", "with_weights", "error_line", "os_exit",
            "method_option", "print_continue_hint"]
 
@@ -210,6 +210,27 @@ def grouped_notes(notes):
     return out
 
 
+def refuse_flags(path, opts):
+    """:func:`~freqid_casadi.io.loaders.refuse_options` of the load options ``opts``
+    (:func:`load_options`) for ``path``, spelt as the command line's options
+    (``--columns``).
+
+    Parameters
+    ----------
+    path : str
+        The data file.
+    opts : dict
+        :func:`load_options` of the parsed arguments.
+
+    Raises
+    ------
+    OptionError
+        An option that does not apply to ``path``'s kind of file.
+    """
+    refuse_options(path, record=opts.get("record"), parameter=opts.get("parameter"),
+                   columns=opts.get("columns"), flag=True)
+
+
 def load_data(args, path):
     """Load ``path`` with the options in ``args``; reader notes go to stderr as ``note:``.
 
@@ -230,8 +251,7 @@ def load_data(args, path):
         As :func:`freqid_casadi.io.loaders.load`; no note is printed before an error.
     """
     opts = load_options(args)
-    refuse_options(path, record=opts.get("record"), parameter=opts.get("parameter"),
-                   columns=opts.get("columns"), flag=True)
+    refuse_flags(path, opts)
     with notes_to_stderr():
         data = load(path, **opts)
     weights = getattr(args, "weights", None)
