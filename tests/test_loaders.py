@@ -17,6 +17,7 @@ from freqid_casadi.cli import app as cli
 from freqid_casadi.io import loaders
 from freqid_casadi.errors import DataError, OptionError
 from freqid_casadi.io.loaders import DataWarning, load, load_mat, load_npz, load_text, load_uff
+from freqid_casadi.io._columns import recognise
 from conftest import first_order_response  # noqa: E402
 
 OMEGA = np.array([0.5, 1.25, 3.0, 7.5, 20.0, 64.0])
@@ -518,17 +519,41 @@ def test_bode100_export_with_two_traces_of_one_gain_is_read_as_written(tmp_path)
             "give the same response in another form") in said
 
 
+def test_bode100_impedance_with_its_series_inductance_reads_the_impedance(tmp_path):
+    # as the Bode 100 exports an impedance shown as Ls (a 2016 export on a public
+    # repository: 'TR2: Impedance (Ls)' is Im Z / omega to the last digit): the derived
+    # quantity is not the response in another form; it is skipped, with a note
+    ls = dict(zip(RESP, RESP.imag / (2 * np.pi * F_UFF)))
+    path = _bode100(tmp_path, "Frequency (Hz),TR2: Impedance (Real),TR2: Impedance (Imag),"
+                    "TR2: Impedance (Ls)", [np.real, np.imag, ls.get])
+    with pytest.warns(DataWarning) as notes:
+        data = load(path)
+    np.testing.assert_array_equal(data.response, RESP)
+    said = " ".join(str(w.message) for w in notes)
+    assert ("skipped 'TR2: Impedance (Ls)': a quantity the analyser derives from the "
+            "response") in said
+
+
+@pytest.mark.parametrize("derived", ["Rs", "Ls", "Cs", "Rp", "Lp", "Cp", "Q", "D"])
+def test_quantities_derived_from_an_impedance_are_skipped(derived):
+    col = recognise(f"TR1: Impedance ({derived})")
+    assert (col.role, col.unit) == ("skip", "derived")
+    assert recognise(f"Gain ({derived})").role == "skip"
+    assert recognise("Impedance (Ohm)").role == "complex"      # a physical unit stays one
+
+
 def test_bode100_traces_of_different_quantities_are_refused_with_the_columns_to_pass(
         tmp_path):
-    # an impedance with its series inductance Ls (not the impedance in another form): the
-    # error says so and gives the columns= that reads the impedance, which then works
+    # a second trace that is not the response in another form (here 1e-3 |Z| in a
+    # column named as the impedance's magnitude): the error says so and gives the
+    # columns= that reads the impedance, which then works
     path = _bode100(tmp_path, "Frequency (Hz),TR2: Impedance (Real),TR2: Impedance (Imag),"
-                    "TR2: Impedance (Ls)", [np.real, np.imag, lambda g: 1e-3 * abs(g)])
+                    "TR2: Impedance (absolut)", [np.real, np.imag, lambda g: 1e-3 * abs(g)])
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DataWarning)
-        with pytest.raises(DataError, match=r"bode\.csv' line 10: column 'TR2: Impedance \(Ls\)'"
-                           r" is not the response of columns 'TR2: Impedance \(Real\)', 'TR2: "
-                           r"Impedance \(Imag\)' in another form .* e\.g\. "
+        with pytest.raises(DataError, match=r"bode\.csv' line 10: column 'TR2: Impedance "
+                           r"\(absolut\)' is not the response of columns 'TR2: Impedance "
+                           r"\(Real\)', 'TR2: Impedance \(Imag\)' in another form .* e\.g\. "
                            r"columns='freq_hz,re,im,skip'"):
             load(path)
         data = load(path, columns="freq_hz,re,im,skip")

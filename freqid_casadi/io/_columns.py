@@ -13,7 +13,7 @@ from ..errors import OptionError
 
 __all__ = ["Column", "recognise", "parse_columns", "parse_freq_unit", "COLUMN_HELP",
            "one_layout", "columns_option", "one_channel", "sparameter_of",
-           "sparameters", "with_parameter"]
+           "sparameters", "with_parameter", "DERIVED"]
 
 #: A channel or trace number before a column's name: ``Channel 2 Phase (deg)``, ``Ch1 Re``
 #: (``_CHANNEL``: the number and the name after it).
@@ -54,6 +54,14 @@ _SPARAM = re.compile(r"s\d\d|[abr]\d?/[abr]\d?")
 #: (``S21 Log Mag(dB)``, ``S21 Lin Mag(U)``, ``S21 Phase(deg)``, ``S21 Real(U)``).
 _FORMAT = re.compile(r"^(.+?)_(log_mag|lin_mag|phase|real|imag)$")
 _SKIP = {"skip", "_", "-", "ignore", "coherence", "coh"}
+#: Quantities an impedance analyser derives from the response and exports beside it as a
+#: response's "unit" (``TR2: Impedance (Ls)``, as the Bode 100 writes a trace shown as a
+#: series inductance): the series and parallel equivalent resistance, inductance and
+#: capacitance, the quality and dissipation factors. Not the response in another form
+#: (``Ls = Im Z / omega``): such a column is skipped, with a note (:data:`DERIVED`).
+_DERIVED = {"rs", "ls", "cs", "rp", "lp", "cp", "q", "d"}
+#: ``Column.unit`` of a skipped column that holds a quantity derived from the response.
+DERIVED = "derived"
 _LAYOUTS = ({"freq", "re", "im"}, {"freq", "mag", "phase"}, {"freq", "complex"})
 
 #: How to name columns, quoted in error messages.
@@ -108,6 +116,8 @@ def recognise(label):
     fmt = _FORMAT.match(s)
     if fmt and (fmt.group(1) in _COMPLEX | _MAG or _SPARAM.fullmatch(fmt.group(1))):
         return _formatted(fmt.group(2), _UNITS.get(unit, "lin"), label.strip())
+    if unit in _DERIVED and s in _COMPLEX | _MAG:
+        return Column("skip", DERIVED, label.strip())
     if unit not in _UNITS:       # a physical unit ("Real [g/N]") scales re, im and |H|
         if s not in _RE | _IM | _COMPLEX | _MAG:
             return None

@@ -15,7 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._columns import (_UNITS, COLUMN_HELP, Column, _layout_problem, columns_option,
+from ._columns import (_UNITS, COLUMN_HELP, DERIVED, Column, _layout_problem, columns_option,
                        one_channel, one_layout, parse_columns, parse_freq_unit, recognise,
                        sparameters, with_parameter)
 from ._readfile import DataWarning
@@ -332,6 +332,12 @@ def _header_columns(path, cells, parameter=None):
             "'omega,magnitude_db,phase_deg' (rad/s), or another layout such as "
             "'freq_hz,mag_db,phase_deg'; or pass columns=... (command line --columns) to "
             f"{COLUMN_HELP}")
+    derived = [repr(c.label) for c in cols if c.unit == DERIVED]
+    if derived:
+        warnings.warn(f"{path!r}: skipped {', '.join(derived)}: a quantity the analyser "
+                      "derives from the response (an equivalent resistance, inductance or "
+                      "capacitance, a quality or dissipation factor), not the response",
+                      DataWarning, stacklevel=5)
     return tuple(cols)
 
 
