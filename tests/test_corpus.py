@@ -147,6 +147,28 @@ def test_a_mode_the_noise_share_misses_is_kept_by_the_f_test():
     assert beats_noise(before, c, 120) and not beats_noise(before, c, 120, alpha=0.001)
 
 
+def test_an_order_is_consistent_only_where_the_status_check_agrees():
+    from freqid_casadi.fitting.order import OrderStep, decide
+
+    # a Bode 100 measurement of a filter (400 points; noise 10x larger above its
+    # resonance than below): 3 sections leave a smooth residual below the resonance,
+    # RMS 0.00259 at 1.12 times the roughness the noisy band dominates, 18.9 times the
+    # local noise; 4 sections lower it by 2.7 %. Read by the roughness alone, 3 sections
+    # were "consistent with the noise" while the fit's status said poor-fit
+    measured = [(0.0446, 13.0, 80.0), (0.00946, 3.8, 60.0), (0.00259, 1.12, 18.9),
+                (0.00252, 1.1, 18.0), (0.0025, 1.1, 17.5)]
+    steps = [OrderStep(n, rms, ratio, True, local_ratio=local)
+             for n, (rms, ratio, local) in enumerate(measured, 1)]
+    poles = [np.array([-1 + 10j, -1 - 10j])] * 5
+    omega = np.array([60.0, 3e5])
+    assert decide(steps[:4], poles[:4], omega, 400) is None
+    assert decide(steps, poles, omega, 400) == (2, "no-improvement")
+    plain = [OrderStep(s.n_sections, s.rms, s.ratio, True) for s in steps]    # not measured
+    assert decide(plain[:4], poles[:4], omega, 400) == (2, "consistent")
+    agreed = [OrderStep(s.n_sections, s.rms, s.ratio, True, local_ratio=1.9) for s in steps]
+    assert decide(agreed[:4], poles[:4], omega, 400) == (2, "consistent")
+
+
 def test_an_order_step_counts_the_parameters_the_data_determine():
     # gain, delay, 2 poles and 2 zeros: 6, not Structure.n_params's 8 (the unit-DC gauge
     # fixes two); counted as 8, the F-test had kept accelerance-222 at 4 sections of 5

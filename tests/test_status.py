@@ -205,3 +205,30 @@ def test_gain_sign_the_starts_do_not_decide_is_fitted_both_ways():
     assert forced.rms_rel_error == pytest.approx(both["K > 0"], rel=1e-9)
     assert [d.code for d in res.diagnostics][0] == "negative-gain"
     assert "both signs were fitted" in res.diagnostics[0].message
+
+
+def test_the_automatic_order_does_not_ask_for_sections_it_fitted():
+    # the 1-section fit's poor-fit record names the order (pass n_sections=2); when the
+    # order search fitted 2 and 3 sections without a significant fall of the RMS, the
+    # record and the message say that the order is not the cause
+    from freqid_casadi.fitting.order import OrderChoice, OrderStep, with_order_record
+
+    rng = np.random.default_rng(5)
+    short = fc.fit(FrequencyData(W, two_modes() * (1 + _noise(rng, W.size, 0.01))),
+                   n_sections=1)
+    assert "the likely cause is the order" in short.message
+    steps = tuple(OrderStep(n, f * short.rms_rel_error, 9.0, True)
+                  for n, f in ((1, 1.0), (2, 0.97), (3, 0.95)))
+    out = with_order_record(OrderChoice(short, 1, "no-improvement", steps, "chose 1"))
+    (diag,) = [d for d in out.diagnostics if d.code == "poor-fit"]
+    assert diag.values["cause"] == "not-the-order"
+    for text in (diag.message, out.message):
+        assert "pass n_sections=2" not in text
+        assert ("the likely cause is not the order: n_sections='auto' fitted up to 3 "
+                "sections, which did not lower the RMS significantly (RMS "
+                f"{0.95 * short.rms_rel_error:.3g} at 3)") in text
+    assert out.message.startswith("poor-fit: converged, but the residual (RMS ")
+    assert [d.code for d in out.diagnostics][-1] == "order-chosen"
+    # the search stopped at the highest order it fitted: the order may still be the cause
+    top = with_order_record(OrderChoice(short, 1, "max-sections", steps[:1], "chose 1"))
+    assert "the likely cause is the order" in top.message

@@ -9,8 +9,11 @@ the data:
    (times ``sqrt(w_i)`` with weights) is no rougher than white noise would be -- its RMS is
    at most :data:`WHITE_RATIO` times its point-to-point roughness
    ``sqrt(mean |r_{i+1} - r_i|^2 / 2)``, which equals the RMS for white noise and is far
-   below it when the residual has structure (a missed mode, a wrong delay) -- or the RMS is
-   at the rounding level (:data:`EXACT_RMS`, exact data);
+   below it when the residual has structure (a missed mode, a wrong delay), and within
+   :data:`~freqid_casadi.fitting.verdict.CONSISTENT_RATIO` of the local noise level, as
+   the fit's status requires (noise whose level varies over the band can dominate the
+   roughness while the residual is smooth where the data are quiet) -- or the RMS is at
+   the rounding level (:data:`EXACT_RMS`, exact data);
 2. **not bettered by one more section**: N + 1 sections lower the RMS by less than
    :func:`significant` (a share that shrinks with the number of points, as fitting noise
    with 6 more parameters would) and not significantly by the nested-model F-test
@@ -53,6 +56,7 @@ import numpy as np
 from ..core.objective import relative_residual
 from ..errors import DataError, FreqidError, OptionError, StructureError
 from .diagnostics import TRIVIAL_RMS, Diagnostic
+from .verdict import CONSISTENT_RATIO, residual_noise
 
 __all__ = ["OrderStep", "OrderChoice", "choose_order", "decide", "with_order_record",
            "explaining_step", "fit_step",
@@ -105,6 +109,9 @@ class OrderStep:
     free : bool
         The numbers are those of the order's ``zeros="free"`` alternative, the model that
         explains the data better (:func:`explaining_step`).
+    local_ratio : float
+        RMS over the local noise level, the fit's status check
+        (:func:`~freqid_casadi.fitting.verdict.residual_noise`); 0 when not measured.
     """
 
     n_sections: int
@@ -113,6 +120,7 @@ class OrderStep:
     success: bool
     n_params: int = 0
     free: bool = False
+    local_ratio: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
@@ -287,9 +295,11 @@ def fit_step(res):
     """
     residual = relative_residual(res.model, res.data.omega, res.data.response)
     rms, ratio = whiteness(residual, res.data.weights)
+    local = residual_noise(residual, res.data.omega, res.data.weights)["ratio"]
     s = res.model.structure
     return OrderStep(res.model.n_sections, rms, ratio, bool(res.success),
-                     _determined(s.n_sections, s.basis, s.delay))
+                     _determined(s.n_sections, s.basis, s.delay),
+                     local_ratio=float(local) if math.isfinite(local) else 0.0)
 
 
 def _step(res):
@@ -307,7 +317,13 @@ def _determined(n_sections, basis="second-order", delay=True):
 
 
 def _consistent(step):
-    return step.rms <= EXACT_RMS or step.ratio <= WHITE_RATIO
+    """The order's residual is consistent with the noise: no rougher than white noise
+    (:data:`WHITE_RATIO`) and, as the fit's status requires, within
+    :data:`~freqid_casadi.fitting.verdict.CONSISTENT_RATIO` of the local noise level (a
+    smooth residual where the data are quiet, beside a band whose noise dominates the
+    roughness, is not), or exact."""
+    return step.rms <= EXACT_RMS or (step.ratio <= WHITE_RATIO
+                                     and not step.local_ratio > CONSISTENT_RATIO)
 
 
 def _modes_stable(lower, higher, omega):
@@ -467,6 +483,10 @@ def _choice(results, steps, poles, k, reason, omega):
                f"and move its in-band poles by at most {100 * moved:.2g} %")
     plural = "s" if step.n_sections != 1 else ""
     own = f"RMS {step.rms:.3g}, {step.ratio:.3g} times its point-to-point roughness"
+    if step.ratio <= WHITE_RATIO and step.local_ratio > CONSISTENT_RATIO \
+            and step.rms > EXACT_RMS:
+        own += (f", but {step.local_ratio:.3g} times the local noise level (the fit's "
+                "status check)")
     if step.free:
         own = (f"with free zeros {own}; minimum phase RMS "
                f"{results[k].rms_rel_error:.3g}")
@@ -494,12 +514,47 @@ def with_order_record(choice):
         "n_sections": choice.n_sections, "reason": choice.reason,
         "orders": [s.n_sections for s in choice.steps],
         "rms": [s.rms for s in choice.steps], "ratio": [s.ratio for s in choice.steps],
+        "local_ratio": [s.local_ratio for s in choice.steps],
         "free_zeros": [s.free for s in choice.steps]})
     try:
-        return dataclasses.replace(choice.result, diagnostics=tuple(choice.result.diagnostics)
-                                   + (d,))
+        diagnostics, message = _not_the_order(choice)
+        return dataclasses.replace(choice.result, diagnostics=diagnostics + (d,),
+                                   message=message)
     except (TypeError, FreqidError):        # a result type without diagnostics
         return choice.result
+
+
+#: How a ``poor-fit`` record names the order as its likely cause.
+_ORDER_CAUSE = "; the likely cause is the order: "
+
+
+def _not_the_order(choice):
+    """The chosen fit's diagnostics and message, its ``poor-fit`` record's cause restated
+    when that cause is the order but the search fitted more sections without a
+    significant fall of the RMS (``pass n_sections=N+1`` would repeat it)."""
+    res = choice.result
+    diagnostics, message = tuple(res.diagnostics), res.message
+    higher = [s for s in choice.steps if s.n_sections > choice.n_sections]
+    poor = next((g for g in diagnostics if g.code == "poor-fit"
+                 and g.values.get("cause") == "order" and _ORDER_CAUSE in g.message), None)
+    if poor is None or not higher:
+        return diagnostics, message
+    best = min(higher, key=lambda s: s.rms)
+    unit = getattr(res.data, "unit", "rad/s")
+    cause = (f"; the likely cause is not the order: n_sections='auto' fitted up to "
+             f"{higher[-1].n_sections} sections, which did not lower the RMS significantly "
+             f"(RMS {best.rms:.3g} at {best.n_sections}); the residual is largest near "
+             f"omega = {poor.values['worst_omega']:.4g} {unit}, a feature the model class "
+             "does not fit, or noise whose level varies over the band (the fit weighs every "
+             "point alike; weights=, each point's inverse relative variance, weigh them by "
+             "their noise)")
+    text = poor.message.partition(_ORDER_CAUSE)[0] + cause
+    restated = dataclasses.replace(poor, message=text,
+                                   values=dict(poor.values, cause="not-the-order"))
+    diagnostics = tuple(restated if g is poor else g for g in diagnostics)
+    if poor.message in message:
+        message = message.replace(poor.message, text)
+    return diagnostics, message
 
 
 def with_free_zeros(choice, fit_free, *, max_sections, min_sections=1):

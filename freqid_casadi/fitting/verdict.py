@@ -186,6 +186,9 @@ def poor_fit_diagnostic(check, found, n_sections, unit="rad/s"):
     Returns
     -------
     Diagnostic
+        Its ``values["cause"]``: the code of the diagnostic that explains it, or "order"
+        (``n_sections='auto'`` restates that as "not-the-order" when it fitted more
+        sections without a significant fall of the RMS).
     """
     # a delay the data do not determine explains a poor fit only when it sits in the upper
     # half of its range (aliased); a tiny or traded delay is a finding of its own

@@ -107,7 +107,8 @@ def ladder(task, top=None):
 
 def _numbers(res):
     step = fit_step(res)
-    return dict(rms=step.rms, ratio=step.ratio, success=step.success, status=str(res.status),
+    return dict(rms=step.rms, ratio=step.ratio, local_ratio=step.local_ratio,
+                success=step.success, status=str(res.status),
                 poles=[[float(z.real), float(z.imag)] for z in res.model.poles()])
 
 
@@ -186,9 +187,11 @@ def replay(lad, decide=None, *, free_zeros=True, **kw):
             k, reason = decide(steps, poles, omega, lad["n_points"], end="data-limit")
             return steps[k].n_sections, reason
         free = o.get("free") if free_zeros else None
-        step = explaining_step(OrderStep(n, o["rms"], o["ratio"], o["success"]),
-                               free and OrderStep(n, free["rms"], free["ratio"],
-                                                  free["success"]))
+        step = explaining_step(
+            OrderStep(n, o["rms"], o["ratio"], o["success"],
+                      local_ratio=o.get("local_ratio", 0.0)),
+            free and OrderStep(n, free["rms"], free["ratio"], free["success"],
+                               local_ratio=free.get("local_ratio", 0.0)))
         steps.append(step)
         poles.append(np.array([complex(a, b) for a, b in (free if step.free else o)["poles"]]))
         verdict = decide(steps, poles, omega, lad["n_points"], **kw)
