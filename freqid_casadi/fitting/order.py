@@ -490,7 +490,12 @@ def _choice(results, steps, poles, k, reason, omega):
     if step.free:
         own = (f"with free zeros {own}; minimum phase RMS "
                f"{results[k].rms_rel_error:.3g}")
-    message = (f"n_sections='auto' chose {step.n_sections} section{plural}: {_WHY[reason]} "
+    why = _WHY[reason]
+    if reason == "no-improvement" and _consistent(step):
+        why = ("the residual is consistent with the noise, but the next order moves its "
+               f"in-band poles by more than {100 * MODE_TOLERANCE:.2g} %, and more sections "
+               "stopped lowering the RMS")
+    message = (f"n_sections='auto' chose {step.n_sections} section{plural}: {why} "
                f"({own}){nxt}; "
                f"orders tried (RMS, x roughness; * with free zeros) {tried}")
     return OrderChoice(result=results[k], n_sections=step.n_sections, reason=reason,
