@@ -116,7 +116,9 @@ def add_data_options(parser, records=False):
             "--weights", metavar="STATS.csv",
             help="weights of the data's frequencies: the <stem>.stats.csv that 'freqid frf' "
                  "writes beside its FRF (column weight: |H|^2/variance, mean 1), at the same "
-                 "omega")
+                 "omega; or 'noise' (freqid fit): estimated from the data, for an "
+                 "analyser's noise floor (a fit without weights, then one weighed by the "
+                 "noise level its residual shows; twice the time)")
     return parser
 
 
@@ -231,7 +233,7 @@ def refuse_flags(path, opts):
                    columns=opts.get("columns"), flag=True)
 
 
-def load_data(args, path):
+def load_data(args, path, noise_weights=False):
     """Load ``path`` with the options in ``args``; reader notes go to stderr as ``note:``.
 
     Parameters
@@ -240,6 +242,9 @@ def load_data(args, path):
         Parsed arguments with ``freq_unit`` and ``columns`` (see :func:`load_options`).
     path : str
         The data file.
+    noise_weights : bool
+        The command takes ``--weights noise`` (the data are returned without weights;
+        the command passes ``weights="noise"`` to the fit); else it is refused.
 
     Returns
     -------
@@ -255,7 +260,18 @@ def load_data(args, path):
     with notes_to_stderr():
         data = load(path, **opts)
     weights = getattr(args, "weights", None)
+    if weights == NOISE_WEIGHTS:
+        if not noise_weights:
+            raise OptionError("--weights noise applies to freqid fit (the weights estimated "
+                              "from the data); here pass a weights file (STATS.csv) or "
+                              "drop --weights")
+        return data
     return data if weights is None else with_weights(data, weights)
+
+
+#: ``--weights noise``: the weights estimated from the data (``fit(weights="noise")``); a
+#: file of that name is read as ``./noise``.
+NOISE_WEIGHTS = "noise"
 
 
 def with_weights(data, path):

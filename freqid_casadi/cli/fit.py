@@ -19,7 +19,7 @@ import warnings
 from . import app
 from .common import (_ASCII_FLOAT, _add_choices, _add_input, _add_model_arguments, _ascii,
                      _checked, _common, _positive_int, _progress, _resolution_warning,
-                     load_data, method_option, print_continue_hint)
+                     NOISE_WEIGHTS, load_data, method_option, print_continue_hint)
 from ..errors import OptionError, ResolutionWarning
 from .._validate import check_jobs
 from ..fitting.fixed import FIXED_KEYS
@@ -125,7 +125,7 @@ def run_cli(args, command):
     command : str
         The command line, written as the first line of the report.
     """
-    data = load_data(args, args.file)                # DataError on bad files
+    data = load_data(args, args.file, noise_weights=True)    # DataError on bad files
     check_out_dir(args.out, args.force)              # before the (long) fit
     if args.max_sections is not None:
         if args.sections != "auto":
@@ -141,7 +141,9 @@ def run_cli(args, command):
                          progress=_progress(args), start=args.start, objective=args.objective,
                          min_damping=args.min_damping, gain_sign=args.gain_sign,
                          zeros=args.zeros, **({"fixed": dict(args.fix)} if args.fix else {}),
-                         **({"n_jobs": args.jobs} if args.jobs != 1 else {}))
+                         **({"n_jobs": args.jobs} if args.jobs != 1 else {}),
+                         **({"weights": NOISE_WEIGHTS} if args.weights == NOISE_WEIGHTS
+                            else {}))
     _resolution_warning(result)
     path = write_fit_report(result, args.out, command=command, force=args.force)
     print(result.summary())

@@ -48,7 +48,7 @@ __all__ = ["Diagnostic", "CODES", "TRIVIAL_RMS", "low_frequency_phase", "low_fre
            "check_roots_below_band", "BELOW_BAND", "spell_origin", "low_frequency_line"]
 
 CODES = ("negative-gain", "non-minimum-phase", "delay-undetermined", "no-better-than-trivial",
-         "root-below-band", "order-chosen", "integrator")
+         "root-below-band", "order-chosen", "integrator", "noise-weights")
 
 #: Low-frequency phase (deg, integrator removed) within which flat data (log-log slope
 #: within 0.5) have a positive gain without asking the fits (:func:`check_gain_sign`).

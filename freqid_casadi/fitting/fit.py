@@ -47,6 +47,7 @@ from .fixed import check_fixed, fit_with_fixed
 from .diagnostics import Diagnostic, gain_sign_decision
 from .guard import guard_resolution
 from ..errors import FreqidError, OptionError, ResolutionWarning
+from .noise_weights import fit_with_noise_weights
 from .order import MAX_SECTIONS, choose_order, with_free_zeros, with_order_record
 from .mainloop import LoopContext, minimax, rational, sequential
 from ..core.metrics import relative_error
@@ -325,6 +326,11 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
         the mean of that ratio; uniform weights of any size fit exactly like none). At least
         as many points as parameters need a weight > 0; points of weight 0 below the first
         weighted one are left out of the loop's windows (their error is still reported).
+        ``"noise"``: estimated from the data (:mod:`freqid_casadi.fitting.noise_weights`):
+        a fit without weights, then the fit weighed by the inverse relative variance its
+        residual shows (for an analyser's noise floor, whose relative level varies over
+        the band as ``1 / |G|``); twice the time, a ``noise-weights`` diagnostic with the
+        numbers of both.
     start : {"best", "sequential", "rational"}
         "best" (default, as ``fit_shared`` and ``freqid fit``) runs the rational start,
         then the sequential loop unless the rational start already explains the data to
@@ -402,6 +408,8 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
         A keyword fit() no longer takes (``gauge=``, ``hessian=``, ...): the message names
         the option object and field it moved to.
     """
+    if isinstance(weights, str):
+        return _fit_noise_weighted(locals())
     if isinstance(n_sections, (str, range)):
         return _fit_auto_order(locals())
     auto = _is_auto(integrator)
@@ -529,6 +537,15 @@ def _fit_resolved(data_or_omega, response, n_sections, delay, fixed, weights, em
         return result
     return _fit_guarded(data_or_omega, response, n_sections=n_sections, delay=delay,
                         progress=emit, weights=weights, first=first, **kw)
+
+
+def _fit_noise_weighted(args):
+    """``fit(..., weights="noise")`` (``args``: fit's keywords): :func:`~freqid_casadi.
+    fitting.noise_weights.fit_with_noise_weights`."""
+    args = dict(args)
+    spelt, data, response = (args.pop(k) for k in ("weights", "data_or_omega", "response"))
+    return fit_with_noise_weights(lambda d, r, w: fit(d, r, weights=w, **args), data,
+                                  response, spelt)
 
 
 def _fit_auto_order(args):
