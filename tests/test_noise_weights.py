@@ -93,6 +93,12 @@ def test_exact_data_are_not_weighted_and_bad_requests_are_refused():
     weighted = FrequencyData(W, G, "w", np.ones(W.size))
     with pytest.raises(OptionError, match="carry their own"):
         fc.fit(weighted, n_sections=3, weights="noise")
+    from freqid_casadi.errors import DataError
+    from freqid_casadi.fitting.sweep import sweep
+
+    with pytest.raises(DataError, match="weights='noise', estimated from the data, is "
+                                        "fc.fit's and freqid fit's"):
+        sweep(FrequencyData(W, G), [1, 2], weights="noise")
 
 
 def test_cli_weights_noise_fits_and_other_commands_refuse_it(tmp_path, capsys):

@@ -108,6 +108,10 @@ class FrequencyData:
                 f"response must be nonzero (the relative error divides by it): response[{i}]=0 "
                 f"at omega={float(omega[i])}; remove that point")
         weights = self.weights
+        if isinstance(weights, str):
+            raise DataError(f"weights must be an array of one weight per frequency, got "
+                            f"{weights!r} (weights='noise', estimated from the data, is "
+                            "fc.fit's and freqid fit's)")
         if weights is not None:
             weights = _as_float_vector(weights, "weights")
             if weights.size != omega.size:
