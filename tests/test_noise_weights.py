@@ -99,6 +99,8 @@ def test_exact_data_are_not_weighted_and_bad_requests_are_refused():
     with pytest.raises(DataError, match="weights='noise', estimated from the data, is "
                                         "fc.fit's and freqid fit's"):
         sweep(FrequencyData(W, G), [1, 2], weights="noise")
+    with pytest.raises(DataError, match="weights='noise', estimated from the data, is "):
+        fc.fit_shared([FrequencyData(W, G)] * 2, 1, weights="noise")
 
 
 def test_cli_weights_noise_fits_and_other_commands_refuse_it(tmp_path, capsys):

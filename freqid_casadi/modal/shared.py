@@ -331,6 +331,10 @@ def _check_datas(datas, weights):
     for c, d in enumerate(datas):
         if d.weights is not None:
             wts[c] = d.weights
+    if isinstance(weights, str):
+        raise DataError(f"weights must be an array (channels, points) = {wts.shape} or "
+                        f"broadcastable to it, got {weights!r} (weights='noise', estimated "
+                        "from the data, is fc.fit's and freqid fit's)")
     if weights is not None:
         try:
             w = np.broadcast_to(np.asarray(weights, float), wts.shape)
