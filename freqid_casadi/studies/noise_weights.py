@@ -30,7 +30,14 @@ WAYS = ("none", "noise", "true")
 
 def noise_case(index, seed, max_points, kind):
     """``(data, truth, sigma, case)`` of a corpus case with noise of ``kind``, or None
-    when the case is outside the class or noiseless (its noise level decides the floor's).
+    when the case is outside the class or noiseless.
+
+    Parameters
+    ----------
+    index, seed, max_points : int
+        The corpus case (:func:`freqid_casadi.systems.corpus.case`).
+    kind : {"floor", "mixed", "relative"}
+        The noise (:data:`KINDS`; the module docstring).
 
     Returns
     -------
@@ -54,9 +61,20 @@ def noise_case(index, seed, max_points, kind):
 
 
 def score_case(task):
-    """The three fits of one case: ``task = (index, seed, max_points, kind)``; a dict
-    (case, points, sections, spread of sigma, and per way its status, noise ratio, error
-    in noise units, CPU seconds), or None (see :func:`noise_case`)."""
+    """The three fits of one case.
+
+    Parameters
+    ----------
+    task : tuple
+        ``(index, seed, max_points, kind)`` (:func:`noise_case`).
+
+    Returns
+    -------
+    dict or None
+        Case, kind, points, sections, the spread of sigma, and per way of :data:`WAYS`
+        its status, noise ratio, error in noise units and CPU seconds; None when
+        :func:`noise_case` gives none.
+    """
     import time
 
     from ..fitting.fit import fit
@@ -81,8 +99,24 @@ def score_case(task):
 
 
 def run_study(kinds, seed, n_cases, max_points, workers=2, progress=None):
-    """:func:`score_case` of the first ``n_cases`` indices for every kind, in ``workers``
-    processes; the rows (cases outside the class or noiseless left out)."""
+    """:func:`score_case` of the first ``n_cases`` indices for every kind.
+
+    Parameters
+    ----------
+    kinds : sequence of str
+        Of :data:`KINDS`.
+    seed, n_cases, max_points : int
+        Corpus seed, indices ``0 .. n_cases - 1``, points per case at most.
+    workers : int
+        Worker processes.
+    progress : callable, optional
+        Receives each row as it ends.
+
+    Returns
+    -------
+    list of dict
+        The rows (cases outside the class or noiseless left out).
+    """
     tasks = [(i, seed, max_points, k) for k in kinds for i in range(n_cases)]
     rows = []
     ctx = multiprocessing.get_context("spawn")
@@ -96,9 +130,21 @@ def run_study(kinds, seed, n_cases, max_points, workers=2, progress=None):
 
 
 def summarise(rows):
-    """Per kind and way: cases, geometric mean of the error's ratio to the unweighted
-    fit's, fits more than 1.5 times worse, counts of each status, "ok" fits more than 2
-    noise units from the truth (their cases), CPU seconds."""
+    """The numbers of the report, per kind and way.
+
+    Parameters
+    ----------
+    rows : list of dict
+        :func:`score_case` rows.
+
+    Returns
+    -------
+    dict
+        ``{kind: {way: {...}}}``: cases, the geometric mean of the error's ratio to the
+        unweighted fit's, the median error, fits more than 1.5 times worse, counts of
+        each status, the "ok" fits more than 2 noise units from the truth (their cases),
+        CPU seconds.
+    """
     out = {}
     for kind in dict.fromkeys(r["kind"] for r in rows):
         sub = [r for r in rows if r["kind"] == kind]
