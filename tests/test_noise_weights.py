@@ -132,3 +132,24 @@ def test_the_study_scores_a_case_three_ways():
     assert row["noise"]["error"] < row["none"]["error"]
     summary = summarise([row])["floor"]
     assert summary["none"]["ratio_geomean"] == 1.0 and summary["noise"]["ok"] == 1
+
+
+def test_cli_batch_weights_noise_weighs_every_file(tmp_path, capsys):
+    folder = tmp_path / "frfs"
+    folder.mkdir()
+    for seed in (0, 1):
+        data = _floor_data(seed)
+        np.savetxt(folder / f"floor{seed}.csv",
+                   np.column_stack([W, data.response.real, data.response.imag]),
+                   delimiter=",", header="omega,re,im", comments="")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        code = cli.main(["batch", str(folder), "--sections", "3", "--weights", "noise",
+                         "--out", str(tmp_path / "rep")])
+    out = capsys.readouterr().out
+    # without weights both files end poor-fit (ratios 6.42 and 3.44, measured)
+    assert code == 0 and "2/2 converged" in out, out
+    assert out.count("ok: converged") == 2, out
+    code = cli.main(["batch", str(folder), "--sections", "3", "--weights", "stats.csv",
+                     "--out", str(tmp_path / "rep2")])
+    assert code == 2 and "--weights: invalid choice: 'stats.csv'" in capsys.readouterr().err

@@ -83,6 +83,9 @@ def add_cli(subparsers):
     p.add_argument("--method", choices=METHODS, default="ipopt",
                    help="stage solver (default ipopt)")
     _add_final_max_iter(p)
+    p.add_argument("--weights", choices=("noise",),
+                   help="'noise': weights estimated from each file's data, for an "
+                        "analyser's noise floor (fit's weights='noise'; twice the time)")
     p.add_argument("--force", action="store_true",
                    help="replace an existing output folder (after the new one is complete)")
     return p
@@ -260,7 +263,7 @@ def run_cli(args, command):
                          load_options=opts,
                          n_sections=args.sections, integrator=args.integrator,
                          delay=args.delay, basis=args.basis, method=method_option(args),
-                         tol=args.tol)
+                         tol=args.tol, **({"weights": args.weights} if args.weights else {}))
     items = [_as_flag_refusal(item, opts) for item in items]
     path = write_batch_report(items, files, args.out, command=command, force=args.force)
     n_ok = sum(i.status in _CONVERGED for i in items)
