@@ -29,6 +29,13 @@ def _floor_data(seed):
     return FrequencyData(W, G + FLOOR * z, "floor")
 
 
+def _write_floor_csv(path, seed):
+    """``_floor_data(seed)`` as a CSV file of omega, re, im."""
+    data = _floor_data(seed)
+    np.savetxt(path, np.column_stack([W, data.response.real, data.response.imag]),
+               delimiter=",", header="omega,re,im", comments="")
+
+
 def _error_in_noise_units(result):
     """RMS of the model's error against the true system in units of the true noise."""
     e = result.model.frequency_response(W) / G - 1
@@ -104,10 +111,8 @@ def test_exact_data_are_not_weighted_and_bad_requests_are_refused():
 
 
 def test_cli_weights_noise_fits_and_other_commands_refuse_it(tmp_path, capsys):
-    data = _floor_data(0)
     path = tmp_path / "floor.csv"
-    np.savetxt(path, np.column_stack([W, data.response.real, data.response.imag]),
-               delimiter=",", header="omega,re,im", comments="")
+    _write_floor_csv(path, 0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         code = cli.main(["fit", str(path), "--sections", "3", "--weights", "noise",
@@ -138,10 +143,7 @@ def test_cli_batch_weights_noise_weighs_every_file(tmp_path, capsys):
     folder = tmp_path / "frfs"
     folder.mkdir()
     for seed in (0, 1):
-        data = _floor_data(seed)
-        np.savetxt(folder / f"floor{seed}.csv",
-                   np.column_stack([W, data.response.real, data.response.imag]),
-                   delimiter=",", header="omega,re,im", comments="")
+        _write_floor_csv(folder / f"floor{seed}.csv", seed)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         code = cli.main(["batch", str(folder), "--sections", "3", "--weights", "noise",

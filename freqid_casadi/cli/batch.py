@@ -30,7 +30,8 @@ import os
 import stat
 import warnings
 
-from .common import load_options, method_option, notes_to_stderr, refuse_flags
+from .common import (NOISE_WEIGHTS, load_options, method_option, notes_to_stderr,
+                     refuse_flags)
 from .._textio import atomic_write_text, csv_row, one_line
 from ..fitting.batch import BATCH_STATUSES, fit_many
 from .common import (_add_final_max_iter, _add_input, _add_model_arguments,  # the CLI's
@@ -83,7 +84,7 @@ def add_cli(subparsers):
     p.add_argument("--method", choices=METHODS, default="ipopt",
                    help="stage solver (default ipopt)")
     _add_final_max_iter(p)
-    p.add_argument("--weights", choices=("noise",),
+    p.add_argument("--weights", choices=(NOISE_WEIGHTS,),
                    help="'noise': weights estimated from each file's data, for an "
                         "analyser's noise floor (fit's weights='noise'; twice the time)")
     p.add_argument("--force", action="store_true",

@@ -52,7 +52,7 @@ import numpy as np
 from ..core.data import FrequencyData
 from ..errors import FreqidError, OptionError
 from .diagnostics import Diagnostic
-from .verdict import NOISE_WINDOW, ROUNDING_RMS, _running_median
+from .verdict import NOISE_WINDOW, ROUNDING_RMS, local_variance
 
 __all__ = ["noise_exponent", "noise_weights", "fit_with_noise_weights", "MIN_POINTS",
            "WEIGHT_SPREAD"]
@@ -94,17 +94,6 @@ def noise_exponent(residual, size, omega):
     return float(np.clip(coef[2], -2.0, 0.0)) if np.isfinite(coef[2]) else 0.0
 
 
-def _local_variance(residual):
-    """Variance at each point from the running median of ``|e_{i+1} - e_i|^2 / (2 ln 2)``
-    (the mean of its two neighbouring differences' levels), as the status check."""
-    d2 = np.abs(np.diff(residual)) ** 2 / (2.0 * math.log(2.0))
-    local = _running_median(d2, NOISE_WINDOW)
-    var = np.empty(residual.size)
-    var[0], var[-1] = local[0], local[-1]
-    var[1:-1] = 0.5 * (local[:-1] + local[1:])
-    return var
-
-
 def noise_weights(model, data):
     """Inverse relative noise variances of ``data`` estimated from ``model``'s residual.
 
@@ -126,7 +115,7 @@ def noise_weights(model, data):
     size = np.abs(g)
     e = data.response / g - 1.0
     s = noise_exponent(e, size, data.omega)
-    var = _local_variance(e * size ** (-0.5 * s)) * size ** s
+    var = local_variance(e * size ** (-0.5 * s)) * size ** s
     var = np.maximum(var, np.max(var) / WEIGHT_SPREAD)
     if not np.all(np.isfinite(var)) or not np.max(var) > 0:
         return np.ones(data.omega.size), {"exponent": s, "spread": 1.0}
@@ -166,8 +155,8 @@ def fit_with_noise_weights(fit_one, data_or_omega, response, spelt="noise"):
         raise OptionError("weights='noise' estimates the weights from the data, which carry "
                           "their own (FrequencyData.weights): drop weights='noise' to use "
                           "them, or pass the data without weights")
-    with warnings.catch_warnings():              # the fit that is not kept: quiet
-        warnings.simplefilter("ignore")
+    with warnings.catch_warnings(record=True) as caught:   # issued only if it is kept
+        warnings.simplefilter("always")
         first = fit_one(data_or_omega, response, None)
     data = first.data
     first_numbers = {"rms": float(first.rms_rel_error), "status": str(first.status),
@@ -178,7 +167,9 @@ def fit_with_noise_weights(fit_one, data_or_omega, response, spelt="noise"):
         diag = Diagnostic("noise-weights", f"weights='noise': not estimated ({why}); the fit "
                           "is the one without weights", "info",
                           dict(first_numbers, estimated=False))
-        return _with(fit_one(data_or_omega, response, None), diag, first_numbers)
+        for w in caught:
+            warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
+        return _with(first, diag, first_numbers)
     weights, info = noise_weights(first.model, data)
     second = fit_one(data, None, weights)
     s = info["exponent"]

@@ -56,7 +56,7 @@ import numpy as np
 from ..core.objective import relative_residual
 from ..errors import DataError, FreqidError, OptionError, StructureError
 from .diagnostics import TRIVIAL_RMS, Diagnostic
-from .verdict import CONSISTENT_RATIO, residual_noise
+from .verdict import CONSISTENT_RATIO, residual_noise, with_cause
 
 __all__ = ["OrderStep", "OrderChoice", "choose_order", "decide", "with_order_record",
            "explaining_step", "fit_step",
@@ -483,8 +483,7 @@ def _choice(results, steps, poles, k, reason, omega):
                f"and move its in-band poles by at most {100 * moved:.2g} %")
     plural = "s" if step.n_sections != 1 else ""
     own = f"RMS {step.rms:.3g}, {step.ratio:.3g} times its point-to-point roughness"
-    if step.ratio <= WHITE_RATIO and step.local_ratio > CONSISTENT_RATIO \
-            and step.rms > EXACT_RMS:
+    if step.ratio <= WHITE_RATIO and not _consistent(step):
         own += (f", but {step.local_ratio:.3g} times the local noise level (the fit's "
                 "status check)")
     if step.free:
@@ -529,10 +528,6 @@ def with_order_record(choice):
         return choice.result
 
 
-#: How a ``poor-fit`` record names the order as its likely cause.
-_ORDER_CAUSE = "; the likely cause is the order: "
-
-
 def _not_the_order(choice):
     """The chosen fit's diagnostics and message, its ``poor-fit`` record's cause restated
     when that cause is the order but the search fitted more sections without a
@@ -541,25 +536,21 @@ def _not_the_order(choice):
     diagnostics, message = tuple(res.diagnostics), res.message
     higher = [s for s in choice.steps if s.n_sections > choice.n_sections]
     poor = next((g for g in diagnostics if g.code == "poor-fit"
-                 and g.values.get("cause") == "order" and _ORDER_CAUSE in g.message), None)
+                 and g.values.get("cause") == "order"), None)
     if poor is None or not higher:
         return diagnostics, message
     best = min(higher, key=lambda s: s.rms)
     unit = getattr(res.data, "unit", "rad/s")
-    cause = (f"; the likely cause is not the order: n_sections='auto' fitted up to "
+    cause = (f"not the order: n_sections='auto' fitted up to "
              f"{higher[-1].n_sections} sections, which did not lower the RMS significantly "
              f"(RMS {best.rms:.3g} at {best.n_sections}); the residual is largest near "
              f"omega = {poor.values['worst_omega']:.4g} {unit}, a feature the model class "
              "does not fit, or noise whose level varies over the band (the fit weighs every "
              "point alike; weights=, each point's inverse relative variance, weigh them by "
              "their noise)")
-    text = poor.message.partition(_ORDER_CAUSE)[0] + cause
-    restated = dataclasses.replace(poor, message=text,
-                                   values=dict(poor.values, cause="not-the-order"))
+    restated = with_cause(poor, "not-the-order", cause)
     diagnostics = tuple(restated if g is poor else g for g in diagnostics)
-    if poor.message in message:
-        message = message.replace(poor.message, text)
-    return diagnostics, message
+    return diagnostics, message.replace(poor.message, restated.message)
 
 
 def with_free_zeros(choice, fit_free, *, max_sections, min_sections=1):

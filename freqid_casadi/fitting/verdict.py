@@ -36,6 +36,7 @@ misses, sampled by few points) its differences raise the noise estimate too, so 
 systematic residual below about 1.5 times the noise is not told from noise.
 """
 
+import dataclasses
 import enum
 import math
 
@@ -43,8 +44,8 @@ import numpy as np
 
 from .diagnostics import Diagnostic
 
-__all__ = ["FitStatus", "NoiseCheck", "residual_noise", "CONSISTENT_RATIO", "ROUNDING_RMS",
-           "NOISE_WINDOW", "poor_fit_diagnostic", "status_of"]
+__all__ = ["FitStatus", "NoiseCheck", "residual_noise", "local_variance", "CONSISTENT_RATIO",
+           "ROUNDING_RMS", "NOISE_WINDOW", "poor_fit_diagnostic", "with_cause", "status_of"]
 
 #: Largest ratio RMS(residual) / noise for a fit consistent with the noise.
 CONSISTENT_RATIO = 2.0
@@ -106,6 +107,28 @@ def _runs_z(signs):
     return float((runs - mu) / math.sqrt(var)) if var > 0 else 0.0
 
 
+def local_variance(residual, window=NOISE_WINDOW):
+    """The noise variance at each point of a residual: the running median of
+    ``|e_{i+1} - e_i|^2 / (2 ln 2)`` over ``window`` differences, point i taking the mean
+    of its two neighbouring differences' levels (the module docstring).
+
+    Parameters
+    ----------
+    residual : ndarray of complex, shape (M,), M >= 2
+    window : int
+
+    Returns
+    -------
+    ndarray of float, shape (M,)
+    """
+    d2 = np.abs(np.diff(residual)) ** 2 / (2.0 * math.log(2.0))
+    local = _running_median(d2, window)
+    var = np.empty(residual.size)
+    var[0], var[-1] = local[0], local[-1]
+    var[1:-1] = 0.5 * (local[:-1] + local[1:])
+    return var
+
+
 def residual_noise(residual, omega, weights=None, window=NOISE_WINDOW):
     """Is the complex relative residual consistent with white noise? See the module.
 
@@ -140,11 +163,7 @@ def residual_noise(residual, omega, weights=None, window=NOISE_WINDOW):
                      rms=math.nan)
     if e.size < 4:
         return out
-    d2 = np.abs(np.diff(e)) ** 2 / (2.0 * math.log(2.0))
-    local = _running_median(d2, window)
-    var = np.empty(e.size)                 # point i: the mean of its two neighbours' levels
-    var[0], var[-1] = local[0], local[-1]
-    var[1:-1] = 0.5 * (local[:-1] + local[1:])
+    var = local_variance(e, window)
     floor = (ROUNDING_RMS / CONSISTENT_RATIO) ** 2
     var = np.maximum(var, floor * scale ** 2)
     q = np.abs(e) ** 2 / var
@@ -208,13 +227,32 @@ def poor_fit_diagnostic(check, found, n_sections, unit="rad/s"):
     else:
         why = f"{cause[1]} (see the {cause[0]} diagnostic)"
         cause_code = cause[0]
-    msg = (f"the residual (RMS {check['rms']:.3g}) is {check['ratio']:.3g} times the noise "
-           f"its point-to-point scatter shows ({check['noise_rms']:.2g}), so the model does "
-           f"not explain the data; the likely cause is {why}")
     values = {k: (float(v) if isinstance(v, (float, np.floating)) else v)
               for k, v in check.items()}
-    values["cause"] = cause_code
-    return Diagnostic("poor-fit", msg, "warning", values)
+    return with_cause(Diagnostic("poor-fit", "", "warning", values), cause_code, why)
+
+
+def with_cause(diag, code, why):
+    """A ``poor-fit`` record with its likely cause stated anew (its numbers as they are).
+
+    Parameters
+    ----------
+    diag : Diagnostic
+        A ``poor-fit`` record (:func:`poor_fit_diagnostic`).
+    code : str
+        ``values["cause"]``.
+    why : str
+        The cause's text, after "the likely cause is ".
+
+    Returns
+    -------
+    Diagnostic
+    """
+    v = diag.values
+    msg = (f"the residual (RMS {v['rms']:.3g}) is {v['ratio']:.3g} times the noise "
+           f"its point-to-point scatter shows ({v['noise_rms']:.2g}), so the model does "
+           f"not explain the data; the likely cause is {why}")
+    return dataclasses.replace(diag, message=msg, values=dict(v, cause=code))
 
 
 def status_of(converged, errors_found, check):

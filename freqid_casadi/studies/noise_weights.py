@@ -13,11 +13,13 @@ constant absolute level (0.3-3 % of the median ``|G|``, an analyser's noise floo
 
 import math
 import multiprocessing
+import time
 import warnings
 
 import numpy as np
 
 from ..core.data import FrequencyData
+from ..fitting.fit import fit
 from ..systems.corpus import case
 
 __all__ = ["KINDS", "WAYS", "noise_case", "score_case", "run_study", "summarise"]
@@ -75,10 +77,6 @@ def score_case(task):
         its status, noise ratio, error in noise units and CPU seconds; None when
         :func:`noise_case` gives none.
     """
-    import time
-
-    from ..fitting.fit import fit
-
     index, seed, max_points, kind = task
     made = noise_case(index, seed, max_points, kind)
     if made is None:
