@@ -265,3 +265,24 @@ def test_sweep_error_never_increases_with_order(incremental):
     errs = [r.max_rel_error for r in res.rows]
     assert all(b <= a for a, b in zip(errs, errs[1:])), errs
     assert res.rows[-1].max_rel_error < 0.05
+
+
+def test_advice_of_an_unconverged_fit_does_not_offer_the_start_it_ran():
+    # a Bode 100 impedance export ended at its iteration limit, the error no longer
+    # falling, with start="best" (the default) and an undetermined delay: the advice said
+    # "try start='best'"
+    from types import SimpleNamespace
+    from freqid_casadi.fitting._checks import _not_converged
+    from freqid_casadi.fitting.diagnostics import Diagnostic
+    last = SimpleNamespace(status=Status.MAX_ITER, details={
+        "max_iter": 200, "termination": {"rms_fall_per_iteration": -1e-14}})
+    stats = SimpleNamespace(max=1.8e-3, rms=3.7e-4)
+    assert "try start='best'" in _not_converged(last, stats, start="rational")
+    assert "try start='best'" in _not_converged(last, stats)          # start unknown
+    best = _not_converged(last, stats, start="best")
+    assert "try start='best'" not in best
+    assert best.endswith("— both starts were run: try another number of sections")
+    delay = Diagnostic("delay-undetermined", "...", "warning",
+                       {"delay": 4.2e-8, "delay_std": 7.7e-4})
+    held = _not_converged(last, stats, start="best", found=(delay,))
+    assert "without a delay (delay=False)" in held and "start=" not in held

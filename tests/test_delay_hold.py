@@ -8,7 +8,8 @@ import pytest
 
 from freqid_casadi import FrequencyData
 from freqid_casadi import fit
-from freqid_casadi.fitting.delay_hold import hold_undetermined_delay
+from freqid_casadi.fitting.delay_hold import ZERO_LAG, hold_undetermined_delay
+from freqid_casadi.fitting.diagnostics import Diagnostic
 from freqid_casadi.errors import OptionError
 from freqid_casadi.options import LoopOptions
 
@@ -90,8 +91,10 @@ def test_no_hold_from_a_lower_fit_without_a_determined_delay(data, free, change)
 
 def test_a_fit_that_did_not_converge_is_not_held(free):
     # its covariance is not taken at an optimum; measured on example C (27 sections, not
-    # converged, delay std above half the delay): the refits cost 15 s and held nothing
+    # converged, delay std above half the delay): the refits cost 15 s and held nothing.
+    # Its delay (6.86 ms, a lag of 0.89 rad at 130 rad/s) is not near its bound 0 either.
     assert free.success and "delay-undetermined" in _codes(free)
+    assert free.delay * free.data.omega.max() > ZERO_LAG
     calls = []
 
     def refit(d, n, delay):
@@ -102,3 +105,47 @@ def test_a_fit_that_did_not_converge_is_not_held(free):
         free, success=False, options=dataclasses.replace(free.options, loop=LoopOptions()))
     assert hold_undetermined_delay(unconverged, refit) is unconverged
     assert calls == []
+
+
+def _creeping(result, delay, std):
+    """``result`` as a fit that did not converge with an undetermined ``delay`` (s) of
+    standard deviation ``std``."""
+    beta = np.array(result.model.beta)
+    beta[0] = delay
+    diag = Diagnostic("delay-undetermined", "the delay ...", "warning",
+                      {"delay": delay, "delay_std": std})
+    return dataclasses.replace(
+        result, success=False, model=dataclasses.replace(result.model, beta=beta),
+        diagnostics=tuple(d for d in result.diagnostics if d.code != "delay-undetermined")
+        + (diag,), options=dataclasses.replace(result.options, loop=LoopOptions()))
+
+
+def test_an_unconverged_delay_at_its_bound_is_held_at_zero(data):
+    # a Bode 100 impedance export (4 sections) ended at its iteration limit with a delay
+    # of 4.2e-8 s (std 7.7e-4 s, a lag of 0.013 rad at the band's top); without a delay the
+    # fit converged at the same errors. Here: data without a delay, and the fit with one
+    # made to look like that fit (delay 1e-5 s: a lag of 1.3e-3 rad)
+    plain = FrequencyData(data.omega, data.response * np.exp(1j * data.omega * H),
+                          "no delay")
+    two = fit(plain, n_sections=2, delay=True, start="best")
+    creeping = _creeping(two, 1e-5, 1e-3)
+    calls = []
+
+    def refit(d, n, delay):
+        calls.append((n, delay))
+        return fit(d, n_sections=n, delay=delay, start="best")
+
+    held = hold_undetermined_delay(creeping, refit)
+    assert calls == [(2, False)]
+    assert held.success and held.status != "not-converged"
+    assert held.model.structure.delay and held.delay == 0.0
+    (diag,) = [d for d in held.diagnostics if d.code == "delay-undetermined"]
+    assert diag.values["held_from_n_sections"] == 0
+    assert diag.values["delay_free"] == 1e-5
+    assert "the delay is held at 0 s, as the free fit did not converge" in diag.message
+    assert held.max_rel_error <= 1.1 * creeping.max_rel_error
+    # a delay whose lag at the band's top is above ZERO_LAG, or above its std: kept
+    for delay, std in ((1e-3, 1.0), (1e-5, 1e-6)):
+        calls.clear()
+        far = _creeping(two, delay, std)
+        assert hold_undetermined_delay(far, refit) is far and calls == []

@@ -182,8 +182,9 @@ def at_noise(last):
     return not last.success and "noise_stall" in (last.details or {})
 
 
-def _next_step(last, stats):
-    """What to pass to let an unconverged final stage continue."""
+def _next_step(last, stats, start=None, found=()):
+    """What to pass to let an unconverged final stage continue (``start``: the fit's
+    start option, None if unknown; ``found``: the fit's diagnostics)."""
     limit = last.details.get("max_iter")
     lm = last.details.get("method") == "barrier-lm"
     fell = last.details.get("termination", {}).get("rms_fall_per_iteration")
@@ -196,13 +197,21 @@ def _next_step(last, stats):
     if not stats.rms < TRIVIAL_RMS:
         return ("the model explains almost nothing: see the diagnostics (gain sign, model "
                 "class, delay) before iterating further")
+    undetermined = [d for d in found if d.code == "delay-undetermined"
+                    and "delay_std" in d.values]
+    if undetermined:
+        return ("the data do not determine the delay (see the delay-undetermined "
+                "diagnostic): fit fewer sections, or without a delay (delay=False)")
+    if start == "best":
+        return "both starts were run: try another number of sections"
     return ("try start='best' (both starts, the better kept) or another number of "
             "sections")
 
 
-def _not_converged(last, stats, usable=False):
+def _not_converged(last, stats, usable=False, start=None, found=()):
     """The message of a fit whose final stage did not converge (``usable``: its residual
-    is consistent with the noise all the same)."""
+    is consistent with the noise all the same; ``start``, ``found``: the fit's start
+    option and diagnostics, for the advice)."""
     d = last.details
     limit = d.get("max_iter")
     fell = d.get("termination", {}).get("rms_fall_per_iteration")
@@ -220,10 +229,10 @@ def _not_converged(last, stats, usable=False):
     state = ("usable: the residual is consistent with the noise" if usable else
              "the model is feasible and these errors are measured")
     return (f"not-converged: the final stage {how}; max rel. error {stats.max:.2g}, "
-            f"RMS {stats.rms:.2g} ({state}) — {_next_step(last, stats)}")
+            f"RMS {stats.rms:.2g} ({state}) — {_next_step(last, stats, start, found)}")
 
 
-def verdict(last, stats, residual, data, found, n_sections):
+def verdict(last, stats, residual, data, found, n_sections, start=None):
     """The fit's verdict: ``(success, status, message, details, diagnostics)``.
 
     ``success`` is the optimiser's (:func:`success_of`, False also on a diagnostic of
@@ -243,6 +252,9 @@ def verdict(last, stats, residual, data, found, n_sections):
         The user's data (weights and unit).
     found : tuple of Diagnostic
     n_sections : int
+    start : str, optional
+        The fit's ``start`` option (the advice of an unconverged fit does not offer a
+        start it ran).
 
     Returns
     -------
@@ -266,7 +278,8 @@ def verdict(last, stats, residual, data, found, n_sections):
         elif not stats.rms < 1.0:
             message = f"poor-fit: {message}"
     elif status == FitStatus.NOT_CONVERGED and stats.rms < 1.0:
-        message = _not_converged(last, stats, usable=check.consistent)
+        message = _not_converged(last, stats, usable=check.consistent, start=start,
+                                 found=found)
     elif status == FitStatus.NOT_CONVERGED:
         message = f"not-converged: {message}"
     elif status == FitStatus.OK:

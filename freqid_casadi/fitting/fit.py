@@ -718,7 +718,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
         found += after_fit(model, data, stats, dmax / w_ref)
         residual = scaled_response / model_scaled.frequency_response(scaled_omega) - 1.0
     success, status, message, details, found = verdict(
-        final[-1], stats, residual, data, found, int(n_sections))
+        final[-1], stats, residual, data, found, int(n_sections), start)
     if skipped:
         details = dict(details, start_skipped=skipped)
     return FitResult(model=model, stages=tuple(records), data=data, rel_error=stats.values,
