@@ -55,7 +55,7 @@ __all__ = ["hold_undetermined_delay", "undetermined_by_std", "HELD_FROM", "ZERO_
 HELD_FROM = "held_from_n_sections"
 #: Largest lag ``omega_max * delay`` (rad) at the band's top of an unconverged fit's
 #: undetermined delay that is held at 0 (:func:`hold_undetermined_delay`): a delay near its
-#: bound. (Example C's unconverged fits, lag about 1 rad, are not refitted: 8 s for
+#: bound. (Example C's unconverged fits, a lag of 26 rad, are not refitted: 8 s for
 #: nothing.)
 ZERO_LAG = 0.1
 
@@ -118,7 +118,7 @@ def hold_undetermined_delay(result, refit):
     if not result.success:
         # a fit that did not converge is not at an optimum: its covariance says nothing
         # about a valley of optima (example C: 15 s of refits for nothing); only a delay
-        # within one standard deviation of 0 is held, at 0
+        # at its bound 0 is held, there
         return _held_at_zero(result, refit, found, t0)
     if st.n_sections < 2:
         return result

@@ -93,15 +93,24 @@ def noise_exponent(residual, size, omega):
     float
         -2 for noise of constant absolute level, 0 for constant relative level.
     """
+    design, y, keep = _differences(residual, size, omega)
+    if np.count_nonzero(keep) < 4 or np.ptp(design[keep, 2]) <= 0:
+        return 0.0
+    coef = np.linalg.lstsq(design[keep], y[keep], rcond=None)[0]
+    return float(np.clip(coef[2], -2.0, 0.0)) if np.isfinite(coef[2]) else 0.0
+
+
+def _differences(residual, size, omega):
+    """``(design, y, keep)`` of the regression of ``y = log |e_{i+1} - e_i|^2`` on the
+    columns ``1, log omega, log |G|`` of ``design`` (at the midpoints, shape (M-1, 3));
+    ``keep``: the differences that are nonzero with a finite ``log |G|``."""
     d2 = np.abs(np.diff(residual)) ** 2
     x = 0.5 * np.log(size[1:] * size[:-1])
     t = np.log(0.5 * (omega[1:] + omega[:-1]))
     keep = (d2 > 0) & np.isfinite(x)
-    if np.count_nonzero(keep) < 4 or np.ptp(x[keep]) <= 0:
-        return 0.0
-    a = np.column_stack([np.ones(np.count_nonzero(keep)), t[keep], x[keep]])
-    coef = np.linalg.lstsq(a, np.log(d2[keep]), rcond=None)[0]
-    return float(np.clip(coef[2], -2.0, 0.0)) if np.isfinite(coef[2]) else 0.0
+    with np.errstate(divide="ignore"):
+        y = np.log(d2)
+    return np.column_stack([np.ones(t.size), t, x]), y, keep
 
 
 def law_ratio(residual, size, omega):
@@ -127,14 +136,10 @@ def law_ratio(residual, size, omega):
     worst : int
         Index of the point of the largest ``|e_i|^2`` over its level (-1 with NaN).
     """
-    d2 = np.abs(np.diff(residual)) ** 2
-    x = 0.5 * np.log(size[1:] * size[:-1])
-    t = np.log(0.5 * (omega[1:] + omega[:-1]))
-    keep = (d2 > 0) & np.isfinite(x)
+    design, y, keep = _differences(residual, size, omega)
     if np.count_nonzero(keep) < 4:
         return math.nan, -1
-    design = np.column_stack([np.ones(t.size), t, x])
-    coef = np.linalg.lstsq(design[keep], np.log(d2[keep]), rcond=None)[0]
+    coef = np.linalg.lstsq(design[keep], y[keep], rcond=None)[0]
     half = 0.5 * np.exp(design @ coef + np.euler_gamma)    # a point's share of a difference
     level = np.empty(residual.size)
     level[0], level[-1] = half[0], half[-1]
