@@ -197,9 +197,7 @@ def _next_step(last, stats, start=None, found=()):
     if not stats.rms < TRIVIAL_RMS:
         return ("the model explains almost nothing: see the diagnostics (gain sign, model "
                 "class, delay) before iterating further")
-    undetermined = [d for d in found if d.code == "delay-undetermined"
-                    and "delay_std" in d.values]
-    if undetermined:
+    if any(d.code == "delay-undetermined" and "delay_std" in d.values for d in found):
         return ("the data do not determine the delay (see the delay-undetermined "
                 "diagnostic): fit fewer sections, or without a delay (delay=False)")
     if start == "best":

@@ -130,14 +130,7 @@ def hold_undetermined_delay(result, refit):
     h, data = float(lower.model.delay), result.data
     shifted = FrequencyData(data.omega, data.response * np.exp(1j * data.omega * h),
                             data.name, data.weights, data.unit)
-    held = refit(shifted, st.n_sections, False)
-    if not (held.success and held.max_rel_error <= NEAR * result.max_rel_error
-            and held.rms_rel_error <= NEAR * result.rms_rel_error):
-        return result
-    beta = np.array(held.model.beta, float)
-    beta[0] = h
-    model = RationalDelayModel(dataclasses.replace(held.model.structure, delay=True), beta)
-    return _held_result(result, held, model, lower, found, time.perf_counter() - t0)
+    return _kept(result, refit(shifted, st.n_sections, False), h, lower, found, t0)
 
 
 def _held_at_zero(free, refit, found, t0):
@@ -157,13 +150,20 @@ def _held_at_zero(free, refit, found, t0):
     with warnings.catch_warnings():         # a fit the user did not ask for: no warnings
         warnings.simplefilter("ignore")
         held = refit(free.data, free.model.n_sections, False)
+    return _kept(free, held, 0.0, None, found, t0)
+
+
+def _kept(free, held, h, lower, found, t0):
+    """The held fit (``held``: fitted without a delay on the data shifted by ``h``) as a
+    FitResult with its delay at ``h`` (:func:`_held_result`), when it converged within
+    :data:`NEAR` of the free fit's max and RMS errors; else ``free``."""
     if not (held.success and held.max_rel_error <= NEAR * free.max_rel_error
             and held.rms_rel_error <= NEAR * free.rms_rel_error):
         return free
     beta = np.array(held.model.beta, float)
-    beta[0] = 0.0
+    beta[0] = h
     model = RationalDelayModel(dataclasses.replace(held.model.structure, delay=True), beta)
-    return _held_result(free, held, model, None, found, time.perf_counter() - t0)
+    return _held_result(free, held, model, lower, found, time.perf_counter() - t0)
 
 
 def _held_result(free, held, model, lower, found, extra_time):
