@@ -143,6 +143,41 @@ def test_a_band_pass_below_two_resonances_keeps_its_exact_fit():
     assert res.status == "ok" and res.rms_rel_error < 1e-10
 
 
+def test_a_start_that_is_effectively_another_k_is_fitted_beside_it():
+    """Seed 2026's band-pass case 35 (exact, one zero at the origin, 8.5 s of delay, 160
+    points): the k = 0 start puts its zero at 4.7e-5 rad/s, a thousandth of the lowest
+    frequency (effectively k = -1), and reads RMS 3.3e-7 against 1.2e-6 for the k = -1
+    start: beyond the preference window, so k = 0 was chosen alone and its fit ended
+    not-converged at RMS 3.1e-4 (a far zero at 49 rad/s trading phase with the delay).
+    Now the start's effective k is fitted first beside it, and the fits decide: k = -1,
+    exact (measured RMS 2.8e-13; bound 1e-9), and no ambiguity, since the k = 0 fit's
+    zero far below the band makes it the same model."""
+    c = case(35, 2026, max_points=400)
+    assert c.integrators - c.zeros_at_origin == -1
+    res = fc.fit(c.data, n_sections=c.n_sections)
+    rec = res.details["integrator"]
+    assert rec["effective"][0] == -1
+    assert {-1, 0} <= set(rec["contenders"]) and rec["chosen"] == -1
+    assert rec["fit_rms"][0] > 1e-6 > 1e-9 > rec["fit_rms"][-1]
+    assert not rec["ambiguous"]
+    assert res.status == "ok" and res.rms_rel_error < 1e-9
+
+
+def test_a_contender_that_is_effectively_the_winner_is_no_alternative():
+    """settle_by_fits: a loser within AMBIGUOUS_FACTOR makes the choice ambiguous, unless
+    its fitted model is effectively the winner's k."""
+    from freqid_casadi.fitting.origin import settle_by_fits
+    rec = {"contenders": [-1, 0], "chosen": -1, "ambiguous": False, "runner_up": 0}
+    fits = {-1: 1.0e-3, 0: 1.2e-3}
+    plain = settle_by_fits(rec, fits)
+    assert plain["chosen"] == -1 and plain["ambiguous"] and plain["runner_up"] == 0
+    same = settle_by_fits(rec, fits, {-1: -1, 0: -1})
+    assert same["chosen"] == -1 and not same["ambiguous"] and same["runner_up"] is None
+    # the fits decide against the first contender beyond PREFER_FACTOR
+    other = settle_by_fits(rec, {-1: 1.0e-2, 0: 1.0e-3}, {-1: -1, 0: 0})
+    assert other["chosen"] == 0 and not other["ambiguous"] and other["runner_up"] == -1
+
+
 def test_an_ambiguous_choice_also_fits_the_model_without_roots_at_the_origin():
     """Seed 23's in-class case 117 (k = 0, a zero pair at 65 rad/s just below the band's
     87 rad/s, noise 0.17 %): the lowest bins rise at slope 2.2, and vector fitting's k = 0

@@ -54,7 +54,7 @@ from ..core.metrics import relative_error
 from ..core.model import (MAX_ORIGIN_ORDER, ZEROS, RationalDelayModel, Structure,
                           check_origin_order)
 from .origin import (choose_origin_order, describe_origin, origin_diagnostics,
-                     settle_by_fits)
+                     settle_by_results)
 from ..options import (INITS, LEGACY_KEYWORDS, METHODS, WARM_STARTS, FitOptions, LoopOptions,
                       legacy_message, solver_options)
 from ..core.scaling import (check_finite_result, reference_scales, scale_data, unscale_model,
@@ -439,8 +439,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
                                                    emit if j == k else False,
                                                    dict(kw, integrator=check_origin_order(j)))
                 if len(ks) > 1:
-                    record = settle_by_fits(record, {j: r.rms_rel_error
-                                                     for j, r in results.items()})
+                    record = settle_by_results(record, results, data)
                     kept = results[record["chosen"]]
                     _warn_unresolved(kept, 4)                             # its warning
                 return _with_origin_record(results[record["chosen"]], record,
@@ -452,7 +451,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
             core = _contender_fits(ks, k, emit, n_jobs, data_or_omega, response,
                                    dict(kw, n_sections=n_sections, delay=delay,
                                         weights=weights))
-            record = settle_by_fits(record, {j: r.rms_rel_error for j, r in core.items()})
+            record = settle_by_results(record, core, data)
             chosen = record["chosen"]
             with warnings.catch_warnings():
                 warnings.simplefilter("ignore")

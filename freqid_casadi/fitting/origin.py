@@ -22,13 +22,16 @@ yields to the candidate that has them at the origin (a k = 0 start of acceleranc
 two zeros near 0 is the k = -2 model reached the hard way: the fit's bounds stop such roots
 at a floor); that k is tried too when the slope did not propose it (a band-pass whose lowest
 bins fall into an antiresonance just above them, on a clean line of slope -1: candidates 0,
-1, 2, and the k = 0 start's zero far below the lowest frequency asks for k = -1). When
-another candidate, not effectively the same, is within :data:`AMBIGUOUS_FACTOR` of the
-winner, the choice is ambiguous: both are fitted (the full fit, up to :data:`MAX_FITS` close
-candidates, and k = 0 in any case, since a start is only as good as vector fitting's model)
-and the lower RMS wins; when the fits too are within that factor (typically: the data end
-too high to show the low-frequency asymptote) an ``integrator`` warning gives the errors of
-each choice and the switch ``integrator=...``.
+1, 2, and the k = 0 start's zero far below the lowest frequency asks for k = -1); when no
+candidate near the lowest error agrees with its own start, the winner's start stands for
+another k whose own start was less accurate, and both are fitted in full, that k first.
+When another candidate, not effectively the same, is within :data:`AMBIGUOUS_FACTOR` of
+the winner, the choice is ambiguous: both are fitted (the full fit, up to :data:`MAX_FITS`
+close candidates, and k = 0 in any case, since a start is only as good as vector fitting's
+model). Of the full fits the lower RMS wins; when another fit, not effectively the
+winner's k, is within that factor (typically: the data end too high to show the
+low-frequency asymptote) an ``integrator`` warning gives the errors of each choice and the
+switch ``integrator=...``.
 """
 
 import math
@@ -44,6 +47,7 @@ from .diagnostics import (BELOW_BAND, EXACT_START, Diagnostic, low_frequency_lin
 from .start import RationalStartError, rational_start
 
 __all__ = ["choose_origin_order", "origin_candidates", "slope_informative", "settle_by_fits",
+           "settle_by_results",
            "origin_diagnostics", "describe_origin", "PREFER_FACTOR", "AMBIGUOUS_FACTOR",
            "MAX_FITS", "SLOPE_SCATTER", "POOR_START"]
 
@@ -191,10 +195,12 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
         or None}``, the
         errors being those of each candidate's rational start on the data (either gain
         sign), for ``FitResult.details["integrator"]``.
-    When ``record["ambiguous"]``, the caller fits each k of ``record["contenders"]`` (the
-    chosen k, the runner-up and, up to :data:`MAX_FITS`, the others within
-    :data:`AMBIGUOUS_FACTOR`, then k = 0 in any case) and settles it
-    (:func:`settle_by_fits`); :func:`origin_diagnostics` then states it: an
+    With more than one k in ``record["contenders"]`` the caller fits each and settles the
+    choice (:func:`settle_by_fits`): when ``record["ambiguous"]``, the chosen k, the
+    runner-up and, up to :data:`MAX_FITS`, the others within :data:`AMBIGUOUS_FACTOR`,
+    then k = 0 in any case; when the chosen start is effectively another candidate's k
+    (its roots far below the band) and no other is close, that k and the chosen one, that
+    k first. :func:`origin_diagnostics` then states it: an
     ``integrator`` record, "info" when a k other than 0 is chosen clearly, "warning"
     (with the errors of each choice and ``pass integrator=...``) when it stays ambiguous.
     """
@@ -238,17 +244,16 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
     usable = math.isfinite(rms[chosen])
     ambiguous = bool(not usable or runner is not None and
                      rms[runner] <= AMBIGUOUS_FACTOR * max(rms[chosen], 1e-300))
-    contenders = [int(chosen)] + sorted(
-        (int(k) for k in close if k != runner), key=lambda k: rms[k])[:MAX_FITS - 2]
-    if runner is not None and ambiguous:
-        contenders.insert(1, int(runner))
-    if ambiguous and 0 in cands and 0 not in contenders:
-        # the starts rank the candidates only as well as vector fitting finds each model:
-        # the model without roots at the origin is fitted too (beyond MAX_FITS: when the
-        # slope is not informative, candidates with close starts can fill them)
-        contenders.append(0)
+    contenders = _contenders(chosen, runner, close, ambiguous, rms, cands)
+    apparent = eff[chosen]
+    if not ambiguous and apparent != chosen and math.isfinite(rms.get(apparent, math.inf)):
+        # the chosen start itself puts roots far below the band: the model of the candidate
+        # that has them at the origin, reached the hard way, whose own start was not near
+        # enough to be preferred (vector fitting's accuracy, not the data's): both are
+        # fitted, that candidate first (it wins a tie), and the fits decide
+        contenders, chosen, runner = [int(apparent), int(chosen)], apparent, chosen
     record = {"auto": True, "chosen": int(chosen), "candidates": [int(k) for k in cands],
-              "contenders": contenders if ambiguous else [int(chosen)],
+              "contenders": contenders,
               "rms": {int(k): rms[k] for k in cands},
               "max": {int(k): errors[k][1] for k in cands},
               "effective": {int(k): int(eff[k]) for k in cands},
@@ -259,12 +264,32 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
     return int(chosen), record
 
 
-def settle_by_fits(record, fits):
-    """The record once the ambiguous choice was settled by full fits.
+def _contenders(chosen, runner, close, ambiguous, rms, cands):
+    """The k an ambiguous choice fits in full: the chosen one, the runner-up, the other
+    close ones by their starts' errors up to :data:`MAX_FITS`, and k = 0; ``[chosen]`` when
+    the choice is clear."""
+    if not ambiguous:
+        return [int(chosen)]
+    contenders = [int(chosen)] + sorted(
+        (int(k) for k in close if k != runner), key=lambda k: rms[k])[:MAX_FITS - 2]
+    if runner is not None:
+        contenders.insert(1, int(runner))
+    if 0 in cands and 0 not in contenders:
+        # the starts rank the candidates only as well as vector fitting finds each model:
+        # the model without roots at the origin is fitted too (beyond MAX_FITS: when the
+        # slope is not informative, candidates with close starts can fill them)
+        contenders.append(0)
+    return contenders
+
+
+def settle_by_fits(record, fits, effective=None):
+    """The record once the choice among several contenders was settled by full fits.
 
     The lowest error wins unless the first contender (the starts' choice) is within
     :data:`PREFER_FACTOR` of it (differences at the noise level do not move the choice);
-    still ambiguous when another is within :data:`AMBIGUOUS_FACTOR` of the winner.
+    still ambiguous when another is within :data:`AMBIGUOUS_FACTOR` of the winner, unless
+    that one's fitted model is effectively the winner's k (its roots far below the band
+    stand for the winner's roots at the origin: the same model, no alternative).
 
     Parameters
     ----------
@@ -272,6 +297,9 @@ def settle_by_fits(record, fits):
         The choice of :func:`choose_origin_order` (its ``"contenders"``).
     fits : dict of int to float
         Each contender k to the RMS relative error of ``fit(..., integrator=k)``.
+    effective : dict of int to int, optional
+        Each contender k to its fitted model's k plus its poles, minus its zeros, below
+        the band (:func:`settle_by_results`); default: each its own k.
 
     Returns
     -------
@@ -281,10 +309,37 @@ def settle_by_fits(record, fits):
     first = record["contenders"][0]
     lowest = min(fits, key=lambda k: (fits[k], record["contenders"].index(k)))
     chosen = first if fits[first] <= PREFER_FACTOR * fits[lowest] else lowest
-    loser = min((k for k in fits if k != chosen), key=lambda k: fits[k])
-    ambiguous = bool(fits[loser] <= AMBIGUOUS_FACTOR * max(fits[chosen], 1e-300))
-    return dict(record, chosen=int(chosen), runner_up=int(loser), ambiguous=ambiguous,
+    eff = effective or {}
+    others = [k for k in fits if k != chosen and eff.get(k, k) != chosen]
+    loser = min(others, key=lambda k: fits[k]) if others else None
+    ambiguous = bool(loser is not None
+                     and fits[loser] <= AMBIGUOUS_FACTOR * max(fits[chosen], 1e-300))
+    return dict(record, chosen=int(chosen), ambiguous=ambiguous,
+                runner_up=None if loser is None else int(loser),
                 fit_rms={int(k): float(v) for k, v in fits.items()})
+
+
+def settle_by_results(record, results, data):
+    """:func:`settle_by_fits` of the contenders' fits.
+
+    Parameters
+    ----------
+    record : dict
+        The choice of :func:`choose_origin_order`.
+    results : dict of int to FitResult
+        Each contender k to ``fit(..., integrator=k)``.
+    data : FrequencyData
+        The data fitted (its lowest frequency bounds the band).
+
+    Returns
+    -------
+    dict
+        As :func:`settle_by_fits`, each contender's effective k from its fitted model.
+    """
+    omega_min = float(data.omega[0])
+    return settle_by_fits(record, {k: r.rms_rel_error for k, r in results.items()},
+                          {int(k): _effective_order(r.model, omega_min)
+                           for k, r in results.items()})
 
 
 def describe_origin(k):
