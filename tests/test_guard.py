@@ -51,6 +51,24 @@ def test_noisy_a_default_fit_is_safe_between_the_samples(noisy_a):
     assert "resolution_guard" not in off.details
 
 
+
+def test_a_floored_fit_at_its_constraints_is_converged():
+    """Seed 2026's in-class case 126 (88 points, 4 sections, noise 1.7 %): the free
+    fit leaves a feature narrower than the spacing, the guard keeps the floored refit, whose
+    four dampings sit on the floor (zeta 0.0337). The termination test now reads those
+    constraints (KKT): converged, measured max cos 5.7e-12 and projection 5.8e-12 against
+    the allowed 1e-6 and 1.8e-6 (before: max cos 0.041, "not-converged", with the advice
+    to try another number of sections at the true order)."""
+    from freqid_casadi.systems.corpus import case
+
+    c = case(126, 2026, max_points=400)
+    res = fc.fit(c.data, n_sections=c.n_sections)
+    assert res.details["resolution_guard"]["kept"] == "floored"
+    assert res.status == "ok", res.message
+    term = res.details["final_stage"]["termination"]
+    assert term["max_cos"] <= 1e-3 * term["max_cos_allowed"], term
+    assert res.rms_rel_error <= 1.5 * c.noise
+
 def test_exact_data_keep_their_narrow_modes():
     # example A exact: the resolution check passes and the guard does nothing (default
     # kernel), or, where rounding leaves a feature narrower than the spacing (Haswell:

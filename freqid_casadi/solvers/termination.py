@@ -38,7 +38,10 @@ class Termination:
     ``cos_j = |J_j^T r| / (||J_j|| ||r||)`` (MINPACK's ``gtol`` measure). Both thresholds
     are raised by ``noise / rms(r)``, the rounding level of a relative residual
     (``noise_factor * eps * n``, n variables): an exact fit at machine precision is
-    stationary.
+    stationary. A stage with constraints ``g(z) >= 0`` (the damping floor) is tested in
+    the KKT form: the active constraints' normals, times nonnegative multipliers, are
+    taken off the gradient, and ``P`` projects along the directions that keep the binding
+    ones active.
 
     The stage is *stalled* when the cost fell by less than ``stall_ftol`` (relative) over
     the last ``stall_window`` iterations without being stationary (0: no stall test).
@@ -318,6 +321,7 @@ class StageMonitor:
         self.n_points = None         # complex residuals, from the first residual evaluated
         self.cos = self.allowed = self.proj = self.proj_allowed = float("nan")
         self._sqrt_ftol = np.sqrt(term.ftol)      # the cosine's allowed value's first term
+        self._gfun = None            # the constraints' values and Jacobian (CasADi)
 
     def test_text(self, explain=True):
         """The termination test's numbers for messages (the projection is computed only
@@ -375,8 +379,9 @@ class StageMonitor:
         column norms given), shape (n,)."""
         return self._free_mask(x, cost, grad, cn, self._noise(x, cost))
 
-    def stationary(self, x):
-        """(stationary?, cost) at ``x``: the cheap cosine test, then the projection."""
+    def stationary(self, x, kkt=False):
+        """(stationary?, cost) at ``x``: the cheap cosine test, then the projection; with
+        ``kkt``, in the KKT form of a stage with constraints (:meth:`_stationary_kkt`)."""
         pb = self.problem
         # np.clip's numbers in a third of its time (the test runs after every iteration)
         x = np.minimum(np.maximum(np.asarray(x, float), pb.lb), pb.ub)
@@ -386,6 +391,8 @@ class StageMonitor:
         cn = pb.eval_column_norms(x)
         noise = self._noise(x, cost)
         self.allowed, self.proj = self._sqrt_ftol + noise, float("nan")
+        if kkt and pb.constraints is not None:
+            return self._stationary_kkt(x, cost, grad, cn, noise), cost
         if self._fails_fast(x, cost, grad, cn, noise):
             return False, cost
         free = self._free_mask(x, cost, grad, cn, noise)
@@ -400,6 +407,54 @@ class StageMonitor:
             self.proj = projected_fraction(r, jac, free, self.term.rcond)
         self.proj_allowed = float(np.sqrt(self.term.ftol + noise))
         return self.proj <= self.proj_allowed, cost
+
+    def _constraint_values(self, x):
+        """(values (m,), Jacobian (m, n)) of the problem's constraints ``g(z) >= 0`` at
+        ``x`` (their CasADi function built at the first call)."""
+        if self._gfun is None:
+            import casadi as ca
+
+            z = ca.SX.sym("z", self.problem.n)
+            g = self.problem.constraints(z)
+            self._gfun = ca.Function("g", [z], [g, ca.jacobian(g, z)])
+        g, jac = self._gfun(x)
+        return np.asarray(g.full(), float).reshape(-1), np.asarray(jac.full(), float)
+
+    def _stationary_kkt(self, x, cost, grad, cn, noise):
+        """The test at ``x`` of a stage with constraints ``g(z) >= 0`` (the damping floor):
+        the KKT form of the bounds' test. A constraint is active when moving onto its
+        surface changes the residual by at most ``sqrt(ftol)`` of its norm (to first order,
+        as the bounds' :func:`moved_onto_bounds`; an interior point stops just inside it);
+        the gradient less the active normals times their nonnegative least-squares
+        multipliers takes the gradient's place in the cosine test, and the projection is
+        onto the Jacobian's span along the directions that keep the binding constraints
+        (positive multipliers) on their surface."""
+        from scipy.linalg import null_space
+        from scipy.optimize import nnls
+
+        pb = self.problem
+        free = self._free_mask(x, cost, grad, cn, noise)
+        g, jac_g = self._constraint_values(x)
+        norm_r = math.sqrt(max(cost, 0.0))
+        an = np.linalg.norm(jac_g, axis=1)
+        with np.errstate(divide="ignore", invalid="ignore"):
+            unit = np.where(an[:, None] > 0, jac_g / an[:, None], 0.0)
+            reach = (np.abs(unit) @ cn) * np.maximum(g, 0.0) / an
+        act = (an > 0) & (reach <= self._sqrt_ftol * norm_r)
+        a = jac_g[act][:, free]
+        lam = nnls(a.T, grad[free])[0] if a.size else np.zeros(0)
+        reduced = grad - jac_g[act].T @ lam
+        self.cos, _ = relative_stationarity(reduced, cn, cost, free, self.n_points, pb.n)
+        if self.cos > self.allowed:
+            return False
+        r = np.asarray(pb.residual(x), float)
+        jac = np.asarray(pb.jacobian(x), float)[:, free]
+        binding = a[lam > 0]
+        if binding.size:
+            jac = jac @ null_space(binding)
+        self.proj = projected_fraction(r, jac, np.ones(jac.shape[1], bool), self.term.rcond)
+        self.proj_allowed = float(np.sqrt(self.term.ftol + noise))
+        return self.proj <= self.proj_allowed
 
     def _fails_fast(self, x, cost, grad, cn, noise):
         """True when the cosine test fails on the variable of the largest cosine of all
@@ -546,6 +601,10 @@ class StageMonitor:
                         "candidate it had to beat", extra=dict(res.extra or {}, abandoned=True))
         nit0 = int(res.nit)              # the solver's own iterations (the rest: polish)
         ok, _ = self.stationary(res.x)
+        if not ok and self.problem.constraints is not None:
+            # the KKT form decides at the returned point only: after every iteration the
+            # plain test runs, so IPOPT's path within the stage is as before
+            ok, _ = self.stationary(res.x, kkt=True)
         if not ok and self.term.onto_bounds:
             snapped = self._onto_bounds(res)
             if snapped is not res and self.stationary(snapped.x)[0]:
