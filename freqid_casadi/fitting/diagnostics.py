@@ -609,14 +609,12 @@ def check_roots_below_band(model, data, fraction=BELOW_BAND):
     w_min = float(data.omega[0])
     found = []
     k = model.origin_order
-    for kind, roots, stands in (("pole", model.poles()[max(k, 0):],
-                                 f"an integrator (refit with integrator="
-                                 f"{spell_origin(max(k, 0) + 1)})" if k >= 0 else
-                                 "fewer zeros at the origin (refit with integrator="
-                                 f"{spell_origin(k + 1)})"),
-                                ("zero", model.zeros()[max(-k, 0):],
-                                 "a differentiator (a zero at 0; refit with integrator="
-                                 f"{spell_origin(k - 1)})")):
+    for kind, roots, asked, stands in (
+            ("pole", model.poles()[max(k, 0):], k + 1,
+             f"an integrator (refit with integrator={spell_origin(k + 1)})" if k >= 0 else
+             f"fewer zeros at the origin (refit with integrator={spell_origin(k + 1)})"),
+            ("zero", model.zeros()[max(-k, 0):], k - 1,
+             f"a differentiator (a zero at 0; refit with integrator={spell_origin(k - 1)})")):
         low = roots[np.abs(roots) < fraction * w_min]
         if low.size == 0:
             continue
@@ -627,5 +625,6 @@ def check_roots_below_band(model, data, fraction=BELOW_BAND):
         found.append(Diagnostic("root-below-band", msg, "warning",
                                 {"kind": kind, "roots": [[float(r.real), float(r.imag)]
                                                          for r in low],
-                                 "omega_min": w_min, "fraction": float(fraction)}))
+                                 "omega_min": w_min, "fraction": float(fraction),
+                                 "integrator_asked": int(asked)}))
     return tuple(found)

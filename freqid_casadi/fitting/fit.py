@@ -54,7 +54,7 @@ from ..core.metrics import relative_error
 from ..core.model import (MAX_ORIGIN_ORDER, ZEROS, RationalDelayModel, Structure,
                           check_origin_order)
 from .origin import (choose_origin_order, describe_origin, origin_diagnostics,
-                     settle_by_results)
+                     restate_roots_below_band, settle_by_results)
 from ..options import (INITS, LEGACY_KEYWORDS, METHODS, WARM_STARTS, FitOptions, LoopOptions,
                       legacy_message, solver_options)
 from ..core.scaling import (check_finite_result, reference_scales, scale_data, unscale_model,
@@ -514,9 +514,9 @@ def _with_origin_record(result, record, found):
         message = (f"{message}; integrator='auto' chose {describe_origin(record['chosen'])}"
                    + (" (ambiguous: see the integrator diagnostic)" if record["ambiguous"]
                       else ""))
-    return dataclasses.replace(result, options=options, message=message,
-                               diagnostics=tuple(found) + tuple(result.diagnostics),
-                               details=dict(result.details, integrator=record))
+    return dataclasses.replace(result, options=options, message=message, details=dict(
+        result.details, integrator=record), diagnostics=tuple(found) + restate_roots_below_band(
+            result.diagnostics, record))
 
 
 def _fit_resolved(data_or_omega, response, n_sections, delay, fixed, weights, emit, kw,

@@ -34,6 +34,7 @@ low-frequency asymptote) an ``integrator`` warning gives the errors of each choi
 switch ``integrator=...``.
 """
 
+import dataclasses
 import math
 
 import numpy as np
@@ -47,7 +48,7 @@ from .diagnostics import (BELOW_BAND, EXACT_START, Diagnostic, low_frequency_lin
 from .start import RationalStartError, rational_start
 
 __all__ = ["choose_origin_order", "origin_candidates", "slope_informative", "settle_by_fits",
-           "settle_by_results",
+           "settle_by_results", "restate_roots_below_band",
            "origin_diagnostics", "describe_origin", "PREFER_FACTOR", "AMBIGUOUS_FACTOR",
            "MAX_FITS", "SLOPE_SCATTER", "POOR_START"]
 
@@ -341,6 +342,35 @@ def settle_by_results(record, results, data):
                           {int(k): _effective_order(r.model, omega_min)
                            for k, r in results.items()})
 
+
+def restate_roots_below_band(diagnostics, record):
+    """``diagnostics`` with each ``root-below-band`` record whose asked-for k
+    (``values["integrator_asked"]``) ``integrator="auto"`` fitted and did not keep saying
+    so, with both fits' RMS errors (the advice "refit with integrator=k" is then already
+    answered).
+
+    Parameters
+    ----------
+    diagnostics : sequence of Diagnostic
+        The kept fit's records.
+    record : dict
+        The settled choice (:func:`settle_by_fits`: its ``"fit_rms"``).
+
+    Returns
+    -------
+    tuple of Diagnostic
+    """
+    fits, chosen = record.get("fit_rms") or {}, record["chosen"]
+    out = []
+    for d in diagnostics:
+        asked = d.values.get("integrator_asked") if d.code == "root-below-band" else None
+        if asked in fits and asked != chosen and chosen in fits:
+            d = dataclasses.replace(d, message=(
+                f"{d.message}; integrator='auto' fitted integrator={spell_origin(asked)} "
+                f"too and kept this model (RMS {fits[asked]:.3g} against {fits[chosen]:.3g})"),
+                values=dict(d.values, asked_fit_rms=float(fits[asked])))
+        out.append(d)
+    return tuple(out)
 
 def describe_origin(k):
     """Words for k poles at the origin.
