@@ -122,12 +122,8 @@ def law_ratio(residual, size, omega):
 
     Parameters
     ----------
-    residual : ndarray of complex, shape (M,)
-        Relative residual ``Phi / G - 1`` by increasing frequency.
-    size : ndarray of float, shape (M,)
-        ``|G|`` of the model at the same points.
-    omega : ndarray of float, shape (M,)
-        rad/s.
+    residual, size, omega : ndarray, shape (M,)
+        As :func:`noise_exponent`'s: the relative residual, ``|G|`` and rad/s.
 
     Returns
     -------
@@ -244,7 +240,7 @@ def fit_with_noise_weights(fit_one, data_or_omega, response, spelt="noise"):
         law, worst = law_ratio(data.response / g - 1.0, np.abs(g), data.omega)
     values = dict(info, estimated=True, unweighted=first_numbers, law_ratio=law)
     result = _with(second, Diagnostic("noise-weights", msg, "info", values), values)
-    if str(second.status) == "ok" and law > LAW_RATIO:
+    if second.status == FitStatus.OK and law > LAW_RATIO:
         return _not_the_noise(result, law, float(data.omega[worst]), data.unit)
     return result
 
@@ -264,12 +260,9 @@ def _not_the_noise(result, law, where, unit):
                       {"rms": float(result.rms_rel_error), "ratio": law,
                        "noise_rms": float(result.rms_rel_error) / law, "local_ratio": ratio,
                        "worst_omega": where, "cause": "noise-weights"})
-    try:
-        return dataclasses.replace(result, status=FitStatus.POOR_FIT,
-                                   message=f"poor-fit: converged, but {text}",
-                                   diagnostics=tuple(result.diagnostics) + (diag,))
-    except (TypeError, FreqidError):        # a result type without a status
-        return result
+    return dataclasses.replace(result, status=FitStatus.POOR_FIT,
+                               message=f"poor-fit: converged, but {text}",
+                               diagnostics=tuple(result.diagnostics) + (diag,))
 
 
 def _with(result, diag, values):

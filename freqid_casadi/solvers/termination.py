@@ -438,9 +438,10 @@ class StageMonitor:
         norm_r = math.sqrt(max(cost, 0.0))
         an = np.linalg.norm(jac_g, axis=1)
         with np.errstate(divide="ignore", invalid="ignore"):
-            unit = np.where(an[:, None] > 0, jac_g / an[:, None], 0.0)
-            reach = (np.abs(unit) @ cn) * np.maximum(g, 0.0) / an
-        act = (an > 0) & (reach <= self._sqrt_ftol * norm_r)
+            # each normal's residual norm (bounded by the columns'), its surface's distance
+            dist = np.where(an > 0, np.maximum(g, 0.0) / an, np.inf)
+            norms = np.abs(np.where(an[:, None] > 0, jac_g / an[:, None], 0.0)) @ cn
+        act = _reach(norms, dist) <= self._sqrt_ftol * norm_r
         a = jac_g[act][:, free]
         lam = nnls(a.T, grad[free])[0] if a.size else np.zeros(0)
         reduced = grad - jac_g[act].T @ lam
