@@ -150,8 +150,16 @@ def crossings(x, y, level):
 
 
 def margins(omega, loop):
-    """Gain margin (min 1/|L| at a phase crossover), phase margin (at gain crossovers,
-    deg), their frequencies, the modulus margin min |1 + L| and the delay margin."""
+    """Gain margin (min 1/|L| at a phase crossover), phase margin, their frequencies, the
+    modulus margin min |1 + L| and the delay margin.
+
+    The phase margin is, at each gain crossover, the phase change of either sign that
+    puts L on -1 (0..180 deg), the smallest over the crossovers: a loop with several
+    crossovers (here the controller's gain above 1 near a mode) can cross |L| = 1 with L
+    near +1, where the signed margin 180 + phase (wrapped) would read about -170 deg for
+    a point far from -1. Stability itself is the winding number's. The delay margin is
+    the smallest, over the crossovers, of the extra lag that reaches -1 (a delay only
+    lags) over the crossover's frequency (s)."""
     mag, ph = np.abs(loop), np.unwrap(np.angle(loop))
     gm, w_gm = math.inf, math.nan
     for k in range(-5, 6):                               # phase = -180 deg + k 360
@@ -160,15 +168,17 @@ def margins(omega, loop):
             m = float(np.exp(np.interp(np.log(w), np.log(omega), np.log(mag))))
             if 1.0 / m < gm:
                 gm, w_gm = 1.0 / m, w
-    pm, w_pm = math.inf, math.nan
+    pm, w_pm, delay_margin = math.inf, math.nan, math.inf
     for w in crossings(np.log(omega), np.log(mag), 0.0):
         w = math.exp(w)
         p = float(np.interp(np.log(w), np.log(omega), ph))
-        margin = math.degrees((p + math.pi) % (2 * math.pi))
-        margin = margin - 360.0 if margin > 180.0 else margin
+        lag = (p + math.pi) % (2 * math.pi)              # extra lag that reaches -1 (rad)
+        margin = math.degrees(min(lag, 2 * math.pi - lag))
         if margin < pm:
             pm, w_pm = margin, w
-    delay_margin = math.radians(pm) / w_pm if math.isfinite(pm) and pm > 0 else math.nan
+        delay_margin = min(delay_margin, lag / w)
+    if not math.isfinite(delay_margin):
+        delay_margin = math.nan
     return {"gain_margin": gm, "gain_margin_db": 20 * math.log10(gm) if gm > 0 else -math.inf,
             "omega_gain_margin": w_gm, "phase_margin_deg": pm, "omega_crossover": w_pm,
             "modulus_margin": float(np.min(np.abs(1 + loop))), "delay_margin": delay_margin}
@@ -362,7 +372,10 @@ def write_report(folder, command, s):
              "which are close to, not on, the real axis); below the first measured "
              "frequency the plant is held at its first measured value (its low-frequency "
              "plateau), above the last |L_i| is small (column |L(w_max)|). |W T| on the grid "
-             "uses the nominal T.", "",
+             "uses the nominal T. PM: at each gain crossover, the phase change of either "
+             "sign that puts L_i on -1, the smallest over the crossovers (where |L_i| "
+             "crosses 1 more than once, one crossing can lie near +1); delay margin: the "
+             "smallest extra lag that reaches -1 at a crossover, over its frequency.", "",
              "| member | winding | closed-loop RHP poles | stable | GM [dB] | PM [deg] | "
              "crossover [rad/s] | modulus margin | delay margin [ms] | |L(w_max)| | "
              "max |W T| on grid |",
