@@ -41,21 +41,24 @@ The objective is linear in ``ln|W|``: the mean log-ratio (an L1 fit from above),
 weights every point equally, i.e. equally per decade on a log-spaced grid, and is not
 dominated by the few points where ``W`` must lie far above ``e`` (dips of ``e``, zeros).
 
-Starts. The orders ``1..order`` are solved in turn, each from two starts whose gain is
-raised to feasibility (``W = k_ref`` alone, order 0, is feasible and is the closed-form
+Starts. The orders ``1..order`` are solved in turn, each from up to five starts whose gain
+is raised to feasibility (``W = k_ref`` alone, order 0, is feasible and is the closed-form
 order-0 answer):
 
 * *fresh*: the data range is cut into ``n`` stretches of equal total variation of the
   smoothed ``ln e``; each section is centred on its stretch with the stretch's net rise of
   ``e`` as its high/low-frequency gain ratio (identity sections for a flat ``e``);
-* *ladder*: the best weight of the order below plus one real pole/zero pair (appended as a
-  first-order section, or merged with the first-order section into a second-order one),
-  chosen by a numpy grid search (3 points per decade over the corner bounds) of the
-  objective. The grid contains the cancelling pair, so this start is never worse than the
-  order below; if IPOPT ends above it, the start is kept.
+* *ladder*: each of the two best weights of the order below (distinct objectives) plus one
+  real pole/zero pair (appended as a first-order section, or merged with the first-order
+  section into a second-order one), at each of the two lowest local minima, off the
+  cancelling diagonal ``z = p``, of the objective on a numpy grid (3 points per decade over
+  the corner bounds); if IPOPT ends above a ladder start, the start is kept.
 
-The best result by the objective is returned; hence the objective, and the mean overbound
-in dB, does not increase with the order (up to rounding).
+The best weight of the order below with a cancelling pair is a candidate too (not solved),
+so the objective, and the mean overbound in dB, does not increase with the order (up to
+rounding); the best candidate by the objective is returned. The NLP has many local minima;
+several ladder starts and IPOPT's monotone barrier update make short solves from near a
+minimum decide, not long ones whose end point moves with rounding (the BLAS kernel).
 
 Verification. IPOPT's constraint tolerance can leave ``|W(j w_i)|`` a hair below
 ``(1 + margin) e_i``. After the solve the bound is checked in numpy at every point and, if
@@ -111,6 +114,8 @@ MAX_DECADES = 100
 
 _LN10 = math.log(10.0)
 _GRID_PER_DECADE = 3      # ladder grid search over corner frequencies
+_LADDER_POOL = 2          # weights of the order below laddered from
+_LADDER_PAIRS = 2         # grid minima (added pole/zero pairs) per ladder weight
 
 
 # ---------------------------------------------------------------------------- results
@@ -169,7 +174,9 @@ class WeightResult:
     details : dict
         The optimiser's own words: ``solver_status`` (IPOPT's return status, or "closed
         form" for order 0), ``start`` ("fresh", "ladder" or "closed form") and
-        ``kept_start`` (True when IPOPT ended above its start and the start was kept).
+        ``kept_start`` (True when IPOPT ended above its start and the start was kept, and
+        for the order below's weight with a cancelling pair, which then carries that
+        weight's ``solver_status``).
 
     Notes
     -----
@@ -506,7 +513,9 @@ def _solve(prob, kinds, z_sections, solver):
             "acceptable_obj_change_tol": 1e-6,
             "acceptable_constr_viol_tol": 1e-5,
             "constr_viol_tol": 1e-10,
-            "mu_strategy": "adaptive",
+            # monotone, not adaptive: adaptive's barrier updates made long solves whose end
+            # point (one of many local minima) moved with the BLAS kernel's rounding
+            "mu_strategy": "monotone",
             **dict(solver.ipopt),               # the user's IPOPT options over these
         },
     }
@@ -576,15 +585,16 @@ def _shaped_start(prob, kinds):
     return tuple(sections)
 
 
-def _ladder_start(prob, sections, order):
-    """Sections of order ``order`` from the best ``sections`` of order - 1 (grid search).
+def _ladder_starts(prob, sections, order):
+    """Starts of order ``order`` from ``sections`` of order - 1 (grid search), best first.
 
     Odd ``order``: a first-order section ``(1 + s/z)/(1 + s/p)`` is appended. Even: the
     first-order section ``(z0, p0)`` becomes a second-order one with zeros ``{z0, z}`` and
-    poles ``{p0, p}``. ``(z, p)`` is the best pair on a log grid of GRID_PER_DECADE points per
-    decade over the corner bounds, judged by the objective after raising the gain to
-    feasibility (a cheap numpy search; ``z = p`` keeps the previous weight, so the start is
-    never worse than the order below).
+    poles ``{p0, p}``. The objective, after raising the gain to feasibility, is evaluated in
+    numpy on a log grid of GRID_PER_DECADE points per decade over the corner bounds for
+    ``z`` and ``p``; the starts are its LADDER_PAIRS lowest local minima (each no higher than
+    its 8 neighbours) off the diagonal ``z = p``, where every pair cancels (a flat valley of
+    ties whose pick, and the solve from it, rounding would decide). Empty if there is none.
     """
     seconds = tuple(s for s in sections if s.order == 2)
     first = [s for s in sections if s.order == 1]
@@ -610,11 +620,44 @@ def _ladder_start(prob, sections, order):
     for i in range(n_grid):                    # rows: zeros; columns: poles
         r = base + log_num[i][None, :] - log_den                     # (G, M) = L - b - ln k
         objective[i] = np.max(-r, axis=1) + np.mean(r, axis=1)
-    i, j = np.unravel_index(int(np.argmin(objective)), objective.shape)
+    starts = []
+    for i, j in _grid_minima(objective, _LADDER_PAIRS):
+        if order % 2 == 1:
+            starts.append(background + (WeightSection(float(grid[i]), float(grid[j])),))
+        else:
+            starts.append(background + (WeightSection(
+                float(wn[i]), float(wd[j]), float(zeta_num[i, 0]), float(zeta_den[j, 0])),))
+    return starts
+
+
+def _grid_minima(objective, count):
+    """``(i, j)`` of the ``count`` lowest local minima of a square ``objective`` off its
+    diagonal (each entry no higher than its 8 neighbours; ties in grid order)."""
+    n = objective.shape[0]
+    obj = np.where(np.isfinite(objective) & ~np.eye(n, dtype=bool), objective, np.inf)
+    pad = np.pad(obj, 1, constant_values=np.inf)
+    low = np.isfinite(obj)
+    for di in (-1, 0, 1):
+        for dj in (-1, 0, 1):
+            if di or dj:
+                low &= obj <= pad[1 + di:1 + di + n, 1 + dj:1 + dj + n]
+    flat = np.flatnonzero(low)
+    flat = flat[np.argsort(obj.flat[flat], kind="stable")][:count]
+    return [tuple(int(k) for k in np.unravel_index(f, obj.shape)) for f in flat]
+
+
+def _cancelled(prob, sections, order):
+    """``sections`` (order - 1) as order ``order`` with a cancelling real pole/zero pair at
+    ``omega_c`` (odd), or at ``sqrt(z0 p0)`` merged into the first-order section (even;
+    exact unless a damping reaches MAX_DAMPING, ``z0/p0`` beyond 6.4 decades)."""
     if order % 2 == 1:
-        return background + (WeightSection(float(grid[i]), float(grid[j])),)
-    return background + (WeightSection(float(wn[i]), float(wd[j]),
-                                       float(zeta_num[i, 0]), float(zeta_den[j, 0])),)
+        return tuple(sections) + (WeightSection(prob.omega_c, prob.omega_c),)
+    seconds = tuple(s for s in sections if s.order == 2)
+    z0, p0 = next((s.omega_num, s.omega_den) for s in sections if s.order == 1)
+    r = math.sqrt(z0 * p0)
+    wn, zn = _real_pair_section(z0, r)
+    wd, zd = _real_pair_section(p0, r)
+    return seconds + (WeightSection(float(wn), float(wd), float(zn), float(zd)),)
 
 
 class _Candidate(NamedTuple):
@@ -711,7 +754,7 @@ def fit_uncertainty_weight(result_or_omega, rel_error=None, *, order=2, margin=0
     Minimises the mean log-ratio ``mean_i ln(|W(j w_i)| / ((1 + margin) e_i))`` subject to
     ``ln|W(j w_i)|^2 >= 2 ln((1 + margin) e_i)`` at every point, over the gain, corner
     frequencies and dampings (bounds as ``lbx``/``ubx``). The orders ``1..order`` are solved
-    in turn (each from a fresh start and from the best weight of the order below), so
+    in turn (each from a fresh start and from the two best weights of the order below), so
     ``objective`` does not increase with ``order`` (up to rounding).
     """
     solver = _weight_options("fit_uncertainty_weight", method, max_iter, verbose)
@@ -724,7 +767,7 @@ def weights_by_order(result_or_omega, rel_error=None, *, max_order=2, margin=0.0
                      verbose=None):
     """The weights of every order ``0..max_order`` that :func:`fit_uncertainty_weight`
     passes through (it solves the orders in turn, each from a fresh start and from the
-    order below): ``weights_by_order(..., max_order=n)[n]`` is
+    weights of the order below): ``weights_by_order(..., max_order=n)[n]`` is
     ``fit_uncertainty_weight(..., order=n)``.
 
     Parameters
@@ -787,36 +830,51 @@ def _ladder(omega, e, max_order, margin, min_damping, solver, progress):
         out = _weight_result(prob, omega, e, scale, best, 0, margin, nit)
         emit(out)
         yield out
+        pool = [best]                  # the best distinct weights of the order below
         for n in range(1, max_order + 1):
-            best, it = _best_of_order(prob, best, n, solver)
+            ranked, it = _best_of_order(prob, pool, n, solver)
             nit += it
-            out = _weight_result(prob, omega, e, scale, best, n, margin, nit,
+            pool = []
+            for cand in ranked:
+                if len(pool) < _LADDER_POOL and all(
+                        abs(cand.objective - p.objective) > 1e-6 * abs(p.objective)
+                        for p in pool):
+                    pool.append(cand)
+            out = _weight_result(prob, omega, e, scale, ranked[0], n, margin, nit,
                                  solver.max_iter)
             emit(out)
             yield out
 
 
-def _best_of_order(prob, best, n, solver):
-    """The best weight of order ``n`` from a fresh start and from ``best`` (order n - 1);
-    returns ``(candidate, iterations)``."""
+def _best_of_order(prob, pool, n, solver):
+    """The weights of order ``n`` from a fresh start, from ladder starts on every weight of
+    ``pool`` (order n - 1, best first) and from ``pool[0]`` with a cancelling pair (not
+    solved); returns ``(candidates best first, iterations)``."""
     kinds = _kinds(n)
-    best_n, nit = None, 0
-    for label, start in (("fresh", _shaped_start(prob, kinds)),
-                         ("ladder", _ladder_start(prob, best.sections, n))):
+    starts = [("fresh", _shaped_start(prob, kinds))]
+    starts += [("ladder", start) for below in pool
+               for start in _ladder_starts(prob, below.sections, n)]
+    below = pool[0]
+    start = _cancelled(prob, below.sections, n)
+    # the order below itself: never worse than it, even if every solve ends above it
+    cands = [_candidate(prob, prob.feasible_kappa(prob.pack(start), kinds), start,
+                        below.status, {"solver_status": below.details["solver_status"],
+                                       "start": "ladder", "kept_start": True})]
+    nit = 0
+    for label, start in starts:
         xs, st, ipopt_msg, it = _solve(prob, kinds, prob.pack(start), solver)
         nit += it
         how = {"solver_status": ipopt_msg, "start": label, "kept_start": False}
         cand = _candidate(prob, float(xs[0]), prob.unpack(xs[1:], kinds), st, how)
         if label == "ladder":
-            # the ladder start is never worse than the order below; keep it if IPOPT
-            # ended above it (as fit.py keeps a stage's start)
+            # keep a ladder start if IPOPT ended above it (as fit.py keeps a stage's start)
             kappa0 = prob.feasible_kappa(prob.pack(start), kinds)
             kept = _candidate(prob, kappa0, start, st, dict(how, kept_start=True))
             if kept.objective < cand.objective:
                 cand = kept
-        if best_n is None or cand.objective < best_n.objective:
-            best_n = cand
-    return best_n, nit
+        cands.append(cand)
+    # solved candidates first, so that on a tie a solve wins over the cancelled pair
+    return sorted(cands[1:] + cands[:1], key=lambda c: c.objective), nit
 
 
 def _weight_result(prob, omega, e, scale, best, order, margin, nit,
