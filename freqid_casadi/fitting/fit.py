@@ -14,7 +14,7 @@ named):
    around :func:`_fit_held`.
 4. :func:`_fit_held`: :func:`_fit`, then the undetermined delay held
    (:mod:`~freqid_casadi.fitting.delay_hold`) and the free-zeros alternative
-   (:func:`_with_alternatives`).
+   (:func:`_with_alternatives`, :mod:`~freqid_casadi.fitting.alternatives`).
 5. :func:`_fit`: the data checked (:mod:`~freqid_casadi.fitting._checks`), the gain sign
    (:mod:`~freqid_casadi.fitting.diagnostics`), the scales (:mod:`~freqid_casadi.core.scaling`);
    the starts and candidates (:func:`_run_starts`: the thesis's sequential loop, SPEC §2,
@@ -35,6 +35,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from .alternatives import ORIGIN_AUTO, free_zeros_alternative, origin_auto
 from .candidates import NEAR, Candidate, choose, zero_delay_run
 from ._checks import (GAIN_SIGNS, after_fit, check_model_class, validate, verdict,
                       zeta_min_of)
@@ -421,7 +422,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
     kw = dict(integrator=integrator, basis=basis, method=method, tol=tol, start=start,
               objective=objective, min_damping=min_damping, loop=loop, gain_sign=gain_sign,
               zeros=zeros)
-    with single_threaded_blas(), heap_kept(), rational_start_memo(), \
+    with single_threaded_blas(), heap_kept(), rational_start_memo(), origin_auto(auto), \
             channel(progress, _stage_line) as emit:
         if auto:
             data = validate(data_or_omega, response, n_sections, basis, tol, False, weights)
@@ -606,39 +607,15 @@ def _fit_held(data_or_omega, response, *, progress, weights, first=None, **kw):
 
 
 def _with_alternatives(result, data_or_omega, response, weights, kw):
-    """``result`` with the ``zeros="free"`` model in ``alternatives`` when the
-    ``non-minimum-phase`` diagnostic says the data need right-half-plane zeros (issue 26
-    item 4), the diagnostic then giving both errors and the switch; the result's own
-    model stays minimum phase."""
-    found = [d for d in result.diagnostics
-             if d.code == "non-minimum-phase" and d.severity == "warning"]
-    loop = result.options.loop if result.options is not None else None
-    if (not found or kw["zeros"] != "minimum-phase" or kw["min_damping"] is not None
-            or result.method != "ipopt" or loop is None or loop.gauge != "dc"):
-        return result
-    try:
-        with warnings.catch_warnings():       # a fit the user did not ask for: quiet
-            warnings.simplefilter("ignore")
-            alt = _fit_held(data_or_omega, response, progress=False, weights=weights,
-                            **dict(kw, zeros="free"))
-    except FreqidError:
-        return result
-    old = found[0]
-    text = (f"minimum phase: RMS {result.rms_rel_error:.3g} (max {result.max_rel_error:.3g}); "
-            f"with free zeros: RMS {alt.rms_rel_error:.3g} (max {alt.max_rel_error:.3g}, "
-            f"status {FitStatus(alt.status).value}) — pass zeros='free' "
-            "(FitResult.alternatives['zeros=free'] holds that model)")
-    diag = dataclasses.replace(old, message=f"{text}; {old.message}", values=dict(
-        old.values, alternative_rms_rel_error=alt.rms_rel_error,
-        alternative_max_rel_error=alt.max_rel_error))
-    diags = tuple(diag if d is old else d for d in result.diagnostics)
-    message = result.message
-    if alt.rms_rel_error < 0.5 * result.rms_rel_error:
-        message = (f"{message.split(' — ')[0]}; the data need right-half-plane zeros: "
-                   f"zeros='free' reaches RMS {alt.rms_rel_error:.3g} — pass zeros='free' "
-                   "(FitResult.alternatives['zeros=free'])")
-    return dataclasses.replace(result, diagnostics=diags, message=message,
-                               alternatives=dict(result.alternatives, **{"zeros=free": alt}))
+    """:func:`~freqid_casadi.fitting.alternatives.free_zeros_alternative` of ``result``:
+    the ``zeros="free"`` fit as ``fit(..., zeros="free")`` would make it."""
+    def refit():
+        if ORIGIN_AUTO.get():                   # the user's integrator="auto": its own k
+            return fit(data_or_omega, response, weights=weights, progress=False,
+                       **dict(kw, integrator="auto", zeros="free"))
+        return _fit_held(data_or_omega, response, progress=False, weights=weights,
+                         **dict(kw, zeros="free"))
+    return free_zeros_alternative(result, refit, kw)
 
 
 def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, method, tol,
