@@ -288,10 +288,6 @@ def settle_by_fits(record, fits, effective=None):
 
     The lowest error wins unless the first contender (the starts' choice) is within
     :data:`PREFER_FACTOR` of it (differences at the noise level do not move the choice);
-    when the winner's fitted model is effectively another contender's k (its roots far
-    below the band) and that contender's own fit is within :data:`PREFER_FACTOR` of it
-    and has no such roots, that contender is kept (the start-level rule of
-    :func:`choose_origin_order`, for the fits);
     still ambiguous when another is within :data:`AMBIGUOUS_FACTOR` of the winner, unless
     that one's fitted model is effectively the winner's k (its roots far below the band
     stand for the winner's roots at the origin: the same model, no alternative).
@@ -309,27 +305,19 @@ def settle_by_fits(record, fits, effective=None):
     Returns
     -------
     dict
-        ``record`` with ``"chosen"``, ``"ambiguous"``, ``"fit_rms"`` and
-        ``"fit_effective"`` (each contender's fitted effective k) updated.
+        ``record`` with ``"chosen"``, ``"ambiguous"`` and ``"fit_rms"`` updated.
     """
     first = record["contenders"][0]
     lowest = min(fits, key=lambda k: (fits[k], record["contenders"].index(k)))
     chosen = first if fits[first] <= PREFER_FACTOR * fits[lowest] else lowest
     eff = effective or {}
-    plain = eff.get(chosen, chosen)
-    if (plain != chosen and plain in fits and eff.get(plain, plain) == plain
-            and fits[plain] <= PREFER_FACTOR * fits[chosen]):
-        # the kept model's roots far below the band stand for roots at the origin that
-        # another contender fitted as such, as well: that model, not the hard way to it
-        chosen = plain
     others = [k for k in fits if k != chosen and eff.get(k, k) != chosen]
     loser = min(others, key=lambda k: fits[k]) if others else None
     ambiguous = bool(loser is not None
                      and fits[loser] <= AMBIGUOUS_FACTOR * max(fits[chosen], 1e-300))
     return dict(record, chosen=int(chosen), ambiguous=ambiguous,
                 runner_up=None if loser is None else int(loser),
-                fit_rms={int(k): float(v) for k, v in fits.items()},
-                fit_effective={int(k): int(eff.get(k, k)) for k in fits})
+                fit_rms={int(k): float(v) for k, v in fits.items()})
 
 
 def settle_by_results(record, results, data):
