@@ -25,7 +25,13 @@ ORIGIN_AUTO = contextvars.ContextVar("freqid_casadi_origin_auto", default=False)
 
 @contextlib.contextmanager
 def origin_auto(auto):
-    """:data:`ORIGIN_AUTO` set to ``auto`` (bool) within the block."""
+    """:data:`ORIGIN_AUTO` set within the block (a context manager).
+
+    Parameters
+    ----------
+    auto : bool
+        Whether the fit runs with ``integrator="auto"``.
+    """
     token = ORIGIN_AUTO.set(bool(auto))
     try:
         yield
