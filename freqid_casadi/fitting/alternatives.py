@@ -1,11 +1,12 @@
 """The model a ``non-minimum-phase`` diagnostic offers (layer L4).
 
 When the diagnostic says the data need right-half-plane zeros (issue 26 item 4), the fit
-with ``zeros="free"`` is made as well, as ``fit(..., zeros="free")`` with the same keywords
-would make it: with ``integrator="auto"`` the poles at the origin are chosen again, for
-free zeros (a minimum-phase choice among starts that all miss the data can land on any
-k). It goes into ``FitResult.alternatives["zeros=free"]``; the diagnostic and the message
-give both errors and the switch. The result's own model stays minimum phase.
+with ``zeros="free"`` is made as well, with the same keywords; with ``integrator="auto"``
+at the poles at the origin of the diagnostic's best free-zeros start
+(``values["free_zeros_integrator"]``), not those of the minimum-phase choice (which,
+among starts that all miss the data, can land on any k). It goes into
+``FitResult.alternatives["zeros=free"]``; the diagnostic and the message give both errors
+and the switch. The result's own model stays minimum phase.
 """
 
 import contextlib
@@ -19,7 +20,7 @@ from .verdict import FitStatus
 __all__ = ["ORIGIN_AUTO", "origin_auto", "free_zeros_alternative"]
 
 #: True while :func:`~freqid_casadi.fitting.fit.fit` runs with ``integrator="auto"``:
-#: the alternative then chooses its own poles at the origin.
+#: the alternative then takes the poles at the origin of the best free-zeros start.
 ORIGIN_AUTO = contextvars.ContextVar("freqid_casadi_origin_auto", default=False)
 
 
@@ -48,7 +49,9 @@ def free_zeros_alternative(result, refit, kw):
     result : FitResult
         A minimum-phase fit.
     refit : callable
-        ``() -> FitResult``: the same fit with ``zeros="free"`` (run quietly here).
+        ``k -> FitResult``: the same fit with ``zeros="free"`` (run quietly here), ``k``
+        the diagnostic's ``values["free_zeros_integrator"]`` (the caller decides whether
+        it replaces the fit's own k).
     kw : dict
         The fit's keywords (``zeros``, ``min_damping``): an alternative is made only for
         a minimum-phase fit without a damping floor, by IPOPT with the gauge "dc".
@@ -69,7 +72,8 @@ def free_zeros_alternative(result, refit, kw):
     try:
         with warnings.catch_warnings():       # a fit the user did not ask for: quiet
             warnings.simplefilter("ignore")
-            alt = refit()
+            alt = refit(found[0].values.get("free_zeros_integrator",
+                                            result.model.origin_order))
     except FreqidError:
         return result
     old = found[0]

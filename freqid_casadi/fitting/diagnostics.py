@@ -571,12 +571,13 @@ def check_minimum_phase(model, data, max_rel_error, rms_rel_error, *, ratio=0.5,
     if vf is None:
         return ()
     vmax, vrms, rhp = vf[:3]
+    k_free = vf[4] if len(vf) > 4 else model.origin_order
     if rhp.size == 0 or not vrms < ratio * rms_rel_error:
         return ()
     values = {"n_rhp_zeros": int(rhp.size), "rhp_zeros": [[float(z.real), float(z.imag)]
                                                           for z in rhp],
               "free_zeros_max_rel_error": vmax, "free_zeros_rms_rel_error": vrms,
-              "free_zeros_fit": source,
+              "free_zeros_fit": source, "free_zeros_integrator": int(k_free),
               "max_rel_error": float(max_rel_error), "rms_rel_error": float(rms_rel_error)}
     msg = (f"excess phase a delay cannot explain: a stable model of the same order with "
            f"free zeros needs {rhp.size} right-half-plane zero(s) (|z| = {_freqs(rhp)} "
@@ -588,14 +589,14 @@ def check_minimum_phase(model, data, max_rel_error, rms_rel_error, *, ratio=0.5,
 
 
 def _start_free_zeros(data, model):
-    """``(max, rms relative error, right-half-plane zeros in the band, minimum-phase RMS)``
-    of the best rational start with free zeros on ``data`` (the model's structure with
+    """``(max, rms relative error, right-half-plane zeros in the band, minimum-phase RMS,
+    k)`` of the best rational start with free zeros on ``data`` (the model's structure with
     zeros="free", at its k and at k = 0, its gain sign first and the other when that start
     is not at :data:`EXACT_START`; zeros in the data's units, those far below the band
-    left out), the last the lowest RMS of the starts with minimum-phase zeros at those k
+    left out), then the lowest RMS of the starts with minimum-phase zeros at those k
     and at every k of :data:`ORIGIN_ORDERS` (a minimum-phase model with roots at the
-    origin that explains the data as well: not excess phase); None when no free-zeros
-    start is usable."""
+    origin that explains the data as well: not excess phase) and the best start's k; None
+    when no free-zeros start is usable."""
     from ..core.resolution import default_delay_max
     from ..core.scaling import reference_scales, scale_data
     from .start import RationalStartError, rational_start
@@ -631,16 +632,16 @@ def _start_free_zeros(data, model):
                 if zeros != "free":
                     phase_min = min(phase_min, found[0])
                 elif best is None or found[0] < best[0]:
-                    best = found
+                    best = found + (k,)
                 if found[0] < EXACT_START:
                     break                    # the other sign cannot do better
     if best is None:
         return None
-    rms, worst, zeros = best
+    rms, worst, zeros, k_best = best
     # zeros far below the band stand for zeros at the origin, whichever their half plane
     rhp = zeros[(zeros.real > 0) & (np.abs(zeros) <= scaled.omega[-1])
                 & (np.abs(zeros) >= BELOW_BAND * scaled.omega[0])]
-    return worst, rms, rhp * w_ref, phase_min
+    return worst, rms, rhp * w_ref, phase_min, k_best
 
 
 def rhp_zeros_note(model):

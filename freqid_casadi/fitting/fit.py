@@ -608,13 +608,12 @@ def _fit_held(data_or_omega, response, *, progress, weights, first=None, **kw):
 
 def _with_alternatives(result, data_or_omega, response, weights, kw):
     """:func:`~freqid_casadi.fitting.alternatives.free_zeros_alternative` of ``result``:
-    the ``zeros="free"`` fit as ``fit(..., zeros="free")`` would make it."""
-    def refit():
-        if ORIGIN_AUTO.get():                   # the user's integrator="auto": its own k
-            return fit(data_or_omega, response, weights=weights, progress=False,
-                       **dict(kw, integrator="auto", zeros="free"))
+    the ``zeros="free"`` fit, with ``integrator="auto"`` at the k of the diagnostic's
+    best free-zeros start."""
+    def refit(k):
+        integrator = check_origin_order(k) if ORIGIN_AUTO.get() else kw["integrator"]
         return _fit_held(data_or_omega, response, progress=False, weights=weights,
-                         **dict(kw, zeros="free"))
+                         **dict(kw, zeros="free", integrator=integrator))
     return free_zeros_alternative(result, refit, kw)
 
 
