@@ -565,7 +565,7 @@ def check_minimum_phase(model, data, max_rel_error, rms_rel_error, *, ratio=0.5,
         # vector fitting at a fixed delay misses the excess phase when the fit's delay is
         # far from the data's (a poor minimum-phase fit trades them): the rational start
         # with free zeros searches the delay itself
-        vf, source = _start_free_zeros(data, model), "rational start"
+        vf, source = _start_free_zeros(data, model, ratio * rms_rel_error), "rational start"
         if vf is not None and not vf[1] < ratio * vf[3]:
             return ()       # the minimum-phase start does as well: a poor fit, not the class
     if vf is None:
@@ -588,14 +588,15 @@ def check_minimum_phase(model, data, max_rel_error, rms_rel_error, *, ratio=0.5,
     return (Diagnostic("non-minimum-phase", msg, "warning", values),)
 
 
-def _start_free_zeros(data, model):
+def _start_free_zeros(data, model, limit):
     """``(max, rms relative error, right-half-plane zeros in the band, minimum-phase RMS,
     k)`` of the best rational start with free zeros on ``data`` (the model's structure with
     zeros="free", at its k and at k = 0, its gain sign first and the other when that start
     is not at :data:`EXACT_START`; zeros in the data's units, those far below the band
     left out), then the lowest RMS of the starts with minimum-phase zeros at those k
     and at every k of :data:`ORIGIN_ORDERS` (a minimum-phase model with roots at the
-    origin that explains the data as well: not excess phase) and the best start's k; None
+    origin that explains the data as well: not excess phase; run only when the free start
+    has zeros in the band and an RMS below ``limit``, else inf) and the best start's k; None
     when no free-zeros start is usable."""
     from ..core.resolution import default_delay_max
     from ..core.scaling import reference_scales, scale_data
@@ -619,28 +620,32 @@ def _start_free_zeros(data, model):
         rms = float(np.sqrt(np.mean(err ** 2)))
         return (rms, float(np.max(err)), zeros) if math.isfinite(rms) else None
 
-    best, phase_min = None, math.inf
-    free_ks = (model.origin_order, 0)
-    for k in dict.fromkeys(free_ks + ORIGIN_ORDERS):
-        for zeros in ("free", "minimum-phase") if k in free_ks else ("minimum-phase",):
+    def lowest(ks, zeros):
+        """(RMS, max, zeros, k) of the best start over ``ks`` and both signs, or None."""
+        best = None
+        for k in ks:
             structure = dataclasses.replace(model.structure, integrator=k, zeros=zeros,
                                             gain_sign=1)
             for sign in (first, -first):
                 found = start(structure, sign)
-                if found is None:
-                    continue
-                if zeros != "free":
-                    phase_min = min(phase_min, found[0])
-                elif best is None or found[0] < best[0]:
+                if found is not None and (best is None or found[0] < best[0]):
                     best = found + (k,)
-                if found[0] < EXACT_START:
+                if found is not None and found[0] < EXACT_START:
                     break                    # the other sign cannot do better
+        return best
+
+    free_ks = tuple(dict.fromkeys((model.origin_order, 0)))
+    best = lowest(free_ks, "free")
     if best is None:
         return None
     rms, worst, zeros, k_best = best
     # zeros far below the band stand for zeros at the origin, whichever their half plane
     rhp = zeros[(zeros.real > 0) & (np.abs(zeros) <= scaled.omega[-1])
                 & (np.abs(zeros) >= BELOW_BAND * scaled.omega[0])]
+    phase_min = math.inf
+    if rhp.size and rms < limit:         # the minimum-phase starts only where it can count
+        mp = lowest(tuple(dict.fromkeys(free_ks + ORIGIN_ORDERS)), "minimum-phase")
+        phase_min = math.inf if mp is None else mp[0]
     return worst, rms, rhp * w_ref, phase_min, k_best
 
 
