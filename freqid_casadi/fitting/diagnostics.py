@@ -560,18 +560,21 @@ def check_minimum_phase(model, data, max_rel_error, rms_rel_error, *, ratio=0.5,
                         _vf_free_zeros(data, model, per * model.n_sections, 0.0)
                         if model.delay > 0 else None) if f is not None]
     vf = min(fits, key=lambda f: f[1]) if fits else None
-    source = "vector fitting"
+    source, k_free = "vector fitting", model.origin_order
     if vf is None or vf[2].size == 0 or not vf[1] < ratio * rms_rel_error:
         # vector fitting at a fixed delay misses the excess phase when the fit's delay is
         # far from the data's (a poor minimum-phase fit trades them): the rational start
         # with free zeros searches the delay itself
-        vf, source = _start_free_zeros(data, model, ratio * rms_rel_error), "rational start"
-        if vf is not None and not vf[1] < ratio * vf[3]:
+        found = _start_free_zeros(data, model, ratio * rms_rel_error)
+        if found is None:
+            return ()
+        *vf, phase_min, k_free = found
+        if not vf[1] < ratio * phase_min:
             return ()       # the minimum-phase start does as well: a poor fit, not the class
+        source = "rational start"
     if vf is None:
         return ()
-    vmax, vrms, rhp = vf[:3]
-    k_free = vf[4] if len(vf) > 4 else model.origin_order
+    vmax, vrms, rhp = vf
     if rhp.size == 0 or not vrms < ratio * rms_rel_error:
         return ()
     values = {"n_rhp_zeros": int(rhp.size), "rhp_zeros": [[float(z.real), float(z.imag)]
@@ -600,7 +603,7 @@ def _start_free_zeros(data, model, limit):
     when no free-zeros start is usable."""
     from ..core.resolution import default_delay_max
     from ..core.scaling import reference_scales, scale_data
-    from .start import RationalStartError, rational_start
+    from .start import signed_start
 
     w_ref, g_ref = reference_scales(data)
     scaled = scale_data(data, w_ref, g_ref)
@@ -609,16 +612,12 @@ def _start_free_zeros(data, model, limit):
 
     def start(structure, sign):
         """(RMS, max, zeros) of one start, or None."""
-        target = FrequencyData(scaled.omega, sign * scaled.response, None, scaled.weights)
-        try:
-            with np.errstate(all="ignore"):
-                st = rational_start(target, structure, delay_max=dmax)
-                err = np.abs(st.model.relative_error(target))
-                zeros = st.model.zeros()
-        except (RationalStartError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+        found = signed_start(scaled, structure, sign, delay_max=dmax)
+        if found is None:
             return None
+        st, err = found
         rms = float(np.sqrt(np.mean(err ** 2)))
-        return (rms, float(np.max(err)), zeros) if math.isfinite(rms) else None
+        return (rms, float(np.max(err)), st.model.zeros()) if math.isfinite(rms) else None
 
     def lowest(ks, zeros):
         """(RMS, max, zeros, k) of the best start over ``ks`` and both signs, or None."""

@@ -39,13 +39,12 @@ import math
 
 import numpy as np
 
-from ..core.data import FrequencyData
 from ..core.model import MAX_ORIGIN_ORDER, Structure
 from ..core.resolution import default_delay_max
 from ..core.scaling import reference_scales, scale_data
 from .diagnostics import (BELOW_BAND, EXACT_START, Diagnostic, low_frequency_line,
                           spell_origin)
-from .start import RationalStartError, rational_start
+from .start import signed_start
 
 __all__ = ["choose_origin_order", "origin_candidates", "slope_informative", "settle_by_fits",
            "settle_by_results", "restate_roots_below_band",
@@ -148,14 +147,11 @@ def _start_error(scaled, structure, dmax, group_delay_trial=False):
     for sign in (1, -1):
         if sign < 0 and best[0] < DECISIVE_RMS:     # the positive start explains the data
             break
-        target = FrequencyData(scaled.omega, sign * scaled.response, None, scaled.weights)
-        try:
-            with np.errstate(all="ignore"):
-                start = rational_start(target, structure, delay_max=dmax,
-                                       group_delay_trial=group_delay_trial)
-                err = np.abs(start.model.relative_error(target))
-        except (RationalStartError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+        found = signed_start(scaled, structure, sign, delay_max=dmax,
+                             group_delay_trial=group_delay_trial)
+        if found is None:
             continue
+        start, err = found
         rms = float(np.sqrt(np.mean(err ** 2)))
         if math.isfinite(rms) and rms < best[0]:
             best = (rms, float(np.max(err)), _effective_order(start.model, scaled.omega[0]))

@@ -29,7 +29,8 @@ from ..core.data import FrequencyData
 from ..errors import OptionError, SolverError
 from ..core.model import RationalDelayModel, times_jw_power
 
-__all__ = ["RationalStart", "RationalStartError", "rational_start", "rational_start_memo",
+__all__ = ["RationalStart", "RationalStartError", "rational_start", "signed_start",
+           "rational_start_memo",
            "sections_from_roots", "group_delay_estimate", "significant_group_delay",
            "search_delay", "GROUP_DELAY_PHASE", "PROBE_PHASE", "MAX_TRIALS",
            "EXACT_TRIAL"]
@@ -324,6 +325,38 @@ def rational_start(data, structure, *, delay_max, delay0=0.0, max_delay_updates=
 #: The starts computed inside one :func:`rational_start_memo` (one fit): the gain-sign
 #: check of ``fit(gain_sign="auto")`` runs the same start as the fit's rational start.
 _MEMO = contextvars.ContextVar("rational_start_memo", default=None)
+
+
+def signed_start(data, structure, sign, *, delay_max, group_delay_trial=False):
+    """The rational start of ``structure`` on ``sign`` times the data, with its relative
+    errors, or None when vector fitting gives no usable start (floating-point warnings
+    silenced).
+
+    Parameters
+    ----------
+    data : FrequencyData
+        The (scaled) data.
+    structure : Structure
+    sign : {1, -1}
+        The gain sign tried: the start is made on ``sign * data.response``.
+    delay_max : float
+        As :func:`rational_start` (s, in the data's scale).
+    group_delay_trial : bool
+        As :func:`rational_start`.
+
+    Returns
+    -------
+    (RationalStart, ndarray of float, shape (M,)) or None
+        The start and ``|Phi_i / G_N(j w_i) - 1|`` on the signed data.
+    """
+    target = FrequencyData(data.omega, sign * data.response, None, data.weights)
+    try:
+        with np.errstate(all="ignore"):
+            start = rational_start(target, structure, delay_max=delay_max,
+                                   group_delay_trial=group_delay_trial)
+            return start, np.abs(start.model.relative_error(target))
+    except (RationalStartError, ValueError, ArithmeticError, np.linalg.LinAlgError):
+        return None
 
 
 @contextlib.contextmanager
