@@ -191,6 +191,22 @@ def test_fit_flags_a_right_half_plane_zero_pair_with_minimum_phase_zeros():
     assert "zeros='free'" in d.message
 
 
+def test_without_phase_check_skips_the_check_and_keeps_the_fit():
+    """The block a sweep's and a bootstrap's fits run in: no non-minimum-phase check and so
+    no zeros='free' alternative; the model, errors and status are those of the full fit."""
+    from freqid_casadi.fitting._checks import without_phase_check
+
+    full = fc.fit(OMEGA, plant() * ALLPASS, n_sections=3, start="best")
+    with without_phase_check():
+        quick = fc.fit(OMEGA, plant() * ALLPASS, n_sections=3, start="best")
+    assert "non-minimum-phase" in codes(full) and "zeros=free" in full.alternatives
+    assert "non-minimum-phase" not in codes(quick) and "zeros=free" not in quick.alternatives
+    assert np.array_equal(quick.model.beta, full.model.beta)
+    assert (quick.status, quick.rms_rel_error) == (full.status, full.rms_rel_error)
+    again = fc.fit(OMEGA, plant() * ALLPASS, n_sections=3, start="best")
+    assert "non-minimum-phase" in codes(again)              # the block is left as found
+
+
 def test_fit_with_free_zeros_recovers_the_non_minimum_phase_system():
     res = fc.fit(OMEGA, plant() * ALLPASS, n_sections=3, start="best", zeros="free")
     assert res.max_rel_error <= 1e-6

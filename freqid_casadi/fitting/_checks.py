@@ -3,6 +3,8 @@ the data and options at the entry point, the model class (gain sign, zeros), the
 floor, the diagnostics of the fitted model and the success rule.
 """
 
+import contextlib
+import contextvars
 import math
 import numbers
 
@@ -22,12 +24,32 @@ from .verdict import FitStatus, ROUNDING_RMS, poor_fit_diagnostic, residual_nois
 
 __all__ = ["GAIN_SIGNS", "validate", "zeta_min_of", "check_model_class", "after_fit",
            "success_of", "verdict", "MAX_DECADES",
-           "check_weighted_points"]
+           "check_weighted_points", "PHASE_CHECK", "without_phase_check"]
 
 #: Values of ``fit(gain_sign=...)``.
 GAIN_SIGNS = ("auto", "positive", "negative")
 #: The widest band (decades of omega) :func:`validate` accepts.
 MAX_DECADES = 60
+#: False within :func:`without_phase_check`: :func:`after_fit` then skips
+#: :func:`~.diagnostics.check_minimum_phase`.
+PHASE_CHECK = contextvars.ContextVar("freqid_casadi_phase_check", default=True)
+
+
+@contextlib.contextmanager
+def without_phase_check():
+    """Fits within the block skip the ``non-minimum-phase`` check, and with it the
+    ``zeros="free"`` alternative the check offers (a context manager, private).
+
+    For callers that keep only a fit's model, errors, success and status: a sweep's
+    fitted orders, a bootstrap's refits. The check is a warning that changes none of
+    them (its free-zeros starts search the delay at each k and gain sign: half the time
+    of the sweep of example A, whose low orders are poor fits).
+    """
+    token = PHASE_CHECK.set(False)
+    try:
+        yield
+    finally:
+        PHASE_CHECK.reset(token)
 
 
 def zeta_min_of(min_damping, omega, method, gauge, basis):
@@ -155,7 +177,7 @@ def after_fit(model, data, stats, delay_max):
                          delay_std=_delay_std(model, data, delay_max))
     if model.structure.zeros == "free":
         found += rhp_zeros_note(model)
-    else:
+    elif PHASE_CHECK.get():
         found += check_minimum_phase(model, data, stats.max, stats.rms)
     return found + check_roots_below_band(model, data)
 

@@ -19,13 +19,16 @@ def _refit_fit(data, structure):
     """Default global refit: freqid_casadi.fit with the same structure, rational start,
     the least-squares delay itself (no hold of an undetermined delay at a lower order's:
     the bootstrap measures the spread of the estimate, and the hold would refit at
-    ``n_sections - 1`` in every replicate)."""
+    ``n_sections - 1`` in every replicate), without the non-minimum-phase check (a
+    diagnostic: the model is the same)."""
     from .fit import fit   # lazy: fit is imported by the package facade anyway
+    from ._checks import without_phase_check
     from ..options import LoopOptions
 
-    return fit(data, n_sections=structure.n_sections, integrator=structure.integrator,
-               delay=structure.delay, basis=structure.basis, start="rational",
-               loop=LoopOptions(hold_delay=False)).model
+    with without_phase_check():         # the model is kept, not the diagnostics
+        return fit(data, n_sections=structure.n_sections, integrator=structure.integrator,
+                   delay=structure.delay, basis=structure.basis, start="rational",
+                   loop=LoopOptions(hold_delay=False)).model
 
 
 def _replicate(b, seed, par, data, w, u, refit):
