@@ -17,7 +17,9 @@ Parts (all by default):
     fits with ``start="sequential"`` (the thesis's loop), ``start="rational"`` and
     ``start="best"`` (the default of ``fit`` and the CLI), and the default with
     ``n_jobs=2`` (the automatic integrator's contender fits in 2 forked workers; its CPU
-    seconds include theirs), beside scikit-rf's ``VectorFitting`` of the same order (2
+    seconds include theirs), ``start="rational"`` and the default with the default fit's
+    k and gain sign passed (``integrator=k, gain_sign=...``: the cost of the automatic
+    choices), beside scikit-rf's ``VectorFitting`` of the same order (2
     poles per section) on the same data (on one BLAS thread, as the package's fits), with
     each model's max relative error.
 ``iteration``
@@ -93,9 +95,12 @@ PARTS = ("fits", "iteration", "layers", "fixed", "large", "sweep", "survey", "ba
 FIT_SETS = {"actuator": (1, 2, 3), "robot arm": (1, 3, 5), "resonator_36mm_s21": (2,),
             "tx190_s21": (3,), "ring_slot_s11": (2,), "impact_1": (3,)}
 STARTS = ("sequential", "rational", "best")
-#: (start, n_jobs) of the fits part: each start, and the default with its integrator
-#: contenders in 2 worker processes (CPU seconds then include the workers')
-VARIANTS = tuple((start, 1) for start in STARTS) + (("best", 2),)
+#: (start, n_jobs, given) of the fits part: each start, the default with its integrator
+#: contenders in 2 worker processes (CPU seconds then include the workers'), and
+#: start="rational" and the default with the default fit's k and gain sign passed
+#: (``given``: what the automatic choices of ``integrator`` and ``gain_sign`` cost)
+VARIANTS = (tuple((start, 1, False) for start in STARTS)
+            + (("best", 2, False), ("rational", 1, True), ("best", 1, True)))
 ITER_SECTIONS, ITER_POINTS = 5, (500, 50_000)
 #: pairs of capped solves per iteration measurement at 500 points (cheap: 70 ms a pair)
 ITER_REPEAT = 15
@@ -158,10 +163,16 @@ def part_fits(repeat):
                                       max(repeat, VF_REPEAT))
             err = relative_error(model, data)
             vf = {"wall": wall, "cpu": cpu, "max_rel_error": float(err.max)}
-            for start, jobs in VARIANTS:
-                res, wall, cpu = _timed(lambda: fc.fit(data, n_sections=n, delay=True,
-                                                       start=start, n_jobs=jobs), repeat)
-                label = start if jobs == 1 else f"{start}, {jobs} jobs"
+            chosen = {}
+            for start, jobs, given in VARIANTS:
+                kw = dict(n_sections=n, delay=True, start=start, n_jobs=jobs,
+                          **(chosen if given else {}))
+                res, wall, cpu = _timed(lambda: fc.fit(data, **kw), repeat)
+                if (start, jobs, given) == ("best", 1, False):    # the default's choices
+                    chosen = dict(integrator=int(res.model.origin_order),
+                                  gain_sign="positive" if res.model.structure.gain_sign > 0
+                                  else "negative")
+                label = _label(start, jobs, given)
                 if jobs > 1:
                     # after forked workers exit, OpenBLAS's threads in this process spin for
                     # ~0.1 s: measured, the next vector fitting took 2-3x its time (CPU and
@@ -175,6 +186,12 @@ def part_fits(repeat):
                 print(f"  fits: {name} {n} {label}: {wall:.3f} s, VF {vf['wall'] * 1e3:.1f} ms",
                       file=sys.stderr)
     return rows
+
+
+def _label(start, jobs, given):
+    """The row label of a fits variant (:data:`VARIANTS`)."""
+    return (start + (f", {jobs} jobs" if jobs > 1 else "")
+            + (", k and sign given" if given else ""))
 
 
 # ----------------------------------------------------------------------------- iteration
@@ -601,13 +618,17 @@ def _fits_md(rows):
                      f"{r['max_rel_error']:.4g} | {r['vf']['wall'] * 1e3:.1f} | "
                      f"{r['vf']['max_rel_error']:.4g} | {r['ratio_cpu']:.0f} "
                      f"({r['ratio_wall']:.0f}) |")
-    for start, jobs in VARIANTS:
-        label = start if jobs == 1 else f"{start}, {jobs} jobs"
+    for variant in VARIANTS:
+        label = _label(*variant)
         rr = [r["ratio_cpu"] for r in rows if r["start"] == label]
         rw = [r["ratio_wall"] for r in rows if r["start"] == label]
         if rr:
             lines.append(f"\nMedian ratio, start={label!r}: **{_median(rr):.0f}** CPU, "
                          f"{_median(rw):.0f} wall (targets: default <= 10, rational <= 3).")
+    lines.append("\n`k and sign given`: the fit with `integrator` and `gain_sign` set to "
+                 "the default fit's choices (what a user who knows them passes; the same "
+                 "model where the choice is the default's): the time the automatic "
+                 "choices take is the difference.")
     return lines
 
 
