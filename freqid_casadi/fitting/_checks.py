@@ -24,7 +24,7 @@ from .verdict import FitStatus, ROUNDING_RMS, poor_fit_diagnostic, residual_nois
 
 __all__ = ["GAIN_SIGNS", "validate", "zeta_min_of", "check_model_class", "after_fit",
            "success_of", "verdict", "MAX_DECADES",
-           "check_weighted_points", "PHASE_CHECK", "without_phase_check"]
+           "check_weighted_points", "without_phase_check"]
 
 #: Values of ``fit(gain_sign=...)``.
 GAIN_SIGNS = ("auto", "positive", "negative")

@@ -572,8 +572,6 @@ def check_minimum_phase(model, data, max_rel_error, rms_rel_error, *, ratio=0.5,
         if not vf[1] < ratio * phase_min:
             return ()       # the minimum-phase start does as well: a poor fit, not the class
         source = "rational start"
-    if vf is None:
-        return ()
     vmax, vrms, rhp = vf
     if rhp.size == 0 or not vrms < ratio * rms_rel_error:
         return ()
