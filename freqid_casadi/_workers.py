@@ -8,6 +8,8 @@ and this process runs no other Python thread (a fork copies no lock another thre
 :func:`can_fork` says so, and callers keep another path for the rest.
 """
 
+import contextlib
+import contextvars
 import multiprocessing
 import os
 import threading
@@ -15,9 +17,53 @@ import warnings
 
 from .errors import OptionError
 
-__all__ = ["can_fork", "fork_submit", "collect", "local_map"]
+__all__ = ["can_fork", "fork_submit", "collect", "local_map", "allow_jobs", "forked_map"]
 
 _LIMITS = None
+
+#: Worker processes the running call (one fit) may use for its independent parts
+#: (:func:`forked_map`); 1 in a worker.
+_JOBS = contextvars.ContextVar("worker_jobs", default=1)
+
+
+@contextlib.contextmanager
+def allow_jobs(n_jobs):
+    """Within this context, :func:`forked_map` uses up to ``n_jobs`` worker processes."""
+    token = _JOBS.set(int(n_jobs))
+    try:
+        yield
+    finally:
+        _JOBS.reset(token)
+
+
+def _in_worker(fn, *args):
+    """``fn(*args)`` in a forked worker, which starts no workers of its own."""
+    _JOBS.set(1)
+    return fn(*args)
+
+
+def forked_map(fn, jobs, n_jobs=None):
+    """``[fn(*args) for args in jobs]`` in forked worker processes, or None where they
+    would not help or are not safe: fewer than 2 jobs or workers, or no fork
+    (:func:`can_fork`); the caller then runs the jobs itself.
+
+    Parameters
+    ----------
+    fn : callable
+        A module-level function (it and its arguments are pickled).
+    jobs : list of tuple
+    n_jobs : int, optional
+        Worker processes; default those :func:`allow_jobs` allows (1 outside it).
+
+    Returns
+    -------
+    list or None
+    """
+    n_jobs = _JOBS.get() if n_jobs is None else int(n_jobs)
+    if n_jobs < 2 or len(jobs) < 2 or not can_fork():
+        return None
+    pool, futures = fork_submit(n_jobs, _in_worker, [(fn, *args) for args in jobs])
+    return list(collect(pool, futures))              # (the workers exit here)
 
 
 def can_fork():

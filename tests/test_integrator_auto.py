@@ -358,7 +358,9 @@ def test_contenders_in_worker_processes_give_the_same_fit():
                          check=True, timeout=300).stdout
     run = json.loads(out.strip().splitlines()[-1])
     contenders = serial.details["integrator"]["contenders"]
-    assert run["used"] == [len(contenders)] and len(contenders) > 1
+    # one job per contender (none has an undecided gain sign here); the integrator's
+    # starts go to workers too on a machine where the first takes MIN_FORKED_JOB seconds
+    assert len(contenders) in run["used"] and len(contenders) > 1
     assert run["model"] == serial.model.to_json()
     assert run["integrator"] == contenders
     assert run["records"] > 0                             # the chosen fit's records shown

@@ -92,9 +92,9 @@ def add_cli(sub):
                    help="hold a known parameter exactly (repeatable): delay=H (s) or "
                         "dc_gain=K (K0 with --integrator, else G(0))")
     p.add_argument("--jobs", "--n-jobs", dest="jobs", type=_jobs, default=1, metavar="N",
-                   help="worker processes for the automatic integrator's fits when several "
-                        "contenders remain (default 1; -1: every core; the same model "
-                        "whatever N)")
+                   help="worker processes for the fits a fit compares: the automatic "
+                        "integrator's contenders, both gain signs when the starts do not "
+                        "decide it (default 1; -1: every core; the same model whatever N)")
     # a user's data: both starts (the sequential loop alone can end in a valley the
     # rational start avoids, e.g. a zero pair drifting to infinity against the delay; the
     # loop is skipped when the rational start already reaches the noise)

@@ -37,6 +37,7 @@ import numpy as np
 
 from .alternatives import ORIGIN_AUTO, free_zeros_alternative, origin_auto
 from .candidates import NEAR, Candidate, choose, zero_delay_run
+from .core_fits import core_fits, either_sign_fits
 from ._checks import (GAIN_SIGNS, after_fit, check_model_class, validate, verdict,
                       zeta_min_of)
 from .._validate import check_choice, check_flag, check_jobs
@@ -45,7 +46,7 @@ from .delay_hold import hold_undetermined_delay
 from .delay_search import delay_search_run
 from .far_roots import far_root_run
 from .fixed import check_fixed, fit_with_fixed
-from .diagnostics import Diagnostic, gain_sign_decision
+from .diagnostics import gain_sign_decision
 from .guard import guard_resolution
 from ..errors import FreqidError, OptionError, ResolutionWarning
 from .noise_weights import fit_with_noise_weights
@@ -63,6 +64,7 @@ from ..core.scaling import (check_finite_result, reference_scales, scale_data, u
 from ..core.resolution import check_resolution, default_delay_max, resolution_damping
 from .._progress import channel, check_progress
 from .._malloc import heap_kept
+from .._workers import allow_jobs
 from .._threads import single_threaded_blas
 from .stages import Kept, StageKind, StageRecord, StageSolver
 from .start import RationalStartError, rational_start_memo
@@ -391,11 +393,12 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
         every other parameter refitted). Both may be given. ``FitResult.fixed`` records
         them; the covariance reports them as fixed. Other keys: OptionError.
     n_jobs : int
-        Worker processes for the fits of ``integrator="auto"`` when the starts leave
-        several contenders (each contender's fit is independent): 1 (default) fits them
-        here, one after the other; -1 uses every core. The workers are forked (Linux,
-        and only when this process runs no other thread; elsewhere the fits run here):
-        the result is the same, bit for bit, whatever ``n_jobs``.
+        Worker processes for the independent fits of the starts and candidates: one per
+        contender of ``integrator="auto"`` when the starts leave several, and one per gain
+        sign when the rational starts do not decide the sign (``gain_sign="auto"``). 1
+        (default) fits them here, one after the other; -1 uses every core. The workers are
+        forked (Linux, and only when this process runs no other thread; elsewhere the fits
+        run here): the result is the same, bit for bit, whatever ``n_jobs``.
 
     Returns
     -------
@@ -423,7 +426,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
               objective=objective, min_damping=min_damping, loop=loop, gain_sign=gain_sign,
               zeros=zeros)
     with single_threaded_blas(), heap_kept(), rational_start_memo(), origin_auto(auto), \
-            channel(progress, _stage_line) as emit:
+            allow_jobs(n_jobs), channel(progress, _stage_line) as emit:
         if auto:
             data = validate(data_or_omega, response, n_sections, basis, tol, False, weights)
             check_choice("zeros", zeros, ZEROS)
@@ -474,23 +477,11 @@ def _quiet_fit(data_or_omega, response, kw):
 
 
 def _contender_fits(ks, k, emit, n_jobs, data_or_omega, response, kw):
-    """``{j: _fit(...)}`` for each contender ``j`` of ``integrator="auto"`` (``kw``: _fit's
-    keywords but ``integrator`` and ``progress``), quiet; the progress channel ``emit``
-    shows the fit of the provisional choice ``k``. With ``n_jobs > 1`` (and a process that
-    can fork) the fits run in forked workers, and ``k``'s records are shown as it returns."""
-    from .._workers import can_fork, collect, fork_submit
-
-    jobs = {j: dict(kw, integrator=check_origin_order(j)) for j in ks}
-    if n_jobs > 1 and can_fork():
-        pool, futures = fork_submit(n_jobs, _quiet_fit,
-                                    [(data_or_omega, response, dict(jobs[j], progress=False))
-                                     for j in ks])
-        core = dict(zip(ks, list(collect(pool, futures))))     # (the workers exit here)
-        for rec in core[k].stages:
-            emit(rec)
-        return core
-    return {j: _quiet_fit(data_or_omega, response,
-                          dict(jobs[j], progress=emit if j == k else False)) for j in ks}
+    """``{j: _fit(...)}`` for each contender ``j`` (``kw``: _fit's keywords but
+    ``integrator`` and ``progress``), quiet: :func:`~freqid_casadi.fitting.core_fits.
+    core_fits`, in ``n_jobs`` forked workers, one per contender and gain sign fitted."""
+    return core_fits(_quiet_fit, _sign_guess, (data_or_omega, response), ks, k, emit,
+                     n_jobs, kw)
 
 
 def _is_auto(integrator):
@@ -707,26 +698,22 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
 
 def _fit_either_sign(guess, kw, data_or_omega, response):
     """Both gain signs fitted, the lower RMS kept (``guess``, the low-frequency phase's
-    sign, on a tie), when the rational starts did not decide the sign: a band far from
-    the static gain (a transmission measurement at 140-220 GHz, a reflection) shows a
-    phase there that a delay, poles below the band and zeros at the origin have turned;
-    the sign is then a model choice the fits make, and the result says so."""
-    fits = {s: _fit(data_or_omega, response, **kw, sign=s) for s in (guess, -guess)}
-    kept = min(fits, key=lambda s: (fits[s].rms_rel_error, s != guess))
-    res, other = fits[kept], fits[-kept]
-    both = {"K > 0" if s > 0 else "K < 0": float(fits[s].rms_rel_error) for s in fits}
-    record = {"chosen": kept, "by": "fits", "rms": both}
-    text = "; ".join(f"{k}: RMS {v:.3g}" for k, v in both.items())
-    found = res.diagnostics
-    if kept < 0:
-        found = (Diagnostic("negative-gain", (
-            "the rational starts did not decide the gain sign, so both signs were fitted "
-            f"({text}): fitted with a negative gain (gain_sign='auto'; pass "
-            "gain_sign='positive' to force K > 0)"), "info",
-            {"rms_positive": both["K > 0"], "rms_negative": both["K < 0"]}),) + found
-    return dataclasses.replace(
-        res, diagnostics=found, details=dict(res.details, gain_sign=record),
-        wall_time=res.wall_time + other.wall_time)
+    sign, on a tie; :func:`~freqid_casadi.fitting.core_fits.either_sign`), when the
+    rational starts did not decide the sign: a band far from the static gain (a
+    transmission measurement at 140-220 GHz, a reflection) shows a phase there that a
+    delay, poles below the band and zeros at the origin have turned; the sign is then a
+    model choice the fits make, and the result says so."""
+    return either_sign_fits(_quiet_fit, (data_or_omega, response), kw, guess)
+
+
+def _sign_guess(data_or_omega, response, kw):
+    """The gain sign :func:`_fit` with keywords ``kw`` guesses before it fits both signs
+    (:func:`_fit_either_sign`), or None when the rational starts decide the sign."""
+    data = validate(data_or_omega, response, kw["n_sections"], kw["basis"], kw["tol"],
+                    kw["integrator"], kw["weights"])
+    sign, _, guess = gain_sign_decision(data, kw["integrator"], kw["gain_sign"], Structure(
+        int(kw["n_sections"]), kw["integrator"], kw["delay"], kw["basis"], kw["zeros"]))
+    return sign if guess else None
 
 
 def _run_starts(ctx, start, tol, data):

@@ -44,7 +44,7 @@ from ..core.resolution import default_delay_max
 from ..core.scaling import reference_scales, scale_data
 from .diagnostics import (BELOW_BAND, EXACT_START, Diagnostic, low_frequency_line,
                           spell_origin)
-from .start import signed_start
+from .start import memo_map, signed_start
 
 __all__ = ["choose_origin_order", "origin_candidates", "slope_informative", "settle_by_fits",
            "settle_by_results", "restate_roots_below_band",
@@ -207,22 +207,24 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
     w_ref, g_ref = reference_scales(data)
     scaled = scale_data(data, w_ref, g_ref)
     dmax = default_delay_max(scaled.omega)
-    def start(k, group_delay_trial=False):
-        return _start_error(scaled, Structure(int(n_sections), k, delay, basis, zeros), dmax,
-                            group_delay_trial)
 
-    errors = {k: start(k) for k in cands}
+    def starts(ks, group_delay_trial=False):   # (each k's start independent: in workers
+        return dict(zip(ks, memo_map(_start_error, [   # where the fit allows them)
+            (scaled, Structure(int(n_sections), k, delay, basis, zeros), dmax,
+             group_delay_trial) for k in ks])))
+
+    errors = starts(cands)
     # a start whose roots far below the band make it effectively another k asks for that
     # k: it is tried too (the slope's candidates may miss it)
-    for k in sorted({errors[k][2] for k in cands} - set(cands), key=lambda k: (abs(k), k)):
-        if abs(k) <= MAX_ORIGIN_ORDER:
-            errors[k] = start(k)
+    errors.update(starts([k for k in sorted({errors[k][2] for k in cands} - set(cands),
+                                            key=lambda k: (abs(k), k))
+                          if abs(k) <= MAX_ORIGIN_ORDER]))
     # no start explains the data: the slope may have proposed the wrong orders, and the
     # starts' delay updates may have run off (each start tries the data's group delay too)
     poor = not min(e[0] for e in errors.values()) <= POOR_START
     if poor:
-        for k in sorted(set(errors) | set(UNINFORMED), key=lambda k: (abs(k), k)):
-            errors[k] = start(k, group_delay_trial=True)
+        errors.update(starts(sorted(set(errors) | set(UNINFORMED),
+                                    key=lambda k: (abs(k), k)), group_delay_trial=True))
     cands = tuple(sorted(errors, key=lambda k: (abs(k), k)))
     rms = {k: errors[k][0] for k in cands}
     eff = {k: errors[k][2] for k in cands}

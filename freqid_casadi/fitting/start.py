@@ -21,6 +21,7 @@ data. Below it nothing is subsampled.
 import contextlib
 import contextvars
 import hashlib
+import time
 from dataclasses import dataclass
 
 import numpy as np
@@ -29,7 +30,7 @@ from ..core.data import FrequencyData
 from ..errors import OptionError, SolverError
 from ..core.model import RationalDelayModel, times_jw_power
 
-__all__ = ["RationalStart", "RationalStartError", "rational_start", "signed_start",
+__all__ = ["memo_map", "RationalStart", "RationalStartError", "rational_start", "signed_start",
            "rational_start_memo",
            "sections_from_roots", "group_delay_estimate", "significant_group_delay",
            "search_delay", "GROUP_DELAY_PHASE", "PROBE_PHASE", "MAX_TRIALS",
@@ -357,6 +358,58 @@ def signed_start(data, structure, sign, *, delay_max, group_delay_trial=False):
             return start, np.abs(start.model.relative_error(target))
     except (RationalStartError, ValueError, ArithmeticError, np.linalg.LinAlgError):
         return None
+
+
+#: Seconds the first of :func:`memo_map`'s jobs must take before the others go to worker
+#: processes: starting two forked workers for a fit's process (about 150 MiB) took 20-40
+#: ms of wall time (measured); the integrator's starts take 3-60 ms each on the robot arm
+#: and the actuator (better run here) and 0.1-0.55 s on the S-parameter sets.
+MIN_FORKED_JOB = 0.1
+
+
+def memo_map(fn, jobs):
+    """``[fn(*args) for args in jobs]``: the first here and, when it took at least
+    :data:`MIN_FORKED_JOB` and the fit allows workers
+    (:func:`~freqid_casadi._workers.allow_jobs`), the others in forked workers, the
+    rational starts and vector fittings each worker computed then added to this fit's
+    memo (:func:`rational_start_memo`) so that what follows reuses them as when the jobs
+    run here. The results do not depend on where the jobs ran.
+
+    Parameters
+    ----------
+    fn : callable
+        A module-level function (it and its arguments are pickled).
+    jobs : list of tuple
+
+    Returns
+    -------
+    list
+    """
+    from .._workers import forked_map
+
+    if not jobs:
+        return []
+    t0 = time.perf_counter()
+    first = fn(*jobs[0])
+    found = (forked_map(_memo_job, [(fn, *args) for args in jobs[1:]])
+             if time.perf_counter() - t0 >= MIN_FORKED_JOB else None)
+    if found is None:
+        return [first] + [fn(*args) for args in jobs[1:]]
+    memo = _MEMO.get()
+    for _, new in found if memo is not None else ():
+        for key, value in new.items():
+            memo.setdefault(key, value)
+    return [first] + [result for result, _ in found]
+
+
+def _memo_job(fn, *args):
+    """``(fn(*args), the memo's entries it added)``: :func:`memo_map`'s job in a worker."""
+    memo = _MEMO.get()
+    if memo is None:            # (no memo: nothing to share)
+        return fn(*args), {}
+    before = set(memo)
+    result = fn(*args)
+    return result, {key: value for key, value in memo.items() if key not in before}
 
 
 @contextlib.contextmanager
