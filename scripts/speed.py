@@ -16,8 +16,8 @@ Parts (all by default):
     sections; pyuff's impact accelerance, 1000 points, 3 sections): the
     fits with ``start="sequential"`` (the thesis's loop), ``start="rational"`` and
     ``start="best"`` (the default of ``fit`` and the CLI), and the default with
-    ``n_jobs=2`` (the automatic integrator's contender fits in 2 forked workers; its CPU
-    seconds include theirs), ``start="rational"`` and the default with the default fit's
+    ``n_jobs=2`` (the fits it compares, the integrator's contenders and both gain signs,
+    in 2 forked workers; its CPU seconds include theirs), ``start="rational"`` and the default with the default fit's
     k and gain sign passed (``integrator=k, gain_sign=...``: the cost of the automatic
     choices), beside scikit-rf's ``VectorFitting`` of the same order (2
     poles per section) on the same data (on one BLAS thread, as the package's fits), with
@@ -95,8 +95,8 @@ PARTS = ("fits", "iteration", "layers", "fixed", "large", "sweep", "survey", "ba
 FIT_SETS = {"actuator": (1, 2, 3), "robot arm": (1, 3, 5), "resonator_36mm_s21": (2,),
             "tx190_s21": (3,), "ring_slot_s11": (2,), "impact_1": (3,)}
 STARTS = ("sequential", "rational", "best")
-#: (start, n_jobs, given) of the fits part: each start, the default with its integrator
-#: contenders in 2 worker processes (CPU seconds then include the workers'), and
+#: (start, n_jobs, given) of the fits part: each start, the default with the fits it
+#: compares in 2 worker processes (CPU seconds then include the workers'), and
 #: start="rational" and the default with the default fit's k and gain sign passed
 #: (``given``: what the automatic choices of ``integrator`` and ``gain_sign`` cost)
 VARIANTS = (tuple((start, 1, False) for start in STARTS)
