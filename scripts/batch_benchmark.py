@@ -26,6 +26,8 @@ The ``batch`` command is registered here if ``cli.py`` does not have it yet.
 """
 
 import argparse
+import collections
+import csv
 import json
 import os
 import platform
@@ -113,9 +115,10 @@ def _models(out):
 
 
 def _statuses(out):
-    with open(os.path.join(out, "summary.csv"), encoding="utf-8") as fh:
-        rows = fh.read().splitlines()[1:]
-    return [r.split(",")[2] for r in rows]
+    """The ``status`` column of the batch's summary.csv (ok, poor-fit, not-converged or
+    error), one per file."""
+    with open(os.path.join(out, "summary.csv"), encoding="utf-8", newline="") as fh:
+        return [row["status"] for row in csv.DictReader(fh)]
 
 
 def _readable(folder, names):
@@ -154,7 +157,9 @@ def main(argv=None):
     control.append(control_speedup())
     achievable = float(np.mean([c["speedup"] for c in control]))
     speedup = runs[1]["wall_s"] / runs[2]["wall_s"]
-    n_conv = sum(s == "converged" for s in runs[1]["statuses"])
+    # converged as the batch's exit code counts it: status "ok" or "poor-fit"
+    n_conv = sum(s in ("ok", "poor-fit") for s in runs[1]["statuses"])
+    counts = dict(sorted(collections.Counter(runs[1]["statuses"]).items()))
     payload = dict(
         command=command, n_datasets=args.n_datasets, n_points=N_POINTS,
         n_sections=N_SECTIONS, seed=SEED,
@@ -167,7 +172,7 @@ def main(argv=None):
         parallel_efficiency=speedup / achievable,
         load_average_after=list(os.getloadavg()) if hasattr(os, "getloadavg") else None,
         target_speedup=1.6, meets_target=bool(speedup >= 1.6),
-        models_identical=bool(identical), converged=n_conv,
+        models_identical=bool(identical), converged=n_conv, statuses=counts,
         per_file_mean_s=runs[1]["wall_s"] / args.n_datasets)
     os.makedirs(args.out, exist_ok=True)
     atomic_write_text(os.path.join(args.out, "benchmark.json"),
@@ -187,8 +192,9 @@ def main(argv=None):
         "", table, "",
         f"Speed-up {speedup:.2f} (target >= 1.6: "
         f"{'met' if payload['meets_target'] else 'NOT met'}). Model files identical "
-        f"between the runs: {'yes' if identical else 'NO'}. Converged: {n_conv}/"
-        f"{args.n_datasets}.", "",
+        f"between the runs: {'yes' if identical else 'NO'}. Converged (status ok or "
+        f"poor-fit): {n_conv}/{args.n_datasets}; statuses: "
+        + ", ".join(f"{k} {v}" for k, v in counts.items()) + ".", "",
         f"Control (same machine, same time): a fixed pure-Python loop run once in one "
         f"process and then in two processes at once gives a speed-up of "
         f"{achievable:.2f} (mean of before and after; 2.0 on two idle cores), so the "
