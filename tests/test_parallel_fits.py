@@ -1,7 +1,7 @@
 """fit(n_jobs=2) (issue 30 item 3): the independent fits run in forked workers, one per
 integrator contender and, where the rational starts do not decide the gain sign, one per
-sign; the integrator's rational starts go to workers when they are slow. The result is the
-serial one, bit for bit.
+sign; the integrator's rational starts and those of the non-minimum-phase check go to
+workers when they are slow. The result is the serial one, bit for bit.
 
 Each run is a fresh interpreter: workers are forked only where no other thread runs, as
 in a user's script (this test session may run threads)."""
@@ -108,3 +108,33 @@ def test_integrator_starts_in_workers_give_the_serial_choice_and_share_their_wor
     assert run["used"] and sum(run["used"]) < len(run["record"]["candidates"])
     assert run["record"] == serial["record"]
     assert run["memo"] == serial["memo"] > 0
+
+
+_PHASE_CHECK = """
+import warnings
+from freqid_casadi._workers import allow_jobs
+from freqid_casadi.fitting import start
+from freqid_casadi.fitting.diagnostics import check_minimum_phase
+from freqid_casadi.systems import case
+warnings.simplefilter("ignore")
+start.MIN_FORKED_JOB = 0.0          # every start after the first to a worker, however fast
+c = case(30, 2026, max_points=400)
+res = fc.fit(c.data, n_sections=c.n_sections)
+out = {}
+for jobs in (1, 2):
+    with start.rational_start_memo(), allow_jobs(jobs):
+        out[jobs] = [(d.code, d.message, d.values) for d in check_minimum_phase(
+            res.model, res.data, res.max_rel_error, res.rms_rel_error)]
+print(json.dumps({"used": used, "serial": out[1], "workers": out[2]}))
+"""
+
+
+def test_the_phase_checks_starts_in_workers_give_the_serial_diagnostic():
+    # holdout modal-noncollocated-30 (test_diagnostics): the check's fallback runs the
+    # rational start with free zeros at two k (and with minimum-phase zeros at five); each
+    # k's starts in a worker give the serial diagnostic, values and message alike
+    run = _run(_PHASE_CHECK)
+    assert run["used"]                                   # the check's starts forked
+    assert run["serial"] and run["serial"][0][0] == "non-minimum-phase"
+    assert run["serial"][0][2]["free_zeros_fit"] == "rational start"
+    assert run["workers"] == run["serial"]

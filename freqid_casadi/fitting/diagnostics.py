@@ -601,34 +601,23 @@ def _start_free_zeros(data, model, limit):
     when no free-zeros start is usable."""
     from ..core.resolution import default_delay_max
     from ..core.scaling import reference_scales, scale_data
-    from .start import signed_start
+    from .start import memo_map
 
     w_ref, g_ref = reference_scales(data)
     scaled = scale_data(data, w_ref, g_ref)
     dmax = default_delay_max(scaled.omega)
     first = int(model.structure.gain_sign)
 
-    def start(structure, sign):
-        """(RMS, max, zeros) of one start, or None."""
-        found = signed_start(scaled, structure, sign, delay_max=dmax)
-        if found is None:
-            return None
-        st, err = found
-        rms = float(np.sqrt(np.mean(err ** 2)))
-        return (rms, float(np.max(err)), st.model.zeros()) if math.isfinite(rms) else None
-
     def lowest(ks, zeros):
-        """(RMS, max, zeros, k) of the best start over ``ks`` and both signs, or None."""
+        """(RMS, max, zeros, k) of the best start over ``ks`` and both signs, or None (each
+        k's starts independent: in workers where the fit allows them)."""
+        found = memo_map(_signed_starts, [
+            (scaled, dataclasses.replace(model.structure, integrator=k, zeros=zeros,
+                                         gain_sign=1), first, dmax) for k in ks])
         best = None
-        for k in ks:
-            structure = dataclasses.replace(model.structure, integrator=k, zeros=zeros,
-                                            gain_sign=1)
-            for sign in (first, -first):
-                found = start(structure, sign)
-                if found is not None and (best is None or found[0] < best[0]):
-                    best = found + (k,)
-                if found is not None and found[0] < EXACT_START:
-                    break                    # the other sign cannot do better
+        for k, one in zip(ks, found):
+            if one is not None and (best is None or one[0] < best[0]):
+                best = one + (k,)
         return best
 
     free_ks = tuple(dict.fromkeys((model.origin_order, 0)))
@@ -644,6 +633,28 @@ def _start_free_zeros(data, model, limit):
         mp = lowest(tuple(dict.fromkeys(free_ks + ORIGIN_ORDERS)), "minimum-phase")
         phase_min = math.inf if mp is None else mp[0]
     return worst, rms, rhp * w_ref, phase_min, k_best
+
+
+def _signed_starts(scaled, structure, first, delay_max):
+    """(RMS, max, zeros) of the better of ``structure``'s rational starts on ``scaled``
+    with the gain sign ``first`` and, unless that one is at :data:`EXACT_START`, the other
+    (the first on a tie); None when neither is usable."""
+    from .start import signed_start
+
+    best = None
+    for sign in (first, -first):
+        found = signed_start(scaled, structure, sign, delay_max=delay_max)
+        if found is None:
+            continue
+        st, err = found
+        rms = float(np.sqrt(np.mean(err ** 2)))
+        if not math.isfinite(rms):
+            continue
+        if best is None or rms < best[0]:
+            best = (rms, float(np.max(err)), st.model.zeros())
+        if rms < EXACT_START:
+            break                           # the other sign cannot do better
+    return best
 
 
 def rhp_zeros_note(model):

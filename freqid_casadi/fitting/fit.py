@@ -395,10 +395,12 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
     n_jobs : int
         Worker processes for the independent fits of the starts and candidates: one per
         contender of ``integrator="auto"`` when the starts leave several, and one per gain
-        sign when the rational starts do not decide the sign (``gain_sign="auto"``). 1
-        (default) fits them here, one after the other; -1 uses every core. The workers are
-        forked (Linux, and only when this process runs no other thread; elsewhere the fits
-        run here): the result is the same, bit for bit, whatever ``n_jobs``.
+        sign when the rational starts do not decide the sign (``gain_sign="auto"``); and
+        the rational starts of the integrator's choice and of the non-minimum-phase check,
+        one per k, when the first took at least 0.1 s. 1 (default) runs them here, one
+        after the other; -1 uses every core. The workers are forked (Linux, and only when
+        this process runs no other thread; elsewhere the fits run here): the result is
+        the same, bit for bit, whatever ``n_jobs``.
 
     Returns
     -------
