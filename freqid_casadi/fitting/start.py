@@ -30,8 +30,8 @@ from ..core.data import FrequencyData
 from ..errors import OptionError, SolverError
 from ..core.model import RationalDelayModel, times_jw_power
 
-__all__ = ["memo_map", "RationalStart", "RationalStartError", "rational_start", "signed_start",
-           "rational_start_memo",
+__all__ = ["RationalStart", "RationalStartError", "rational_start", "signed_start",
+           "rational_start_memo", "memo_map", "MIN_FORKED_JOB",
            "sections_from_roots", "group_delay_estimate", "significant_group_delay",
            "search_delay", "GROUP_DELAY_PHASE", "PROBE_PHASE", "MAX_TRIALS",
            "EXACT_TRIAL"]
