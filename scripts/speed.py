@@ -17,11 +17,11 @@ Parts (all by default):
     fits with ``start="sequential"`` (the thesis's loop), ``start="rational"`` and
     ``start="best"`` (the default of ``fit`` and the CLI), and the default with
     ``n_jobs=2`` (the fits it compares, the integrator's contenders and both gain signs,
-    in 2 forked workers; its CPU seconds include theirs), ``start="rational"`` and the default with the default fit's
-    k and gain sign passed (``integrator=k, gain_sign=...``: the cost of the automatic
-    choices), beside scikit-rf's ``VectorFitting`` of the same order (2
-    poles per section) on the same data (on one BLAS thread, as the package's fits), with
-    each model's max relative error.
+    in 2 forked workers; its CPU seconds include theirs), ``start="rational"`` and the
+    default with the default fit's k and gain sign passed (``integrator=k,
+    gain_sign=...``: the cost of the automatic choices), beside scikit-rf's
+    ``VectorFitting`` of the same order (2 poles per section) on the same data (on one
+    BLAS thread, as the package's fits), with each model's max relative error.
 ``iteration``
     One 5-section stage at 500 and 50 000 points: the seconds of one whole IPOPT iteration
     of the package (pairs of capped solves run back to back, each pair's difference of

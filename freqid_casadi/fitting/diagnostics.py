@@ -639,22 +639,11 @@ def _signed_starts(scaled, structure, first, delay_max):
     """(RMS, max, zeros) of the better of ``structure``'s rational starts on ``scaled``
     with the gain sign ``first`` and, unless that one is at :data:`EXACT_START`, the other
     (the first on a tie); None when neither is usable."""
-    from .start import signed_start
+    from .start import best_signed_start
 
-    best = None
-    for sign in (first, -first):
-        found = signed_start(scaled, structure, sign, delay_max=delay_max)
-        if found is None:
-            continue
-        st, err = found
-        rms = float(np.sqrt(np.mean(err ** 2)))
-        if not math.isfinite(rms):
-            continue
-        if best is None or rms < best[0]:
-            best = (rms, float(np.max(err)), st.model.zeros())
-        if rms < EXACT_START:
-            break                           # the other sign cannot do better
-    return best
+    best = best_signed_start(scaled, structure, (first, -first), delay_max=delay_max,
+                             exact=EXACT_START)
+    return None if best is None else best[:2] + (best[2].model.zeros(),)
 
 
 def rhp_zeros_note(model):

@@ -454,9 +454,9 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
             # and candidates settles the choice (quiet); the layers after it (the delay hold,
             # the zeros="free" alternative, the resolution guard) run for the chosen one only,
             # from its fit
-            core = _contender_fits(ks, k, emit, n_jobs, data_or_omega, response,
-                                   dict(kw, n_sections=n_sections, delay=delay,
-                                        weights=weights))
+            core = core_fits(_quiet_fit, _sign_guess, (data_or_omega, response), ks, k,
+                             emit, n_jobs, dict(kw, n_sections=n_sections, delay=delay,
+                                                weights=weights))
             record = settle_by_results(record, core, data)
             chosen = record["chosen"]
             with warnings.catch_warnings():
@@ -476,14 +476,6 @@ def _quiet_fit(data_or_omega, response, kw):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         return _fit(data_or_omega, response, **kw)
-
-
-def _contender_fits(ks, k, emit, n_jobs, data_or_omega, response, kw):
-    """``{j: _fit(...)}`` for each contender ``j`` (``kw``: _fit's keywords but
-    ``integrator`` and ``progress``), quiet: :func:`~freqid_casadi.fitting.core_fits.
-    core_fits`, in ``n_jobs`` forked workers, one per contender and gain sign fitted."""
-    return core_fits(_quiet_fit, _sign_guess, (data_or_omega, response), ks, k, emit,
-                     n_jobs, kw)
 
 
 def _is_auto(integrator):
@@ -626,8 +618,8 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     check_model_class(gain_sign, zeros, solver.method, loop.gauge, min_damping)
     found = ()
     if sign is None:
-        sign, found, guess = gain_sign_decision(data, integrator, gain_sign, Structure(
-            int(n_sections), integrator, delay, basis, zeros))
+        sign, found, guess = _sign_decision(data, n_sections, integrator, delay, basis,
+                                            zeros, gain_sign)
         if guess:
             return _fit_either_sign(sign, dict(
                 n_sections=n_sections, integrator=integrator, delay=delay, basis=basis,
@@ -708,13 +700,21 @@ def _fit_either_sign(guess, kw, data_or_omega, response):
     return either_sign_fits(_quiet_fit, (data_or_omega, response), kw, guess)
 
 
+def _sign_decision(data, n_sections, integrator, delay, basis, zeros, gain_sign):
+    """:func:`~freqid_casadi.fitting.diagnostics.gain_sign_decision` of the validated
+    ``data`` for the model :func:`_fit` fits: ``(sign, diagnostics, guess)``."""
+    return gain_sign_decision(data, integrator, gain_sign, Structure(
+        int(n_sections), integrator, delay, basis, zeros))
+
+
 def _sign_guess(data_or_omega, response, kw):
     """The gain sign :func:`_fit` with keywords ``kw`` guesses before it fits both signs
-    (:func:`_fit_either_sign`), or None when the rational starts decide the sign."""
+    (:func:`_fit_either_sign`), or None when the rational starts decide the sign (the
+    core fits' plan, :func:`~freqid_casadi.fitting.core_fits.core_fits`)."""
     data = validate(data_or_omega, response, kw["n_sections"], kw["basis"], kw["tol"],
                     kw["integrator"], kw["weights"])
-    sign, _, guess = gain_sign_decision(data, kw["integrator"], kw["gain_sign"], Structure(
-        int(kw["n_sections"]), kw["integrator"], kw["delay"], kw["basis"], kw["zeros"]))
+    sign, _, guess = _sign_decision(data, kw["n_sections"], kw["integrator"], kw["delay"],
+                                    kw["basis"], kw["zeros"], kw["gain_sign"])
     return sign if guess else None
 
 

@@ -44,7 +44,7 @@ from ..core.resolution import default_delay_max
 from ..core.scaling import reference_scales, scale_data
 from .diagnostics import (BELOW_BAND, EXACT_START, Diagnostic, low_frequency_line,
                           spell_origin)
-from .start import memo_map, signed_start
+from .start import best_signed_start, memo_map
 
 __all__ = ["choose_origin_order", "origin_candidates", "slope_informative", "settle_by_fits",
            "settle_by_results", "restate_roots_below_band",
@@ -143,19 +143,12 @@ def _start_error(scaled, structure, dmax, group_delay_trial=False):
     better of the two gain signs (the negative one only when the positive start's RMS is
     not below :data:`DECISIVE_RMS`; inf when neither start is usable); the effective k
     counts the start's poles (minus zeros) far below the band as poles at the origin."""
-    best = (math.inf, math.inf, structure.origin_order)
-    for sign in (1, -1):
-        if sign < 0 and best[0] < DECISIVE_RMS:     # the positive start explains the data
-            break
-        found = signed_start(scaled, structure, sign, delay_max=dmax,
-                             group_delay_trial=group_delay_trial)
-        if found is None:
-            continue
-        start, err = found
-        rms = float(np.sqrt(np.mean(err ** 2)))
-        if math.isfinite(rms) and rms < best[0]:
-            best = (rms, float(np.max(err)), _effective_order(start.model, scaled.omega[0]))
-    return best
+    best = best_signed_start(scaled, structure, (1, -1), delay_max=dmax,
+                             exact=DECISIVE_RMS, group_delay_trial=group_delay_trial)
+    if best is None:
+        return math.inf, math.inf, structure.origin_order
+    rms, worst, start = best
+    return rms, worst, _effective_order(start.model, scaled.omega[0])
 
 
 def _effective_order(model, omega_min):
@@ -208,8 +201,10 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
     scaled = scale_data(data, w_ref, g_ref)
     dmax = default_delay_max(scaled.omega)
 
-    def starts(ks, group_delay_trial=False):   # (each k's start independent: in workers
-        return dict(zip(ks, memo_map(_start_error, [   # where the fit allows them)
+    def starts(ks, group_delay_trial=False):
+        """{k: _start_error} of each k of ``ks`` (independent: in workers where the fit
+        allows them, :func:`~freqid_casadi.fitting.start.memo_map`)."""
+        return dict(zip(ks, memo_map(_start_error, [
             (scaled, Structure(int(n_sections), k, delay, basis, zeros), dmax,
              group_delay_trial) for k in ks])))
 

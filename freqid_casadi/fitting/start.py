@@ -21,6 +21,7 @@ data. Below it nothing is subsampled.
 import contextlib
 import contextvars
 import hashlib
+import math
 import time
 from dataclasses import dataclass
 
@@ -31,7 +32,7 @@ from ..errors import OptionError, SolverError
 from ..core.model import RationalDelayModel, times_jw_power
 
 __all__ = ["RationalStart", "RationalStartError", "rational_start", "signed_start",
-           "rational_start_memo", "memo_map", "MIN_FORKED_JOB",
+           "rational_start_memo", "best_signed_start", "memo_map", "MIN_FORKED_JOB",
            "sections_from_roots", "group_delay_estimate", "significant_group_delay",
            "search_delay", "GROUP_DELAY_PHASE", "PROBE_PHASE", "MAX_TRIALS",
            "EXACT_TRIAL"]
@@ -358,6 +359,48 @@ def signed_start(data, structure, sign, *, delay_max, group_delay_trial=False):
             return start, np.abs(start.model.relative_error(target))
     except (RationalStartError, ValueError, ArithmeticError, np.linalg.LinAlgError):
         return None
+
+
+def best_signed_start(data, structure, signs, *, delay_max, exact,
+                      group_delay_trial=False):
+    """The better of :func:`signed_start`'s starts for ``signs`` in turn, the next sign
+    skipped once a start's RMS relative error is below ``exact`` (the first on a tie).
+
+    Parameters
+    ----------
+    data : FrequencyData
+        The (scaled) data.
+    structure : Structure
+    signs : tuple of int
+        The gain signs tried, in order (e.g. ``(1, -1)``).
+    delay_max : float
+        As :func:`rational_start`.
+    exact : float
+        RMS relative error below which no other sign can do better.
+    group_delay_trial : bool
+        As :func:`rational_start`.
+
+    Returns
+    -------
+    (float, float, RationalStart) or None
+        RMS and max relative error and the start; None when no start is usable (or none
+        has a finite RMS).
+    """
+    best = None
+    for sign in signs:
+        found = signed_start(data, structure, sign, delay_max=delay_max,
+                             group_delay_trial=group_delay_trial)
+        if found is None:
+            continue
+        start, err = found
+        rms = float(np.sqrt(np.mean(err ** 2)))
+        if not math.isfinite(rms):
+            continue
+        if best is None or rms < best[0]:
+            best = (rms, float(np.max(err)), start)
+        if rms < exact:
+            break                                   # the other sign cannot do better
+    return best
 
 
 #: Seconds the first of :func:`memo_map`'s jobs must take before the others go to worker
