@@ -12,10 +12,12 @@ updates from h = 0 see only the delay that right-half-plane zeros can represent,
 misses delays of many turns). The trial with the lowest max relative error wins. The caller then polishes all parameters, delay included, by
 one IPOPT stage on all data (:func:`freqid_casadi.fitting.fit.fit` with ``start="rational"``).
 
-Above :data:`START_POINTS` frequencies the vector fittings see every k-th point (evenly
-spaced indices, the ends kept: the grid's spacing law is kept), while the trials' gains
-and errors use all points; the start is only a start, and the polish that follows sees all
-data. Below it nothing is subsampled.
+Above :data:`PROBE_POINTS` frequencies the trial delays (the updates, the search) are
+tried on every k-th point (evenly spaced indices, the ends kept: the grid's spacing law is
+kept), and only the best of them is made again on the data. There, above
+:data:`START_POINTS` frequencies, the vector fitting sees every k-th point, while the
+trial's gain and error use all points; the start is only a start, and the polish that
+follows sees all data. Below :data:`PROBE_POINTS` nothing is subsampled.
 """
 
 import contextlib
@@ -186,10 +188,12 @@ def _fit_gain(model_unit, omega, target):
 START_POINTS = 16384
 
 
-#: Above this many frequencies the group-delay search (:func:`rational_start`) probes on
-#: every k-th point, vector fits and errors alike, and only its best trial is made again
-#: on the data (each probe at :data:`START_POINTS` cost 0.2 s: 200 000 points of example
-#: A at 2 sections took 14 s instead of 9 s).
+#: Above this many frequencies the start's trial delays (:func:`rational_start`: the
+#: delay updates and the group-delay search) are tried on every k-th point, vector fits
+#: and errors alike, and only the best of them is made again on the data (each trial at
+#: :data:`START_POINTS` cost 0.2-0.4 s: 200 000 points of example A at 2 sections took 14 s
+#: instead of 9 s with the search's probes on all points, and the delay updates on all
+#: points were a third of the fit).
 PROBE_POINTS = 4096
 
 
@@ -595,15 +599,23 @@ def _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_ite
             trials[h] = trial(data, base, h)
         return trials[h]
 
-    _delay_updates(run, float(np.clip(delay0, 0.0, delay_max)) if structure.delay else 0.0,
-                   delay_max, max_delay_updates if structure.delay else 1)
+    h0 = float(np.clip(delay0, 0.0, delay_max)) if structure.delay else 0.0
+    n_updates = max_delay_updates if structure.delay else 1
+    probe_run, finish = _probe_runs(data, base, trial, run)
+    if n_updates > 1:              # the updates on every k-th point of large data
+        _delay_updates(probe_run, h0, delay_max, n_updates)
+        finish()
+    else:
+        _delay_updates(run, h0, delay_max, n_updates)
     h_gd = _group_delay_start(data, structure, delay_max, max_delay_updates)
     best = _best(trials)
-    # the search, unless a trial is exact or the updates already found a delay within a
-    # quarter turn (at the highest frequency) of the group delay
+    # the search, unless a trial is exact or the updates (on all points: on every k-th
+    # point the search costs a few of their trials) already found a delay within a quarter
+    # turn (at the highest frequency) of the group delay
     if (h_gd is not None and (best is None or trials[best][1] >= EXACT_TRIAL)
-            and abs((best or 0.0) - h_gd) * float(data.omega[-1]) > 0.5 * np.pi):
-        _search(run, trial, data, base, h_gd, delay_max, max_delay_updates)
+            and (probe_run is not run
+                 or abs((best or 0.0) - h_gd) * float(data.omega[-1]) > 0.5 * np.pi)):
+        _search(probe_run, finish, data, h_gd, delay_max, max_delay_updates)
         best = _best(trials)
     if group_delay_trial and (best is None or trials[best][1] > POOR_TRIAL):
         h = _group_delay_start(data, structure, delay_max, max_delay_updates, any_phase=True)
@@ -626,28 +638,40 @@ def _best(trials):
     return min(usable, key=lambda h: trials[h][1]) if usable else None
 
 
-def _search(run, trial, data, base, h_gd, delay_max, max_delay_updates):
-    """Probe the delay around ``h_gd`` (:func:`search_delay`), then the updates from the
-    best probe; above :data:`PROBE_POINTS` frequencies on every k-th point (``trial(data,
-    base, h)``), its best trial then made on the data by ``run``."""
+def _probe_runs(data, base, trial, run):
+    """``(probe_run, finish)`` for the trial delays of one start: above
+    :data:`PROBE_POINTS` frequencies ``probe_run(h)`` makes the trial on every k-th point
+    (``trial(data, base, h)``, kept), and ``finish()`` makes the best of those so far on
+    the data by ``run`` (the next best, up to the third, when a trial is unusable there);
+    at or below it, ``run`` itself and nothing to finish."""
     sub = _subsample(data.omega.size, PROBE_POINTS)
     if isinstance(sub, slice):
-        probe_run = run
-    else:
-        coarse = FrequencyData(data.omega[sub], data.response[sub])
-        seen = {}
+        return run, lambda: None
+    coarse = FrequencyData(data.omega[sub], data.response[sub])
+    seen = {}
 
-        def probe_run(h):
-            if h not in seen:
-                seen[h] = trial(coarse, base[sub], h)
-            return seen[h]
+    def probe_run(h):
+        if h not in seen:
+            seen[h] = trial(coarse, base[sub], h)
+        return seen[h]
 
+    def finish():
+        usable = [h for h, t in seen.items() if t[0] is not None]
+        for h in sorted(usable, key=lambda h: seen[h][1])[:3]:  # stable: the first of ties
+            if run(h)[0] is not None:
+                return
+
+    return probe_run, finish
+
+
+def _search(probe_run, finish, data, h_gd, delay_max, max_delay_updates):
+    """Probe the delay around ``h_gd`` (:func:`search_delay`), then the updates from the
+    best probe, by ``probe_run``; ``finish()`` then makes the best trial on the data
+    (:func:`_probe_runs`)."""
     step = PROBE_PHASE / float(data.omega[-1])
     probes = search_delay(lambda h: probe_run(h)[1], h_gd, step, delay_max)
     _delay_updates(probe_run, min(probes, key=probes.get), delay_max, max_delay_updates)
-    coarse_best = None if probe_run is run else _best(seen)
-    if coarse_best is not None:
-        run(coarse_best)
+    finish()
 
 
 def significant_group_delay(data):
