@@ -601,22 +601,20 @@ def _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_ite
 
     h0 = float(np.clip(delay0, 0.0, delay_max)) if structure.delay else 0.0
     n_updates = max_delay_updates if structure.delay else 1
-    probe_run, finish = _probe_runs(data, base, trial, run)
-    if n_updates > 1:              # the updates on every k-th point of large data
-        _delay_updates(probe_run, h0, delay_max, n_updates)
-        finish()
-    else:
-        _delay_updates(run, h0, delay_max, n_updates)
+    probe_run, seen, finish = _probe_runs(data, base, trial, run, trials)
+    # the updates (on every k-th point of large data)
+    _delay_updates(probe_run if n_updates > 1 else run, h0, delay_max, n_updates)
     h_gd = _group_delay_start(data, structure, delay_max, max_delay_updates)
-    best = _best(trials)
+    best = _best(seen)
     # the search, unless a trial is exact or the updates (on all points: on every k-th
     # point the search costs a few of their trials) already found a delay within a quarter
     # turn (at the highest frequency) of the group delay
-    if (h_gd is not None and (best is None or trials[best][1] >= EXACT_TRIAL)
-            and (probe_run is not run
+    if (h_gd is not None and (best is None or seen[best][1] >= EXACT_TRIAL)
+            and (seen is not trials
                  or abs((best or 0.0) - h_gd) * float(data.omega[-1]) > 0.5 * np.pi)):
-        _search(probe_run, finish, data, h_gd, delay_max, max_delay_updates)
-        best = _best(trials)
+        _search(probe_run, data, h_gd, delay_max, max_delay_updates)
+    finish()
+    best = _best(trials)
     if group_delay_trial and (best is None or trials[best][1] > POOR_TRIAL):
         h = _group_delay_start(data, structure, delay_max, max_delay_updates, any_phase=True)
         if h is not None and h not in trials:
@@ -638,15 +636,16 @@ def _best(trials):
     return min(usable, key=lambda h: trials[h][1]) if usable else None
 
 
-def _probe_runs(data, base, trial, run):
-    """``(probe_run, finish)`` for the trial delays of one start: above
-    :data:`PROBE_POINTS` frequencies ``probe_run(h)`` makes the trial on every k-th point
-    (``trial(data, base, h)``, kept), and ``finish()`` makes the best of those so far on
-    the data by ``run`` (the next best, up to the third, when a trial is unusable there);
-    at or below it, ``run`` itself and nothing to finish."""
+def _probe_runs(data, base, trial, run, trials):
+    """``(probe_run, seen, finish)`` for the trial delays of one start (``run``: the trial
+    on the data, kept in ``trials``): above :data:`PROBE_POINTS` frequencies
+    ``probe_run(h)`` makes the trial on every k-th point (``trial(data, base, h)``), kept
+    in ``seen``, and ``finish()`` makes the best of those on the data by ``run`` (the next
+    best, up to the third, when a trial is unusable there); at or below it, ``run``,
+    ``trials`` and nothing to finish."""
     sub = _subsample(data.omega.size, PROBE_POINTS)
     if isinstance(sub, slice):
-        return run, lambda: None
+        return run, trials, lambda: None
     coarse = FrequencyData(data.omega[sub], data.response[sub])
     seen = {}
 
@@ -661,17 +660,15 @@ def _probe_runs(data, base, trial, run):
             if run(h)[0] is not None:
                 return
 
-    return probe_run, finish
+    return probe_run, seen, finish
 
 
-def _search(probe_run, finish, data, h_gd, delay_max, max_delay_updates):
+def _search(probe_run, data, h_gd, delay_max, max_delay_updates):
     """Probe the delay around ``h_gd`` (:func:`search_delay`), then the updates from the
-    best probe, by ``probe_run``; ``finish()`` then makes the best trial on the data
-    (:func:`_probe_runs`)."""
+    best probe, by ``probe_run`` (:func:`_probe_runs`)."""
     step = PROBE_PHASE / float(data.omega[-1])
     probes = search_delay(lambda h: probe_run(h)[1], h_gd, step, delay_max)
     _delay_updates(probe_run, min(probes, key=probes.get), delay_max, max_delay_updates)
-    finish()
 
 
 def significant_group_delay(data):
