@@ -81,6 +81,30 @@ def test_trial_delays_of_large_data_are_tried_on_every_kth_point():
     assert rs.delays.size == 1               # the best trial, made on all points
 
 
+def test_large_data_whose_thinned_trials_all_fail_get_their_trials_on_all_points(
+        monkeypatch):
+    """Where no trial on every k-th point is usable, the delay updates and the search run
+    on all points, as below PROBE_POINTS, instead of the start failing."""
+    import freqid_casadi.fitting.start as start
+
+    structure = fc.Structure(2, False, True)
+    model = fc.RationalDelayModel(structure, np.r_[0.05, BETA[1:]])
+    w = np.linspace(0.5, 300, 2 * start.PROBE_POINTS)
+    data = fc.FrequencyData(w, model.frequency_response(w))
+    real = start._start_at
+
+    def full_only(vector_fitting, on, *args):
+        if on.omega.size < w.size:                   # a trial on every k-th point
+            return None, np.inf, 1, 0.0
+        return real(vector_fitting, on, *args)
+
+    monkeypatch.setattr(start, "_start_at", full_only)
+    rs = rational_start(data, structure, delay_max=np.pi / np.max(np.diff(w)))
+    assert rs.delays.size >= 2                  # the updates and the search, on all points
+    assert rs.delay == pytest.approx(0.05, rel=1e-3)
+    assert rs.max_rel_error < 0.01                        # measured 0.0042
+
+
 def test_default_fit_of_a_delay_of_many_turns_reaches_the_noise():
     """Corpus case 1 (two collocated modes, 626 s of delay: 76 rad at the band's top,
     0.34 % noise): RMS 0.983 and status poor-fit before the group-delay search."""

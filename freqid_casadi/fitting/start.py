@@ -14,10 +14,11 @@ one IPOPT stage on all data (:func:`freqid_casadi.fitting.fit.fit` with ``start=
 
 Above :data:`PROBE_POINTS` frequencies the trial delays (the updates, the search) are
 tried on every k-th point (evenly spaced indices, the ends kept: the grid's spacing law is
-kept), and only the best of them is made again on the data. There, above
-:data:`START_POINTS` frequencies, the vector fitting sees every k-th point, while the
-trial's gain and error use all points; the start is only a start, and the polish that
-follows sees all data. Below :data:`PROBE_POINTS` nothing is subsampled.
+kept), and only the best of them is made again on the data (where none is usable there,
+they are all made on the data). A trial on the data fits, above :data:`START_POINTS`
+frequencies, its vector fitting to every k-th point, and its gain and error to all
+points; the start is only a start, and the polish that follows sees all data. At or below
+:data:`PROBE_POINTS` nothing is subsampled.
 """
 
 import contextlib
@@ -601,19 +602,25 @@ def _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_ite
 
     h0 = float(np.clip(delay0, 0.0, delay_max)) if structure.delay else 0.0
     n_updates = max_delay_updates if structure.delay else 1
-    probe_run, seen, finish = _probe_runs(data, base, trial, run, trials)
-    # the updates (on every k-th point of large data)
-    _delay_updates(probe_run if n_updates > 1 else run, h0, delay_max, n_updates)
     h_gd = _group_delay_start(data, structure, delay_max, max_delay_updates)
-    best = _best(seen)
-    # the search, unless a trial is exact or the updates (on all points: on every k-th
-    # point the search costs a few of their trials) already found a delay within a quarter
-    # turn (at the highest frequency) of the group delay
-    if (h_gd is not None and (best is None or seen[best][1] >= EXACT_TRIAL)
-            and (seen is not trials
-                 or abs((best or 0.0) - h_gd) * float(data.omega[-1]) > 0.5 * np.pi)):
-        _search(probe_run, data, h_gd, delay_max, max_delay_updates)
+
+    def trial_delays(probe_run, seen):
+        """The updates, then the search, by ``probe_run`` (its trials in ``seen``)."""
+        _delay_updates(probe_run if n_updates > 1 else run, h0, delay_max, n_updates)
+        best = _best(seen)
+        # the search, unless a trial is exact or the updates (on all points: on every
+        # k-th point the search costs a few of their trials) already found a delay within
+        # a quarter turn (at the highest frequency) of the group delay
+        if (h_gd is not None and (best is None or seen[best][1] >= EXACT_TRIAL)
+                and (seen is not trials
+                     or abs((best or 0.0) - h_gd) * float(data.omega[-1]) > 0.5 * np.pi)):
+            _search(probe_run, data, h_gd, delay_max, max_delay_updates)
+
+    probe_run, seen, finish = _probe_runs(data, base, trial, run, trials)
+    trial_delays(probe_run, seen)
     finish()
+    if _best(trials) is None and seen is not trials:   # none usable on every k-th point
+        trial_delays(run, trials)
     best = _best(trials)
     if group_delay_trial and (best is None or trials[best][1] > POOR_TRIAL):
         h = _group_delay_start(data, structure, delay_max, max_delay_updates, any_phase=True)
