@@ -1,7 +1,8 @@
 """A global start for the fit: a linear-algebra rational fit turned into sections (layer L4).
 
 The sequential loop of the thesis stops far from what its model structure can do. This
-start fits all sections at once: for a trial delay, the data with the poles at the origin and the delay removed, ``Phi(jw) * (jw)^k * exp(jwh)``, is fitted by relaxed vector
+start fits all sections at once: for a trial delay, the data with the poles at the origin
+and the delay removed, ``Phi(jw) * (jw)^k * exp(jwh)``, is fitted by relaxed vector
 fitting with pole flipping (:func:`freqid_casadi.baselines.vector_fitting`, relative
 weighting); right-half-plane zeros are reflected to the left half plane (same magnitude,
 the phase difference is left to the delay), poles and zeros are paired into sections
@@ -9,8 +10,9 @@ the phase difference is left to the delay), poles and zeros are paired into sect
 reflected zeros' group delay, a few times from h = 0; for a delay of more than half a turn
 at the band edge the delay is also searched around the data's median group delay (the
 updates from h = 0 see only the delay that right-half-plane zeros can represent, which
-misses delays of many turns). The trial with the lowest max relative error wins. The caller then polishes all parameters, delay included, by
-one IPOPT stage on all data (:func:`freqid_casadi.fitting.fit.fit` with ``start="rational"``).
+misses delays of many turns). The trial with the lowest max relative error wins. The
+caller then polishes all parameters, delay included, by one IPOPT stage on all data
+(:func:`freqid_casadi.fitting.fit.fit` with ``start="rational"``).
 
 Above :data:`PROBE_POINTS` frequencies the trial delays (the updates, the search) are
 tried on every k-th point (evenly spaced indices, the ends kept: the grid's spacing law is
