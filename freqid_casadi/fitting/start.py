@@ -608,17 +608,20 @@ def _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_ite
 
     def trial_delays(probe_run, seen):
         """The updates, then the search, by ``probe_run`` (its trials in ``seen``)."""
-        _delay_updates(probe_run if n_updates > 1 else run, h0, delay_max, n_updates)
+        _delay_updates(probe_run, h0, delay_max, n_updates)
         best = _best(seen)
+        thinned = seen is not trials
         # the search, unless a trial is exact or the updates (on all points: on every
         # k-th point the search costs a few of their trials) already found a delay within
         # a quarter turn (at the highest frequency) of the group delay
         if (h_gd is not None and (best is None or seen[best][1] >= EXACT_TRIAL)
-                and (seen is not trials
+                and (thinned
                      or abs((best or 0.0) - h_gd) * float(data.omega[-1]) > 0.5 * np.pi)):
             _search(probe_run, data, h_gd, delay_max, max_delay_updates)
 
-    probe_run, seen, finish = _probe_runs(data, base, trial, run, trials)
+    # one trial delay (no delay, or no updates) is made on the data as it is
+    probe_run, seen, finish = (_probe_runs(data, base, trial, run, trials) if n_updates > 1
+                               else (run, trials, lambda: None))
     trial_delays(probe_run, seen)
     finish()
     if _best(trials) is None and seen is not trials:   # none usable on every k-th point
