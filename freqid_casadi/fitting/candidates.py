@@ -20,8 +20,8 @@ from ..core.metrics import error_stats, relative_error
 from ..core.model import RationalDelayModel
 from .stages import Kept, StageKind, polish, polish_start, stage_record
 
-__all__ = ["Candidate", "choose", "zero_delay_run", "NEAR", "SCREEN_ITERATIONS",
-           "SCREEN_FACTOR"]
+__all__ = ["Candidate", "choose", "zero_delay_run", "zero_delay_floor", "NEAR",
+           "SCREEN_ITERATIONS", "SCREEN_FACTOR"]
 
 #: Candidates whose max relative error is within this factor of the lowest are compared
 #: by convergence, then RMS.
@@ -121,7 +121,10 @@ def zero_delay_run(ctx, run, against=None):
     against : float, optional
         The lowest max relative error (weighted, :attr:`Candidate.rank_max`) of the
         candidates so far: the polish is abandoned after :data:`SCREEN_ITERATIONS`
-        iterations if its RMS is still above :data:`SCREEN_FACTOR` times it.
+        iterations if its RMS is still above :data:`SCREEN_FACTOR` times it. It is not
+        tried when :func:`zero_delay_floor` (times ``sqrt(min(w) / mean(w))`` with weights
+        ``w``: a bound of :attr:`Candidate.rank_max`) is above :data:`NEAR` times it: the
+        candidate could not enter :func:`choose`'s pool, and nothing changes but the time.
 
     Returns
     -------
@@ -139,6 +142,8 @@ def zero_delay_run(ctx, run, against=None):
     st0 = dataclasses.replace(st, delay=False)
     screen = None
     if against is not None and np.isfinite(against):
+        if _ranked_floor(data, st0) > FLOOR_MARGIN * NEAR * against:
+            return None           # no model without the delay can enter choose()'s pool
         screen = (SCREEN_ITERATIONS, SCREEN_FACTOR * float(against))
     pol = polish(RationalDelayModel(st0, beta), data, method=ctx.solve.solver, loop=ctx.loop,
                  delay_max=ctx.delay_max, zeta_min=ctx.zeta_min, max_iter=ctx.final_max_iter,
@@ -152,3 +157,85 @@ def zero_delay_run(ctx, run, against=None):
                        pol.result.nit, pol.result.nfev, time.perf_counter() - t0,
                        Kept(pol.kept), StageKind.ZERO_DELAY)
     return p1, z1, np.zeros_like(z1), list(records) + [rec]
+
+
+#: :func:`zero_delay_run` skips a candidate whose :func:`zero_delay_floor` exceeds
+#: :data:`NEAR` times the best candidate's max relative error by this factor (the floor
+#: is exact; the margin keeps rounding out of the decision).
+FLOOR_MARGIN = 1.001
+
+
+def _ranked_floor(data, structure):
+    """:func:`zero_delay_floor` as a bound of :attr:`Candidate.rank_max`: the weighted error
+    ``sqrt(w_i / mean(w)) |r_i|`` at the frequency that holds the error is at least the
+    floor times the smallest of those factors."""
+    floor = zero_delay_floor(data, structure)
+    if data.weights is None or floor == 0.0:
+        return floor
+    w = np.asarray(data.weights, float)
+    mean = float(np.mean(w))
+    return floor * math.sqrt(float(np.min(w)) / mean) if mean > 0 else 0.0
+
+
+def zero_delay_floor(data, structure):
+    """A lower bound of the max relative error of every model of ``structure`` without a
+    delay on ``data``, from the phase alone: the sections cannot follow a phase lag much
+    longer than their own (the rational part of a delayed system's data at h = 0).
+
+    Each second-order section's poles change its phase monotonically by less than pi over
+    the band, its zeros by less than pi (either way with ``zeros="free"``); a first-order
+    section's by less than pi / 2; the gain's sign and the poles at the origin add a
+    constant. A model whose phase is within ``psi`` of the data's at every frequency
+    (``|G / Phi - 1| < sin psi`` everywhere needs that) must follow the data's lag ``L``
+    (the sum of the steps ``-angle(Phi[i+1] conj Phi[i])``) up to ``2 psi``, less what a
+    turn of the phase between two frequencies can skip: a step of the data's lag ``d``
+    skipped costs at least ``2 pi - 2 psi - d`` of the zeros' rise and gains at most
+    ``2 psi + d`` (the largest steps first, as long as the rise lasts). So when ``L - 2
+    psi`` exceeds the poles' fall plus those gains, some frequency has an error of at
+    least ``sin psi``; the floor is the largest such ``sin psi`` (bisection in ``psi``;
+    a lead is the mirror image). No assumption on the frequency spacing or the noise:
+    sparse or noisy data only give a lower floor.
+
+    Parameters
+    ----------
+    data : FrequencyData
+        M >= 2 frequencies.
+    structure : Structure
+        Its sections, basis and zeros (delay and poles at the origin are not used).
+
+    Returns
+    -------
+    float
+        In [0, 1]: 0 when the phase says nothing.
+    """
+    resp = np.asarray(data.response)
+    if resp.size < 2:
+        return 0.0
+    with np.errstate(over="ignore", invalid="ignore"):
+        step = np.angle(resp[1:] / resp[:-1])
+    if not np.all(np.isfinite(step)):
+        return 0.0
+    unit = np.pi if structure.basis == "second-order" else 0.5 * np.pi
+    lag = -float(np.sum(step))
+    fall = unit * structure.n_sections * (2 if structure.zeros == "free" else 1)
+    rise = unit * structure.n_sections
+    if lag < 0:                                    # a lead: zeros and poles swap roles
+        lag, step = -lag, -step
+        fall, rise = rise, fall
+    d = np.sort(-step)[::-1]                       # the data's lag steps, largest first
+
+    def beyond(psi):
+        """Whether no model follows the lag within psi at every frequency."""
+        cost = np.cumsum(np.maximum(0.0, 2 * np.pi - 2 * psi - d))
+        gain = np.concatenate([[0.0], np.cumsum(2 * psi + d)[cost <= rise]])
+        return lag - 2 * psi > fall + float(np.max(gain))
+
+    lo, hi = 0.0, 0.5 * np.pi
+    if not beyond(lo):
+        return 0.0
+    if beyond(hi):
+        return 1.0
+    for _ in range(40):
+        mid = 0.5 * (lo + hi)
+        lo, hi = (mid, hi) if beyond(mid) else (lo, mid)
+    return float(np.sin(lo))
