@@ -223,6 +223,10 @@ def zero_delay_floor(data, structure):
         lag, step = -lag, -step
         fall, rise = rise, fall
     d = np.sort(-step)[::-1]                       # the data's lag steps, largest first
+    # a step skipped costs the least at psi = pi / 2: the steps the rise can pay for
+    # there are all any psi can use (at 200 000 points, the bisection on all steps cost
+    # 90 ms a call)
+    d = d[:int(np.searchsorted(np.cumsum(np.maximum(0.0, np.pi - d)), rise, "right")) + 1]
 
     def beyond(psi):
         """Whether no model follows the lag within psi at every frequency."""
