@@ -2,7 +2,8 @@
 
 ``fit(start="best")`` runs the sequential loop and the rational start; every fit with a
 delay also tries the same model at ``h = 0`` (the nested model class: a fit with a delay
-must never be worse than the fit without one). :func:`choose` keeps, among the candidates
+must never be worse than the fit without one), unless the data's phase lag rules that
+model out of the choice (:func:`zero_delay_floor`). :func:`choose` keeps, among the candidates
 within 10 % of the lowest max relative error, a converged one if there is any, and then
 the lowest RMS error. With weights, both are of the weighted relative error
 ``sqrt(w_i / mean(w)) |r_i|``, the objective's own measure (an unweighted ranking kept an

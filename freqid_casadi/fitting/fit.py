@@ -139,7 +139,9 @@ class FitResult:
         record of severity "error" makes ``success`` False.
     candidate_max_rel_errors : dict of str to float
         Max relative error of every candidate :func:`fit` chose from: the starts and,
-        with a delay, each start's model at h = 0 ("<start> at h=0") and, for a start
+        with a delay, each start's model at h = 0 ("<start> at h=0"; absent when its
+        screen abandoned it or the data's phase ruled it out,
+        :func:`~freqid_casadi.fitting.candidates.zero_delay_run`) and, for a start
         that did not converge, its delay search ("<start>, delay search",
         :mod:`freqid_casadi.fitting.delay_search`) and its roots far above the band at infinity
         ("<start>, far roots", :mod:`freqid_casadi.fitting.far_roots`), see
