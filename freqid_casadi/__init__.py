@@ -34,7 +34,8 @@ from .options import (BarrierLMOptions, FitOptions, IpoptOptions, LoopOptions,
 from .uncertainty.cover import CoverResult, cover
 
 __all__ = [
-    "fit", "FitResult", "FitStatus", "StageRecord", "IpoptOptions", "BarrierLMOptions", "LoopOptions",
+    "fit", "FitResult", "FitStatus", "StageRecord", "IpoptOptions", "BarrierLMOptions",
+    "LoopOptions",
     "FitOptions", "VectorFittingOptions", "FrequencyData", "RationalDelayModel", "Structure",
     "load", "load_csv", "load_npz", "load_text", "load_mat", "load_uff",
     "load_touchstone", "save_csv",

@@ -313,7 +313,8 @@ class LoopOptions:
     bound_delay : bool
         If False, the delay has no upper bound (for the ablation).
     delay_max : float > 0 or None
-        Upper bound of the delay in seconds; None: :func:`~freqid_casadi.fitting.fit.default_delay_max`
+        Upper bound of the delay in seconds; None:
+        :func:`~freqid_casadi.fitting.fit.default_delay_max`
         of the data (the value used is ``FitResult.delay_max``).
     final_stage : bool
         End with a stage on all data (also run after a stage stopped at its iteration

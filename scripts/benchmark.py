@@ -266,12 +266,13 @@ def _markdown(command, out, rows, baseline, fit_repeat, conv_base):
             continue
         solve = r["final_stage_solve_ms_per_iteration"]
         if r["final_stage_iterations"] < 10:
-            lines.append(f"- A, {r['start']} start: the final stage took "
-                         f"{r['final_stage_iterations']} iteration(s) (converged): its per-"
-                         "iteration time is the stage's one-off cost, not a rate; whole fit "
-                         f"{r['wall_time_s']:.1f} s, error {r['max_rel_error']:.2g} ("
-                         f"{'met' if r['max_rel_error'] <= 1e-8 and r['wall_time_s'] <= 5 else 'MISSED'}"
-                         " <= 1e-8 in <= 5 s).")
+            lines.append(
+                f"- A, {r['start']} start: the final stage took "
+                f"{r['final_stage_iterations']} iteration(s) (converged): its per-"
+                "iteration time is the stage's one-off cost, not a rate; whole fit "
+                f"{r['wall_time_s']:.1f} s, error {r['max_rel_error']:.2g} ("
+                f"{'met' if r['max_rel_error'] <= 1e-8 and r['wall_time_s'] <= 5 else 'MISSED'}"
+                " <= 1e-8 in <= 5 s).")
             continue
         verdicts = [f"final 17 x 500 stage, IPOPT solve {solve:.2f} ms/it "
                     f"({'met' if solve <= 3.0 else 'MISSED'}; median of the runs "

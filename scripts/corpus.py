@@ -11,7 +11,8 @@ configuration of ``freqid_casadi.studies.corpus.CONFIGS`` and the noisy cases wi
 ``n_sections="auto"``, on ``--workers`` processes (default 2), a progress line per fit on
 stderr. Writes ``--out`` (default ``results/corpus``; ``--quick``: 60 cases of at most 400
 points into ``results/corpus-quick``): report.md (first line: this command), report.json,
-fits.csv and corpus.png. Each fit is also appended to ``OUT.checkpoint.jsonl``; ``--resume`` keeps those of a
+fits.csv and corpus.png. Each fit is also appended to ``OUT.checkpoint.jsonl``;
+``--resume`` keeps those of a
 stopped run. ``--rerender DIR`` writes DIR's report.md, fits.csv and figure
 again from its report.json, without fitting.
 

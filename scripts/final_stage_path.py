@@ -83,7 +83,8 @@ def _curvature(pol, data, n_dirs=4):
     cos = np.abs(grad[free]) * d / (2 * np.sqrt(cost))
     print(f"\nat the end: cost {cost:.4g}; held at a bound: "
           f"{', '.join(np.array(_names(param.structure.n_sections))[held]) or '-'}; "
-          f"exactly cancelling sections: {', '.join(f's{k}' for k in np.flatnonzero(cancel)) or '-'}")
+          "exactly cancelling sections: "
+          f"{', '.join(f's{k}' for k in np.flatnonzero(cancel)) or '-'}")
     print(f"max cos(r, J_j) over the other variables {cos.max():.3g} "
           f"({names[np.argmax(cos)]}); Hessian/cost (Jacobi): {int(np.sum(ev < 0))} negative "
           f"eigenvalues, min {ev[0]:.3g}, max {ev[-1]:.3g}")

@@ -8,7 +8,8 @@ complex Gaussian noise (seed 16). The collocated channel is fitted minimum phase
 with zeros="free". Also draws an example stabilization diagram with the selected modes'
 shapes and their MAC against the analytic ones, and fits a roving-hammer modal test of a
 free-free beam (issue 31): 9 hammer points, one accelerometer, accelerance, 4 modes damped
-0.05 % .. 0.013 %, 51 200 points up to 1000 Hz (47 872 in 65..1000 Hz), 1 % noise (seed 31), shared poles, shapes
+0.05 % .. 0.013 %, 51 200 points up to 1000 Hz (47 872 in 65..1000 Hz), 1 % noise (seed 31),
+shared poles, shapes
 and MAC against the analytic shapes. With ``--measured DIR`` (the folder of ASCII00001 ..
 ASCII00009 of alxhslm/ModeLAB's Example/SignalCalc, not shipped: GPL-3) the same fit on the
 measured beam, against its published frequencies.

@@ -358,7 +358,8 @@ def write_report(folder, command, s):
              f"{d['order']}, controller stable {d['stable']}.",
              f"- ||W T||_inf (models, python-control `linfnorm`) = {d['WT_inf']:.4f} < 1; "
              f"||W1 S||_inf = {d['W1S_inf']:.4f}.",
-             f"- Nominal margins (rational nominal): GM {_f(d['nominal_margins']['gain_margin_db'])} dB, "
+             "- Nominal margins (rational nominal): GM "
+             f"{_f(d['nominal_margins']['gain_margin_db'])} dB, "
              f"PM {_f(d['nominal_margins']['phase_margin_deg'])} deg at "
              f"{_f(d['nominal_margins']['omega_crossover'])} rad/s, modulus margin "
              f"{_f(d['nominal_margins']['modulus_margin'])}.", "",

@@ -683,7 +683,8 @@ def _layers_md(rows):
              "One default fit (`fc.fit(data, n_sections=N)`) per row; each IPOPT solve is "
              "charged to the layer of the pipeline that ran it (`solves / iterations / CPU "
              "s`); `integrator fits`: the fits the automatic integrator ran (its contenders, "
-             "when the rational starts do not decide); `outside IPOPT`: CPU seconds of the rest (vector fittings, "
+             "when the rational starts do not decide); `outside IPOPT`: CPU seconds of the rest "
+             "(vector fittings, "
              "diagnostics, covariance, bookkeeping).", "",
              "| data | points | N | status | wall (s) | CPU (s) | integrator fits | solves | "
              "iterations | " + " | ".join(labels) + " | outside IPOPT (s) |",

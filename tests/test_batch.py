@@ -1,5 +1,6 @@
 """Tests of :mod:`freqid_casadi.fitting.batch` (fit_many) and the ``freqid batch`` command:
-per-dataset errors, option errors, results independent of the number of processes and of the scheduler, atomic output under KeyboardInterrupt."""
+per-dataset errors, option errors, results independent of the number of processes and of the
+scheduler, atomic output under KeyboardInterrupt."""
 
 import json
 import os

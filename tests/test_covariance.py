@@ -1,5 +1,5 @@
-"""Tests of the parameter uncertainty (freqid_casadi.uncertainty.covariance, bands, plots_uncertainty,
-_physical) and of scripts/uncertainty_calibration.py.
+"""Tests of the parameter uncertainty (freqid_casadi.uncertainty.covariance, bands,
+plots_uncertainty, _physical) and of scripts/uncertainty_calibration.py.
 
 The system is the script's: 2 modes (5 Hz / zeta 0.02, 17 Hz / zeta 0.03), zero pairs at 60
 and 300 rad/s, delay 5 ms, DC gain 1, on 400 points over 2..600 rad/s with 1 % complex noise.

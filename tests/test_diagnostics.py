@@ -22,7 +22,8 @@ def plant(s=S, delay=0.01):
 def true_model(delay=0.01, gain_sign=1, zeros="minimum-phase"):
     """The same plant as a RationalDelayModel (thesis parameters)."""
     st = Structure(2, delay=True, zeros=zeros, gain_sign=gain_sign)
-    # 2 (s^2+0.2s+25) / ((s^2+0.1s+4)(s^2+0.5s+100)) = K * (s^2+0.2s+25)/(s^2+0.1s+4) * 1/(s^2+0.5s+100)
+    # 2 (s^2+0.2s+25) / ((s^2+0.1s+4)(s^2+0.5s+100))
+    #   = K * (s^2+0.2s+25)/(s^2+0.1s+4) * 1/(s^2+0.5s+100)
     beta = [delay, 2.0, 1.0, 0.2 / 10, 5.0, 1.0, 0.1 / 4, 2.0,
             0.0, 0.0, 1.0, 1.0, 0.5 / 20, 10.0]
     return RationalDelayModel(st, beta)

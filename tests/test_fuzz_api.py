@@ -35,10 +35,12 @@ def _fit(**kw):
 
 # ----------------------------------------------------------------------- fit: options
 @pytest.mark.parametrize("kw, exc, needle", [
-    (dict(integrator="no"), OptionError, "integrator must be 'auto', True, False or an integer k .*, got 'no'"),
+    (dict(integrator="no"), OptionError,
+     "integrator must be 'auto', True, False or an integer k .*, got 'no'"),
     (dict(delay="False"), OptionError, "delay must be True or False, got 'False'"),
     (dict(delay=None), OptionError, "delay must be True or False, got None"),
-    (dict(integrator=np.array([1, 0])), OptionError, "integrator must be True, False or an integer k"),
+    (dict(integrator=np.array([1, 0])), OptionError,
+     "integrator must be True, False or an integer k"),
     (dict(basis=np.array(["a", "b"])), OptionError, "unknown basis array"),
     (dict(start=np.array([1, 2])), OptionError, "unknown start array"),
     (dict(objective=np.array([1, 2])), OptionError, "unknown objective array"),

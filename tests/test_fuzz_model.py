@@ -25,7 +25,8 @@ W = np.logspace(-1, 2, 40)
 
 
 @pytest.mark.parametrize("kw, needle", [
-    (dict(integrator="no"), r"integrator must be True, False or an integer k with \|k\| <= 3 .*, got 'no'"),
+    (dict(integrator="no"),
+     r"integrator must be True, False or an integer k with \|k\| <= 3 .*, got 'no'"),
     (dict(delay="no"), "delay must be True or False, got 'no'"),
     (dict(delay=None), "delay must be True or False, got None"),
     (dict(basis=np.array(["a", "b"])), "unknown basis array"),

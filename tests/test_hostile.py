@@ -603,7 +603,8 @@ def _beta_with(**idx):
 
 
 MODEL_TEXTS = [
-    pytest.param(_with(("structure", "integrator"), "false"), "must be true, false or an integer k", id="integrator-str"),
+    pytest.param(_with(("structure", "integrator"), "false"),
+                 "must be true, false or an integer k", id="integrator-str"),
     pytest.param(_with(("structure", "delay"), 1), "JSON boolean", id="delay-int"),
     pytest.param(_with(("version",), 2), "version 2 is not supported", id="version-2"),
     pytest.param(_with(("version",), "1"), "'version' must be an integer", id="version-str"),

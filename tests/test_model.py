@@ -76,7 +76,8 @@ def test_beta_negative_names_parameter():
 def test_beta_non_finite_names_index(bad):
     beta = np.ones(8)
     beta[3] = bad
-    with pytest.raises(StructureError, match=rf"beta must be finite: beta\[3\] \(zeta_num\[1\]\) = {bad}"):
+    with pytest.raises(StructureError,
+                       match=rf"beta must be finite: beta\[3\] \(zeta_num\[1\]\) = {bad}"):
         RationalDelayModel(Structure(1), beta)
 
 

@@ -10,7 +10,8 @@ stages at their limit, max rel. error 6.34e-6, success False with init="peak"; 1
 iterations, no stage at its limit, 4.8e-14, success True with init="relocate" (the
 default).
 
-Example C does not converge with either start (measured on a 2-core VM with ``python scripts/final_stage_path.py [--start sequential]
+Example C does not converge with either start (measured on a 2-core VM with
+``python scripts/final_stage_path.py [--start sequential]
 [--delay H] --chunks N --chunk-iter K``). Both fits end in a basin whose delay is too small
 (rational 0.026004 s, sequential 0.025947 s; G_C's delay is 0.02625 s), and their final
 stage creeps towards the system's delay along an interior valley, not towards a boundary
@@ -24,7 +25,8 @@ damped zeros in the band move most, and the exact Hessian (Jacobi scaled, held a
 cancelling variables left out) keeps 4..8 negative eigenvalues there. Five sections of
 either fit are exactly cancelling pole/zero pairs (the rational fit's below 0.13 rad/s, the
 sequential fit's three there and two in the band); they never move, and holding them (or
-the delay) fixed leaves the creep unchanged. The valley is not a solver artefact: IPOPT regularises the Hessian at every
+the delay) fixed leaves the creep unchanged. The valley is not a solver artefact: IPOPT
+regularises the Hessian at every
 iteration (lg(rg) 4.4..5.7); from the polish's start a trust region with the exact Hessian
 (scipy trust-exact, Jacobi scaled, 2000 its) reaches 5.0e-12, scipy's TRF (1000
 evaluations) 1.1e-11, IPOPT 1.1e-11. A far better basin lies at the system's delay: the

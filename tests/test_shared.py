@@ -202,7 +202,8 @@ def test_beam_modes_within_half_percent(beam_fit):
             # above it) since the start fits each channel's constant (max rel. error 0.0109,
             # was 0.0248 with 0.8e-3 there)
             assert m.zeta == pytest.approx(0.01, rel=3e-3)
-    assert [mod.structure.zeros == "minimum-phase" for mod in beam_fit.models] == [True] + [False] * 4
+    assert ([mod.structure.zeros == "minimum-phase" for mod in beam_fit.models]
+            == [True] + [False] * 4)
     assert all(mod.is_stable() for mod in beam_fit.models)
 
 
@@ -460,8 +461,8 @@ def test_weights_scale_the_channels():
 def test_block_termination_measures_equal_dense_ones(local):
     # the shared stages' test uses the block structure of the stacked weighted Jacobian;
     # the same numbers from the dense Jacobian (solvers.termination.projected_fraction)
-    from freqid_casadi.solvers.shared_termination import (blocks, block_projected_fraction, column_norms,
-                                            gradient_and_norms)
+    from freqid_casadi.solvers.shared_termination import (blocks, block_projected_fraction,
+                                                          column_norms, gradient_and_norms)
     from freqid_casadi.solvers.termination import projected_fraction
 
     rng = np.random.default_rng(3)

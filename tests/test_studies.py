@@ -24,8 +24,8 @@ def test_noisy_report_small(tmp_path):
     out = tmp_path / "noisy"
     s = write_noisy_report(out, command="python scripts/noisy_example.py --sections 3",
                            n_sections=3)
-    assert sorted(p.name for p in out.iterdir()) == [".freqid-output", "clean_error.png", "report.json",
-                                                      "report.md", "weights.png"]
+    assert sorted(p.name for p in out.iterdir()) == [".freqid-output", "clean_error.png",
+                                                      "report.json", "report.md", "weights.png"]
     md = (out / "report.md").read_text(encoding="utf-8")
     assert md.splitlines()[0] == generated_by_line(
         "python scripts/noisy_example.py --sections 3")

@@ -79,7 +79,8 @@ class FrequencyData:
         bad = ~np.isfinite(omega)
         if bad.any():
             i = _first_bad(bad)
-            raise DataError(f"omega must be finite: omega[{i}]={float(omega[i])}; remove that point")
+            raise DataError(
+                f"omega must be finite: omega[{i}]={float(omega[i])}; remove that point")
         bad = omega <= 0
         if bad.any():
             i = _first_bad(bad)
@@ -121,7 +122,8 @@ class FrequencyData:
             bad = ~np.isfinite(weights) | (weights < 0)
             if bad.any():
                 i = _first_bad(bad)
-                raise DataError(f"weights must be finite and >= 0: weights[{i}]={float(weights[i])}")
+                raise DataError(
+                    f"weights must be finite and >= 0: weights[{i}]={float(weights[i])}")
             if not np.any(weights > 0):
                 raise DataError("weights are all zero: at least one point must count")
             weights.setflags(write=False)

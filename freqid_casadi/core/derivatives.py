@@ -61,7 +61,8 @@ def _point_functions(param):
       ``(d2 den/den - d2 num/num)`` (``T2``; structurally zero in the dc gauge), plus
       ``1/z_K^2`` for the gain.
 
-    Each formula is still written once (:meth:`~freqid_casadi.core.gauges.Gauge.pairs`); assembling ``J`` and the
+    Each formula is still written once (:meth:`~freqid_casadi.core.gauges.Gauge.pairs`);
+    assembling ``J`` and the
     Hessian from these pieces costs O(n) per point plus dense products done by BLAS
     (:class:`StageFunctions`), instead of AD through the whole product chain.
     """

@@ -645,7 +645,8 @@ class RationalDelayModel(DelayedResponse):
         ``"freqid_casadi.RationalDelayModel"``, ``version`` 1, ``structure`` with
         ``n_sections`` (integer >= 0) and optional ``integrator`` (JSON boolean, or an
         integer k with ``|k| <= MAX_ORIGIN_ORDER`` poles at the origin, negative for
-        zeros, as written for ``|k| >= 2``; default false) and ``delay`` (JSON boolean, default true) and ``basis`` (default second-order), optional
+        zeros, as written for ``|k| >= 2``; default false) and ``delay`` (JSON boolean, default
+        true) and ``basis`` (default second-order), optional
         ``param_names`` (as written), and ``beta``: finite numbers >= 0, one per parameter,
         no section with an all-zero numerator or denominator.
 

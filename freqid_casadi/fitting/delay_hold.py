@@ -16,7 +16,8 @@ positive delay ``h``, the ``n_sections`` fit is repeated with the delay held at 
 (the data multiplied by ``exp(j w h)``, fitted without a delay) and kept when it
 converged with max and RMS relative errors within
 :data:`~freqid_casadi.fitting.candidates.NEAR` of the free fit's (the factor by which
-:func:`~freqid_casadi.fitting.candidates.choose` calls fits equally good). The kept result carries a ``delay-undetermined`` diagnostic that names the
+:func:`~freqid_casadi.fitting.candidates.choose` calls fits equally good). The kept result carries
+a ``delay-undetermined`` diagnostic that names the
 free fit's delay, its std and both fits' errors; ``LoopOptions(hold_delay=False)`` keeps
 the free fit.
 

@@ -13,7 +13,8 @@ Codes
 ``negative-gain``
     The rational start explains the data far better with a negative gain than with a
     positive one (:func:`rational_gain_sign`; when it does not decide, the low-frequency
-    phase, integrator removed, is near +-180 deg). With ``gain_sign="auto"`` the fit uses a negative gain and says so.
+    phase, integrator removed, is near +-180 deg). With ``gain_sign="auto"`` the fit uses a
+    negative gain and says so.
 ``non-minimum-phase``
     Excess phase that a delay cannot explain: a stable rational fit of the same order with
     free zeros (vector fitting at the fitted delay, or the rational start with free zeros,
@@ -434,7 +435,8 @@ def check_delay(model, data, delay_max, rms_rel_error=None, *, delay_std=None, a
         upper half of its range is flagged too (a delay beyond the bound, aliased).
     delay_std : float, optional
         The delay's standard deviation (s) from the fit's parameter covariance
-        (:mod:`freqid_casadi.uncertainty.covariance`): a delay whose std exceeds half its value is not
+        (:mod:`freqid_casadi.uncertainty.covariance`): a delay whose std exceeds
+        half its value is not
         determined by the data (typically traded against a zero far above the band).
     at_bound : float
         Fraction of ``delay_max`` from which the delay counts as at its bound.

@@ -253,8 +253,8 @@ class FitResult:
             return found
 
     def summary(self):
-        """Lines led by the status: the message (which starts with it), then the model's numbers, then one per
-        diagnostic."""
+        """Lines led by the status: the message (which starts with it), then the model's numbers,
+        then one per diagnostic."""
         m = self.model
         line = (f"{self.data.name or 'data'}: {m.n_sections} sections (order {m.order}), "
                 f"max rel. error {self.max_rel_error:.4g}, RMS {self.rms_rel_error:.4g}, "

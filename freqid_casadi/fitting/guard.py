@@ -14,7 +14,8 @@ consistent with the noise, :mod:`~freqid_casadi.fitting.verdict`, and its RMS wi
 the data (example A at 2 %: 0.045 at the samples and 0.048 between them). When the floor
 costs more than the noise allows (exact data: A's own lightest modes are narrower than its
 grid, 4.8e-14 free against 7e-4 with the floor), the data determine the feature and the
-free fit stays (``LoopOptions(resolution_guard=False)`` skips the guard). Either way ``FitResult.details["resolution_guard"]`` says what was done
+free fit stays (``LoopOptions(resolution_guard=False)`` skips the guard). Either way
+``FitResult.details["resolution_guard"]`` says what was done
 and ``alternatives`` holds the fit that was not kept.
 """
 

@@ -305,7 +305,8 @@ def fit_validated(data, *, n_sections, reference=None, factor=1.0, refit=True,
     reference, factor, refit, dense_factor
         As in :func:`prune_sections`.
     **fit_options
-        Passed to :func:`~freqid_casadi.fitting.fit.fit` (``integrator``, ``delay``, ``weights``...).
+        Passed to :func:`~freqid_casadi.fitting.fit.fit` (``integrator``, ``delay``,
+        ``weights``...).
 
     Returns
     -------

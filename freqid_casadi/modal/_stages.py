@@ -2,7 +2,8 @@
 
 ``"rational"``: vector fitting with one common pole set over all channels
 (:mod:`freqid_casadi.modal._start`; started at the resonance peaks the channels share,
-each channel with a constant, the upper residual, unless it has sections of its own), then, with channel sections, one vector fitting per
+each channel with a constant, the upper residual, unless it has sections of its own), then, with
+channel sections, one vector fitting per
 channel with the shared poles fixed for its own poles; every channel's zeros from its
 pole-residue form, right-half-plane zeros of minimum-phase channels reflected (their group
 delay moved to the delay); one IPOPT polish on all data.

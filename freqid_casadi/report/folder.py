@@ -266,7 +266,8 @@ def write_sweep_report(result, out_dir, *, command, force=False):
     verdict = ("" if target is None else
                f"Smallest order with max relative error <= {target:g}: "
                f"{d['best_order'] if d['best_order'] is not None else 'none of those tried'}.")
-    md = "\n".join([generated_by_line(command), f"# Order sweep: {md_text(d['data'] or 'data')}", "",
+    md = "\n".join([generated_by_line(command),
+                     f"# Order sweep: {md_text(d['data'] or 'data')}", "",
                      markdown_table(rows, headers), "", verdict, "",
                      computed_on(d["environment"]), ""])
     with report_folder(out_dir, force) as (tmp, _):

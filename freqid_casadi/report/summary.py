@@ -24,8 +24,8 @@ REPORT_FORMAT = "freqid_casadi.fit_report"
 REPORT_VERSION = 1
 
 #: Files of a fit report folder, in the order they are written.
-REPORT_FILES = (_outputs.MARKER, "model.json", "rel_error.csv", "stages.csv", "bode.png", "rel_error.png",
-                "pole_zero.png", "stages.png", "summary.json", "summary.md")
+REPORT_FILES = (_outputs.MARKER, "model.json", "rel_error.csv", "stages.csv", "bode.png",
+                "rel_error.png", "pole_zero.png", "stages.png", "summary.json", "summary.md")
 
 
 

@@ -2,7 +2,8 @@
 
 :func:`solve_stage` minimises :class:`~freqid_casadi.modal._nlp.SharedProblem`'s cost with
 true bounds and its exact sparse (block-arrowhead) Hessian, and ends the solve at a
-relatively stationary point (:class:`~freqid_casadi.solvers.shared_termination.SharedMonitor`, checked
+relatively stationary point
+(:class:`~freqid_casadi.solvers.shared_termination.SharedMonitor`, checked
 after every IPOPT iteration). IPOPT's objective is scaled by the start cost, and its barrier
 parameter is absolute in those units: once the cost has fallen by :data:`RESCALE` the
 barrier holds variables whose optimum is on a bound far off it (measured on the beam's

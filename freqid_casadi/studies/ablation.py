@@ -1,4 +1,5 @@
-"""Ablation study, the experiments: IPOPT vs the thesis's barrier-LM, and IPOPT's options one at a time.
+"""Ablation study, the experiments: IPOPT vs the thesis's barrier-LM, and IPOPT's options
+one at a time.
 
 For each example of the catalogue (:data:`freqid_casadi.systems.examples.EXAMPLES`) the study fits
 
@@ -113,7 +114,8 @@ class Variant:
     note: str = ""
 
     def fit_options(self):
-        """``{"method": solver options, "loop": LoopOptions}`` for :func:`~freqid_casadi.fitting.fit.fit`:
+        """``{"method": solver options, "loop": LoopOptions}`` for
+        :func:`~freqid_casadi.fitting.fit.fit`:
         :data:`DEFAULT_IPOPT` (or :data:`DEFAULT_LM`) and :data:`DEFAULT_LOOP` with this
         variant's changes (``dataclasses.replace``)."""
         changes = dict(self.options)

@@ -83,7 +83,8 @@ def conclusions(summary):
                 f"{name}: IPOPT's final max relative error {_short(base['max_rel_error'])} vs "
                 f"{_short(c['lm_max_rel_error'])} for {c['lm_label']} (ratio barrier-LM/IPOPT "
                 f"{_short(ratio)}, {verdict}); "
-                f"total time {_short(base['wall_time'])} s vs {_short(c['lm_wall_time'])} s; {reach}.")
+                f"total time {_short(base['wall_time'])} s vs {_short(c['lm_wall_time'])} s; "
+                f"{reach}.")
     out += _target_sentences(cases)
     failed = [(n, r["label"], r["message"]) for n, c in cases.items() for r in c["variants"]
               if r["status"] != "ok"]

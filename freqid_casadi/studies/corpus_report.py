@@ -162,7 +162,8 @@ def render_corpus(command, summary, meta, records):
              f"Corpus `freqid_casadi.systems.corpus(n={meta['n_cases']}, seed={meta['seed']}, "
              f"max_points={meta['max_points']})`: {meta['n_points_total']} points in all "
              f"({meta['n_points_min']}-{meta['n_points_max']} per case); {meta['n_fits']} fits "
-             f"on {meta['workers']} worker processes, {meta.get('fit_time_total', float('nan')):.0f} s "
+             f"on {meta['workers']} worker processes, "
+             f"{meta.get('fit_time_total', float('nan')):.0f} s "
              f"of fitting summed over the fits (this command's wall time {meta['wall_time']:.0f}"
              " s; with --resume the fits of the checkpoint are not timed again).", "",
              *computed_on_lines(meta.get("environment")),

@@ -157,7 +157,8 @@ def peer_row(data, n_sections, method):
         return {"method": method, "n_sections": n_sections, "order": 2 * n_sections,
                 "error": str(exc)}, None
     return {"method": method, "n_sections": n_sections, "order": 2 * n_sections,
-            "max_rel_error": err.max, "rms_rel_error": err.rms, "delay": 0.0, "stable": bool(model.is_stable()),
+            "max_rel_error": err.max, "rms_rel_error": err.rms, "delay": 0.0,
+            "stable": bool(model.is_stable()),
             "minimum_phase": bool(model.is_minimum_phase()), "success": None,
             "wall_time": time.perf_counter() - t0}, model
 

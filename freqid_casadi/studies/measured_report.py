@@ -126,7 +126,8 @@ def render_measured(summary):
              "minimum phase, a delay, the gain sign found from the data); peers at the same "
              "order: scikit-rf's vector fitting and scipy's AAA (neither is constrained to "
              "be stable or minimum phase; both minimise the absolute error, so where |G| is "
-             "small, at antiresonances, their relative error is large). Max and RMS of |Phi/G_N - 1| over the data; delay "
+             "small, at antiresonances, their relative error is large). Max and RMS of "
+             "|Phi/G_N - 1| over the data; delay "
              "± one standard deviation from the parameter covariance "
              "(`FitResult.uncertainty`).", ""]
     for key, title in (("actuator", "Servo-hydraulic actuator (chirp, raw records)"),

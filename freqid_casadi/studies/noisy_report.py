@@ -47,7 +47,8 @@ def render_noisy(command, s):
              *computed_on_lines(s.get("environment")),
              f"G_A on the thesis grid ({s['n_points']} points, 1e-2..1e3 rad/s) times "
              f"(1 + n), n complex Gaussian with RMS {100 * NOISE:g} % (seed {SEED}; measured "
-             f"RMS {number(s['noise_rms'])}, max |n| {number(s['noise_max'])}). Fit: {a['n_sections']} "
+             f"RMS {number(s['noise_rms'])}, max |n| {number(s['noise_max'])}). Fit: "
+             f"{a['n_sections']} "
              "sections, integrator, delay (the thesis's order). Errors are against the "
              f"*clean* G_A at the data points and on a {DENSE}x denser log grid "
              f"({s['n_dense']} points).", "",
@@ -83,7 +84,8 @@ def render_noisy(command, s):
               + f" the noise RMS {number(s['noise_rms'], 3)} and the max "
               + ("below" if max(a['clean_after']['samples']['max'],
                                 a['clean_after']['dense']['max']) < s['noise_max'] else "ABOVE")
-              + f" the largest noise sample {number(s['noise_max'], 3)}, at and between the samples.",
+              + f" the largest noise sample {number(s['noise_max'], 3)}, at and between the "
+                "samples.",
               ""]
     lines += _floor_lines(s)
     lines += _weights_lines(s)
@@ -105,7 +107,8 @@ def _floor_lines(s):
         + ("passed" if f["resolution_ok"] else
            f"FAILED ({f['n_flagged_pairs']} pairs)")
         + f". Against the clean system: at the samples RMS "
-        f"{number(f['clean']['samples']['rms'], 3)}, max {number(f['clean']['samples']['max'], 3)}; "
+        f"{number(f['clean']['samples']['rms'], 3)}, max "
+        f"{number(f['clean']['samples']['max'], 3)}; "
         f"on the dense grid RMS {number(f['clean']['dense']['rms'], 3)}, max "
         f"{number(f['clean']['dense']['max'], 3)} (plain fit: "
         f"{number(a['clean_before']['dense']['max'], 3)}). The RMS is "
@@ -173,11 +176,13 @@ def weights_effect(n_sections, s):
     text = (f"Effect (damping-floor fits, {n_sections} sections, clean error at the samples): "
             f"below 1 rad/s, where the data is precise, RMS "
             f"{number(effect['uniform_rms_below_1rad'], 3)} (uniform) vs "
-            f"{number(effect['weighted_rms_below_1rad'], 3)} (1/sigma^2); above 100 rad/s, where it "
+            f"{number(effect['weighted_rms_below_1rad'], 3)} (1/sigma^2); above 100 rad/s, "
+            "where it "
             f"is noisy, {number(effect['uniform_rms_above_100rad'], 3)} vs "
             f"{number(effect['weighted_rms_above_100rad'], 3)}. Over all samples RMS "
             f"{number(uf['samples']['rms'], 3)} vs {number(wf['samples']['rms'], 3)} (max "
-            f"{number(uf['samples']['max'], 3)} vs {number(wf['samples']['max'], 3)}), on the dense grid "
+            f"{number(uf['samples']['max'], 3)} vs {number(wf['samples']['max'], 3)}), on the "
+            "dense grid "
             f"RMS {number(uf['dense']['rms'], 3)} vs {number(wf['dense']['rms'], 3)}. "
             + ("The variance weights give the lower error in both bands: with uniform "
                "weights the noisy high-frequency points dominate the cost, with 1/sigma^2 the "

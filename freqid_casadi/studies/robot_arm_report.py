@@ -33,7 +33,8 @@ def _why(study):
            "It is the smallest order tried.")
     i_max = int(np.argmax(res.rel_error))
     why += (f" The max relative error is at omega = {number(data.omega[i_max])} rad/sample "
-            f"(bin {int(est.bins[i_max])}), where |G| = {number(abs(data.response[i_max]), 3)}: the "
+            f"(bin {int(est.bins[i_max])}), where |G| = "
+            f"{number(abs(data.response[i_max]), 3)}: the "
             "antiresonance near 1.12 rad/sample, where the single-period estimate has the "
             "lowest signal-to-noise ratio; a raw fit that reaches a small max there does so "
             "with a zero/pole pair narrower than the bin spacing (see the table), so the "
@@ -184,7 +185,8 @@ def render_robot_arm(command, summary):
               f"Zeros (rad/sample): {', '.join(s['chosen_zeros_text'])}.", "",
               "## Multiplicative uncertainty weight", "",
               f"W of order {s['weight']['order']} with |W(j w_i)| >= e_i at every bin "
-              f"(fit_uncertainty_weight): overbound mean {number(s['weight']['overbound_mean_db'], 3)} "
+              "(fit_uncertainty_weight): overbound mean "
+              f"{number(s['weight']['overbound_mean_db'], 3)} "
               f"dB, max {number(s['weight']['overbound_max_db'], 3)} dB, min "
               f"{number(s['weight']['overbound_min_db'], 3)} dB, IPOPT "
               f"{'converged' if s['weight']['success'] else 'did NOT converge'}.", "",

@@ -22,7 +22,8 @@ The systems live in private modules (``_beams``: A, B, C and the perturbed plant
 ``_fractional``: 1/sqrt(s), G_D and Moheimani's beam; ``_common``: the grid); every public
 name is re-exported here (and :mod:`~freqid_casadi.systems.corpus`, the seeded corpus of
 synthetic FRFs of issue 26: ``corpus(n, seed)``; ``_measured``: the measured FRFs shipped in
-``freqid_casadi/datasets``, ``measured_sets()`` and ``measured(name)``), so ``freqid_casadi.systems.G_A()`` is the way to call them.
+``freqid_casadi/datasets``, ``measured_sets()`` and ``measured(name)``), so
+``freqid_casadi.systems.G_A()`` is the way to call them.
 """
 
 from ._beams import (G_A, G_A_at, G_B, G_B_at, G_C, G_C_at, SERIES_THRESHOLD,

@@ -21,7 +21,8 @@ known exactly, the bound does. The derivatives of ``ln G_N`` are analytic; the c
 scaled to unit norm before the inversion (an SVD, whose condition number is reported).
 
 :func:`bootstrap` gives the same record from a residual bootstrap (joblib-parallel);
-:mod:`freqid_casadi.uncertainty.bands` the delta-method band of the response and of the relative error.
+:mod:`freqid_casadi.uncertainty.bands` the delta-method band of the response and of the
+relative error.
 """
 
 import dataclasses

@@ -32,7 +32,8 @@ any FRF the package fits), see :func:`~freqid_casadi.uncertainty.weight.fit_unce
 The order
 ---------
 The orders ``0..max_order`` are fitted in turn (one ladder,
-:func:`~freqid_casadi.uncertainty.weight.iter_weights`, stopped at the order kept); ``order=None`` keeps the
+:func:`~freqid_casadi.uncertainty.weight.iter_weights`, stopped at the order kept);
+``order=None`` keeps the
 lowest order whose *median* ratio ``|W(j w)| / envelope(w)`` over the envelope's points is
 at most ``tightness`` (default 2: half of the points have ``W`` within a factor of 2,
 6 dB, of the envelope), or, if no order reaches it, the order with the lowest median ratio
