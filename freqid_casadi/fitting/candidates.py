@@ -20,6 +20,7 @@ import numpy as np
 from ..core.metrics import error_stats, relative_error
 from ..core.model import RationalDelayModel
 from .stages import Kept, StageKind, polish, polish_start, stage_record
+from .start import phase_steps
 
 __all__ = ["Candidate", "choose", "zero_delay_run", "zero_delay_floor", "NEAR",
            "SCREEN_ITERATIONS", "SCREEN_FACTOR"]
@@ -78,8 +79,7 @@ class Candidate:
         stats = relative_error(param.to_model(z), data)
         rank = stats
         if data.weights is not None:
-            w = np.asarray(data.weights, float)
-            rank = error_stats(np.asarray(stats.values) * np.sqrt(w / np.mean(w)))
+            rank = error_stats(np.asarray(stats.values) * _rank_factors(data.weights))
         return cls(name, run, float(stats.max), float(stats.rms),
                    bool(records[-1].success) if records else False, float(rank.max),
                    float(rank.rms), start)
@@ -173,9 +173,16 @@ def _ranked_floor(data, structure):
     floor = zero_delay_floor(data, structure)
     if data.weights is None or floor == 0.0:
         return floor
-    w = np.asarray(data.weights, float)
-    mean = float(np.mean(w))
-    return floor * math.sqrt(float(np.min(w)) / mean) if mean > 0 else 0.0
+    with np.errstate(all="ignore"):
+        least = float(np.min(_rank_factors(data.weights)))
+    return floor * least if least > 0 else 0.0      # (nan when every weight is 0: no floor)
+
+
+def _rank_factors(weights):
+    """``sqrt(w_i / mean(w))``: the factors of the weighted relative error
+    (:attr:`Candidate.rank_max`)."""
+    w = np.asarray(weights, float)
+    return np.sqrt(w / np.mean(w))
 
 
 def zero_delay_floor(data, structure):
@@ -188,7 +195,8 @@ def zero_delay_floor(data, structure):
     section's by less than pi / 2; the gain's sign and the poles at the origin add a
     constant. A model whose phase is within ``psi`` of the data's at every frequency
     (``|G / Phi - 1| < sin psi`` everywhere needs that) must follow the data's lag ``L``
-    (the sum of the steps ``-angle(Phi[i+1] conj Phi[i])``) up to ``2 psi``, less what a
+    (the sum of the steps ``-angle(Phi[i+1] conj Phi[i])``,
+    :func:`~freqid_casadi.fitting.start.phase_steps`) up to ``2 psi``, less what a
     turn of the phase between two frequencies can skip: a step of the data's lag ``d``
     skipped costs at least ``2 pi - 2 psi - d`` of the zeros' rise and gains at most
     ``2 psi + d`` (the largest steps first, as long as the rise lasts). So when ``L - 2
@@ -212,8 +220,7 @@ def zero_delay_floor(data, structure):
     resp = np.asarray(data.response)
     if resp.size < 2:
         return 0.0
-    with np.errstate(over="ignore", invalid="ignore"):
-        step = np.angle(resp[1:] / resp[:-1])
+    step = phase_steps(resp)
     if not np.all(np.isfinite(step)):
         return 0.0
     unit = np.pi if structure.basis == "second-order" else 0.5 * np.pi

@@ -38,7 +38,8 @@ from ..core.model import RationalDelayModel, times_jw_power
 
 __all__ = ["RationalStart", "RationalStartError", "rational_start", "signed_start",
            "rational_start_memo", "best_signed_start", "memo_map", "MIN_FORKED_JOB",
-           "sections_from_roots", "group_delay_estimate", "significant_group_delay",
+           "sections_from_roots", "group_delay_estimate", "phase_steps",
+           "significant_group_delay",
            "search_delay", "GROUP_DELAY_PHASE", "PROBE_PHASE", "MAX_TRIALS",
            "EXACT_TRIAL"]
 
@@ -473,6 +474,29 @@ def rational_start_memo():
         _MEMO.reset(token)
 
 
+def phase_steps(response):
+    """The phase steps ``angle(H[k+1] conj(H[k]))`` of a response, each in (-pi, pi]
+    (no unwrapping), also where the product overflows (responses near 1e300).
+
+    Parameters
+    ----------
+    response : ndarray of complex, shape (M,)
+
+    Returns
+    -------
+    ndarray of float, shape (M - 1,)
+        rad.
+    """
+    with np.errstate(over="ignore", invalid="ignore"):
+        product = response[1:] * np.conj(response[:-1])
+    step = np.angle(product)
+    big = ~np.isfinite(product)
+    if np.any(big):                   # products that overflow (responses near 1e300)
+        d = np.diff(np.angle(response))[big]
+        step[big] = (d + np.pi) % (2 * np.pi) - np.pi
+    return step
+
+
 def group_delay_estimate(omega, response):
     """The data's delay as its typical group delay: the median over the band (weighted by
     the frequency step) of ``-angle(H[k+1] conj(H[k])) / (omega[k+1] - omega[k])``.
@@ -495,14 +519,7 @@ def group_delay_estimate(omega, response):
         Seconds (negative when the phase rises over most of the band).
     """
     dw = np.diff(omega)
-    with np.errstate(over="ignore", invalid="ignore"):
-        product = response[1:] * np.conj(response[:-1])
-    step = np.angle(product)
-    big = ~np.isfinite(product)
-    if np.any(big):                   # products that overflow (responses near 1e300)
-        d = np.diff(np.angle(response))[big]
-        step[big] = (d + np.pi) % (2 * np.pi) - np.pi
-    tau = -step / dw
+    tau = -phase_steps(response) / dw
     order = np.argsort(tau)
     cum = np.cumsum(dw[order])
     return float(tau[order][np.searchsorted(cum, 0.5 * cum[-1])])
@@ -619,9 +636,7 @@ def _rational_start(data, structure, delay_max, delay0, max_delay_updates, n_ite
                      or abs((best or 0.0) - h_gd) * float(data.omega[-1]) > 0.5 * np.pi)):
             _search(probe_run, data, h_gd, delay_max, max_delay_updates)
 
-    # one trial delay (no delay, or no updates) is made on the data as it is
-    probe_run, seen, finish = (_probe_runs(data, base, trial, run, trials) if n_updates > 1
-                               else (run, trials, lambda: None))
+    probe_run, seen, finish = _probe_runs(data, base, trial, run, trials, n_updates > 1)
     trial_delays(probe_run, seen)
     finish()
     if _best(trials) is None and seen is not trials:   # none usable on every k-th point
@@ -648,15 +663,16 @@ def _best(trials):
     return min(usable, key=lambda h: trials[h][1]) if usable else None
 
 
-def _probe_runs(data, base, trial, run, trials):
+def _probe_runs(data, base, trial, run, trials, several):
     """``(probe_run, seen, finish)`` for the trial delays of one start (``run``: the trial
-    on the data, kept in ``trials``): above :data:`PROBE_POINTS` frequencies
-    ``probe_run(h)`` makes the trial on every k-th point (``trial(data, base, h)``), kept
-    in ``seen``, and ``finish()`` makes the best of those on the data by ``run`` (the next
-    best, up to the third, when a trial is unusable there); at or below it, ``run``,
-    ``trials`` and nothing to finish."""
+    on the data, kept in ``trials``): above :data:`PROBE_POINTS` frequencies, when the
+    start tries ``several`` delays, ``probe_run(h)`` makes the trial on every k-th point
+    (``trial(data, base, h)``), kept in ``seen``, and ``finish()`` makes the best of those
+    on the data by ``run`` (the next best, up to the third, when a trial is unusable
+    there); else (one trial delay: no delay, or no updates) ``run``, ``trials`` and
+    nothing to finish."""
     sub = _subsample(data.omega.size, PROBE_POINTS)
-    if isinstance(sub, slice):
+    if not several or isinstance(sub, slice):
         return run, trials, lambda: None
     coarse = FrequencyData(data.omega[sub], data.response[sub])
     seen = {}
