@@ -166,16 +166,19 @@ def test_many_points_recover_the_known_system():
 
 def test_lstsq_is_scipys_to_the_last_bit():
     """The relocations' least squares call LAPACK's dgelsd directly (workspace sizes kept
-    per shape): the same numbers as scipy.linalg.lstsq, tall, wide, rank-deficient and
-    badly scaled; non-finite input is a ValueError, as there."""
+    per shape), or from 256 rows its QR path in three calls: the same numbers as
+    scipy.linalg.lstsq, tall, wide, rank-deficient and badly scaled, with and without
+    overwriting (up to 44 columns: dgeqrf's and dormqr's blocked code from 32); non-finite
+    input is a ValueError, as there."""
     import importlib
 
     import scipy.linalg
 
     lstsq = importlib.import_module("freqid_casadi.baselines.vectfit")._lstsq
     rng = np.random.default_rng(7)
-    for _ in range(300):
-        m, n = int(rng.integers(1, 200)), int(rng.integers(1, 30))
+    for i in range(400):
+        n = int(rng.integers(1, 30 if i < 300 else 45))
+        m = int(rng.integers(1, 200) if i < 300 else rng.integers(256, 2000))  # tall: QR first
         a = rng.standard_normal((m, n)) * 10.0 ** rng.uniform(-8, 8, n)
         if n > 1 and rng.random() < 0.3:
             a[:, -1] = a[:, 0]                                  # rank-deficient
@@ -184,5 +187,46 @@ def test_lstsq_is_scipys_to_the_last_bit():
         b = rng.standard_normal(m)
         x = lstsq(a, b)
         assert x.shape == (n,) and np.array_equal(x, scipy.linalg.lstsq(a, b)[0])
+        assert np.array_equal(lstsq(np.asfortranarray(a), b.copy(), overwrite=True), x)
     with pytest.raises(ValueError, match="infs or NaNs"):
         lstsq(np.array([[np.nan, 1.0]]), np.ones(1))
+
+
+@pytest.mark.parametrize("fixed, weights", [(False, False), (True, True)])
+def test_one_channel_relocation_is_the_stacked_problem(fixed, weights):
+    """A one-channel relocation writes ``[Re; Im]`` of ``w [Phi, fixed, 1 | -G Phi, -G]``
+    and the relaxation row into one matrix: the new poles are those of the textbook
+    stacked problem formed from complex blocks and solved by scipy's lstsq (columns of
+    unit norm). Measured identical to the last bit here; bound 1e-12 relative."""
+    import importlib
+
+    import scipy.linalg
+
+    vf = importlib.import_module("freqid_casadi.baselines.vectfit")
+    rng = np.random.default_rng(3)
+    s = 1j * OMEGA
+    g = PHI[0] * (1 + 0.05 * rng.standard_normal(OMEGA.size))
+    wt = 1 / np.abs(g) * (np.sqrt(rng.uniform(0.2, 1, OMEGA.size)) if weights else 1)
+    rp, cp = vf._initial_split(OMEGA, 5)
+    fix = vf._split(POLES[[1, 3]], "fixed") if fixed else (np.zeros(0), np.zeros(0, complex))
+    got = vf._relocate(s, g[None], wt[None], rp, cp, fix, 1, True)
+
+    basis = vf._basis(s, rp, cp)
+    sig = np.hstack([basis, np.ones((s.size, 1))])
+    left = np.hstack([basis] + ([vf._basis(s, *fix)] if fixed else [])
+                     + [np.ones((s.size, 1))])
+    block = wt[:, None] * np.hstack([left, -g[:, None] * sig])
+    norm = np.linalg.norm(wt * g)
+    relax = np.concatenate([np.zeros(left.shape[1]), np.sum(sig, axis=0).real])
+    relax *= norm / s.size
+    a = np.vstack([block.real, block.imag, relax])
+    rhs = np.zeros(a.shape[0])
+    rhs[-1] = norm
+    scale = np.linalg.norm(a, axis=0)
+    x = scipy.linalg.lstsq(a / scale, rhs)[0] / scale
+    state, b = vf._state_matrices(rp, cp)
+    lam = np.linalg.eigvals(state - np.outer(b, x[left.shape[1]:-1]) / x[-1])
+    want = vf._split_eigs(np.where(lam.real > 0, -np.conj(lam), lam))
+    for g_, w_ in zip(got, want):
+        assert g_.shape == w_.shape
+        assert np.all(np.abs(g_ - w_) <= 1e-12 * np.abs(w_))
