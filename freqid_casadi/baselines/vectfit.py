@@ -217,7 +217,7 @@ def _lstsq(a, b, overwrite=False):
                                  overwrite_c=overwrite)
         if info != 0:                                                   # pragma: no cover
             raise ValueError(f"LAPACK dgeqrf/dormqr failed (info={info})")
-        return _lstsq(np.triu(qr[:n]).T.copy().T, qtb[:n, 0].copy(), overwrite=True)
+        return _lstsq(np.array(np.triu(qr[:n]), order="F"), qtb[:n, 0].copy(), overwrite=True)
     if m < n:                                # room for the (n,) solution, as lstsq makes
         b = np.concatenate([b, np.zeros(n - m)])
     x, _, _, info = gelsd(a, b, lwork, liwork, np.finfo(np.float64).eps, overwrite, overwrite)
