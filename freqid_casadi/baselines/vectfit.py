@@ -35,6 +35,8 @@ __all__ = ["VectorFit", "vectfit", "fit_residues", "initial_poles"]
 
 # |Im p| <= _REAL_RTOL |p|: a real pole (the eigenvalues of a real matrix).
 _REAL_RTOL = 1e-12
+_TINY = np.finfo(float).tiny
+_EPS = np.finfo(np.float64).eps
 # |dt| below this is fixed to it (with its sign) and sigma re-fitted without the relaxation.
 _DT_MIN = 1e-8
 # Frequencies above which each least-squares problem is reduced chunk by chunk to its R
@@ -136,43 +138,56 @@ def _split(poles, name):
     return poles[real].real, upper
 
 
-def _basis(s, rp, cp):
+def _basis(s, rp, cp, out=None):
     """Real-formulation partial-fraction basis, shape (M, n): ``1/(s-a)`` per real pole,
-    ``1/(s-a) + 1/(s-a*)`` and ``j/(s-a) - j/(s-a*)`` per pair."""
-    cols = [1.0 / (s - a) for a in rp]
-    for a in cp:
-        u, v = 1.0 / (s - a), 1.0 / (s - np.conj(a))
-        cols += [u + v, 1j * u - 1j * v]
-    return np.stack(cols, axis=1) if cols else np.zeros((s.size, 0), complex)
+    ``1/(s-a) + 1/(s-a*)`` and ``j/(s-a) - j/(s-a*)`` per pair; written into ``out``
+    (complex, (M, n) or a view of that shape) when given. All poles in one broadcast
+    operation each: the same products as one pole at a time."""
+    k = rp.size
+    if out is None:
+        out = np.empty((s.size, k + 2 * cp.size), complex)
+    if k:
+        np.divide(1.0, s[:, None] - rp, out=out[:, :k])
+    if cp.size:
+        u = 1.0 / (s[:, None] - cp)
+        v = 1.0 / (s[:, None] - np.conj(cp))
+        np.add(u, v, out=out[:, k::2])
+        np.subtract(1j * u, 1j * v, out=out[:, k + 1::2])
+    return out
 
 
 def _state_matrices(rp, cp):
     """A and b of Gustavsen's real realisation of the basis (b = 1 or [2, 0])."""
-    n = rp.size + 2 * cp.size
+    k = rp.size
+    n = k + 2 * cp.size
     A = np.zeros((n, n))
     b = np.zeros(n)
-    k = 0
-    for a in rp:
-        A[k, k], b[k] = a, 1.0
-        k += 1
-    for a in cp:
-        A[k:k + 2, k:k + 2] = [[a.real, a.imag], [-a.imag, a.real]]
-        b[k] = 2.0
-        k += 2
+    flat, step = A.reshape(-1), n + 1          # (a view) A[j, j] is flat[j * step]
+    flat[:k * step:step] = rp
+    b[:k] = 1.0
+    if cp.size:
+        first = k * step                       # A[k, k]: the first pair's block
+        flat[first::step] = np.repeat(cp.real, 2)
+        flat[first + 1::2 * step] = cp.imag                     # A[j, j + 1]
+        flat[first + n::2 * step] = -cp.imag                    # A[j + 1, j]
+        b[k::2] = 2.0
     return A, b
 
 
 def _split_eigs(lam):
     """Real eigenvalues and the upper members of conjugate pairs of a real matrix."""
     lam = np.asarray(lam, complex)
-    tol = _REAL_RTOL * np.maximum(np.abs(lam), np.finfo(float).tiny)
+    tol = _REAL_RTOL * np.maximum(np.abs(lam), _TINY)
     is_real = np.abs(lam.imag) <= tol
-    return np.sort(lam[is_real].real), np.sort_complex(lam[~is_real & (lam.imag > 0)])
+    real, upper = lam.real[is_real], lam[~is_real & (lam.imag > 0)]     # (copies)
+    real.sort()
+    upper.sort()                                 # (np.sort_complex's order: real, imag)
+    return real, upper
 
 
 def _lstsq_scaled(Mat, rhs):
     """Least squares with unit-norm columns (scipy's gelsd), solution scaled back."""
-    scale = np.linalg.norm(Mat, axis=0)
+    scale = _column_norms(Mat)
     scale[scale == 0] = 1.0
     x = _lstsq(Mat / scale, rhs)
     return x / scale
@@ -191,6 +206,12 @@ def _gelsd(m, n):
     return gelsd, int(work.real), int(iwork)
 
 
+@functools.lru_cache(maxsize=None)
+def _qr_funcs():
+    """LAPACK's (dgeqrf, dormqr), looked up once."""
+    return scipy.linalg.get_lapack_funcs(("geqrf", "ormqr"), dtype=np.float64)
+
+
 def _lstsq(a, b, overwrite=False):
     """``scipy.linalg.lstsq(a, b)[0]`` for a real (m, n) ``a`` and (m,) ``b``: the same
     LAPACK call (dgelsd, ``rcond = eps``, the same workspace), so the same numbers to the
@@ -205,12 +226,12 @@ def _lstsq(a, b, overwrite=False):
     the workspace dgelsd gives them, then dgelsd on the (n, n) ``R``, which repeats the
     rest of that path. The same numbers to the last bit, in about half the time at a
     thousand rows (dgelsd's one call spends more than twice the QR's time there)."""
-    if not (np.all(np.isfinite(a)) and np.all(np.isfinite(b))):
+    if not (np.isfinite(a).all() and np.isfinite(b).all()):
         raise ValueError("array must not contain infs or NaNs")
     m, n = a.shape
     gelsd, lwork, liwork = _gelsd(m, n)
     if m >= max(2 * n, _TALL_ROWS):
-        geqrf, ormqr = scipy.linalg.get_lapack_funcs(("geqrf", "ormqr"), dtype=np.float64)
+        geqrf, ormqr = _qr_funcs()
         qr, tau, _, info = geqrf(a, lwork=lwork - n, overwrite_a=overwrite)
         if info == 0:
             qtb, _, info = ormqr("L", "T", qr, tau, b[:, None], lwork=lwork - n,
@@ -220,7 +241,7 @@ def _lstsq(a, b, overwrite=False):
         return _lstsq(np.array(np.triu(qr[:n]), order="F"), qtb[:n, 0].copy(), overwrite=True)
     if m < n:                                # room for the (n,) solution, as lstsq makes
         b = np.concatenate([b, np.zeros(n - m)])
-    x, _, _, info = gelsd(a, b, lwork, liwork, np.finfo(np.float64).eps, overwrite, overwrite)
+    x, _, _, info = gelsd(a, b, lwork, liwork, _EPS, overwrite, overwrite)
     if info > 0:
         raise np.linalg.LinAlgError("SVD did not converge in Linear Least Squares")
     if info < 0:                                                        # pragma: no cover
@@ -361,22 +382,29 @@ def vectfit(omega, response, n_poles, *, weights=None, weighting="relative", n_i
         raise DataError(f"too few points ({omega.size}) for {n} poles: vector fitting needs "
                         f"2 M >= {n_own + n + 1} (real and imaginary parts); fit fewer poles")
     s = 1j * omega
-    relocate = _relocate_tall if omega.size > _TALL_POINTS else _relocate
-    for _ in range(k_iter):
-        rp, cp = relocate(s, phi, wt, rp, cp, fixed, nd, stable)
+    if omega.size > _TALL_POINTS:
+        for _ in range(k_iter):
+            rp, cp = _relocate_tall(s, phi, wt, rp, cp, fixed, nd, stable)
+    elif k_iter:
+        consts = _constants(s, phi, wt, fixed)
+        for _ in range(k_iter):
+            rp, cp = _relocate(s, phi, wt, rp, cp, fixed, nd, stable, consts)
     return _residues(s, phi, wt, [(rp, cp), fixed], nd, n)
 
 
-def _relocate(s, phi, wt, rp, cp, fixed, nd, stable):
-    """One iteration: the zeros of the fitted sigma -> (real poles, upper members)."""
+def _relocate(s, phi, wt, rp, cp, fixed, nd, stable, consts=None):
+    """One iteration: the zeros of the fitted sigma -> (real poles, upper members).
+    ``consts``: :func:`_constants` of the fit (the same at every iteration), or None to
+    compute them here."""
     m = s.size
-    Phi = _basis(s, rp, cp)                                      # (M, n)
-    n = Phi.shape[1]
-    ones = np.ones((m, 1))
-    sig = np.hstack([Phi, ones])                                 # ct, dt
-    extra = _basis(s, *fixed) if fixed[0].size + fixed[1].size else None
+    n = rp.size + 2 * cp.size
+    sig = np.empty((m, n + 1), complex)                          # ct, dt
+    Phi = _basis(s, rp, cp, out=sig[:, :n])                      # (M, n)
+    sig[:, n] = 1.0
+    extra, norm = _constants(s, phi, wt, fixed) if consts is None else consts
     if phi.shape[0] == 1:
-        return _relocate_one(phi[0], wt[0], Phi, sig, extra, nd, rp, cp, stable)
+        return _relocate_one(phi[0], wt[0], Phi, sig, extra, nd, norm, rp, cp, stable)
+    ones = np.ones((m, 1))
     left = [Phi] + ([] if extra is None else [extra])
     left = np.hstack(left + [ones]) if nd else np.hstack(left)   # c (fixed, own), d
     nl = left.shape[1]
@@ -386,11 +414,23 @@ def _relocate(s, phi, wt, rp, cp, fixed, nd, stable):
         r = np.linalg.qr(np.vstack([Mc.real, Mc.imag]), mode="r")
         rows.append(r[nl:nl + n + 1, nl:])
     K = np.vstack(rows)
-    norm = np.linalg.norm(wt * phi)
-    return _relocated(K, 0, norm, np.real(np.sum(sig, axis=0)), m, n, rp, cp, stable)
+    return _relocated(K, 0, norm, np.add.reduce(sig, axis=0).real, m, n, rp, cp, stable)
 
 
-def _relocate_one(phi, wt, Phi, sig, extra, nd, rp, cp, stable):
+def _constants(s, phi, wt, fixed):
+    """What every relocation of a fit uses unchanged: the fixed poles' basis (None without
+    fixed poles) and ``||wt phi||``, the relaxation's scale."""
+    extra = _basis(s, *fixed) if fixed[0].size + fixed[1].size else None
+    return extra, np.linalg.norm(wt * phi)
+
+
+def _column_norms(a):
+    """``np.linalg.norm(a, axis=0)`` of a real (m, n) ``a``: the same sums (its path for
+    one axis, ``sqrt(add.reduce(conj(a) a))``, whose conjugate of a real array is a copy)."""
+    return np.sqrt(np.add.reduce(a * a, axis=0))
+
+
+def _relocate_one(phi, wt, Phi, sig, extra, nd, norm, rp, cp, stable):
     """:func:`_relocate` of one channel: the stacked problem in all unknowns as it stands,
     ``[Re; Im]`` of ``wt * [Phi, extra, 1 | -phi sig]`` and the relaxation row written
     into one matrix (no stacked copies; each entry the same product as ``wt * M`` in
@@ -408,12 +448,11 @@ def _relocate_one(phi, wt, Phi, sig, extra, nd, rp, cp, stable):
             np.multiply(block.imag, w, out=im[:, cols])
     if nd:
         re[:, nl - 1], im[:, nl - 1] = wt, 0.0
-    norm = np.linalg.norm(wt * phi)
     A[-1, :nl] = 0.0
-    np.multiply(np.real(np.sum(sig, axis=0)), norm / m, out=A[-1, nl:])
+    np.multiply(np.add.reduce(sig, axis=0).real, norm / m, out=A[-1, nl:])
     rhs = np.zeros(2 * m + 1)
     rhs[-1] = norm
-    scale = np.linalg.norm(A, axis=0)
+    scale = _column_norms(A)
     scale[scale == 0] = 1.0
     scaled = np.empty(A.shape, order="F")
     np.divide(A, scale, out=scaled)
@@ -490,7 +529,7 @@ def _new_poles(K, lead, ct, dt, rp, cp, stable):
         dt = _DT_MIN if dt >= 0 else -_DT_MIN
         ct = _lstsq_scaled(K[:, :-1], -dt * K[:, -1])[lead:]
     A, b = _state_matrices(rp, cp)
-    lam = np.linalg.eigvals(A - np.outer(b, ct) / dt)
+    lam = np.linalg.eigvals(A - b[:, None] * ct / dt)          # (np.outer's products)
     if stable:
         lam = np.where(lam.real > 0, -np.conj(lam), lam)
     return _split_eigs(lam)
