@@ -230,3 +230,35 @@ def test_one_channel_relocation_is_the_stacked_problem(fixed, weights):
     for g_, w_ in zip(got, want):
         assert g_.shape == w_.shape
         assert np.all(np.abs(g_ - w_) <= 1e-12 * np.abs(w_))
+
+
+def test_relocation_pieces_are_the_per_pole_formulas():
+    """The basis, the state matrices and the column norms a relocation forms for all poles
+    at once are, to the last bit, the one-pole-at-a-time formulas they replace
+    (``1/(s - a)``; ``u + v`` and ``j u - j v`` with ``u = 1/(s - a)``, ``v = 1/(s - a*)``;
+    Gustavsen's 2 x 2 blocks; numpy's norm of each column): the relocations give the
+    same poles as before, whatever the pole count."""
+    import importlib
+
+    vf = importlib.import_module("freqid_casadi.baselines.vectfit")
+    rng = np.random.default_rng(11)
+    for n_real, n_pairs in [(0, 1), (1, 0), (1, 3), (2, 6), (0, 12)]:
+        rp = -rng.uniform(0.1, 50, n_real)
+        cp = -rng.uniform(0.01, 5, n_pairs) + 1j * rng.uniform(1, 90, n_pairs)
+        cols = [1.0 / (S - a) for a in rp]
+        rows_a = np.zeros((n_real + 2 * n_pairs,) * 2)
+        b = np.zeros(n_real + 2 * n_pairs)
+        for k, a in enumerate(rp):
+            rows_a[k, k], b[k] = a, 1.0
+        for j, a in enumerate(cp):
+            u, v = 1.0 / (S - a), 1.0 / (S - np.conj(a))
+            cols += [u + v, 1j * u - 1j * v]
+            k = n_real + 2 * j
+            rows_a[k:k + 2, k:k + 2] = [[a.real, a.imag], [-a.imag, a.real]]
+            b[k] = 2.0
+        basis = vf._basis(S, rp, cp)
+        assert np.array_equal(basis, np.stack(cols, axis=1))
+        state, b_got = vf._state_matrices(rp, cp)
+        assert np.array_equal(state, rows_a) and np.array_equal(b_got, b)
+        real = np.vstack([basis.real, basis.imag]) * 10.0 ** rng.uniform(-5, 5)
+        assert np.array_equal(vf._column_norms(real), np.linalg.norm(real, axis=0))
