@@ -35,8 +35,8 @@ __all__ = ["VectorFit", "vectfit", "fit_residues", "initial_poles"]
 
 # |Im p| <= _REAL_RTOL |p|: a real pole (the eigenvalues of a real matrix).
 _REAL_RTOL = 1e-12
-_TINY = np.finfo(float).tiny
-_EPS = np.finfo(np.float64).eps
+_TINY = np.finfo(float).tiny          # the smallest normal float (a zero eigenvalue's scale)
+_EPS = np.finfo(np.float64).eps       # dgelsd's rcond, as scipy.linalg.lstsq passes it
 # |dt| below this is fixed to it (with its sign) and sigma re-fitted without the relaxation.
 _DT_MIN = 1e-8
 # Frequencies above which each least-squares problem is reduced chunk by chunk to its R
@@ -200,7 +200,7 @@ def _gelsd(m, n):
     asked once per shape."""
     gelsd, gelsd_lwork = scipy.linalg.get_lapack_funcs(("gelsd", "gelsd_lwork"),
                                                         dtype=np.float64)
-    work, iwork, info = gelsd_lwork(m, n, 1, np.finfo(np.float64).eps)
+    work, iwork, info = gelsd_lwork(m, n, 1, _EPS)
     if info != 0:                                                       # pragma: no cover
         raise ValueError(f"LAPACK dgelsd's workspace query failed (info={info})")
     return gelsd, int(work.real), int(iwork)
@@ -404,9 +404,8 @@ def _relocate(s, phi, wt, rp, cp, fixed, nd, stable, consts=None):
     extra, norm = _constants(s, phi, wt, fixed) if consts is None else consts
     if phi.shape[0] == 1:
         return _relocate_one(phi[0], wt[0], Phi, sig, extra, nd, norm, rp, cp, stable)
-    ones = np.ones((m, 1))
     left = [Phi] + ([] if extra is None else [extra])
-    left = np.hstack(left + [ones]) if nd else np.hstack(left)   # c (fixed, own), d
+    left = np.hstack(left + [sig[:, n:]]) if nd else np.hstack(left)  # c (fixed, own), d
     nl = left.shape[1]
     rows = []                                   # each channel's own unknowns eliminated
     for c in range(phi.shape[0]):
