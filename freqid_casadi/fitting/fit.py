@@ -37,7 +37,7 @@ import numpy as np
 
 from .alternatives import ORIGIN_AUTO, free_zeros_alternative, origin_auto
 from .candidates import NEAR, Candidate, choose, zero_delay_run
-from .core_fits import core_fits, either_sign_fits
+from .core_fits import core_fits, either_sign_fits, settle_on_subset
 from ._checks import (GAIN_SIGNS, after_fit, check_model_class, validate, verdict,
                       zeta_min_of)
 from .._validate import check_choice, check_flag, check_jobs
@@ -313,7 +313,11 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
         starts of a few candidates (:mod:`freqid_casadi.fitting.origin`), recorded in
         ``details["integrator"]`` and ``options.integrator`` (``options.integrator_auto``
         True); an ``integrator`` diagnostic states a choice other than 0, or says "pass
-        integrator=..." with the errors of each choice when the data do not decide.
+        integrator=..." with the errors of each choice when the data do not decide. Above
+        :data:`~freqid_casadi.fitting.core_fits.SETTLE_ABOVE` frequencies the k the
+        starts leave undecided are fitted on a subset of the points, when it represents
+        them (:func:`~freqid_casadi.fitting.core_fits.settle_on_subset`), and the kept k
+        on all.
     delay : bool
         Fit a delay h >= 0 (else h = 0).
     basis : {"second-order", "first-order"}
@@ -452,6 +456,15 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
                     _warn_unresolved(kept, 4)                             # its warning
                 return _with_origin_record(results[record["chosen"]], record,
                                            origin_diagnostics(record, data))
+            # many points: the contenders' fits on every k-th point settle the choice when
+            # that subset represents each one's residual; the kept k is fitted on all
+            settled = settle_on_subset(_quiet_fit, _sign_guess, data, record, n_jobs,
+                                       dict(kw, n_sections=n_sections, delay=delay))
+            if settled is not None:
+                result = _fit_resolved(data_or_omega, response, n_sections, delay, fixed,
+                                       weights, emit, dict(kw, integrator=check_origin_order(
+                                           settled["chosen"])))
+                return _with_origin_record(result, settled, origin_diagnostics(settled, data))
             # several contenders (the starts do not decide): each one's fit of the starts
             # and candidates settles the choice (quiet); the layers after it (the delay hold,
             # the zeros="free" alternative, the resolution guard) run for the chosen one only,

@@ -405,8 +405,11 @@ def origin_diagnostics(record, data):
                       for j in sorted(rms, key=lambda j: (abs(j), j)))
     table = f"rational starts: {table}"
     if "fit_rms" in record:
-        table += "; fits: " + "; ".join(f"integrator={spell_origin(j)}: RMS {v:.3g}"
-                                       for j, v in record["fit_rms"].items())
+        on = record.get("settled_on")
+        fits = ("fits" if not on else f"fits on {on['points']} of the {on['of']} points "
+                "(the kept k then on all), their RMS on all")
+        table += f"; {fits}: " + "; ".join(f"integrator={spell_origin(j)}: RMS {v:.3g}"
+                                          for j, v in record["fit_rms"].items())
     values = {"chosen": k, "candidates": record["candidates"],
               "rms": [rms[j] for j in record["candidates"]],
               "low_frequency_slope": record["low_frequency_slope"]}
