@@ -1,0 +1,176 @@
+"""Check of ``integrator="auto"`` settling its contenders on a subset of the points.
+
+Above :data:`~freqid_casadi.fitting.core_fits.SETTLE_ABOVE` frequencies the contenders of
+``integrator="auto"`` (the pole counts at the origin the rational starts leave undecided)
+are fitted on :data:`~freqid_casadi.fitting.core_fits.SETTLE_POINTS` of the points and the
+kept k on all. This script measures what that changes: the validation corpus's systems
+(``freqid_casadi.systems.corpus.case``, seed 0) sampled at ``--points`` frequencies over
+each case's band and spacing, with its noise profile interpolated (complex Gaussian
+relative noise, seeded per case), each fitted with the default options twice in one
+worker process, one right after the other: with the subset, then with the contenders on
+all points (``SETTLE_ABOVE`` raised beyond the data: the code path before the subset). A
+case whose starts leave one contender takes the same path both ways and is fitted once.
+
+Usage::
+
+    python scripts/settle_check.py [--points 20000] [--cases 0:300:10] [--workers 2]
+                                   [--out results]
+
+Writes ``<out>/settle_check.md`` (first line: this command) and ``<out>/settle_check.json``.
+"""
+
+import argparse
+import json
+import math
+import multiprocessing
+import os
+import sys
+import time
+import warnings
+
+import numpy as np
+
+ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+sys.path.insert(0, ROOT)
+
+import freqid_casadi as fc  # noqa: E402
+from freqid_casadi.core.data import FrequencyData  # noqa: E402
+from freqid_casadi.fitting import core_fits  # noqa: E402
+from freqid_casadi.report.environment import computed_on_lines, environment  # noqa: E402
+from freqid_casadi.report.folder import atomic_write_text  # noqa: E402
+from freqid_casadi.systems.corpus import case  # noqa: E402
+
+
+def dense_case(index, points):
+    """``(case, FrequencyData)``: case ``index`` (seed 0) sampled at ``points``
+    frequencies over its band (log or linear, as the case), its noise profile
+    interpolated in log frequency, the noise seeded by the index."""
+    c = case(index, 0, max_points=5000)
+    w = c.data.omega
+    omega = (np.linspace(w[0], w[-1], points) if c.spacing == "linear"
+             else np.geomspace(w[0], w[-1], points))
+    sigma = np.interp(np.log(omega), np.log(w), c.sigma)
+    rng = np.random.default_rng(1000 + index)
+    noise = (rng.standard_normal(points) + 1j * rng.standard_normal(points)) / math.sqrt(2)
+    weights = 1 / sigma ** 2 if c.variance_given and np.all(sigma > 0) else None
+    return c, FrequencyData(omega, c.truth(omega) * (1 + sigma * noise), c.name, weights)
+
+
+def _fit(data, n_sections):
+    t0 = time.process_time()
+    res = fc.fit(data, n_sections=n_sections)
+    rec = res.details.get("integrator", {})
+    return {"cpu": time.process_time() - t0, "k": int(res.model.origin_order),
+            "sign": int(res.model.structure.gain_sign), "rms": float(res.rms_rel_error),
+            "max": float(res.max_rel_error), "status": str(res.status.value),
+            "contenders": rec.get("contenders"), "settled_on": rec.get("settled_on"),
+            "beta": [float(b) for b in res.model.beta]}
+
+
+def check_case(task):
+    """One case: the fit with the subset, then (several contenders) on all points."""
+    index, points = task
+    warnings.simplefilter("ignore")
+    c, data = dense_case(index, points)
+    row = {"index": index, "name": c.name, "spacing": c.spacing,
+           "n_sections": int(c.n_sections)}
+    try:
+        row["subset"] = _fit(data, c.n_sections)
+        if len(row["subset"]["contenders"] or ()) > 1:
+            above = core_fits.SETTLE_ABOVE
+            core_fits.SETTLE_ABOVE = math.inf
+            try:
+                row["all"] = _fit(data, c.n_sections)
+            finally:
+                core_fits.SETTLE_ABOVE = above
+    except Exception as exc:                       # noqa: BLE001 (reported, not hidden)
+        row["error"] = f"{type(exc).__name__}: {exc}"
+    print(f"  {c.name}: {row.get('subset', {}).get('cpu', math.nan):.1f} s"
+          + (f" / {row['all']['cpu']:.1f} s" if "all" in row else ""), file=sys.stderr)
+    return row
+
+
+def summary(rows):
+    several = [r for r in rows if "all" in r]
+    same = [r for r in several if r["subset"]["beta"] == r["all"]["beta"]
+            and r["subset"]["status"] == r["all"]["status"]]
+    ratios = np.array([r["subset"]["cpu"] / r["all"]["cpu"] for r in several])
+    out = {"cases": len(rows), "errors": sum("error" in r for r in rows),
+           "several": len(several), "same": len(same),
+           "settled": sum(bool(r["subset"]["settled_on"]) for r in several)}
+    if several:
+        out.update(cpu_subset=float(sum(r["subset"]["cpu"] for r in several)),
+                   cpu_all=float(sum(r["all"]["cpu"] for r in several)),
+                   ratio_quartiles=[float(q) for q in np.percentile(ratios, [25, 50, 75])],
+                   ratio_max=float(ratios.max()), slower=int(np.sum(ratios > 1)))
+    return out
+
+
+def markdown(command, points, rows, s, env):
+    lines = [f"<!-- generated by: {command} -->", "",
+             "# integrator='auto' on a subset of many points", "",
+             *computed_on_lines(env),
+             f"The corpus's systems sampled at {points} frequencies (above SETTLE_ABOVE = "
+             f"{core_fits.SETTLE_ABOVE}), each fitted with the default options with the "
+             f"subset ({core_fits.SETTLE_POINTS} points) and with the contenders on all "
+             "points, in one process one after the other; a case with one contender takes "
+             "the same path both ways and is fitted once. CPU seconds.", "",
+             "| case | contenders | settled on | k (subset / all) | RMS (subset / all) | "
+             "status | same bits | CPU subset (s) | CPU all (s) |",
+             "|---|---|---|---|---|---|---|---:|---:|"]
+    for r in rows:
+        if "error" in r:
+            lines.append(f"| {r['name']} | {r['error']} | | | | | | | |")
+            continue
+        a, b = r["subset"], r.get("all")
+        on = a["settled_on"]
+        lines.append(
+            f"| {r['name']} | {a['contenders']} | "
+            + (f"{on['points']} of {on['of']}" if on else "all points") + " | "
+            + (f"{a['k']} / {b['k']} | {a['rms']:.4g} / {b['rms']:.4g} | {a['status']} / "
+               f"{b['status']} | {'yes' if a['beta'] == b['beta'] else 'no'} | "
+               f"{a['cpu']:.1f} | {b['cpu']:.1f} |" if b else
+               f"{a['k']} | {a['rms']:.4g} | {a['status']} | (one path) | {a['cpu']:.1f} | |"))
+    lines += ["", f"Cases: {s['cases']} ({s['errors']} errors); with several contenders: "
+              f"{s['several']}, settled on the subset: {s['settled']}, the same model and "
+              f"status to the last bit: {s['same']}."]
+    if s["several"]:
+        q = s["ratio_quartiles"]
+        lines += ["", f"CPU of the cases with several contenders: {s['cpu_all']:.0f} s with "
+                  f"the contenders on all points, {s['cpu_subset']:.0f} s with the subset "
+                  f"({s['cpu_subset'] / s['cpu_all']:.2f}); per case the ratio's quartiles "
+                  f"{q[0]:.2f}, {q[1]:.2f}, {q[2]:.2f}, at most {s['ratio_max']:.2f}; "
+                  f"{s['slower']} took longer with the subset."]
+    return "\n".join(lines) + "\n"
+
+
+def main(argv=None):
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--points", type=int, default=20_000)
+    ap.add_argument("--cases", default="0:300:10", help="start:stop:step of case indices")
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--out", default="results")
+    args = ap.parse_args(argv)
+    start, stop, step = (int(x) for x in args.cases.split(":"))
+    if args.points <= core_fits.SETTLE_ABOVE:
+        ap.error(f"--points must exceed SETTLE_ABOVE = {core_fits.SETTLE_ABOVE}")
+    tasks = [(i, args.points) for i in range(start, stop, step)]
+    command = "python scripts/settle_check.py" + "".join(
+        f" --{k} {v}" for k, v in (("points", args.points), ("cases", args.cases),
+                                   ("workers", args.workers), ("out", args.out))
+        if v != ap.get_default(k))
+    with multiprocessing.get_context("spawn").Pool(args.workers) as pool:
+        rows = pool.map(check_case, tasks, chunksize=1)
+    s = summary(rows)
+    text = markdown(command, args.points, rows, s, environment())
+    os.makedirs(args.out, exist_ok=True)
+    atomic_write_text(os.path.join(args.out, "settle_check.md"), text)
+    atomic_write_text(os.path.join(args.out, "settle_check.json"), json.dumps(
+        {"command": command, "points": args.points, "summary": s, "rows": rows},
+        indent=1) + "\n")
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
