@@ -27,7 +27,7 @@ from ..core.scaling import weighted_span
 from ..options import LoopOptions
 from .diagnostics import Diagnostic
 from ..errors import FreqidError
-from .origin import _effective_order, settle_by_fits
+from .origin import settle_by_results
 from .start import START_POINTS, _subsample
 from .verdict import ROUNDING_RMS
 
@@ -182,7 +182,7 @@ def settle_on_subset(fit_one, sign_guess, data, record, n_jobs, kw):
     Each contender is fitted on the subset (its core fit, :func:`core_fits`) with the
     delay bound and damping floor of all the points (the subset's coarser spacing would
     lower the first and raise the second); the choice (:func:`~freqid_casadi.fitting.
-    origin.settle_by_fits`) compares the RMS relative error of each contender's model on
+    origin.settle_by_results`) compares the RMS relative error of each contender's model on
     all points.
 
     Parameters
@@ -202,7 +202,7 @@ def settle_on_subset(fit_one, sign_guess, data, record, n_jobs, kw):
     Returns
     -------
     dict or None
-        The settled record (:func:`~freqid_casadi.fitting.origin.settle_by_fits`), its
+        The settled record (:func:`~freqid_casadi.fitting.origin.settle_by_results`), its
         ``"fit_rms"`` the RMS on all points of each contender's model fitted on the subset,
         and ``"settled_on"``: ``{"points": subset size, "of": data's points}``.
     """
@@ -232,7 +232,5 @@ def settle_on_subset(fit_one, sign_guess, data, record, n_jobs, kw):
         lo, hi = sorted((max(rms[k], ROUNDING_RMS), max(res.rms_rel_error, ROUNDING_RMS)))
         if not (math.isfinite(hi) and hi <= SETTLE_AGREEMENT * lo):
             return None
-    omega_min = float(data.omega[0])
-    settled = settle_by_fits(record, rms, {k: _effective_order(r.model, omega_min)
-                                           for k, r in fits.items()})
+    settled = settle_by_results(record, fits, data, rms)
     return dict(settled, settled_on={"points": int(sub.n_points), "of": int(data.n_points)})

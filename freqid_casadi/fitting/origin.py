@@ -313,7 +313,7 @@ def settle_by_fits(record, fits, effective=None):
                 fit_rms={int(k): float(v) for k, v in fits.items()})
 
 
-def settle_by_results(record, results, data):
+def settle_by_results(record, results, data, rms=None):
     """:func:`settle_by_fits` of the contenders' fits.
 
     Parameters
@@ -324,6 +324,9 @@ def settle_by_results(record, results, data):
         Each contender k to ``fit(..., integrator=k)``.
     data : FrequencyData
         The data fitted (its lowest frequency bounds the band).
+    rms : dict of int to float, optional
+        Each contender's RMS relative error to compare (default: its fit's own,
+        ``rms_rel_error``).
 
     Returns
     -------
@@ -331,7 +334,9 @@ def settle_by_results(record, results, data):
         As :func:`settle_by_fits`, each contender's effective k from its fitted model.
     """
     omega_min = float(data.omega[0])
-    return settle_by_fits(record, {k: r.rms_rel_error for k, r in results.items()},
+    if rms is None:
+        rms = {k: r.rms_rel_error for k, r in results.items()}
+    return settle_by_fits(record, rms,
                           {int(k): _effective_order(r.model, omega_min)
                            for k, r in results.items()})
 
