@@ -16,6 +16,8 @@ Usage::
     python scripts/settle_check.py [--points 20000] [--cases 0:300:10] [--workers 2]
                                    [--out results]
 
+``--cases`` takes ``start:stop:step`` or a comma-separated list of case indices.
+
 Writes ``<out>/settle_check.md`` (first line: this command) and ``<out>/settle_check.json``.
 """
 
@@ -147,14 +149,19 @@ def markdown(command, points, rows, s, env):
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=20_000)
-    ap.add_argument("--cases", default="0:300:10", help="start:stop:step of case indices")
+    ap.add_argument("--cases", default="0:300:10",
+                    help="start:stop:step of case indices, or a comma-separated list")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default="results")
     args = ap.parse_args(argv)
-    start, stop, step = (int(x) for x in args.cases.split(":"))
+    try:
+        indices = (range(*(int(x) for x in args.cases.split(":"))) if ":" in args.cases
+                   else [int(x) for x in args.cases.split(",")])
+    except (TypeError, ValueError):
+        ap.error(f"--cases takes start:stop:step or i,j,k, got {args.cases!r}")
     if args.points <= core_fits.SETTLE_ABOVE:
         ap.error(f"--points must exceed SETTLE_ABOVE = {core_fits.SETTLE_ABOVE}")
-    tasks = [(i, args.points) for i in range(start, stop, step)]
+    tasks = [(i, args.points) for i in indices]
     command = "python scripts/settle_check.py" + "".join(
         f" --{k} {v}" for k, v in (("points", args.points), ("cases", args.cases),
                                    ("workers", args.workers), ("out", args.out))
