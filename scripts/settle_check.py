@@ -1,15 +1,17 @@
-"""Check of ``integrator="auto"`` settling its contenders on a subset of the points.
+"""Check of the choices a fit of many points settles on a subset of them.
 
 Above :data:`~freqid_casadi.fitting.core_fits.SETTLE_ABOVE` frequencies the contenders of
 ``integrator="auto"`` (the pole counts at the origin the rational starts leave undecided)
-are fitted on :data:`~freqid_casadi.fitting.core_fits.SETTLE_POINTS` of the points and the
-kept k on all. This script measures what that changes: the validation corpus's systems
+and the two gain signs where the starts do not decide the sign are fitted on
+:data:`~freqid_casadi.fitting.core_fits.SETTLE_POINTS` of the points, and the kept k or
+sign on all. This script measures what that changes: the validation corpus's systems
 (``freqid_casadi.systems.corpus.case``, seed 0) sampled at ``--points`` frequencies over
 each case's band and spacing, with its noise profile interpolated (complex Gaussian
 relative noise, seeded per case), each fitted with the default options twice in one
-worker process, one right after the other: with the subset, then with the contenders on
-all points (``SETTLE_ABOVE`` raised beyond the data: the code path before the subset). A
-case whose starts leave one contender takes the same path both ways and is fitted once.
+worker process, one right after the other: with the subset, then with the contenders and
+signs on all points (``SETTLE_ABOVE`` raised beyond the data: the code path before the
+subset). A case whose fit tried no subset (one contender, a sign the starts decide) takes
+the same path both ways and is fitted once.
 
 Usage::
 
@@ -38,6 +40,7 @@ sys.path.insert(0, ROOT)
 import freqid_casadi as fc  # noqa: E402
 from freqid_casadi.core.data import FrequencyData  # noqa: E402
 from freqid_casadi.fitting import core_fits  # noqa: E402
+from freqid_casadi.fitting import fit as fit_module  # noqa: E402
 from freqid_casadi.report.environment import computed_on_lines, environment  # noqa: E402
 from freqid_casadi.report.folder import atomic_write_text  # noqa: E402
 from freqid_casadi.systems.corpus import case  # noqa: E402
@@ -59,10 +62,22 @@ def dense_case(index, points):
 
 
 def _fit(data, n_sections):
+    signs = []                 # what each settle of the gain sign on the subset gave
+    settle = fit_module.sign_on_subset
+
+    def counted(*args):
+        found = settle(*args)
+        signs.append(None if found is None else int(found[0]))
+        return found
+
+    fit_module.sign_on_subset = counted
     t0 = time.process_time()
-    res = fc.fit(data, n_sections=n_sections)
+    try:
+        res = fc.fit(data, n_sections=n_sections)
+    finally:
+        fit_module.sign_on_subset = settle
     rec = res.details.get("integrator", {})
-    return {"cpu": time.process_time() - t0, "k": int(res.model.origin_order),
+    return {"cpu": time.process_time() - t0, "signs": signs, "k": int(res.model.origin_order),
             "sign": int(res.model.structure.gain_sign), "rms": float(res.rms_rel_error),
             "max": float(res.max_rel_error), "status": str(res.status.value),
             "contenders": rec.get("contenders"), "settled_on": rec.get("settled_on"),
@@ -70,7 +85,7 @@ def _fit(data, n_sections):
 
 
 def check_case(task):
-    """One case: the fit with the subset, then (several contenders) on all points."""
+    """One case: the fit with the subset, then (where it tried one) on all points."""
     index, points = task
     warnings.simplefilter("ignore")
     c, data = dense_case(index, points)
@@ -78,7 +93,7 @@ def check_case(task):
            "n_sections": int(c.n_sections)}
     try:
         row["subset"] = _fit(data, c.n_sections)
-        if len(row["subset"]["contenders"] or ()) > 1:
+        if len(row["subset"]["contenders"] or ()) > 1 or row["subset"]["signs"]:
             above = core_fits.SETTLE_ABOVE
             core_fits.SETTLE_ABOVE = math.inf
             try:
@@ -99,7 +114,9 @@ def summary(rows):
     ratios = np.array([r["subset"]["cpu"] / r["all"]["cpu"] for r in several])
     out = {"cases": len(rows), "errors": sum("error" in r for r in rows),
            "several": len(several), "same": len(same),
-           "settled": sum(bool(r["subset"]["settled_on"]) for r in several)}
+           "settled": sum(bool(r["subset"]["settled_on"]) for r in several),
+           "signs_tried": sum(len(r["subset"]["signs"]) for r in several),
+           "signs_settled": sum(x is not None for r in several for x in r["subset"]["signs"])}
     if several:
         out.update(cpu_subset=float(sum(r["subset"]["cpu"] for r in several)),
                    cpu_all=float(sum(r["all"]["cpu"] for r in several)),
@@ -108,41 +125,53 @@ def summary(rows):
     return out
 
 
+def _signs(a):
+    """The sign settles of one fit: each subset's kept sign, "-" where it fell back."""
+    return ", ".join("-" if x is None else f"{x:+d}" for x in a["signs"]) or "none"
+
+
 def markdown(command, points, rows, s, env):
     lines = [f"<!-- generated by: {command} -->", "",
-             "# integrator='auto' on a subset of many points", "",
+             "# Choices settled on a subset of many points", "",
              *computed_on_lines(env),
              f"The corpus's systems sampled at {points} frequencies (above SETTLE_ABOVE = "
              f"{core_fits.SETTLE_ABOVE}), each fitted with the default options with the "
-             f"subset ({core_fits.SETTLE_POINTS} points) and with the contenders on all "
-             "points, in one process one after the other; a case with one contender takes "
-             "the same path both ways and is fitted once. CPU seconds.", "",
-             "| case | contenders | settled on | k (subset / all) | RMS (subset / all) | "
-             "status | same bits | CPU subset (s) | CPU all (s) |",
-             "|---|---|---|---|---|---|---|---:|---:|"]
+             f"subset ({core_fits.SETTLE_POINTS} points) and with the contenders of "
+             "integrator='auto' and both gain signs (where the rational starts leave them "
+             "undecided) on all points, in one process one after the other; a case whose "
+             "fit tried no subset takes the same path both ways and is fitted once. "
+             "`contenders`: integrator='auto''s; `settled on`: where they were settled; "
+             "`gain signs on the subset`: each settle of the sign the fit tried (its core "
+             "fit's and its refits'), the kept sign or \"-\" where the subset did not "
+             "decide. CPU seconds.", "",
+             "| case | contenders | settled on | gain signs on the subset | k (subset / all) "
+             "| RMS (subset / all) | status | same bits | CPU subset (s) | CPU all (s) |",
+             "|---|---|---|---|---|---|---|---|---:|---:|"]
     for r in rows:
         if "error" in r:
-            lines.append(f"| {r['name']} | {r['error']} | | | | | | | |")
+            lines.append(f"| {r['name']} | {r['error']} | | | | | | | | |")
             continue
         a, b = r["subset"], r.get("all")
         on = a["settled_on"]
         lines.append(
             f"| {r['name']} | {a['contenders']} | "
-            + (f"{on['points']} of {on['of']}" if on else "all points") + " | "
+            + (f"{on['points']} of {on['of']}" if on else "all points") + f" | {_signs(a)} | "
             + (f"{a['k']} / {b['k']} | {a['rms']:.4g} / {b['rms']:.4g} | {a['status']} / "
                f"{b['status']} | {'yes' if a['beta'] == b['beta'] else 'no'} | "
                f"{a['cpu']:.1f} | {b['cpu']:.1f} |" if b else
                f"{a['k']} | {a['rms']:.4g} | {a['status']} | (one path) | {a['cpu']:.1f} | |"))
-    lines += ["", f"Cases: {s['cases']} ({s['errors']} errors); with several contenders: "
-              f"{s['several']}, settled on the subset: {s['settled']}, the same model and "
-              f"status to the last bit: {s['same']}."]
+    lines += ["", f"Cases: {s['cases']} ({s['errors']} errors); fitted both ways (a subset "
+              f"tried): {s['several']}, of which the contenders settled on the subset: "
+              f"{s['settled']}; settles of the gain sign tried: {s['signs_tried']}, decided "
+              f"on the subset: {s['signs_settled']}; the same model and status to the last "
+              f"bit: {s['same']} of {s['several']}."]
     if s["several"]:
         q = s["ratio_quartiles"]
-        lines += ["", f"CPU of the cases with several contenders: {s['cpu_all']:.0f} s with "
-                  f"the contenders on all points, {s['cpu_subset']:.0f} s with the subset "
-                  f"({s['cpu_subset'] / s['cpu_all']:.2f}); per case the ratio's quartiles "
-                  f"{q[0]:.2f}, {q[1]:.2f}, {q[2]:.2f}, at most {s['ratio_max']:.2f}; "
-                  f"{s['slower']} took longer with the subset."]
+        lines += ["", f"CPU of the cases fitted both ways: {s['cpu_all']:.0f} s with the "
+                  f"contenders and signs on all points, {s['cpu_subset']:.0f} s with the "
+                  f"subset ({s['cpu_subset'] / s['cpu_all']:.2f}); per case the ratio's "
+                  f"quartiles {q[0]:.2f}, {q[1]:.2f}, {q[2]:.2f}, at most "
+                  f"{s['ratio_max']:.2f}; {s['slower']} took longer with the subset."]
     return "\n".join(lines) + "\n"
 
 

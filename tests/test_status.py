@@ -204,6 +204,56 @@ def test_gain_sign_the_starts_do_not_decide_is_fitted_both_ways():
     forced = fc.fit(data, n_sections=1, integrator=False, gain_sign="positive")
     assert forced.rms_rel_error == pytest.approx(both["K > 0"], rel=1e-9)
     assert [d.code for d in res.diagnostics][0] == "negative-gain"
+
+
+def test_many_points_settle_the_gain_sign_on_a_subset(monkeypatch):
+    """Above SETTLE_ABOVE points the two signs are fitted on SETTLE_POINTS of them and
+    the kept sign on all: here both lowered so that the ring slot (101 points, 1
+    section) is fitted on 34. The subset's models give on all points RMS 0.754 (K > 0)
+    and 0.551 (K < 0) (measured; each within SETTLE_AGREEMENT of its RMS on the subset,
+    and apart by more than it), so K < 0 is kept, as both fits on all points keep it
+    (0.754 against 0.514), and the result is the explicit gain_sign='negative' fit's
+    model, bit for bit."""
+    from freqid_casadi.fitting import core_fits
+
+    data = fc.systems.measured("ring_slot_s11")
+    monkeypatch.setattr(core_fits, "SETTLE_ABOVE", 50)
+    monkeypatch.setattr(core_fits, "SETTLE_POINTS", 34)
+    res = fc.fit(data, n_sections=1, integrator=False)
+    record = res.details["gain_sign"]
+    assert record["settled_on"] == {"points": 34, "of": 101}
+    assert record["by"] == "fits" and record["chosen"] == -1
+    assert 1.2 * record["rms"]["K < 0"] < record["rms"]["K > 0"]     # 0.551 against 0.754
+    # the record's RMS are the subset's models' on all points; the kept fit's own is lower
+    assert res.rms_rel_error < record["rms"]["K < 0"]
+    assert "both signs were fitted (on 34 of the 101 points; their models' RMS on all points:" \
+        in res.diagnostics[0].message
+    explicit = fc.fit(data, n_sections=1, integrator=False, gain_sign="negative")
+    assert res.model == explicit.model and res.rms_rel_error == explicit.rms_rel_error
+
+
+def test_a_subset_that_misses_the_data_leaves_both_signs_on_all_points(monkeypatch):
+    """The ring slot at 2 sections on every second point: the K < 0 model fitted on the
+    subset has on all points an RMS beyond SETTLE_AGREEMENT times its RMS on the subset,
+    so both signs are fitted on all points, as without the subset (the record's RMS are
+    then those fits' own). The free-zeros alternative's refit is too close to call on the
+    subset (its two models' RMS on all points 0.0766 and 0.0782, measured): both signs
+    are fitted on all points there too."""
+    from freqid_casadi.fitting import core_fits
+    from freqid_casadi.fitting import fit as fit_module
+
+    tried = []
+    settle = fit_module.sign_on_subset
+    monkeypatch.setattr(core_fits, "SETTLE_ABOVE", 50)
+    monkeypatch.setattr(core_fits, "SETTLE_POINTS", 51)
+    monkeypatch.setattr(fit_module, "sign_on_subset",
+                        lambda *a: tried.append(settle(*a)) or tried[-1])
+    data = fc.systems.measured("ring_slot_s11")
+    res = fc.fit(data, n_sections=2, integrator=False)
+    record = res.details["gain_sign"]
+    assert len(tried) == 2 and tried[0] is None and tried[1] is None
+    assert "settled_on" not in record
+    assert res.rms_rel_error == min(record["rms"].values())
     assert "both signs were fitted" in res.diagnostics[0].message
 
 

@@ -32,7 +32,8 @@ from .start import START_POINTS, _subsample
 from .verdict import ROUNDING_RMS
 
 __all__ = ["either_sign", "either_sign_fits", "core_fits", "settle_on_subset",
-           "SETTLE_ABOVE", "SETTLE_POINTS", "SETTLE_AGREEMENT"]
+           "settles_on_subset", "sign_on_subset", "settled_sign_fit", "SETTLE_ABOVE",
+           "SETTLE_POINTS", "SETTLE_AGREEMENT"]
 
 #: Above this many frequencies (the most the rational starts see: beyond, they take every
 #: k-th point) ``integrator="auto"`` settles its contenders on a subset of the points
@@ -73,9 +74,20 @@ def either_sign(guess, fits):
     """
     kept = min(fits, key=lambda s: (fits[s].rms_rel_error, s != guess))
     res, other = fits[kept], fits[-kept]
-    both = {"K > 0" if s > 0 else "K < 0": float(fits[s].rms_rel_error) for s in fits}
+    res = _signed(res, kept, {s: float(fits[s].rms_rel_error) for s in fits})
+    return dataclasses.replace(res, wall_time=res.wall_time + other.wall_time)
+
+
+def _signed(res, kept, rms, settled_on=None):
+    """``res`` (fitted with gain sign ``kept``) with the record of the sign's choice
+    (``rms``: {sign: RMS}, in the order the signs were fitted; ``settled_on``: the subset the two signs were fitted on)."""
+    both = {"K > 0" if s > 0 else "K < 0": rms[s] for s in rms}
     record = {"chosen": kept, "by": "fits", "rms": both}
     text = "; ".join(f"{k}: RMS {v:.3g}" for k, v in both.items())
+    if settled_on is not None:
+        record["settled_on"] = settled_on
+        text = (f"on {settled_on['points']} of the {settled_on['of']} points; their models' "
+                f"RMS on all points: {text}")
     found = res.diagnostics
     if kept < 0:
         found = (Diagnostic("negative-gain", (
@@ -83,9 +95,8 @@ def either_sign(guess, fits):
             f"({text}): fitted with a negative gain (gain_sign='auto'; pass "
             "gain_sign='positive' to force K > 0)"), "info",
             {"rms_positive": both["K > 0"], "rms_negative": both["K < 0"]}),) + found
-    return dataclasses.replace(
-        res, diagnostics=found, details=dict(res.details, gain_sign=record),
-        wall_time=res.wall_time + other.wall_time)
+    return dataclasses.replace(res, diagnostics=found, details=dict(res.details,
+                                                                    gain_sign=record))
 
 
 def core_fits(fit_one, sign_guess, args, ks, k, emit, n_jobs, kw):
@@ -206,8 +217,27 @@ def settle_on_subset(fit_one, sign_guess, data, record, n_jobs, kw):
         ``"fit_rms"`` the RMS on all points of each contender's model fitted on the subset,
         and ``"settled_on"``: ``{"points": subset size, "of": data's points}``.
     """
-    if data.n_points <= SETTLE_ABOVE:
+    if not settles_on_subset(data.n_points):
         return None
+    ks = record["contenders"]
+    try:                            # (e.g. no point of the subset with a weight > 0)
+        sub, sub_kw = _subset(data, kw)
+        fits = core_fits(fit_one, sign_guess, (sub, None), ks, ks[0], lambda rec: None,
+                         n_jobs, sub_kw)
+    except FreqidError:
+        return None
+    rms = {k: _rms_on_all(res, data) for k, res in fits.items()}
+    if None in rms.values():
+        return None
+    settled = settle_by_results(record, fits, data, rms)
+    return dict(settled, settled_on={"points": int(sub.n_points), "of": int(data.n_points)})
+
+
+def _subset(data, kw):
+    """Every k-th point of ``data`` (:data:`SETTLE_POINTS`, the ends and the weights
+    kept) and the fit's keywords ``kw`` for it: the delay bound and damping floor of all
+    the points (the subset's coarser spacing would lower the first and raise the second),
+    ``weights`` None (they are the subset's own)."""
     idx = _subsample(data.n_points, SETTLE_POINTS)
     span = weighted_span(data).omega
     loop = kw["loop"] if kw["loop"] is not None else LoopOptions()
@@ -216,21 +246,86 @@ def settle_on_subset(fit_one, sign_guess, data, record, n_jobs, kw):
     floor = kw["min_damping"]
     if floor == "auto":
         floor = resolution_damping(span)
-    ks = record["contenders"]
-    try:                            # (e.g. no point of the subset with a weight > 0)
-        sub = FrequencyData(data.omega[idx], data.response[idx], data.name,
-                            None if data.weights is None else data.weights[idx], data.unit)
-        fits = core_fits(fit_one, sign_guess, (sub, None), ks, ks[0], lambda rec: None,
-                         n_jobs, dict(kw, loop=loop, min_damping=floor, weights=None))
+    sub = FrequencyData(data.omega[idx], data.response[idx], data.name,
+                        None if data.weights is None else data.weights[idx], data.unit)
+    return sub, dict(kw, loop=loop, min_damping=floor, weights=None)
+
+
+def _rms_on_all(res, data):
+    """The RMS relative error on all points of ``data`` of ``res``'s model, fitted on a
+    subset, or None when it is not within :data:`SETTLE_AGREEMENT` of its RMS on the
+    subset (the subset does not sample that residual as all the points do)."""
+    with np.errstate(all="ignore"):
+        rms = float(relative_error(res.model, data).rms)
+    # (exact fits: two RMS at the rounding level agree whatever their ratio)
+    lo, hi = sorted((max(rms, ROUNDING_RMS), max(res.rms_rel_error, ROUNDING_RMS)))
+    return rms if math.isfinite(hi) and hi <= SETTLE_AGREEMENT * lo else None
+
+
+def settles_on_subset(n_points):
+    """Whether a fit of ``n_points`` frequencies settles its undecided choices (the
+    integrator's contenders, the gain sign) on a subset of them (above
+    :data:`SETTLE_ABOVE`)."""
+    return n_points > SETTLE_ABOVE
+
+
+def sign_on_subset(fit_one, data, kw, guess):
+    """The gain sign, which the rational starts did not decide, settled by fitting both
+    signs on every k-th point of ``data`` (:data:`SETTLE_POINTS`), or None when ``data``
+    has at most :data:`SETTLE_ABOVE` points or the subset does not represent a sign's
+    residual (:data:`SETTLE_AGREEMENT`): then both signs are to be fitted on all points
+    (:func:`either_sign_fits`).
+
+    Each sign is fitted on the subset as :func:`settle_on_subset` fits a contender (the
+    delay bound and damping floor of all the points; in two forked workers where the fit
+    allows them); the kept sign is the lower RMS relative error of the two models on all
+    points (``guess`` on a tie), as :func:`either_sign` keeps the lower RMS of two fits.
+
+    Parameters
+    ----------
+    fit_one : callable
+        As :func:`either_sign_fits` takes it, called with ``(subset, None, kw)``.
+    data : FrequencyData
+        The validated data (weights included).
+    kw : dict
+        The fit's keywords (``weights``: None or the data's, ``sign`` not set).
+    guess : {1, -1}
+        The sign the low-frequency phase suggests.
+
+    Returns
+    -------
+    (int, dict, dict, float) or None
+        The kept sign, ``{sign: RMS on all points}``, ``{"points": subset size, "of":
+        data's points}`` and the seconds the subset's fits took.
+    """
+    if not settles_on_subset(data.n_points):
+        return None
+    t0 = time.perf_counter()
+    signs = (guess, -guess)
+    try:
+        sub, sub_kw = _subset(data, kw)
+        jobs = [(sub, None, dict(sub_kw, progress=False, sign=s)) for s in signs]
+        fits = forked_map(fit_one, jobs)
+        if fits is None:
+            fits = [fit_one(*job) for job in jobs]
     except FreqidError:
         return None
-    rms = {}
-    for k, res in fits.items():
-        with np.errstate(all="ignore"):
-            rms[k] = float(relative_error(res.model, data).rms)
-        # (exact fits: two RMS at the rounding level agree whatever their ratio)
-        lo, hi = sorted((max(rms[k], ROUNDING_RMS), max(res.rms_rel_error, ROUNDING_RMS)))
-        if not (math.isfinite(hi) and hi <= SETTLE_AGREEMENT * lo):
-            return None
-    settled = settle_by_results(record, fits, data, rms)
-    return dict(settled, settled_on={"points": int(sub.n_points), "of": int(data.n_points)})
+    rms = {s: _rms_on_all(res, data) for s, res in zip(signs, fits)}
+    if None in rms.values():
+        return None
+    lo, hi = sorted(rms.values())
+    if not hi > SETTLE_AGREEMENT * max(lo, ROUNDING_RMS):
+        return None             # too close to call on the subset: the fits on all points
+    kept = min(signs, key=lambda s: (rms[s], s != guess))
+    return (kept, rms, {"points": int(sub.n_points), "of": int(data.n_points)},
+            time.perf_counter() - t0)
+
+
+def settled_sign_fit(fit_one, args, kw, settled):
+    """The fit of the sign :func:`sign_on_subset` kept (``settled``, what it returned) on
+    all points, with the record of the choice: ``details["gain_sign"]`` as
+    :func:`either_sign` gives it, its ``"rms"`` those of the subset's models on all points
+    and ``"settled_on"`` the subset's size; ``wall_time`` counts the subset's fits."""
+    kept, rms, settled_on, seconds = settled
+    res = _signed(fit_one(*args, dict(kw, sign=kept)), kept, rms, settled_on)
+    return dataclasses.replace(res, wall_time=res.wall_time + seconds)

@@ -37,7 +37,8 @@ import numpy as np
 
 from .alternatives import ORIGIN_AUTO, free_zeros_alternative, origin_auto
 from .candidates import NEAR, Candidate, choose, zero_delay_run
-from .core_fits import core_fits, either_sign_fits, settle_on_subset
+from .core_fits import (core_fits, either_sign_fits, settle_on_subset, settled_sign_fit,
+                        settles_on_subset, sign_on_subset)
 from ._checks import (GAIN_SIGNS, after_fit, check_model_class, validate, verdict,
                       zeta_min_of)
 from .._validate import check_choice, check_flag, check_jobs
@@ -381,7 +382,9 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
         :func:`~freqid_casadi.fitting.diagnostics.rational_gain_sign`), not the phase at
         the lowest bins (which a delay and a pole below the band turn past
         -90 deg); when neither start does, both signs are fitted and the lower RMS is
-        kept (``details["gain_sign"]`` gives both). A negative gain (a sign-inverted
+        kept (``details["gain_sign"]`` gives both; above 16 384 frequencies both are
+        fitted on 4096 of them when that subset tells them apart, and the kept sign on
+        all: :func:`~freqid_casadi.fitting.core_fits.sign_on_subset`). A negative gain (a sign-inverted
         sensor or transmissibility) is fitted as ``-(fit of -Phi)`` and stated by a
         ``negative-gain`` diagnostic.
     zeros : {"minimum-phase", "free"}
@@ -640,7 +643,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                 n_sections=n_sections, integrator=integrator, delay=delay, basis=basis,
                 method=method, tol=tol, progress=progress, weights=weights, start=start,
                 objective=objective, min_damping=min_damping, loop=loop,
-                gain_sign=gain_sign, zeros=zeros), data_or_omega, response)
+                gain_sign=gain_sign, zeros=zeros), data_or_omega, response, data)
     user_data = data
     if sign == -1:                  # a negative gain: fit -Phi, the model gets gain_sign -1
         data = FrequencyData(data.omega, -data.response, data.name, data.weights)
@@ -705,13 +708,19 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                      zeta_min=zeta_min, diagnostics=found, status=status, details=details)
 
 
-def _fit_either_sign(guess, kw, data_or_omega, response):
+def _fit_either_sign(guess, kw, data_or_omega, response, data):
     """Both gain signs fitted, the lower RMS kept (``guess``, the low-frequency phase's
     sign, on a tie; :func:`~freqid_casadi.fitting.core_fits.either_sign`), when the
     rational starts did not decide the sign: a band far from the static gain (a
     transmission measurement at 140-220 GHz, a reflection) shows a phase there that a
     delay, poles below the band and zeros at the origin have turned; the sign is then a
-    model choice the fits make, and the result says so."""
+    model choice the fits make, and the result says so. Above
+    :data:`~freqid_casadi.fitting.core_fits.SETTLE_ABOVE` points (``data``: validated)
+    the two signs are fitted on a subset and the kept one on all points
+    (:func:`~freqid_casadi.fitting.core_fits.sign_on_subset`)."""
+    settled = sign_on_subset(_quiet_fit, data, kw, guess)
+    if settled is not None:
+        return settled_sign_fit(_quiet_fit, (data_or_omega, response), kw, settled)
     return either_sign_fits(_quiet_fit, (data_or_omega, response), kw, guess)
 
 
@@ -724,10 +733,13 @@ def _sign_decision(data, n_sections, integrator, delay, basis, zeros, gain_sign)
 
 def _sign_guess(data_or_omega, response, kw):
     """The gain sign :func:`_fit` with keywords ``kw`` guesses before it fits both signs
-    (:func:`_fit_either_sign`), or None when the rational starts decide the sign (the
-    core fits' plan, :func:`~freqid_casadi.fitting.core_fits.core_fits`)."""
+    (:func:`_fit_either_sign`), or None when the rational starts decide the sign or the
+    fit settles it on a subset of many points (the core fits' plan,
+    :func:`~freqid_casadi.fitting.core_fits.core_fits`)."""
     data = validate(data_or_omega, response, kw["n_sections"], kw["basis"], kw["tol"],
                     kw["integrator"], kw["weights"])
+    if settles_on_subset(data.n_points):    # the fit settles the sign on a subset itself
+        return None
     sign, _, guess = _sign_decision(data, kw["n_sections"], kw["integrator"], kw["delay"],
                                     kw["basis"], kw["zeros"], kw["gain_sign"])
     return sign if guess else None
