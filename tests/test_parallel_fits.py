@@ -83,6 +83,28 @@ def test_contenders_and_signs_share_the_workers():
     assert run["gain_sign"] == json.loads(json.dumps(serial.details.get("gain_sign")))
 
 
+_SIGN_SUBSET = """
+from freqid_casadi.fitting import core_fits
+core_fits.SETTLE_ABOVE, core_fits.SETTLE_POINTS = 50, 34
+res = fc.fit(fc.systems.measured("ring_slot_s11"), n_sections=1, integrator=False,
+             n_jobs=int(sys.argv[1]))
+print(json.dumps({"used": used, "model": res.model.to_json(),
+                  "gain_sign": res.details.get("gain_sign"), "rms": res.rms_rel_error}))
+"""
+
+
+def test_the_signs_on_a_subset_in_two_workers_give_the_serial_fit():
+    # the ring slot at one section with the subset's thresholds lowered (34 of its 101
+    # points, tests/test_status.py): the two signs' subset fits run in two workers, the
+    # kept sign's fit on all points here; the result and its record are the serial ones
+    serial = _run(_SIGN_SUBSET.replace("int(sys.argv[1])", "1"))
+    run = _run(_SIGN_SUBSET.replace("int(sys.argv[1])", "2"))
+    assert serial["used"] == [] and 2 in run["used"]
+    assert serial["gain_sign"]["settled_on"] == {"points": 34, "of": 101}
+    assert run["model"] == serial["model"] and run["rms"] == serial["rms"]
+    assert run["gain_sign"] == serial["gain_sign"]
+
+
 _ORIGIN = """
 from freqid_casadi._workers import allow_jobs
 from freqid_casadi.fitting import start
