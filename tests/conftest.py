@@ -51,6 +51,29 @@ def example_data():
     return get
 
 
+@pytest.fixture
+def small_subset(monkeypatch):
+    """``small_subset(above, points, watch)``: the thresholds of the subset a fit of many
+    points settles its choices on (``core_fits.SETTLE_ABOVE``, ``SETTLE_POINTS``) lowered
+    for a test's small data; with ``watch`` (``"settle_on_subset"`` or
+    ``"sign_on_subset"``) it returns the list that collects what each call of that
+    function returned."""
+    from freqid_casadi.fitting import core_fits
+    from freqid_casadi.fitting import fit as fit_module
+
+    def lower(above, points, watch=None):
+        monkeypatch.setattr(core_fits, "SETTLE_ABOVE", above)
+        monkeypatch.setattr(core_fits, "SETTLE_POINTS", points)
+        tried = []
+        if watch is not None:
+            settle = getattr(fit_module, watch)
+            monkeypatch.setattr(fit_module, watch,
+                                lambda *a: tried.append(settle(*a)) or tried[-1])
+        return tried
+
+    return lower
+
+
 @pytest.fixture(autouse=True)
 def _close_figures():
     yield

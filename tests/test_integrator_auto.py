@@ -429,7 +429,7 @@ def test_restate_roots_below_band_only_for_a_k_that_was_fitted():
     assert restate_roots_below_band((d,), {"chosen": -1, "fit_rms": {-1: 1.0, 0: 2.0}})[0] is d
 
 
-def test_many_points_settle_the_contenders_on_a_subset(monkeypatch):
+def test_many_points_settle_the_contenders_on_a_subset(small_subset):
     """Above SETTLE_ABOVE points the contenders are fitted on SETTLE_POINTS of them
     (every k-th) and the kept k on all: here with both lowered to fit the band-pass case
     above (160 points, contenders k = 0 and -1) on 53. Its k = -1 subset fit is exact
@@ -437,11 +437,8 @@ def test_many_points_settle_the_contenders_on_a_subset(monkeypatch):
     rounding level, where the agreement test does not compare ratios), the k = 0 one
     poor (0.774 on all points), so k = -1 is kept, and the result is the explicit fit
     with k = -1, bit for bit."""
-    from freqid_casadi.fitting import core_fits
-
     c = case(35, 2026, max_points=400)
-    monkeypatch.setattr(core_fits, "SETTLE_ABOVE", 100)
-    monkeypatch.setattr(core_fits, "SETTLE_POINTS", c.data.n_points // 3)
+    small_subset(100, c.data.n_points // 3)
     res = fc.fit(c.data, n_sections=c.n_sections)
     rec = res.details["integrator"]
     assert rec["settled_on"] == {"points": 53, "of": 160}
@@ -455,21 +452,14 @@ def test_many_points_settle_the_contenders_on_a_subset(monkeypatch):
     assert res.model == explicit.model and res.rms_rel_error == explicit.rms_rel_error
 
 
-def test_a_subset_that_misses_the_data_leaves_the_contenders_on_all_points(monkeypatch):
+def test_a_subset_that_misses_the_data_leaves_the_contenders_on_all_points(small_subset):
     """The robot arm at 3 sections (contenders 1, -1, 0) on every second point: its
     resonances are not sampled as on all points (a contender's RMS on all points is more
     than SETTLE_AGREEMENT times its RMS on the subset), so the subset is tried and
     dropped, and the contenders are fitted on all points, as without it."""
     from freqid_casadi.experiment import robot_arm
-    from freqid_casadi.fitting import core_fits
-    from freqid_casadi.fitting import fit as fit_module
 
-    tried = []
-    settle = fit_module.settle_on_subset
-    monkeypatch.setattr(core_fits, "SETTLE_ABOVE", 50)
-    monkeypatch.setattr(core_fits, "SETTLE_POINTS", 51)
-    monkeypatch.setattr(fit_module, "settle_on_subset",
-                        lambda *a: tried.append(settle(*a)) or tried[-1])
+    tried = small_subset(50, 51, "settle_on_subset")
     res = fc.fit(robot_arm().data, n_sections=3)
     rec = res.details["integrator"]
     assert tried == [None]
@@ -491,17 +481,15 @@ def test_twenty_thousand_points_settle_on_a_subset():
     assert res.model == explicit.model and res.rms_rel_error == explicit.rms_rel_error
 
 
-def test_a_subset_without_weighted_points_is_not_used(monkeypatch):
+def test_a_subset_without_weighted_points_is_not_used(small_subset):
     """Weights that are 0 on every point of the subset: its fits cannot be made (too few
     points that count), so the contenders are fitted on all points."""
     from freqid_casadi.core.data import FrequencyData
-    from freqid_casadi.fitting import core_fits
     from freqid_casadi.fitting.start import _subsample
 
     c = case(35, 2026, max_points=400)
     m = c.data.n_points
-    monkeypatch.setattr(core_fits, "SETTLE_ABOVE", 100)
-    monkeypatch.setattr(core_fits, "SETTLE_POINTS", m // 3)
+    small_subset(100, m // 3)
     weights = np.ones(m)
     weights[_subsample(m, m // 3)] = 0.0
     data = FrequencyData(c.data.omega, c.data.response, c.name, weights)

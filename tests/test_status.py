@@ -206,7 +206,7 @@ def test_gain_sign_the_starts_do_not_decide_is_fitted_both_ways():
     assert [d.code for d in res.diagnostics][0] == "negative-gain"
 
 
-def test_many_points_settle_the_gain_sign_on_a_subset(monkeypatch):
+def test_many_points_settle_the_gain_sign_on_a_subset(small_subset):
     """Above SETTLE_ABOVE points the two signs are fitted on SETTLE_POINTS of them and
     the kept sign on all: here both lowered so that the ring slot (101 points, 1
     section) is fitted on 34. The subset's models give on all points RMS 0.754 (K > 0)
@@ -214,11 +214,8 @@ def test_many_points_settle_the_gain_sign_on_a_subset(monkeypatch):
     and apart by more than it), so K < 0 is kept, as both fits on all points keep it
     (0.754 against 0.514), and the result is the explicit gain_sign='negative' fit's
     model, bit for bit."""
-    from freqid_casadi.fitting import core_fits
-
+    small_subset(50, 34)
     data = fc.systems.measured("ring_slot_s11")
-    monkeypatch.setattr(core_fits, "SETTLE_ABOVE", 50)
-    monkeypatch.setattr(core_fits, "SETTLE_POINTS", 34)
     res = fc.fit(data, n_sections=1, integrator=False)
     record = res.details["gain_sign"]
     assert record["settled_on"] == {"points": 34, "of": 101}
@@ -232,22 +229,14 @@ def test_many_points_settle_the_gain_sign_on_a_subset(monkeypatch):
     assert res.model == explicit.model and res.rms_rel_error == explicit.rms_rel_error
 
 
-def test_a_subset_that_misses_the_data_leaves_both_signs_on_all_points(monkeypatch):
+def test_a_subset_that_misses_the_data_leaves_both_signs_on_all_points(small_subset):
     """The ring slot at 2 sections on every second point: the K < 0 model fitted on the
     subset has on all points an RMS beyond SETTLE_AGREEMENT times its RMS on the subset,
     so both signs are fitted on all points, as without the subset (the record's RMS are
     then those fits' own). The free-zeros alternative's refit is too close to call on the
     subset (its two models' RMS on all points 0.0766 and 0.0782, measured): both signs
     are fitted on all points there too."""
-    from freqid_casadi.fitting import core_fits
-    from freqid_casadi.fitting import fit as fit_module
-
-    tried = []
-    settle = fit_module.sign_on_subset
-    monkeypatch.setattr(core_fits, "SETTLE_ABOVE", 50)
-    monkeypatch.setattr(core_fits, "SETTLE_POINTS", 51)
-    monkeypatch.setattr(fit_module, "sign_on_subset",
-                        lambda *a: tried.append(settle(*a)) or tried[-1])
+    tried = small_subset(50, 51, "sign_on_subset")
     data = fc.systems.measured("ring_slot_s11")
     res = fc.fit(data, n_sections=2, integrator=False)
     record = res.details["gain_sign"]
