@@ -264,8 +264,18 @@ def _rms_on_all(res, data):
 
 def settles_on_subset(n_points):
     """Whether a fit of ``n_points`` frequencies settles its undecided choices (the
-    integrator's contenders, the gain sign) on a subset of them (above
-    :data:`SETTLE_ABOVE`)."""
+    integrator's contenders, the gain sign) on a subset of them.
+
+    Parameters
+    ----------
+    n_points : int
+        The data's frequencies.
+
+    Returns
+    -------
+    bool
+        True above :data:`SETTLE_ABOVE`.
+    """
     return n_points > SETTLE_ABOVE
 
 
@@ -322,10 +332,28 @@ def sign_on_subset(fit_one, data, kw, guess):
 
 
 def settled_sign_fit(fit_one, args, kw, settled):
-    """The fit of the sign :func:`sign_on_subset` kept (``settled``, what it returned) on
-    all points, with the record of the choice: ``details["gain_sign"]`` as
-    :func:`either_sign` gives it, its ``"rms"`` those of the subset's models on all points
-    and ``"settled_on"`` the subset's size; ``wall_time`` counts the subset's fits."""
+    """The fit of the sign :func:`sign_on_subset` kept, on all points, with the record
+    of the choice.
+
+    Parameters
+    ----------
+    fit_one : callable
+        As :func:`either_sign_fits` takes it.
+    args : tuple
+        ``(data_or_omega, response)``, as the fit was given them.
+    kw : dict
+        The fit's keywords (``sign`` not set).
+    settled : tuple
+        What :func:`sign_on_subset` returned.
+
+    Returns
+    -------
+    FitResult
+        ``fit_one(*args, kw)`` with ``kw["sign"]`` the kept sign: ``details["gain_sign"]``
+        as :func:`either_sign` gives it, its ``"rms"`` those of the subset's models on all
+        points, and ``"settled_on"`` the subset's size; ``wall_time`` counts the subset's
+        fits.
+    """
     kept, rms, settled_on, seconds = settled
     res = _signed(fit_one(*args, dict(kw, sign=kept)), kept, rms, settled_on)
     return dataclasses.replace(res, wall_time=res.wall_time + seconds)
