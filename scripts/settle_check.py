@@ -1,17 +1,17 @@
 """Check of the choices a fit of many points settles on a subset of them.
 
-Above :data:`~freqid_casadi.fitting.core_fits.SETTLE_ABOVE` frequencies the contenders of
-``integrator="auto"`` (the pole counts at the origin the rational starts leave undecided)
-and the two gain signs where the starts do not decide the sign are fitted on
-:data:`~freqid_casadi.fitting.core_fits.SETTLE_POINTS` of the points, and the kept k or
-sign on all. This script measures what that changes: the validation corpus's systems
+Above :data:`~freqid_casadi.fitting.core_fits.SETTLE_ABOVE` frequencies the rational
+starts that choose the contenders of ``integrator="auto"`` (the pole counts at the origin
+they leave undecided) see :data:`~freqid_casadi.fitting.core_fits.SETTLE_POINTS` of the
+points, the contenders and the two gain signs where the starts do not decide the sign are
+fitted on them, and the kept k or sign on all. This script measures what that changes: the validation corpus's systems
 (``freqid_casadi.systems.corpus.case``, seed 0) sampled at ``--points`` frequencies over
 each case's band and spacing, with its noise profile interpolated (complex Gaussian
 relative noise, seeded per case), each fitted with the default options twice in one
 worker process, one right after the other: with the subset, then with the contenders and
 signs on all points (``SETTLE_ABOVE`` raised beyond the data: the code path before the
-subset). A case whose fit tried no subset (one contender, a sign the starts decide) takes
-the same path both ways and is fitted once.
+subset). Every case is fitted both ways: the rational starts that choose the contenders
+see the subset too.
 
 Usage::
 
@@ -93,7 +93,7 @@ def check_case(task):
            "n_sections": int(c.n_sections)}
     try:
         row["subset"] = _fit(data, c.n_sections)
-        if len(row["subset"]["contenders"] or ()) > 1 or row["subset"]["signs"]:
+        if data.n_points > core_fits.SETTLE_ABOVE:    # (the subset's choice of k too)
             above = core_fits.SETTLE_ABOVE
             core_fits.SETTLE_ABOVE = math.inf
             try:
@@ -136,10 +136,10 @@ def markdown(command, points, rows, s, env):
              *computed_on_lines(env),
              f"The corpus's systems sampled at {points} frequencies (above SETTLE_ABOVE = "
              f"{core_fits.SETTLE_ABOVE}), each fitted with the default options with the "
-             f"subset ({core_fits.SETTLE_POINTS} points) and with the contenders of "
-             "integrator='auto' and both gain signs (where the rational starts leave them "
-             "undecided) on all points, in one process one after the other; a case whose "
-             "fit tried no subset takes the same path both ways and is fitted once. "
+             f"subset ({core_fits.SETTLE_POINTS} points: the rational starts that choose "
+             "integrator='auto''s contenders, the contenders' fits, and both gain signs where "
+             "the starts leave the sign undecided) and with all of them on all points, in one "
+             "process one after the other. "
              "`contenders`: integrator='auto''s; `settled on`: where they were settled; "
              "`gain signs on the subset`: each settle of the sign the fit tried (its core "
              "fit's and its refits'), the kept sign or \"-\" where the subset did not "

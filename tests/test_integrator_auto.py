@@ -452,6 +452,39 @@ def test_many_points_settle_the_contenders_on_a_subset(small_subset):
     assert res.model == explicit.model and res.rms_rel_error == explicit.rms_rel_error
 
 
+def test_many_points_choose_the_contenders_on_the_subset(small_subset):
+    """The rational starts that choose the contenders see the subset the contenders are
+    fitted on, with the delay bound of all the points (the record's start errors are
+    those starts'), so that the contenders' fits, whose starts take that bound, reuse
+    them: the kept k's start from h = 0 on the subset is made with one bound only (with
+    the subset's own bound the choice's start and the fit's would be two)."""
+    from freqid_casadi.core.data import FrequencyData
+    from freqid_casadi.core.resolution import default_delay_max
+    from freqid_casadi.fitting import start
+    from freqid_casadi.fitting.origin import choose_origin_order
+
+    c = case(35, 2026, max_points=400)
+    m = c.data.n_points // 3
+    small_subset(100, m)
+    idx = start._subsample(c.data.n_points, m)
+    sub = FrequencyData(c.data.omega[idx], c.data.response[idx])
+    with start.rational_start_memo():
+        _, own = choose_origin_order(sub, c.n_sections, True, "second-order",
+                                     "minimum-phase",
+                                     delay_max=default_delay_max(c.data.omega))
+    made = []
+    original = start._rational_start
+    start._rational_start = lambda data, structure, *a: made.append(
+        (data.omega.size, structure.origin_order, a)) or original(data, structure, *a)
+    try:
+        rec = fc.fit(c.data, n_sections=c.n_sections).details["integrator"]
+    finally:
+        start._rational_start = original
+    assert rec["rms"] == own["rms"] and rec["contenders"] == own["contenders"] == [0, -1]
+    bounds = {a[0] for n, k, a in made if n == len(idx) and k == -1 and a[1:3] == (0.0, 12)}
+    assert len(bounds) == 1
+
+
 def test_a_subset_that_misses_the_data_leaves_the_contenders_on_all_points(small_subset):
     """The robot arm at 3 sections (contenders 1, -1, 0) on every second point: its
     resonances are not sampled as on all points (a contender's RMS on all points is more

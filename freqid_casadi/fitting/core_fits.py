@@ -27,13 +27,13 @@ from ..core.scaling import weighted_span
 from ..options import LoopOptions
 from .diagnostics import Diagnostic
 from ..errors import FreqidError
-from .origin import settle_by_results
+from .origin import choose_origin_order, settle_by_results
 from .start import START_POINTS, _subsample
 from .verdict import ROUNDING_RMS
 
-__all__ = ["either_sign", "either_sign_fits", "core_fits", "settle_on_subset",
-           "settles_on_subset", "sign_on_subset", "settled_sign_fit", "SETTLE_ABOVE",
-           "SETTLE_POINTS", "SETTLE_AGREEMENT"]
+__all__ = ["either_sign", "either_sign_fits", "core_fits", "choose_on_subset",
+           "settle_on_subset", "settles_on_subset", "sign_on_subset", "settled_sign_fit",
+           "SETTLE_ABOVE", "SETTLE_POINTS", "SETTLE_AGREEMENT"]
 
 #: Above this many frequencies (the most the rational starts see: beyond, they take every
 #: k-th point) ``integrator="auto"`` settles its contenders on a subset of the points
@@ -231,6 +231,37 @@ def settle_on_subset(fit_one, sign_guess, data, record, n_jobs, kw):
         return None
     settled = settle_by_results(record, fits, data, rms)
     return dict(settled, settled_on={"points": int(sub.n_points), "of": int(data.n_points)})
+
+
+def choose_on_subset(data, n_sections, delay, basis, zeros):
+    """:func:`~freqid_casadi.fitting.origin.choose_origin_order` of ``data``, or, above
+    :data:`SETTLE_ABOVE` points, of the subset :func:`settle_on_subset` fits the
+    contenders on, with the delay bound of all the points: the starts then see what the
+    contenders' fits see, and those fits reuse them (the fit's memo,
+    :func:`~freqid_casadi.fitting.start.rational_start_memo`).
+
+    Parameters
+    ----------
+    data : FrequencyData
+        The validated data (weights included).
+    n_sections : int
+    delay : bool
+    basis : {"second-order", "first-order"}
+    zeros : {"minimum-phase", "free"}
+
+    Returns
+    -------
+    (int, dict)
+        As :func:`~freqid_casadi.fitting.origin.choose_origin_order`.
+    """
+    if settles_on_subset(data.n_points):
+        try:                        # (e.g. no point of the subset with a weight > 0)
+            sub, kw = _subset(data, {"loop": None, "min_damping": None})
+            return choose_origin_order(sub, n_sections, delay, basis, zeros,
+                                       delay_max=kw["loop"].delay_max)
+        except FreqidError:
+            pass
+    return choose_origin_order(data, n_sections, delay, basis, zeros)
 
 
 def _subset(data, kw):

@@ -37,8 +37,8 @@ import numpy as np
 
 from .alternatives import ORIGIN_AUTO, free_zeros_alternative, origin_auto
 from .candidates import NEAR, Candidate, choose, zero_delay_run
-from .core_fits import (core_fits, either_sign_fits, settle_on_subset, settled_sign_fit,
-                        settles_on_subset, sign_on_subset)
+from .core_fits import (choose_on_subset, core_fits, either_sign_fits, settle_on_subset,
+                        settled_sign_fit, settles_on_subset, sign_on_subset)
 from ._checks import (GAIN_SIGNS, after_fit, check_model_class, validate, verdict,
                       zeta_min_of)
 from .._validate import check_choice, check_flag, check_jobs
@@ -56,8 +56,8 @@ from .mainloop import LoopContext, minimax, rational, sequential
 from ..core.metrics import relative_error
 from ..core.model import (MAX_ORIGIN_ORDER, ZEROS, RationalDelayModel, Structure,
                           check_origin_order)
-from .origin import (choose_origin_order, describe_origin, origin_diagnostics,
-                     restate_roots_below_band, settle_by_results)
+from .origin import (describe_origin, origin_diagnostics, restate_roots_below_band,
+                     settle_by_results)
 from ..options import (INITS, LEGACY_KEYWORDS, METHODS, WARM_STARTS, FitOptions, LoopOptions,
                       legacy_message, solver_options)
 from ..core.scaling import (check_finite_result, reference_scales, scale_data, unscale_model,
@@ -441,7 +441,7 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
         if auto:
             data = validate(data_or_omega, response, n_sections, basis, tol, False, weights)
             check_choice("zeros", zeros, ZEROS)
-            k, record = choose_origin_order(data, n_sections, delay, basis, zeros)
+            k, record = choose_on_subset(data, n_sections, delay, basis, zeros)
             ks = record["contenders"]
             if len(ks) == 1 or fixed:
                 results = {}

@@ -161,7 +161,7 @@ def _effective_order(model, omega_min):
     return int(k + np.sum(np.abs(poles) < low) - np.sum(np.abs(zeros) < low))
 
 
-def choose_origin_order(data, n_sections, delay, basis, zeros):
+def choose_origin_order(data, n_sections, delay, basis, zeros, delay_max=None):
     """The poles at the origin ``integrator="auto"`` fits (see the module docstring).
 
     Parameters
@@ -173,6 +173,9 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
     delay : bool
     basis : {"second-order", "first-order"}
     zeros : {"minimum-phase", "free"}
+    delay_max : float, optional
+        Largest delay the starts try (s, in the data's units); default the data's own
+        bound (:func:`~freqid_casadi.core.resolution.default_delay_max`).
 
     Returns
     -------
@@ -199,7 +202,8 @@ def choose_origin_order(data, n_sections, delay, basis, zeros):
     cands = origin_candidates(slope, informative)
     w_ref, g_ref = reference_scales(data)
     scaled = scale_data(data, w_ref, g_ref)
-    dmax = default_delay_max(scaled.omega)
+    dmax = (default_delay_max(scaled.omega) if delay_max is None
+            else float(delay_max) * w_ref)            # (as the fit scales its own bound)
 
     def starts(ks, group_delay_trial=False):
         """{k: _start_error} of each k of ``ks`` (independent: in workers where the fit
