@@ -7,10 +7,11 @@ bit for bit, in a worker or here; only their order in time differs. The two sign
 of a refit (the delay hold's, the resolution guard's, the free-zeros alternative's) run
 in two workers too, within :func:`~freqid_casadi._workers.allow_jobs`.
 
-Above :data:`SETTLE_ABOVE` frequencies :func:`settle_on_subset` fits the contenders on
-every k-th point instead (:data:`SETTLE_POINTS` of them) and settles the choice there when
-the subset represents every contender's residual on all points; the kept k is then fitted
-on all points.
+Above :data:`SETTLE_ABOVE` frequencies the choices a fit leaves to fits are made on every
+k-th point (:data:`SETTLE_POINTS` of them) when that subset represents each fit's residual
+on all points: :func:`choose_on_subset` makes the integrator's rational starts there,
+:func:`settle_on_subset` fits the contenders there, :func:`sign_on_subset` both gain signs;
+the kept k or sign is then fitted on all points.
 """
 import dataclasses
 import math

@@ -315,10 +315,10 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
         ``details["integrator"]`` and ``options.integrator`` (``options.integrator_auto``
         True); an ``integrator`` diagnostic states a choice other than 0, or says "pass
         integrator=..." with the errors of each choice when the data do not decide. Above
-        :data:`~freqid_casadi.fitting.core_fits.SETTLE_ABOVE` frequencies the k the
-        starts leave undecided are fitted on a subset of the points, when it represents
-        them (:func:`~freqid_casadi.fitting.core_fits.settle_on_subset`), and the kept k
-        on all.
+        :data:`~freqid_casadi.fitting.core_fits.SETTLE_ABOVE` frequencies the starts see
+        a subset of the points, the k they leave undecided are fitted on it when it
+        represents them (:func:`~freqid_casadi.fitting.core_fits.settle_on_subset`), and
+        the kept k on all.
     delay : bool
         Fit a delay h >= 0 (else h = 0).
     basis : {"second-order", "first-order"}
