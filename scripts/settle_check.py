@@ -4,14 +4,13 @@ Above :data:`~freqid_casadi.fitting.core_fits.SETTLE_ABOVE` frequencies the rati
 starts that choose the contenders of ``integrator="auto"`` (the pole counts at the origin
 they leave undecided) see :data:`~freqid_casadi.fitting.core_fits.SETTLE_POINTS` of the
 points, the contenders and the two gain signs where the starts do not decide the sign are
-fitted on them, and the kept k or sign on all. This script measures what that changes: the validation corpus's systems
-(``freqid_casadi.systems.corpus.case``, seed 0) sampled at ``--points`` frequencies over
-each case's band and spacing, with its noise profile interpolated (complex Gaussian
-relative noise, seeded per case), each fitted with the default options twice in one
-worker process, one right after the other: with the subset, then with the contenders and
-signs on all points (``SETTLE_ABOVE`` raised beyond the data: the code path before the
-subset). Every case is fitted both ways: the rational starts that choose the contenders
-see the subset too.
+fitted on them, and the kept k or sign on all. This script measures what that changes:
+the validation corpus's systems (``freqid_casadi.systems.corpus.case``, seed 0) sampled
+at ``--points`` frequencies over each case's band and spacing, with its noise profile
+interpolated (complex Gaussian relative noise, seeded per case), each fitted with the
+default options twice in one worker process, one right after the other: with the subset,
+then with the starts, contenders and signs on all points (``SETTLE_ABOVE`` raised beyond
+the data: the code path before the subset).
 
 Usage::
 

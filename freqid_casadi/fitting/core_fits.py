@@ -81,7 +81,8 @@ def either_sign(guess, fits):
 
 def _signed(res, kept, rms, settled_on=None):
     """``res`` (fitted with gain sign ``kept``) with the record of the sign's choice
-    (``rms``: {sign: RMS}, in the order the signs were fitted; ``settled_on``: the subset the two signs were fitted on)."""
+    (``rms``: {sign: RMS}, in the order the signs were fitted; ``settled_on``: the subset
+    the two signs were fitted on)."""
     both = {"K > 0" if s > 0 else "K < 0": rms[s] for s in rms}
     record = {"chosen": kept, "by": "fits", "rms": both}
     text = "; ".join(f"{k}: RMS {v:.3g}" for k, v in both.items())

@@ -384,9 +384,9 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
         -90 deg); when neither start does, both signs are fitted and the lower RMS is
         kept (``details["gain_sign"]`` gives both; above 16 384 frequencies both are
         fitted on 4096 of them when that subset tells them apart, and the kept sign on
-        all: :func:`~freqid_casadi.fitting.core_fits.sign_on_subset`). A negative gain (a sign-inverted
-        sensor or transmissibility) is fitted as ``-(fit of -Phi)`` and stated by a
-        ``negative-gain`` diagnostic.
+        all: :func:`~freqid_casadi.fitting.core_fits.sign_on_subset`). A negative gain (a
+        sign-inverted sensor or transmissibility) is fitted as ``-(fit of -Phi)`` and
+        stated by a ``negative-gain`` diagnostic.
     zeros : {"minimum-phase", "free"}
         "minimum-phase" (the thesis's class): every zero in the closed left half plane.
         "free": the numerators are unbounded (zeros anywhere, e.g. non-collocated sensors
