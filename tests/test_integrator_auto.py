@@ -481,6 +481,7 @@ def test_many_points_choose_the_contenders_on_the_subset(small_subset):
     finally:
         start._rational_start = original
     assert rec["rms"] == own["rms"] and rec["contenders"] == own["contenders"] == [0, -1]
+    assert rec["starts_on"] == rec["settled_on"] == {"points": 53, "of": 160}
     bounds = {a[0] for n, k, a in made if n == len(idx) and k == -1 and a[1:3] == (0.0, 12)}
     assert len(bounds) == 1
 
@@ -508,15 +509,16 @@ def test_twenty_thousand_points_settle_on_a_subset():
     data = fc.systems.G_A(np.logspace(-2, 3, 20_000))
     res = fc.fit(data, n_sections=2)
     rec = res.details["integrator"]
-    assert rec["settled_on"] == {"points": 4096, "of": 20_000}
+    assert rec["settled_on"] == rec["starts_on"] == {"points": 4096, "of": 20_000}
     assert len(rec["contenders"]) > 1 and rec["chosen"] == 1
     explicit = fc.fit(data, n_sections=2, integrator=True)
     assert res.model == explicit.model and res.rms_rel_error == explicit.rms_rel_error
 
 
 def test_a_subset_without_weighted_points_is_not_used(small_subset):
-    """Weights that are 0 on every point of the subset: its fits cannot be made (too few
-    points that count), so the contenders are fitted on all points."""
+    """Weights that are 0 on every point of the subset: its starts and fits cannot be made
+    (too few points that count), so the starts see all points and the contenders are
+    fitted on all points."""
     from freqid_casadi.core.data import FrequencyData
     from freqid_casadi.fitting.start import _subsample
 
@@ -528,5 +530,6 @@ def test_a_subset_without_weighted_points_is_not_used(small_subset):
     data = FrequencyData(c.data.omega, c.data.response, c.name, weights)
     res = fc.fit(data, n_sections=c.n_sections)
     rec = res.details["integrator"]
-    assert "settled_on" not in rec and rec["contenders"] == [0, -1]
+    assert "settled_on" not in rec and "starts_on" not in rec
+    assert rec["contenders"] == [0, -1]
     assert rec["chosen"] == -1 and res.rms_rel_error < 1e-9

@@ -254,13 +254,16 @@ def choose_on_subset(data, n_sections, delay, basis, zeros):
     Returns
     -------
     (int, dict)
-        As :func:`~freqid_casadi.fitting.origin.choose_origin_order`.
+        As :func:`~freqid_casadi.fitting.origin.choose_origin_order`; on the subset the
+        record adds ``"starts_on": {"points": subset size, "of": data's points}``.
     """
     if settles_on_subset(data.n_points):
         try:                        # (e.g. no point of the subset with a weight > 0)
             sub, kw = _subset(data, {"loop": None, "min_damping": None})
-            return choose_origin_order(sub, n_sections, delay, basis, zeros,
-                                       delay_max=kw["loop"].delay_max)
+            k, record = choose_origin_order(sub, n_sections, delay, basis, zeros,
+                                            delay_max=kw["loop"].delay_max)
+            return k, dict(record, starts_on={"points": int(sub.n_points),
+                                              "of": int(data.n_points)})
         except FreqidError:
             pass
     return choose_origin_order(data, n_sections, delay, basis, zeros)
