@@ -228,8 +228,8 @@ def settle_on_subset(fit_one, sign_guess, data, record, n_jobs, kw):
                          n_jobs, sub_kw)
     except FreqidError:
         return None
-    rms = {k: _rms_on_all(res, data) for k, res in fits.items()}
-    if None in rms.values():
+    rms = _rms_on_all(fits, data)
+    if rms is None:
         return None
     settled = settle_by_results(record, fits, data, rms)
     return dict(settled, settled_on={"points": int(sub.n_points), "of": int(data.n_points)})
@@ -287,15 +287,21 @@ def _subset(data, kw):
     return sub, dict(kw, loop=loop, min_damping=floor, weights=None)
 
 
-def _rms_on_all(res, data):
-    """The RMS relative error on all points of ``data`` of ``res``'s model, fitted on a
-    subset, or None when it is not within :data:`SETTLE_AGREEMENT` of its RMS on the
-    subset (the subset does not sample that residual as all the points do)."""
-    with np.errstate(all="ignore"):
-        rms = float(relative_error(res.model, data).rms)
-    # (exact fits: two RMS at the rounding level agree whatever their ratio)
-    lo, hi = sorted((max(rms, ROUNDING_RMS), max(res.rms_rel_error, ROUNDING_RMS)))
-    return rms if math.isfinite(hi) and hi <= SETTLE_AGREEMENT * lo else None
+def _rms_on_all(fits, data):
+    """``{key: RMS relative error on all points of data}`` of the models of ``fits``
+    (``{key: FitResult}``, fitted on a subset), or None when one of them is not within
+    :data:`SETTLE_AGREEMENT` of its RMS on the subset (the subset does not sample that
+    residual as all the points do)."""
+    out = {}
+    for key, res in fits.items():
+        with np.errstate(all="ignore"):
+            rms = float(relative_error(res.model, data).rms)
+        # (exact fits: two RMS at the rounding level agree whatever their ratio)
+        lo, hi = sorted((max(rms, ROUNDING_RMS), max(res.rms_rel_error, ROUNDING_RMS)))
+        if not (math.isfinite(hi) and hi <= SETTLE_AGREEMENT * lo):
+            return None
+        out[key] = rms
+    return out
 
 
 def settles_on_subset(n_points):
@@ -356,8 +362,8 @@ def sign_on_subset(fit_one, data, kw, guess):
             fits = [fit_one(*job) for job in jobs]
     except FreqidError:
         return None
-    rms = {s: _rms_on_all(res, data) for s, res in zip(signs, fits)}
-    if None in rms.values():
+    rms = _rms_on_all(dict(zip(signs, fits)), data)
+    if rms is None:
         return None
     lo, hi = sorted(rms.values())
     if not hi > SETTLE_AGREEMENT * max(lo, ROUNDING_RMS):
