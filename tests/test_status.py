@@ -214,11 +214,18 @@ def test_many_points_settle_the_gain_sign_on_a_subset(small_subset):
     and apart by more than it), so K < 0 is kept, as both fits on all points keep it
     (0.754 against 0.514), and the result is the explicit gain_sign='negative' fit's
     model, bit for bit."""
+    from freqid_casadi.fitting import _checks
+
     small_subset(50, 34)
     data = fc.systems.measured("ring_slot_s11")
-    res = fc.fit(data, n_sections=1, integrator=False)
+    seen, check = [], _checks.check_minimum_phase
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(_checks, "check_minimum_phase", lambda model, d, *a, **k:
+                   seen.append(d.n_points) or check(model, d, *a, **k))
+        res = fc.fit(data, n_sections=1, integrator=False)
     record = res.details["gain_sign"]
     assert record["settled_on"] == {"points": 34, "of": 101}
+    assert seen and set(seen) == {101}      # the subset's fits skip the phase check
     assert record["by"] == "fits" and record["chosen"] == -1
     assert 1.2 * record["rms"]["K < 0"] < record["rms"]["K > 0"]     # 0.551 against 0.754
     # the record's RMS are the subset's models' on all points; the kept fit's own is lower

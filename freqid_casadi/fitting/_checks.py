@@ -41,9 +41,11 @@ def without_phase_check():
     ``zeros="free"`` alternative the check offers (a context manager, private).
 
     For callers that keep only a fit's model, errors, success and status: a sweep's
-    fitted orders, a bootstrap's refits. The check is a warning that changes none of
-    them (its free-zeros starts search the delay at each k and gain sign: half the time
-    of the sweep of example A, whose low orders are poor fits).
+    fitted orders, a bootstrap's refits, the fits on a subset that settle a fit's
+    choices (:func:`~freqid_casadi.fitting.core_fits.settle_on_subset`). The check is a
+    warning that changes none of them (its free-zeros starts search the delay at each k
+    and gain sign: half the time of the sweep of example A, whose low orders are poor
+    fits).
     """
     token = PHASE_CHECK.set(False)
     try:

@@ -14,6 +14,7 @@ on all points: :func:`choose_on_subset` makes the integrator's rational starts t
 the kept k or sign is then fitted on all points.
 """
 import dataclasses
+import functools
 import math
 import time
 
@@ -28,6 +29,7 @@ from ..core.scaling import weighted_span
 from ..options import LoopOptions
 from .diagnostics import Diagnostic
 from ..errors import FreqidError
+from ._checks import without_phase_check
 from .origin import choose_origin_order, settle_by_results
 from .start import START_POINTS, _subsample
 from .verdict import ROUNDING_RMS
@@ -224,8 +226,8 @@ def settle_on_subset(fit_one, sign_guess, data, record, n_jobs, kw):
     ks = record["contenders"]
     try:                            # (e.g. no point of the subset with a weight > 0)
         sub, sub_kw = _subset(data, kw)
-        fits = core_fits(fit_one, sign_guess, (sub, None), ks, ks[0], lambda rec: None,
-                         n_jobs, sub_kw)
+        fits = core_fits(_unchecked(fit_one), sign_guess, (sub, None), ks, ks[0],
+                         lambda rec: None, n_jobs, sub_kw)
     except FreqidError:
         return None
     rms = _rms_on_all(fits, data)
@@ -285,6 +287,20 @@ def _subset(data, kw):
     sub = FrequencyData(data.omega[idx], data.response[idx], data.name,
                         None if data.weights is None else data.weights[idx], data.unit)
     return sub, dict(kw, loop=loop, min_damping=floor, weights=None)
+
+
+def _unchecked(fit_one):
+    """``fit_one`` for a fit on the subset: without the ``non-minimum-phase`` check
+    (:func:`~freqid_casadi.fitting._checks.without_phase_check`), whose diagnostic changes
+    neither the model nor its RMS, the only parts of that fit the choice keeps (the kept k
+    or sign is fitted on all points, with its check). A partial of module-level
+    functions: a worker receives it pickled."""
+    return functools.partial(_without_phase_check, fit_one)
+
+
+def _without_phase_check(fit_one, *args):
+    with without_phase_check():
+        return fit_one(*args)
 
 
 def _rms_on_all(fits, data):
@@ -357,9 +373,9 @@ def sign_on_subset(fit_one, data, kw, guess):
     try:
         sub, sub_kw = _subset(data, kw)
         jobs = [(sub, None, dict(sub_kw, progress=False, sign=s)) for s in signs]
-        fits = forked_map(fit_one, jobs)
+        fits = forked_map(_unchecked(fit_one), jobs)
         if fits is None:
-            fits = [fit_one(*job) for job in jobs]
+            fits = [_unchecked(fit_one)(*job) for job in jobs]
     except FreqidError:
         return None
     rms = _rms_on_all(dict(zip(signs, fits)), data)
