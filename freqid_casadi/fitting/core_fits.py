@@ -11,7 +11,8 @@ Above :data:`SETTLE_ABOVE` frequencies the choices a fit leaves to fits are made
 k-th point (:data:`SETTLE_POINTS` of them) when that subset represents each fit's residual
 on all points: :func:`choose_on_subset` makes the integrator's rational starts there,
 :func:`settle_on_subset` fits the contenders there, :func:`sign_on_subset` both gain signs;
-the kept k or sign is then fitted on all points.
+the kept k or sign is then fitted on all points. The fits on the subset run without the
+``non-minimum-phase`` check: the choice keeps only their models and RMS.
 """
 import dataclasses
 import functools
