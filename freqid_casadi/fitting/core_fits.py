@@ -374,9 +374,10 @@ def sign_on_subset(fit_one, data, kw, guess):
     try:
         sub, sub_kw = _subset(data, kw)
         jobs = [(sub, None, dict(sub_kw, progress=False, sign=s)) for s in signs]
-        fits = forked_map(_unchecked(fit_one), jobs)
+        unchecked = _unchecked(fit_one)
+        fits = forked_map(unchecked, jobs)
         if fits is None:
-            fits = [_unchecked(fit_one)(*job) for job in jobs]
+            fits = [unchecked(*job) for job in jobs]
     except FreqidError:
         return None
     rms = _rms_on_all(dict(zip(signs, fits)), data)
