@@ -65,6 +65,49 @@ def test_rational_start_finds_a_delay_of_many_turns_from_the_group_delay(monkeyp
     assert rational_start(data, structure, delay_max=dmax).max_rel_error > 0.5  # 1.02
 
 
+def _densely_sampled(index, n_points):
+    """Corpus case ``index`` (seed 0) at ``n_points`` frequencies over its band, its
+    relative noise profile interpolated, complex Gaussian noise seeded by the index."""
+    c = fc.systems.case(index, 0, max_points=5000)
+    w = c.data.omega
+    omega = (np.linspace(w[0], w[-1], n_points) if c.spacing == "linear"
+             else np.geomspace(w[0], w[-1], n_points))
+    sigma = np.interp(np.log(omega), np.log(w), c.sigma)
+    rng = np.random.default_rng(1000 + index)
+    noise = (rng.standard_normal(n_points) + 1j * rng.standard_normal(n_points)) / np.sqrt(2)
+    return fc.FrequencyData(omega, c.truth(omega) * (1 + sigma * noise))
+
+
+@pytest.mark.parametrize("n_points", [1600, 4000, 6400, 20000])
+def test_group_delay_estimate_does_not_drift_on_dense_noisy_data(n_points):
+    """An accelerance with 1.5 % noise and 0.19 rad of delay at the band's top (its
+    noise-free data's median group delay: 0.66 rad there). Between neighbouring samples
+    of dense data the phase steps are mostly noise, and their median drifted towards the
+    mean phase slope, by a random amount: 1.6, 3.7, 3.3 and 0.65 rad at the top at 1600,
+    4000, 6400 and 20 000 points, more than half a turn at 4000 and 6400, where the start
+    then searched around a delay the data do not have. Read at a lag of several samples:
+    0.91, 0.96, 1.03, 1.18."""
+    import freqid_casadi.fitting.start as start
+
+    data = _densely_sampled(150, n_points)
+    h = start.group_delay_estimate(data.omega, data.response)
+    assert 0.0 < h * data.omega[-1] < 1.4
+    assert start.significant_group_delay(data) == 0.0
+
+
+def test_group_delay_estimate_keeps_neighbours_for_a_delay_near_the_resolution():
+    """A delay whose phase step between neighbours is 2 rad (a line's, near the data's
+    resolution ``pi / diff(omega)``): a lag of several samples would wrap it, so the
+    estimate keeps the neighbours' steps."""
+    import freqid_casadi.fitting.start as start
+
+    structure = fc.Structure(2, False, True)
+    model = fc.RationalDelayModel(structure, np.r_[0.2, BETA[1:]])
+    w = 0.5 + 10.0 * np.arange(1000)                      # h * dw = 2 rad
+    h = start.group_delay_estimate(w, model.frequency_response(w))
+    assert h == pytest.approx(0.2, rel=1e-3)
+
+
 def test_trial_delays_of_large_data_are_tried_on_every_kth_point():
     """Above PROBE_POINTS frequencies the delay updates and the search's probes see every
     k-th point and only the best of them is made again on all points: the delay is found
