@@ -37,7 +37,6 @@ ROOT = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
 sys.path.insert(0, ROOT)
 
 import freqid_casadi as fc  # noqa: E402
-from freqid_casadi.core.data import FrequencyData  # noqa: E402
 from freqid_casadi.fitting import core_fits  # noqa: E402
 from freqid_casadi.fitting import fit as fit_module  # noqa: E402
 from freqid_casadi.report.environment import computed_on_lines, environment  # noqa: E402
@@ -48,16 +47,10 @@ from freqid_casadi.systems.corpus import case  # noqa: E402
 def dense_case(index, points):
     """``(case, FrequencyData)``: case ``index`` (seed 0) sampled at ``points``
     frequencies over its band (log or linear, as the case), its noise profile
-    interpolated in log frequency, the noise seeded by the index."""
+    interpolated in log frequency, the noise seeded by the index
+    (:meth:`~freqid_casadi.systems.corpus.CorpusCase.resampled`)."""
     c = case(index, 0, max_points=5000)
-    w = c.data.omega
-    omega = (np.linspace(w[0], w[-1], points) if c.spacing == "linear"
-             else np.geomspace(w[0], w[-1], points))
-    sigma = np.interp(np.log(omega), np.log(w), c.sigma)
-    rng = np.random.default_rng(1000 + index)
-    noise = (rng.standard_normal(points) + 1j * rng.standard_normal(points)) / math.sqrt(2)
-    weights = 1 / sigma ** 2 if c.variance_given and np.all(sigma > 0) else None
-    return c, FrequencyData(omega, c.truth(omega) * (1 + sigma * noise), c.name, weights)
+    return c, c.resampled(points, np.random.default_rng(1000 + index))
 
 
 def _fit(data, n_sections):

@@ -75,6 +75,24 @@ def test_case_data_is_the_truth_times_the_noise():
         assert c.delay <= 0.85 * math.pi / np.max(np.diff(c.data.omega)) * (1 + 1e-12)
 
 
+@pytest.mark.parametrize("index", [4, 5])       # linear spacing; log, variance given
+def test_a_case_resampled_keeps_its_band_spacing_and_noise(index):
+    c = case(index, 0)
+    d = c.resampled(3000, np.random.default_rng(7))
+    w = c.data.omega
+    assert d.n_points == 3000
+    assert d.omega[0] == w[0] and d.omega[-1] == pytest.approx(w[-1], rel=1e-12)
+    steps = np.diff(d.omega) if c.spacing == "linear" else np.diff(np.log(d.omega))
+    assert np.ptp(steps) < 1e-6 * steps.mean()
+    sigma = np.interp(np.log(d.omega), np.log(w), c.sigma)
+    dev = np.abs(d.response / c.truth(d.omega) - 1)
+    # 3000 draws of |n|^2 / sigma^2 (mean 1, sd 1): their mean within 0.9-1.1
+    assert 0.9 < np.mean((dev / sigma) ** 2) < 1.1
+    assert (d.weights is not None) == c.variance_given
+    if c.variance_given:
+        assert np.allclose(d.weights, 1 / sigma ** 2)
+
+
 def test_a_noncollocated_zero_is_where_the_truth_vanishes():
     c = next(x for x in make_corpus(60) if x.nmp_zeros)
     z = c.truth.finite_zeros()

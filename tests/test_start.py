@@ -67,15 +67,9 @@ def test_rational_start_finds_a_delay_of_many_turns_from_the_group_delay(monkeyp
 
 def _densely_sampled(index, n_points):
     """Corpus case ``index`` (seed 0) at ``n_points`` frequencies over its band, its
-    relative noise profile interpolated, complex Gaussian noise seeded by the index."""
+    relative noise profile interpolated, the noise seeded by the index."""
     c = fc.systems.case(index, 0, max_points=5000)
-    w = c.data.omega
-    omega = (np.linspace(w[0], w[-1], n_points) if c.spacing == "linear"
-             else np.geomspace(w[0], w[-1], n_points))
-    sigma = np.interp(np.log(omega), np.log(w), c.sigma)
-    rng = np.random.default_rng(1000 + index)
-    noise = (rng.standard_normal(n_points) + 1j * rng.standard_normal(n_points)) / np.sqrt(2)
-    return fc.FrequencyData(omega, c.truth(omega) * (1 + sigma * noise))
+    return c.resampled(n_points, np.random.default_rng(1000 + index))
 
 
 @pytest.mark.parametrize("n_points", [1600, 4000, 6400, 20000])

@@ -189,6 +189,34 @@ class CorpusCase:
     def n_points(self):
         return self.data.n_points
 
+    def resampled(self, n_points, rng):
+        """The case's system sampled at ``n_points`` frequencies over its band, as the
+        case spaces them, its relative noise profile interpolated in log frequency.
+
+        Parameters
+        ----------
+        n_points : int
+            Frequencies, >= 2.
+        rng : numpy.random.Generator
+            Draws the complex Gaussian relative noise (``n_points`` real, then as many
+            imaginary parts).
+
+        Returns
+        -------
+        FrequencyData
+            rad/s, shape (n_points,); ``weights = 1 / sigma^2`` when the case's variance
+            is given (and every sigma > 0).
+        """
+        w = self.data.omega
+        omega = (np.linspace(w[0], w[-1], n_points) if self.spacing == "linear"
+                 else np.geomspace(w[0], w[-1], n_points))
+        sigma = np.interp(np.log(omega), np.log(w), self.sigma)
+        noise = (rng.standard_normal(n_points) + 1j * rng.standard_normal(n_points)) \
+            / math.sqrt(2)
+        weights = 1 / sigma ** 2 if self.variance_given and np.all(sigma > 0) else None
+        return FrequencyData(omega, self.truth(omega) * (1 + sigma * noise), self.name,
+                             weights)
+
 
 def corpus(n=300, seed=0, *, families=None, max_points=MAX_POINTS):
     """The first ``n`` cases of the corpus of ``seed``.
