@@ -211,11 +211,8 @@ class CorpusCase:
         omega = (np.linspace(w[0], w[-1], n_points) if self.spacing == "linear"
                  else np.geomspace(w[0], w[-1], n_points))
         sigma = np.interp(np.log(omega), np.log(w), self.sigma)
-        noise = (rng.standard_normal(n_points) + 1j * rng.standard_normal(n_points)) \
-            / math.sqrt(2)
-        weights = 1 / sigma ** 2 if self.variance_given and np.all(sigma > 0) else None
-        return FrequencyData(omega, self.truth(omega) * (1 + sigma * noise), self.name,
-                             weights)
+        return _noisy(omega, self.truth(omega), sigma, rng,
+                      self.variance_given and bool(np.all(sigma > 0)), self.name)
 
 
 def corpus(n=300, seed=0, *, families=None, max_points=MAX_POINTS):
@@ -246,6 +243,15 @@ def corpus(n=300, seed=0, *, families=None, max_points=MAX_POINTS):
     return tuple(c for c in cases if families is None or c.family in families)
 
 
+def _noisy(omega, g, sigma, rng, given, name):
+    """FrequencyData ``g (1 + sigma n)``, ``n`` complex Gaussian of unit RMS drawn from
+    ``rng`` (the real parts, then the imaginary ones); ``weights = 1 / sigma^2`` (``|G|^2 /
+    variance``, as measured) when the variance is ``given``."""
+    n = (rng.standard_normal(omega.size) + 1j * rng.standard_normal(omega.size)) / math.sqrt(2)
+    weights = 1 / sigma ** 2 if given else None
+    return FrequencyData(omega, g * (1 + sigma * n), name, weights)
+
+
 def case(index, seed=0, *, max_points=MAX_POINTS):
     """Case ``index`` of the corpus of ``seed`` (family ``FAMILIES[index % 9]``).
 
@@ -273,12 +279,8 @@ def case(index, seed=0, *, max_points=MAX_POINTS):
     sigma = _noise_profile(rng, omega)
     noise = math.sqrt(float(np.mean(sigma ** 2)))
     given = bool(noise > 0 and rng.random() < 0.5)
-    g = system(omega)
-    n = (rng.standard_normal(omega.size) + 1j * rng.standard_normal(omega.size)) / math.sqrt(2)
-    response = g * (1 + sigma * n)
-    weights = 1 / sigma ** 2 if given else None        # |G|^2 / variance, as measured
     name = f"{family}-{index}"
-    data = FrequencyData(omega, response, name, weights)
+    data = _noisy(omega, system(omega), sigma, rng, given, name)
     zeros = system.finite_zeros()
     nmp = int(np.sum(zeros.real > 1e-9 * np.abs(zeros)))
     q = system.origin_power
