@@ -131,8 +131,10 @@ def _low_points(omega, n_min=3, n_max=20, fraction=0.05):
     ----------
     omega : ndarray, shape (n,)
         The data's frequencies (rad/s), ascending.
-    n_min, n_max : int, optional
-        Fewest and most points.
+    n_min : int, optional
+        Fewest points.
+    n_max : int or None, optional
+        Most points (None: no limit, a share of the points whatever their number).
     fraction : float, optional
         Share of the points (5 %).
 
@@ -141,8 +143,8 @@ def _low_points(omega, n_min=3, n_max=20, fraction=0.05):
     int
         ``round(fraction * n)`` within ``[n_min, n_max]``, at most ``n``.
     """
-    m = int(np.clip(round(fraction * omega.size), n_min, n_max))
-    return min(m, omega.size)
+    m = max(int(round(fraction * omega.size)), n_min)
+    return min(m if n_max is None else min(m, n_max), omega.size)
 
 
 def low_frequency_phase(data, integrator, delay=0.0):
@@ -179,8 +181,8 @@ def low_frequency_phase(data, integrator, delay=0.0):
 
 
 def low_frequency_slope(data, integrator):
-    """Log-log slope of |G| (integrator removed) over the lowest points (as
-    :func:`low_frequency_phase`): about 0 for a static gain, +k for k zeros at the origin
+    """Log-log slope of |G| (integrator removed) over the lowest 5 % of the points
+    (:func:`low_frequency_line`): about 0 for a static gain, +k for k zeros at the origin
     (e.g. +2 for an accelerance of a free or lightly supported structure).
 
     Parameters
@@ -210,8 +212,17 @@ def low_frequency_line(data, integrator):
     -------
     (float, float)
         Slope and scatter (both nan with fewer than 2 distinct points).
+
+    Notes
+    -----
+    The line is fitted to the lowest 5 % of the points however many there are: the band
+    is then the same at every density of a grid. At most 20 points, as the phase takes
+    (:func:`low_frequency_phase`: the lowest bins, where a delay has the least phase),
+    spanned a band too narrow for a slope on dense data, and the noise decided it: 100
+    corpus cases resampled at 1600, 6400 and 20 000 points proposed other candidates of
+    ``integrator="auto"`` than at 400 points in 22, 32 and 44; as a share, in 1 each.
     """
-    m = max(_low_points(data.omega), 2)
+    m = max(_low_points(data.omega, n_max=None), 2)
     if data.omega.size < 2:
         return float("nan"), float("nan")
     log_w = np.log(data.omega[:m])
