@@ -7,6 +7,8 @@ asking for a fixture, not by writing a plant again):
   (a :class:`~freqid_casadi.RationalDelayModel` with one section and a 10 ms delay).
 - ``first_order_response(omega)``: 2 e^{-0.01 j omega} / (1 + j omega / 3).
 - ``example_data(name)``: the benchmark systems A, B and C of docs/spec.md §4, 500 points.
+- ``densely_sampled(index, n_points)``: corpus case ``index`` (seed 0) resampled at
+  ``n_points`` frequencies, its noise seeded by the index (as ``scripts/settle_check.py``).
 
 Figures are closed after every test (after python-control's ``conftest.py::mplcleanup``).
 """
@@ -31,6 +33,14 @@ def first_order_response(omega):
     """2 e^{-0.01 j omega} / (1 + j omega / 3): gain, a 10 ms delay and one real pole."""
     omega = np.asarray(omega, dtype=float)
     return 2.0 * np.exp(-0.01j * omega) / (1 + 1j * omega / 3.0)
+
+
+def densely_sampled(index, n_points):
+    """Corpus case ``index`` (seed 0) at ``n_points`` frequencies over its band, its
+    relative noise profile interpolated, the noise seeded by the index
+    (:meth:`~freqid_casadi.systems.corpus.CorpusCase.resampled`)."""
+    c = fc.systems.case(index, 0, max_points=5000)
+    return c.resampled(n_points, np.random.default_rng(1000 + index))
 
 
 @pytest.fixture(name="one_section_model")

@@ -13,6 +13,7 @@ from freqid_casadi.cli.app import build_parser
 from freqid_casadi.core.model import MAX_ORIGIN_ORDER, RationalDelayModel, Structure
 from freqid_casadi.errors import DataError, OptionError, StructureError
 from freqid_casadi.systems.corpus import case
+from conftest import densely_sampled  # noqa: E402
 
 W = np.logspace(-1, 2, 150)
 S = 1j * W
@@ -147,10 +148,8 @@ def test_the_candidates_do_not_depend_on_the_sampling_density():
 
     agree, moved = 0, []
     for index in range(0, 300, 6):
-        c = case(index, 0, max_points=5000)
-        (ks, slope), (ks_dense, slope_dense) = (
-            candidates(c.resampled(m, np.random.default_rng(1000 + index)))
-            for m in (400, 6400))
+        (ks, slope), (ks_dense, slope_dense) = (candidates(densely_sampled(index, m))
+                                                for m in (400, 6400))
         agree += ks == ks_dense
         moved.append(abs(slope - slope_dense))
     assert agree >= 48

@@ -13,6 +13,7 @@ import freqid_casadi as fc
 from freqid_casadi.errors import OptionError
 from freqid_casadi.fitting.start import rational_start, sections_from_roots
 from freqid_casadi.fitting.sweep import parse_orders, sweep
+from conftest import densely_sampled  # noqa: E402
 
 BETA = [0.02, 3.0, 1.0, 0.03, 5.0, 1.0, 0.05, 8.0, 1.0, 0.02, 40.0, 1.0, 0.01, 25.0]
 
@@ -65,13 +66,6 @@ def test_rational_start_finds_a_delay_of_many_turns_from_the_group_delay(monkeyp
     assert rational_start(data, structure, delay_max=dmax).max_rel_error > 0.5  # 1.02
 
 
-def _densely_sampled(index, n_points):
-    """Corpus case ``index`` (seed 0) at ``n_points`` frequencies over its band, its
-    relative noise profile interpolated, the noise seeded by the index."""
-    c = fc.systems.case(index, 0, max_points=5000)
-    return c.resampled(n_points, np.random.default_rng(1000 + index))
-
-
 @pytest.mark.parametrize("n_points", [1600, 4000, 6400, 20000])
 def test_group_delay_estimate_does_not_drift_on_dense_noisy_data(n_points):
     """An accelerance with 1.5 % noise and 0.19 rad of delay at the band's top (its
@@ -83,7 +77,7 @@ def test_group_delay_estimate_does_not_drift_on_dense_noisy_data(n_points):
     0.91, 0.96, 1.03, 1.18."""
     import freqid_casadi.fitting.start as start
 
-    data = _densely_sampled(150, n_points)
+    data = densely_sampled(150, n_points)
     h = start.group_delay_estimate(data.omega, data.response)
     assert 0.0 < h * data.omega[-1] < 1.4
     assert start.significant_group_delay(data) == 0.0
