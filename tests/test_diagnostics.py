@@ -58,6 +58,40 @@ def test_check_gain_sign_forced_positive_on_inverted_data_warns():
     assert "gain_sign='auto'" in diags[0].message
 
 
+@pytest.mark.parametrize("power, given, wanted", [(-1, False, True), (-2, False, 2),
+                                                   (-2, True, 2), (2, False, -2)])
+def test_forced_positive_gain_on_roots_at_the_origin_names_the_integrator(power, given,
+                                                                          wanted):
+    """Data with roots at the origin the model lacks are not a sign: with
+    gain_sign='positive' forced, a low-frequency phase beyond +-90 deg but nearer to it
+    than to 180 deg (one root), or near 180 deg with a magnitude going as omega^+-2
+    (two), gives an ``integrator`` warning
+    naming the integrator= to pass, not a ``negative-gain`` one (a positive plant times
+    (j omega)^power, the model's ``given`` poles at the origin removed)."""
+    data = FrequencyData(OMEGA, plant() * S ** power)
+    sign, diags = dg.check_gain_sign(data, given, "positive")
+    assert sign == 1 and [d.code for d in diags] == ["integrator"]
+    (d,) = diags
+    assert d.severity == "warning"
+    assert d.values["suggested_integrator"] == int(wanted)
+    assert f"integrator={dg.spell_origin(int(wanted))}" in d.message
+
+
+def test_a_poor_fit_with_the_wrong_integrator_blames_the_integrator_not_the_sign():
+    """Corpus case 5 (two poles at the origin) fitted with integrator=1 and a forced
+    positive gain: the lowest bins, one integrator removed, are at -93 deg. The fit is
+    poor (RMS 0.14 against the noise 0.021) and its likely cause was "the gain sign";
+    it is now the count of poles at the origin, and the integrator diagnostic asks for 2."""
+    case = fc.systems.case(5, max_points=120)
+    res = fc.fit(case.data, n_sections=case.n_sections, integrator=1, gain_sign="positive")
+    codes = [d.code for d in res.diagnostics]
+    assert "negative-gain" not in codes
+    (integ,) = [d for d in res.diagnostics if d.code == "integrator"]
+    assert integ.values["suggested_integrator"] == 2
+    (poor,) = [d for d in res.diagnostics if d.code == "poor-fit"]
+    assert poor.values["cause"] == "integrator"
+
+
 def test_check_gain_sign_removes_the_delay_phase_of_a_band_far_from_zero():
     """Corpus case 130: a sign-inverted plant whose linear band starts where its delay
     (1.3 us) has turned the phase by 10.8 rad: the lowest bins looked in phase (41 deg)

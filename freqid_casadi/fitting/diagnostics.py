@@ -33,6 +33,13 @@ Codes
     one at 0: a pole there stands for an integrator (the fit stops it at the floor of
     :attr:`~freqid_casadi.options.LoopOptions.root_floor` instead of letting it creep),
     a zero for a differentiator.
+``integrator``
+    With ``gain_sign="positive"`` forced: the lowest bins, the model's poles at the origin
+    removed, look like poles or zeros at the origin the model lacks rather than a negative
+    gain (phase nearer to +-90 deg than to 180 deg, or near 180 deg with a magnitude going
+    as omega^+-2); the record names the ``integrator=`` to pass. ``integrator="auto"``
+    states its choice in a record of this code too
+    (:func:`~freqid_casadi.fitting.origin.origin_diagnostics`).
 """
 
 import dataclasses
@@ -391,11 +398,56 @@ def gain_sign_decision(data, integrator, gain_sign="auto", structure=None):
                "gain_sign='positive' to force K > 0)")
         return -1, (Diagnostic("negative-gain", msg, "info", values),), undecided
     if looks_negative:
+        missing = _origin_mismatch(deg, slope) if rational is None else 0
+        if missing:
+            return 1, (_origin_mismatch_record(values, integrator, missing, what,
+                                               data.unit),), False
         msg = (f"{why}: the data look sign-inverted but gain_sign='positive' forces K > 0, "
                "so the fit must explain a 180 deg phase it cannot; use gain_sign='auto' or "
                "'negative'")
         return 1, (Diagnostic("negative-gain", msg, "warning", values),), False
     return 1, (), undecided
+
+
+#: Low-frequency log-log slope beyond which a phase near 180 deg is read as two roots at
+#: the origin the model lacks rather than a negative gain (:func:`_origin_mismatch`; a
+#: double integrator read over the lowest bins of a corpus system: -1.2, an accelerance's
+#: two zeros: +2.4, a negative static gain: within 0.5).
+ORIGIN_SLOPE = 1.0
+
+
+def _origin_mismatch(deg, slope):
+    """For data whose low-frequency phase (the model's roots at the origin removed) is
+    beyond +-90 deg: the nonzero ``m`` when they behave as ``(j omega)^m`` there rather
+    than as a negative gain, else 0. A static gain of either sign has 0 or 180 deg: a
+    phase nearer to +-90 deg than to 180 deg is one root at the origin (``m = -1`` for a
+    pole, -90 deg); near 180 deg, a magnitude that falls or rises faster than
+    omega^:data:`ORIGIN_SLOPE` is two (``m = -2``: poles, ``+2``: zeros)."""
+    if not math.isfinite(deg):
+        return 0
+    if abs(deg) < 135.0:
+        return -1 if deg < 0 else 1
+    if math.isfinite(slope) and abs(slope) > ORIGIN_SLOPE:
+        return 2 if slope > 0 else -2
+    return 0
+
+
+def _origin_mismatch_record(values, integrator, m, what, unit):
+    """The ``integrator`` warning of a fit whose data, with the model's ``integrator``
+    removed, behave as ``(j omega)^m`` at the lowest bins (:func:`_origin_mismatch`),
+    where a forced positive gain would otherwise read their phase as a sign (values: the
+    sign check's, ``origin_mismatch`` m and ``suggested_integrator``)."""
+    k = int(integrator)
+    wanted = k - m
+    count = f"{abs(m)} more {'pole' if m < 0 else 'zero'}{'s' * (abs(m) != 1)}"
+    msg = (f"the low-frequency phase ({what}lowest {values['n_points']} points up to "
+           f"{values['omega_max_used']:.4g} {unit}) is {values['low_frequency_phase_deg']:.1f} "
+           f"deg and |G| goes as omega^{values['low_frequency_slope']:.1f} there: the data "
+           f"have {count} at the origin than integrator={spell_origin(k)} gives the model "
+           "(a static gain of either sign is flat there, at 0 or 180 deg); pass "
+           f"integrator={spell_origin(wanted)}, or integrator='auto' to choose")
+    return Diagnostic("integrator", msg, "warning",
+                      dict(values, origin_mismatch=int(m), suggested_integrator=int(wanted)))
 
 
 def check_trivial(max_rel_error, rms_rel_error, threshold=TRIVIAL_RMS):

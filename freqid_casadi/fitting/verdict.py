@@ -180,6 +180,8 @@ def residual_noise(residual, omega, weights=None, window=NOISE_WINDOW):
 _CAUSES = (
     ("no-better-than-trivial", "the model explains almost nothing of the data"),
     ("negative-gain", "the gain sign"),
+    ("integrator", "the count of poles or zeros at the origin, which the data and the "
+                   "model do not share"),
     ("non-minimum-phase", "the model class: the data need right-half-plane zeros "
                           "(pass zeros='free')"),
     ("root-below-band", "the structure: a pole or zero at the origin the model lacks "
@@ -216,7 +218,9 @@ def poor_fit_diagnostic(check, found, n_sections, unit="rad/s"):
     codes = [d.code for d in found
              if (d.code != "delay-undetermined"
                  or d.values.get("delay", 0.0) >= 0.5 * d.values.get("delay_max", math.inf))
-             and (d.code != "negative-gain" or d.severity != "info")]
+             and (d.code != "negative-gain" or d.severity != "info")
+             # (the integrator records of integrator="auto" state a choice, not a cause)
+             and (d.code != "integrator" or "origin_mismatch" in d.values)]
     cause = next(((code, text) for code, text in _CAUSES if code in codes), None)
     if cause is None:
         why = ("the order: the residual is largest near omega = "
