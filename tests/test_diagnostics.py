@@ -63,8 +63,8 @@ def test_check_gain_sign_forced_positive_on_inverted_data_warns():
 def test_forced_positive_gain_on_roots_at_the_origin_names_the_integrator(power, given,
                                                                           wanted):
     """Data with roots at the origin the model lacks are not a sign: with
-    gain_sign='positive' forced, a low-frequency phase beyond +-90 deg but nearer to it
-    than to 180 deg (one root), or near 180 deg with a magnitude going as omega^+-2
+    gain_sign='positive' forced, a low-frequency phase beyond +-90 deg but within 30 deg
+    of it (one root), or within 30 deg of 180 deg with a magnitude going as omega^+-2
     (two), gives an ``integrator`` warning
     naming the integrator= to pass, not a ``negative-gain`` one (a positive plant times
     (j omega)^power, the model's ``given`` poles at the origin removed)."""
@@ -75,6 +75,16 @@ def test_forced_positive_gain_on_roots_at_the_origin_names_the_integrator(power,
     assert d.severity == "warning"
     assert d.values["suggested_integrator"] == int(wanted)
     assert f"integrator={dg.spell_origin(int(wanted))}" in d.message
+
+
+def test_forced_positive_gain_on_a_lagging_negative_gain_still_names_the_sign():
+    """A sign-inverted plant with a pole at the band's bottom (0.1 rad/s): its lowest bins
+    are near 135 deg, between one root at the origin (90) and a sign (180), with a
+    magnitude flatter than omega^-1: the record stays ``negative-gain``."""
+    data = FrequencyData(OMEGA, -plant() / (1 + S / 0.1))
+    _, diags = dg.check_gain_sign(data, False, "positive")
+    assert [d.code for d in diags] == ["negative-gain"]
+    assert 120 < abs(diags[0].values["low_frequency_phase_deg"]) < 150
 
 
 def test_a_poor_fit_with_the_wrong_integrator_blames_the_integrator_not_the_sign():

@@ -36,8 +36,8 @@ Codes
 ``integrator``
     With ``gain_sign="positive"`` forced: the lowest bins, the model's poles at the origin
     removed, look like poles or zeros at the origin the model lacks rather than a negative
-    gain (phase nearer to +-90 deg than to 180 deg, or near 180 deg with a magnitude going
-    as omega^+-2); the record names the ``integrator=`` to pass. ``integrator="auto"``
+    gain (phase within 30 deg of +-90 deg, or of 180 deg with a magnitude going as
+    omega^+-2); the record names the ``integrator=`` to pass. ``integrator="auto"``
     states its choice in a record of this code too
     (:func:`~freqid_casadi.fitting.origin.origin_diagnostics`).
 """
@@ -414,20 +414,27 @@ def gain_sign_decision(data, integrator, gain_sign="auto", structure=None):
 #: double integrator read over the lowest bins of a corpus system: -1.2, an accelerance's
 #: two zeros: +2.4, a negative static gain: within 0.5).
 ORIGIN_SLOPE = 1.0
+#: Distance (deg) from +-90 deg (one root at the origin) and from 180 deg (two roots, or a
+#: negative gain) within which the low-frequency phase is read (:func:`_origin_mismatch`).
+ORIGIN_PHASE_DEG = 30.0
 
 
 def _origin_mismatch(deg, slope):
     """For data whose low-frequency phase (the model's roots at the origin removed) is
     beyond +-90 deg: the nonzero ``m`` when they behave as ``(j omega)^m`` there rather
     than as a negative gain, else 0. A static gain of either sign has 0 or 180 deg: a
-    phase nearer to +-90 deg than to 180 deg is one root at the origin (``m = -1`` for a
-    pole, -90 deg); near 180 deg, a magnitude that falls or rises faster than
-    omega^:data:`ORIGIN_SLOPE` is two (``m = -2``: poles, ``+2``: zeros)."""
+    phase within :data:`ORIGIN_PHASE_DEG` of +-90 deg is one root at the origin (``m =
+    -1`` for a pole, -90 deg); within it of 180 deg, a magnitude that falls or rises
+    faster than omega^:data:`ORIGIN_SLOPE` is two (``m = -2``: poles, ``+2``: zeros).
+    Between the two (a negative gain with a lag from dynamics near the band's bottom, or
+    a root at the origin with a lead) the phase does not tell, and the sign's reading
+    stands."""
     if not math.isfinite(deg):
         return 0
-    if abs(deg) < 135.0:
+    if abs(deg) <= 90.0 + ORIGIN_PHASE_DEG:
         return -1 if deg < 0 else 1
-    if math.isfinite(slope) and abs(slope) > ORIGIN_SLOPE:
+    if (abs(deg) >= 180.0 - ORIGIN_PHASE_DEG and math.isfinite(slope)
+            and abs(slope) > ORIGIN_SLOPE):
         return 2 if slope > 0 else -2
     return 0
 
