@@ -40,7 +40,7 @@ from freqid_casadi.fitting import start as start_module  # noqa: E402
 from freqid_casadi.report.environment import computed_on_lines, environment  # noqa: E402
 from freqid_casadi.report.folder import atomic_write_text  # noqa: E402
 from freqid_casadi.solvers import ipopt  # noqa: E402
-from settle_check import dense_case  # noqa: E402
+from settle_check import case_indices, dense_case  # noqa: E402
 
 
 def _timed_fit(data, n_sections):
@@ -49,18 +49,18 @@ def _timed_fit(data, n_sections):
     spent = {"starts": 0.0, "ipopt": 0.0, "solves": 0, "starts_n": 0}
     start, run = start_module.rational_start, ipopt.run_nlpsol
 
-    def timed(fn, key):
+    def timed(fn, seconds, calls):
         def call(*args, **kw):
             c0 = time.process_time()
             try:
                 return fn(*args, **kw)
             finally:
-                spent[key] += time.process_time() - c0
-                spent[key + "_n" if key == "starts" else "solves"] += 1
+                spent[seconds] += time.process_time() - c0
+                spent[calls] += 1
         return call
 
-    start_module.rational_start = timed(start, "starts")
-    ipopt.run_nlpsol = timed(run, "ipopt")
+    start_module.rational_start = timed(start, "starts", "starts_n")
+    ipopt.run_nlpsol = timed(run, "ipopt", "solves")
     try:
         c0 = time.process_time()
         res = fc.fit(data, n_sections=n_sections)
@@ -150,11 +150,7 @@ def main(argv=None):
     sizes = sorted({int(p) for p in args.points.split(",") if p})
     if not sizes or sizes[0] < 50:
         ap.error("--points takes sizes of at least 50, e.g. 400,1600,6400")
-    try:
-        cases = (range(*(int(x) for x in args.cases.split(":"))) if ":" in args.cases
-                 else [int(x) for x in args.cases.split(",")])
-    except (TypeError, ValueError):
-        ap.error(f"--cases takes start:stop:step or i,j,k, got {args.cases!r}")
+    cases = case_indices(ap, args.cases)
     command = "python scripts/dense_speed.py" + "".join(
         f" --{k} {v}" for k, v in (("points", args.points), ("cases", args.cases),
                                    ("workers", args.workers), ("out", args.out))
@@ -173,13 +169,13 @@ def main(argv=None):
                   + f" ({time.perf_counter() - t0:.0f} s)", file=sys.stderr)
     s = summary(rows, sizes)
     env = environment()
+    text = markdown(command, sizes, rows, s, env)
     os.makedirs(args.out, exist_ok=True)
-    atomic_write_text(os.path.join(args.out, "dense_speed.md"),
-                      markdown(command, sizes, rows, s, env))
+    atomic_write_text(os.path.join(args.out, "dense_speed.md"), text)
     atomic_write_text(os.path.join(args.out, "dense_speed.json"), json.dumps(
         {"command": command, "environment": env, "summary": {str(k): v for k, v in s.items()},
          "rows": rows}, indent=1) + "\n")
-    print(markdown(command, sizes, rows, s, env))
+    print(text)
     return 0
 
 

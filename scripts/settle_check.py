@@ -167,6 +167,16 @@ def markdown(command, points, rows, s, env):
     return "\n".join(lines) + "\n"
 
 
+def case_indices(ap, text):
+    """The case indices of a ``--cases`` argument: ``start:stop:step`` or ``i,j,k``
+    (``ap.error`` otherwise)."""
+    try:
+        return (range(*(int(x) for x in text.split(":"))) if ":" in text
+                else [int(x) for x in text.split(",")])
+    except (TypeError, ValueError):
+        ap.error(f"--cases takes start:stop:step or i,j,k, got {text!r}")
+
+
 def main(argv=None):
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--points", type=int, default=20_000)
@@ -175,11 +185,7 @@ def main(argv=None):
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default="results")
     args = ap.parse_args(argv)
-    try:
-        indices = (range(*(int(x) for x in args.cases.split(":"))) if ":" in args.cases
-                   else [int(x) for x in args.cases.split(",")])
-    except (TypeError, ValueError):
-        ap.error(f"--cases takes start:stop:step or i,j,k, got {args.cases!r}")
+    indices = case_indices(ap, args.cases)
     if args.points <= core_fits.SETTLE_ABOVE:
         ap.error(f"--points must exceed SETTLE_ABOVE = {core_fits.SETTLE_ABOVE}")
     tasks = [(i, args.points) for i in indices]

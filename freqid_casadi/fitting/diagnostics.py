@@ -398,7 +398,8 @@ def gain_sign_decision(data, integrator, gain_sign="auto", structure=None):
                "gain_sign='positive' to force K > 0)")
         return -1, (Diagnostic("negative-gain", msg, "info", values),), undecided
     if looks_negative:
-        missing = _origin_mismatch(deg, slope) if rational is None else 0
+        # (K > 0 forced: the rational starts were not asked, the phase decided)
+        missing = _origin_mismatch(deg, slope)
         if missing:
             return 1, (_origin_mismatch_record(values, integrator, missing, what,
                                                data.unit),), False
