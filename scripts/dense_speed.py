@@ -155,9 +155,6 @@ def main(argv=None):
         f" --{k} {v}" for k, v in (("points", args.points), ("cases", args.cases),
                                    ("workers", args.workers), ("out", args.out))
         if v != ap.get_default(k))
-    from freqid_casadi._threads import single_threaded_blas
-
-    blas = single_threaded_blas()  # noqa: F841 (held for the run: one BLAS thread per fit)
     tasks = [(i, sizes) for i in cases]
     rows = []
     t0 = time.perf_counter()
