@@ -217,6 +217,19 @@ def test_a_structured_residual_needs_only_the_floor_to_count_as_better():
     assert decide(steps, poles, omega, 63) == (3, "consistent")
 
 
+def test_the_order_record_says_when_the_next_order_raises_the_rms():
+    from freqid_casadi.fitting.order import OrderStep, _choice
+
+    # line.s2p of scikit-rf at 4 and 5 sections: the fifth ended far above the fourth
+    steps = [OrderStep(4, 2.98e-11, 4.8, True), OrderStep(5, 6.6e-06, 11.0, True)]
+    poles = [np.array([-1 + 10j, -1 - 10j])] * 2
+    choice = _choice([None, None], steps, poles, 0, "consistent", np.array([1.0, 100.0]))
+    assert "5 sections do not lower the RMS (RMS 6.6e-06) and move" in choice.message
+    steps[1] = OrderStep(5, 2.5e-11, 1.0, True)
+    choice = _choice([None, None], steps, poles, 0, "consistent", np.array([1.0, 100.0]))
+    assert "5 sections lower the RMS by 16 % and move" in choice.message
+
+
 def test_auto_order_stops_at_max_sections():
     c = case(3)                     # right-half-plane zeros: no order is consistent
     choice = choose_order(lambda n: fc.fit(c.data, n_sections=n), max_sections=2)

@@ -431,7 +431,7 @@ def test_touchstone_s1p_hand_written(tmp_path):
     with pytest.raises(OptionError, match="do not apply to Touchstone"):
         load(path, freq_unit="Hz")
     with pytest.raises(OptionError, match=r"parameter='S21' is not in this 1-port S-parameter "
-                       r"file; choose one of S11"):
+                       r"file: it holds S11 only \(a reflection\); leave parameter out"):
         load(path, parameter="S21")
 
 
@@ -604,3 +604,20 @@ def test_network_analyser_channels_get_the_columns_that_read_the_response(tmp_pa
         data = load(path, columns="freq_hz,skip,mag_db,phase_deg")
     np.testing.assert_allclose(data.response, RESP, rtol=1e-12)
     np.testing.assert_array_equal(data.omega, 2 * np.pi * F_UFF)
+
+
+def test_waveforms_phase_written_with_a_star_for_the_degree_sign(tmp_path):
+    # WaveForms (Digilent) writes its phase column as "Channel 2 Phase (*)" on some
+    # systems, the star standing for the degree sign; published exports of its network
+    # analyser carry that header (with a '#' preamble and a blank line before it)
+    text = ("#Digilent WaveForms Network Analyzer - Bode\n#Relative: yes\n\n"
+            "Frequency (Hz),Channel 2 Magnitude (dB),Channel 2 Phase (*)\n" + "".join(
+                f"{float(f)!r},{float(d)!r},{float(p)!r}\n"
+                for f, d, p in zip(F_UFF, DB, DEG)))
+    path = _write(tmp_path, text, "bode.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        data = load(path)
+    np.testing.assert_allclose(data.response, RESP, rtol=1e-12)
+    col = recognise("Channel 2 Phase (*)")
+    assert (col.role, col.unit) == ("phase", "deg")

@@ -479,7 +479,9 @@ def _choice(results, steps, poles, k, reason, omega):
     if k + 1 < len(steps):
         drop = 1 - steps[k + 1].rms / step.rms if step.rms > 0 else 0.0
         moved = _modes_stable(poles[k], poles[k + 1], omega)
-        nxt = (f"; {steps[k + 1].n_sections} sections lower the RMS by {100 * drop:.2g} % "
+        change = (f"lower the RMS by {100 * drop:.2g} %" if drop >= 0 else
+                  f"do not lower the RMS (RMS {steps[k + 1].rms:.3g})")
+        nxt = (f"; {steps[k + 1].n_sections} sections {change} "
                f"and move its in-band poles by at most {100 * moved:.2g} %")
     plural = "s" if step.n_sections != 1 else ""
     own = f"RMS {step.rms:.3g}, {step.ratio:.3g} times its point-to-point roughness"

@@ -116,6 +116,8 @@ def recognise(label):
     fmt = _FORMAT.match(s)
     if fmt and (fmt.group(1) in _COMPLEX | _MAG or _SPARAM.fullmatch(fmt.group(1))):
         return _formatted(fmt.group(2), _UNITS.get(unit, "lin"), label.strip())
+    if unit == "*" and s in _PHASE:     # WaveForms' "Channel 2 Phase (*)": * for the degree sign
+        unit = "deg"
     if unit in _DERIVED and s in _COMPLEX | _MAG:
         return Column("skip", DERIVED, label.strip())
     if unit not in _UNITS:       # a physical unit ("Real [g/N]") scales re, im and |H|

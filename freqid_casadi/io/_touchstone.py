@@ -178,6 +178,10 @@ def _which(parameter, kind, ports):
     if not m or letter != kind or not (1 <= i <= ports and 1 <= j <= ports):
         shown = (f"{kind.upper()}11 ... {kind.upper()}{ports}{ports}" if ports < 10 else
                  f"{kind.upper()}1,1 ... {kind.upper()}{ports},{ports}")
+        if ports == 1:
+            raise OptionError(f"parameter={parameter!r} is not in this 1-port "
+                              f"{kind.upper()}-parameter file: it holds {kind.upper()}11 "
+                              f"only (a reflection); leave parameter out to read it")
         raise OptionError(f"parameter={parameter!r} is not in this {ports}-port "
                           f"{kind.upper()}-parameter file; choose one of {shown} (row = "
                           "receiving port, column = driving port: S21 is from port 1 to 2)")
