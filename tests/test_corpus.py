@@ -235,6 +235,10 @@ def test_auto_order_stops_at_max_sections():
     choice = choose_order(lambda n: fc.fit(c.data, n_sections=n), max_sections=2)
     assert choice.reason in ("max-sections", "no-improvement")
     assert [s.n_sections for s in choice.steps] == [1, 2]
+    # the order rule's test is named: it is stricter than the status check ("ok" at twice
+    # the local noise), so the record does not read as contradicting an "ok" status
+    assert ("no residual passes the order rule's noise test (RMS at most 1.3 times its "
+            "point-to-point roughness and 2 times the local noise)") in choice.message
 
 
 def _rhp_pair_data():

@@ -456,18 +456,21 @@ def choose_order(fit_one, *, max_sections=MAX_SECTIONS, min_sections=1):
     return _choice(results, steps, poles, *verdict, omega)
 
 
+#: The order rule's test, named where it fails: it is stricter than the fit's status check
+#: (twice the local noise), so a fit whose status is "ok" may still fail it.
+_NONE = ("no residual passes the order rule's noise test (RMS at most "
+         f"{WHITE_RATIO:g} times its point-to-point roughness and {CONSISTENT_RATIO:g} times "
+         "the local noise)")
 _WHY = {
     "consistent": "the residual is consistent with the noise",
     "free-zeros": "the minimum-phase model's residual is not consistent with the noise, the "
                   "residual of its model with free zeros is (the data need right-half-plane "
                   "zeros: use FitResult.alternatives['zeros=free'], or pass zeros='free')",
-    "no-improvement": "no residual is consistent with the noise, and more sections stopped "
-                      "lowering it (the model class, not the order, limits this fit: see the "
-                      "other diagnostics)",
-    "max-sections": "no residual is consistent with the noise up to max_sections (raise "
-                    "max_sections, or see the other diagnostics)",
-    "data-limit": "no residual is consistent with the noise, and more sections need more "
-                  "data points than there are",
+    "no-improvement": _NONE + ", and more sections stopped lowering it (the model class, "
+                      "not the order, limits this fit: see the other diagnostics)",
+    "max-sections": _NONE + " up to max_sections (raise max_sections, or see the other "
+                    "diagnostics)",
+    "data-limit": _NONE + ", and more sections need more data points than there are",
 }
 
 
