@@ -260,6 +260,32 @@ def test_fit_at_its_iteration_limit_says_which_option_continues_it(
     assert code == 0 and "--final-max-iter" not in out
 
 
+def test_fit_prints_its_advice_as_the_commands_options(workdir, capsys, monkeypatch,
+                                                       cached_result, fast_figures):
+    """A fit's message advises in fit's keywords; the command prints its own options."""
+    import dataclasses
+
+    advised = dataclasses.replace(cached_result, message=(
+        "poor-fit: converged, but ...; pass integrator=-1 or integrator=False if you know it; "
+        "pass gain_sign='positive'; the data need right-half-plane zeros: zeros='free' "
+        "reaches RMS 0.02 at 3 sections — pass zeros='free' (FitResult.alternatives"
+        "['zeros=free']); pass n_sections=2 or more (or min_damping='auto' if that feature "
+        "is noise) — pass method=IpoptOptions(final_max_iter=2000) to continue"))
+    monkeypatch.setattr(cli, "fit", lambda data, **kwargs: advised)
+    code, out, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--out", "rep")
+    assert code == 0, err
+    assert ("pass --integrator -1 or --integrator 0 if you know it; pass --gain-sign "
+            "positive; the data need right-half-plane zeros: --zeros free reaches RMS 0.02 at "
+            "3 sections — pass --zeros free; pass --sections 2 or more (or --min-damping "
+            "auto if that feature is noise) — pass --final-max-iter 2000 to continue") in out
+    assert "FitResult" not in out and "IpoptOptions" not in out
+    # every option it names parses: the advice runs as printed
+    code, _, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--integrator", "0",
+                       "--gain-sign", "positive", "--zeros", "free", "--min-damping", "auto",
+                       "--final-max-iter", "2000", "--out", "rep2")
+    assert code == 0, err
+
+
 @pytest.mark.parametrize("name, n_sections, integrator, delay, basis", [
     ("A", 17, True, True, "second-order"),
     ("B", 9, False, True, "second-order"),

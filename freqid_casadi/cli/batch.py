@@ -30,8 +30,8 @@ import os
 import stat
 import warnings
 
-from .common import (NOISE_WEIGHTS, load_options, method_option, notes_to_stderr,
-                     refuse_flags)
+from .common import (NOISE_WEIGHTS, cli_words, load_options, method_option,
+                     notes_to_stderr, refuse_flags)
 from .._textio import atomic_write_text, csv_row, one_line
 from ..fitting.batch import BATCH_STATUSES, fit_many
 from .common import (_add_final_max_iter, _add_input, _add_model_arguments,  # the CLI's
@@ -269,7 +269,7 @@ def run_cli(args, command):
     path = write_batch_report(items, files, args.out, command=command, force=args.force)
     n_ok = sum(i.status in _CONVERGED for i in items)
     for item, f in zip(items, files):
-        what = item.result.summary() if item.result is not None else item.error
+        what = cli_words(item.result.summary()) if item.result is not None else item.error
         print(f"{item.status}: {one_line(os.path.basename(f))}: {one_line(what)}")
     print(f"{n_ok}/{len(items)} converged; report: {path}")
     return 0 if n_ok == len(items) else 1

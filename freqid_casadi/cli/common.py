@@ -436,6 +436,43 @@ def method_option(args):
     return dataclasses.replace(solver_options(args.method), final_max_iter=args.final_max_iter)
 
 
+#: The fit's keywords and the options of the commands that set them (:func:`cli_words`).
+_FLAGS = {"n_sections": "--sections", "max_sections": "--max-sections",
+          "integrator": "--integrator", "gain_sign": "--gain-sign", "zeros": "--zeros",
+          "min_damping": "--min-damping", "start": "--start", "objective": "--objective",
+          "basis": "--basis", "n_jobs": "--jobs"}
+_KEYWORD = re.compile(r"(?<![\w'\[.])(" + "|".join(_FLAGS) +
+                      r")=('[^']*'|True|False|-?\d+(?:\.\d+)?(?:e-?\d+)?)(?![\w(])")
+_CONTINUE = re.compile(r"method=(?:IpoptOptions|BarrierLMOptions)\(final_max_iter=(\d+)\)")
+_ALTERNATIVE = re.compile(r" ?\(?FitResult\.alternatives\['zeros=free'\](?: holds that "
+                          r"model)?\)?")
+
+
+def cli_words(text):
+    """``text`` (a fit's message or summary) with its advice in the command's words:
+    ``integrator=2`` as ``--integrator 2``, ``zeros='free'`` as ``--zeros free``,
+    ``method=IpoptOptions(final_max_iter=2000)`` as ``--final-max-iter 2000``; the
+    Python-only pointer to ``FitResult.alternatives['zeros=free']`` (a report folder does
+    not hold the alternative) is dropped, the option to pass stays.
+
+    Parameters
+    ----------
+    text : str
+
+    Returns
+    -------
+    str
+    """
+    def flag(m):
+        key, value = m.group(1), m.group(2)
+        if key == "integrator" and value in ("True", "False"):
+            return "--integrator" if value == "True" else "--integrator 0"
+        return f"{_FLAGS[key]} {value.strip(chr(39))}"
+    text = _CONTINUE.sub(r"--final-max-iter \1", text)
+    text = _ALTERNATIVE.sub("", text)
+    return _KEYWORD.sub(flag, text)
+
+
 def print_continue_hint(result):
     """Print the fit's advice to raise ``final_max_iter`` (its message names the Python
     option) as the command's option ``--final-max-iter N``, when the message gives it.

@@ -19,7 +19,8 @@ import warnings
 from . import app
 from .common import (_ASCII_FLOAT, _add_choices, _add_input, _add_model_arguments, _ascii,
                      _checked, _common, _positive_int, _progress, _resolution_warning,
-                     NOISE_WEIGHTS, load_data, method_option, print_continue_hint)
+                     NOISE_WEIGHTS, cli_words, load_data, method_option,
+                     print_continue_hint)
 from ..errors import OptionError, ResolutionWarning
 from .._validate import check_jobs
 from ..fitting.fixed import FIXED_KEYS
@@ -146,7 +147,7 @@ def run_cli(args, command):
                             else {}))
     _resolution_warning(result)
     path = write_fit_report(result, args.out, command=command, force=args.force)
-    print(result.summary())
+    print(cli_words(result.summary()))
     print_continue_hint(result)
     print(f"report: {path}")
     return 0
