@@ -328,6 +328,24 @@ def test_plots_and_markdown(fitted, unc):
     assert "at bound" not in md
 
 
+def test_a_band_the_data_do_not_determine_keeps_the_axes_of_the_curves():
+    # an undamped pole gives a band of thousands of dB (a WaveForms export: +-3.4e3 dB),
+    # which flattened the data to a line: the axes keep the curves' range, widened by at
+    # most a quarter of its span each side, and say when the band goes beyond them
+    from matplotlib.figure import Figure
+
+    ax = Figure().subplots()
+    w = np.geomspace(1, 100, 50)
+    ax.semilogx(w, np.linspace(0.0, 10.0, 50))
+    lo, hi = ax.get_ylim()                                       # 0..10 with matplotlib's margin
+    cut = plots_uncertainty._within(ax, np.full(50, -3000.0), np.full(50, 3000.0))
+    assert cut and ax.get_ylim() == pytest.approx((lo - 0.25 * (hi - lo), hi + 0.25 * (hi - lo)))
+    ax2 = Figure().subplots()
+    ax2.semilogx(w, np.linspace(0.0, 10.0, 50))
+    cut = plots_uncertainty._within(ax2, np.linspace(-1.0, 9.0, 50), np.linspace(1.0, 11.5, 50))
+    assert not cut and ax2.get_ylim() == pytest.approx((-1.0, 11.5))
+
+
 # ------------------------------------------------------------------ calibration
 @pytest.mark.slow
 def test_monte_carlo_calibration():

@@ -466,7 +466,7 @@ def cli_words(text):
     def flag(m):
         key, value = m.group(1), m.group(2)
         if key == "integrator" and value in ("True", "False"):
-            return "--integrator" if value == "True" else "--integrator 0"
+            return "--integrator 1" if value == "True" else "--integrator 0"
         return f"{_FLAGS[key]} {value.strip(chr(39))}"
     text = _CONTINUE.sub(r"--final-max-iter \1", text)
     text = _ALTERNATIVE.sub("", text)

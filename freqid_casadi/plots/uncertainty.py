@@ -71,15 +71,41 @@ def bode_band(unc, data=None, *, omega=None, level=0.95, fig=None, title=None):
     # the band is often thinner than the line: its largest half-width goes in the label
     label = (f"{100 * level:g} % band ({unc.method}), max ±{np.max(half_db):.2g} dB, "
              f"±{np.max(half_deg):.2g}°")
-    ax_mag.fill_between(band.omega, 20 * np.log10(band.magnitude_lower),
-                        20 * np.log10(band.magnitude_upper), color="C1", alpha=0.3, lw=0,
+    lower_db, upper_db = (20 * np.log10(band.magnitude_lower),
+                          20 * np.log10(band.magnitude_upper))
+    lower_deg, upper_deg = np.rad2deg(band.phase_lower), np.rad2deg(band.phase_upper)
+    # the axes keep the data's and the model's range: a band that is not determined
+    # (thousands of dB where a pole is undamped) would flatten the curves to a line
+    clipped = [_within(ax, lo, hi) for ax, lo, hi in ((ax_mag, lower_db, upper_db),
+                                                      (ax_ph, lower_deg, upper_deg))]
+    if any(clipped):
+        label += " (beyond the axes in places)"
+    ax_mag.fill_between(band.omega, lower_db, upper_db, color="C1", alpha=0.3, lw=0,
                         label=label)
-    ax_ph.fill_between(band.omega, np.rad2deg(band.phase_lower), np.rad2deg(band.phase_upper),
-                       color="C1", alpha=0.3, lw=0)
+    ax_ph.fill_between(band.omega, lower_deg, upper_deg, color="C1", alpha=0.3, lw=0)
     ax_mag.legend(loc="best", fontsize="small", framealpha=0.9)
     if title is not None:
         fig.suptitle(title)
     return fig
+
+
+#: How far beyond the curves' own range (a share of its span, each side) a band may widen
+#: the axes before it is cut off at the axes' edge.
+BAND_MARGIN = 0.25
+
+
+def _within(ax, lower, upper):
+    """Set ``ax``'s y-limits to its curves' range widened to the band ``lower``..``upper``
+    by at most :data:`BAND_MARGIN` of that span each side; True when the band is cut."""
+    lo, hi = ax.get_ylim()
+    span = hi - lo
+    finite_lo, finite_hi = lower[np.isfinite(lower)], upper[np.isfinite(upper)]
+    want_lo = min(lo, finite_lo.min()) if finite_lo.size else lo
+    want_hi = max(hi, finite_hi.max()) if finite_hi.size else hi
+    new_lo, new_hi = max(want_lo, lo - BAND_MARGIN * span), min(want_hi, hi + BAND_MARGIN * span)
+    ax.set_ylim(new_lo, new_hi)
+    return bool(want_lo < new_lo or want_hi > new_hi or finite_lo.size < lower.size
+                or finite_hi.size < upper.size)
 
 
 def rel_error_band(unc, data, *, level=0.95, fig=None, title=None):
