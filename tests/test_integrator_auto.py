@@ -430,9 +430,9 @@ def test_root_below_band_advice_names_the_fit_auto_already_made():
     asked = below.values["integrator_asked"]
     assert asked == rec["chosen"] + 1 and asked in rec["fit_rms"]
     assert "refit with integrator=True" in below.message
-    assert ("integrator='auto' fitted integrator=True too and kept this model (RMS "
-            f"{rec['fit_rms'][asked]:.3g} against {rec['fit_rms'][rec['chosen']]:.3g})"
-            in below.message)
+    kept, other = rec["fit_rms"][rec["chosen"]], rec["fit_rms"][asked]
+    assert (f"integrator='auto' fitted integrator=True too and kept this model (its RMS "
+            f"{kept:.3g}; integrator=True's {other:.3g})" in below.message)
     assert below.values["asked_fit_rms"] == rec["fit_rms"][asked]
     plain = fc.fit(data, n_sections=1, delay=True, integrator=False)
     (own,) = [d for d in plain.diagnostics if d.code == "root-below-band"]
@@ -449,7 +449,7 @@ def test_restate_roots_below_band_only_for_a_k_that_was_fitted():
     out = restate_roots_below_band((other, d), fitted)
     assert out[0] is other
     assert out[1].message.endswith("integrator='auto' fitted integrator=-1 too and kept "
-                                   "this model (RMS 2.8e-13 against 0.00031)")
+                                   "this model (its RMS 0.00031; integrator=-1's 2.8e-13)")
     # not fitted (one contender: no fit_rms), or asked for the kept k: unchanged
     assert restate_roots_below_band((d,), {"chosen": 0})[0] is d
     assert restate_roots_below_band((d,), {"chosen": -1, "fit_rms": {-1: 1.0, 0: 2.0}})[0] is d

@@ -367,9 +367,10 @@ def restate_roots_below_band(diagnostics, record):
     for d in diagnostics:
         asked = d.values.get("integrator_asked") if d.code == "root-below-band" else None
         if asked in fits and asked != chosen and chosen in fits:
+            other = f"integrator={spell_origin(asked)}"
             d = dataclasses.replace(d, message=(
-                f"{d.message}; integrator='auto' fitted integrator={spell_origin(asked)} "
-                f"too and kept this model (RMS {fits[asked]:.3g} against {fits[chosen]:.3g})"),
+                f"{d.message}; integrator='auto' fitted {other} too and kept this model "
+                f"(its RMS {fits[chosen]:.3g}; {other}'s {fits[asked]:.3g})"),
                 values=dict(d.values, asked_fit_rms=float(fits[asked])))
         out.append(d)
     return tuple(out)
