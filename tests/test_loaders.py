@@ -212,6 +212,30 @@ def test_uff_written_by_pyuff_several_records(tmp_path):
         load(path, record=2)
 
 
+def test_an_exact_zero_in_one_uff_record_neither_refuses_the_others_nor_its_own(tmp_path):
+    # a dam's modal test (26 records, quantised): exact zeros in 10 records refused every
+    # record of the file, record=1 too; now record=K builds only record K, and a record's
+    # zero points are dropped with a note (the relative error is not defined there)
+    pyuff = pytest.importorskip("pyuff")
+    path = tmp_path / "dam.unv"
+    holed = RESP.copy()
+    holed[[1, 4]] = 0.0
+    pyuff.UFF(str(path)).write_sets([_uff_set(pyuff, F_UFF, holed, 1, ident="H 1"),
+                                     _uff_set(pyuff, F_UFF, 2 * RESP, 2, ident="H 2")],
+                                    mode="overwrite")
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataWarning)                  # no note of record 0
+        other = load(path, record=1)
+    np.testing.assert_allclose(other.response, 2 * RESP, rtol=1e-11)
+    with pytest.warns(DataWarning, match=r"record 0: dropped 2 point\(s\) whose response is "
+                      r"exactly 0 \(at 1\.25, 20 Hz\)"):
+        own = load(path, record=0)
+    np.testing.assert_array_equal(own.omega, 2 * np.pi * F_UFF[[0, 2, 3, 5]])
+    np.testing.assert_allclose(own.response, RESP[[0, 2, 3, 5]], rtol=1e-11)
+    with pytest.warns(DataWarning, match="dropped 2 point"):
+        assert [d.n_points for d in load_uff(path)] == [4, 6]
+
+
 def test_uff_records_that_are_not_frequency_responses_are_named(tmp_path):
     # an analyser's export holds the FRF beside its coherence and a PSD (function types 4,
     # 6, 9): the FRF is read, the others skipped with a note naming them; a file of a PSD

@@ -183,6 +183,38 @@ def test_cli_modal_writes_report_and_refuses_existing_out(tmp_path, capsys):
     assert "--max-iter and --jobs must be >= 1, got 2, 100, 0" in capsys.readouterr().err
 
 
+def test_cli_modal_reads_every_record_of_a_uff_file(tmp_path, capsys):
+    # a modal test's analyser writes one UFF file with an FRF record per channel: freqid
+    # modal reads them all (the load error pointed to --record, which it lacked); a record
+    # whose exact-zero bins were dropped is cut with the others to the shared grid
+    pyuff = pytest.importorskip("pyuff")
+    datas = _datas(120)
+    holed = datas[1].response.copy()
+    holed[7] = 0.0
+    sets = [pyuff.prepare_58(
+        binary=0, func_type=4, rsp_node=c + 1, rsp_dir=1, ref_node=1, ref_dir=1,
+        ord_data_type=6, abscissa_spacing=0, abscissa_spec_data_type=18,
+        abscissa_axis_units_lab="rad/s", ordinate_spec_data_type=12,
+        orddenom_spec_data_type=13, z_axis_spec_data_type=0, x=d.omega, data=z,
+        id1=f"point {c + 1}") for c, (d, z) in enumerate(
+            zip(datas, (datas[0].response, holed)))]
+    path = tmp_path / "test.unv"
+    pyuff.UFF(str(path)).write_sets(sets, mode="overwrite")
+    out = tmp_path / "rep"
+    assert main(["modal", str(path), "--orders", "2:8:2", "--min-stable", "2",
+                 "--out", str(out), "--zeros", "free"]) == 0
+    err = capsys.readouterr().err
+    assert "record 1: dropped 1 point(s) whose response is exactly 0" in err
+    assert "kept the 119 frequencies all 2 channels share" in err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["n_modes_selected"] == 2
+    assert [m["omega_n"] for m in summary["modes"]] == pytest.approx([5.0, 17.0], rel=1e-3)
+    assert {"bode_point_1.png", "bode_point_2.png"} <= set(os.listdir(out))
+    # --record K: that record alone
+    assert main(["modal", str(path), "--record", "0", "--orders", "2:4:2", "--out",
+                 str(tmp_path / "one")]) == 0
+
+
 def test_import_does_not_load_matplotlib():
     code = ("import sys, freqid_casadi, freqid_casadi.core.modes, freqid_casadi.modal.shared, "
             "freqid_casadi.plots.modal, freqid_casadi.cli.modal; "

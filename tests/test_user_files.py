@@ -249,7 +249,8 @@ def test_cli_record_chooses_a_uff_record(tmp_path):
             orddenom_spec_data_type=13), mode="add")
     data = cli_common.load_data(_args(path, "--record", "1"), str(path))
     np.testing.assert_allclose(data.response, 2 * RESP, rtol=1e-6)
-    with pytest.raises(DataError, match=r"record=0\.\.1 to load\(\) \(command line --record K\)"):
+    with pytest.raises(DataError, match=r"record=0\.\.1 to load\(\) \(command line --record K; "
+                       r"freqid modal reads them all\)"):
         cli_common.load_data(_args(path), str(path))
 
 

@@ -74,7 +74,7 @@ def parse_band_text(text):
     return band
 
 
-def add_data_options(parser, records=False):
+def add_data_options(parser, records=False, weights=None):
     """Add ``--freq-unit``, ``--columns`` and ``--band`` to ``parser``.
 
     Parameters
@@ -84,6 +84,8 @@ def add_data_options(parser, records=False):
     records : bool
         Also add ``--record K`` (UFF files with several records), ``--parameter S21``
         (Touchstone files) and ``--weights STATS.csv``, for commands that read one file.
+    weights : bool, optional
+        Whether to add ``--weights`` (default: as ``records``).
     """
     parser.add_argument(
         "--freq-unit", choices=("hz", "rad/s"), type=str.lower, metavar="hz|rad/s",
@@ -112,6 +114,7 @@ def add_data_options(parser, records=False):
                  "for ten and more ports); also which S-parameter or receiver ratio of a "
                  "network analyser's CSV whose header names several (S21(REAL),S21(IMAG),"
                  "S11(REAL),...,A2/A1(REAL),...)")
+    if records if weights is None else weights:
         parser.add_argument(
             "--weights", metavar="STATS.csv",
             help="weights of the data's frequencies: the <stem>.stats.csv that 'freqid frf' "

@@ -10,7 +10,8 @@ Usage::
                  [--jobs N]
                  [--coordinates X1,X2,...|FILE] [--reference-shapes FILE]
 
-Reads one FRF per file (:func:`freqid_casadi.load`; all on one omega grid), estimates
+Reads one FRF per file (:func:`freqid_casadi.load`; all on one omega grid; every
+frequency-response record of a UFF file, each a channel), estimates
 every order of ``--orders`` with shared poles
 (:func:`freqid_casadi.modal.survey.stabilization`: shared-pole vector fitting at each
 order, the selected modes then fitted once with ``fit_shared``; ``--estimator full`` fits
@@ -68,8 +69,10 @@ def add_cli(subparsers):
                     "modes and write a report folder.")
     p.add_argument("files", nargs="+", metavar="FILE",
                    help="FRF files (text/CSV, .npz, .mat, .uff/.unv, .s1p/.s2p, read as by "
-                        "'freqid fit'; see its --help for the columns and units)")
-    add_data_options(p)
+                        "'freqid fit'; see its --help for the columns and units); a UFF "
+                        "file gives every frequency-response record it holds, one channel "
+                        "each (--record K: only that one)")
+    add_data_options(p, records=True, weights=False)
     p.add_argument("--orders", default="2:40:2", metavar="START:STOP:STEP",
                    help="model orders (number of shared poles, even), stop included, or a "
                         "comma list (default 2:40:2)")
@@ -170,6 +173,53 @@ def _reference(path, n):
     return ref.T
 
 
+def _file_channels(args, path, load_data):
+    """The FRFs of one file: its one data set, or every frequency-response record of a UFF
+    file (a modal test's file holds one per channel; ``--record K`` reads one)."""
+    from .common import load_options, refuse_flags
+    from ..io.loaders import _UFF_EXT, load_uff
+
+    opts = load_options(args)
+    if not str(path).lower().endswith(_UFF_EXT) or opts.get("record") is not None:
+        return [load_data(args, path)]
+    refuse_flags(path, opts)
+    return list(load_uff(path, freq_unit=opts.get("freq_unit"), band=opts.get("band")))
+
+
+#: The least share of the largest grid the frequencies all channels share must keep for
+#: the channels to be cut to them (fewer: the grids differ, and the fit says so).
+COMMON_GRID_SHARE = 0.75
+
+
+def _common_grid(datas):
+    """``datas`` on the frequencies they all have, when their grids differ only by points
+    some channels lack (a reader drops an analyser's zero or DC bins per channel) and
+    those keep :data:`COMMON_GRID_SHARE` of the largest grid; else ``datas`` as given."""
+    from ..core.data import FrequencyData
+    from ..io.loaders import DataWarning
+
+    if len({d.omega.tobytes() for d in datas}) < 2:
+        return datas
+    common = datas[0].omega
+    for d in datas[1:]:
+        common = np.intersect1d(common, d.omega)
+    largest = max(d.n_points for d in datas)
+    if common.size < max(2, COMMON_GRID_SHARE * largest):
+        return datas
+    cut = sorted({int(d.n_points - common.size) for d in datas if d.n_points > common.size})
+    import warnings
+    warnings.warn(f"the channels' grids differ only by points some channels lack (bins "
+                  f"a reader dropped): kept the {common.size} frequencies all "
+                  f"{len(datas)} channels share, dropping {cut[0]}..{cut[-1]} of a channel's "
+                  "points", DataWarning, stacklevel=2)
+    out = []
+    for d in datas:
+        keep = np.isin(d.omega, common)
+        out.append(FrequencyData(d.omega[keep], d.response[keep], d.name,
+                                 None if d.weights is None else d.weights[keep], d.unit))
+    return out
+
+
 def _channel_names(datas, files):
     names, seen = [], set()
     for k, (d, f) in enumerate(zip(datas, files)):
@@ -217,8 +267,9 @@ def run_cli(args, command):
     check_out_dir(args.out, args.force)
     orders = parse_orders(args.orders)
     with notes_to_stderr():                  # the files' notes together, each text once
-        datas = [load_data(args, f) for f in args.files]
-    names = _channel_names(datas, args.files)
+        channels = [(d, f) for f in args.files for d in _file_channels(args, f, load_data)]
+    datas, files = _common_grid([d for d, _ in channels]), [f for _, f in channels]
+    names = _channel_names(datas, files)
     delay = False if args.delay == "none" else args.delay
     if args.min_stable < 1 or args.max_iter < 1 or args.jobs < 1:
         raise OptionError(f"--min-stable, --max-iter and --jobs must be >= 1, got "

@@ -13,7 +13,7 @@ from ._readfile import DataWarning
 from ._table import parse_freq_unit
 from ..errors import DataError
 
-__all__ = ["load_uff", "UFF_FUNCTION_TYPES", "RESPONSE_TYPES"]
+__all__ = ["load_uff", "read_uff", "UFF_FUNCTION_TYPES", "RESPONSE_TYPES"]
 
 #: Dataset 58's function types (record 6, field 1), as the UFF standard names them.
 UFF_FUNCTION_TYPES = {
@@ -60,6 +60,33 @@ def load_uff(path, *, freq_unit=None, band=None):
         no frequency-response record (the error names what the records are), a record
         with bad values.
     """
+    return read_uff(path, freq_unit=freq_unit, band=band)[1]
+
+
+def read_uff(path, *, freq_unit=None, band=None, record=None, single=False):
+    """:func:`load_uff`, or only its frequency-response record ``record``.
+
+    Parameters
+    ----------
+    path, freq_unit, band
+        As :func:`load_uff`.
+    record : int, optional
+        0-based among the frequency-response records; None: all of them. Only that record
+        is checked and built (a bad value in another record does not refuse it).
+    single : bool
+        With ``record`` None: build the records only when there is one (else none).
+
+    Returns
+    -------
+    (int, tuple of FrequencyData)
+        The number of frequency-response records, and the records built (all, the one
+        asked for, or none).
+
+    Raises
+    ------
+    DataError
+        As :func:`load_uff`; ``record`` out of range.
+    """
     from ._readfile import parse_band, read_regular_file
 
     freq_unit = parse_freq_unit(freq_unit)
@@ -94,7 +121,16 @@ def load_uff(path, *, freq_unit=None, band=None):
                       f"); kept its {len(keep)} frequency-response record(s), numbered 0.."
                       f"{len(keep) - 1} for record=", DataWarning,
                       stacklevel=2)
-    return tuple(_uff_record(path, k, sets[k], freq_unit, band) for k in keep)
+    if record is None:
+        if single and len(keep) != 1:
+            return len(keep), ()
+        return len(keep), tuple(_uff_record(path, k, sets[k], freq_unit, band) for k in keep)
+    if isinstance(record, bool) or not isinstance(record, (int, np.integer)) \
+            or not 0 <= record < len(keep):
+        raise DataError(f"record={record!r} is out of range: {path!r} holds {len(keep)} "
+                        f"record(s), numbered 0..{len(keep) - 1}")
+    k = keep[int(record)]
+    return len(keep), (_uff_record(path, k, sets[k], freq_unit, band),)
 
 
 def _kind(dset):
@@ -132,6 +168,14 @@ def _uff_record(path, k, dset, freq_unit, band=None):
     omega = x if unit == "rad/s" else 2 * np.pi * x
     ident = str(dset.get("id1", "") or "").strip()
     name = ident if ident and ident.upper() != "NONE" else f"{_stem(path)}:{k}"
+    zero = (z == 0) & (x != 0)
+    if zero.any() and zero.size == x.size:
+        # an analyser's quantised or blanked bins: the relative error is not defined there
+        shown = ", ".join(f"{v:.6g}" for v in x[zero][:5]) + (", ..." if zero.sum() > 5 else "")
+        warnings.warn(f"{where}: dropped {int(zero.sum())} point(s) whose response is exactly "
+                      f"0 (at {shown} {'rad/s' if unit == 'rad/s' else 'Hz'}): the relative "
+                      "error is not defined there", DataWarning, stacklevel=4)
+        x, z, omega = x[~zero], z[~zero], omega[~zero]
     try:
         return _finish(path, omega, z, name, band=band,
                        scale=1.0 if unit == "rad/s" else 2 * np.pi,

@@ -25,7 +25,7 @@ import numpy as np
 
 from ._mat import read_mat_arrays, records_hint
 from ._touchstone import is_touchstone, load_touchstone
-from ._uff import load_uff
+from ._uff import load_uff, read_uff
 from ._readfile import (MAX_ELEMENTS, MAX_FILE_BYTES, MAX_ROWS, DataWarning, _finish,
                         parse_band, read_regular_file)
 from ._table import (Column, Table, _check_finite, _default_columns, _layout_problem,
@@ -118,19 +118,14 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
                         "freqid_casadi.RationalDelayModel.load(path); data files are text "
                         "(CSV), .npz, .mat, .uff/.unv or Touchstone .sNp/.ts")
     if lower.endswith(_UFF_EXT):
-        found = load_uff(path, freq_unit=freq_unit, band=band)
-        if record is None:
-            if len(found) > 1:
-                raise DataError(
-                    f"{os.fspath(path)!r} holds {len(found)} frequency-response records: pass "
-                    f"record=0..{len(found) - 1} to load() (command line --record K), or use "
-                    "load_uff() for all of them")
-            record = 0
-        if isinstance(record, bool) or not isinstance(record, int) \
-                or not 0 <= record < len(found):
-            raise DataError(f"record={record!r} is out of range: {os.fspath(path)!r} holds "
-                            f"{len(found)} record(s), numbered 0..{len(found) - 1}")
-        data = found[record]
+        count, found = read_uff(path, freq_unit=freq_unit, band=band, record=record,
+                                single=True)
+        if not found:
+            raise DataError(
+                f"{os.fspath(path)!r} holds {count} frequency-response records: pass "
+                f"record=0..{count - 1} to load() (command line --record K; freqid modal "
+                "reads them all), or use load_uff() for all of them")
+        data = found[0]
         return data if name is None else FrequencyData(data.omega, data.response, name)
     return load_text(path, name, freq_unit=freq_unit, columns=cols, band=band,
                      parameter=parameter, record=record)
