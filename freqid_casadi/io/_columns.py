@@ -19,6 +19,9 @@ __all__ = ["Column", "recognise", "parse_columns", "parse_freq_unit", "COLUMN_HE
 #: (``_CHANNEL``: the number and the name after it).
 _CHANNEL_NO = re.compile(r"^\s*(?:channel|chan|ch|trace|tr)\s*(\d+)", re.IGNORECASE)
 _CHANNEL = re.compile(_CHANNEL_NO.pattern + r"\s*[:\-]?\s+(\S.*)$", re.IGNORECASE)
+#: A trace named by a word, not a number: ``Trace |Z| (Ohm)``, ``Trace th (*)`` (Digilent
+#: WaveForms' impedance export).
+_TRACE_WORD = re.compile(r"^\s*trace\s+(\S.*)$", re.IGNORECASE)
 _UNIT_RE = re.compile(r"^(.*?)[\s_]*[\[(]\s*([^\])]*?)\s*[\])]\s*$")
 
 _UNITS = {"": None, "hz": "hz", "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad/s",
@@ -31,16 +34,23 @@ _UNITS = {"": None, "hz": "hz", "rad/s": "rad/s", "rad_s": "rad/s", "rads": "rad
           "abs": "lin", "absolut": "lin", "absolute": "lin", "magnitude": "lin",
           "mag": "lin"}
 _SUFFIXES = ("_rad_sample", "_rad_s", "_rads", "_hz", "_db", "_degrees", "_deg", "_radians", "_rad")
-#: (``freqency``: as the SR785 acquisition scripts of gravitational-wave labs spell it)
+#: (``freqency``: as the SR785 acquisition scripts of gravitational-wave labs spell it;
+#: German, Spanish, French and Italian exports: ``Frequenz (Hz)``, ``Frecuencia (Hz)``, ...)
 _FREQ = {"omega": "rad/s", "w": "rad/s", "f": None, "freq": None, "frequency": None,
-         "freqency": None, "hz": "hz"}
+         "freqency": None, "hz": "hz", "frequenz": None, "frecuencia": None,
+         "fréquence": None, "frequence": None, "frequenza": None}
 _RE = {"re", "real"}
 _IM = {"im", "imag", "imaginary"}
-#: (``spl``: a sound pressure level, ``SPL(dB)`` in Room EQ Wizard's exports)
-_MAG = {"mag", "magnitude", "abs", "amplitude", "amp", "gain", "modulus", "spl"}
+#: (``spl``: a sound pressure level, ``SPL(dB)`` in Room EQ Wizard's exports; ``|z|``:
+#: ``Trace |Z| (Ohm)`` in WaveForms' impedance export; German, Spanish and Italian words)
+_MAG = {"mag", "magnitude", "abs", "amplitude", "amp", "gain", "modulus", "spl", "|z|",
+        "|h|", "|y|", "|g|", "betrag", "verstärkung", "amplitud", "ganancia", "ampiezza",
+        "guadagno"}
 #: A magnitude in decibels named by its unit alone (``dB``, ``dBSPL`` as ARTA writes it).
 _DB = {"db", "dbspl", "db_spl", "dbv", "dbu", "dbr"}
-_PHASE = {"phase", "phi", "arg", "angle", "ph"}
+#: (``th``/``θ``: the angle of an impedance, ``Trace th (*)`` in WaveForms' export;
+#: ``fase``: Spanish, Italian)
+_PHASE = {"phase", "phi", "arg", "angle", "ph", "th", "theta", "θ", "fase"}
 #: A phase named by its unit alone (``"Hz"  "Mag (dB)"  "deg"``, as MLSSA files head theirs).
 _PHASE_UNIT = {"deg": "deg", "degree": "deg", "degrees": "deg", "°": "deg", "rad": "rad",
                "radian": "rad", "radians": "rad"}
@@ -53,6 +63,12 @@ _SPARAM = re.compile(r"s\d\d|[abr]\d?/[abr]\d?")
 #: A response's display format after its name, as Keysight's network analysers write a trace
 #: (``S21 Log Mag(dB)``, ``S21 Lin Mag(U)``, ``S21 Phase(deg)``, ``S21 Real(U)``).
 _FORMAT = re.compile(r"^(.+?)_(log_mag|lin_mag|phase|real|imag)$")
+#: An S-parameter with its format glued on (``S21dB``, ``S21deg``, ``S21re``, ``S21_im``,
+#: ``S21 mag``, as a VNA's script writes ``Freq,S11dB,S11deg,S21dB,...``): its column.
+_SPARAM_PART = re.compile(r"^s\d\d_?(db|deg|rad|re|real|im|imag|mag)$")
+_PART_COLUMN = {"db": ("mag", "db"), "deg": ("phase", "deg"), "rad": ("phase", "rad"),
+                "re": ("re", None), "real": ("re", None), "im": ("im", None),
+                "imag": ("im", None), "mag": ("mag", "lin")}
 _SKIP = {"skip", "_", "-", "ignore", "coherence", "coh"}
 #: Quantities an impedance analyser derives from the response and exports beside it as a
 #: response's "unit" (``TR2: Impedance (Ls)``, as the Bode 100 writes a trace shown as a
@@ -90,9 +106,9 @@ def recognise(label):
     writes) is read past; a gain or response named with its part or angle as the unit
     (``Gain (Real)``, ``Gain (Imag)``, ``Gain (Degree)``) is that part or the phase."""
     head, colon, rest = label.rpartition(":")
-    channel = _CHANNEL.match(label)
+    channel = _CHANNEL.match(label) or _TRACE_WORD.match(label)
     for name in (rest if colon and head.strip() and rest.strip() else None,
-                 channel.group(2) if channel else None):
+                 channel.groups()[-1] if channel else None):
         col = recognise(name) if name else None
         if col is not None:
             return Column(col.role, col.unit, label.strip())
@@ -104,6 +120,9 @@ def recognise(label):
     elif "/" in s and s.partition("/")[2].replace(" ", "") in _UNITS:    # DIN: "f/Hz"
         s, _, unit = s.partition("/")
     s = re.sub(r"_part$", "", re.sub(r"[\s\-.]+", "_", s).strip("_"))   # "real part"
+    part = _SPARAM_PART.fullmatch(s)
+    if part and not unit:
+        return Column(*_PART_COLUMN[part.group(1)], label.strip())
     if not unit:
         for suffix in _SUFFIXES:
             if s.endswith(suffix) and len(s) > len(suffix):
