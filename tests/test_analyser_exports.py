@@ -36,12 +36,82 @@ def _polar(db, deg):
 
 # --------------------------------------------------------------------------- Siglent
 
+_SIGLENT_PREAMBLE = """Instrument Name,SDS2104X HD
+Serial Number,SDS2HBAX6R0124
+Software Version,2.6.1.2.1.1
+Awg Type,USB
+DUT Input Source,CH4
+DUT Output Source1,CH1
+DUT Output Source2,CH2
+DUT Output Source3,None
+DUT Channel Gain,Auto
+Sweep Type,Simple
+Awg Amplitude,1V
+Awg Offset,0V
+Awg Amplitude reference level,1V
+Awg Load,HighZ
+Awg Amplitude Unit,Vpp
+Sweep Mode,Logarithmic
+Start Frequency,100Hz
+Stop Frequency,1000000Hz
+Sweep Line,400
+Sweep Log(dec),20
+Amplitude Mode,Vout/Vin
+Amplitude Axis Type,Logarithmic
+Amplitude Axis Range,-70.2dB,-22.2dB
+Phase Unit,Degree
+Phase Axis Range,-200Deg,0Deg
+Bode Data
+Number of Points,3
+"""
+_SIGLENT_ROWS = [(100.0, 0.0130968441, -1.19590744, -33.9263355, 88.2384129),
+                 (112.201845, 0.00729680987, -1.35280926, -32.9614999, 88.0330135),
+                 (125.892541, 0.00525304973, -1.49875138, -31.9484596, 87.9012471)]
+_SIGLENT = (_SIGLENT_PREAMBLE
+            + "Frequency(Hz),CH1 Amplitude(dB),CH1 Phase(Deg),CH2 Amplitude(dB),CH2 Phase(Deg)\n"
+            + "100,0.0130968441,-1.19590744,-33.9263355,88.2384129\n"
+            + "112.201845,0.00729680987,-1.35280926,-32.9614999,88.0330135\n"
+            + "125.892541,0.00525304973,-1.49875138,-31.9484596,87.9012471\n")
+
+
 def test_siglent_channels_are_recognised_each():
     # no space between the name and its unit: "CH1 Amplitude(dB)"
     assert [(c.role, c.unit) for c in map(recognise, (
         "Frequency(Hz)", "CH1 Amplitude(dB)", "CH1 Phase(Deg)", "CH2 Amplitude(dB)",
         "CH2 Phase(Deg)"))] == [("freq", "hz"), ("mag", "db"), ("phase", "deg"),
                                 ("mag", "db"), ("phase", "deg")]
+
+
+def test_siglent_bode_export_of_two_complete_channels_asks_which(tmp_path):
+    path = _write(tmp_path, _SIGLENT, "siglent.csv")
+    with pytest.raises(DataError) as err:
+        _load(path)
+    text = str(err.value)
+    assert "it gives 2 channels, each a complete response" in text
+    assert ("pass columns='freq_hz,mag_db,phase_deg,skip,skip' to read CH1 or "
+            "columns='freq_hz,skip,skip,mag_db,phase_deg' to read CH2") in text
+    # the header is on line 28, after the preamble: the message says so
+    assert "the header (line 28) must be" in text and "the first line" not in text
+    f, _, _, db2, deg2 = np.array(_SIGLENT_ROWS).T
+    data, notes = _load(path, columns="freq_hz,skip,skip,mag_db,phase_deg")
+    np.testing.assert_allclose(data.omega, 2 * np.pi * f, rtol=1e-15)
+    np.testing.assert_allclose(data.omega[0], 628.3185307179587, rtol=1e-15)
+    np.testing.assert_allclose(data.response, _polar(db2, deg2), rtol=1e-13)
+    # -33.9263355 dB at 88.2384129 degrees, by hand
+    np.testing.assert_allclose(data.response[0], 0.000618580592 + 0.020113049689j,
+                               rtol=1e-9)
+    assert any("skipped 28 line(s) of metadata before the data (lines 1-28, the first "
+               "'Instrument Name,SDS2104X HD')" in n for n in notes)
+
+
+def test_a_header_on_the_first_line_is_still_named_so(tmp_path):
+    path = _write(tmp_path, "Frequency(Hz),CH1 Amplitude(dB),CH1 Phase(Deg),"
+                  "CH2 Amplitude(dB)\n100,0.01,-1.2,-33.9\n200,0.02,-2.4,-27.9\n",
+                  "one.csv")
+    with pytest.raises(DataError, match=r"to read channel 1, the one whose columns make a "
+                       r"response, pass columns='freq_hz,mag_db,phase_deg,skip'.*the first "
+                       r"line must be"):
+        fc.load(path)
 
 
 # --------------------------------------------------------------------------- VNA blocks
@@ -71,6 +141,21 @@ def test_frequency_and_response_named_in_other_languages(tmp_path, header):
     np.testing.assert_allclose(data.response, _polar([-3.01, -20.0], [-45.0, -84.3]),
                                rtol=1e-13)
     np.testing.assert_allclose(data.response[0], 0.50001727 - 0.50001727j, rtol=1e-7)
+
+
+# --------------------------------------------------------------------------- headerless
+
+def test_headerless_file_gets_an_example_with_as_many_names_as_columns(tmp_path):
+    text = ("100.000000\t-4.405273\t0.602194\t-1.400000\n"
+            "109.647820\t-4.405273\t0.602194\t-1.500000\n"
+            "120.226443\t-4.405273\t0.602194\t-1.700000\n")
+    path = _write(tmp_path, text, "bode_5d.txt", newline="\r\n")
+    with pytest.raises(DataError, match=r"has no header and 4 columns.*e\.g\. "
+                       r"columns='f,mag_db,phase_deg,skip',"):
+        fc.load(path)
+    data = fc.load(path, columns="freq_hz,mag_db,skip,phase_deg")
+    np.testing.assert_allclose(data.response, _polar([-4.405273] * 3, [-1.4, -1.5, -1.7]),
+                               rtol=1e-13)
 
 
 # --------------------------------------------------------------------------- WaveForms

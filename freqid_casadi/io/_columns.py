@@ -12,7 +12,7 @@ from dataclasses import dataclass
 from ..errors import OptionError
 
 __all__ = ["Column", "recognise", "parse_columns", "parse_freq_unit", "COLUMN_HELP",
-           "one_layout", "columns_option", "one_channel", "sparameter_of",
+           "one_layout", "columns_option", "complete_channels", "sparameter_of",
            "sparameters", "with_parameter", "DERIVED"]
 
 #: A channel or trace number before a column's name: ``Channel 2 Phase (deg)``, ``Ch1 Re``
@@ -264,27 +264,29 @@ def _channel_of(label):
     return int(m.group(1)) if m else None
 
 
-def one_channel(cols):
-    """``(channel, columns=)`` reading the one channel or trace whose columns form a
-    complete layout (``Channel 2 Magnitude (dB)`` with ``Channel 2 Phase (deg)`` beside
-    ``Channel 1 Magnitude (dB)``, as the Digilent WaveForms network analyser writes), or
-    None: what an error can offer when a header gives several channels (which channel is
-    the system's response is the user's to say)."""
+def complete_channels(cols):
+    """``[(channel, columns=, name), ...]``: each channel or trace of a header that gives
+    several whose columns form a complete layout (``Channel 2 Magnitude (dB)`` with
+    ``Channel 2 Phase (deg)`` beside ``Channel 1 Magnitude (dB)``, as the Digilent
+    WaveForms network analyser writes; ``CH1 ...`` and ``CH2 ...``, each complete, as a
+    Siglent oscilloscope's Bode export), with the ``columns=`` string that reads it and its
+    name as the header writes it (``CH1``): what an error can offer, since which channel
+    is the system's response is the user's to say. Empty when the header does not have
+    one frequency column and two or more channels, or a column is unknown."""
     if None in cols or [c.role for c in cols].count("freq") != 1:
-        return None
+        return []
     freq = next(c for c in cols if c.role == "freq")
     groups = {}
     for c in cols:
         if c.role not in ("freq", "skip"):
             groups.setdefault(_channel_of(c.label), []).append(c)
-    complete = [k for k, g in groups.items()
-                if k is not None and _layout_problem([freq] + g) is None]
-    if len(complete) != 1 or len(groups) < 2:
-        return None
-    k = complete[0]
-    return k, columns_option(tuple(
+    if len(groups) < 2:
+        return []
+    return [(k, columns_option(tuple(
         c if c.role == "freq" or c.role != "skip" and _channel_of(c.label) == k
-        else Column("skip") for c in cols))
+        else Column("skip") for c in cols)), _CHANNEL_NO.match(g[0].label).group(0).strip())
+        for k, g in groups.items()
+        if k is not None and _layout_problem([freq] + g) is None]
 
 
 def columns_option(cols):

@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ._columns import (_UNITS, COLUMN_HELP, DERIVED, Column, _layout_problem, columns_option,
-                       one_channel, one_layout, parse_columns, parse_freq_unit, recognise,
-                       sparameters, with_parameter)
+                       complete_channels, one_layout, parse_columns, parse_freq_unit,
+                       recognise, sparameters, with_parameter)
 from ._readfile import DataWarning
 from ..errors import DataError, OptionError
 
@@ -292,7 +292,7 @@ def _comment_header(rows, comment):
     return [(comment[0], (sep or " ").join(cells))] + rows
 
 
-def _header_columns(path, cells, parameter=None):
+def _header_columns(path, cells, parameter=None, line=1):
     cols = [recognise(_clean(c)) for c in cells]
     traces = [_clean(c) for c in cells[1:]]
     ltspice = _clean(cells[0]) == "Freq." and traces and all(map(_LT_TRACE.fullmatch, traces))
@@ -310,10 +310,16 @@ def _header_columns(path, cells, parameter=None):
         problem = f"column {_clean(bad)!r} is not a known name"
     else:
         problem = _layout_problem(cols)
-        choice = one_channel(cols) if problem else None
-        if choice:
-            problem += (f"; to read channel {choice[0]}, the one whose columns make a "
-                        f"response, pass columns='{choice[1]}'")
+        choice = complete_channels(cols) if problem else []
+        if len(choice) == 1:
+            problem += (f"; to read channel {choice[0][0]}, the one whose columns make a "
+                        f"response, pass columns='{choice[0][1]}'")
+        elif choice:
+            problem += (f"; it gives {len(choice)} channels, each a complete response: "
+                        "which is the system's response is yours to choose: pass " +
+                        " or ".join(f"columns='{option}' to read {name}"
+                                    for _, option, name in choice) +
+                        " (command line --columns)")
         named = [p.upper() for p in sparameters(cells)]
         if problem and len(named) > 1:
             kinds = "S-parameters and ratios" if any("/" in p for p in named) else \
@@ -328,7 +334,9 @@ def _header_columns(path, cells, parameter=None):
     if problem:
         raise DataError(
             f"{path!r}: unrecognised header {','.join(_clean(c) for c in cells)!r} "
-            f"({problem}); the first line must be 'omega,real,imag' or "
+            f"({problem}); "
+            f"{'the first line' if line == 1 else f'the header (line {line})'} must be "
+            "'omega,real,imag' or "
             "'omega,magnitude_db,phase_deg' (rad/s), or another layout such as "
             "'freq_hz,mag_db,phase_deg'; or pass columns=... (command line --columns) to "
             f"{COLUMN_HELP}")
@@ -347,12 +355,13 @@ def _default_columns(path, cells):
                 Column("im", None, "imag"))
     if len(cells) == 2 and not NUMBER.fullmatch(_clean(cells[1])):
         return Column("freq", None, "frequency"), Column("complex", None, "response")
+    example = ",".join(["f", "mag_db", "phase_deg"] + ["skip"] * (len(cells) - 3))
     records = (" If it holds time records (input and output samples), estimate the "
                "frequency response first: freqid frf FILE --out frf.csv (see freqid frf "
                "--help)." if len(cells) == 2 else "")
     raise DataError(
         f"{path!r} has no header and {len(cells)} columns: cannot tell what they are; pass "
-        "columns=... (command line --columns), e.g. columns='f,mag_db,phase_deg', to "
+        f"columns=... (command line --columns), e.g. columns='{example}', to "
         f"{COLUMN_HELP}; or add a header line.{records}")
 
 
@@ -651,7 +660,7 @@ def read_table(path, payload, columns, freq_unit, max_rows, parameter=None, reco
     if columns is not None:
         cols = columns
     elif header:
-        cols = _header_columns(path, first, parameter)
+        cols = _header_columns(path, first, parameter, rows[0][0])
     else:
         cols = _default_columns(path, first)
     if parameter is not None and not (header and columns is None):
