@@ -116,6 +116,27 @@ def test_a_header_on_the_first_line_is_still_named_so(tmp_path):
 
 # --------------------------------------------------------------------------- VNA blocks
 
+_VNA_HEAD = ("HEADER,Raster Number, RF Direction,Polarization,Date,Time,\n"
+             ",0,Tx,Horizontal,2019/03/13,16:44:58\n"
+             "BS1,BS2,RT1\n"
+             "-10,-10,0.0\n"
+             "AO settings - B2AO0,...,B2AO31,B1AO0,...,B1AO31 \n"
+             + ",".join(f"{1 + 0.0625 * k:.4f}" for k in range(64)) + "\n"
+             "Freq,S11dB,S11deg,S21dB,S21deg,S12dB,S12deg,S22dB,S22deg\n")
+_VNA_ROWS = (
+    "7.50000000000E+10,-1.52499778591E+01,+1.11351589345E+02,-3.02961164934E+01,"
+    "-2.84538977571E+00,-2.99447763008E+01,+2.24895239920E+01,-1.50255023844E+01,"
+    "+1.69584910460E+02\n"
+    "7.50500000000E+10,-1.51846957146E+01,+1.08189914423E+02,-2.98210175981E+01,"
+    "-1.37009881057E+01,-3.03336907299E+01,+1.25907460844E+01,-1.33885563445E+01,"
+    "+1.50108475461E+02\n"
+    "7.51000000000E+10,-1.51709291587E+01,+1.05072040976E+02,-2.93970011959E+01,"
+    "-2.48244296044E+01,-2.96135264997E+01,+1.66405636505E+00,-1.22274772815E+01,"
+    "+1.29159040396E+02\n")
+_S21 = _polar([-30.2961164934, -29.8210175981, -29.3970011959],
+              [-2.84538977571, -13.7009881057, -24.8244296044])
+
+
 @pytest.mark.parametrize("name, role, unit", [
     ("S21dB", "mag", "db"), ("S21deg", "phase", "deg"), ("S21re", "re", None),
     ("S21im", "im", None), ("S21mag", "mag", "lin"), ("S21_dB", "mag", "db"),
@@ -125,6 +146,50 @@ def test_an_sparameter_glued_to_its_format_is_that_parameter_s_column(name, role
     col = recognise(name)
     assert (col.role, col.unit) == (role, unit)
     assert sparameter_of(name) == name[:3].lower()
+
+
+def test_vna_sweep_reads_the_parameter_chosen(tmp_path):
+    # the last block of the script's file, ending in ENDOFFILE
+    path = _write(tmp_path, _VNA_HEAD + _VNA_ROWS + "ENDOFFILE\n", "vna.csv")
+    data, notes = _load(path, parameter="S21", freq_unit="Hz")
+    np.testing.assert_allclose(data.omega, 2 * np.pi * np.array([75e9, 75.05e9, 75.1e9]),
+                               rtol=1e-15)
+    np.testing.assert_allclose(data.response, _S21, rtol=1e-13)
+    np.testing.assert_allclose(data.response[0], 0.030525192699 - 0.001517171868j, rtol=1e-9)
+    assert any("skipped 1 line(s) after the data (line 11, the first 'ENDOFFILE')" in n
+               for n in notes)
+    s11, _ = _load(path, parameter="S11", freq_unit="Hz")
+    np.testing.assert_allclose(s11.response[0], _polar(-15.2499778591, 111.351589345),
+                               rtol=1e-13)
+
+
+def test_vna_file_of_repeated_blocks_names_the_second(tmp_path):
+    path = _write(tmp_path, (_VNA_HEAD + _VNA_ROWS) * 3 + "ENDOFFILE\n", "vna40.csv")
+    # the second block's HEADER line is line 11 (7 header lines, 3 rows), its data on 18
+    msg = (r"line 11 starts a second block \(a header repeated before each of 3 blocks: "
+           r"'HEADER,Raster Number, RF Direction,Po\.\.\.' and 6 more line\(s\), then data "
+           r"again from line 18\): this reader reads one sweep: cut the file to one block "
+           r"\(the first is lines 8-10\)")
+    with pytest.raises(DataError, match=msg):
+        _load(path, parameter="S21", freq_unit="Hz")
+    with pytest.raises(DataError, match=msg):
+        _load(path, columns="freq_hz,skip,skip,mag_db,phase_deg,skip,skip,skip,skip")
+
+
+def test_two_sweeps_under_one_repeated_header_line(tmp_path):
+    # the bad line has as many cells as the data: the block, not 'Freq', is named
+    text = "Freq (Hz),S21dB,S21deg\n10,-3,-45\n20,-6,-60\n30,-9,-70\n" * 2
+    with pytest.raises(DataError, match=r"line 5 starts a second block \('Freq \(Hz\),"
+                       r"S21dB,S21deg', then data again from line 6\).*the first is "
+                       r"lines 2-4"):
+        fc.load(_write(tmp_path, text, "two.csv"))
+
+
+def test_one_stray_line_amid_the_data_is_no_block(tmp_path):
+    text = "f [Hz],re,im\n1,2,3\noverload\n4,5,6\n7,8,9\n10,11,12\n"
+    with pytest.raises(DataError, match=r"line 3: expected 3 columns \(f \[Hz\],re,im\), "
+                       r"got 1$"):
+        fc.load(_write(tmp_path, text, "stray.csv"))
 
 
 # --------------------------------------------------------------------------- languages
@@ -181,3 +246,58 @@ def test_waveforms_impedance_export_reads_as_written(tmp_path):
 def test_impedance_names(name, role, unit):
     col = recognise(name)
     assert (col.role, col.unit) == (role, unit)
+
+
+# --------------------------------------------------------------------------- 4294A
+
+_HP_PREAMBLE = '''4294A REV1.11
+"DATE: Jan 25 2018"
+
+
+"MEASURE PARAMETER: IMPEDANCE MAG PHASE (DEG)"
+"ADAPTER: NONE"
+"SWEEP TYPE: LOG FREQ"
+"NUMBER of POINTS: 3"
+"POINT DELAY TIME:  0 Sec"
+"SWEEP DELAY TIME:  0 Sec"
+"OSC LEVEL:  500 mVolt"
+"DC BIAS: OFF"
+"BW: 5"
+"SWEEP AVERAGING: OFF"
+"POINT AVERAGING: OFF"
+
+
+"TRACE: A"
+"FORMAT: LOG"
+
+"Frequency"\t"Data Trace Real"\t"Data Trace Imag"
+1.00000000000e+03\t1.324238e+00\t0.000000e+00
+1.00868300000e+03\t1.334925e+00\t0.000000e+00
+1.01744100000e+03\t1.346243e+00\t0.000000e+00
+
+
+"TRACE: B"
+"FORMAT: LINEAR"
+
+"Frequency"\t"Data Trace Real"\t"Data Trace Imag"
+1.00000000000e+03\t7.585065e+01\t0.000000e+00
+1.00868300000e+03\t7.596450e+01\t0.000000e+00
+1.01744100000e+03\t7.608051e+01\t0.000000e+00
+'''
+
+
+def test_hp4294a_second_trace_block_is_named(tmp_path):
+    path = _write(tmp_path, _HP_PREAMBLE, "hp4294a.txt")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        with pytest.raises(DataError, match=(
+                r"line 27 starts a second block \('\"TRACE: B\"' and 2 more line\(s\), then "
+                r"data again from line 31\): this reader reads one sweep: cut the file to "
+                r"one block \(the first is lines 22-24\); the analyser writes each trace as "
+                r"its own block: export one trace in a complex display format")):
+            fc.load(path, columns="freq_hz,re,im")
+    # 16 lines of text and 5 blank ones before the data on line 22 (the header, line 21,
+    # is skipped too since columns are given)
+    assert [str(w.message).split(": ", 1)[1] for w in caught] == [
+        "skipped 16 line(s) of metadata before the data (lines 1-21 less 5 blank or comment "
+        "line(s), the first '4294A REV1.11')"]

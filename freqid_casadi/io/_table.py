@@ -564,8 +564,10 @@ def _preamble(path, rows, columns):
     return [(rows[h][0], (sep or " ").join(cells))] + rows[i:]
 
 
-_END = re.compile(r"^\s*(?:\[.*\]|\**\s*end\b.*|[^,;\t\d.+-][^,;\t]{0,59}?\s*[:=].*)$",
-                  re.IGNORECASE)
+#: A closing line after the data: ``[End]``, ``End of data``, ``ENDOFFILE`` (a VNA
+#: script's last line), ``Key: value``.
+_END = re.compile(r"^\s*(?:\[.*\]|\**\s*end(?:offile)?\b.*"
+                  r"|[^,;\t\d.+-][^,;\t]{0,59}?\s*[:=].*)$", re.IGNORECASE)
 
 
 def _one_run(path, rows, record):
@@ -630,8 +632,10 @@ def _unit_line(text):
 
 def _note_preamble(path, skipped, what):
     first = " ".join(skipped[0][1].split())
+    gaps = skipped[-1][0] - skipped[0][0] + 1 - len(skipped)     # blank and comment lines
     warnings.warn(f"{path!r}: skipped {len(skipped)} line(s) of metadata before {what} "
-                  f"({_lines(skipped[0][0], skipped[-1][0])}, the first "
+                  f"({_lines(skipped[0][0], skipped[-1][0])}"
+                  f"{f' less {gaps} blank or comment line(s)' if gaps else ''}, the first "
                   f"{shown_cell(first)})", DataWarning, stacklevel=5)
 
 
@@ -739,15 +743,58 @@ def _check_same(table, rows, split):
 def _slow_values(path, rows, cols, split):
     labels = ",".join(c.label for c in cols)
     values = {c.role: [] for c in cols if c.role != "skip"}
-    for line, text in rows:
+    for k, (line, text) in enumerate(rows):
         cells = split(text)
         if len(cells) != len(cols):
+            _second_block(path, rows, k)
             raise DataError(f"{path!r} line {line}: expected {len(cols)} columns ({labels}), "
                             f"got {len(cells)}")
-        for col, cell in zip(cols, cells):
-            if col.role != "skip":
-                values[col.role].append(_parse_cell(path, line, col, cell))
+        try:
+            for col, cell in zip(cols, cells):
+                if col.role != "skip":
+                    values[col.role].append(_parse_cell(path, line, col, cell))
+        except DataError:
+            _second_block(path, rows, k)
+            raise
     return {k: np.array(v, complex if k == "complex" else float) for k, v in values.items()}
+
+
+#: A trace's block header, as the HP/Agilent 4294A writes each trace of its ASCII export
+#: (``"TRACE: A"`` ... ``"TRACE: B"``).
+_TRACE_BLOCK = re.compile(r"^\W*trace\s*:\s*\w+", re.IGNORECASE)
+
+
+def _second_block(path, rows, k):
+    """Refuse, saying so, when the bad row ``rows[k]`` is text that starts a second block of
+    data: rows of numbers with as many cells as the first block's follow the text (three
+    in a row, or the rest of the file), as in an export of several sweeps or traces, each
+    with its own header lines. The text is two or more lines, or one that names columns
+    (a repeated header); one stray line amid the data is not a block. Return (the
+    caller's error follows) otherwise.
+
+    Raises
+    ------
+    DataError
+        Naming the line the second block starts on, the line its data start on, the
+        number of blocks when the block's first line recurs, and the first block's lines.
+    """
+    if k == 0 or all(_is_value(c) for c in _row_cells(rows[k][1])):
+        return
+    start = _data_start(rows[k:])
+    if start is None or len(_row_cells(rows[k + start][1])) != len(_row_cells(rows[0][1])):
+        return
+    if start == 1 and None in [recognise(_clean(c)) for c in _row_cells(rows[k][1])]:
+        return
+    blocks = 1 + sum(text == rows[k][1] for _, text in rows[k:])
+    trace = ("; the analyser writes each trace as its own block: export one trace in a "
+             "complex display format, whose Real and Imag columns then hold the response"
+             if _TRACE_BLOCK.match(rows[k][1]) else "")
+    raise DataError(
+        f"{path!r} line {rows[k][0]} starts a second block ("
+        f"{f'a header repeated before each of {blocks} blocks: ' if blocks > 2 else ''}"
+        f"{shown_cell(rows[k][1].strip())}{f' and {start - 1} more line(s)' if start > 1 else ''}"
+        f", then data again from line {rows[k + start][0]}): this reader reads one sweep: "
+        f"cut the file to one block (the first is lines {rows[0][0]}-{rows[k - 1][0]}){trace}")
 
 
 def _check_finite(table):
