@@ -278,3 +278,32 @@ def test_the_automatic_order_does_not_ask_for_sections_it_fitted():
     # the search stopped at the highest order it fitted: the order may still be the cause
     top = with_order_record(OrderChoice(short, 1, "max-sections", steps[:1], "chose 1"))
     assert "the likely cause is the order" in top.message
+
+
+def test_an_unconverged_fit_with_an_unresolved_pole_is_not_called_usable(monkeypatch):
+    # a published dam test (record 3, 2-6 Hz, 4 sections) stopped at its iteration limit
+    # with its residual at the noise, read "usable", and had an undamped pole at the band's
+    # first point (+45 dB between the samples): the message now says the model between
+    # the samples is not determined
+    import types
+    from freqid_casadi.fitting import fit as fit_module
+    from freqid_casadi.fitting._checks import USABLE
+
+    def stopped(last, stats, *args, **kwargs):
+        return (False, fc.FitStatus.NOT_CONVERGED,
+                f"not-converged: the final stage reached its iteration limit (200); max rel. "
+                f"error 1.4, RMS 0.38 ({USABLE}) — pass method=IpoptOptions(final_max_iter="
+                "2000) to continue", {}, ())
+
+    failed = types.SimpleNamespace(ok=False, flags=(), unresolved=(0,))
+    monkeypatch.setattr(fit_module, "verdict", stopped)
+    monkeypatch.setattr(fit_module, "_resolution_check", lambda model, omega: failed)
+    w = np.geomspace(1.0, 100.0, 40)
+    data = FrequencyData(w, 2.0 / (1 + 1j * w / 10.0))
+    res = fc.fit(data, n_sections=1, start="rational", integrator=False)
+    assert USABLE not in res.message
+    assert ("(the residual is consistent with the noise, but 1 pole(s)/zero(s) are narrower "
+            "than the frequency spacing: the model between the samples is not determined)"
+            in res.message)
+    monkeypatch.setattr(fit_module, "_resolution_check", lambda model, omega: None)
+    assert USABLE in fc.fit(data, n_sections=1, start="rational", integrator=False).message

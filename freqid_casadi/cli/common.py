@@ -445,7 +445,7 @@ _FLAGS = {"n_sections": "--sections", "max_sections": "--max-sections",
           "min_damping": "--min-damping", "start": "--start", "objective": "--objective",
           "basis": "--basis", "n_jobs": "--jobs"}
 _KEYWORD = re.compile(r"(?<![\w'\[.])(" + "|".join(_FLAGS) +
-                      r")=('[^']*'|True|False|-?\d+(?:\.\d+)?(?:e-?\d+)?)(?![\w(])")
+                      r")=('[^']*'|True|False|k|-?\d+(?:\.\d+)?(?:e-?\d+)?)(?![\w(])")
 _CONTINUE = re.compile(r"method=(?:IpoptOptions|BarrierLMOptions)\(final_max_iter=(\d+)\)")
 _ALTERNATIVE = re.compile(r" ?\(?FitResult\.alternatives\['zeros=free'\](?: holds that "
                           r"model)?\)?")
@@ -468,8 +468,9 @@ def cli_words(text):
     """
     def flag(m):
         key, value = m.group(1), m.group(2)
-        if key == "integrator" and value in ("True", "False"):
-            return "--integrator 1" if value == "True" else "--integrator 0"
+        if key == "integrator" and value in ("True", "False", "k"):
+            return {"True": "--integrator 1", "False": "--integrator 0"}.get(
+                value, "--integrator K")
         return f"{_FLAGS[key]} {value.strip(chr(39))}"
     text = _CONTINUE.sub(r"--final-max-iter \1", text)
     text = _ALTERNATIVE.sub("", text)

@@ -22,7 +22,7 @@ from ..solvers.common import TERMINATION_MESSAGES, Status
 from ..solvers.termination import noise_stall_text
 from .verdict import FitStatus, ROUNDING_RMS, poor_fit_diagnostic, residual_noise, status_of
 
-__all__ = ["GAIN_SIGNS", "validate", "zeta_min_of", "check_model_class", "after_fit",
+__all__ = ["GAIN_SIGNS", "USABLE", "validate", "zeta_min_of", "check_model_class", "after_fit",
            "success_of", "verdict", "MAX_DECADES",
            "check_weighted_points", "without_phase_check"]
 
@@ -230,6 +230,10 @@ def _next_step(last, stats, start=None, found=()):
             "sections")
 
 
+#: The words of an unconverged fit's message whose residual is at the noise.
+USABLE = "usable: the residual is consistent with the noise"
+
+
 def _not_converged(last, stats, usable=False, start=None, found=()):
     """The message of a fit whose final stage did not converge (``usable``: its residual
     is consistent with the noise all the same; ``start``, ``found``: the fit's start
@@ -248,7 +252,7 @@ def _not_converged(last, stats, usable=False, start=None, found=()):
         how = "stalled (the error stopped falling) at a point that is not stationary"
     else:
         how = f"stopped ({TERMINATION_MESSAGES[last.status]})"
-    state = ("usable: the residual is consistent with the noise" if usable else
+    state = (USABLE if usable else
              "the model is feasible and these errors are measured")
     return (f"not-converged: the final stage {how}; max rel. error {stats.max:.2g}, "
             f"RMS {stats.rms:.2g} ({state}) — {_next_step(last, stats, start, found)}")
