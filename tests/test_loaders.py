@@ -645,3 +645,38 @@ def test_waveforms_phase_written_with_a_star_for_the_degree_sign(tmp_path):
     np.testing.assert_allclose(data.response, RESP, rtol=1e-12)
     col = recognise("Channel 2 Phase (*)")
     assert (col.role, col.unit) == ("phase", "deg")
+
+
+def test_a_universal_file_of_another_extension_is_read_as_one(tmp_path):
+    # analysers name UFF exports by what they hold (a published binary 58b export is
+    # UFF58B.FRF); the text reader refused its NUL bytes as "not a text CSV"
+    pyuff = pytest.importorskip("pyuff")
+    uff = tmp_path / "a.uff"
+    pyuff.UFF(str(uff)).write_sets([_uff_set(pyuff, F_UFF, RESP, 1, ident="H 1")],
+                                   mode="overwrite")
+    frf = tmp_path / "EXPORT.FRF"
+    frf.write_bytes(uff.read_bytes())
+    data = load(frf)
+    assert data.name == "H 1"
+    np.testing.assert_allclose(data.response, RESP, rtol=1e-11)
+    with pytest.raises(OptionError, match=r"is a universal file \(UFF\).*drop columns="):
+        load(frf, columns="f,re,im")
+    text = tmp_path / "table.frf"                   # a text table of that extension: a table
+    text.write_text("omega,re,im\n1,1,0\n2,0.5,-0.5\n3,0.25,-0.5\n4,0.1,-0.3\n")
+    assert load(text).n_points == 4
+
+
+def test_a_universal_file_without_functions_says_what_it_holds(tmp_path):
+    # a ground-vibration test's geometry and mode-shape exports (datasets 164, 15, 55)
+    # were refused as "no dataset-58 records" alone
+    pyuff = pytest.importorskip("pyuff")
+    path = tmp_path / "geometry.unv"
+    pyuff.UFF(str(path)).write_sets([
+        pyuff.prepare_164(units_code=1, units_description="SI", temp_mode=1, length=1.0,
+                          force=1.0, temp=1.0, temp_offset=273.15),
+        pyuff.prepare_15(node_nums=[1, 2], def_cs=[0, 0], disp_cs=[0, 0], color=[1, 1],
+                         x=[0.0, 1.0], y=[0.0, 0.0], z=[0.0, 0.0])], mode="overwrite")
+    with pytest.raises(DataError, match=r"holds no dataset-58 \(function\) records: it holds "
+                       r"1 x dataset 164 \(units\), 1 x dataset 15 \(nodes\); export the "
+                       r"FRFs as UFF 58"):
+        load(path)

@@ -27,6 +27,11 @@ UFF_FUNCTION_TYPES = {
     20: "partial power", 21: "partial coherence", 22: "eigenvalue", 23: "eigenvector",
     24: "shock response spectrum", 25: "finite impulse response filter",
     26: "multiple coherence", 27: "order function", 28: "phase compensation"}
+#: Other universal-file datasets, named in the refusal of a file without dataset 58.
+_DATASETS = {151: "header", 164: "units", 15: "nodes", 2411: "nodes", 18: "coordinate "
+             "systems", 2420: "coordinate systems", 82: "trace lines", 2412: "elements",
+             55: "data at nodes: mode shapes or a response at one frequency",
+             2414: "analysis data at nodes or elements", 1858: "qualifiers of dataset 58"}
 #: The function types read as frequency responses: an FRF, a transmissibility (an FRF
 #: between two responses) and "general" (0), which some analysers write for FRFs.
 RESPONSE_TYPES = (0, 4, 5)
@@ -99,14 +104,17 @@ def read_uff(path, *, freq_unit=None, band=None, record=None, single=False):
                         "(or pip install pyuff)") from None
     try:
         uff = pyuff.UFF(path)
-        which = [i for i, t in enumerate(uff.get_set_types()) if int(t) == 58]
-        sets = [uff.read_sets(i) for i in which]
+        types = [int(t) for t in uff.get_set_types()]
+        sets = [uff.read_sets(i) for i, t in enumerate(types) if t == 58]
     except Exception as exc:            # pyuff raises bare Exception
         raise DataError(f"cannot read {path!r} as a universal file ({exc}); check that it "
                         "is UFF ASCII/binary with dataset 58 records") from None
     if not sets:
-        raise DataError(f"{path!r} holds no dataset-58 (function) records; export the FRFs "
-                        "as UFF 58")
+        counts = collections.Counter(types)
+        held = ", ".join(f"{n} x dataset {t}" + (f" ({_DATASETS[t]})" if t in _DATASETS else "")
+                         for t, n in counts.items()) or "no dataset"
+        raise DataError(f"{path!r} holds no dataset-58 (function) records: it holds {held}; "
+                        "export the FRFs as UFF 58 (function type 4)")
     kinds = [_kind(s) for s in sets]
     keep = [k for k, kind in enumerate(kinds) if kind is None]
     if not keep:

@@ -19,6 +19,7 @@ allocating). Raise these module constants to read larger files.
 
 import io
 import os
+import re
 import zipfile
 
 import numpy as np
@@ -117,7 +118,11 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
                         "file that freqid wrote (model.json) is read with "
                         "freqid_casadi.RationalDelayModel.load(path); data files are text "
                         "(CSV), .npz, .mat, .uff/.unv or Touchstone .sNp/.ts")
-    if lower.endswith(_UFF_EXT):
+    if lower.endswith(_UFF_EXT) or _looks_like_uff(path):
+        if cols is not None or parameter is not None:
+            raise OptionError(f"{os.fspath(path)!r} is a universal file (UFF): its records "
+                              "name their own units and values; drop columns= and parameter= "
+                              "(--columns, --parameter)")
         count, found = read_uff(path, freq_unit=freq_unit, band=band, record=record,
                                 single=True)
         if not found:
@@ -129,6 +134,23 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
         return data if name is None else FrequencyData(data.omega, data.response, name)
     return load_text(path, name, freq_unit=freq_unit, columns=cols, band=band,
                      parameter=parameter, record=record)
+
+
+def _looks_like_uff(path):
+    """Whether a file of another extension begins as a universal file does (a ``-1``
+    line, then a dataset number such as ``58`` or ``58b``): analysers name their UFF
+    exports ``.frf``, ``.ufd``, ``.asc``, ... and the binary ones hold NUL bytes a text
+    reader refuses."""
+    try:
+        if not os.path.isfile(path):     # a FIFO or a device is not opened (it may block)
+            return False
+        with open(path, "rb") as fh:
+            head = fh.read(512).decode("latin-1")
+    except (OSError, TypeError, ValueError):
+        return False                     # the reader names the problem
+    lines = [line.strip() for line in head.splitlines() if line.strip()]
+    return len(lines) >= 2 and lines[0] == "-1" and re.match(r"\d+b?(\s|$)", lines[1]) \
+        is not None
 
 
 def refuse_options(path, *, record=None, parameter=None, columns=None, flag=False):
