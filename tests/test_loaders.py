@@ -480,8 +480,8 @@ def test_touchstone_s2p_written_by_scikit_rf(tmp_path, fmt):
 
 
 def test_touchstone_bad_rows(tmp_path):
-    with pytest.raises(DataError, match=r"hold 3 numbers, not a multiple of 9 \(1 frequency "
-                       r"\+ 4 pairs\); the record that starts on line 3 is incomplete"):
+    with pytest.raises(DataError, match=r"line 3: 3 numbers, but a 2-port record needs 9 "
+                       r"\(1 frequency \+ 4 pairs\), and the file ends"):
         load(_write(tmp_path, "# Hz S RI R 50\n! c\n1 2 3\n", "x.s2p"))
     with pytest.raises(DataError, match=r"line 2: '1_0' is not a number"):
         load(_write(tmp_path, "# Hz S RI R 50\n1 1_0 3\n", "x.s1p"))
