@@ -182,3 +182,14 @@ def test_version_2_rows_without_network_data_keyword(tmp_path):
                        r"no \[Network Data\] keyword; write \[Network Data\]"):
         fc.load(_write(tmp_path, ref, "ref.ts"))
 
+
+def test_rows_out_of_order_name_lines_in_the_file_unit(tmp_path):
+    text = "# MHz S RI R 50\n140 1 0\n140.3 1 0\n140.9 1 0\n140.6 1 0\n"
+    with pytest.raises(DataError, match=r"line 5: frequency 140.6 MHz follows 140.9 MHz on "
+                       r"line 4; frequencies must increase: sort the rows by frequency"):
+        fc.load(_write(tmp_path, text, "unordered.s1p"))
+    text = "# MHz S RI R 50\n0 1 0\n140 1 0\n140.3 1 0\n140.3 2 0\n"
+    with pytest.raises(DataError, match=r"line 5: frequency 140.3 MHz repeats the one on "
+                       r"line 4; .*remove one of the two rows"):
+        with pytest.warns(DataWarning, match="zero frequency"):
+            fc.load(_write(tmp_path, text, "twice.s1p"))

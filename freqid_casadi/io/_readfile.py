@@ -160,13 +160,39 @@ def _in_band(path, omega, band, scale, unit):
     return keep
 
 
+def _check_order(path, omega, lines, scale, unit):
+    """DataError at the first frequency (``omega = scale * f``, rad/s) not above the one
+    before, naming both file lines (``lines``, one per row) and ``f`` in ``unit``.
+
+    A file out of order is refused, not sorted: it is often two sweeps appended (a
+    segmented sweep, a repeated measurement), which sorting would interleave.
+    """
+    step = np.diff(omega)
+    bad = np.flatnonzero(step <= 0)                     # NaN: left to FrequencyData
+    if not bad.size:
+        return
+    k = int(bad[0]) + 1
+    f0, f1 = omega[k - 1] / scale, omega[k] / scale
+    head = f"{path!r} line {int(lines[k])}: frequency {f1:.10g} {unit}"
+    if step[k - 1] == 0:
+        raise DataError(f"{head} repeats the one on line {int(lines[k - 1])}; frequencies "
+                        "must increase: remove one of the two rows (or, for two sweeps "
+                        "appended, split the file into one file per sweep)")
+    raise DataError(f"{head} follows {f0:.10g} {unit} on line {int(lines[k - 1])}; "
+                    "frequencies must increase: sort the rows by frequency, or, if the file "
+                    "holds two sweeps appended (or sweep segments that overlap), split it "
+                    "into one file per sweep")
+
+
 def _finish(path, omega, response, name, weights=None, lines=None, unit="rad/s", band=None,
             scale=1.0, file_unit="rad/s"):
     """Drop zero-frequency rows and reverse rows in descending frequency order (each stated
-    by a DataWarning), keep the points inside ``band`` (``(lo, hi)`` in the file's unit
-    ``file_unit``, ``omega = scale * f``) and build the FrequencyData (frequency ``unit``);
-    its errors are prefixed by the file name."""
+    by a DataWarning), refuse rows out of order or repeated (:func:`_check_order`), keep the
+    points inside ``band`` (``(lo, hi)`` in the file's unit ``file_unit``, ``omega = scale
+    * f``) and build the FrequencyData (frequency ``unit``); its errors are prefixed by the
+    file name. ``lines`` are the file's line numbers of the rows, for messages."""
     omega = np.asarray(omega, float)
+    rows = np.zeros(omega.size, int) if lines is None else np.asarray(lines)
     zero = omega == 0
     if zero.any():
         where = (f"line{'s' if zero.sum() > 1 else ''} "
@@ -176,13 +202,15 @@ def _finish(path, omega, response, name, weights=None, lines=None, unit="rad/s",
                       "the fit uses omega > 0 only (an integrator is a model option)",
                       DataWarning, stacklevel=3)
         keep = ~zero
-        omega, response = omega[keep], np.asarray(response)[keep]
+        omega, response, rows = omega[keep], np.asarray(response)[keep], rows[keep]
         weights = None if weights is None else np.asarray(weights)[keep]
     if omega.size > 1 and np.all(np.diff(omega) < 0) and np.all(omega > 0):
         warnings.warn(f"{path!r}: the rows are in descending frequency order; read them in "
                       "ascending order", DataWarning, stacklevel=3)
         omega, response = omega[::-1], np.asarray(response)[::-1]
         weights = None if weights is None else np.asarray(weights)[::-1]
+    elif lines is not None and np.all(omega > 0):        # else FrequencyData's message
+        _check_order(path, omega, rows, scale, file_unit)
     if band is not None and omega.size:
         keep = _in_band(path, omega, band, scale, file_unit)
         omega, response = omega[keep], np.asarray(response)[keep]
