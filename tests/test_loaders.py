@@ -174,8 +174,8 @@ def test_mat_round_trips(tmp_path, arrays, kw):
 
 def test_mat_errors(tmp_path):
     scipy.io.savemat(tmp_path / "m.mat", {"a": OMEGA, "b": RESP})
-    with pytest.raises(DataError, match=r"m\.mat': cannot tell the variables apart \(found a, "
-                       r"b\); name them omega"):
+    with pytest.raises(DataError, match=r"m\.mat': cannot tell the variables apart \(found a "
+                       r"\(6\), b \(6, complex\)\); name them omega"):
         load_mat(tmp_path / "m.mat")
     _write(tmp_path, b"MATLAB 5.0 garbage" * 10, "bad.mat")
     with pytest.raises(DataError, match=r"cannot read .*bad\.mat' as a MATLAB \.mat file"):

@@ -473,10 +473,15 @@ def _mat_table(path, arrays, columns, freq_unit):
         if hint:
             raise DataError(hint)
         if len(arrays) != 1 or np.ndim(next(iter(arrays.values()))) != 2:
+            found = ", ".join(
+                f"{k} ({' x '.join(map(str, np.shape(a))) or 'scalar'}"
+                f"{', complex' if np.iscomplexobj(a) else ''})" for k, a in arrays.items())
             raise DataError(
-                f"{path!r}: cannot tell the variables apart (found {', '.join(arrays)}); "
-                "name them omega (rad/s) or freq_hz (Hz) and response (complex), or save "
-                "one N x k matrix and pass columns=...")
+                f"{path!r}: cannot tell the variables apart (found {found}); name them "
+                "omega (rad/s) or freq_hz (Hz) and response (complex), or save one N x k "
+                "matrix and pass columns=...; for one channel of an FRF matrix, in MATLAB: "
+                "freq_hz = <frequencies>; response = <matrix>(:, k); save('frf_k.mat', "
+                "'freq_hz', 'response', '-v7')")
         mat = np.asarray(next(iter(arrays.values())))
         if mat.shape[0] < mat.shape[1]:
             mat = mat.T
