@@ -307,3 +307,18 @@ def test_an_unconverged_fit_with_an_unresolved_pole_is_not_called_usable(monkeyp
             in res.message)
     monkeypatch.setattr(fit_module, "_resolution_check", lambda model, omega: None)
     assert USABLE in fc.fit(data, n_sections=1, start="rational", integrator=False).message
+
+
+def test_a_poor_fit_within_an_analysers_accuracy_says_so():
+    # a Siglent Bode export fitted to 0.42 % RMS, a smooth residual 9 times its scatter:
+    # honest "poor-fit", and the message says the residual is within what analysers state
+    # for their calibration; a larger residual gets no such sentence
+    from freqid_casadi.fitting.verdict import SMALL_RESIDUAL, poor_fit_diagnostic
+
+    check = {"rms": 0.00416, "ratio": 9.22, "noise_rms": 0.00045, "worst_omega": 2.8e5}
+    d = poor_fit_diagnostic(check, (), 2)
+    assert ("; the residual is small (RMS 0.42 %: about 0.036 dB and 0.24 deg), within the "
+            "accuracy analysers state for their calibration") in d.message
+    assert d.message.endswith("the model is as good as the data allow")
+    big = poor_fit_diagnostic(dict(check, rms=2 * SMALL_RESIDUAL), (), 2)
+    assert "is small" not in big.message and big.values["cause"] == "order"
