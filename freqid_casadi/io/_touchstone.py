@@ -319,7 +319,8 @@ def _which(parameter, kind, ports):
                               "parameter out to read it")
         raise OptionError(f"parameter={parameter!r} is not in this {ports}-port "
                           f"{kind.upper()}-parameter file; choose one of {shown} (row = "
-                          "receiving port, column = driving port: S21 is from port 1 to 2)")
+                          f"receiving port, column = driving port: {kind.upper()}21 is from "
+                          "port 1 to 2)")
     return i - 1, j - 1
 
 
