@@ -165,8 +165,15 @@ def _delay_std(model, data, delay_max):
         return None
     from ..uncertainty.covariance import parameter_uncertainty
 
+    # the noise level as FitResult.uncertainty takes it (the local level when the residual
+    # is noise, as an "ok" fit's is), so the diagnostic and the report's table agree
+    with np.errstate(all="ignore"):
+        residual = data.response / model.frequency_response(data.omega) - 1.0
+    consistent = residual_noise(residual, data.omega, data.weights).consistent
     try:
-        std = parameter_uncertainty(model, data, weights=data.weights).delay_std
+        std = parameter_uncertainty(model, data, weights=data.weights,
+                                    noise_level="local" if consistent else "constant"
+                                    ).delay_std
     except (FreqidError, np.linalg.LinAlgError, ArithmeticError):
         return None
     return float(std) if math.isfinite(std) else None
