@@ -6,7 +6,7 @@ caller may catch either. Messages name the argument, the offending value and the
 """
 
 __all__ = ["FreqidError", "DataError", "StructureError", "OptionError", "SolverError",
-           "ResolutionWarning"]
+           "ResolutionWarning", "ExportWarning"]
 
 
 class FreqidError(Exception):
@@ -37,3 +37,9 @@ class ResolutionWarning(UserWarning):
     """A fitted model has poles/zeros narrower than the data's frequency spacing (features
     between the samples that the data does not determine); see
     :func:`freqid_casadi.fitting.validation.check_resolution`."""
+
+
+class ExportWarning(UserWarning):
+    """A model exported to python-control (``to_control``) whose state-space evaluation
+    differs from the model's own response by more than
+    :data:`freqid_casadi.core.realize.EXPORT_TOLERANCE` (roots spanning too many decades)."""

@@ -55,9 +55,11 @@ def test_beta_that_is_not_a_real_vector(beta, needle):
 
 
 @pytest.mark.parametrize("order, needle", [
-    (-1, "pade_order must be an integer >= 0"),
-    ("x", "pade_order must be an integer >= 0"),
-    (2.5, "pade_order must be an integer >= 0"),
+    (-1, "pade_order must be an integer >= 1"),
+    (0, r"pade_order must be an integer >= 1 \(the order of the delay's Pade approximation; "
+        r"0 would drop the delay"),
+    ("x", "pade_order must be an integer >= 1"),
+    (2.5, "pade_order must be an integer >= 1"),
     (1000, "pade_order=1000 is too high"),
 ])
 def test_bad_pade_order_is_an_option_error(order, needle):

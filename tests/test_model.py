@@ -314,3 +314,71 @@ def test_load_binary_file(tmp_path):
     path.write_bytes(b"\xff\xfe\x00garbage")
     with pytest.raises(DataError):
         RationalDelayModel.load(path)
+
+
+# ---------------------------------------------------------------- python-control export
+def _export_error(model, omega):
+    import control as ct
+
+    sys = model.to_control()
+    got = np.squeeze(ct.frequency_response(sys, omega).complex)
+    return sys, float(np.max(np.abs(got / model.rational_response(omega) - 1)))
+
+
+def test_export_of_roots_twenty_decades_apart():
+    # a Siglent Bode export fitted at 2 sections: gain 4.5e5, a real pole at -3.7e15 rad/s
+    # (zeta_den 6.3e4) far above the band (628 to 6.3e6 rad/s). Expanded per section and
+    # balanced, the exported system was off by up to 790 % with DC gain -21.95 (the
+    # model's: +1.001); block by block, series order and balancing as measured best,
+    # measured 2.5e-8
+    import control as ct
+
+    beta = [2.19521421959989e-08, 450958.6257723451,
+            1.0, 1.7486493725738659, 72075.38688793493, 1.0, 1.036342449053539,
+            27506.22355160388,
+            1.0, 0.3273741195313356, 16894014.88190591, 1.0, 62628.644121070094,
+            29711504516.62063]
+    model = RationalDelayModel(Structure(2), beta)
+    sys, err = _export_error(model, np.geomspace(628.0, 6.28e6, 81))
+    assert err < 1e-6
+    dc = model.rational_response(np.array([1e-3]))[0].real
+    assert ct.dcgain(sys) == pytest.approx(dc, rel=1e-6) and dc == pytest.approx(1.0011, abs=1e-4)
+    assert np.all(np.real(sys.poles()) < 0)
+
+
+def test_export_of_a_tiny_gain_against_a_far_zero_pair():
+    # -5 exp(-0.02 s) / (s^2 (s^2 + 0.4 s + 4)) fitted exactly at 1 section: the gain
+    # -4.35e-17 times a zero pair at 3.4e8 rad/s. The export was off by 9e-7, ct.tf of it
+    # was 0/1 and its zeros wrong; now measured 3.6e-15
+    import control as ct
+
+    model = RationalDelayModel(Structure(1, integrator=2, gain_sign=-1), [
+        0.02, 4.3544323711828986e-17, 1.0, 0.736511209, 3.38859158e+08, 1.0, 0.1, 2.0])
+    w = np.logspace(-1, 2, 200)
+    sys, err = _export_error(model, w)
+    assert err < 1e-12
+    tf = ct.tf(sys)
+    got = np.squeeze(ct.frequency_response(tf, w).complex)
+    assert np.max(np.abs(got / model.rational_response(w) - 1)) < 1e-6
+    assert sorted(np.abs(model.poles())) == pytest.approx(sorted(np.abs(sys.poles())),
+                                                           abs=1e-9)
+
+
+def test_an_export_the_state_space_cannot_resolve_warns(monkeypatch):
+    # roots 32 decades apart are still resolved (measured 1.8e-14); an export whose
+    # evaluation misses the tolerance says so with the error and the span instead of
+    # handing over a silently wrong system (here with the tolerance lowered below it)
+    from freqid_casadi.core import realize
+    from freqid_casadi.errors import ExportWarning
+
+    model = RationalDelayModel(Structure(2), [0.0, 1.0, 0.0, 0.7, 1e-10, 1.0, 0.7, 1e-8,
+                                              0.0, 0.7, 1e20, 0.0, 0.7, 1e22])
+    _, err = _export_error(model, np.geomspace(1e-9, 1e21, 31))
+    assert err < realize.EXPORT_TOLERANCE
+    from freqid_casadi.core import model as model_module
+
+    monkeypatch.setattr(model_module, "EXPORT_TOLERANCE", -1.0)
+    with pytest.warns(ExportWarning, match=r"differs from the model's by up to .* "
+                      r"\(relative\): its poles and zeros span 32 decades \(7.14e-11 to "
+                      r"7.14e\+21 rad/s\)"):
+        model.to_control()

@@ -177,10 +177,10 @@ def _file_channels(args, path, load_data):
     """The FRFs of one file: its one data set, or every frequency-response record of a UFF
     file (a modal test's file holds one per channel; ``--record K`` reads one)."""
     from .common import load_options, refuse_flags
-    from ..io.loaders import _UFF_EXT, load_uff
+    from ..io.loaders import is_uff, load_uff
 
     opts = load_options(args)
-    if not str(path).lower().endswith(_UFF_EXT) or opts.get("record") is not None:
+    if opts.get("record") is not None or not is_uff(path):
         return [load_data(args, path)]
     refuse_flags(path, opts)
     return list(load_uff(path, freq_unit=opts.get("freq_unit"), band=opts.get("band")))

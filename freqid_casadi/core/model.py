@@ -26,8 +26,10 @@ from .. import _cplx
 from .._cplx import jw_power, times_jw_power
 from .._textio import atomic_write_text
 from .._validate import check_choice, check_flag
-from ..errors import DataError, OptionError, StructureError
+from ..errors import DataError, ExportWarning, OptionError, StructureError
 from .metrics import DelayedResponse
+from .realize import EXPORT_TOLERANCE, export_error, realize_blocks
+from .realize import quad_roots as _quad_roots
 
 __all__ = ["Structure", "RationalDelayModel", "section_response", "attach_delay",
            "balanced_ss", "BASES", "MAX_ORIGIN_ORDER", "check_origin_order", "jw_power",
@@ -220,36 +222,6 @@ def _section_ratio(basis, omega, theta):
     num, den = section_response(basis, omega, theta)
     with np.errstate(divide="ignore", invalid="ignore"):
         return _cplx.to_complex(num) / _cplx.to_complex(den)
-
-
-def _quad_roots(c2, c1, c0):
-    """Roots of c2 s^2 + c1 s + c0 (c2 may be 0); returns a list of complex.
-
-    For the coefficients of a model (all >= 0) the closed form keeps the sign of every real
-    part exact: 0 for c1 = 0 (an undamped pair on the imaginary axis), else < 0.
-    """
-    if c2 == 0:
-        return [complex(-c0 / c1)] if c1 != 0 else []
-    if min(c2, c1, c0) >= 0:
-        with np.errstate(all="ignore"):
-            p, q = c1 / (2.0 * c2), c0 / c2            # s^2 + 2 p s + q
-        if not (np.isfinite(p) and np.isfinite(q)):     # c2 negligible: one finite root
-            return [complex(-c0 / c1)] if c1 != 0 else []
-        if p < 1e150:
-            disc = p * p - q
-            if disc < 0:
-                im = float(np.sqrt(-disc))
-                return [complex(-p, im), complex(-p, -im)]
-            sd = float(np.sqrt(disc))
-        else:
-            r = q / p / p                               # disc = p^2 (1 - r), no overflow
-            if r > 1:
-                im = p * float(np.sqrt(r - 1.0))
-                return [complex(-p, im), complex(-p, -im)]
-            sd = p * float(np.sqrt(1.0 - r))
-        big = -(p + sd)                                 # no cancellation
-        return [complex(big), complex(q / big if big != 0 else 0.0)]
-    return list(np.roots([c2, c1, c0]).astype(complex))
 
 
 DELAY_EXPORTS = (None, "pade", "attribute")
@@ -539,9 +511,10 @@ class RationalDelayModel(DelayedResponse):
         Returns
         -------
         control.StateSpace
-            With attribute ``delay`` (s); sections are realised one by one and connected in
-            series, which is better conditioned than expanding one polynomial, and the
-            result is balanced by an exact diagonal similarity (:func:`balanced_ss`).
+            With attribute ``delay`` (s; samples for rad/sample data); realised block by
+            block from the poles and zeros, each block on its own frequency scale
+            (:mod:`freqid_casadi.core.realize`), connected in series and balanced by an
+            exact diagonal similarity (:func:`balanced_ss`).
 
         Raises
         ------
@@ -551,32 +524,37 @@ class RationalDelayModel(DelayedResponse):
         import control as ct
 
         pade_order = _export_pade_order(delay, pade_order)
+        blocks = [ct.ss(*b) for b in realize_blocks(self)]    # each on its own scale
+        # the series order and a balancing change how well python-control evaluates the
+        # system when its roots span many decades (a Siglent export's fit, roots from
+        # 2e4 to 3.7e15 rad/s: 6e-5 as built, 26 balanced, 1e-8 with the fast block at
+        # the input, balanced); the best of these, as measured, is kept
+        scale = [float(np.max(np.abs(b.A))) if b.nstates else 0.0 for b in blocks]
+        best = None
+        for order in (range(len(blocks)), np.argsort(scale)[::-1], np.argsort(scale)):
+            sys = blocks[order[0]]
+            for j in order[1:]:
+                sys = ct.series(sys, blocks[j])
+            for balance in (True, False):
+                error = export_error(balanced_ss(sys) if balance else sys, self)
+                if best is None or error < best[0]:
+                    best = (error, sys, balance)
+        error, sys, balance = best
+        if error > EXPORT_TOLERANCE:
+            import warnings
 
-        sys = ct.ss([], [], [], [[self.gain]])
-        k = self.origin_order
-        if k > 0:                             # k poles at the origin
-            sys = ct.series(sys, ct.ss(ct.tf([1.0], [1.0] + [0.0] * k)))
-        origin_zeros = max(-k, 0)             # -k zeros at the origin: into the sections
-        for theta in self.sections():
-            if self.structure.basis == "second-order":
-                a, zn, wn, b, zd, wd = theta
-                num, den = [a, 2 * zn * wn, wn * wn], [b, 2 * zd * wd, wd * wd]
-            else:
-                a1, a0, b1, b0 = theta
-                num, den = [a1, a0], [b1, b0]
-            num, den = np.trim_zeros(num, "f"), np.trim_zeros(den, "f")
-            while origin_zeros and len(num) < len(den):
-                num, origin_zeros = np.append(num, 0.0), origin_zeros - 1
-            if len(num) > len(den):
-                raise StructureError("section is improper (numerator degree > denominator's); "
-                                     "cannot export to a state-space model")
-            sys = ct.series(sys, ct.ss(ct.tf(num, den)))
-        if origin_zeros:
-            raise StructureError(f"{-k} zeros at the origin need as many poles in the "
-                                 "sections (the model is improper); cannot export to a "
-                                 "state-space model")
-        # balanced: a far zero otherwise puts entries 1e7 apart into A (balanced_ss)
-        return balanced_ss(attach_delay(sys, self.delay, pade_order))
+            roots = np.abs(np.concatenate([self.poles(), self.zeros()]))
+            roots = roots[roots > 0]
+            warnings.warn(
+                f"the exported system's frequency response differs from the model's by up "
+                f"to {error:.2g} (relative): its poles and zeros span "
+                f"{np.log10(roots.max() / roots.min()):.0f} decades "
+                f"({roots.min():.3g} to {roots.max():.3g} rad/s), beyond what a state-space "
+                "evaluation resolves; fit fewer sections or prune the far roots "
+                "(freqid_casadi.fitting.validation.prune_sections) before designing with it",
+                ExportWarning, stacklevel=2)
+        sys = attach_delay(sys, self.delay, pade_order)
+        return balanced_ss(sys) if balance else sys
 
     # ------------------------------------------------------------------ JSON
     def to_dict(self):
@@ -859,11 +837,13 @@ def _real_vector(beta):
 
 
 def _pade_order(order):
-    """``order`` of a Pade approximation as an int >= 0, else an OptionError."""
+    """``order`` of a Pade approximation as an int >= 1, else an OptionError (order 0 would
+    drop the delay: its Pade approximation is 1)."""
     if isinstance(order, (bool, np.bool_)) or not isinstance(order, (int, np.integer)) \
-            or order < 0:
-        raise OptionError(f"_pade_order must be an integer >= 0 (or None: the delay kept "
-                          f"as the attribute sys.delay), got {order!r}")
+            or order < 1:
+        raise OptionError(f"pade_order must be an integer >= 1 (the order of the delay's "
+                          f"Pade approximation; 0 would drop the delay; None keeps it as the "
+                          f"attribute sys.delay), got {order!r}")
     return int(order)
 
 

@@ -22,7 +22,8 @@ from ..solvers.common import TERMINATION_MESSAGES, Status
 from ..solvers.termination import noise_stall_text
 from .verdict import FitStatus, ROUNDING_RMS, poor_fit_diagnostic, residual_noise, status_of
 
-__all__ = ["GAIN_SIGNS", "USABLE", "validate", "zeta_min_of", "check_model_class", "after_fit",
+__all__ = ["GAIN_SIGNS", "USABLE", "not_usable_between_samples", "validate", "zeta_min_of",
+           "check_model_class", "after_fit",
            "success_of", "verdict", "MAX_DECADES",
            "check_weighted_points", "without_phase_check"]
 
@@ -239,6 +240,31 @@ def _next_step(last, stats, start=None, found=()):
 
 #: The words of an unconverged fit's message whose residual is at the noise.
 USABLE = "usable: the residual is consistent with the noise"
+
+
+def not_usable_between_samples(message, check):
+    """``message`` of an unconverged fit at the noise (:data:`USABLE`) restated when its
+    resolution check failed: consistent at the samples, not determined between them (a
+    published dam test: an undamped pole at the band's first point, +45 dB between the
+    samples).
+
+    Parameters
+    ----------
+    message : str
+        The fit's message.
+    check : ResolutionCheck or None
+        Its resolution check (:func:`~freqid_casadi.fitting.validation.check_resolution`).
+
+    Returns
+    -------
+    str
+    """
+    if check is None or check.ok or USABLE not in message:
+        return message
+    return message.replace(USABLE, (
+        f"the residual is consistent with the noise, but "
+        f"{len(check.flags) + len(check.unresolved)} pole(s)/zero(s) are narrower than the "
+        "frequency spacing: the model between the samples is not determined"), 1)
 
 
 def _not_converged(last, stats, usable=False, start=None, found=()):

@@ -39,8 +39,8 @@ from .alternatives import ORIGIN_AUTO, free_zeros_alternative, origin_auto
 from .candidates import NEAR, Candidate, choose, zero_delay_run
 from .core_fits import (choose_on_subset, core_fits, either_sign_fits, settle_on_subset,
                         settled_sign_fit, settles_on_subset, sign_on_subset)
-from ._checks import (GAIN_SIGNS, USABLE, after_fit, check_model_class, validate, verdict,
-                      zeta_min_of)
+from ._checks import (GAIN_SIGNS, after_fit, check_model_class, not_usable_between_samples,
+                      validate, verdict, zeta_min_of)
 from .._validate import check_choice, check_flag, check_jobs
 from ..core.data import FrequencyData
 from .delay_hold import hold_undetermined_delay
@@ -687,8 +687,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
     records = [unscaled[id(r)][1] if id(r) in unscaled else _unscale_record(r, w_ref)
                for r in records]
     scaled_omega, scaled_response = data.omega, data.response
-    data = user_data       # stats stay those of the scaled problem (the same numbers, and
-                           # no overflow of the model at the user's extreme omega)
+    data = user_data     # stats stay the scaled problem's (no overflow at extreme omega)
     final = [r for r in records if r.kept != Kept.MINIMAX_REJECTED
              and r.kind != StageKind.RATIONAL_START] or records
     check = _resolution_check(model, data.omega)
@@ -697,15 +696,8 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
         residual = scaled_response / model_scaled.frequency_response(scaled_omega) - 1.0
     success, status, message, details, found = verdict(
         final[-1], stats, residual, data, found, int(n_sections), start)
-    if check is not None and not check.ok and USABLE in message:
-        # consistent at the samples, but not determined between them (a published dam
-        # test: an undamped pole at the band's first point, +45 dB between the samples)
-        message = message.replace(USABLE, (
-            f"the residual is consistent with the noise, but "
-            f"{len(check.flags) + len(check.unresolved)} pole(s)/zero(s) are narrower than "
-            "the frequency spacing: the model between the samples is not determined"), 1)
-    if skipped:
-        details = dict(details, start_skipped=skipped)
+    message = not_usable_between_samples(message, check)
+    details = dict(details, start_skipped=skipped) if skipped else details
     return FitResult(model=model, stages=tuple(records), data=data, rel_error=stats.values,
                      max_rel_error=stats.max, rms_rel_error=stats.rms,
                      success=success, message=message, wall_time=time.perf_counter() - t_start,

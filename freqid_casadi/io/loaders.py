@@ -35,7 +35,7 @@ from ._table import (Column, Table, _check_finite, _default_columns, _layout_pro
 from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 
-__all__ = ["load", "load_text", "load_csv", "load_npz", "load_mat", "load_uff",
+__all__ = ["load", "is_uff", "load_text", "load_csv", "load_npz", "load_mat", "load_uff",
            "load_touchstone", "is_touchstone", "parse_band", "save_csv",
            "read_regular_file", "DataWarning", "MAX_FILE_BYTES", "MAX_ROWS", "MAX_ELEMENTS"]
 
@@ -118,7 +118,7 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
                         "file that freqid wrote (model.json) is read with "
                         "freqid_casadi.RationalDelayModel.load(path); data files are text "
                         "(CSV), .npz, .mat, .uff/.unv or Touchstone .sNp/.ts")
-    if lower.endswith(_UFF_EXT) or _looks_like_uff(path):
+    if is_uff(path):
         if cols is not None or parameter is not None:
             raise OptionError(f"{os.fspath(path)!r} is a universal file (UFF): its records "
                               "name their own units and values; drop columns= and parameter= "
@@ -134,6 +134,22 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
         return data if name is None else FrequencyData(data.omega, data.response, name)
     return load_text(path, name, freq_unit=freq_unit, columns=cols, band=band,
                      parameter=parameter, record=record)
+
+
+def is_uff(path):
+    """Whether ``path`` is read as a universal file: a ``.uff``/``.unv`` name, or a regular
+    file that begins as one (:func:`_looks_like_uff`).
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    bool
+    """
+    lower = os.fspath(path).lower() if isinstance(path, (str, os.PathLike)) else ""
+    return lower.endswith(_UFF_EXT) or _looks_like_uff(path)
 
 
 def _looks_like_uff(path):

@@ -1,0 +1,232 @@
+"""A well-scaled state-space realization of a model's rational part (layer L1).
+
+:meth:`~freqid_casadi.core.model.RationalDelayModel.to_control` realises the rational part
+``K (1/s)^k P_N(s)`` here, block by block from its poles and zeros, each block on its own
+frequency scale:
+
+- a complex pole pair ``|p| = w0``: the companion form of ``H(sigma)``, ``sigma = s / w0``,
+  its numerator divided by its largest coefficient, time-scaled (``A = w0 A_sigma``,
+  ``B = sqrt(w0) B_sigma``, ``C = sqrt(w0) C_sigma``), so every entry is of order ``w0``;
+- real poles: first-order blocks ``(s - z) / (s - p)`` (a real zero each, paired by size)
+  on the scale ``|p|``; two real poles carrying a complex zero pair: the companion form on
+  the scale ``sqrt(|p1 p2|)``;
+- a pole at the origin: ``1 / s``.
+
+A section's polynomial coefficients can span twenty decades (a real pole far above the
+band: ``b`` tiny against ``omega_d^2``; a tiny gain against a far zero pair): expanded
+into one transfer function and converted, such a section gave a realization whose
+frequency response was off by 790 % and whose DC gain had the wrong sign (a Siglent Bode
+export fitted at 2 sections: a pole at -3.7e15 rad/s). The blocks carry no gain of
+their own; the model's gain is measured against its own evaluation
+(:meth:`~freqid_casadi.core.model.RationalDelayModel.rational_response`) and spread over
+the blocks.
+"""
+
+import math
+
+import numpy as np
+
+from ..errors import StructureError
+
+__all__ = ["realize_blocks", "export_error", "quad_roots", "EXPORT_TOLERANCE"]
+
+#: Largest relative difference between an exported system's response and the model's
+#: before :meth:`~freqid_casadi.core.model.RationalDelayModel.to_control` warns.
+EXPORT_TOLERANCE = 1e-6
+
+
+def quad_roots(c2, c1, c0):
+    """Roots of c2 s^2 + c1 s + c0 (c2 may be 0); returns a list of complex.
+
+    For the coefficients of a model (all >= 0) the closed form keeps the sign of every real
+    part exact: 0 for c1 = 0 (an undamped pair on the imaginary axis), else < 0.
+
+    Parameters
+    ----------
+    c2, c1, c0 : float
+        The coefficients, highest first.
+    """
+    if c2 == 0:
+        return [complex(-c0 / c1)] if c1 != 0 else []
+    if min(c2, c1, c0) >= 0:
+        with np.errstate(all="ignore"):
+            p, q = c1 / (2.0 * c2), c0 / c2            # s^2 + 2 p s + q
+        if not (np.isfinite(p) and np.isfinite(q)):     # c2 negligible: one finite root
+            return [complex(-c0 / c1)] if c1 != 0 else []
+        if p < 1e150:
+            disc = p * p - q
+            if disc < 0:
+                im = float(np.sqrt(-disc))
+                return [complex(-p, im), complex(-p, -im)]
+            sd = float(np.sqrt(disc))
+        else:
+            r = q / p / p                               # disc = p^2 (1 - r), no overflow
+            if r > 1:
+                im = p * float(np.sqrt(r - 1.0))
+                return [complex(-p, im), complex(-p, -im)]
+            sd = p * float(np.sqrt(1.0 - r))
+        big = -(p + sd)                                 # no cancellation
+        return [complex(big), complex(q / big if big != 0 else 0.0)]
+    return list(np.roots([c2, c1, c0]).astype(complex))
+
+
+def _poly(roots):
+    """Real coefficients (highest first) of the monic polynomial with ``roots``."""
+    return np.real(np.poly(np.asarray(roots, complex))) if len(roots) else np.array([1.0])
+
+
+def _companion(zeros, poles):
+    """A second-order block for a pole pair (and up to two zeros) on the scale
+    ``sqrt(|p1 p2|)``: the modulus of a complex pair."""
+    w0 = math.sqrt(abs(poles[0] * poles[1]))
+    scale = w0 if w0 > 0 else 1.0
+    den = _poly(np.asarray(poles) / scale)                  # sigma^2 + 2 zeta sigma + 1
+    num = _poly(np.asarray(zeros) / scale)
+    num = np.concatenate([np.zeros(3 - num.size), num])
+    num = num / np.max(np.abs(num))
+    d = num[0]
+    a = np.array([[0.0, 1.0], [-den[2], -den[1]]])
+    b = np.array([[0.0], [1.0]])
+    c = np.array([[num[2] - d * den[2], num[1] - d * den[1]]])
+    return scale * a, math.sqrt(scale) * b, math.sqrt(scale) * c, np.array([[d]])
+
+
+def _first_order(zero, pole):
+    """``(s - zero) / (s - pole)`` (``zero`` None: ``1 / (s - pole)``), up to a gain."""
+    scale = abs(pole) if pole != 0 else 1.0
+    p = pole / scale
+    if zero is None:
+        n1, n0 = 0.0, 1.0
+    else:
+        n1, n0 = 1.0, -zero / scale
+        m = max(abs(n1), abs(n0))
+        n1, n0 = n1 / m, n0 / m
+    # H(sigma) = n1 + (n0 + n1 p) / (sigma - p)
+    r = n0 + n1 * p
+    return (np.array([[scale * p]]), np.array([[math.sqrt(scale)]]),
+            np.array([[math.sqrt(scale) * r]]), np.array([[n1]]))
+
+
+def _section_blocks(zeros, poles):
+    """The blocks of one section's roots (conjugate-closed lists of complex)."""
+    if len(zeros) > len(poles):
+        raise StructureError("section is improper (numerator degree > denominator's); "
+                             "cannot export to a state-space model")
+    poles = [complex(p) for p in poles]
+    zeros = [complex(z) for z in zeros]
+    if len(poles) == 2 and poles[0].imag != 0:
+        return [_companion(zeros, poles)]
+    poles = sorted((p.real for p in poles), key=abs)
+    if len(zeros) == 2 and zeros[0].imag != 0:
+        return [_companion(zeros, poles)]        # on the scale sqrt(|p1 p2|)
+    zeros = sorted((z.real for z in zeros), key=abs)
+    zeros = zeros + [None] * (len(poles) - len(zeros))
+    return [_first_order(z, p) for z, p in zip(zeros, poles)]
+
+
+def _response(blocks, omega):
+    """The product of the blocks' frequency responses at ``omega`` (1-D)."""
+    out = np.ones(omega.size, complex)
+    for a, b, c, d in blocks:
+        n = a.shape[0]
+        for i, w in enumerate(omega):
+            x = np.linalg.solve(1j * w * np.eye(n) - a, b) if n else np.zeros((0, 1))
+            out[i] *= (c @ x + d)[0, 0]
+    return out
+
+
+def realize_blocks(model):
+    """The blocks ``[(A, B, C, D), ...]`` (in series, input first) of ``model``'s rational
+    part ``K (1/s)^k P_N(s)``, the gain spread over them (module docstring).
+
+    Parameters
+    ----------
+    model : RationalDelayModel
+
+    Returns
+    -------
+    list of tuple of ndarray
+        Each ``(A (n, n), B (n, 1), C (1, n), D (1, 1))``, real.
+
+    Raises
+    ------
+    StructureError
+        An improper section, or more zeros at the origin than the sections have poles to
+        spare.
+    """
+    k = model.origin_order
+    spare = max(-k, 0)                       # -k zeros at the origin: into the sections
+    blocks = [(np.zeros((1, 1)), np.ones((1, 1)), np.ones((1, 1)), np.zeros((1, 1)))
+              for _ in range(max(k, 0))]
+    for theta in model.sections():
+        if model.structure.basis == "second-order":
+            a, zn, wn, b, zd, wd = theta
+            zeros = quad_roots(a, 2 * zn * wn, wn * wn)
+            poles = quad_roots(b, 2 * zd * wd, wd * wd)
+        else:
+            a1, a0, b1, b0 = theta
+            zeros = [complex(-a0 / a1)] if a1 != 0 else []
+            poles = [complex(-b0 / b1)] if b1 != 0 else []
+        while spare and len(zeros) < len(poles):
+            zeros, spare = zeros + [0j], spare - 1
+        blocks += _section_blocks(zeros, poles)
+    if spare:
+        raise StructureError(f"{-k} zeros at the origin need as many poles in the sections "
+                             "(the model is improper); cannot export to a state-space model")
+    gain = _gain(model, blocks)
+    share = abs(gain) ** (1.0 / len(blocks)) if blocks and gain != 0 else 1.0
+    if not blocks:
+        return [(np.zeros((0, 0)), np.zeros((0, 1)), np.zeros((1, 0)), np.array([[gain]]))]
+    out = []
+    for j, (a, b, c, d) in enumerate(blocks):
+        f = share * (math.copysign(1.0, gain) if j == 0 else 1.0)
+        out.append((a, b, f * c, f * d))
+    return out
+
+
+def _gain(model, blocks):
+    """The real factor by which the model's response exceeds the blocks' product: the
+    median over frequencies across its roots' range (a frequency near a root or where
+    either evaluation loses digits is outvoted)."""
+    omega = _check_omega(model)
+    with np.errstate(all="ignore"):
+        ratio = model.rational_response(omega) / _response(blocks, omega)
+    ratio = ratio[np.isfinite(ratio)]
+    if ratio.size == 0:
+        return float(model.gain)
+    return float(np.median(ratio.real))
+
+
+def export_error(sys, model):
+    """Largest relative difference between ``sys``'s frequency response (python-control's
+    own evaluation, as a design tool sees it) and ``model``'s rational part, over the
+    frequencies of :func:`_check_omega`.
+
+    Parameters
+    ----------
+    sys : control.StateSpace
+        A realization of ``model``'s rational part (no delay).
+    model : RationalDelayModel
+
+    Returns
+    -------
+    float
+        inf where either response is not finite.
+    """
+    import control as ct
+
+    omega = _check_omega(model)
+    with np.errstate(all="ignore"):
+        got = np.squeeze(ct.frequency_response(sys, omega).complex)
+        want = model.rational_response(omega)
+        err = np.abs(got / want - 1.0)
+    return float(np.max(err)) if np.all(np.isfinite(err)) else math.inf
+
+
+def _check_omega(model):
+    """15 frequencies from a decade below the model's smallest nonzero root to a decade
+    above its largest (1 rad/s without roots)."""
+    roots = np.abs(np.concatenate([model.poles(), model.zeros()]))
+    roots = roots[(roots > 0) & np.isfinite(roots)]
+    lo, hi = (roots.min(), roots.max()) if roots.size else (1.0, 1.0)
+    return np.geomspace(lo / 10, hi * 10, 15)
