@@ -92,7 +92,8 @@ def test_parser_and_existing_output(tmp_path):
 
 @pytest.mark.parametrize("content, period, match", [
     ("u,y\n1,2\n3,4\n5,6\n", 2, "not a multiple of period"),
-    ("a,b\n1,2\n", 2, "unrecognised header"),
+    ("a,b\n1,2\n", 2, r"the header names the columns 'a', 'b'; choose the excitation and "
+                     r"the response: input='NAME', output='NAME' \(command line --input NAME"),
     ("u,y\n1,x\n2,3\n", 2, "is not a number"),
     ("u,y\n1,1\n1,1\n1,1\n1,1\n", 2, "constant"),
 ])
@@ -202,3 +203,67 @@ def test_frf_numbers_are_ascii_decimals(tmp_path, monkeypatch, capsys, value):
     code = cli.main(["frf", "rec.csv", "--period", value, "--out", "frf.csv"])
     assert code == 2 and "--period" in capsys.readouterr().err
     assert not (tmp_path / "frf.csv").exists()
+
+
+def _table(path, header, rows, units=None):
+    with open(path, "w", newline="") as fh:
+        fh.write(header + "\n")
+        if units:
+            fh.write(units + "\n")
+        for row in rows:
+            fh.write(",".join(row) + "\n")
+
+
+@pytest.mark.parametrize("layout", ["benchmark", "scope", "time"])
+def test_frf_of_a_table_whose_header_names_its_columns(tmp_path, layout):
+    # published records: a benchmark's "Force","Voltage","Acceleration1",...,"Fs", (the
+    # rate in the first row only, a trailing comma), an oscilloscope's CH1,CH2,Start,
+    # Increment with a units line, a logger's Time,ADC,DAC; all were refused ("the first
+    # line must be 'u,y'"); the columns are now chosen by name and the rate read from them
+    u, y = _multisine(3)
+    fs = 400.0 if layout == "benchmark" else 50000.0 if layout == "scope" else 1000.0
+    n = u.size
+    cells = [(repr(float(a)), "0.5", repr(float(b))) for a, b in zip(u, y)]
+    if layout == "benchmark":
+        _table(tmp_path / "rec.csv", '"Force","Voltage","Acceleration1","Fs",',
+               [c + ((f"{fs:g}", "") if k == 0 else ("", "")) for k, c in enumerate(cells)])
+        names = ("Force", "Acceleration1")
+    elif layout == "scope":
+        _table(tmp_path / "rec.csv", "CH1,CH2,CH3,Start,Increment,",
+               [c + ("",) for c in cells], units=f"Volt,Volt,Volt,-3.92e-03,{1 / fs!r}")
+        names = ("ch1", "CH3")
+    else:
+        _table(tmp_path / "rec.csv", "Time,ADC,DAC,SPARE",
+               [(f"{k / fs!r}", c[2], c[0], "1") for k, c in enumerate(cells)])
+        names = ("DAC", "ADC")
+    out = tmp_path / "frf.csv"
+    args = _args(tmp_path / "rec.csv", out, input=names[0], output=names[1])
+    assert cli_frf.run_cli(args, "freqid frf") == 0
+    data = load_csv(out)
+    np.testing.assert_allclose(data.omega, 2 * np.pi * BINS / PERIOD * fs, rtol=1e-9)
+    exact = 1 / (1 - 0.5 * np.exp(-1j * data.omega / fs))
+    assert np.max(np.abs(data.response / exact - 1)) < 1e-9
+    assert n == 3 * PERIOD
+    with pytest.raises(OptionError, match=r"--fs 10 contradicts the file's sampling rate"):
+        cli_frf.run_cli(_args(tmp_path / "rec.csv", tmp_path / "o2.csv", fs=10.0,
+                              input=names[0], output=names[1]), "freqid frf")
+    with pytest.raises(OptionError, match=r"input='Force2' is not a column of .*; its "
+                       r"columns are"):
+        cli_frf.run_cli(_args(tmp_path / "rec.csv", tmp_path / "o3.csv", input="Force2",
+                              output=names[1]), "freqid frf")
+
+
+def test_frf_warns_of_a_low_coherence(tmp_path, monkeypatch, capsys):
+    # an oscilloscope's record of one step through a filter: Welch's segments are mostly
+    # silence, the median coherence 0.06; the command said nothing about it
+    rng = np.random.default_rng(3)
+    u = rng.standard_normal(8192)
+    y = rng.standard_normal(8192)                  # unrelated: coherence about 1/segments
+    _write(tmp_path / "rec.csv", u, y)
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["frf", "rec.csv", "--fs", "1000", "--estimator", "h1", "--out",
+                     "frf.csv"]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"warning: the median coherence 0\.\d+ is low: most of the output is "
+                     r"not explained by the input", out)
+    assert "--window boxcar" in out

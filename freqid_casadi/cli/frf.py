@@ -40,7 +40,7 @@ from ..report.outputs import check_out_file
 from .._textio import atomic_write_text
 from ..errors import OptionError
 from ..experiment import (ESTIMATORS, frf_from_periodic, frf_from_records, load_daq_records,
-                         load_records_csv, load_records_mat)
+                         load_records_mat, load_records_table)
 from .common import _ASCII_FLOAT, _ASCII_INT, _ascii, _checked   # the CLI's own type helpers
 from .common import parse_band_text
 from ..io.loaders import read_regular_file, save_csv
@@ -112,8 +112,11 @@ def add_cli(subparsers):
     p.add_argument("--window", default="hann", help="h1/h2: scipy window (default hann)")
     p.add_argument("--min-coherence", type=_fraction, metavar="X",
                    help="h1/h2: keep only frequencies with coherence >= X (e.g. 0.9)")
-    p.add_argument("--input", metavar="CHANNEL", help="DAQ export: input channel name")
-    p.add_argument("--output", metavar="CHANNEL", help="DAQ export: output channel name")
+    p.add_argument("--input", metavar="CHANNEL",
+                   help="input channel of a DAQ export, or input column of a table whose "
+                        "header names its columns (Force, CH1, ...)")
+    p.add_argument("--output", metavar="CHANNEL",
+                   help="output channel of a DAQ export, or output column of a table")
     p.add_argument("--u", metavar="NAME",
                    help=".mat file: the input record's variable (e.g. u or meas.force)")
     p.add_argument("--y", metavar="NAME",
@@ -244,11 +247,13 @@ def read_records(args):
     if _is_mat(args.records):
         return _mat_records(args)[:3]
     if not _is_daq(args.records):
-        if getattr(args, "input", None) or getattr(args, "output", None):
-            raise OptionError("--input/--output choose channels of a DAQ export; a u,y CSV "
-                              "has its input in column u and its output in column y")
-        u, y = load_records_csv(args.records)
-        return u, y, None
+        u, y, fs = load_records_table(args.records, getattr(args, "input", None),
+                                      getattr(args, "output", None))
+        given = getattr(args, "fs", None)
+        if given is not None and fs is not None and not math.isclose(given, fs, rel_tol=1e-3):
+            raise OptionError(f"--fs {given:g} contradicts the file's sampling rate {fs:g} Hz "
+                              "(from its time or Fs column); drop --fs")
+        return u, y, fs
     rec = load_daq_records(args.records)
     names = ", ".join(rec.channels)
     for opt in ("input", "output"):
@@ -380,6 +385,10 @@ def _in_band(est, band):
     return est.subset(keep)
 
 
+#: Median coherence of a Welch estimate below which ``freqid frf`` warns.
+LOW_COHERENCE = 0.3
+
+
 def _summary(est, out, sidecar):
     unit = "rad/s" if est.fs is not None else "rad/sample"
     d = est.data
@@ -389,6 +398,13 @@ def _summary(est, out, sidecar):
               f"{d.omega[-1] / 2 / math.pi:.4g} Hz ({est.estimator.upper()}, {est.n_averages} "
               f"segments of {est.nperseg} samples); coherence min {c.min():.3f}, median "
               f"{float(np.median(c)):.3f}")
+        if float(np.median(c)) < LOW_COHERENCE:
+            print(f"warning: the median coherence {float(np.median(c)):.2g} is low: most of "
+                  "the output is not explained by the input (noise, a nonlinearity, or an "
+                  "excitation that few segments hold: an impact or a step, whose Welch "
+                  "average is mostly silence); for a transient input pass --window boxcar "
+                  "with --nperseg the length of one event, and check the input's spectrum "
+                  "covers the band (--min-coherence drops the worst bins)")
     else:
         print(f"{d.n_points} excited bins ({int(est.bins[0])}..{int(est.bins[-1])}), "
               f"omega {d.omega[0]:.4g} to {d.omega[-1]:.4g} {unit}, {est.n_periods} period(s) "

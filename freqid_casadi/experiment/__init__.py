@@ -8,7 +8,8 @@ Estimators (each returns a frozen :class:`FrfEstimate` whose ``data`` is a
 - :func:`frf_from_records`: any excitation (chirp, random, impulse): Welch H1/H2 with the
   coherence and the variance at every frequency.
 
-Files and data sets: :func:`load_records_csv` (``u,y`` CSV), :func:`load_daisy`,
+Files and data sets: :func:`load_records_csv` (``u,y`` CSV), :func:`load_records_table`
+(a table whose header names its columns: input and output chosen by name), :func:`load_daisy`,
 :func:`load_daq_records` (a DAQ export), :func:`load_records_mat` (MATLAB variables or
 struct fields by name), and the data sets shipped with the package:
 :func:`robot_arm` (DaISy 96-009, B. De Moor et al., DaISy: Database for the Identification
@@ -19,7 +20,7 @@ from ._common import FrfEstimate
 from .periodic import _detect_period, frf_from_periodic, frf_stepped_sine
 from .records import (ACTUATOR_FILE, ROBOT_ARM_FILE, SHARED_ENV, DaqRecords, _find_robot_arm,
                       actuator_records, dataset_path, load_daisy, load_daq_records,
-                      load_records_csv, load_records_mat, robot_arm)
+                      load_records_csv, load_records_mat, load_records_table, robot_arm)
 from .welch import ESTIMATORS, frf_from_records
 
 __all__ = [
@@ -29,6 +30,7 @@ __all__ = [
     "frf_from_records",
     "ESTIMATORS",
     "load_records_csv",
+    "load_records_table",
     "load_daisy",
     "load_daq_records",
     "load_records_mat",

@@ -26,7 +26,8 @@ from ..errors import DataError, OptionError
 from ..io.loaders import MAX_FILE_BYTES, MAX_ROWS, read_regular_file
 from .periodic import _detect_period, frf_from_periodic
 
-__all__ = ["load_records_csv", "load_daisy", "load_daq_records", "load_records_mat",
+__all__ = ["load_records_csv", "load_records_table", "load_daisy", "load_daq_records",
+           "load_records_mat",
            "DaqRecords", "robot_arm",
            "actuator_records", "dataset_path", "ROBOT_ARM_FILE", "ACTUATOR_FILE",
            "SHARED_ENV"]
@@ -147,6 +148,109 @@ def load_records_csv(path):
         values[k, 0] = _number(path, line, "u", cells[0])
         values[k, 1] = _number(path, line, "y", cells[1])
     return values[:, 0].copy(), values[:, 1].copy()
+
+
+#: Column names that give the sampling: a time stamp in every row (s), or a constant in
+#: the first rows (an oscilloscope's ``Increment``, a benchmark's ``Fs`` or ``Ts``).
+_TIME_NAMES = ("t", "time", "time (s)", "time[s]", "time [s]", "ts", "x-axis")
+_RATE_NAMES = {"fs": "rate", "ts": "period", "increment": "period", "dt": "period"}
+
+
+def load_records_table(path, input=None, output=None):
+    """Input, output and sampling rate from a text table whose header names its columns.
+
+    The table of :func:`load_records_csv` (``u,y``, or two headerless columns), or any
+    comma-, semicolon-, tab- or space-separated table with a header, the input and output
+    columns chosen by name (case-insensitive, quotes ignored): a benchmark's
+    ``"Force","Voltage","Acceleration1",...,"Fs",``, an oscilloscope's ``CH1,CH2,Start,
+    Increment`` with a units line under it. The sampling rate comes from a time column
+    (``Time``, ``t``, ``ts``, ``x-axis``: 1 / its median step) or a constant column
+    (``Fs``; ``Ts``, ``Increment`` or ``dt`` a sampling period), else None.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+    input, output : str, optional
+        The names of the input and output columns; needed unless the header is ``u,y``.
+
+    Returns
+    -------
+    u, y : ndarray of float, shape (N,)
+    fs : float or None
+        Hz.
+
+    Raises
+    ------
+    DataError
+        As :func:`load_records_csv`; a header whose columns are not chosen (the message
+        lists them).
+    OptionError
+        ``input`` or ``output`` not a column of the header.
+    """
+    _, lines = _text_lines(path)
+    rows = [(k + 1, t) for k, t in enumerate(lines)
+            if t.strip() and not t.lstrip().startswith(("#", "%"))]
+    if not rows:
+        raise DataError(f"{os.fspath(path)!r} is empty: expected a header and data rows")
+    first = rows[0][1]
+    sep = "," if "," in first else ";" if ";" in first else "\t" if "\t" in first else None
+    names = [c.strip().strip("\"'").strip() for c in first.split(sep)]
+    while names and not names[-1]:
+        names.pop()                                   # a trailing separator
+    lower = [n.lower() for n in names]
+    headerless = all(NUMBER.fullmatch(n) for n in names)
+    if input is None and output is None and (headerless or lower == ["u", "y"]):
+        u, y = load_records_csv(path)
+        return u, y, None
+    where = f"{os.fspath(path)!r}"
+    shown = ", ".join(repr(n) for n in names)
+    if headerless:
+        raise OptionError(f"input/output (--input/--output) name columns of a header; "
+                          f"{where} has none: its first two columns are read as u then y")
+    if input is None or output is None:
+        raise DataError(f"{where}: the header names the columns {shown}; choose the "
+                        "excitation and the response: input='NAME', output='NAME' (command "
+                        "line --input NAME --output NAME)")
+    pick = []
+    for opt, name in (("input", input), ("output", output)):
+        if str(name).strip().lower() not in lower:
+            raise OptionError(f"{opt}={name!r} is not a column of {where}; its columns are "
+                              f"{shown}")
+        pick.append(lower.index(str(name).strip().lower()))
+    time = next((j for j, n in enumerate(lower) if n in _TIME_NAMES), None)
+    rate = {j: _RATE_NAMES[n] for j, n in enumerate(lower) if n in _RATE_NAMES}
+    u, y, t, consts = [], [], [], {}
+    for k, (line, text) in enumerate(rows[1:]):
+        cells = [c.strip().strip("\"'") for c in text.split(sep)]
+        for j in rate:
+            if j < len(cells) and j not in consts and NUMBER.fullmatch(cells[j]):
+                consts[j] = float(cells[j])
+        if max(pick) >= len(cells):
+            raise DataError(f"{where} line {line}: {len(cells)} columns, the header names "
+                            f"{len(names)}")
+        if k == 0 and not NUMBER.fullmatch(cells[pick[0]]):
+            continue                                  # a units line: "Volt,Volt,..."
+        u.append(_number(path, line, names[pick[0]], cells[pick[0]]))
+        y.append(_number(path, line, names[pick[1]], cells[pick[1]]))
+        if time is not None and time != pick[0] and time != pick[1]:
+            t.append(_number(path, line, names[time], cells[time])
+                     if NUMBER.fullmatch(cells[time]) else np.nan)
+    if len(u) < 2:
+        raise DataError(f"{where} has a header but fewer than 2 data rows")
+    return np.array(u), np.array(y), _table_fs(t, rate, consts)
+
+
+def _table_fs(t, rate, consts):
+    """Hz from a time column (its median step, when every row has one) or a constant
+    column (:data:`_RATE_NAMES`), else None."""
+    steps = np.diff(np.asarray(t, float))
+    if steps.size and np.all(np.isfinite(steps)) and np.median(steps) > 0:
+        return float(1.0 / np.median(steps))
+    for j, kind in rate.items():
+        value = consts.get(j)
+        if value is not None and value > 0:
+            return float(value if kind == "rate" else 1.0 / value)
+    return None
 
 
 def load_daisy(path, columns=(0, 1)):
