@@ -450,3 +450,20 @@ def test_json_lines_keeps_the_records_of_this_code(tmp_path, capsys):
     assert json_lines(path, code_fingerprint()) == [mine]
     assert "1 of its 2 records were made by other code" in capsys.readouterr().err
     assert json_lines(tmp_path / "none.jsonl", "x") == []
+
+
+def test_the_order_record_of_weighted_data_says_its_rms_is_weighted():
+    # a frf sidecar's weights: the status line's RMS (unweighted relative error, 0.18)
+    # and the order record's (the weighted residual the rule reads, 0.0556) read as two
+    # RMS of one model; the record now says which
+    w = np.geomspace(1.0, 100.0, 60)
+    s = 1j * w
+    g = 2.0 / (s * s + 0.6 * s + 25.0) * 12.5
+    weights = np.geomspace(1.0, 4.0, 60)
+    res = fc.fit(fc.FrequencyData(w, g, weights=weights), n_sections=range(1, 3))
+    (rec,) = [d for d in res.diagnostics if d.code == "order-chosen"]
+    assert "orders tried (weighted RMS, x roughness" in rec.message
+    assert "1: weighted RMS" in rec.message
+    plain = fc.fit(fc.FrequencyData(w, g), n_sections=range(1, 3))
+    (rec,) = [d for d in plain.diagnostics if d.code == "order-chosen"]
+    assert "orders tried (RMS, x roughness" in rec.message and "weighted" not in rec.message

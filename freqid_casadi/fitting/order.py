@@ -476,7 +476,9 @@ _WHY = {
 
 def _choice(results, steps, poles, k, reason, omega):
     step = steps[k]
-    tried = ", ".join(f"{s.n_sections}: RMS {s.rms:.3g}{'*' if s.free else ''} "
+    weighted = getattr(getattr(results[0], "data", None), "weights", None) is not None
+    rms = "weighted RMS" if weighted else "RMS"
+    tried = ", ".join(f"{s.n_sections}: {rms} {s.rms:.3g}{'*' if s.free else ''} "
                       f"(x{s.ratio:.2g})" for s in steps)
     nxt = ""
     if k + 1 < len(steps):
@@ -487,7 +489,7 @@ def _choice(results, steps, poles, k, reason, omega):
         nxt = (f"; {steps[k + 1].n_sections} sections {change} "
                f"and move its in-band poles by at most {100 * moved:.2g} %")
     plural = "s" if step.n_sections != 1 else ""
-    own = f"RMS {step.rms:.3g}, {step.ratio:.3g} times its point-to-point roughness"
+    own = f"{rms} {step.rms:.3g}, {step.ratio:.3g} times its point-to-point roughness"
     if step.ratio <= WHITE_RATIO and not _consistent(step):
         own += (f", but {step.local_ratio:.3g} times the local noise level (the fit's "
                 "status check)")
@@ -501,7 +503,7 @@ def _choice(results, steps, poles, k, reason, omega):
                "stopped lowering the RMS")
     message = (f"n_sections='auto' chose {step.n_sections} section{plural}: {why} "
                f"({own}){nxt}; "
-               f"orders tried (RMS, x roughness; * with free zeros) {tried}")
+               f"orders tried ({rms}, x roughness; * with free zeros) {tried}")
     return OrderChoice(result=results[k], n_sections=step.n_sections, reason=reason,
                        steps=tuple(steps), message=message)
 
@@ -546,13 +548,17 @@ def _not_the_order(choice):
         return diagnostics, message
     best = min(higher, key=lambda s: s.rms)
     unit = getattr(res.data, "unit", "rad/s")
+    weighted = getattr(res.data, "weights", None) is not None
+    noise = ("the data's weights may not follow it" if weighted else
+             "the fit weighs every point alike; weights=, each point's inverse relative "
+             "variance, weigh them by their noise")
     cause = (f"not the order: n_sections='auto' fitted up to "
-             f"{higher[-1].n_sections} sections, which did not lower the RMS significantly "
-             f"(RMS {best.rms:.3g} at {best.n_sections}); the residual is largest near "
-             f"omega = {poor.values['worst_omega']:.4g} {unit}, a feature the model class "
-             "does not fit, or noise whose level varies over the band (the fit weighs every "
-             "point alike; weights=, each point's inverse relative variance, weigh them by "
-             "their noise)")
+             f"{higher[-1].n_sections} sections, which did not lower the "
+             f"{'weighted ' if weighted else ''}RMS significantly "
+             f"({'weighted ' if weighted else ''}RMS {best.rms:.3g} at {best.n_sections}); "
+             f"the residual is largest near omega = {poor.values['worst_omega']:.4g} {unit}, "
+             f"a feature the model class does not fit, or noise whose level varies over the "
+             f"band ({noise})")
     restated = with_cause(poor, "not-the-order", cause)
     diagnostics = tuple(restated if g is poor else g for g in diagnostics)
     return diagnostics, message.replace(poor.message, restated.message)
