@@ -243,7 +243,8 @@ def test_cli_batch_writes_models_and_summaries(folder, batch_cli, capsys, serial
 @pytest.mark.parametrize("argv, match", [
     (["batch", "nodir", "--out", "rep", "--sections", "1"], "data folder not found"),
     (["batch", "data/d0.csv", "--out", "rep", "--sections", "1"], "is a file, not a folder"),
-    (["batch", "empty", "--out", "rep", "--sections", "1"], "no .csv or .npz files"),
+    (["batch", "empty", "--out", "rep", "--sections", "1"],
+     "no data files (.csv, .npz, .mat, .uff/.unv, Touchstone"),
     (["batch", "data", "--out", "exists", "--sections", "1"], "exists; pass --force"),
     (["batch", "data", "--out", "nodir/rep", "--sections", "1"], "does not exist"),
     (["batch", "data", "--out", "rep", "--sections", "0"], "--sections"),
@@ -316,3 +317,29 @@ def test_duplicate_stems_get_distinct_model_files(tmp_path, serial):
     files = [os.fspath(tmp_path / "a.csv"), os.fspath(tmp_path / "a.npz")]
     cli_batch.write_batch_report(serial[:2], files, tmp_path / "out", command="t")
     assert sorted(os.listdir(tmp_path / "out" / "models")) == ["a.csv.json", "a.npz.json"]
+
+
+def test_cli_batch_fits_touchstone_files_and_lists_the_tables_it_skips(tmp_path, monkeypatch,
+                                                                        capsys):
+    # a folder of a network analyser's .s2p files: batch read only .csv/.npz and had no
+    # --parameter; a .txt beside them was named on stderr only
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "in").mkdir()
+    f = np.geomspace(1e6, 1e9, 40)
+    s = 2j * np.pi * f
+    for k, gain in enumerate((0.5, 0.8)):
+        s21 = gain / (1 + s / (2 * np.pi * 1e8))
+        rows = "".join(f"{x!r} 0 0 {z.real!r} {z.imag!r} {z.real!r} {z.imag!r} 0 0\n"
+                       for x, z in zip(f.tolist(), s21.tolist()))
+        (tmp_path / "in" / f"dut{k}.s2p").write_text("# Hz S RI R 50\n" + rows)
+    (tmp_path / "in" / "notes.txt").write_text("measured on the bench\n")
+    code = cli.main(["batch", "in", "--parameter", "S21", "--sections", "1", "--out", "rep"])
+    out, err = capsys.readouterr()
+    assert code == 0, out + err
+    assert "skipped 'notes.txt': a text table freqid batch does not read" in err
+    text = (tmp_path / "rep" / "summary.md").read_text()
+    assert "2 files: 2 ok" in text and "dut0.s2p" in text and "dut1.s2p" in text
+    assert "Not fitted:\n\n- `notes.txt`: a text table freqid batch does not read" in text
+    for k, gain in enumerate((0.5, 0.8)):
+        model = fc.RationalDelayModel.load(tmp_path / "rep" / "models" / f"dut{k}.json")
+        assert model.rational_response(np.array([1.0]))[0].real == pytest.approx(gain, rel=1e-6)

@@ -601,14 +601,16 @@ def test_bode_and_error_figures_have_a_hz_axis(one_mode_fit):
 def test_batch_names_the_data_files_it_skips(tmp_path):
     from freqid_casadi.cli.batch import data_files
 
+    # batch reads every data format fit reads but text tables (a folder's notes are text
+    # too): a .txt is named as skipped, a UFF or Touchstone file is fitted
     (tmp_path / "a.csv").write_text(_table(","))
     (tmp_path / "b.txt").write_text(_table(","))
     (tmp_path / "c.uff").write_text("")
+    (tmp_path / "d.s2p").write_text("")
     (tmp_path / "notes.md").write_text("")
-    with pytest.warns(UserWarning, match=r"skipped 2 file\(s\) that freqid batch does not "
-                                         r"read \(only \.csv and \.npz\): b\.txt, c\.uff; fit "
-                                         r"them with freqid fit"):
-        assert [Path(p).name for p in data_files(tmp_path)] == ["a.csv"]
+    with pytest.warns(UserWarning, match=r"skipped 'b\.txt': a text table freqid batch does "
+                                         r"not read .*fit it with freqid fit"):
+        assert [Path(p).name for p in data_files(tmp_path)] == ["a.csv", "c.uff", "d.s2p"]
 
 
 def test_modal_reads_hz_files_and_says_why_no_mode_was_selected(tmp_path, capsys):

@@ -6,7 +6,9 @@
                  [--integrator] [--no-delay] [--basis B] [--method M] [--final-max-iter N]
                  [--tol X] [--force]
 
-Every ``.csv`` and ``.npz`` file directly inside ``DIR`` is fitted with the same options by
+Every data file directly inside ``DIR`` (``.csv``, ``.npz``, ``.mat``, ``.uff``/``.unv``,
+Touchstone ``.sNp``/``.ts``; ``--parameter``, ``--record`` apply to each) is fitted with the
+same options by
 :func:`freqid_casadi.fitting.batch.fit_many`. The output folder holds::
 
     summary.md      first line: the command; the count of each status; one table row per
@@ -35,21 +37,25 @@ from .common import (NOISE_WEIGHTS, cli_words, load_options, method_option,
 from .._textio import atomic_write_text, csv_row, one_line
 from ..fitting.batch import BATCH_STATUSES, fit_many
 from .common import (_add_final_max_iter, _add_input, _add_model_arguments,  # the CLI's
-                     _positive_int)                                      # own helpers
+                     _positive_int, _record)                             # own helpers
 from ..report.outputs import MARKER
 from ..errors import DataError, OptionError
 from ..fitting.fit import METHODS
+from ..io.loaders import is_touchstone
 from ..report.formatting import number as _num
 from ..report.folder import check_out_dir, generated_by_line, markdown_table, report_folder
 
-__all__ = ["add_cli", "run_cli", "write_batch_report", "data_files", "BATCH_FILES"]
+__all__ = ["add_cli", "run_cli", "write_batch_report", "data_files", "scan_folder",
+           "BATCH_FILES"]
 
 #: Files of a batch output folder (besides models/).
 BATCH_FILES = (MARKER, "summary.csv", "summary.md")
 
-_SUFFIXES = (".csv", ".npz")
-#: Data files that ``freqid fit`` reads but batch does not: named in a warning when skipped.
-_OTHER_DATA = (".txt", ".dat", ".tsv", ".mat", ".uff", ".unv", ".s1p", ".s2p")
+#: The data files batch reads (and Touchstone ``.sNp``/``.ts``, :func:`is_touchstone`).
+_SUFFIXES = (".csv", ".npz", ".mat", ".uff", ".unv")
+#: Text files ``freqid fit`` reads but batch does not (a folder's notes are text too):
+#: named in a warning and in the summary when skipped.
+_OTHER_DATA = (".txt", ".dat", ".tsv")
 
 _COLUMNS = ("status", "file", "name", "n_sections", "order", "max_rel_error",
             "rms_rel_error", "delay", "nit", "wall_time", "message", "error", "model")
@@ -66,11 +72,12 @@ def add_cli(subparsers):
         The result of ``ArgumentParser.add_subparsers``.
     """
     p = subparsers.add_parser(
-        "batch", help="fit every .csv/.npz file of a folder",
-        description="Fit G_N(s) = exp(-hs) K [1/s] P_N(s) to every .csv and .npz file in a "
-                    "folder with the same options, in parallel processes (--jobs) or on a "
+        "batch", help="fit every data file of a folder",
+        description="Fit G_N(s) = exp(-hs) K [1/s] P_N(s) to every data file (.csv, .npz, "
+                    ".mat, .uff/.unv, Touchstone .sNp/.ts) in a folder with the same options, in parallel processes (--jobs) or on a "
                     "Dask cluster (--scheduler), and write per-file models and a summary.")
-    _add_input(p, "folder", "DIR", "folder of data files (.csv, .npz)")
+    _add_input(p, "folder", "DIR", "folder of data files (.csv, .npz, .mat, .uff/.unv, "
+               "Touchstone .sNp/.ts)")
     p.add_argument("--out", required=True, metavar="DIR",
                    help="output folder to create (must not exist unless --force)")
     p.add_argument("--sections", type=_positive_int, required=True, metavar="N",
@@ -80,6 +87,12 @@ def add_cli(subparsers):
     p.add_argument("--scheduler", metavar="ADDRESS",
                    help="Dask scheduler address (e.g. tcp://127.0.0.1:8786); needs "
                         "pip install freqid_casadi[dask]")
+    p.add_argument("--record", type=_record, metavar="K",
+                   help="which frequency-response record of each UFF file (0-based), or run "
+                        "of an LTspice export")
+    p.add_argument("--parameter", metavar="S21",
+                   help="which parameter of each Touchstone file or network analyser's CSV "
+                        "(default S11)")
     _add_model_arguments(p, integrator=False)
     p.add_argument("--method", choices=METHODS, default="ipopt",
                    help="stage solver (default ipopt)")
@@ -93,11 +106,13 @@ def add_cli(subparsers):
 
 
 def data_files(folder):
-    """Sorted paths of the ``.csv``/``.npz`` regular files directly inside ``folder``.
+    """Sorted paths of the data files directly inside ``folder``: ``.csv``, ``.npz``,
+    ``.mat``, ``.uff``/``.unv`` and Touchstone ``.sNp``/``.ts`` regular files.
 
     A symbolic link is followed only if its target lies inside ``folder``; other links,
     FIFOs, devices and sub-folders are skipped (a ``UserWarning`` names each skipped link,
-    and one names the data files of other formats, ``.txt``, ``.mat``, ``.uff``, ...).
+    and one names the text tables batch does not read, ``.txt``, ``.dat``, ``.tsv``: a
+    folder's notes are text too).
 
     Parameters
     ----------
@@ -109,6 +124,30 @@ def data_files(folder):
     DataError
         If ``folder`` is missing, not a folder, unreadable or holds no data file.
     """
+    paths, skipped = scan_folder(folder)
+    for name, why in skipped:
+        warnings.warn(f"skipped {name!r}: {why}", UserWarning, stacklevel=2)
+    return paths
+
+
+def scan_folder(folder):
+    """:func:`data_files` without the warnings: ``(paths, skipped)``, ``skipped`` the
+    ``(file name, reason)`` of each data-like file not fitted (a text table, a link out of
+    the folder), for the summary.
+
+    Parameters
+    ----------
+    folder : str or path-like
+
+    Returns
+    -------
+    (list of str, list of (str, str))
+
+    Raises
+    ------
+    DataError
+        As :func:`data_files`.
+    """
     folder = os.fspath(folder)
     if not os.path.exists(folder):
         raise DataError(f"data folder not found: {folder!r}; check the path")
@@ -119,26 +158,25 @@ def data_files(folder):
     except OSError as exc:
         raise DataError(f"cannot list {folder!r}: {exc.strerror}") from None
     real_folder = os.path.realpath(folder)
-    paths, other = [], [n for n in names if n.lower().endswith(_OTHER_DATA)]
-    if other:
-        warnings.warn(f"skipped {len(other)} file(s) that freqid batch does not read (only "
-                      f".csv and .npz): {', '.join(other[:5])}{', ...' if len(other) > 5 else ''}"
-                      "; fit them with freqid fit, or save them as .csv", UserWarning,
-                      stacklevel=2)
+    paths, skipped = [], []
     for n in names:
         p = os.path.join(folder, n)
-        if not n.lower().endswith(_SUFFIXES):
+        if n.lower().endswith(_OTHER_DATA):
+            skipped.append((n, "a text table freqid batch does not read (a folder's notes "
+                               "are text too); fit it with freqid fit, or save it as .csv"))
+            continue
+        if not n.lower().endswith(_SUFFIXES) and not is_touchstone(n):
             continue
         real = os.path.realpath(p)
         if os.path.islink(p) and os.path.dirname(real) != real_folder:
-            warnings.warn(f"skipped {n!r}: a symbolic link to {real!r}, outside the data "
-                          "folder", UserWarning, stacklevel=2)
+            skipped.append((n, f"a symbolic link to {real!r}, outside the data folder"))
             continue
         if stat.S_ISREG(_mode(p)):
             paths.append(p)
     if not paths:
-        raise DataError(f"no .csv or .npz files in {folder!r}")
-    return paths
+        raise DataError(f"no data files (.csv, .npz, .mat, .uff/.unv, Touchstone .sNp/.ts) "
+                        f"in {folder!r}")
+    return paths, skipped
 
 
 def _mode(path):
@@ -188,7 +226,7 @@ def _csv_value(v):
     return v
 
 
-def write_batch_report(items, files, out_dir, *, command, force=False):
+def write_batch_report(items, files, out_dir, *, command, force=False, skipped=()):
     """Write the batch output folder (see the module docstring); returns its absolute path.
 
     Parameters
@@ -201,6 +239,9 @@ def write_batch_report(items, files, out_dir, *, command, force=False):
         Named on the first line of summary.md.
     force : bool
         Replace an existing ``out_dir`` once the new folder is complete.
+    skipped : sequence of (str, str)
+        Files of the folder not fitted and why (:func:`scan_folder`), listed in
+        summary.md.
     """
     path = check_out_dir(out_dir, force)
     with report_folder(out_dir, force) as (tmp, _):
@@ -215,11 +256,11 @@ def write_batch_report(items, files, out_dir, *, command, force=False):
         lines = [csv_row(_COLUMNS)]
         lines += [csv_row([_csv_value(r[c]) for c in _COLUMNS]) for r in rows]
         atomic_write_text(os.path.join(tmp, "summary.csv"), "\n".join(lines) + "\n")
-        atomic_write_text(os.path.join(tmp, "summary.md"), _markdown(rows, command))
+        atomic_write_text(os.path.join(tmp, "summary.md"), _markdown(rows, command, skipped))
     return path
 
 
-def _markdown(rows, command):
+def _markdown(rows, command, skipped=()):
     counts = ", ".join(f"{sum(r['status'] == s for r in rows)} {s}" for s in BATCH_STATUSES)
     table = markdown_table(
         [(r["status"], r["file"], r["order"], _num(r["max_rel_error"]),
@@ -227,9 +268,12 @@ def _markdown(rows, command):
           _num(r["wall_time"], 3), r["message"] or r["error"], r["model"]) for r in rows],
         ("status", "file", "order", "max rel. error", "RMS rel. error", "delay (s)",
          "iterations", "time (s)", "message", "model file"), align="llrrrrrrll")
-    return "\n".join([
-        generated_by_line(command), "", "# Batch fit", "",
-        f"{len(rows)} files: {counts}.", "", table, ""])
+    lines = [generated_by_line(command), "", "# Batch fit", "",
+             f"{len(rows)} files: {counts}.", "", table, ""]
+    if skipped:
+        lines += ["Not fitted:", ""] + [f"- `{one_line(n)}`: {why}" for n, why in skipped]
+        lines += [""]
+    return "\n".join(lines)
 
 
 def _as_flag_refusal(item, opts):
@@ -256,7 +300,9 @@ def run_cli(args, command):
     command : str
         The command line, named on the report's first line.
     """
-    files = data_files(args.folder)
+    files, skipped = scan_folder(args.folder)
+    for name, why in skipped:
+        warnings.warn(f"skipped {name!r}: {why}", UserWarning, stacklevel=2)
     check_out_dir(args.out, args.force)              # before the (long) fits
     opts = load_options(args)
     with notes_to_stderr():                          # zero-frequency rows dropped, ...
@@ -266,7 +312,10 @@ def run_cli(args, command):
                          delay=args.delay, basis=args.basis, method=method_option(args),
                          tol=args.tol, **({"weights": args.weights} if args.weights else {}))
     items = [_as_flag_refusal(item, opts) for item in items]
-    path = write_batch_report(items, files, args.out, command=command, force=args.force)
+    # the summary names the text tables not fitted, not a link's target outside the folder
+    tables = [(n, why) for n, why in skipped if n.lower().endswith(_OTHER_DATA)]
+    path = write_batch_report(items, files, args.out, command=command, force=args.force,
+                              skipped=tables)
     n_ok = sum(i.status in _CONVERGED for i in items)
     for item, f in zip(items, files):
         what = cli_words(item.result.summary()) if item.result is not None else item.error
