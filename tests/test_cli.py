@@ -386,3 +386,26 @@ def test_notes_of_many_files_are_printed_once_per_text(capsys):
     err = capsys.readouterr().err.splitlines()
     assert err == ["note: 'H1.txt', 'H2.txt', 'H3.txt' (each of 3 files) is not UTF-8 (byte "
                    "0xb2 on line 9): read as Windows-1252"]
+
+
+def test_sweep_target_line_says_when_the_order_meeting_it_did_not_converge(
+        workdir, capsys, monkeypatch):
+    # a Siglent export swept 2:8:2 with --target 1e-2: "smallest order ... : 4" where order
+    # 4's fit had stopped at its iteration limit; the line now says so
+    from freqid_casadi.fitting import sweep as sweep_module
+    from freqid_casadi.report import folder
+
+    rows = tuple(sweep_module.SweepRow(
+        order=o, n_sections=o // 2, max_rel_error=e, rms_rel_error=e / 2,
+        max_rel_error_dense=e, delay=0.0, wall_time=1.0, success=st == "ok", start="rational",
+        status=fc.FitStatus(st))
+        for o, e, st in ((2, 0.05, "ok"), (4, 0.008, "not-converged"), (6, 0.007, "ok")))
+    monkeypatch.setattr(sweep_module, "sweep", lambda data, orders, **kw: sweep_module.
+                        SweepResult(rows=rows, target=kw["target"], best_order=4,
+                                    data_name="plant"))
+    monkeypatch.setattr(folder, "write_sweep_report", lambda result, out, **kw: str(out))
+    code, out, err = run(capsys, "sweep", "plant.csv", "--orders", "2:6:2", "--target",
+                         "1e-2", "--out", "rep", "--quiet")
+    assert code == 0, err
+    assert ("smallest order with max rel. error <= 0.01: 4 (status not-converged: its error "
+            "is measured, the fit did not converge)") in out

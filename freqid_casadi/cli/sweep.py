@@ -97,7 +97,11 @@ def run_cli(args, command):
     print(text_table(rows, ("order", "max rel. err", "RMS", "max (10x grid)", "delay (s)",
                              "time (s)", "status")))
     if args.target is not None:
+        best = next((r for r in result.rows if r.order == result.best_order), None)
+        how = "" if best is None or str(best.status) == "ok" else (
+            f" (status {best.status}: its error is measured, the fit did not "
+            f"{'converge' if str(best.status) == 'not-converged' else 'reach the noise'})")
         print(f"smallest order with max rel. error <= {args.target:g}: "
-              f"{result.best_order if result.best_order is not None else 'none'}")
+              f"{result.best_order if result.best_order is not None else 'none'}{how}")
     print(f"report: {path}")
     return 0
