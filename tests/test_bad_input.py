@@ -77,7 +77,7 @@ def _npy_as_npz(p):
 
 
 GOOD_CSV = "omega,real,imag\n" + "".join(f"{w!r},{z.real!r},{z.imag!r}\n"
-                                         for w, z in zip(W, RESP))
+                                         for w, z in zip(W.tolist(), RESP.tolist()))
 
 CASES = [
     # ---- arrays: frequencies
@@ -330,6 +330,29 @@ def test_unwritable_output_folder(tmp_path, monkeypatch, capsys):
         assert os.listdir(tmp_path / "ro") == []
     finally:
         (tmp_path / "ro").chmod(0o700)
+
+
+def test_a_read_only_file_system_names_the_output_not_its_temporary_folder(
+        tmp_path, monkeypatch, capsys):
+    # a read-only mount read "error: Read-only file system: '.../ro/.rep.tmp-3yp6nw5k'",
+    # the hidden folder the command builds in; it now names --out and what to do
+    import errno
+    import tempfile
+
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "data.csv").write_text(GOOD_CSV)
+
+    def read_only(*args, **kwargs):
+        raise OSError(errno.EROFS, "Read-only file system",
+                      os.path.join(kwargs.get("dir", "."), ".rep.tmp-x"))
+
+    monkeypatch.setattr(tempfile, "mkdtemp", read_only)
+    code = cli.main(["fit", "data.csv", "--sections", "1", "--out", "rep"])
+    err = capsys.readouterr().err
+    assert code == 2 and len(err.splitlines()) == 1
+    assert err.startswith("error: cannot write the output folder 'rep': Read-only file system "
+                          "in ") and "choose an output in a folder you can write to" in err
+    assert ".tmp-" not in err
 
 
 # ----------------------------------------------------------------------------- outputs

@@ -330,7 +330,12 @@ def building(out_dir, force=False, inputs=()):
     path = check_out_dir(out_dir, force, inputs)
     parent, base = os.path.split(path)
     with _sigterm_raises():
-        tmp = tempfile.mkdtemp(prefix=f".{base}.tmp-", dir=parent)
+        try:
+            tmp = tempfile.mkdtemp(prefix=f".{base}.tmp-", dir=parent)
+        except OSError as exc:           # a read-only or full file system: name --out
+            raise OptionError(f"cannot write the output folder {os.fspath(out_dir)!r}: "
+                              f"{exc.strerror or exc} in {parent!r}; choose an output in a "
+                              "folder you can write to") from None
         try:
             with open(os.path.join(tmp, MARKER), "w", encoding="utf-8") as fh:
                 fh.write(_MARKER_TEXT)
