@@ -382,3 +382,23 @@ def test_an_export_the_state_space_cannot_resolve_warns(monkeypatch):
                       r"\(relative\): its poles and zeros span 32 decades \(7.14e-11 to "
                       r"7.14e\+21 rad/s\)"):
         model.to_control()
+
+
+def test_an_improper_accelerance_export_says_what_to_export_instead():
+    # an accelerance fitted with integrator=-2 and sections of as many zeros as poles
+    # grows as s^2: to_control refused it without a way out; the recipe it now gives runs
+    import dataclasses
+
+    import control as ct
+
+    model = RationalDelayModel(Structure(2, integrator=-2), [
+        0.0, 1.0, 1.0, 0.5, 3.0, 1.0, 0.1, 3.0, 1.0, 0.5, 5e6, 1.0, 0.9, 50.0])
+    with pytest.raises(StructureError, match=r"improper: it grows as s\^2 above its roots.*"
+                       r"RationalDelayModel\(dataclasses\.replace\(model\.structure, "
+                       r"integrator=False\), model\.beta\) \(G / s\^2"):
+        model.to_control()
+    disp = RationalDelayModel(dataclasses.replace(model.structure, integrator=False),
+                              model.beta)
+    w = np.geomspace(0.5, 100.0, 30)
+    got = np.squeeze(ct.frequency_response(disp.to_control(), w).complex) * (1j * w) ** 2
+    np.testing.assert_allclose(got, model.rational_response(w), rtol=1e-9)

@@ -171,8 +171,13 @@ def realize_blocks(model):
             zeros, spare = zeros + [0j], spare - 1
         blocks += _section_blocks(zeros, poles)
     if spare:
-        raise StructureError(f"{-k} zeros at the origin need as many poles in the sections "
-                             "(the model is improper); cannot export to a state-space model")
+        raise StructureError(
+            f"{-k} zeros at the origin need as many poles in the sections (the model is "
+            f"improper: it grows as s^{spare} above its roots, as an accelerance fitted with "
+            "integrator=-2 does); cannot export to a state-space model. Export the same "
+            "sections without the zeros at the origin, RationalDelayModel(dataclasses."
+            f"replace(model.structure, integrator=False), model.beta) (G / s^{-k}, e.g. the "
+            f"displacement of an accelerance), and put the s^{-k} back in the design")
     gain = _gain(model, blocks)
     share = abs(gain) ** (1.0 / len(blocks)) if blocks and gain != 0 else 1.0
     if not blocks:
