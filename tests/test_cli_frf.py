@@ -267,3 +267,25 @@ def test_frf_warns_of_a_low_coherence(tmp_path, monkeypatch, capsys):
     assert re.search(r"warning: the median coherence 0\.\d+ is low: most of the output is "
                      r"not explained by the input", out)
     assert "--window boxcar" in out
+
+
+def test_frf_reads_one_row_of_a_matrix_of_records(tmp_path):
+    # a benchmark's .mat keeps its sensors as one matrix (Acceleration, 3 x N): "--y
+    # 'Acceleration' is not a time record" with no way to choose a row; each row is now a
+    # record named as MATLAB indexes it
+    import scipy.io
+
+    u, y = _multisine(3)
+    acc = np.vstack([0.1 * y, y, -y])
+    scipy.io.savemat(tmp_path / "rec.mat", {"Force": u, "Acceleration": acc, "fs": 400.0})
+    out = tmp_path / "frf.csv"
+    args = _args(tmp_path / "rec.mat", out, u="Force", y="Acceleration(2,:)")
+    assert cli_frf.run_cli(args, "freqid frf") == 0
+    data = load_csv(out)
+    exact = 1 / (1 - 0.5 * np.exp(-1j * data.omega / 400.0))
+    assert np.max(np.abs(data.response / exact - 1)) < 1e-9
+    with pytest.raises(OptionError, match=r"--y 'Acceleration' is not a time record of the "
+                       r"file; the records are Force, Acceleration\(1,:\), Acceleration\(2,:\), "
+                       r"Acceleration\(3,:\)"):
+        cli_frf.run_cli(_args(tmp_path / "rec.mat", tmp_path / "o.csv", u="Force",
+                              y="Acceleration"), "freqid frf")

@@ -526,6 +526,27 @@ def _mat_fs(path, arrays, n):
     return None
 
 
+#: Most rows (or columns) of a matrix read as records, one each (``Acceleration(2,:)``).
+MAX_MATRIX_RECORDS = 64
+
+
+def _matrix_rows(arrays):
+    """``arrays`` with each real matrix of a few rows (or columns) of samples, as a
+    benchmark stores its sensors (``Acceleration``, 3 x 73728, or 3 x 1 x 49152), also
+    given row by row as vectors named as MATLAB indexes them: ``Acceleration(2,:)``
+    (``(:,2)`` for columns)."""
+    out = dict(arrays)
+    for key, a in arrays.items():
+        m = np.squeeze(a)
+        if a.ndim < 2 or m.ndim != 2 or a.dtype.kind not in "iuf":
+            continue
+        if m.shape[0] <= min(m.shape[1], MAX_MATRIX_RECORDS) and m.shape[1] >= 16:
+            out.update({f"{key}({i + 1},:)": m[i] for i in range(m.shape[0])})
+        elif m.shape[1] <= min(m.shape[0], MAX_MATRIX_RECORDS) and m.shape[0] >= 16:
+            out.update({f"{key}(:,{j + 1})": m[:, j] for j in range(m.shape[1])})
+    return out
+
+
 def load_records_mat(path):
     """Time records of a MATLAB ``.mat`` file (v4 to v7.2), by variable name.
 
@@ -533,7 +554,8 @@ def load_records_mat(path):
     ----------
     path : str or os.PathLike
         Arrays of samples as variables (``u``, ``y``) or struct fields (``meas.input``,
-        ``run(2).force``); the sampling rate, if the file gives it, as a scalar ``fs``
+        ``run(2).force``; each row of a matrix of a few rows, ``Acceleration(2,:)``, or
+        column, ``(:,2)``); the sampling rate, if the file gives it, as a scalar ``fs``
         (``SampleRate``, ``Fs``, ...), ``dt``/``Ts`` in seconds, or a time vector ``t``.
 
     Returns
@@ -551,7 +573,7 @@ def load_records_mat(path):
     from ..io import read_mat_arrays
 
     path, payload = read_regular_file(path, "records file")
-    arrays = read_mat_arrays(path, payload, MAX_FILE_BYTES // 8)
+    arrays = _matrix_rows(read_mat_arrays(path, payload, MAX_FILE_BYTES // 8))
     vectors = {k: a for k, a in arrays.items()
                if a.ndim == 1 and a.size >= 16 and a.dtype.kind in "iuf"}
     sizes = [a.size for a in vectors.values()]
