@@ -578,3 +578,29 @@ def test_a_subset_without_weighted_points_is_not_used(small_subset):
     assert "settled_on" not in rec and "starts_on" not in rec
     assert rec["contenders"] == [0, -1]
     assert rec["chosen"] == -1 and res.rms_rel_error < 1e-9
+
+
+def test_a_poor_fit_does_not_blame_a_root_below_band_auto_already_refitted():
+    # a Siglent export's CH2 at 2 sections: the poor fit blamed "a pole or zero at the
+    # origin the model lacks" while integrator='auto' had fitted integrator=-1 (RMS
+    # 0.00156 against the kept 0.00153); the next cause in line is named instead
+    import dataclasses
+
+    from freqid_casadi.fitting.diagnostics import Diagnostic
+    from freqid_casadi.fitting.origin import recause_poor_fit
+    from freqid_casadi.fitting.verdict import poor_fit_diagnostic
+
+    below = Diagnostic("root-below-band", "1 zero(s) ... (refit with integrator=-1)",
+                       "warning", {"kind": "zero", "integrator_asked": -1})
+    check = {"rms": 0.00153, "ratio": 4.67, "noise_rms": 0.00033, "worst_omega": 995.8}
+    poor = poor_fit_diagnostic(check, (below,), 2)
+    assert poor.values["cause"] == "root-below-band"
+    message = f"poor-fit: converged, but {poor.message}"
+    answered = dataclasses.replace(below, values=dict(below.values, asked_fit_rms=0.00156))
+    diags, text = recause_poor_fit((answered, poor), message, 2)
+    (new,) = [d for d in diags if d.code == "poor-fit"]
+    assert new.values["cause"] == "order"
+    assert "the likely cause is the order: the residual is largest near omega = 995.8" in text
+    assert "pole or zero at the origin" not in text
+    # not answered (auto did not fit that k): the cause stands
+    assert recause_poor_fit((below, poor), message, 2) == ((below, poor), message)

@@ -56,8 +56,8 @@ from .mainloop import LoopContext, minimax, rational, sequential
 from ..core.metrics import relative_error
 from ..core.model import (MAX_ORIGIN_ORDER, ZEROS, RationalDelayModel, Structure,
                           check_origin_order)
-from .origin import (describe_origin, origin_diagnostics, restate_roots_below_band,
-                     settle_by_results)
+from .origin import (describe_origin, origin_diagnostics, recause_poor_fit,
+                     restate_roots_below_band, settle_by_results)
 from ..options import (INITS, LEGACY_KEYWORDS, METHODS, WARM_STARTS, FitOptions, LoopOptions,
                       legacy_message, solver_options)
 from ..core.scaling import (check_finite_result, reference_scales, scale_data, unscale_model,
@@ -518,9 +518,11 @@ def _with_origin_record(result, record, found):
         message = (f"{message}; integrator='auto' chose {describe_origin(record['chosen'])}"
                    + (" (ambiguous: see the integrator diagnostic)" if record["ambiguous"]
                       else ""))
+    diagnostics, message = recause_poor_fit(
+        tuple(found) + restate_roots_below_band(result.diagnostics, record), message,
+        result.model.n_sections, getattr(result.data, "unit", "rad/s"))
     return dataclasses.replace(result, options=options, message=message, details=dict(
-        result.details, integrator=record), diagnostics=tuple(found) + restate_roots_below_band(
-            result.diagnostics, record))
+        result.details, integrator=record), diagnostics=diagnostics)
 
 
 def _fit_resolved(data_or_omega, response, n_sections, delay, fixed, weights, emit, kw,

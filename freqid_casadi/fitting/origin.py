@@ -375,6 +375,41 @@ def restate_roots_below_band(diagnostics, record):
         out.append(d)
     return tuple(out)
 
+def recause_poor_fit(diagnostics, message, n_sections, unit="rad/s"):
+    """``(diagnostics, message)`` with a ``poor-fit`` record whose cause was a
+    ``root-below-band`` that ``integrator="auto"`` answered (it fitted the k asked for and
+    did not keep it: :func:`restate_roots_below_band`'s ``asked_fit_rms``) given the next
+    cause in line: advising that refit again would send the user in a circle (a Siglent
+    export: integrator=-1 fitted at RMS 0.00156 against 0.00153, and the poor fit still
+    blamed the zero at the origin).
+
+    Parameters
+    ----------
+    diagnostics : sequence of Diagnostic
+    message : str
+        The result's message (the old cause's text in it is replaced).
+    n_sections : int
+    unit : str
+
+    Returns
+    -------
+    (tuple of Diagnostic, str)
+    """
+    from .verdict import poor_fit_diagnostic
+
+    diagnostics = tuple(diagnostics)
+    poor = next((d for d in diagnostics if d.code == "poor-fit"
+                 and d.values.get("cause") == "root-below-band"), None)
+    if poor is None or not any(d.code == "root-below-band" and "asked_fit_rms" in d.values
+                               for d in diagnostics):
+        return diagnostics, message
+    others = [d for d in diagnostics if d.code not in ("root-below-band", "poor-fit")]
+    check = {k: v for k, v in poor.values.items() if k != "cause"}
+    new = poor_fit_diagnostic(check, others, n_sections, unit)
+    return (tuple(new if d is poor else d for d in diagnostics),
+            message.replace(poor.message, new.message))
+
+
 def describe_origin(k):
     """Words for k poles at the origin.
 
