@@ -322,3 +322,35 @@ def test_a_poor_fit_within_an_analysers_accuracy_says_so():
     assert d.message.endswith("the model is as good as the data allow")
     big = poor_fit_diagnostic(dict(check, rms=2 * SMALL_RESIDUAL), (), 2)
     assert "is small" not in big.message and big.values["cause"] == "order"
+
+
+def test_an_unconverged_fit_pushing_a_spare_pair_outwards_says_so():
+    # -3 e^{-0.1 s} / (s + 1) at one second-order section: exact to 3.2e-11 and "still
+    # falling 2 % per iteration" as a pole and a zero pair drift beyond 8e4 rad/s together
+    # (data to 100 rad/s); the message says the data have fewer poles than the model
+    w = np.logspace(-1, 2, 120)
+    s = 1j * w
+    data = FrequencyData(w, -3 * np.exp(-0.1 * s) / (s + 1))
+    res = fc.fit(data, n_sections=1)
+    if res.status != "not-converged":
+        pytest.skip(f"this machine's fit converged (status {res.status})")
+    assert ("lie beyond 100 times the highest frequency" in res.message
+            and "the data have fewer poles than the model (a first-order system: pass "
+                "basis='first-order'; else fewer sections)" in res.message)
+    first = fc.fit(data, n_sections=1, basis="first-order")
+    assert first.status == "ok" and first.max_rel_error < 1e-10      # measured 4.3e-14
+
+
+def test_spare_far_pair_reads_the_roots_against_the_band():
+    from freqid_casadi.fitting._checks import spare_far_pair
+
+    model = fc.RationalDelayModel(Structure(1, gain_sign=-1), [
+        0.1, 1.0755573204080046e-05, 1.0, 1.16640825, 1.50341882e+05, 1.0, 142.334932,
+        284.666351])
+    data = FrequencyData(np.logspace(-1, 2, 10), np.ones(10))
+    text = spare_far_pair("not-converged: x", model, data)
+    assert text.startswith("not-converged: x; 1 pole(s) and 2 zero(s) lie beyond 100 times "
+                           "the highest frequency (from 8.1e+04 and 8.51e+04 rad/s)")
+    assert spare_far_pair("ok: x", model, data) == "ok: x"
+    wide = FrequencyData(np.logspace(-1, 4, 10), np.ones(10))    # the pair is in the band
+    assert spare_far_pair("not-converged: x", model, wide) == "not-converged: x"

@@ -22,7 +22,8 @@ from ..solvers.common import TERMINATION_MESSAGES, Status
 from ..solvers.termination import noise_stall_text
 from .verdict import FitStatus, ROUNDING_RMS, poor_fit_diagnostic, residual_noise, status_of
 
-__all__ = ["GAIN_SIGNS", "USABLE", "not_usable_between_samples", "validate", "zeta_min_of",
+__all__ = ["GAIN_SIGNS", "USABLE", "not_usable_between_samples", "spare_far_pair",
+           "FAR_FACTOR", "validate", "zeta_min_of",
            "check_model_class", "after_fit",
            "success_of", "verdict", "MAX_DECADES",
            "check_weighted_points", "without_phase_check"]
@@ -236,6 +237,43 @@ def _next_step(last, stats, start=None, found=()):
         return "both starts were run: try another number of sections"
     return ("try start='best' (both starts, the better kept) or another number of "
             "sections")
+
+
+#: Factor above the highest data frequency beyond which a pole and a zero that an
+#: unconverged fit pushes outwards together read as a spare pair (:func:`spare_far_pair`).
+FAR_FACTOR = 100.0
+
+
+def spare_far_pair(message, model, data):
+    """``message`` of an unconverged fit with advice added when poles and zeros lie
+    beyond :data:`FAR_FACTOR` times the highest frequency: a pair cancelling on its way to
+    infinity, each iteration lowering the error a little (-3 e^{-0.1 s} / (s + 1) at one
+    second-order section: 3.2e-11 "still falling 2 % per iteration", a pole at 8e4 and a
+    zero pair at 1.5e5 rad/s against data up to 100 rad/s).
+
+    Parameters
+    ----------
+    message : str
+    model : RationalDelayModel
+    data : FrequencyData
+        The fitted data (its highest frequency and unit).
+
+    Returns
+    -------
+    str
+    """
+    if not message.startswith("not-converged") or model.structure.basis != "second-order":
+        return message
+    unit = getattr(data, "unit", "rad/s")
+    far = FAR_FACTOR * float(data.omega[-1])
+    p = [abs(x) for x in model.poles() if abs(x) > far]
+    z = [abs(x) for x in model.zeros() if abs(x) > far]
+    if not p or not z:
+        return message
+    return (f"{message}; {len(p)} pole(s) and {len(z)} zero(s) lie beyond {FAR_FACTOR:g} "
+            f"times the highest frequency (from {min(p):.3g} and {min(z):.3g} {unit}), "
+            "drifting outwards together: the data have fewer poles than the model (a "
+            "first-order system: pass basis='first-order'; else fewer sections)")
 
 
 #: The words of an unconverged fit's message whose residual is at the noise.

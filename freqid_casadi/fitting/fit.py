@@ -40,7 +40,7 @@ from .candidates import NEAR, Candidate, choose, zero_delay_run
 from .core_fits import (choose_on_subset, core_fits, either_sign_fits, settle_on_subset,
                         settled_sign_fit, settles_on_subset, sign_on_subset)
 from ._checks import (GAIN_SIGNS, after_fit, check_model_class, not_usable_between_samples,
-                      validate, verdict, zeta_min_of)
+                      spare_far_pair, validate, verdict, zeta_min_of)
 from .._validate import check_choice, check_flag, check_jobs
 from ..core.data import FrequencyData
 from .delay_hold import hold_undetermined_delay
@@ -698,7 +698,7 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
         residual = scaled_response / model_scaled.frequency_response(scaled_omega) - 1.0
     success, status, message, details, found = verdict(
         final[-1], stats, residual, data, found, int(n_sections), start)
-    message = not_usable_between_samples(message, check)
+    message = spare_far_pair(not_usable_between_samples(message, check), model, data)
     details = dict(details, start_skipped=skipped) if skipped else details
     return FitResult(model=model, stages=tuple(records), data=data, rel_error=stats.values,
                      max_rel_error=stats.max, rms_rel_error=stats.rms,
