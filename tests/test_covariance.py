@@ -519,6 +519,8 @@ def test_the_delay_diagnostic_and_the_uncertainty_table_give_one_std():
     (rec,) = [d for d in res.diagnostics if d.code == "delay-undetermined"] or [None]
     if rec is None or "delay_std" not in rec.values:
         pytest.skip(f"this draw's delay is determined (status {res.status})")
-    # measured: 1379.49 against 1377.95 (the table also holds parameters at the fit's
-    # bounds); before, with the constant noise level, 929 against 1378
-    assert rec.values["delay_std"] == pytest.approx(res.uncertainty.delay_std, rel=0.01)
+    # measured: 1379.49 against 1377.95 (SkylakeX kernel), 727.7 against 707.0 (Prescott:
+    # the draw's fit differs; the table also holds parameters at the fit's bounds, and a
+    # delay of std 1e3 s is ill-conditioned); before, with the constant noise level, 929
+    # against 1378 (33 %). Bound: 10 %, three times the measured spread
+    assert rec.values["delay_std"] == pytest.approx(res.uncertainty.delay_std, rel=0.1)
