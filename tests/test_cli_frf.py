@@ -289,3 +289,22 @@ def test_frf_reads_one_row_of_a_matrix_of_records(tmp_path):
                        r"Acceleration\(3,:\)"):
         cli_frf.run_cli(_args(tmp_path / "rec.mat", tmp_path / "o.csv", u="Force",
                               y="Acceleration"), "freqid frf")
+
+
+def test_a_time_vector_with_rounded_stamps_gives_the_rate(tmp_path):
+    # a published EMPS record's t steps 1 ms with a jitter of 4e-5 of a step (stamps
+    # written with few digits): the rate was not read (H1 then asked for --fs); stamps
+    # that are not uniform (1 % jitter) still give none
+    import scipy.io
+
+    from freqid_casadi.experiment import load_records_mat
+
+    rng = np.random.default_rng(0)
+    n = 4096
+    t = np.round(np.arange(n) * 1e-3 + 4e-8 * rng.standard_normal(n), 9)
+    u, y = rng.standard_normal(n), rng.standard_normal(n)
+    scipy.io.savemat(tmp_path / "rec.mat", {"t": t, "u": u, "y": y})
+    assert load_records_mat(tmp_path / "rec.mat").fs == pytest.approx(1000.0, rel=1e-6)
+    t_bad = np.arange(n) * 1e-3 * (1 + 0.01 * rng.random(n))
+    scipy.io.savemat(tmp_path / "bad.mat", {"t": np.sort(t_bad), "u": u, "y": y})
+    assert load_records_mat(tmp_path / "bad.mat").fs is None

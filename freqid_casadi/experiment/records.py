@@ -27,7 +27,7 @@ from ..io.loaders import MAX_FILE_BYTES, MAX_ROWS, read_regular_file
 from .periodic import _detect_period, frf_from_periodic
 
 __all__ = ["load_records_csv", "load_records_table", "load_daisy", "load_daq_records",
-           "load_records_mat",
+           "load_records_mat", "uniform_rate", "TIME_JITTER",
            "DaqRecords", "robot_arm",
            "actuator_records", "dataset_path", "ROBOT_ARM_FILE", "ACTUATOR_FILE",
            "SHARED_ENV"]
@@ -164,7 +164,8 @@ def load_records_table(path, input=None, output=None):
     columns chosen by name (case-insensitive, quotes ignored): a benchmark's
     ``"Force","Voltage","Acceleration1",...,"Fs",``, an oscilloscope's ``CH1,CH2,Start,
     Increment`` with a units line under it. The sampling rate comes from a time column
-    (``Time``, ``t``, ``ts``, ``x-axis``: 1 / its median step) or a constant column
+    (``Time``, ``t``, ``ts``, ``x-axis``: its rate when it steps uniformly,
+    :func:`uniform_rate`) or a constant column
     (``Fs``; ``Ts``, ``Increment`` or ``dt`` a sampling period), else None.
 
     Parameters
@@ -243,9 +244,9 @@ def load_records_table(path, input=None, output=None):
 def _table_fs(t, rate, consts):
     """Hz from a time column (its median step, when every row has one) or a constant
     column (:data:`_RATE_NAMES`), else None."""
-    steps = np.diff(np.asarray(t, float))
-    if steps.size and np.all(np.isfinite(steps)) and np.median(steps) > 0:
-        return float(1.0 / np.median(steps))
+    fs = uniform_rate(t) if len(t) > 1 else None
+    if fs is not None:
+        return fs
     for j, kind in rate.items():
         value = consts.get(j)
         if value is not None and value > 0:
@@ -520,10 +521,37 @@ def _mat_fs(path, arrays, n):
             if last in _DT_NAMES:
                 return 1.0 / value
         if last in _T_NAMES and arr.ndim == 1 and arr.size == n:
-            step = np.diff(arr.astype(float))
-            if np.all(step > 0) and np.ptp(step) <= 1e-6 * step.mean():
-                return 1.0 / float(step.mean())
+            fs = uniform_rate(arr)
+            if fs is not None:
+                return fs
     return None
+
+
+#: Largest spread of a time column's steps, relative to their mean, read as uniform
+#: sampling: time stamps written with a few digits jitter by 1e-5 to 1e-4 of a step (a
+#: published EMPS record: 4e-5 at 1 ms).
+TIME_JITTER = 1e-3
+
+
+def uniform_rate(t):
+    """The sampling rate (Hz) of time stamps ``t`` (s) when they step uniformly (within
+    :data:`TIME_JITTER`), from the whole span; else None.
+
+    Parameters
+    ----------
+    t : array_like of float, shape (N,)
+
+    Returns
+    -------
+    float or None
+    """
+    t = np.asarray(t, float).ravel()
+    step = np.diff(t)
+    if step.size == 0 or not np.all(np.isfinite(step)) or not np.all(step > 0):
+        return None
+    if np.ptp(step) > TIME_JITTER * step.mean():
+        return None
+    return float((t.size - 1) / (t[-1] - t[0]))
 
 
 #: Most rows (or columns) of a matrix read as records, one each (``Acceleration(2,:)``).
