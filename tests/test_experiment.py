@@ -199,8 +199,16 @@ def test_skip_leaves_nothing(record):
 
 def test_not_periodic(record):
     u, y = record
-    with pytest.raises(DataError, match="input is not periodic with period 128.*check --period"):
+    # an odd-bin multisine of period 256 is minus itself after 128 samples: the error says
+    # so and gives the period (the F-16 benchmark's odd multisine read "200 %" and "raise
+    # periodic_rtol", which has no command-line option)
+    with pytest.raises(DataError, match=r"input is not periodic with period 128.*each period "
+                       r"is minus the one before \(an odd multisine, anti-periodic at 128\): "
+                       r"its period is 256, pass --period 256"):
         frf_from_periodic(u, y, 128)
+    with pytest.raises(DataError, match=r"period 100.*check --period .*periodic_rtol= of "
+                       r"frf_from_periodic"):
+        frf_from_periodic(u[:700], y[:700], 100)
     rng = np.random.default_rng(3)
     noise = rng.standard_normal(u.size)
     with pytest.raises(DataError, match="not periodic with period 256"):

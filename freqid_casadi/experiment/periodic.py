@@ -229,11 +229,18 @@ def _check_periodic(u_used, period, skip_periods, periodic_rtol):
     jumps = np.sqrt(np.mean(np.diff(u_used, axis=0) ** 2, axis=1)) / scale
     worst = int(np.argmax(jumps))
     if jumps[worst] > periodic_rtol:
+        # each period minus the one before (an odd multisine, x(t + N) = -x(t)): every
+        # jump is 200 %, and the period is twice the one given
+        sums = np.sqrt(np.mean((u_used[1:] + u_used[:-1]) ** 2, axis=1)) / scale
+        hint = (f"; each period is minus the one before (an odd multisine, anti-periodic "
+                f"at {period}): its period is {2 * period}, pass --period {2 * period}"
+                if sums.size and np.max(sums) <= periodic_rtol else
+                "; check --period (the samples per period of the excitation), or raise "
+                "the tolerance for a noisy input (periodic_rtol= of frf_from_periodic)")
         raise DataError(
             f"input is not periodic with period {period}: period #{skip_periods + worst + 2}"
             f" differs from period #{skip_periods + worst + 1} by {100 * jumps[worst]:.3g}% "
-            f"RMS (tolerance {100 * periodic_rtol:.3g}%); check --period (the samples per "
-            "period of the excitation) or raise periodic_rtol for a noisy input")
+            f"RMS (tolerance {100 * periodic_rtol:.3g}%){hint}")
 
 
 #: Input power at a bin, relative to the strongest nonzero bin, below which the bin counts
