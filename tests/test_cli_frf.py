@@ -191,8 +191,23 @@ def test_frf_refuses_to_write_onto_its_records(tmp_path, monkeypatch, capsys):
     err = capsys.readouterr().err
     assert code == 2 and "output 'rec.csv' is an input of this command" in err
     assert (tmp_path / "rec.csv").read_bytes() == before
-    code = cli.main(["frf", "rec.csv", "--estimator", "h2", "--out", "frf.csv"])
-    assert code == 2 and "--estimator h2 needs --fs HZ" in capsys.readouterr().err
+
+
+def test_frf_h2_without_fs_is_in_rad_per_sample(tmp_path, monkeypatch, capsys):
+    # H1/H2 asked for --fs where the periodic estimator falls back to rad/sample (a
+    # published actuator .mat without a rate); the Welch estimate now does the same
+    monkeypatch.chdir(tmp_path)
+    u, y = _filter_records(4096)
+    _write(tmp_path / "rec.csv", u, y)
+    code = cli.main(["frf", "rec.csv", "--estimator", "h2", "--nperseg", "256", "--out",
+                     "frf.csv"])
+    out = capsys.readouterr().out
+    assert code == 0 and "no --fs: the omega column is in rad/sample" in out
+    assert "frequencies, omega 0.02454 to 3.142 rad/sample (H2" in out
+    data = load_csv(tmp_path / "frf.csv")
+    assert data.unit == "rad/sample"
+    exact = 1 / (1 - 0.5 * np.exp(-1j * data.omega))
+    assert np.median(np.abs(data.response / exact - 1)) < 0.02
 
 
 @pytest.mark.parametrize("value", ["1_024", "١٠٢٤"])

@@ -480,7 +480,7 @@ def test_min_coherence_selects_the_band():
     ({"min_coherence": 1.5}, OptionError, r"min_coherence must be a number in \[0, 1\)"),
     ({"window": "nosuch"}, OptionError, r"window='nosuch' is not a scipy.signal window"),
     ({"detrend": "cubic"}, OptionError, r"detrend must be 'constant', 'linear' or False"),
-    ({"fs": None}, OptionError, r"fs \(sampling frequency, Hz\) is required"),
+    ({"fs": 0.0}, OptionError, r"fs must be a finite sampling frequency > 0 in Hz"),
     ({"fs": 1e308}, OptionError, r"fs=1e\+308 Hz is too large: omega up to pi\*fs rad/s "
                                  "overflows"),
 ])
@@ -493,6 +493,19 @@ def test_welch_options(kw, exc, match):
         warnings.simplefilter("error")
         with pytest.raises(exc, match=match):
             frf_from_records(u, y, **args)
+
+
+def test_welch_without_fs_is_in_rad_per_sample():
+    # as frf_from_periodic without fs: the same estimate as at fs = 1 Hz, its axis in
+    # rad/sample
+    rng = np.random.default_rng(5)
+    u = rng.standard_normal(4096)
+    y = signal.lfilter(B2, A2, u)
+    est = frf_from_records(u, y, fs=None, nperseg=256)
+    one = frf_from_records(u, y, fs=1.0, nperseg=256)
+    assert est.data.unit == "rad/sample" and est.fs is None
+    np.testing.assert_array_equal(est.data.omega, one.data.omega)
+    np.testing.assert_array_equal(est.data.response, one.data.response)
 
 
 def test_welch_bad_records_without_warnings():

@@ -344,8 +344,6 @@ def run_cli(args, command):
                                 skip_periods=getattr(args, "skip_periods", 0) or 0, name=name,
                                 reference=ref)
     else:
-        if fs is None:
-            raise OptionError(f"--estimator {estimator} needs --fs HZ (the sampling frequency)")
         est = frf_from_records(u, y, fs=fs, estimator=estimator,
                                nperseg=getattr(args, "nperseg", None),
                                noverlap=getattr(args, "noverlap", None),
@@ -394,8 +392,9 @@ def _summary(est, out, sidecar):
     d = est.data
     if est.n_averages is not None:
         c = est.coherence
-        print(f"{d.n_points} frequencies, {d.omega[0] / 2 / math.pi:.4g} to "
-              f"{d.omega[-1] / 2 / math.pi:.4g} Hz ({est.estimator.upper()}, {est.n_averages} "
+        band = (f"{d.omega[0] / 2 / math.pi:.4g} to {d.omega[-1] / 2 / math.pi:.4g} Hz"
+                if est.fs is not None else f"omega {d.omega[0]:.4g} to {d.omega[-1]:.4g} {unit}")
+        print(f"{d.n_points} frequencies, {band} ({est.estimator.upper()}, {est.n_averages} "
               f"segments of {est.nperseg} samples); coherence min {c.min():.3f}, median "
               f"{float(np.median(c)):.3f}")
         if float(np.median(c)) < LOW_COHERENCE:

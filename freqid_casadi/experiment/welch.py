@@ -24,7 +24,7 @@ _DETRENDS = ("constant", "linear", False)
 
 
 def _check_options(n, fs, estimator, nperseg, noverlap, window, detrend, min_coherence):
-    fs = _as_fs(fs, required=True)
+    fs = _as_fs(fs, required=False)
     if estimator not in ESTIMATORS:
         raise OptionError(f"unknown estimator {estimator!r}; choose one of "
                           f"{', '.join(ESTIMATORS)} (h1: noise on the output, h2: on the input)")
@@ -70,7 +70,7 @@ def _spectra(u, y, fs, win, nperseg, noverlap, detrend):
     return f, s_uu.real, s_yy.real, s_uy
 
 
-def frf_from_records(u, y, *, fs, estimator="h1", nperseg=None, noverlap=None,
+def frf_from_records(u, y, *, fs=None, estimator="h1", nperseg=None, noverlap=None,
                      window="hann", detrend="constant", min_coherence=None, name=None,
                      reference=None, threshold=1e-2):
     """Frequency response from input/output records of any excitation (Welch H1/H2).
@@ -79,8 +79,9 @@ def frf_from_records(u, y, *, fs, estimator="h1", nperseg=None, noverlap=None,
     ----------
     u, y : array_like of float, shape (N,)
         Input and output records, equally long, finite, sampled at ``fs``.
-    fs : float
-        Sampling frequency in Hz.
+    fs : float, optional
+        Sampling frequency in Hz; None: the frequency axis is normalised, in rad/sample
+        (``data.unit == "rad/sample"``, as :func:`frf_from_periodic` without ``fs``).
     estimator : {"h1", "h2"}, default "h1"
         ``H1 = S_uy / S_uu`` (noise on the output biases nothing), or ``H2 = S_yy / S_yu``
         (noise on the input biases nothing).
@@ -109,7 +110,8 @@ def frf_from_records(u, y, *, fs, estimator="h1", nperseg=None, noverlap=None,
     Returns
     -------
     FrfEstimate
-        ``data.omega`` in rad/s (the zero-frequency bin is dropped), ``data.response`` the
+        ``data.omega`` in rad/s, or rad/sample without ``fs`` (the zero-frequency bin is
+        dropped), ``data.response`` the
         estimate, ``data.weights`` ``|H|^2 / variance`` normalised to mean 1 (feed it to
         ``fit(weights=...)``); ``coherence``, ``variance``, ``bins`` (segment DFT bins),
         ``n_averages`` (segments), ``nperseg`` and ``estimator``.
@@ -142,6 +144,8 @@ def frf_from_records(u, y, *, fs, estimator="h1", nperseg=None, noverlap=None,
         raise DataError(f"input u is constant (every sample = {u[0]!r}): there is no "
                         "excitation; check that the input channel was recorded")
     u, y, gain = _normalised(u, y)       # spectra of the scaled records; H times gain
+    unit = "rad/s" if fs is not None else "rad/sample"
+    fs_given, fs = fs, (1.0 if fs is None else fs)
     # the densities are scaled by 1/fs, which under- or overflows at an extreme fs: then
     # they are computed per sample (fs = 1; h and the coherence are ratios) and f scaled
     per_sample = not 1e-100 < fs < 1e100
@@ -179,8 +183,9 @@ def frf_from_records(u, y, *, fs, estimator="h1", nperseg=None, noverlap=None,
                         "differ by too many orders of magnitude; rescale the records")
     weights = 1.0 / rel
     weights = weights / weights.mean()
-    data = FrequencyData(omega, h, name, weights)
-    est = FrfEstimate(data, bins, variance, coh, None, None, fs, n_avg, nperseg, estimator)
+    data = FrequencyData(omega, h, name, weights, unit)
+    est = FrfEstimate(data, bins, variance, coh, None, None, fs_given, n_avg, nperseg,
+                      estimator)
     if reference is None:
         return est
     s_rr = _reference_power(reference, u.size, win, nperseg, noverlap, detrend)
