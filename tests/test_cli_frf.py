@@ -323,3 +323,29 @@ def test_a_time_vector_with_rounded_stamps_gives_the_rate(tmp_path):
     t_bad = np.arange(n) * 1e-3 * (1 + 0.01 * rng.random(n))
     scipy.io.savemat(tmp_path / "bad.mat", {"t": np.sort(t_bad), "u": u, "y": y})
     assert load_records_mat(tmp_path / "bad.mat").fs is None
+
+
+@pytest.mark.parametrize("decimal", [".", ","])
+def test_frf_reads_a_labview_measurement_file(tmp_path, decimal):
+    # LabVIEW's .lvm (an impact test published beside lvm_read): a header block, the
+    # sample interval in Delta_X, a table after the last ***End_of_Header*** whose X_Value
+    # column is empty; it was refused as "unrecognised header 'LabVIEW Measurement'"
+    u, y = _multisine(3)
+    dx = "0.0025" if decimal == "." else "0,0025"
+
+    def num(v):
+        return repr(float(v)).replace(".", decimal)
+
+    head = ("LabVIEW Measurement\t\nWriter_Version\t0.92\nSeparator\tTab\n"
+            f"Decimal_Separator\t{decimal}\nMulti_Headings\tNo\n***End_of_Header***\t\n\t\n"
+            "Channels\t2\t\t\nSamples\t768\t768\t\nX0\t0\t0\t\n"
+            f"Delta_X\t{dx}\t{dx}\t\n***End_of_Header***\t\t\t\nX_Value\tF\tacc\tComment\n")
+    body = "".join(f"\t{num(a)}\t{num(b)}\n" for a, b in zip(u, y))
+    (tmp_path / "test.lvm").write_text(head + body)
+    out = tmp_path / "frf.csv"
+    args = _args(tmp_path / "test.lvm", out, input="F", output="acc")
+    assert cli_frf.run_cli(args, "freqid frf") == 0
+    data = load_csv(out)
+    np.testing.assert_allclose(data.omega, 2 * np.pi * BINS / PERIOD * 400.0, rtol=1e-9)
+    exact = 1 / (1 - 0.5 * np.exp(-1j * data.omega / 400.0))
+    assert np.max(np.abs(data.response / exact - 1)) < 1e-9

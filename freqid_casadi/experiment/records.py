@@ -163,7 +163,9 @@ def load_records_table(path, input=None, output=None):
     comma-, semicolon-, tab- or space-separated table with a header, the input and output
     columns chosen by name (case-insensitive, quotes ignored): a benchmark's
     ``"Force","Voltage","Acceleration1",...,"Fs",``, an oscilloscope's ``CH1,CH2,Start,
-    Increment`` with a units line under it. The sampling rate comes from a time column
+    Increment`` with a units line under it, a LabVIEW measurement file (``.lvm``: the
+    table after its header, the rate from ``Delta_X``). The sampling rate comes from a time
+    column
     (``Time``, ``t``, ``ts``, ``x-axis``: its rate when it steps uniformly,
     :func:`uniform_rate`) or a constant column
     (``Fs``; ``Ts``, ``Increment`` or ``dt`` a sampling period), else None.
@@ -189,8 +191,11 @@ def load_records_table(path, input=None, output=None):
         ``input`` or ``output`` not a column of the header.
     """
     _, lines = _text_lines(path)
-    rows = [(k + 1, t) for k, t in enumerate(lines)
-            if t.strip() and not t.lstrip().startswith(("#", "%"))]
+    start, lvm_fs, comma = _lvm_header(path, lines)
+    rows = [(k + 1, t) for k, t in enumerate(lines) if k >= start
+            and t.strip() and not t.lstrip().startswith(("#", "%"))]
+    if comma:
+        rows = [(k, t.replace(",", ".")) for k, t in rows]
     if not rows:
         raise DataError(f"{os.fspath(path)!r} is empty: expected a header and data rows")
     first = rows[0][1]
@@ -238,7 +243,32 @@ def load_records_table(path, input=None, output=None):
                      if NUMBER.fullmatch(cells[time]) else np.nan)
     if len(u) < 2:
         raise DataError(f"{where} has a header but fewer than 2 data rows")
-    return np.array(u), np.array(y), _table_fs(t, rate, consts)
+    return np.array(u), np.array(y), lvm_fs or _table_fs(t, rate, consts)
+
+
+def _lvm_header(path, lines):
+    """``(first line of the table, sampling rate or None, decimal comma)`` of a LabVIEW
+    measurement file (``LabVIEW Measurement`` first, its table after the last
+    ``***End_of_Header***``, ``Delta_X`` the sample interval), else ``(0, None, False)``.
+    A file of several segments (a header before each) is refused: split it."""
+    if not lines or not lines[0].lstrip("\ufeff").startswith("LabVIEW Measurement"):
+        return 0, None, False
+    ends = [k for k, t in enumerate(lines) if t.startswith("***End_of_Header***")]
+    if not ends:
+        raise DataError(f"{os.fspath(path)!r}: a LabVIEW measurement file without "
+                        "'***End_of_Header***'; export it again")
+    if len(ends) > 2:
+        raise DataError(f"{os.fspath(path)!r}: a LabVIEW measurement file of several segments "
+                        f"({len(ends) - 1} headers); save one segment per file")
+    fields = {}
+    for t in lines[:ends[-1]]:
+        cells = t.split("\t")
+        fields.setdefault(cells[0].strip(), [c.strip() for c in cells[1:] if c.strip()])
+    comma = (fields.get("Decimal_Separator") or ["."])[0] == ","
+    dx = (fields.get("Delta_X") or [None])[0]
+    dx = dx.replace(",", ".") if dx and comma else dx
+    fs = 1.0 / float(dx) if dx and NUMBER.fullmatch(dx) and float(dx) > 0 else None
+    return ends[-1] + 1, fs, comma
 
 
 def _table_fs(t, rate, consts):
