@@ -54,7 +54,8 @@ from freqid_casadi.report import folder as report  # noqa: E402
 from freqid_casadi.core.data import FrequencyData  # noqa: E402
 from freqid_casadi.io.loaders import save_csv  # noqa: E402
 from freqid_casadi.errors import DataError, FreqidError, OptionError, StructureError  # noqa: E402
-from freqid_casadi.core.model import RationalDelayModel, Structure, _quad_roots  # noqa: E402
+from freqid_casadi.core.model import RationalDelayModel, Structure  # noqa: E402
+from freqid_casadi.core.realize import quad_roots as _quad_roots  # noqa: E402
 from conftest import one_section_model  # noqa: E402
 
 ROOT = Path(__file__).resolve().parents[1]

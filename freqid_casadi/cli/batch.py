@@ -74,8 +74,9 @@ def add_cli(subparsers):
     p = subparsers.add_parser(
         "batch", help="fit every data file of a folder",
         description="Fit G_N(s) = exp(-hs) K [1/s] P_N(s) to every data file (.csv, .npz, "
-                    ".mat, .uff/.unv, Touchstone .sNp/.ts) in a folder with the same options, in parallel processes (--jobs) or on a "
-                    "Dask cluster (--scheduler), and write per-file models and a summary.")
+                    ".mat, .uff/.unv, Touchstone .sNp/.ts) in a folder with the same "
+                    "options, in parallel processes (--jobs) or on a Dask cluster "
+                    "(--scheduler), and write per-file models and a summary.")
     _add_input(p, "folder", "DIR", "folder of data files (.csv, .npz, .mat, .uff/.unv, "
                "Touchstone .sNp/.ts)")
     p.add_argument("--out", required=True, metavar="DIR",
@@ -125,9 +126,13 @@ def data_files(folder):
         If ``folder`` is missing, not a folder, unreadable or holds no data file.
     """
     paths, skipped = scan_folder(folder)
-    for name, why in skipped:
-        warnings.warn(f"skipped {name!r}: {why}", UserWarning, stacklevel=2)
+    _warn_skipped(skipped)
     return paths
+
+
+def _warn_skipped(skipped):
+    for name, why in skipped:
+        warnings.warn(f"skipped {name!r}: {why}", UserWarning, stacklevel=3)
 
 
 def scan_folder(folder):
@@ -301,8 +306,7 @@ def run_cli(args, command):
         The command line, named on the report's first line.
     """
     files, skipped = scan_folder(args.folder)
-    for name, why in skipped:
-        warnings.warn(f"skipped {name!r}: {why}", UserWarning, stacklevel=2)
+    _warn_skipped(skipped)
     check_out_dir(args.out, args.force)              # before the (long) fits
     opts = load_options(args)
     with notes_to_stderr():                          # zero-frequency rows dropped, ...

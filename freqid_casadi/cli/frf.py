@@ -183,10 +183,7 @@ def _mat_records(args):
     if ref is not None and ref not in rec.channels:
         raise OptionError(f"--reference {ref!r} is not a time record of the file; the "
                           f"records are {names}")
-    fs = getattr(args, "fs", None)
-    if fs is not None and rec.fs is not None and fs != rec.fs:
-        raise OptionError(f"--fs {fs:g} contradicts the file's sampling rate {rec.fs:g} Hz; "
-                          "drop --fs")
+    _same_rate(args, rec.fs)
     return chosen[0], chosen[1], rec.fs, None if ref is None else rec.channels[ref]
 
 
@@ -249,10 +246,7 @@ def read_records(args):
     if not _is_daq(args.records):
         u, y, fs = load_records_table(args.records, getattr(args, "input", None),
                                       getattr(args, "output", None))
-        given = getattr(args, "fs", None)
-        if given is not None and fs is not None and not math.isclose(given, fs, rel_tol=1e-3):
-            raise OptionError(f"--fs {given:g} contradicts the file's sampling rate {fs:g} Hz "
-                              "(from its time or Fs column); drop --fs")
+        _same_rate(args, fs, rel_tol=1e-3, where=" (from its time or Fs column)")
         return u, y, fs
     rec = load_daq_records(args.records)
     names = ", ".join(rec.channels)
@@ -261,11 +255,18 @@ def read_records(args):
         if ch not in rec.channels:
             what = "is required" if ch is None else f"{ch!r} is not a channel"
             raise OptionError(f"--{opt} {what} for a DAQ export: choose one of {names}")
-    fs = getattr(args, "fs", None)
-    if fs is not None and fs != rec.fs:
-        raise OptionError(f"--fs {fs:g} contradicts the file's sampling rate {rec.fs:g} Hz; "
-                          "drop --fs")
+    _same_rate(args, rec.fs)
     return rec.channels[args.input], rec.channels[args.output], rec.fs
+
+
+def _same_rate(args, fs, rel_tol=0.0, where=""):
+    """OptionError when ``--fs`` contradicts the rate ``fs`` (Hz) the file states (None:
+    it states none); ``rel_tol`` 0: they must be equal (a DAQ header, a .mat scalar), a
+    rate from time stamps within it."""
+    given = getattr(args, "fs", None)
+    if given is not None and fs is not None and not math.isclose(given, fs, rel_tol=rel_tol):
+        raise OptionError(f"--fs {given:g} contradicts the file's sampling rate {fs:g} Hz"
+                          f"{where}; drop --fs")
 
 
 _STATS_HEADER = "omega,bin,variance,coherence,weight"
@@ -391,14 +392,14 @@ def _summary(est, out, sidecar):
     unit = "rad/s" if est.fs is not None else "rad/sample"
     d = est.data
     if est.n_averages is not None:
-        c = est.coherence
+        c, median = est.coherence, float(np.median(est.coherence))
         band = (f"{d.omega[0] / 2 / math.pi:.4g} to {d.omega[-1] / 2 / math.pi:.4g} Hz"
                 if est.fs is not None else f"omega {d.omega[0]:.4g} to {d.omega[-1]:.4g} {unit}")
         print(f"{d.n_points} frequencies, {band} ({est.estimator.upper()}, {est.n_averages} "
               f"segments of {est.nperseg} samples); coherence min {c.min():.3f}, median "
-              f"{float(np.median(c)):.3f}")
-        if float(np.median(c)) < LOW_COHERENCE:
-            print(f"warning: the median coherence {float(np.median(c)):.2g} is low: most of "
+              f"{median:.3f}")
+        if median < LOW_COHERENCE:
+            print(f"warning: the median coherence {median:.2g} is low: most of "
                   "the output is not explained by the input (noise, a nonlinearity, or an "
                   "excitation that few segments hold: an impact or a step, whose Welch "
                   "average is mostly silence); for a transient input pass --window boxcar "

@@ -38,6 +38,7 @@ existing ``DIR`` is refused without ``--force``):
 import json
 import os
 import re
+import warnings
 
 import numpy as np
 
@@ -173,10 +174,10 @@ def _reference(path, n):
     return ref.T
 
 
-def _file_channels(args, path, load_data):
+def _file_channels(args, path):
     """The FRFs of one file: its one data set, or every frequency-response record of a UFF
     file (a modal test's file holds one per channel; ``--record K`` reads one)."""
-    from .common import load_options, refuse_flags
+    from .common import load_data, load_options, refuse_flags
     from ..io.loaders import is_uff, load_uff
 
     opts = load_options(args)
@@ -207,7 +208,6 @@ def _common_grid(datas):
     if common.size < max(2, COMMON_GRID_SHARE * largest):
         return datas
     cut = sorted({int(d.n_points - common.size) for d in datas if d.n_points > common.size})
-    import warnings
     warnings.warn(f"the channels' grids differ only by points some channels lack (bins "
                   f"a reader dropped): kept the {common.size} frequencies all "
                   f"{len(datas)} channels share, dropping {cut[0]}..{cut[-1]} of a channel's "
@@ -260,14 +260,14 @@ def run_cli(args, command):
         DataError for unreadable files or different grids, OptionError for bad options or
         an existing ``--out`` without ``--force``.
     """
-    from .common import load_data, notes_to_stderr
+    from .common import notes_to_stderr
     from ..modal.survey import parse_orders, stabilization
     from ..report.folder import check_out_dir, report_folder
 
     check_out_dir(args.out, args.force)
     orders = parse_orders(args.orders)
     with notes_to_stderr():                  # the files' notes together, each text once
-        channels = [(d, f) for f in args.files for d in _file_channels(args, f, load_data)]
+        channels = [(d, f) for f in args.files for d in _file_channels(args, f)]
     datas, files = _common_grid([d for d, _ in channels]), [f for _, f in channels]
     names = _channel_names(datas, files)
     delay = False if args.delay == "none" else args.delay

@@ -26,10 +26,9 @@ from .. import _cplx
 from .._cplx import jw_power, times_jw_power
 from .._textio import atomic_write_text
 from .._validate import check_choice, check_flag
-from ..errors import DataError, ExportWarning, OptionError, StructureError
+from ..errors import DataError, OptionError, StructureError
 from .metrics import DelayedResponse
-from .realize import EXPORT_TOLERANCE, export_error, realize_blocks
-from .realize import quad_roots as _quad_roots
+from .realize import balanced_ss, section_roots, state_space
 
 __all__ = ["Structure", "RationalDelayModel", "section_response", "attach_delay",
            "balanced_ss", "BASES", "MAX_ORIGIN_ORDER", "check_origin_order", "jw_power",
@@ -251,39 +250,6 @@ def _structure_dict(s):
     return d
 
 
-def balanced_ss(sys):
-    """``sys`` (python-control StateSpace) after a diagonal similarity by powers of two
-    that balances the row and column norms of A (LAPACK's gebal, no permutation).
-
-    Series connections of sections whose coefficients span many decades (a zero far
-    above the band) give A, B, C entries 1e7 apart; evaluating or synthesising with that
-    realization loses digits (python-control's frequency response of such a model was
-    off by 4e-4, and slycot's H-infinity synthesis refused it). The transform is exact in
-    floating point (powers of two), so poles, zeros and the response are unchanged.
-
-    Parameters
-    ----------
-    sys : control.StateSpace
-
-    Returns
-    -------
-    control.StateSpace
-        The same system; its attribute ``delay`` is kept.
-    """
-    import control as ct
-    from scipy.linalg import matrix_balance
-
-    a = np.asarray(sys.A, float)
-    if a.size == 0:
-        return sys
-    _, (scale, _) = matrix_balance(a, permute=False, separate=True)
-    out = ct.ss(a * scale[None, :] / scale[:, None], np.asarray(sys.B) / scale[:, None],
-                np.asarray(sys.C) * scale[None, :], sys.D)
-    if hasattr(sys, "delay"):
-        out.delay = sys.delay
-    return out
-
-
 def attach_delay(sys, delay, pade_order=None):
     """A python-control system with the delay ``delay`` (s): as a Pade approximation of
     order ``pade_order`` in series, or (None) in the system's ``delay`` attribute.
@@ -439,15 +405,8 @@ class RationalDelayModel(DelayedResponse):
     def _factor_roots(self, which):
         roots = []
         for theta in self.sections():
-            if self.structure.basis == "second-order":
-                a, zn, wn, b, zd, wd = theta
-                c = (a, 2 * zn * wn, wn * wn) if which == "num" else (b, 2 * zd * wd, wd * wd)
-                roots += _quad_roots(*c)
-            else:
-                a1, a0, b1, b0 = theta
-                c = (a1, a0) if which == "num" else (b1, b0)
-                if c[0] != 0:
-                    roots.append(complex(-c[1] / c[0]))
+            zeros, poles = section_roots(self.structure.basis, theta)
+            roots += poles if which == "den" else zeros
         return roots
 
     def poles(self):
@@ -521,38 +480,8 @@ class RationalDelayModel(DelayedResponse):
         OptionError
             An unknown ``delay``, "pade" without ``pade_order``, or "attribute" with one.
         """
-        import control as ct
-
         pade_order = _export_pade_order(delay, pade_order)
-        blocks = [ct.ss(*b) for b in realize_blocks(self)]    # each on its own scale
-        # the series order and a balancing change how well python-control evaluates the
-        # system when its roots span many decades (a Siglent export's fit, roots from
-        # 2e4 to 3.7e15 rad/s: 6e-5 as built, 26 balanced, 1e-8 with the fast block at
-        # the input, balanced); the best of these, as measured, is kept
-        scale = [float(np.max(np.abs(b.A))) if b.nstates else 0.0 for b in blocks]
-        best = None
-        for order in (range(len(blocks)), np.argsort(scale)[::-1], np.argsort(scale)):
-            sys = blocks[order[0]]
-            for j in order[1:]:
-                sys = ct.series(sys, blocks[j])
-            for balance in (True, False):
-                error = export_error(balanced_ss(sys) if balance else sys, self)
-                if best is None or error < best[0]:
-                    best = (error, sys, balance)
-        error, sys, balance = best
-        if error > EXPORT_TOLERANCE:
-            import warnings
-
-            roots = np.abs(np.concatenate([self.poles(), self.zeros()]))
-            roots = roots[roots > 0]
-            warnings.warn(
-                f"the exported system's frequency response differs from the model's by up "
-                f"to {error:.2g} (relative): its poles and zeros span "
-                f"{np.log10(roots.max() / roots.min()):.0f} decades "
-                f"({roots.min():.3g} to {roots.max():.3g} rad/s), beyond what a state-space "
-                "evaluation resolves; fit fewer sections or prune the far roots "
-                "(freqid_casadi.fitting.validation.prune_sections) before designing with it",
-                ExportWarning, stacklevel=2)
+        sys, balance = state_space(self)
         sys = attach_delay(sys, self.delay, pade_order)
         return balanced_ss(sys) if balance else sys
 

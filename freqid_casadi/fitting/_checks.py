@@ -161,17 +161,20 @@ def check_model_class(gain_sign, zeros, method, gauge, min_damping):
                               "written for minimum-phase factors); drop one of them")
 
 
-def _delay_std(model, data, delay_max):
-    """The delay's standard deviation from the parameter covariance, or None."""
+def _delay_std(model, data, delay_max, noise=None):
+    """The delay's standard deviation from the parameter covariance, or None (``noise``:
+    the fit's :func:`~.verdict.residual_noise`, computed here when not given)."""
     if not model.structure.delay or model.delay <= 0 or model.delay >= 0.98 * delay_max:
         return None
     from ..uncertainty.covariance import parameter_uncertainty
 
     # the noise level as FitResult.uncertainty takes it (the local level when the residual
     # is noise, as an "ok" fit's is), so the diagnostic and the report's table agree
-    with np.errstate(all="ignore"):
-        residual = data.response / model.frequency_response(data.omega) - 1.0
-    consistent = residual_noise(residual, data.omega, data.weights).consistent
+    if noise is None:
+        with np.errstate(all="ignore"):
+            residual = data.response / model.frequency_response(data.omega) - 1.0
+        noise = residual_noise(residual, data.omega, data.weights)
+    consistent = noise.consistent
     try:
         std = parameter_uncertainty(model, data, weights=data.weights,
                                     noise_level="local" if consistent else "constant"
@@ -181,11 +184,12 @@ def _delay_std(model, data, delay_max):
     return float(std) if math.isfinite(std) else None
 
 
-def after_fit(model, data, stats, delay_max):
-    """Diagnostics of the fitted model on the user's data (see :mod:`.diagnostics`)."""
+def after_fit(model, data, stats, delay_max, noise=None):
+    """Diagnostics of the fitted model on the user's data (see :mod:`.diagnostics`;
+    ``noise``: the fit's residual check, when the caller has it)."""
     found = check_trivial(stats.max, stats.rms)
     found += check_delay(model, data, delay_max, stats.rms,
-                         delay_std=_delay_std(model, data, delay_max))
+                         delay_std=_delay_std(model, data, delay_max, noise))
     if model.structure.zeros == "free":
         found += rhp_zeros_note(model)
     elif PHASE_CHECK.get():
@@ -329,7 +333,7 @@ def _not_converged(last, stats, usable=False, start=None, found=()):
             f"RMS {stats.rms:.2g} ({state}) — {_next_step(last, stats, start, found)}")
 
 
-def verdict(last, stats, residual, data, found, n_sections, start=None):
+def verdict(last, stats, residual, data, found, n_sections, start=None, noise=None):
     """The fit's verdict: ``(success, status, message, details, diagnostics)``.
 
     ``success`` is the optimiser's (:func:`success_of`, False also on a diagnostic of
@@ -352,13 +356,15 @@ def verdict(last, stats, residual, data, found, n_sections, start=None):
     start : str, optional
         The fit's ``start`` option (the advice of an unconverged fit does not offer a
         start it ran).
+    noise : NoiseCheck, optional
+        ``residual_noise`` of ``residual``, when the caller has it.
 
     Returns
     -------
     (bool, FitStatus, str, dict, tuple of Diagnostic)
     """
     success, message = success_of(last, stats)
-    check = residual_noise(residual, data.omega, data.weights)
+    check = residual_noise(residual, data.omega, data.weights) if noise is None else noise
     errors = [d for d in found if d.severity == "error"]
     converged = bool(last.success) or at_noise(last)
     status = status_of(converged, bool(errors) or not stats.rms < 1.0, check)

@@ -690,14 +690,14 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                for r in records]
     scaled_omega, scaled_response = data.omega, data.response
     data = user_data     # stats stay the scaled problem's (no overflow at extreme omega)
-    final = [r for r in records if r.kept != Kept.MINIMAX_REJECTED
-             and r.kind != StageKind.RATIONAL_START] or records
+    final = _final_stages(records)
     check = _resolution_check(model, data.omega)
     with np.errstate(all="ignore"):     # extreme user scales: a check may give up, not warn
-        found += after_fit(model, data, stats, dmax / w_ref)
         residual = scaled_response / model_scaled.frequency_response(scaled_omega) - 1.0
+        noise = residual_noise(residual, data.omega, data.weights)     # once, for both
+        found += after_fit(model, data, stats, dmax / w_ref, noise=noise)
     success, status, message, details, found = verdict(
-        final[-1], stats, residual, data, found, int(n_sections), start)
+        final[-1], stats, residual, data, found, int(n_sections), start, noise=noise)
     message = spare_far_pair(not_usable_between_samples(message, check), model, data)
     details = dict(details, start_skipped=skipped) if skipped else details
     return FitResult(model=model, stages=tuple(records), data=data, rel_error=stats.values,
@@ -814,6 +814,13 @@ def explains_data(run, data):
         return False
     check = residual_noise(residual, data.omega, data.weights)
     return bool(check["rms"] <= ROUNDING_RMS or check["ratio"] <= NEAR)
+
+
+def _final_stages(records):
+    """The stage records a fit's verdict reads: all but a rejected minimax stage and the
+    rational starts (all of them when nothing else is left)."""
+    return [r for r in records if r.kept != Kept.MINIMAX_REJECTED
+            and r.kind != StageKind.RATIONAL_START] or records
 
 
 def _resolution_check(model, omega):

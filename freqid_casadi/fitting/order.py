@@ -549,13 +549,13 @@ def _not_the_order(choice):
     best = min(higher, key=lambda s: s.rms)
     unit = getattr(res.data, "unit", "rad/s")
     weighted = getattr(res.data, "weights", None) is not None
+    rms = "weighted RMS" if weighted else "RMS"
     noise = ("the data's weights may not follow it" if weighted else
              "the fit weighs every point alike; weights=, each point's inverse relative "
              "variance, weigh them by their noise")
     cause = (f"not the order: n_sections='auto' fitted up to "
-             f"{higher[-1].n_sections} sections, which did not lower the "
-             f"{'weighted ' if weighted else ''}RMS significantly "
-             f"({'weighted ' if weighted else ''}RMS {best.rms:.3g} at {best.n_sections}); "
+             f"{higher[-1].n_sections} sections, which did not lower the {rms} significantly "
+             f"({rms} {best.rms:.3g} at {best.n_sections}); "
              f"the residual is largest near omega = {poor.values['worst_omega']:.4g} {unit}, "
              f"a feature the model class does not fit, or noise whose level varies over the "
              f"band ({noise})")

@@ -45,6 +45,7 @@ from ..core.scaling import reference_scales, scale_data
 from .diagnostics import (BELOW_BAND, EXACT_START, Diagnostic, low_frequency_line,
                           spell_origin)
 from .start import best_signed_start, memo_map
+from .verdict import poor_fit_diagnostic
 
 __all__ = ["choose_origin_order", "origin_candidates", "slope_informative", "settle_by_fits",
            "settle_by_results", "restate_roots_below_band",
@@ -375,13 +376,15 @@ def restate_roots_below_band(diagnostics, record):
         out.append(d)
     return tuple(out)
 
+
 def recause_poor_fit(diagnostics, message, n_sections, unit="rad/s"):
     """``(diagnostics, message)`` with a ``poor-fit`` record whose cause was a
     ``root-below-band`` that ``integrator="auto"`` answered (it fitted the k asked for and
-    did not keep it: :func:`restate_roots_below_band`'s ``asked_fit_rms``) given the next
-    cause in line: advising that refit again would send the user in a circle (a Siglent
-    export: integrator=-1 fitted at RMS 0.00156 against 0.00153, and the poor fit still
-    blamed the zero at the origin).
+    did not keep it: :func:`restate_roots_below_band`'s ``asked_fit_rms``, which
+    :func:`~freqid_casadi.fitting.verdict.poor_fit_diagnostic` then passes over) given the
+    next cause in line: advising that refit again would send the user in a circle (a
+    Siglent export: integrator=-1 fitted at RMS 0.00156 against 0.00153, and the poor fit
+    still blamed the zero at the origin).
 
     Parameters
     ----------
@@ -395,17 +398,15 @@ def recause_poor_fit(diagnostics, message, n_sections, unit="rad/s"):
     -------
     (tuple of Diagnostic, str)
     """
-    from .verdict import poor_fit_diagnostic
-
     diagnostics = tuple(diagnostics)
     poor = next((d for d in diagnostics if d.code == "poor-fit"
                  and d.values.get("cause") == "root-below-band"), None)
-    if poor is None or not any(d.code == "root-below-band" and "asked_fit_rms" in d.values
-                               for d in diagnostics):
+    if poor is None:
         return diagnostics, message
-    others = [d for d in diagnostics if d.code not in ("root-below-band", "poor-fit")]
-    check = {k: v for k, v in poor.values.items() if k != "cause"}
-    new = poor_fit_diagnostic(check, others, n_sections, unit)
+    new = poor_fit_diagnostic({k: v for k, v in poor.values.items() if k != "cause"},
+                              [d for d in diagnostics if d is not poor], n_sections, unit)
+    if new.values["cause"] == "root-below-band":
+        return diagnostics, message
     return (tuple(new if d is poor else d for d in diagnostics),
             message.replace(poor.message, new.message))
 
