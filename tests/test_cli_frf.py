@@ -349,3 +349,24 @@ def test_frf_reads_a_labview_measurement_file(tmp_path, decimal):
     np.testing.assert_allclose(data.omega, 2 * np.pi * BINS / PERIOD * 400.0, rtol=1e-9)
     exact = 1 / (1 - 0.5 * np.exp(-1j * data.omega / 400.0))
     assert np.max(np.abs(data.response / exact - 1)) < 1e-9
+
+
+def test_load_records_mat_of_a_file_holding_one_record(tmp_path):
+    import scipy.io
+
+    from freqid_casadi.experiment import load_records_mat
+
+    u, _ = _multisine(1)
+    scipy.io.savemat(tmp_path / "u.mat", {"uval": u[None, :], "t": np.arange(u.size) / 50.0})
+    with pytest.raises(DataError, match=r"holds no time records \(two or more real vectors "
+                       r"of one length\)"):
+        load_records_mat(tmp_path / "u.mat")
+    rec = load_records_mat(tmp_path / "u.mat", min_records=1)
+    assert list(rec.channels) == ["uval"] and rec.fs == pytest.approx(50.0)
+    np.testing.assert_array_equal(rec.channels["uval"], u)
+    scipy.io.savemat(tmp_path / "t.mat", {"t": np.arange(64.0)})
+    with pytest.raises(DataError, match=r"holds no time records \(a real vector of 16 or more "
+                       r"samples\): found t \(64,\)"):
+        load_records_mat(tmp_path / "t.mat", min_records=1)
+    with pytest.raises(OptionError, match="min_records must be 1 or 2, got 3"):
+        load_records_mat(tmp_path / "u.mat", min_records=3)

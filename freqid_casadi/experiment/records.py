@@ -605,7 +605,7 @@ def _matrix_rows(arrays):
     return out
 
 
-def load_records_mat(path):
+def load_records_mat(path, min_records=2):
     """Time records of a MATLAB ``.mat`` file (v4 to v7.2), by variable name.
 
     Parameters
@@ -615,6 +615,10 @@ def load_records_mat(path):
         ``run(2).force``; each row of a matrix of a few rows, ``Acceleration(2,:)``, or
         column, ``(:,2)``); the sampling rate, if the file gives it, as a scalar ``fs``
         (``SampleRate``, ``Fs``, ...), ``dt``/``Ts`` in seconds, or a time vector ``t``.
+    min_records : {2, 1}, default 2
+        Fewest records of one length the file must hold: 2 for a file of inputs and
+        outputs, 1 for a file that holds only the input or only the output (a benchmark
+        that publishes ``uval`` and ``yval`` in two files).
 
     Returns
     -------
@@ -626,20 +630,28 @@ def load_records_mat(path):
     Raises
     ------
     DataError
-        Not a readable ``.mat`` file, or no two real vectors of one length (no records).
+        Not a readable ``.mat`` file, or fewer than ``min_records`` real vectors of one
+        length (no records).
+    OptionError
+        ``min_records`` not 1 or 2.
     """
     from ..io import read_mat_arrays
 
+    if min_records not in (1, 2) or isinstance(min_records, bool):
+        raise OptionError(f"min_records must be 1 or 2, got {min_records!r}")
     path, payload = read_regular_file(path, "records file")
     arrays = _matrix_rows(read_mat_arrays(path, payload, MAX_FILE_BYTES // 8))
     vectors = {k: a for k, a in arrays.items()
                if a.ndim == 1 and a.size >= 16 and a.dtype.kind in "iuf"}
-    sizes = [a.size for a in vectors.values()]
-    if not sizes or max(sizes.count(n) for n in set(sizes)) < 2:
+    sizes = [a.size for k, a in vectors.items()
+             if k.rsplit(".", 1)[-1].lower() not in _T_NAMES]     # a time vector is no record
+    if not sizes or max(sizes.count(n) for n in set(sizes)) < min_records:
         found = ", ".join(f"{k} {a.shape}" for k, a in list(arrays.items())[:8])
-        raise DataError(f"{path!r} holds no time records (two or more real vectors of one "
-                        f"length): found {found or 'nothing numeric'}; save the input and "
-                        "output samples as vectors, e.g. save(f, 'u', 'y', 'fs', '-v7')")
+        what = ("two or more real vectors of one length" if min_records == 2 else
+                "a real vector of 16 or more samples")
+        raise DataError(f"{path!r} holds no time records ({what}): found "
+                        f"{found or 'nothing numeric'}; save the input and output samples as "
+                        "vectors, e.g. save(f, 'u', 'y', 'fs', '-v7')")
     n = max(set(sizes), key=lambda m: (sizes.count(m), m))
     channels = {}
     for key, a in vectors.items():
