@@ -351,6 +351,106 @@ def test_frf_reads_a_labview_measurement_file(tmp_path, decimal):
     assert np.max(np.abs(data.response / exact - 1)) < 1e-9
 
 
+# ------------------------------------------------------------- input and output in two files
+
+def _two_mat_files(tmp_path, u_vars, y_vars):
+    import scipy.io
+
+    scipy.io.savemat(tmp_path / "u.mat", u_vars)
+    scipy.io.savemat(tmp_path / "y.mat", y_vars)
+    return ["--u-file", str(tmp_path / "u.mat"), "--y-file", str(tmp_path / "y.mat")]
+
+
+def test_frf_reads_the_input_and_the_output_from_two_mat_files(tmp_path, monkeypatch,
+                                                                 capsys):
+    # a benchmark publishes its input and its output in two files (uval as a 1 x N row in
+    # one, yval in another); freqid frf took one file, so the two had to be merged by hand
+    u, y = _multisine(3)
+    files = _two_mat_files(tmp_path, {"uval": u[None, :]}, {"yval": y[:, None], "fs": 400.0})
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["frf"] + files + ["--period", str(PERIOD), "--out", "frf.csv"]) == 0
+    data = load_csv(tmp_path / "frf.csv")
+    np.testing.assert_allclose(data.omega, 2 * np.pi * BINS / PERIOD * 400.0, rtol=1e-12)
+    exact = 1 / (1 - 0.5 * np.exp(-1j * data.omega / 400.0))
+    assert np.max(np.abs(data.response / exact - 1)) < 1e-9
+    assert "3 period(s) averaged" in capsys.readouterr().out
+    assert (tmp_path / "frf.stats.csv").exists()
+    # --fs for files that state no rate; the same records merged in one file agree
+    files = _two_mat_files(tmp_path, {"uval": u}, {"yval": y})
+    assert cli.main(["frf"] + files + ["--period", str(PERIOD), "--fs", "400", "--out",
+                                       "frf2.csv"]) == 0
+    np.testing.assert_array_equal(load_csv(tmp_path / "frf2.csv").response, data.response)
+
+
+def test_two_mat_files_choose_a_record_by_name(tmp_path, monkeypatch):
+    # a file of several realisations (rows of a matrix): the record is chosen with --u
+    u, y = _multisine(3)
+    files = _two_mat_files(tmp_path, {"uval": np.vstack([0.5 * u, u]), "r": u},
+                           {"yval": y})
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(OptionError, match=r"--u-file '.*u\.mat' holds several records "
+                       r"\(r, uval\(1,:\), uval\(2,:\)\): choose the input with --u NAME"):
+        cli_frf.read_excitation(_namespace(files))
+    for name, gain in (("uval(2,:)", 1.0), ("uval(1,:)", 2.0)):
+        out = tmp_path / f"frf{gain:g}.csv"
+        args = _namespace(files, u=name, reference="r", out=str(out))
+        assert cli_frf.run_cli(args, "freqid frf") == 0
+        data = load_csv(out)
+        exact = gain / (1 - 0.5 * np.exp(-1j * data.omega))
+        assert np.max(np.abs(data.response / exact - 1)) < 1e-9
+    with pytest.raises(OptionError, match=r"--reference 'x' is not a time record of --u-file "
+                       r"or --y-file; their records are r, uval\(1,:\), uval\(2,:\), yval"):
+        cli_frf.read_excitation(_namespace(files, u="r", reference="x"))
+
+
+def _namespace(files, **kw):
+    ns = dict(records=None, u_file=files[1], y_file=files[3], period=PERIOD, fs=None,
+              skip_periods=0, out="frf.csv", force=False)
+    ns.update(kw)
+    return argparse.Namespace(**ns)
+
+
+@pytest.mark.parametrize("case, error, match", [
+    ("length", DataError, r"the input 'uval' of --u-file '.*u\.mat' holds 768 samples, the "
+                          r"output 'yval' of --y-file '.*y\.mat' holds 512: the two records "
+                          r"must cover the same samples"),
+    ("rates", DataError, r"--u-file '.*u\.mat' states the sampling rate 1000 Hz, --y-file "
+                         r"'.*y\.mat' 400 Hz: the input and the output must be sampled "
+                         r"together"),
+    ("fs", OptionError, r"--fs 10 contradicts the file's sampling rate 400 Hz; drop --fs"),
+    ("name", OptionError, r"--y 'y' is not a time record of --y-file '.*y\.mat'; its "
+                          r"records are yval"),
+    ("text", OptionError, r"--u-file '.*rec\.csv' is not a MATLAB \.mat file"),
+])
+def test_two_mat_files_that_do_not_match_are_refused(tmp_path, case, error, match):
+    u, y = _multisine(3)
+    u_vars = {"uval": u, "fs": 1000.0} if case == "rates" else {"uval": u}
+    y_vars = {"yval": y[:512] if case == "length" else y, "fs": 400.0}
+    files = _two_mat_files(tmp_path, u_vars, y_vars)
+    kw = {"fs": 10.0} if case == "fs" else {"y": "y"} if case == "name" else {}
+    if case == "text":
+        _write(tmp_path / "rec.csv", u, y)
+        files[1] = str(tmp_path / "rec.csv")
+    with pytest.raises(error, match=match):
+        cli_frf.run_cli(_namespace(files, out=str(tmp_path / "frf.csv"), **kw), "freqid frf")
+    assert not (tmp_path / "frf.csv").exists()
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--u-file", "u.mat"], r"--u-file needs --y-file: pass the input's file and the "
+                            r"output's file"),
+    (["--y-file", "y.mat"], r"--y-file needs --u-file"),
+    (["rec.mat", "--u-file", "u.mat", "--y-file", "y.mat"],
+     r"RECORDS 'rec\.mat' and --u-file/--y-file both give the records"),
+    ([], r"no records given: pass RECORDS \(a file holding the input and the output\), or "
+         r"the two files: --u-file U\.mat --y-file Y\.mat"),
+])
+def test_records_are_one_file_or_two(tmp_path, monkeypatch, capsys, argv, match):
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["frf"] + argv + ["--out", "frf.csv"]) != 0
+    assert re.search(match, capsys.readouterr().err)
+
+
 def test_load_records_mat_of_a_file_holding_one_record(tmp_path):
     import scipy.io
 

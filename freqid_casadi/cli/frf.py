@@ -6,13 +6,17 @@ Usage::
     freqid frf RECORDS --estimator h1|h2 --fs HZ [--nperseg N] [--noverlap N]
                [--window hann] [--min-coherence X] [--input CH --output CH] --out frf.csv
     freqid frf REC.mat --u NAME --y NAME [--reference NAME] [--band LO:HI] ... --out frf.csv
+    freqid frf --u-file U.mat --y-file Y.mat [--u NAME] [--y NAME] [--fs HZ] ... --out frf.csv
 
 Reads a two-column ``u,y`` CSV (:func:`freqid_casadi.experiment.load_records_csv`), a DAQ
 export (:func:`freqid_casadi.experiment.load_daq_records`, channels chosen by ``--input``
 and ``--output``) or a MATLAB file of time records
 (:func:`freqid_casadi.experiment.load_records_mat`, variables or struct fields chosen by
 ``--u`` and ``--y``; ``--reference`` names the generated excitation, whose lines are the
-excited ones), estimates the frequency response at the excited DFT bins averaged over
+excited ones), or the input and the output from two MATLAB files (``--u-file`` and
+``--y-file``, as benchmarks publish ``uval`` and ``yval``: the only record of each file, or
+the one ``--u``/``--y`` names; both of one length, and of one rate if both state one),
+estimates the frequency response at the excited DFT bins averaged over
 the periods (:func:`freqid_casadi.experiment.frf_from_periodic`, SPEC §7) or by Welch H1/H2
 (:func:`freqid_casadi.experiment.frf_from_records`), keeps the frequencies in ``--band``
 (Hz with a sampling rate) and writes
@@ -38,7 +42,7 @@ import numpy as np
 from ..report.outputs import check_out_file
 
 from .._textio import atomic_write_text
-from ..errors import OptionError
+from ..errors import DataError, OptionError
 from ..experiment import (ESTIMATORS, frf_from_periodic, frf_from_records, load_daq_records,
                          load_records_mat, load_records_table)
 from .common import _ASCII_FLOAT, _ASCII_INT, _ascii, _checked   # the CLI's own type helpers
@@ -92,8 +96,10 @@ def add_cli(subparsers):
                     "excitation (--estimator h1|h2). RECORDS is a CSV with the header 'u,y' "
                     "or a DAQ export ('Header Size: N' first line, .xz accepted; choose "
                     "--input and --output channels), or a MATLAB .mat file of time records "
-                    "(choose --u and --y variables).")
-    p.add_argument("records", metavar="RECORDS", help="u,y CSV, a DAQ export or a .mat file")
+                    "(choose --u and --y variables); or, instead of RECORDS, the input and "
+                    "the output in two .mat files: --u-file U.mat --y-file Y.mat.")
+    p.add_argument("records", metavar="RECORDS", nargs="?",
+                   help="u,y CSV, a DAQ export or a .mat file (omit with --u-file/--y-file)")
     p.add_argument("--estimator", choices=("periodic",) + ESTIMATORS,
                    help="periodic (needs --period), h1 (noise on the output) or h2 (noise "
                         "on the input); default periodic with --period, else h1")
@@ -121,6 +127,11 @@ def add_cli(subparsers):
                    help=".mat file: the input record's variable (e.g. u or meas.force)")
     p.add_argument("--y", metavar="NAME",
                    help=".mat file: the output record's variable (e.g. y or meas.acc)")
+    p.add_argument("--u-file", metavar="U.mat",
+                   help="a .mat file holding the input record, with --y-file instead of "
+                        "RECORDS (--u names the variable if the file holds several)")
+    p.add_argument("--y-file", metavar="Y.mat",
+                   help="a .mat file holding the output record, with --u-file")
     p.add_argument("--reference", metavar="NAME",
                    help=".mat variable or DAQ channel of the generated excitation: only the "
                         "lines it excites are kept (a measured input holds noise at the "
@@ -147,10 +158,94 @@ def stats_path(out):
     return f"{stem}.stats.csv" if ext.lower() == ".csv" else f"{os.fspath(out)}.stats.csv"
 
 
-def _check_target(path, force, records=None):
-    """Output file checks (:func:`freqid_casadi.report.outputs.check_out_file`): never the input
-    ``records``, an existing file only with ``force``, never a folder."""
-    check_out_file(path, force, inputs=() if records is None else (records,))
+def _check_target(path, force, inputs=()):
+    """Output file checks (:func:`freqid_casadi.report.outputs.check_out_file`): never one of
+    the ``inputs`` (the records files), an existing file only with ``force``, never a
+    folder."""
+    check_out_file(path, force, inputs=inputs)
+
+
+def _inputs(args):
+    """The files the command reads: RECORDS, or the --u-file and the --y-file."""
+    names = ("records", "u_file", "y_file")
+    return tuple(p for p in (getattr(args, n, None) for n in names) if p is not None)
+
+
+def _two_files(args):
+    """True when the input and the output come in two files (``--u-file``, ``--y-file``),
+    False for one RECORDS file; OptionError for neither, one of the two, or both
+    spellings."""
+    u_file, y_file = getattr(args, "u_file", None), getattr(args, "y_file", None)
+    records = getattr(args, "records", None)
+    if u_file is None and y_file is None:
+        if records is None:
+            raise OptionError("no records given: pass RECORDS (a file holding the input and "
+                              "the output), or the two files: --u-file U.mat --y-file Y.mat")
+        return False
+    if u_file is None or y_file is None:
+        given, missing = ("--u-file", "--y-file") if y_file is None else ("--y-file",
+                                                                          "--u-file")
+        raise OptionError(f"{given} needs {missing}: pass the input's file and the output's "
+                          "file, e.g. freqid frf --u-file U.mat --y-file Y.mat ...")
+    if records is not None:
+        raise OptionError(f"RECORDS {records!r} and --u-file/--y-file both give the records: "
+                          "pass one file holding both as RECORDS, or the two files with "
+                          "--u-file and --y-file (without RECORDS)")
+    return True
+
+
+def _file_record(path, opt, args):
+    """``(samples, name, DaqRecords)`` of the record that ``--u`` (``opt`` "u") or ``--y``
+    names in ``--u-file``/``--y-file`` ``path``: the file's only record by default."""
+    alias = "input" if opt == "u" else "output"
+    if not _is_mat(path):
+        raise OptionError(f"--{opt}-file {path!r} is not a MATLAB .mat file: --u-file and "
+                          "--y-file read .mat files; a text table holds the input and the "
+                          "output together: pass it as RECORDS (with --input/--output)")
+    rec = load_records_mat(path, min_records=1)
+    names = ", ".join(rec.channels)
+    name = getattr(args, opt, None) or getattr(args, alias, None)
+    if name is None:
+        if len(rec.channels) == 1:
+            name = next(iter(rec.channels))
+        elif opt in rec.channels:
+            name = opt
+        else:
+            raise OptionError(f"--{opt}-file {path!r} holds several records ({names}): "
+                              f"choose the {alias} with --{opt} NAME")
+    if name not in rec.channels:
+        raise OptionError(f"--{opt} {name!r} is not a time record of --{opt}-file {path!r}; "
+                          f"its records are {names}")
+    return rec.channels[name], name, rec
+
+
+def _two_file_records(args):
+    """Input, output, sampling rate (or None) and reference (or None) of ``--u-file`` and
+    ``--y-file``: records of one length, files that state no contradicting rates."""
+    u, u_name, u_rec = _file_record(args.u_file, "u", args)
+    y, y_name, y_rec = _file_record(args.y_file, "y", args)
+    if u.size != y.size:
+        raise DataError(f"the input {u_name!r} of --u-file {args.u_file!r} holds {u.size} "
+                        f"samples, the output {y_name!r} of --y-file {args.y_file!r} holds "
+                        f"{y.size}: the two records must cover the same samples; choose "
+                        "records of one experiment (--u NAME, --y NAME) or cut the longer "
+                        "one")
+    if (u_rec.fs is not None and y_rec.fs is not None
+            and not math.isclose(u_rec.fs, y_rec.fs, rel_tol=1e-9)):
+        raise DataError(f"--u-file {args.u_file!r} states the sampling rate {u_rec.fs:g} Hz, "
+                        f"--y-file {args.y_file!r} {y_rec.fs:g} Hz: the input and the output "
+                        "must be sampled together; check that the files belong to one "
+                        "experiment")
+    fs = u_rec.fs if u_rec.fs is not None else y_rec.fs
+    _same_rate(args, fs)
+    ref = getattr(args, "reference", None)
+    if ref is None:
+        return u, y, fs, None
+    for rec in (u_rec, y_rec):
+        if ref in rec.channels:
+            return u, y, fs, rec.channels[ref]
+    raise OptionError(f"--reference {ref!r} is not a time record of --u-file or --y-file; "
+                      f"their records are {', '.join(list(u_rec.channels) + list(y_rec.channels))}")
 
 
 def _is_daq(path):
@@ -203,6 +298,8 @@ def read_excitation(args):
     OptionError
         Channels or variables that are not in the file, options that do not apply.
     """
+    if _two_files(args):
+        return _two_file_records(args)
     if _is_mat(args.records):
         return _mat_records(args)
     for opt in ("u", "y"):
@@ -231,7 +328,8 @@ def read_records(args):
     Parameters
     ----------
     args : argparse.Namespace
-        The parsed ``freqid frf`` arguments (records path, ``--input``/``--output``).
+        The parsed ``freqid frf`` arguments (records path, ``--input``/``--output``, or
+        ``--u-file``/``--y-file``).
 
     Raises
     ------
@@ -241,6 +339,8 @@ def read_records(args):
         A DAQ export without valid ``--input``/``--output`` channels, or ``--fs`` that
         contradicts its header.
     """
+    if _two_files(args):
+        return _two_file_records(args)[:3]
     if _is_mat(args.records):
         return _mat_records(args)[:3]
     if not _is_daq(args.records):
@@ -283,10 +383,10 @@ def _own_sidecar(path):
     return os.path.isfile(path) and first.splitlines()[:1] == [_STATS_HEADER.encode()]
 
 
-def _check_sidecar(sidecar, force, records):
+def _check_sidecar(sidecar, force, inputs):
     """The sidecar is never named by the user: with ``force`` it replaces only a sidecar
     that ``freqid frf`` wrote (a file of the user's with that name is kept)."""
-    _check_target(sidecar, force, records)
+    _check_target(sidecar, force, inputs)
     if os.path.lexists(sidecar) and not _own_sidecar(sidecar):
         raise OptionError(f"refusing to replace {sidecar!r} (the variance/coherence file "
                           f"written beside --out): it was not written by freqid frf; move "
@@ -308,9 +408,10 @@ def run_cli(args, command):
     Parameters
     ----------
     args : argparse.Namespace
-        With ``records``, ``out`` and optionally ``estimator``, ``period``, ``fs``,
-        ``skip_periods``, ``nperseg``, ``noverlap``, ``window``, ``min_coherence``,
-        ``input``, ``output`` and ``force`` (absent ones take their defaults).
+        With ``records`` (or ``u_file`` and ``y_file``), ``out`` and optionally
+        ``estimator``, ``period``, ``fs``, ``skip_periods``, ``nperseg``, ``noverlap``,
+        ``window``, ``min_coherence``, ``input``, ``output``, ``u``, ``y``, ``reference``,
+        ``band`` and ``force`` (absent ones take their defaults).
     command : str
         The command line (unused in the CSV files, which have fixed headers).
 
@@ -327,7 +428,9 @@ def run_cli(args, command):
     """
     force = bool(getattr(args, "force", False))
     out = args.out
-    _check_target(out, force, args.records)
+    two_files = _two_files(args)
+    inputs = _inputs(args)
+    _check_target(out, force, inputs)
     estimator = getattr(args, "estimator", None)
     period = getattr(args, "period", None)
     if estimator is None:
@@ -339,7 +442,8 @@ def run_cli(args, command):
         raise OptionError(f"--period is for a periodic excitation, not --estimator {estimator}")
     u, y, fs_file, ref = read_excitation(args)
     fs = getattr(args, "fs", None) or fs_file
-    name = os.path.splitext(os.path.basename(os.fspath(args.records)))[0]
+    name = os.path.splitext(os.path.basename(os.fspath(args.y_file if two_files
+                                                      else args.records)))[0]
     if estimator == "periodic":
         est = frf_from_periodic(u, y, period, fs=fs,
                                 skip_periods=getattr(args, "skip_periods", 0) or 0, name=name,
@@ -354,10 +458,10 @@ def run_cli(args, command):
     est = _in_band(est, getattr(args, "band", None))
     sidecar = stats_path(out) if est.variance is not None else None
     if sidecar is not None:
-        _check_sidecar(sidecar, force, args.records)
+        _check_sidecar(sidecar, force, inputs)
     stale = stats_path(out) if sidecar is None and _own_sidecar(stats_path(out)) else None
     if stale is not None:      # an earlier run's statistics would not belong to this FRF
-        _check_sidecar(stale, force, args.records)
+        _check_sidecar(stale, force, inputs)
     save_csv(est.data, out)
     if sidecar is not None:
         atomic_write_text(sidecar, _stats_text(est))
