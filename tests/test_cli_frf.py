@@ -470,3 +470,138 @@ def test_load_records_mat_of_a_file_holding_one_record(tmp_path):
         load_records_mat(tmp_path / "t.mat", min_records=1)
     with pytest.raises(OptionError, match="min_records must be 1 or 2, got 3"):
         load_records_mat(tmp_path / "u.mat", min_records=3)
+
+
+# ------------------------------------------------- LabVIEW measurement files of several segments
+
+_LVM_HEAD = ("LabVIEW Measurement\t\nWriter_Version\t2\nReader_Version\t2\nSeparator\tTab\n"
+             "Decimal_Separator\t{dec}\nMulti_Headings\t{multi}\nX_Columns\tNo\n"
+             "Time_Pref\tAbsolute\nOperator\tlab\nDate\t2024/01/31\nTime\t23:59:58.5\n"
+             "***End_of_Header***\t\n\t\n")
+
+
+def _segment_text(names, columns, dx, date="2024/01/31", time="23:59:59.000000", dec="."):
+    """A segment as LabVIEW writes one (header block, heading, rows, a blank line); ``dx``
+    one Delta_X per channel."""
+    def num(v):
+        return repr(float(v)).replace(".", dec)
+
+    n = len(names)
+    row = "\t".join
+    head = (row(["Channels", str(n)] + [""] * n) + "\n"
+            + row(["Samples"] + [str(len(columns[0]))] * n + [""]) + "\n"
+            + row(["Date"] + [date] * n + [""]) + "\n"
+            + row(["Time"] + [time.replace(".", dec)] * n + [""]) + "\n"
+            + row(["X0"] + ["0.0000000000000000E+0".replace(".", dec)] * n + [""]) + "\n"
+            + row(["Delta_X"] + [num(d) for d in dx] + [""]) + "\n"
+            + row(["***End_of_Header***"] + [""] * (n + 1)) + "\n"
+            + row(["X_Value"] + list(names) + ["Comment"]) + "\n")
+    body = "".join("\t" + "\t".join(num(v) for v in vals) + "\n" for vals in zip(*columns))
+    return head + body + "\t\n"
+
+
+def _three_segments(tmp_path, gap=0.0, dec=".", name="rec.lvm"):
+    """One period (256 samples at 400 Hz: 0.64 s) of the multisine in each of 3 segments
+    that start at 23:59:59.00, 59.64 and 00:00:00.28 the next day (+ ``gap`` s from the
+    second on)."""
+    u, y = _multisine(1)
+    times = [("2024/01/31", f"23:59:59.{0:06d}"), ("2024/01/31", f"23:59:59.{640000:06d}"),
+             ("2024/02/01", f"00:00:00.{280000:06d}")]
+    text = _LVM_HEAD.format(dec=dec, multi="Yes")
+    for k, (date, time) in enumerate(times):
+        if k and gap:
+            h, m, s = time.split(":")
+            time = f"{h}:{m}:{float(s) + gap:09.6f}"
+        text += _segment_text(("F", "acc", "T"), (u, y, 20 + u), (0.0025,) * 3, date, time,
+                              dec)
+    (tmp_path / name).write_text(text)
+    return tmp_path / name
+
+
+def test_segments_that_differ_are_refused_naming_them(tmp_path):
+    # a segment from another source (other channels) or at another rate cannot be joined;
+    # the message names the segment and says how to read one
+    from freqid_casadi.experiment import load_records_table
+
+    u, y = _multisine(1)
+    head = _LVM_HEAD.format(dec=".", multi="Yes")
+    seg = _segment_text(("F", "acc"), (u, y), (0.0025, 0.0025))
+    other = _segment_text(("V", "acc"), (u, y), (0.0025, 0.0025))
+    slow = _segment_text(("F", "acc"), (u, y), (0.005, 0.005))
+    (tmp_path / "a.lvm").write_text(head + seg + seg + other)
+    with pytest.raises(OptionError, match=r"input='F' is not a column of segment 3 \(line "
+                       r"\d+\) of '.*a\.lvm', one of its 3 segments: its columns are "
+                       r"'X_Value', 'V', 'acc', 'Comment'; read one segment with segment=K "
+                       r"\(command line --lvm-segment K\)"):
+        load_records_table(tmp_path / "a.lvm", "F", "acc")
+    u2, y2, fs = load_records_table(tmp_path / "a.lvm", "V", "acc", segment=3)
+    np.testing.assert_array_equal(u2, u)
+    assert fs == 400.0
+    (tmp_path / "b.lvm").write_text(head + seg + slow)
+    with pytest.raises(DataError, match=r"the segments of '.*b\.lvm' differ in sampling: "
+                       r"segment 1 at 400 Hz, segment 2 at 200 Hz \(Delta_X\); read one "
+                       r"segment with segment=K"):
+        load_records_table(tmp_path / "b.lvm", "F", "acc")
+    assert load_records_table(tmp_path / "b.lvm", "F", "acc", segment=2)[2] == 200.0
+    with pytest.raises(OptionError, match="segment must be a segment number"):
+        load_records_table(tmp_path / "b.lvm", "F", "acc", segment=True)
+    _write(tmp_path / "rec.csv", u, y)
+    with pytest.raises(OptionError, match=r"segment=1 \(command line --lvm-segment\) chooses "
+                       r"a segment of a LabVIEW measurement file"):
+        load_records_table(tmp_path / "rec.csv", segment=1)
+
+
+def test_the_rate_is_the_chosen_columns_delta_x(tmp_path):
+    # LabVIEW gives Delta_X per channel (a slow channel beside fast ones: 1 s beside 2.5
+    # ms); the rate is the chosen columns', not the first one's; two chosen columns at
+    # different rates are refused
+    from freqid_casadi.experiment import load_records_table
+
+    u, y = _multisine(1)
+    text = _LVM_HEAD.format(dec=".", multi="No") + _segment_text(
+        ("T", "F", "acc"), (u, u, y), (1.0, 0.0025, 0.0025))
+    (tmp_path / "c.lvm").write_text(text)
+    assert load_records_table(tmp_path / "c.lvm", "F", "acc")[2] == 400.0
+    with pytest.raises(DataError, match=r"segment 1: the input column 'T' is sampled at 1 Hz, "
+                       r"the output 'acc' at 400 Hz \(Delta_X\)"):
+        load_records_table(tmp_path / "c.lvm", "T", "acc")
+
+
+def test_lvm_segments_describes_the_segments(tmp_path):
+    from freqid_casadi.experiment import load_records_table, lvm_segments
+
+    segs = lvm_segments(_three_segments(tmp_path))
+    u1, y1 = _multisine(1)
+    u, y, fs = load_records_table(tmp_path / "rec.lvm", "F", "acc")
+    np.testing.assert_array_equal(u, np.tile(u1, 3))
+    np.testing.assert_array_equal(y, np.tile(y1, 3))
+    assert fs == 400.0
+    assert [s.number for s in segs] == [1, 2, 3]
+    assert [s.samples for s in segs] == [PERIOD] * 3
+    assert all(s.columns == ("X_Value", "F", "acc", "T", "Comment") for s in segs)
+    assert all(s.fs == 400.0 for s in segs)
+    midnight = 86400.0
+    np.testing.assert_allclose([s.start for s in segs],
+                               [midnight - 1.0, midnight - 0.36, midnight + 0.28], atol=1e-9)
+    # one header, the rows of later calls appended to its table (Multi_Headings No, as
+    # LabVIEW writes "one header only"): one segment of all the rows; a special block is
+    # skipped
+    u, y = _multisine(3)
+    text = (_LVM_HEAD.format(dec=".", multi="No")
+            + _segment_text(("F", "acc"), (u, y), (0.0025, 0.0025)).replace(
+                "Samples\t768\t768", "Samples\t256\t256"))
+    lines = text.splitlines(keepends=True)
+    at = len(lines) - 300
+    text = "".join(lines[:at] + ["***Start_Special***\n", "note\tfrom the operator\n",
+                                 "***End_Special***\n"] + lines[at:])
+    (tmp_path / "one.lvm").write_text(text)
+    (seg,) = lvm_segments(tmp_path / "one.lvm")
+    assert seg.samples == 3 * PERIOD and seg.number == 1
+    out = tmp_path / "frf.csv"
+    assert cli_frf.run_cli(_args(tmp_path / "one.lvm", out, input="F", output="acc"), "x") == 0
+    data = load_csv(out)
+    exact = 1 / (1 - 0.5 * np.exp(-1j * data.omega / 400.0))
+    assert np.max(np.abs(data.response / exact - 1)) < 1e-9
+    _write(tmp_path / "rec.csv", u, y)
+    with pytest.raises(DataError, match="is not a LabVIEW measurement file"):
+        lvm_segments(tmp_path / "rec.csv")

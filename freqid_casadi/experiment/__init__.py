@@ -11,16 +11,18 @@ Estimators (each returns a frozen :class:`FrfEstimate` whose ``data`` is a
 Files and data sets: :func:`load_records_csv` (``u,y`` CSV), :func:`load_records_table`
 (a table whose header names its columns: input and output chosen by name), :func:`load_daisy`,
 :func:`load_daq_records` (a DAQ export), :func:`load_records_mat` (MATLAB variables or
-struct fields by name), and the data sets shipped with the package:
+struct fields by name), :func:`lvm_segments` (the segments of a LabVIEW measurement file),
+and the data sets shipped with the package:
 :func:`robot_arm` (DaISy 96-009, B. De Moor et al., DaISy: Database for the Identification
 of Systems) and :func:`actuator_records` (servo-hydraulic actuator chirp test).
 """
 
 from ._common import FrfEstimate
 from .periodic import _detect_period, frf_from_periodic, frf_stepped_sine
-from .records import (ACTUATOR_FILE, ROBOT_ARM_FILE, SHARED_ENV, DaqRecords, _find_robot_arm,
-                      actuator_records, dataset_path, load_daisy, load_daq_records,
-                      load_records_csv, load_records_mat, load_records_table, robot_arm)
+from .records import (ACTUATOR_FILE, ROBOT_ARM_FILE, SHARED_ENV, DaqRecords, LvmSegment,
+                      _find_robot_arm, actuator_records, dataset_path, load_daisy,
+                      load_daq_records, load_records_csv, load_records_mat,
+                      load_records_table, lvm_segments, robot_arm)
 from .welch import ESTIMATORS, frf_from_records
 
 __all__ = [
@@ -34,6 +36,8 @@ __all__ = [
     "load_daisy",
     "load_daq_records",
     "load_records_mat",
+    "lvm_segments",
+    "LvmSegment",
     "DaqRecords",
     "robot_arm",
     "actuator_records",

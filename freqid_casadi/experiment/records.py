@@ -1,9 +1,11 @@
 """Time-record files and the shipped measured data sets (layer L1).
 
-Readers: :func:`load_records_csv` (``u,y`` CSV), :func:`load_daisy` (DaISy whitespace
-columns), :func:`load_daq_records` (a data-acquisition export: header lines, then sample
-number, time stamp, channels, events; ``.xz`` accepted) and :func:`load_records_mat`
-(MATLAB variables or struct fields by name). They share the bounded, regular-file
+Readers: :func:`load_records_csv` (``u,y`` CSV), :func:`load_records_table` (a table whose
+header names its columns, a LabVIEW measurement file among them; :func:`lvm_segments`
+describes the segments of one), :func:`load_daisy` (DaISy whitespace columns),
+:func:`load_daq_records` (a data-acquisition export: header lines, then sample number, time
+stamp, channels, events; ``.xz`` accepted) and :func:`load_records_mat` (MATLAB variables or
+struct fields by name). They share the bounded, regular-file
 reading of :mod:`freqid_casadi.io.loaders` and read ASCII decimal numbers only.
 
 Data sets shipped in ``freqid_casadi/datasets`` (see :func:`dataset_path`):
@@ -15,6 +17,7 @@ Data sets shipped in ``freqid_casadi/datasets`` (see :func:`dataset_path`):
 """
 
 import lzma
+import math
 import numbers
 import os
 from dataclasses import dataclass, field
@@ -24,10 +27,11 @@ import numpy as np
 from ..io import NUMBER, decode_text, shown_cell
 from ..errors import DataError, OptionError
 from ..io.loaders import MAX_FILE_BYTES, MAX_ROWS, read_regular_file
+from ._lvm import column_rate, column_start, heading, lvm_layout
 from .periodic import _detect_period, frf_from_periodic
 
 __all__ = ["load_records_csv", "load_records_table", "load_daisy", "load_daq_records",
-           "load_records_mat", "uniform_rate", "TIME_JITTER",
+           "load_records_mat", "uniform_rate", "TIME_JITTER", "LvmSegment", "lvm_segments",
            "DaqRecords", "robot_arm",
            "actuator_records", "dataset_path", "ROBOT_ARM_FILE", "ACTUATOR_FILE",
            "SHARED_ENV"]
@@ -156,7 +160,7 @@ _TIME_NAMES = ("t", "time", "time (s)", "time[s]", "time [s]", "ts", "x-axis")
 _RATE_NAMES = {"fs": "rate", "ts": "period", "increment": "period", "dt": "period"}
 
 
-def load_records_table(path, input=None, output=None):
+def load_records_table(path, input=None, output=None, segment=None):
     """Input, output and sampling rate from a text table whose header names its columns.
 
     The table of :func:`load_records_csv` (``u,y``, or two headerless columns), or any
@@ -164,17 +168,21 @@ def load_records_table(path, input=None, output=None):
     columns chosen by name (case-insensitive, quotes ignored): a benchmark's
     ``"Force","Voltage","Acceleration1",...,"Fs",``, an oscilloscope's ``CH1,CH2,Start,
     Increment`` with a units line under it, a LabVIEW measurement file (``.lvm``: the
-    table after its header, the rate from ``Delta_X``). The sampling rate comes from a time
-    column
-    (``Time``, ``t``, ``ts``, ``x-axis``: its rate when it steps uniformly,
-    :func:`uniform_rate`) or a constant column
-    (``Fs``; ``Ts``, ``Increment`` or ``dt`` a sampling period), else None.
+    table after its header, the rate from ``Delta_X``; the tables of a file of several
+    segments joined end to end in file order, see :func:`lvm_segments`). The sampling rate
+    comes from a time column (``Time``, ``t``, ``ts``, ``x-axis``: its rate when it steps
+    uniformly, :func:`uniform_rate`) or a constant column (``Fs``; ``Ts``, ``Increment`` or
+    ``dt`` a sampling period), else None.
 
     Parameters
     ----------
     path : str or os.PathLike
     input, output : str, optional
         The names of the input and output columns; needed unless the header is ``u,y``.
+    segment : int, optional
+        A LabVIEW measurement file: read its segment ``segment`` alone (1 for the first;
+        default all of them, joined). Every segment joined must hold the ``input`` and
+        ``output`` columns, sampled at one rate.
 
     Returns
     -------
@@ -186,31 +194,48 @@ def load_records_table(path, input=None, output=None):
     ------
     DataError
         As :func:`load_records_csv`; a header whose columns are not chosen (the message
-        lists them).
+        lists them); segments of a LabVIEW file sampled at different rates.
     OptionError
-        ``input`` or ``output`` not a column of the header.
+        ``input`` or ``output`` not a column of the header (or of a segment);
+        ``segment`` not a segment of a LabVIEW measurement file.
     """
     _, lines = _text_lines(path)
-    start, lvm_fs, comma = _lvm_header(path, lines)
-    rows = [(k + 1, t) for k, t in enumerate(lines) if k >= start
-            and t.strip() and not t.lstrip().startswith(("#", "%"))]
-    if comma:
-        rows = [(k, t.replace(",", ".")) for k, t in rows]
+    layout = lvm_layout(path, lines)
+    if layout is not None:
+        return _lvm_records(path, layout, input, output, segment)
+    where = f"{os.fspath(path)!r}"
+    if segment is not None:
+        raise OptionError(f"segment={segment!r} (command line --lvm-segment) chooses a "
+                          f"segment of a LabVIEW measurement file (.lvm); {where} is not one")
+    rows = [(k + 1, t) for k, t in enumerate(lines)
+            if t.strip() and not t.lstrip().startswith(("#", "%"))]
     if not rows:
-        raise DataError(f"{os.fspath(path)!r} is empty: expected a header and data rows")
-    first = rows[0][1]
-    sep = "," if "," in first else ";" if ";" in first else "\t" if "\t" in first else None
-    names = [c.strip().strip("\"'").strip() for c in first.split(sep)]
-    while names and not names[-1]:
-        names.pop()                                   # a trailing separator
-    lower = [n.lower() for n in names]
-    headerless = all(NUMBER.fullmatch(n) for n in names)
+        raise DataError(f"{where} is empty: expected a header and data rows")
+    lower = [n.lower() for n in heading(rows[0][1], _separator(rows[0][1]))]
+    headerless = all(NUMBER.fullmatch(n) for n in lower)
     if input is None and output is None and (headerless or lower == ["u", "y"]):
         u, y = load_records_csv(path)
         return u, y, None
+    u, y, fs, _ = _table_columns(path, rows, input, output)
+    if u.size < 2:
+        raise DataError(f"{where} has a header but fewer than 2 data rows")
+    return u, y, fs
+
+
+def _separator(first):
+    return "," if "," in first else ";" if ";" in first else "\t" if "\t" in first else None
+
+
+def _table_columns(path, rows, input, output, sep=None, comma=False):
+    """``(u, y, fs or None, names)`` of the table ``rows`` (``(line, text)``, the header
+    first): the ``input`` and ``output`` columns by name, the rate from its time or rate
+    columns; ``sep`` None: found from the header; ``comma``: decimal commas."""
     where = f"{os.fspath(path)!r}"
+    sep = _separator(rows[0][1]) if sep is None else sep
+    names = heading(rows[0][1], sep)
+    lower = [n.lower() for n in names]
     shown = ", ".join(repr(n) for n in names)
-    if headerless:
+    if all(NUMBER.fullmatch(n) for n in names):
         raise OptionError(f"input/output (--input/--output) name columns of a header; "
                           f"{where} has none: its first two columns are read as u then y")
     if input is None or output is None:
@@ -227,6 +252,7 @@ def load_records_table(path, input=None, output=None):
     rate = {j: _RATE_NAMES[n] for j, n in enumerate(lower) if n in _RATE_NAMES}
     u, y, t, consts = [], [], [], {}
     for k, (line, text) in enumerate(rows[1:]):
+        text = text.replace(",", ".") if comma else text
         cells = [c.strip().strip("\"'") for c in text.split(sep)]
         for j in rate:
             if j < len(cells) and j not in consts and NUMBER.fullmatch(cells[j]):
@@ -241,34 +267,146 @@ def load_records_table(path, input=None, output=None):
         if time is not None and time != pick[0] and time != pick[1]:
             t.append(_number(path, line, names[time], cells[time])
                      if NUMBER.fullmatch(cells[time]) else np.nan)
-    if len(u) < 2:
+    return np.array(u), np.array(y), _table_fs(t, rate, consts), names
+
+
+_ONE_SEGMENT = "read one segment with segment=K (command line --lvm-segment K)"
+
+
+def _lvm_records(path, layout, input, output, segment):
+    """Input, output and rate of a LabVIEW measurement file: its segments' tables joined
+    end to end, or segment ``segment`` alone."""
+    sep, comma, parts = layout
+    where = f"{os.fspath(path)!r}"
+    if segment is not None:
+        if isinstance(segment, bool) or not isinstance(segment, numbers.Integral):
+            raise OptionError(f"segment must be a segment number (1 for the first), got "
+                              f"{segment!r}")
+        if not 1 <= segment <= len(parts):
+            raise OptionError(f"segment={segment} (command line --lvm-segment {segment}): "
+                              f"{where} holds {len(parts)} segment(s); choose 1 to "
+                              f"{len(parts)}")
+        parts = parts[segment - 1:segment]
+    many = len(parts) > 1
+    us, ys, rates = [], [], []
+    for part in parts:
+        if not part.rows:
+            raise DataError(f"{where}: segment {part.number} (line {part.line}) has a header "
+                            "but no table; export the file again"
+                            + (f", or {_ONE_SEGMENT}" if many else ""))
+        if many:
+            _segment_holds(path, part, sep, input, output, len(parts))
+        u, y, fs, names = _table_columns(path, part.rows, input, output, sep, comma)
+        rates.append(_segment_rate(path, part, names, input, output, comma) or fs)
+        us.append(u)
+        ys.append(y)
+    u, y = np.concatenate(us), np.concatenate(ys)
+    if u.size < 2:
         raise DataError(f"{where} has a header but fewer than 2 data rows")
-    return np.array(u), np.array(y), lvm_fs or _table_fs(t, rate, consts)
+    known = [(p.number, r) for p, r in zip(parts, rates) if r is not None]
+    for number, fs in known[1:]:
+        if not math.isclose(fs, known[0][1], rel_tol=1e-6):
+            raise DataError(f"the segments of {where} differ in sampling: segment "
+                            f"{known[0][0]} at {known[0][1]:g} Hz, segment {number} at "
+                            f"{fs:g} Hz (Delta_X); {_ONE_SEGMENT}")
+    return u, y, known[0][1] if known else None
 
 
-def _lvm_header(path, lines):
-    """``(first line of the table, sampling rate or None, decimal comma)`` of a LabVIEW
-    measurement file (``LabVIEW Measurement`` first, its table after the last
-    ``***End_of_Header***``, ``Delta_X`` the sample interval), else ``(0, None, False)``.
-    A file of several segments (a header before each) is refused: split it."""
-    if not lines or not lines[0].lstrip("\ufeff").startswith("LabVIEW Measurement"):
-        return 0, None, False
-    ends = [k for k, t in enumerate(lines) if t.startswith("***End_of_Header***")]
-    if not ends:
-        raise DataError(f"{os.fspath(path)!r}: a LabVIEW measurement file without "
-                        "'***End_of_Header***'; export it again")
-    if len(ends) > 2:
-        raise DataError(f"{os.fspath(path)!r}: a LabVIEW measurement file of several segments "
-                        f"({len(ends) - 1} headers); save one segment per file")
-    fields = {}
-    for t in lines[:ends[-1]]:
-        cells = t.split("\t")
-        fields.setdefault(cells[0].strip(), [c.strip() for c in cells[1:] if c.strip()])
-    comma = (fields.get("Decimal_Separator") or ["."])[0] == ","
-    dx = (fields.get("Delta_X") or [None])[0]
-    dx = dx.replace(",", ".") if dx and comma else dx
-    fs = 1.0 / float(dx) if dx and NUMBER.fullmatch(dx) and float(dx) > 0 else None
-    return ends[-1] + 1, fs, comma
+def _segment_holds(path, part, sep, input, output, count):
+    """OptionError when segment ``part`` of a file of ``count`` segments, all read, lacks
+    the ``input`` or the ``output`` column."""
+    names = heading(part.rows[0][1], sep)
+    lower = [n.lower() for n in names]
+    for opt, name in (("input", input), ("output", output)):
+        if name is not None and str(name).strip().lower() not in lower:
+            raise OptionError(f"{opt}={name!r} is not a column of segment {part.number} "
+                              f"(line {part.line}) of {os.fspath(path)!r}, one of its {count} "
+                              f"segments: its columns are "
+                              f"{', '.join(repr(c) for c in names)}; {_ONE_SEGMENT}")
+
+
+def _segment_rate(path, part, names, input, output, comma):
+    """Hz of a segment's ``input`` and ``output`` columns from their ``Delta_X`` (None when
+    its header gives none); DataError when the two differ."""
+    lower = [n.lower() for n in names]
+    rates = [column_rate(part.fields, lower.index(str(c).strip().lower()), comma)
+             for c in (input, output)]
+    if None not in rates and not math.isclose(*rates, rel_tol=1e-6):
+        raise DataError(f"{os.fspath(path)!r} segment {part.number}: the input column "
+                        f"{input!r} is sampled at {rates[0]:g} Hz, the output {output!r} at "
+                        f"{rates[1]:g} Hz (Delta_X); resample one of them to the other's rate")
+    return rates[0] if rates[0] is not None else rates[1]
+
+
+@dataclass(frozen=True)
+class LvmSegment:
+    """One segment of a LabVIEW measurement file (``.lvm``): a header, then a table.
+
+    Attributes
+    ----------
+    number : int
+        1 for the first segment.
+    line : int
+        Line of its table's heading (``X_Value ...``), counted from 1.
+    columns : tuple of str
+        The heading's column names.
+    fs : float or None
+        Sampling rate in Hz from the ``Delta_X`` of its first channel, or None.
+    samples : int
+        Rows of its table.
+    start : float or None
+        Its start (``Date`` and ``Time`` of its first channel) in seconds after midnight
+        before the first segment's date, or None when the header does not give it.
+    """
+
+    number: int
+    line: int
+    columns: tuple
+    fs: object
+    samples: int
+    start: object
+
+
+def lvm_segments(path):
+    """The segments of a LabVIEW measurement file (``.lvm``), in file order.
+
+    A file written with one header per segment (``Multi_Headings Yes``) holds a header and a
+    table for every call of the writer: consecutive pieces of one acquisition (each starts
+    where the one before ends: ``start`` plus ``samples / fs``) or separate ones (a gap).
+    :func:`load_records_table` joins their tables end to end, or reads one.
+
+    Parameters
+    ----------
+    path : str or os.PathLike
+        The ``.lvm`` file.
+
+    Returns
+    -------
+    tuple of LvmSegment
+
+    Raises
+    ------
+    DataError
+        Not a LabVIEW measurement file (first line ``LabVIEW Measurement``).
+    """
+    _, lines = _text_lines(path)
+    layout = lvm_layout(path, lines)
+    if layout is None:
+        raise DataError(f"{os.fspath(path)!r} is not a LabVIEW measurement file: its first "
+                        "line is not 'LabVIEW Measurement'")
+    sep, comma, parts = layout
+    out, day0 = [], None
+    for part in parts:
+        names = heading(part.rows[0][1], sep) if part.rows else []
+        column = next((j for j, c in enumerate(names) if c.lower() != "x_value"), 1)
+        begin, start = column_start(part.fields, column), None
+        if begin is not None:
+            day0 = begin[0] if day0 is None else day0
+            start = (begin[0] - day0) * 86400.0 + begin[1]
+        out.append(LvmSegment(part.number, part.line, tuple(names),
+                              column_rate(part.fields, column, comma),
+                              max(len(part.rows) - 1, 0), start))
+    return tuple(out)
 
 
 def _table_fs(t, rate, consts):
