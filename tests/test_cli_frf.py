@@ -518,6 +518,68 @@ def _three_segments(tmp_path, gap=0.0, dec=".", name="rec.lvm"):
     return tmp_path / name
 
 
+@pytest.mark.parametrize("dec", [".", ","])
+def test_frf_joins_the_segments_of_a_labview_file(tmp_path, monkeypatch, capsys, dec):
+    # a .lvm written with one header per segment (a header before each call of LabVIEW's
+    # writer) was refused ("several segments: save one segment per file"); the segments
+    # are now pieces of one record, joined in file order, and a note says so
+    _three_segments(tmp_path, dec=dec)
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["frf", "rec.lvm", "--input", "F", "--output", "acc", "--period",
+                     str(PERIOD), "--out", "frf.csv"]) == 0
+    out = capsys.readouterr().out
+    assert ("LabVIEW file: 3 segments joined end to end (256 samples each, 768 in all); "
+            "--lvm-segment K reads one alone") in out
+    assert "their time stamps make one continuous acquisition" in out
+    assert "3 period(s) averaged" in out
+    data = load_csv(tmp_path / "frf.csv")
+    np.testing.assert_allclose(data.omega, 2 * np.pi * BINS / PERIOD * 400.0, rtol=1e-9)
+    exact = 1 / (1 - 0.5 * np.exp(-1j * data.omega / 400.0))
+    assert np.max(np.abs(data.response / exact - 1)) < 1e-9
+    assert (tmp_path / "frf.stats.csv").exists()
+
+
+def test_segments_with_a_gap_are_joined_with_a_warning(tmp_path, monkeypatch, capsys):
+    _three_segments(tmp_path, gap=1.25)
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["frf", "rec.lvm", "--input", "F", "--output", "acc", "--period",
+                     str(PERIOD), "--out", "frf.csv"]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"warning: segment 2 starts 1\.25 s after segment 1 ends \(Date/Time\): "
+                     r"separate acquisitions, joined as one record; .* pass --lvm-segment K "
+                     r"to read one alone", out)
+    data = load_csv(tmp_path / "frf.csv")     # whole periods in each: still the filter
+    exact = 1 / (1 - 0.5 * np.exp(-1j * data.omega / 400.0))
+    assert np.max(np.abs(data.response / exact - 1)) < 1e-9
+
+
+def test_lvm_segment_reads_one_segment(tmp_path, monkeypatch, capsys):
+    path = _three_segments(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    assert cli.main(["frf", "rec.lvm", "--input", "F", "--output", "acc", "--period",
+                     str(PERIOD), "--lvm-segment", "2", "--out", "frf.csv"]) == 0
+    out = capsys.readouterr().out
+    assert "LabVIEW file: segment 2 of 3 read (line 286, 256 samples)" in out
+    assert "1 period(s) averaged" in out
+    data = load_csv(tmp_path / "frf.csv")
+    exact = 1 / (1 - 0.5 * np.exp(-1j * data.omega / 400.0))
+    assert np.max(np.abs(data.response / exact - 1)) < 1e-9
+    assert path.read_text().splitlines()[285] == "X_Value\tF\tacc\tT\tComment"
+    for argv, match in ((["--lvm-segment", "4"], r"segment=4 \(command line --lvm-segment "
+                                                 r"4\): 'rec\.lvm' holds 3 segment\(s\); "
+                                                 r"choose 1 to 3"),
+                        (["--lvm-segment", "0"], r"--lvm-segment: must be an integer >= 1")):
+        assert cli.main(["frf", "rec.lvm", "--input", "F", "--output", "acc", "--period",
+                         str(PERIOD), "--out", "o.csv"] + argv) != 0
+        assert re.search(match, capsys.readouterr().err)
+    _write(tmp_path / "rec.csv", *_multisine(2))
+    assert cli.main(["frf", "rec.csv", "--period", str(PERIOD), "--lvm-segment", "1",
+                     "--out", "o.csv"]) != 0
+    assert re.search(r"--lvm-segment chooses a segment of a LabVIEW measurement file .*; "
+                     r"RECORDS 'rec\.csv' is not one: drop --lvm-segment",
+                     capsys.readouterr().err)
+
+
 def test_segments_that_differ_are_refused_naming_them(tmp_path):
     # a segment from another source (other channels) or at another rate cannot be joined;
     # the message names the segment and says how to read one
@@ -605,3 +667,23 @@ def test_lvm_segments_describes_the_segments(tmp_path):
     _write(tmp_path / "rec.csv", u, y)
     with pytest.raises(DataError, match="is not a LabVIEW measurement file"):
         lvm_segments(tmp_path / "rec.csv")
+
+
+def test_a_labview_file_with_comma_separated_columns(tmp_path):
+    # LabVIEW writes "Separator Comma" files too (X_Columns One: a time column first); the
+    # header was split at tabs only, so Delta_X was not found and the rate was lost
+    from freqid_casadi.experiment import load_records_table
+
+    u, y = _multisine(2)
+    text = ("LabVIEW Measurement,\nWriter_Version,2\nReader_Version,2\nSeparator,Comma\n"
+            "Decimal_Separator,.\nMulti_Headings,Yes\nX_Columns,One\n***End_of_Header***,\n,\n"
+            "Channels,2,,\nSamples,512,512,\nDate,2024/04/10,2024/04/10,\n"
+            "Time,13:06:46.26,13:06:46.26,\nDelta_X,2.000000E-6,2.000000E-6,\n"
+            "***End_of_Header***,,,\nX_Value,Ch A,Ch B,Comment\n"
+            + "".join(f"{k * 2e-6!r},{a!r},{b!r}\n"
+                      for k, (a, b) in enumerate(zip(u.tolist(), y.tolist()))))
+    (tmp_path / "c.lvm").write_text(text)
+    u2, y2, fs = load_records_table(tmp_path / "c.lvm", "ch a", "Ch B")
+    np.testing.assert_array_equal(u2, u)
+    np.testing.assert_array_equal(y2, y)
+    assert fs == pytest.approx(5e5, rel=1e-12)

@@ -7,6 +7,7 @@ Usage::
                [--window hann] [--min-coherence X] [--input CH --output CH] --out frf.csv
     freqid frf REC.mat --u NAME --y NAME [--reference NAME] [--band LO:HI] ... --out frf.csv
     freqid frf --u-file U.mat --y-file Y.mat [--u NAME] [--y NAME] [--fs HZ] ... --out frf.csv
+    freqid frf REC.lvm --input CH --output CH [--lvm-segment K] ... --out frf.csv
 
 Reads a two-column ``u,y`` CSV (:func:`freqid_casadi.experiment.load_records_csv`), a DAQ
 export (:func:`freqid_casadi.experiment.load_daq_records`, channels chosen by ``--input``
@@ -15,7 +16,11 @@ and ``--output``) or a MATLAB file of time records
 ``--u`` and ``--y``; ``--reference`` names the generated excitation, whose lines are the
 excited ones), or the input and the output from two MATLAB files (``--u-file`` and
 ``--y-file``, as benchmarks publish ``uval`` and ``yval``: the only record of each file, or
-the one ``--u``/``--y`` names; both of one length, and of one rate if both state one),
+the one ``--u``/``--y`` names; both of one length, and of one rate if both state one).
+A LabVIEW measurement file (``.lvm``, :func:`freqid_casadi.experiment.lvm_segments`) of
+several segments is read as one record, its segments joined end to end (each must hold the
+chosen channels at one rate; a note says how many were joined and whether their time stamps
+make one continuous acquisition), or one segment alone with ``--lvm-segment K``. It then
 estimates the frequency response at the excited DFT bins averaged over
 the periods (:func:`freqid_casadi.experiment.frf_from_periodic`, SPEC §7) or by Welch H1/H2
 (:func:`freqid_casadi.experiment.frf_from_records`), keeps the frequencies in ``--band``
@@ -44,7 +49,7 @@ from ..report.outputs import check_out_file
 from .._textio import atomic_write_text
 from ..errors import DataError, OptionError
 from ..experiment import (ESTIMATORS, frf_from_periodic, frf_from_records, load_daq_records,
-                         load_records_mat, load_records_table)
+                         load_records_mat, load_records_table, lvm_segments)
 from .common import _ASCII_FLOAT, _ASCII_INT, _ascii, _checked   # the CLI's own type helpers
 from .common import parse_band_text
 from ..io.loaders import read_regular_file, save_csv
@@ -75,6 +80,11 @@ def _fs(text):
                     lambda v: f"must be a finite number > 0 (Hz), got {text!r}")
 
 
+def _segment(text):
+    return _checked(text, _INT, lambda v: v >= 1, "must be an integer >= 1",
+                    lambda v: f"must be an integer >= 1 (1 = the first segment), got {v}")
+
+
 def _fraction(text):
     return _checked(text, _FLOAT, lambda v: 0 <= v < 1, "must be a number in [0, 1)",
                     lambda v: f"must be a number in [0, 1), got {text!r}")
@@ -96,10 +106,12 @@ def add_cli(subparsers):
                     "excitation (--estimator h1|h2). RECORDS is a CSV with the header 'u,y' "
                     "or a DAQ export ('Header Size: N' first line, .xz accepted; choose "
                     "--input and --output channels), or a MATLAB .mat file of time records "
-                    "(choose --u and --y variables); or, instead of RECORDS, the input and "
-                    "the output in two .mat files: --u-file U.mat --y-file Y.mat.")
+                    "(choose --u and --y variables), or a LabVIEW measurement file (.lvm; "
+                    "its segments joined, or --lvm-segment K); or, instead of RECORDS, the "
+                    "input and the output in two .mat files: --u-file U.mat --y-file Y.mat.")
     p.add_argument("records", metavar="RECORDS", nargs="?",
-                   help="u,y CSV, a DAQ export or a .mat file (omit with --u-file/--y-file)")
+                   help="u,y CSV or a table with named columns, a DAQ export, a .mat file or "
+                        "a LabVIEW .lvm file (omit with --u-file/--y-file)")
     p.add_argument("--estimator", choices=("periodic",) + ESTIMATORS,
                    help="periodic (needs --period), h1 (noise on the output) or h2 (noise "
                         "on the input); default periodic with --period, else h1")
@@ -132,6 +144,9 @@ def add_cli(subparsers):
                         "RECORDS (--u names the variable if the file holds several)")
     p.add_argument("--y-file", metavar="Y.mat",
                    help="a .mat file holding the output record, with --u-file")
+    p.add_argument("--lvm-segment", type=_segment, metavar="K",
+                   help="LabVIEW .lvm file of several segments: read segment K alone (1 = "
+                        "the first); default: all of them joined end to end")
     p.add_argument("--reference", metavar="NAME",
                    help=".mat variable or DAQ channel of the generated excitation: only the "
                         "lines it excites are kept (a measured input holds noise at the "
@@ -259,6 +274,25 @@ def _is_mat(path):
     return os.fspath(path).lower().endswith(".mat")
 
 
+def _is_lvm(path):
+    """True for a LabVIEW measurement file (first line ``LabVIEW Measurement``)."""
+    if _is_mat(path) or os.fspath(path).lower().endswith(".xz"):
+        return False
+    _, payload = read_regular_file(path, "records file")
+    return payload.lstrip(b"\xef\xbb\xbf").startswith(b"LabVIEW Measurement")
+
+
+def _check_segment(args, two_files):
+    """OptionError for ``--lvm-segment`` with records other than a LabVIEW file."""
+    if getattr(args, "lvm_segment", None) is None:
+        return
+    if two_files or not _is_lvm(args.records):
+        what = "--u-file/--y-file" if two_files else f"RECORDS {args.records!r}"
+        raise OptionError(f"--lvm-segment chooses a segment of a LabVIEW measurement file "
+                          f"(.lvm, first line 'LabVIEW Measurement'); {what} is not one: "
+                          "drop --lvm-segment")
+
+
 def _mat_records(args):
     """Input, output, sampling rate (or None) and reference (or None) of a ``.mat`` file."""
     rec = load_records_mat(args.records)
@@ -345,7 +379,8 @@ def read_records(args):
         return _mat_records(args)[:3]
     if not _is_daq(args.records):
         u, y, fs = load_records_table(args.records, getattr(args, "input", None),
-                                      getattr(args, "output", None))
+                                      getattr(args, "output", None),
+                                      segment=getattr(args, "lvm_segment", None))
         _same_rate(args, fs, rel_tol=1e-3, where=" (from its time or Fs column)")
         return u, y, fs
     rec = load_daq_records(args.records)
@@ -411,7 +446,7 @@ def run_cli(args, command):
         With ``records`` (or ``u_file`` and ``y_file``), ``out`` and optionally
         ``estimator``, ``period``, ``fs``, ``skip_periods``, ``nperseg``, ``noverlap``,
         ``window``, ``min_coherence``, ``input``, ``output``, ``u``, ``y``, ``reference``,
-        ``band`` and ``force`` (absent ones take their defaults).
+        ``lvm_segment``, ``band`` and ``force`` (absent ones take their defaults).
     command : str
         The command line (unused in the CSV files, which have fixed headers).
 
@@ -429,6 +464,7 @@ def run_cli(args, command):
     force = bool(getattr(args, "force", False))
     out = args.out
     two_files = _two_files(args)
+    _check_segment(args, two_files)
     inputs = _inputs(args)
     _check_target(out, force, inputs)
     estimator = getattr(args, "estimator", None)
@@ -441,6 +477,8 @@ def run_cli(args, command):
     if estimator != "periodic" and period is not None:
         raise OptionError(f"--period is for a periodic excitation, not --estimator {estimator}")
     u, y, fs_file, ref = read_excitation(args)
+    if not two_files and _is_lvm(args.records):
+        _segments_note(args.records, getattr(args, "lvm_segment", None))
     fs = getattr(args, "fs", None) or fs_file
     name = os.path.splitext(os.path.basename(os.fspath(args.y_file if two_files
                                                       else args.records)))[0]
@@ -469,6 +507,39 @@ def run_cli(args, command):
         os.remove(stale)
     _summary(est, out, sidecar)
     return 0
+
+
+def _segments_note(path, chosen):
+    """Say on stdout which segments of a LabVIEW file of several were read, and whether
+    their time stamps make them one continuous acquisition."""
+    segs = lvm_segments(path)
+    if len(segs) < 2:
+        return
+    if chosen is not None:
+        s = segs[chosen - 1]
+        print(f"LabVIEW file: segment {chosen} of {len(segs)} read (line {s.line}, "
+              f"{s.samples} samples)")
+        return
+    sizes = sorted({s.samples for s in segs})
+    each = (f"{sizes[0]} samples each" if len(sizes) == 1 else
+            f"{min(sizes)} to {max(sizes)} samples")
+    print(f"LabVIEW file: {len(segs)} segments joined end to end ({each}, "
+          f"{sum(s.samples for s in segs)} in all); --lvm-segment K reads one alone")
+    if any(s.start is None or s.fs is None for s in segs):
+        print("  their headers give no start times: read as one continuous acquisition")
+        return
+    for a, b in zip(segs, segs[1:]):
+        gap = b.start - (a.start + a.samples / a.fs)
+        if abs(gap) > 0.5 / a.fs + 2e-6:
+            where = "after" if gap > 0 else "before"
+            print(f"warning: segment {b.number} starts {abs(gap):.6g} s {where} segment "
+                  f"{a.number} ends (Date/Time): separate acquisitions, joined as one "
+                  "record; a periodic estimate needs whole periods in each segment, and "
+                  "Welch segments across a join mix the two; pass --lvm-segment K to read "
+                  "one alone")
+            return
+    print("  their time stamps make one continuous acquisition (each segment starts "
+          "where the one before ends)")
 
 
 def _in_band(est, band):
