@@ -201,7 +201,8 @@ def test_uff_written_by_pyuff_several_records(tmp_path):
     pyuff.UFF(str(path)).write_sets([_uff_set(pyuff, F_UFF, RESP, 1, ident="point 1"),
                                      _uff_set(pyuff, F_UFF, 2 * RESP, 2)], mode="overwrite")
     both = load_uff(path)
-    assert [d.name for d in both] == ["point 1", "two:1"]
+    # several records: named by response and reference node and direction (+X: code 1)
+    assert [d.name for d in both] == ["1+X/1+X", "2+X/1+X"]
     np.testing.assert_allclose(both[0].omega, 2 * np.pi * F_UFF, rtol=1e-15)
     np.testing.assert_allclose(both[0].response, RESP, rtol=1e-11)   # %20.11e ordinates
     np.testing.assert_allclose(both[1].response, 2 * RESP, rtol=1e-11)

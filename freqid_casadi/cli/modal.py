@@ -221,10 +221,13 @@ def _common_grid(datas):
 
 
 def _channel_names(datas, files):
+    """One name per channel, fit for a file name: the data's name (a UFF record's
+    ``12+Z/1+Z`` as ``12+Z_1+Z``: the sign of a direction kept) or the file's stem, made
+    unique by the channel's number."""
     names, seen = [], set()
     for k, (d, f) in enumerate(zip(datas, files)):
         base = d.name or os.path.splitext(os.path.basename(f))[0] or f"ch{k + 1}"
-        base = re.sub(r"[^A-Za-z0-9_.=-]+", "_", base).strip("._") or f"ch{k + 1}"
+        base = re.sub(r"[^A-Za-z0-9_.=+-]+", "_", base).strip("._") or f"ch{k + 1}"
         name = base if base not in seen else f"{base}_{k + 1}"
         seen.add(name)
         names.append(name)

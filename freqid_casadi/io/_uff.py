@@ -13,7 +13,8 @@ from ._readfile import DataWarning
 from ._table import parse_freq_unit
 from ..errors import DataError
 
-__all__ = ["load_uff", "read_uff", "UFF_FUNCTION_TYPES", "RESPONSE_TYPES"]
+__all__ = ["load_uff", "read_uff", "node_name", "record_names", "UFF_FUNCTION_TYPES",
+           "RESPONSE_TYPES"]
 
 #: Dataset 58's function types (record 6, field 1), as the UFF standard names them.
 UFF_FUNCTION_TYPES = {
@@ -35,6 +36,9 @@ _DATASETS = {151: "header", 164: "units", 15: "nodes", 2411: "nodes", 18: "coord
 #: The function types read as frequency responses: an FRF, a transmissibility (an FRF
 #: between two responses) and "general" (0), which some analysers write for FRFs.
 RESPONSE_TYPES = (0, 4, 5)
+#: Dataset 58's direction codes (record 6, fields 6 and 9): 1..6 are +X, +Y, +Z and the
+#: rotations +RX, +RY, +RZ, their negatives the opposite directions, 0 a scalar.
+_DIRECTIONS = {1: "X", 2: "Y", 3: "Z", 4: "RX", 5: "RY", 6: "RZ"}
 
 
 def load_uff(path, *, freq_unit=None, band=None):
@@ -54,9 +58,14 @@ def load_uff(path, *, freq_unit=None, band=None):
     tuple of FrequencyData
         One per frequency-response record of dataset 58 (a frequency abscissa and a
         function type in :data:`RESPONSE_TYPES`: FRF, transmissibility or general), in
-        file order, named after the record's first ID line or ``"<stem>:<k>"`` (``k``: the
-        record's number among the file's dataset-58 records). Other records (coherence,
-        spectra, time records) are skipped with a :class:`DataWarning` naming them.
+        file order. Other records (coherence, spectra, time records) are skipped with a
+        :class:`DataWarning` naming them. Names: in a file of several such records, the
+        record's response and reference node and direction, as modal-testing tools label
+        an FRF (``"12+Z/1+Z"``: response node 12 in +Z over reference node 1 in +Z;
+        ``"12+Z"`` without a reference node, ``"12"`` for a scalar direction; ``":k"``
+        added when two records name the same pair); else (one record, or a header with
+        node 0 for both) the record's first ID line, or ``"<stem>:<k>"``. ``k``: the
+        record's number among the file's dataset-58 records.
 
     Raises
     ------
@@ -129,16 +138,87 @@ def read_uff(path, *, freq_unit=None, band=None, record=None, single=False):
                       f"); kept its {len(keep)} frequency-response record(s), numbered 0.."
                       f"{len(keep) - 1} for record=", DataWarning,
                       stacklevel=2)
+    names = record_names(path, sets, keep)
     if record is None:
         if single and len(keep) != 1:
             return len(keep), ()
-        return len(keep), tuple(_uff_record(path, k, sets[k], freq_unit, band) for k in keep)
+        return len(keep), tuple(_uff_record(path, k, sets[k], freq_unit, band, name)
+                                for k, name in zip(keep, names))
     if isinstance(record, bool) or not isinstance(record, (int, np.integer)) \
             or not 0 <= record < len(keep):
         raise DataError(f"record={record!r} is out of range: {path!r} holds {len(keep)} "
                         f"record(s), numbered 0..{len(keep) - 1}")
     k = keep[int(record)]
-    return len(keep), (_uff_record(path, k, sets[k], freq_unit, band),)
+    return len(keep), (_uff_record(path, k, sets[k], freq_unit, band, names[int(record)]),)
+
+
+def _point(node, direction):
+    """``"12+Z"``: a node and its direction code (:data:`_DIRECTIONS`; ``"12"`` for 0, a
+    scalar, or a code outside the standard's)."""
+    axis = _DIRECTIONS.get(abs(direction))
+    return f"{node}{'+' if direction > 0 else '-'}{axis}" if axis else f"{node}"
+
+
+def node_name(dset):
+    """The label of a dataset-58 record's degrees of freedom, as modal-testing tools write
+    it: ``"12+Z/1+Z"`` (response node and direction over reference node and direction),
+    ``"12+Z"`` when the reference node is 0 (none given).
+
+    Parameters
+    ----------
+    dset : dict
+        The record as pyuff reads it (``rsp_node``, ``rsp_dir``, ``ref_node``,
+        ``ref_dir``).
+
+    Returns
+    -------
+    str or None
+        None when the header gives no node (both nodes 0, or fields missing).
+    """
+    try:
+        rsp, rsp_dir, ref, ref_dir = (int(dset.get(key) or 0) for key in (
+            "rsp_node", "rsp_dir", "ref_node", "ref_dir"))
+    except (TypeError, ValueError):
+        return None
+    if rsp <= 0 and ref <= 0:
+        return None
+    label = _point(rsp, rsp_dir)
+    return label if ref <= 0 else f"{label}/{_point(ref, ref_dir)}"
+
+
+def record_names(path, sets, keep):
+    """Names of the records ``sets[k]`` for ``k`` in ``keep`` (see :func:`load_uff`):
+    node labels (:func:`node_name`) when several records are read and the header gives
+    them, ``":k"`` added to a label two records share; else the first ID line or
+    ``"<stem>:<k>"``.
+
+    Parameters
+    ----------
+    path : str
+        The file (its stem names a record without a label).
+    sets : list of dict
+        The file's dataset-58 records, as pyuff reads them.
+    keep : list of int
+        The indices of ``sets`` that are frequency responses.
+
+    Returns
+    -------
+    list of str
+        One name per index of ``keep``.
+    """
+    from ._readfile import _stem
+
+    labels = [node_name(sets[k]) if len(keep) > 1 else None for k in keep]
+    shared = collections.Counter(labels)
+    names = []
+    for k, label in zip(keep, labels):
+        ident = str(sets[k].get("id1", "") or "").strip()
+        if label is None:
+            label = ident if ident and ident.upper() != "NONE" else f"{_stem(path)}:{k}"
+        elif shared[label] > 1:
+            label = f"{label}:{k}"
+        names.append(label)
+    return names
 
 
 def _kind(dset):
@@ -162,8 +242,8 @@ def _tally(kinds):
     return ", ".join(f"{n} {label}" for label, n in counts.items())
 
 
-def _uff_record(path, k, dset, freq_unit, band=None):
-    from ._readfile import _finish, _stem
+def _uff_record(path, k, dset, freq_unit, band, name):
+    from ._readfile import _finish
 
     where = f"{path!r} record {k}"
     try:
@@ -174,8 +254,6 @@ def _uff_record(path, k, dset, freq_unit, band=None):
     label = str(dset.get("abscissa_axis_units_lab", "") or "").lower()
     unit = freq_unit or ("rad/s" if "rad" in label else "hz")
     omega = x if unit == "rad/s" else 2 * np.pi * x
-    ident = str(dset.get("id1", "") or "").strip()
-    name = ident if ident and ident.upper() != "NONE" else f"{_stem(path)}:{k}"
     zero = (z == 0) & (x != 0)
     if zero.any() and zero.size == x.size:
         # an analyser's quantised or blanked bins: the relative error is not defined there
