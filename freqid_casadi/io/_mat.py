@@ -5,7 +5,9 @@ of numeric arrays named by their MATLAB path: ``u``, ``meas.input``, ``run(2).y`
 ``runs{3}`` (structs, struct arrays and cell arrays flattened; strings and other classes
 left out).
 :func:`records_hint` tells whether such a file holds time records rather than a frequency
-response. Used by :func:`freqid_casadi.io.loaders.load_mat` and the time-record reader
+response; :func:`start_step_axis` builds the frequency axis a file gives by its start and
+step (``f_start`` and ``df``) beside the response. Used by
+:func:`freqid_casadi.io.loaders.load_mat` and the time-record reader
 :func:`freqid_casadi.experiment.load_records_mat`.
 """
 
@@ -15,7 +17,8 @@ import numpy as np
 
 from ..errors import DataError
 
-__all__ = ["read_mat_arrays", "records_hint", "MIN_RECORD"]
+__all__ = ["read_mat_arrays", "records_hint", "start_step_axis", "axis_variables",
+           "MIN_RECORD"]
 
 #: Shortest vector counted as a time record.
 MIN_RECORD = 16
@@ -134,3 +137,173 @@ def records_hint(path, arrays):
             "not a frequency response: estimate it with 'freqid frf FILE --u NAME --y NAME' "
             "(add --period N for a periodic excitation, --fs HZ if the file gives no fs), or "
             "freqid_casadi.experiment.load_records_mat(path, u=NAME, y=NAME)")
+
+
+# --------------------------------------------------------------------------- start and step
+
+#: Names of the scalars that give a frequency axis by its start and step (``f_start`` and
+#: ``df``; or its start and end, the count from the response's length), lower case, by
+#: what they give and the family of the axis: ``f`` (its unit from ``freq_unit``, or a
+#: suffix ``_hz``) or ``w`` (rad/s).
+_AXIS_NAMES = {
+    "start": {"f": ("f_start", "fstart", "f0", "freq_start", "freqstart", "start_freq",
+                    "startfreq", "f_min", "fmin", "freq_min", "f_begin", "fbegin"),
+              "w": ("w_start", "wstart", "w0", "omega_start", "omega0", "w_min", "wmin",
+                    "omega_min")},
+    "step": {"f": ("df", "d_f", "f_step", "fstep", "delta_f", "deltaf", "freq_step",
+                   "freqstep", "step_freq", "dfreq", "delta_freq", "f_res", "fres",
+                   "freq_res", "freq_resolution", "frequency_resolution", "f_inc", "finc",
+                   "freq_inc"),
+             "w": ("dw", "d_w", "domega", "d_omega", "delta_w", "delta_omega", "w_step",
+                   "wstep", "omega_step")},
+    "end": {"f": ("f_end", "fend", "f_stop", "fstop", "freq_end", "freq_stop", "stop_freq",
+                  "end_freq", "f_max", "fmax", "freq_max"),
+            "w": ("w_end", "wend", "w_stop", "w_max", "wmax", "omega_end", "omega_max")},
+    "count": {"": ("nf", "n_f", "nfreq", "n_freq", "nfreqs", "num_freq", "n_points",
+                   "npoints", "npts", "num_points", "n_lines", "nlines")}}
+#: A given end must lie within one step of the axis's last point (files write it as the
+#: last point, one step beyond, or the last bin's edge); the rounding allowed beyond, in
+#: steps.
+_END_TOL = 1e-6
+
+
+def _axis_role(name):
+    """``(what, family, unit)`` of a variable's leaf name in :data:`_AXIS_NAMES`
+    (``"df_hz"``: ``("step", "f", "hz")``), or None."""
+    leaf = name.rsplit(".", 1)[-1].strip().lower()
+    unit = None
+    for suffix, which in (("_hz", "hz"), ("_rad_s", "rad/s"), ("_rads", "rad/s")):
+        if leaf.endswith(suffix) and len(leaf) > len(suffix):
+            leaf, unit = leaf[:-len(suffix)], which
+            break
+    for what, families in _AXIS_NAMES.items():
+        for family, names in families.items():
+            if leaf in names:
+                return what, family, unit
+    return None
+
+
+def axis_variables(arrays):
+    """The names of the real scalars of ``arrays`` that give a part of a frequency axis
+    (start, step, end or count: :func:`start_step_axis`), in file order.
+
+    Parameters
+    ----------
+    arrays : dict of str to ndarray
+        A file's numeric variables (:func:`read_mat_arrays`).
+
+    Returns
+    -------
+    list of str
+    """
+    return [key for key, arr in arrays.items() if _axis_role(key) is not None
+            and np.size(arr) == 1 and not np.iscomplexobj(arr)]
+
+
+def _axis_parts(arrays):
+    """``{what: [(name, value, family, unit), ...]}`` of the real scalars named as a part
+    of a frequency axis."""
+    parts = {}
+    for key, arr in arrays.items():
+        role = _axis_role(key)
+        if role is None or np.size(arr) != 1 or np.iscomplexobj(arr):
+            continue
+        value = float(np.asarray(arr, float).reshape(-1)[0])
+        parts.setdefault(role[0], []).append((key, value, role[1], role[2]))
+    return parts
+
+
+def _one(path, parts, what):
+    """The one ``(name, value, family, unit)`` the file gives for ``what`` (start, step,
+    end, count), or None; DataError for two that differ."""
+    found = parts.get(what, [])
+    if len({value for _, value, _, _ in found}) > 1:
+        shown = ", ".join(f"{name} = {value:g}" for name, value, _, _ in found)
+        raise DataError(f"{path!r}: the frequency axis has two {what}s ({shown}); keep one "
+                        "of them in the file")
+    return found[0] if found else None
+
+
+def start_step_axis(path, arrays, n, freq_unit):
+    """The frequency axis a ``.mat`` file gives by scalars beside its response: a start and
+    a step (``f_start``/``df``, ``f0``/``df``, ``fstart``/``fstep``, ``freq_start``/
+    ``delta_f``, ...), ``f[k] = start + k step`` for the response's ``n`` points, or a
+    start and an end (``fstart``/``fend``: ``n`` points from one to the other).
+
+    Parameters
+    ----------
+    path : str
+        The file, for messages.
+    arrays : dict of str to ndarray
+        Its numeric variables (:func:`read_mat_arrays`).
+    n : int
+        The length of the response.
+    freq_unit : {"hz", "rad/s"} or None
+        The unit of names of the ``f`` family without a unit suffix (``f_start``, ``df``);
+        names ``w0``, ``dw``, ... are rad/s, and ``f_start_hz``, ``df_hz`` Hz.
+
+    Returns
+    -------
+    (ndarray, str, str) or None
+        The frequencies (in the file's unit), that unit ("hz" or "rad/s") and a label
+        naming the variables used (``"f_start + k*df"``); None when the file names no
+        start and no step.
+
+    Raises
+    ------
+    DataError
+        A start without a step or end (or a step without a start), two values for one
+        part, a step that is not positive, an end or a count the axis does not meet, parts
+        of different units, or a unit that is unknown (``f``-family names without
+        ``freq_unit``).
+    """
+    parts = _axis_parts(arrays)
+    start, step, end = (_one(path, parts, what) for what in ("start", "step", "end"))
+    count = _one(path, parts, "count")
+    if start is None and step is None:
+        return None
+    given = [p for p in (start, step, end) if p is not None]
+    shown = ", ".join(f"{name} = {value:g}" for name, value, _, _ in given)
+    if start is None or (step is None and end is None):
+        lack = "its start (f_start, f0, fstart, freq_start; 0 when the first point is " \
+            "DC)" if start is None else "its step (df, fstep, delta_f) or its end (f_end, fend)"
+        raise DataError(f"{path!r} gives part of a frequency axis ({shown}) but not {lack}: "
+                        "save the missing scalar beside the response, or save the "
+                        "frequencies themselves as freq_hz (Hz) or omega (rad/s)")
+    unit = _axis_unit(path, given, shown, freq_unit)
+    if count is not None and int(round(count[1])) != n:
+        raise DataError(f"{path!r}: {count[0]} = {count[1]:g} points, but the response has "
+                        f"{n}; save the response and its axis of one sweep together")
+    if step is None:
+        return np.linspace(start[1], end[1], n), unit, f"{start[0]} .. {end[0]}"
+    if not step[1] > 0:
+        raise DataError(f"{path!r}: the frequency step {step[0]} = {step[1]:g} must be "
+                        "positive; check the variable")
+    f = start[1] + step[1] * np.arange(n)
+    if end is not None and not abs(f[-1] - end[1]) <= (1 + _END_TOL) * step[1]:
+        raise DataError(f"{path!r}: {start[0]} + k*{step[0]} over the response's {n} points "
+                        f"ends at {f[-1]:.10g}, more than one step from {end[0]} = "
+                        f"{end[1]:.10g}: the response and the axis are not of one sweep (or "
+                        "the step is rounded); save the frequencies themselves as freq_hz "
+                        "(Hz) or omega (rad/s)")
+    return f, unit, f"{start[0]} + k*{step[0]}"
+
+
+def _axis_unit(path, given, shown, freq_unit):
+    """The unit ("hz" or "rad/s") of the axis parts ``given``: a suffix (``_hz``), the
+    family (``w``: rad/s) or ``freq_unit``; DataError when they disagree or none says."""
+    known = {unit or ("rad/s" if family == "w" else None) for _, _, family, unit in given}
+    known.discard(None)                      # (f_start beside df_hz: Hz, as df_hz says)
+    if len(known) > 1:
+        raise DataError(f"{path!r}: the frequency axis's parts ({shown}) are in different "
+                        "units; name them alike (f_start_hz and df_hz, or w0 and dw in "
+                        "rad/s)")
+    unit = known.pop() if known else freq_unit
+    if unit is None:
+        raise DataError(f"{path!r}: the frequency unit of {shown} is unknown: pass "
+                        "freq_unit='Hz' or freq_unit='rad/s' (command line --freq-unit "
+                        "hz|rad/s), or name the variables with the unit (f_start_hz, df_hz)")
+    if freq_unit is not None and freq_unit != unit:
+        raise DataError(f"{path!r}: freq_unit={freq_unit!r} contradicts {shown} ({unit}); "
+                        "drop freq_unit or rename the variables")
+    return unit

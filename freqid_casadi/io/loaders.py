@@ -20,11 +20,12 @@ allocating). Raise these module constants to read larger files.
 import io
 import os
 import re
+import warnings
 import zipfile
 
 import numpy as np
 
-from ._mat import read_mat_arrays, records_hint
+from ._mat import axis_variables, read_mat_arrays, records_hint, start_step_axis
 from ._touchstone import is_touchstone, load_touchstone
 from ._uff import load_uff, read_uff
 from ._readfile import (MAX_ELEMENTS, MAX_FILE_BYTES, MAX_ROWS, DataWarning, _finish,
@@ -453,6 +454,16 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None, band=None):
     more real vectors of one length) is refused with the command that reads it:
     ``freqid frf FILE --u NAME --y NAME``
     (:func:`freqid_casadi.experiment.load_records_mat`).
+
+    The frequency axis may also be given by scalars beside the response: a start and a step
+    (``f_start`` and ``df``, ``f0`` and ``df``, ``fstart`` and ``fstep``, ``freq_start``
+    and ``delta_f``; ``w0`` and ``dw`` in rad/s), ``f[k] = start + k step`` for the
+    response's N points, or a start and an end (``fstart``, ``fend``: N points from one
+    to the other); an end or a count (``nf``, ``n_points``) beside a step is checked. Their
+    unit is decided as for a frequency vector: ``f_start_hz``/``df_hz`` are Hz, ``w0``/``dw``
+    rad/s, ``f_start``/``df`` take ``freq_unit``. Beside such an axis, one array of any
+    name is the response: a complex vector, or a real N x 2 matrix read as real and
+    imaginary parts (with a DataWarning).
     """
     freq_unit = parse_freq_unit(freq_unit)
     columns = parse_columns(columns)
@@ -476,48 +487,120 @@ def _mat_table(path, arrays, columns, freq_unit):
             if col is not None and col.role != "skip":
                 named[key] = Column(col.role, col.unit, key)
     cols = tuple(named.values())
-    if named and _layout_problem(cols) is None:
-        vecs = [np.asarray(arrays[k]).reshape(-1) if 1 in np.shape(arrays[k]) or
-                np.ndim(arrays[k]) <= 1 else None for k in named]
-        if any(v is None for v in vecs) or len({v.size for v in vecs}) != 1:
-            raise DataError(f"{path!r}: variables {', '.join(named)} must be vectors of equal "
-                            "length")
-        values = dict(zip((c.role for c in cols), vecs))
-        n = vecs[0].size
+    if named and _layout_problem(cols) is not None and \
+            _layout_problem(cols + (Column("freq"),)) is None and \
+            all(np.ndim(arrays[k]) <= 1 or 1 in np.shape(arrays[k]) for k in named):
+        # a response without a frequency vector: an axis of start and step beside it?
+        values, n = _mat_vectors(path, arrays, named)
+        axis = start_step_axis(path, arrays, n, freq_unit)
+        if axis is None:
+            raise DataError(_no_axis(path, arrays, named))
+        values["freq"] = axis[0]
+        cols += (Column("freq", axis[1], axis[2]),)
+    elif named and _layout_problem(cols) is None:
+        values, n = _mat_vectors(path, arrays, named)
+    elif columns is None and not named and axis_variables(arrays):
+        cols, values, n = _beside_axis(path, arrays)
+        axis = start_step_axis(path, arrays, n, freq_unit)
+        values["freq"] = axis[0]
+        cols += (Column("freq", axis[1], axis[2]),)
     else:
-        hint = records_hint(path, arrays) if columns is None and not named else None
-        if hint:
-            raise DataError(hint)
-        if len(arrays) != 1 or np.ndim(next(iter(arrays.values()))) != 2:
-            found = ", ".join(
-                f"{k} ({' x '.join(map(str, np.shape(a))) or 'scalar'}"
-                f"{', complex' if np.iscomplexobj(a) else ''})" for k, a in arrays.items())
-            raise DataError(
-                f"{path!r}: cannot tell the variables apart (found {found}); name them "
-                "omega (rad/s) or freq_hz (Hz) and response (complex), or save one N x k "
-                "matrix and pass columns=...; for one channel of an FRF matrix, in MATLAB: "
-                "freq_hz = <frequencies>; response = <matrix>(:, k); save('frf_k.mat', "
-                "'freq_hz', 'response', '-v7')")
-        mat = np.asarray(next(iter(arrays.values())))
-        if mat.shape[0] < mat.shape[1]:
-            mat = mat.T
-        first = [str(x) for x in mat[0]]
-        cols = columns if columns is not None else _default_columns(path, first)
-        if len(cols) != mat.shape[1]:
-            raise DataError(f"{path!r}: the matrix has {mat.shape[1]} columns, columns= "
-                            f"names {len(cols)}")
-        values = {}
-        for j, c in enumerate(cols):
-            if c.role != "skip":
-                col = mat[:, j]
-                values[c.role] = col if c.role == "complex" else np.real(col)
-        n = mat.shape[0]
+        cols, values, n = _mat_matrix(path, arrays, columns, named)
     cols = _resolve_units(path, cols, freq_unit, ",".join(named) if named else None)
     for k, arr in values.items():
         values[k] = np.asarray(arr, complex if k == "complex" else float)
     table = Table(path, cols, values, np.arange(1, n + 1), where="row")
     _check_finite(table)
     return table
+
+
+def _mat_vectors(path, arrays, named):
+    """``({role: vector}, length)`` of the variables ``named`` (name: Column), which must be
+    vectors of one length."""
+    vecs = [np.asarray(arrays[k]).reshape(-1) if 1 in np.shape(arrays[k]) or
+            np.ndim(arrays[k]) <= 1 else None for k in named]
+    if any(v is None for v in vecs) or len({v.size for v in vecs}) != 1:
+        raise DataError(f"{path!r}: variables {', '.join(named)} must be vectors of equal "
+                        "length")
+    return dict(zip((c.role for c in named.values()), vecs)), vecs[0].size
+
+
+def _found(arrays):
+    """``'frf (512, complex), df (scalar)'``: the variables of a .mat file, for a message."""
+    return ", ".join(f"{k} ({' x '.join(map(str, np.shape(a))) or 'scalar'}"
+                     f"{', complex' if np.iscomplexobj(a) else ''})" for k, a in arrays.items())
+
+
+def _no_axis(path, arrays, named):
+    """The message for a .mat file whose response (the variables ``named``) has no
+    frequency axis beside it."""
+    return (f"{path!r} holds a response ({', '.join(named)}) but no frequency axis (found "
+            f"{_found(arrays)}): save the frequencies beside it as freq_hz (Hz) or omega "
+            "(rad/s) (or f with freq_unit='Hz', command line --freq-unit hz), or their start "
+            "and step as scalars f_start and df (the count is the response's length; "
+            "f_start_hz and df_hz say Hz, else pass freq_unit); or build the data in "
+            "Python: freqid_casadi.FrequencyData(omega, response)")
+
+
+def _beside_axis(path, arrays):
+    """``(columns, {role: vector}, length)`` of the one array beside the scalars of a
+    frequency axis (``f_start``, ``df``) whose name is not one the reader knows: a complex
+    vector is the response, a real N x 2 matrix its real and imaginary parts (as a
+    headerless table's columns are read, stated by a DataWarning)."""
+    axis = axis_variables(arrays)
+    rest = {k: a for k, a in arrays.items() if k not in axis}
+    shape = np.shape(next(iter(rest.values()))) if len(rest) == 1 else ()
+    key = next(iter(rest)) if rest else None
+    if len(rest) == 1 and np.iscomplexobj(rest[key]) and np.size(rest[key]) == max(shape):
+        vec = np.asarray(rest[key]).reshape(-1)
+        return (Column("complex", None, key),), {"complex": vec}, vec.size
+    if len(rest) == 1 and len(shape) == 2 and 2 in shape and max(shape) > 2 \
+            and not np.iscomplexobj(rest[key]):
+        mat = np.asarray(rest[key], float)
+        mat = mat if mat.shape[1] == 2 else mat.T
+        warnings.warn(f"{path!r}: read the two columns of {key} ({mat.shape[0]} x 2) as the "
+                      "real and imaginary parts of the response; if they are magnitude and "
+                      "phase, save the response as one complex vector", DataWarning,
+                      stacklevel=5)
+        return ((Column("re", None, f"{key}(:, 1)"), Column("im", None, f"{key}(:, 2)")),
+                {"re": mat[:, 0], "im": mat[:, 1]}, mat.shape[0])
+    hint = records_hint(path, rest)
+    if hint:
+        raise DataError(hint)
+    raise DataError(
+        f"{path!r} gives a frequency axis ({', '.join(axis)}) beside "
+        f"{len(rest)} other arrays, not one response (found {_found(arrays)}): keep one "
+        "response in the file, named response (a complex vector) or re and im, beside the "
+        "axis; or build the data in Python: freqid_casadi.FrequencyData(omega, response)")
+
+
+def _mat_matrix(path, arrays, columns, named):
+    """``(columns, {role: vector}, rows)`` of the single N x k matrix of a .mat file,
+    read like a headerless text table (``columns`` names its columns)."""
+    hint = records_hint(path, arrays) if columns is None and not named else None
+    if hint:
+        raise DataError(hint)
+    if len(arrays) != 1 or np.ndim(next(iter(arrays.values()))) != 2:
+        raise DataError(
+            f"{path!r}: cannot tell the variables apart (found {_found(arrays)}); name them "
+            "omega (rad/s) or freq_hz (Hz) and response (complex), or save one N x k "
+            "matrix and pass columns=...; for one channel of an FRF matrix, in MATLAB: "
+            "freq_hz = <frequencies>; response = <matrix>(:, k); save('frf_k.mat', "
+            "'freq_hz', 'response', '-v7')")
+    mat = np.asarray(next(iter(arrays.values())))
+    if mat.shape[0] < mat.shape[1]:
+        mat = mat.T
+    first = [str(x) for x in mat[0]]
+    cols = columns if columns is not None else _default_columns(path, first)
+    if len(cols) != mat.shape[1]:
+        raise DataError(f"{path!r}: the matrix has {mat.shape[1]} columns, columns= "
+                        f"names {len(cols)}")
+    values = {}
+    for j, c in enumerate(cols):
+        if c.role != "skip":
+            col = mat[:, j]
+            values[c.role] = col if c.role == "complex" else np.real(col)
+    return cols, values, mat.shape[0]
 
 
 # --------------------------------------------------------------------------- writer
