@@ -2,7 +2,8 @@
 layout: a Siglent oscilloscope's Bode export of two complete channels, a VNA script's
 ``Freq,S11dB,S11deg,...`` sweeps in repeated blocks, German and Spanish headers, a
 headerless four-column file, Digilent WaveForms' impedance export (``Trace th (*)``,
-``Trace |Z| (Ohm)``) and the HP/Agilent 4294A's ASCII export of two trace blocks.
+``Trace |Z| (Ohm)``) and the HP/Agilent 4294A's ASCII export of two trace blocks (|Z| and
+theta, R and X, or a log magnitude and a phase: one response).
 """
 
 import warnings
@@ -11,7 +12,7 @@ import numpy as np
 import pytest
 
 import freqid_casadi as fc
-from freqid_casadi.errors import DataError
+from freqid_casadi.errors import DataError, OptionError
 from freqid_casadi.io._columns import recognise, sparameter_of
 from freqid_casadi.io.loaders import DataWarning
 
@@ -250,54 +251,147 @@ def test_impedance_names(name, role, unit):
 
 # --------------------------------------------------------------------------- 4294A
 
-_HP_PREAMBLE = '''4294A REV1.11
-"DATE: Jan 25 2018"
+def _hp_block(trace, fmt, rows):
+    """One trace block of the 4294A's ASCII save: its two key lines, a blank line, the
+    quoted header and tab-separated rows (Imag 0 for a scalar trace)."""
+    return (f'\n\n"TRACE: {trace}"\n"FORMAT: {fmt}"\n\n'
+            '"Frequency"\t"Data Trace Real"\t"Data Trace Imag"\n'
+            + "".join(f"{f:.11e}\t{re:.6e}\t{im:.6e}\n" for f, re, im in rows))
 
 
-"MEASURE PARAMETER: IMPEDANCE MAG PHASE (DEG)"
-"ADAPTER: NONE"
-"SWEEP TYPE: LOG FREQ"
-"NUMBER of POINTS: 3"
-"POINT DELAY TIME:  0 Sec"
-"SWEEP DELAY TIME:  0 Sec"
-"OSC LEVEL:  500 mVolt"
-"DC BIAS: OFF"
-"BW: 5"
-"SWEEP AVERAGING: OFF"
-"POINT AVERAGING: OFF"
+def _hp(parameter="IMPEDANCE MAG PHASE (DEG)", a=("LOG", None), b=("LINEAR", None),
+        freqs_b=None):
+    """A 4294A export of two traces at 1000, 1008.683 and 1017.441 Hz: |Z| in trace A,
+    theta in degrees in trace B unless told otherwise (``a``, ``b``: FORMAT and rows)."""
+    f = [1.0e3, 1.008683e3, 1.017441e3]
+    rows_a = a[1] or [(x, v, 0.0) for x, v in zip(f, (1.324238, 1.334925, 1.346243))]
+    rows_b = b[1] or [(x, v, 0.0) for x, v in zip(freqs_b or f, (75.85065, 75.9645,
+                                                                76.08051))]
+    return ('4294A REV1.11\n"DATE: Jan 25 2018"\n\n\n'
+            f'"MEASURE PARAMETER: {parameter}"\n'
+            '"ADAPTER: NONE"\n"SWEEP TYPE: LOG FREQ"\n"NUMBER of POINTS: 3"\n'
+            '"POINT DELAY TIME:  0 Sec"\n"SWEEP DELAY TIME:  0 Sec"\n'
+            '"OSC LEVEL:  500 mVolt"\n"DC BIAS: OFF"\n"BW: 5"\n'
+            '"SWEEP AVERAGING: OFF"\n"POINT AVERAGING: OFF"\n'
+            + _hp_block("A", a[0], rows_a) + _hp_block("B", b[0], rows_b))
 
 
-"TRACE: A"
-"FORMAT: LOG"
-
-"Frequency"\t"Data Trace Real"\t"Data Trace Imag"
-1.00000000000e+03\t1.324238e+00\t0.000000e+00
-1.00868300000e+03\t1.334925e+00\t0.000000e+00
-1.01744100000e+03\t1.346243e+00\t0.000000e+00
+_HP_F = 2 * np.pi * np.array([1.0e3, 1.008683e3, 1.017441e3])
+_HP_Z = np.array([1.324238, 1.334925, 1.346243]) * np.exp(
+    1j * np.deg2rad([75.85065, 75.9645, 76.08051]))
 
 
-"TRACE: B"
-"FORMAT: LINEAR"
+def test_hp4294a_two_traces_are_one_impedance(tmp_path):
+    # |Z| in trace A (FORMAT LOG is the axis's scale), theta in degrees in trace B, as the
+    # measure parameter says; the published export of this layout was refused with
+    # "column 'Data Trace Real' is not a known name"
+    path = _write(tmp_path, _hp(), "hp4294a.txt")
+    assert path.endswith("hp4294a.txt")
+    data, notes = _load(path)
+    np.testing.assert_allclose(data.omega, _HP_F, rtol=1e-15)
+    np.testing.assert_allclose(data.response, _HP_Z, rtol=1e-14)
+    # 1.324238 ohm at 75.85065 degrees, at 1 kHz, by hand
+    np.testing.assert_allclose(data.response[0], 0.32371037 + 1.28406304j, rtol=1e-7)
+    assert data.name == "hp4294a"
+    assert notes == ["'" + path + "': read trace A (lines 22-24) as the magnitude and trace "
+                     "B (lines 31-33) as the phase in degrees, as its line 'MEASURE "
+                     "PARAMETER: IMPEDANCE MAG PHASE (DEG)' says"]
+    # the same in a band, and through the command line's reader (CRLF line ends)
+    data, _ = _load(path, band=(1005, 1020))
+    np.testing.assert_allclose(data.response, _HP_Z[1:], rtol=1e-14)
+    crlf = _write(tmp_path, _hp(), "crlf.txt", newline="\r\n")
+    np.testing.assert_allclose(_load(crlf)[0].response, _HP_Z, rtol=1e-14)
 
-"Frequency"\t"Data Trace Real"\t"Data Trace Imag"
-1.00000000000e+03\t7.585065e+01\t0.000000e+00
-1.00868300000e+03\t7.596450e+01\t0.000000e+00
-1.01744100000e+03\t7.608051e+01\t0.000000e+00
-'''
+
+def test_hp4294a_phase_in_radians_and_resistance_reactance(tmp_path):
+    rad = [(f, np.deg2rad(d), 0.0) for f, d in zip(_HP_F / (2 * np.pi),
+                                                   (75.85065, 75.9645, 76.08051))]
+    path = _write(tmp_path, _hp("IMPEDANCE MAG PHASE (RAD)", b=("LINEAR", rad)), "rad.txt")
+    np.testing.assert_allclose(_load(path)[0].response, _HP_Z, rtol=1e-6)   # 7 digits
+    # R in trace A, X in trace B (a measure parameter R-X, as the 4294A's key names it)
+    r = [(f, z.real, 0.0) for f, z in zip(_HP_F / (2 * np.pi), _HP_Z)]
+    x = [(f, z.imag, 0.0) for f, z in zip(_HP_F / (2 * np.pi), _HP_Z)]
+    path = _write(tmp_path, _hp("R-X", a=("LINEAR", r), b=("LINEAR", x)), "rx.txt")
+    data, notes = _load(path)
+    np.testing.assert_allclose(data.response, _HP_Z, rtol=1e-6)
+    assert "as the real part and trace B (lines 31-33) as the imaginary part" in notes[0]
 
 
-def test_hp4294a_second_trace_block_is_named(tmp_path):
-    path = _write(tmp_path, _HP_PREAMBLE, "hp4294a.txt")
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        with pytest.raises(DataError, match=(
-                r"line 27 starts a second block \('\"TRACE: B\"' and 2 more line\(s\), then "
-                r"data again from line 31\): this reader reads one sweep: cut the file to "
-                r"one block \(the first is lines 22-24\); the analyser writes each trace as "
-                r"its own block: export one trace in a complex display format")):
-            fc.load(path, columns="freq_hz,re,im")
-    # 16 lines of text and 5 blank ones before the data on line 22 (the header, line 21,
-    # is skipped too since columns are given)
-    assert [str(w.message).split(": ", 1)[1] for w in caught] == [
-        "skipped 16 line(s) of metadata before the data (lines 1-21 less 5 blank or comment "
-        "line(s), the first '4294A REV1.11')"]
+def test_trace_formats_log_magnitude_and_phase(tmp_path):
+    # a network analyser's two traces, FORMAT LOG MAG (dB) and PHASE (degrees); the
+    # formats say what each holds, the measure parameter (a ratio) does not
+    db = [(f, 20 * np.log10(abs(z)), 0.0) for f, z in zip(_HP_F / (2 * np.pi), _HP_Z)]
+    deg = [(f, np.degrees(np.angle(z)), 0.0) for f, z in zip(_HP_F / (2 * np.pi), _HP_Z)]
+    path = _write(tmp_path, _hp("B/R", a=("LOG MAG", db), b=("PHASE", deg)), "vna.txt")
+    data, notes = _load(path)
+    np.testing.assert_allclose(data.response, _HP_Z, rtol=1e-6)
+    assert ("as the magnitude in dB and trace B (lines 31-33) as the phase in degrees, as "
+            "their FORMAT lines ('LOG MAG', 'PHASE') say") in notes[0]
+
+
+def test_traces_of_different_sweeps_are_refused(tmp_path):
+    path = _write(tmp_path, _hp(freqs_b=[1.0e3, 1.008683e3, 1.02e3]), "two.txt")
+    with pytest.raises(DataError, match=r"the traces' frequencies differ: 1017\.441 on line "
+                       r"24 \(trace A\), 1020 on line 33 \(trace B\); the two traces must be "
+                       r"of one sweep"):
+        _load(path)
+    short = _hp(b=("LINEAR", [(1.0e3, 75.85065, 0.0), (1.008683e3, 75.9645, 0.0)]))
+    with pytest.raises(DataError, match=r"trace A has 3 points \(lines 22-24\), trace B 2 "
+                       r"\(lines 31-32\): the two traces must be of one sweep"):
+        _load(_write(tmp_path, short, "short.txt"))
+
+
+def test_traces_the_header_does_not_name_need_columns(tmp_path):
+    # a measure parameter of derived quantities names neither trace a part of the response
+    path = _write(tmp_path, _hp("Ls-Rs"), "ls.txt")
+    with pytest.raises(DataError, match=r"holds two traces of scalar quantities \(trace A, "
+                       r"lines 22-24; trace B, lines 31-33\), and its key lines \(trace A: "
+                       r"FORMAT 'LOG'; trace B: FORMAT 'LINEAR'; measure parameter 'Ls-Rs'\) "
+                       r"do not say which is which: pass columns="):
+        _load(path)
+    data, notes = _load(path, columns="freq_hz,mag,phase_deg")
+    np.testing.assert_allclose(data.response, _HP_Z, rtol=1e-14)
+    assert "as columns= says" in notes[0]
+    with pytest.raises(OptionError, match=r"name the frequency and each trace in order"):
+        _load(path, columns="freq_hz,complex")
+
+
+def test_hp4294a_columns_that_contradict_the_header_are_refused(tmp_path):
+    path = _write(tmp_path, _hp(), "hp4294a.txt")
+    with pytest.raises(DataError, match=r"columns= reads trace A as the real part and trace B "
+                       r"as the imaginary part, but its line 'MEASURE PARAMETER: IMPEDANCE "
+                       r"MAG PHASE \(DEG\)' says they are the magnitude and the phase in "
+                       r"degrees: drop columns="):
+        _load(path, columns="freq_hz,re,im")
+    np.testing.assert_allclose(_load(path, columns="freq_hz,mag,phase")[0].response, _HP_Z,
+                               rtol=1e-14)
+    with pytest.raises(OptionError, match=r"parameter= does not apply"):
+        _load(path, parameter="S21")
+
+
+def test_a_phase_beyond_a_turn_is_not_the_phase(tmp_path):
+    # theta written in degrees under a measure parameter that says radians
+    path = _write(tmp_path, _hp("IMPEDANCE MAG PHASE (RAD)"), "bad.txt")
+    with pytest.raises(DataError, match=r"line 31: trace B holds 75\.8507, more than a turn "
+                       r"for a phase in rad"):
+        _load(path)
+
+
+def test_one_trace_block(tmp_path):
+    # a complex trace (COMPLEX Z-Y, FORMAT COMPLEX) fills Real and Imag: it is the response
+    rows = [(f, z.real, z.imag) for f, z in zip(_HP_F / (2 * np.pi), _HP_Z)]
+    text = _hp("COMPLEX Z-Y", a=("COMPLEX", rows)).split('\n\n\n"TRACE: B"')[0] + "\n"
+    data, _ = _load(_write(tmp_path, text, "z.txt"))
+    np.testing.assert_allclose(data.omega, _HP_F, rtol=1e-15)
+    np.testing.assert_allclose(data.response, _HP_Z, rtol=1e-6)
+    # a scalar one (|Z| alone) is half a response
+    text = _hp().split('\n\n\n"TRACE: B"')[0] + "\n"
+    with pytest.raises(DataError, match=r"holds one trace, of a scalar quantity \(trace A "
+                       r"\(lines 22-24, FORMAT 'LOG'\): its Imag column is 0\): a response "
+                       r"needs two"):
+        _load(_write(tmp_path, text, "mag.txt"))
+    # a sweep of the DC bias, not of frequency
+    text = _hp().replace('"Frequency"', '"DC Bias"')
+    with pytest.raises(DataError, match=r"line 21: the first column of trace A is 'DC Bias', "
+                       r"not a frequency: the analyser swept another quantity"):
+        _load(_write(tmp_path, text, "bias.txt"))

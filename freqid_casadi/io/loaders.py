@@ -27,6 +27,7 @@ import numpy as np
 
 from ._mat import axis_variables, read_mat_arrays, records_hint, start_step_axis
 from ._touchstone import is_touchstone, load_touchstone
+from ._traces import read_traces
 from ._uff import load_uff, read_uff
 from ._readfile import (MAX_ELEMENTS, MAX_FILE_BYTES, MAX_ROWS, DataWarning, _finish,
                         parse_band, read_regular_file)
@@ -64,7 +65,8 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
         a header ``f``/``freq``); also accepted when the file says the same. Case-insensitive.
     columns : str or sequence of str, optional
         Names of the columns of a text file or of a ``.mat`` matrix, e.g. ``"f,re,im"`` or
-        ``("freq_hz", "mag_db", "phase_deg")``; see :func:`load_text`.
+        ``("freq_hz", "mag_db", "phase_deg")``, or of the frequency and the two traces of
+        an analyser's export of trace blocks; see :func:`load_text`.
     record : int, optional
         For a UFF file with several frequency-response records: which one (0-based,
         counting the records :func:`load_uff` returns: records that are not frequency
@@ -278,11 +280,23 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None, param
     :func:`save_csv` and earlier versions wrote. A headerless file with three columns is
     frequency, real, imaginary; with two columns of which the second holds complex
     literals, frequency and response.
+
+    An HP/Agilent impedance or network analyser's ASCII save of trace blocks (the 4294A's
+    ``"TRACE: A"`` ... ``"Frequency"  "Data Trace Real"  "Data Trace Imag"``, frequencies
+    in Hz) is read as one response: two scalar traces as magnitude and phase or real and
+    imaginary part, as the file's measure parameter (``IMPEDANCE MAG PHASE (DEG)``,
+    ``R-X``) or the traces' ``FORMAT`` lines (``LOG MAG``, ``PHASE``) say, or else as
+    ``columns`` names the frequency and each trace in order (``"freq_hz,mag,phase_deg"``);
+    one complex trace as its Real and Imag columns. Traces of different frequencies are
+    refused; a DataWarning says which trace was read as what.
     """
     band = parse_band(band)
     path, payload = read_regular_file(path)
-    table = read_table(path, payload, parse_columns(columns), parse_freq_unit(freq_unit),
-                       max_rows=MAX_ROWS, parameter=parameter, record=record)
+    columns, freq_unit = parse_columns(columns), parse_freq_unit(freq_unit)
+    table = read_traces(path, payload, columns, freq_unit, parameter=parameter, record=record)
+    if table is None:
+        table = read_table(path, payload, columns, freq_unit, max_rows=MAX_ROWS,
+                           parameter=parameter, record=record)
     omega, response = table_response(table)
     unit = "rad/sample" if table.unit("freq") == "rad/sample" else "rad/s"
     return _finish(path, omega, response, name, lines=table.lines, unit=unit, band=band,
