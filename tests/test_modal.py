@@ -209,8 +209,8 @@ def test_cli_modal_reads_every_record_of_a_uff_file(tmp_path, capsys):
     summary = json.loads((out / "summary.json").read_text())
     assert summary["n_modes_selected"] == 2
     assert [m["omega_n"] for m in summary["modes"]] == pytest.approx([5.0, 17.0], rel=1e-3)
-    # each channel named by its response and reference node and direction
-    assert {"bode_1+X_1+X.png", "bode_2+X_1+X.png"} <= set(os.listdir(out))
+    # each record has its own ID line, the user's label: the channels keep those names
+    assert {"bode_point_1.png", "bode_point_2.png"} <= set(os.listdir(out))
     # --record K: that record alone
     assert main(["modal", str(path), "--record", "0", "--orders", "2:4:2", "--out",
                  str(tmp_path / "one")]) == 0

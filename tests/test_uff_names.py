@@ -62,6 +62,17 @@ def test_records_are_named_by_node_and_direction(tmp_path):
     np.testing.assert_array_equal(one.response, [4 - 2j, 2 - 1j, 0.5 + 1j])
 
 
+def test_records_each_with_its_own_id_line_keep_the_users_labels(tmp_path):
+    # the ID lines name every record apart: they are the user's labels, kept (as before
+    # node names were read); one shared or missing ID line and the nodes name them all
+    path = _file(tmp_path, "labelled.unv", ("tip accel", 12, 3, 1, 3, H),
+                 ("root accel", 7, -2, 1, 3, 2 * H))
+    assert [d.name for d in load_uff(path)] == ["tip accel", "root accel"]
+    path = _file(tmp_path, "half.unv", ("tip accel", 12, 3, 1, 3, H),
+                 ("NONE", 7, -2, 1, 3, 2 * H))
+    assert [d.name for d in load_uff(path)] == ["12+Z/1+Z", "7-Y/1+Z"]
+
+
 def test_a_pair_measured_twice_gets_its_record_number(tmp_path):
     path = _file(tmp_path, "twice.unv", ("H", 3, 1, 1, 1, H), ("H", 3, 1, 1, 1, 2 * H),
                  ("H", 4, 1, 1, 1, H))

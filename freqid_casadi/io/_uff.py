@@ -59,7 +59,8 @@ def load_uff(path, *, freq_unit=None, band=None):
         One per frequency-response record of dataset 58 (a frequency abscissa and a
         function type in :data:`RESPONSE_TYPES`: FRF, transmissibility or general), in
         file order. Other records (coherence, spectra, time records) are skipped with a
-        :class:`DataWarning` naming them. Names: in a file of several such records, the
+        :class:`DataWarning` naming them. Names: the record's first ID line when each
+        record has its own, distinct one; else, in a file of several such records, the
         record's response and reference node and direction, as modal-testing tools label
         an FRF (``"12+Z/1+Z"``: response node 12 in +Z over reference node 1 in +Z;
         ``"12+Z"`` without a reference node, ``"12"`` for a scalar direction; ``":k"``
@@ -188,9 +189,10 @@ def node_name(dset):
 
 def record_names(path, sets, keep):
     """Names of the records ``sets[k]`` for ``k`` in ``keep`` (see :func:`load_uff`):
-    node labels (:func:`node_name`) when several records are read and the header gives
-    them, ``":k"`` added to a label two records share; else the first ID line or
-    ``"<stem>:<k>"``.
+    each record's first ID line when every record has its own (the user's labels); else,
+    when several records are read and the header gives them, node labels
+    (:func:`node_name`), ``":k"`` added to a label two records share; else the first ID
+    line or ``"<stem>:<k>"``.
 
     Parameters
     ----------
@@ -208,11 +210,12 @@ def record_names(path, sets, keep):
     """
     from ._readfile import _stem
 
-    labels = [node_name(sets[k]) if len(keep) > 1 else None for k in keep]
+    idents = [str(sets[k].get("id1", "") or "").strip() for k in keep]
+    labelled = all(i and i.upper() != "NONE" for i in idents) and len(set(idents)) == len(keep)
+    labels = [node_name(sets[k]) if len(keep) > 1 and not labelled else None for k in keep]
     shared = collections.Counter(labels)
     names = []
-    for k, label in zip(keep, labels):
-        ident = str(sets[k].get("id1", "") or "").strip()
+    for k, label, ident in zip(keep, labels, idents):
         if label is None:
             label = ident if ident and ident.upper() != "NONE" else f"{_stem(path)}:{k}"
         elif shared[label] > 1:
