@@ -681,3 +681,16 @@ def test_a_universal_file_without_functions_says_what_it_holds(tmp_path):
                        r"1 x dataset 164 \(units\), 1 x dataset 15 \(nodes\); export the "
                        r"FRFs as UFF 58"):
         load(path)
+
+
+@pytest.mark.parametrize("band, kept", [((11, 2000), [11, 1000, 2000]),
+                                        ((10, 1000), [10, 11, 1000])])
+def test_a_point_on_a_band_edge_is_kept(tmp_path, band, kept):
+    # 11 Hz and 1000 Hz come back from rad/s as 10.999999999999998 and 999.9999999999999:
+    # each edge was dropped
+    path = tmp_path / "edge.csv"
+    path.write_text("freq_hz,real,imag\n10,1,0\n11,1,0\n1000,1,0\n2000,1,0\n")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        data = fc.load(path, band=band)
+    np.testing.assert_allclose(data.omega / (2 * np.pi), kept, rtol=1e-15)

@@ -136,7 +136,7 @@ def records_hint(path, arrays):
     return (f"{path!r} holds time records ({shown}: {vectors[keys[0]].size} samples each), "
             "not a frequency response: estimate it with 'freqid frf FILE --u NAME --y NAME' "
             "(add --period N for a periodic excitation, --fs HZ if the file gives no fs), or "
-            "freqid_casadi.experiment.load_records_mat(path, u=NAME, y=NAME)")
+            "freqid_casadi.experiment.load_records_mat(path).channels[NAME]")
 
 
 # --------------------------------------------------------------------------- start and step

@@ -142,13 +142,21 @@ def parse_band(band):
     return float(lo), float(hi)
 
 
+#: Relative slack of a band's edges (:func:`_in_band`): 8 units of rounding.
+_EDGE = 8 * np.finfo(float).eps
+
+
 def _in_band(path, omega, band, scale, unit):
     """Mask of the points of ``omega`` (rad/s) inside ``band`` (file unit, ``omega = scale
     * f``), with a DataWarning saying how many were dropped; DataError when none is left."""
     lo, hi = band
     f = omega / scale
+    # the file's frequency went to rad/s and back: a point on an edge (1000 Hz read as
+    # 999.9999999999999) is inside the band, within a few units of rounding
+    lo, hi = lo * (1 - _EDGE), hi * (1 + _EDGE)
     below, above = int(np.sum(f < lo)), int(np.sum(f > hi))
     keep = (f >= lo) & (f <= hi)
+    lo, hi = band
     shown = f"[{lo:g}, {hi:g}] {unit}"
     if not keep.any():
         raise DataError(f"{path!r}: no data point in band {shown} (the data span "
