@@ -379,6 +379,9 @@ def test_notes_of_many_files_are_printed_once_per_text(capsys):
         "'H1.txt' ... 'H9.txt' (each of 9 files) is not UTF-8 (byte 0xb2 on line 9): read "
         "as Windows-1252", "'H1.txt': band [65, 1000] Hz: kept 10 of 12 points"]
     assert grouped_notes(["'a': x", "'b': x"]) == ["'a', 'b' (each of 2 files): x"]
+    # the records of one UFF file: one file, several records
+    assert grouped_notes(["'t.unv': x"] * 3) == ["'t.unv' (each of 3 records): x"]
+    assert grouped_notes(["'a': x", "'a': x", "'b': x"]) == ["'a', 'b' (each of 2 files): x"]
     with notes_to_stderr():                       # nested blocks: the outer one prints
         for t in texts[:3]:
             with notes_to_stderr():

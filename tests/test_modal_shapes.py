@@ -193,7 +193,7 @@ def test_cli_modal_writes_shapes_and_the_mac_against_reference_shapes(tmp_path, 
     assert "## Mode shapes" in (out / "summary.md").read_text()
     assert (out / "shapes.csv").read_text().splitlines()[1].startswith("ch1,0.1,")
     bad = [*argv[:-4], "--coordinates", "0.1,0.5", "--force"]
-    assert main(bad) == 2 and "one entry per file" in capsys.readouterr().err
+    assert main(bad) == 2 and "one entry per channel" in capsys.readouterr().err
     (tmp_path / "short.csv").write_text("1,2\n3,4\n")
     assert main([*argv[:-1], str(tmp_path / "short.csv"), "--force"]) == 2
     # one order cannot show three stable orders: nothing selected, and the reason printed

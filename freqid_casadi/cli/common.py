@@ -208,7 +208,10 @@ def grouped_notes(notes):
             out.append(rest)
         elif len(paths) == 1:
             out.append(f"'{paths[0]}'{rest}")
+        elif len(set(paths)) == 1:              # the records of one file (a UFF test)
+            out.append(f"'{paths[0]}' (each of {len(paths)} records){rest}")
         else:
+            paths = list(dict.fromkeys(paths))
             shown = (f"'{paths[0]}' ... '{paths[-1]}'" if len(paths) > 3
                      else ", ".join(f"'{p}'" for p in paths))
             out.append(f"{shown} (each of {len(paths)} files){rest}")

@@ -156,10 +156,10 @@ def _coordinates(text, n):
             coords = np.array([float(t) for t in str(text).split(",")])[:, None]
         except ValueError:
             raise OptionError(f"--coordinates must be a comma list of numbers (one per "
-                              f"file) or a file, got {text!r}") from None
+                              f"channel) or a file, got {text!r}") from None
     if coords.shape[0] != n:
-        raise OptionError(f"--coordinates needs one entry per file ({n}), got "
-                          f"{coords.shape[0]}")
+        raise OptionError(f"--coordinates needs one entry per channel ({n}: a file each, or "
+                          f"each FRF record of a UFF file), got {coords.shape[0]}")
     return coords
 
 
@@ -170,7 +170,7 @@ def _reference(path, n):
     ref = _number_table(path, "--reference-shapes")
     if ref.shape[0] != n:
         raise OptionError(f"--reference-shapes: {path!r} has {ref.shape[0]} rows; it needs "
-                          f"one row per channel ({n} files), one column per mode")
+                          f"one row per channel ({n}), one column per mode")
     return ref.T
 
 
