@@ -3,11 +3,14 @@
 Usage::
 
     python scripts/corpus_order.py [--rounds 0,8,16,...] [--seed 0]
-                                   [--max-points 120] [--workers 2] [--out DIR] [--force]
+                                   [--max-points 120] [--many-modes 24] [--workers 2]
+                                   [--out DIR] [--force]
 
 Fits every noisy case of the given rounds of the nine families (round r: corpus indices
 9 r ... 9 r + 8; rounds 0, 8, 16, 24 and 32 are the corpus run's automatic-order subset)
-at 1 ... true + 3 sections (``freqid_casadi.studies.corpus_order.ladder``; each case's
+and ``--many-modes`` lightly damped structures of 6-16 modes at 400 points
+(``freqid_casadi.studies.corpus_order.many_mode_case``; the corpus's families have at most
+6) at 1 ... true + 3 sections, at most 16 (``freqid_casadi.studies.corpus_order.ladder``; each case's
 ladder is appended to ``DIR/ladders.jsonl`` as it ends, and a run started again fits only
 the missing ones), then replays each rule of ``freqid_casadi.studies.corpus_order.RULES``
 over the ladders -- the rule of ``n_sections="auto"`` as ``choose_order`` applies it to
@@ -26,8 +29,9 @@ import time
 
 from freqid_casadi.report.environment import computed_on, environment
 from freqid_casadi.report.folder import generated_by_line, markdown_table
-from freqid_casadi.studies.corpus_order import (EXTRA, RULES, SUBSET_ROUNDS, judge,
-                                                order_tasks, run_ladders)
+from freqid_casadi.studies.corpus_order import (EXTRA, MANY_MODES, RULES, SUBSET_ROUNDS,
+                                                judge, many_mode_tasks, order_tasks,
+                                                run_ladders)
 
 
 def _line(d):
@@ -46,9 +50,13 @@ def report(command, ladders, rounds, seed, max_points, wall):
     env = environment()
     md = [generated_by_line(command), "",
           "# The automatic order on the noisy corpus cases (issue 26, item 6)", "",
-          f"{len(ladders)} noisy cases of corpus seed {seed} (rounds "
-          f"{', '.join(map(str, rounds))} of the nine families, at most {max_points} points),"
-          f" each fitted once at 1 ... true + {EXTRA} sections with today's other defaults; "
+          f"{sum(d['family'] != 'many-modes' for d in ladders)} noisy cases of corpus seed "
+          f"{seed} (rounds {', '.join(map(str, rounds))} of the nine families, at most "
+          f"{max_points} points) and {sum(d['family'] == 'many-modes' for d in ladders)} "
+          f"lightly damped structures of {min(MANY_MODES)}-{max(MANY_MODES)} modes "
+          "(`many_mode_case`: collocated, 0.3-3 % noise, 400 points; the corpus's families "
+          f"have at most 6 modes), each fitted once at 1 ... true + {EXTRA} sections (at "
+          "most 16) with today's other defaults; "
           "each rule is replayed over those fits exactly as `n_sections=\"auto\"` applies it "
           "(`freqid_casadi.studies.corpus_order`). The subset: rounds "
           f"{', '.join(map(str, SUBSET_ROUNDS))}, the cases of results/corpus's automatic-"
@@ -57,11 +65,15 @@ def report(command, ladders, rounds, seed, max_points, wall):
           "## Order in [true, true + 1]", ""]
     rows = []
     for name in RULES:
-        v = verdicts[name]
+        v = [x for x in verdicts[name] if x["family"] != "many-modes"]
+        many = [x for x in verdicts[name] if x["family"] == "many-modes"]
         for label, sel in (("subset", [x for x in v if x["subset"]]),
                            ("other rounds", [x for x in v if not x["subset"]]),
                            ("all", v),
-                           ("all, true order at the floor", [x for x in v if x["floor"]])):
+                           ("all, true order at the floor", [x for x in v if x["floor"]]),
+                           ("many modes", many),
+                           ("many modes, true order at the floor",
+                            [x for x in many if x["floor"]])):
             if not sel:
                 continue
             hit = sum(x["right"] for x in sel)
@@ -101,6 +113,8 @@ def main(argv=None):
                          "300-case corpus, the subset first)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--max-points", type=int, default=120)
+    ap.add_argument("--many-modes", type=int, default=24,
+                    help="many-mode structures fitted beside the corpus cases (default 24)")
     ap.add_argument("--workers", type=int, default=2)
     ap.add_argument("--out", default=os.path.join("results", "corpus-order"))
     ap.add_argument("--force", action="store_true", help="fit every ladder again")
@@ -120,6 +134,7 @@ def main(argv=None):
         print(f"{d['case']}: true {d['true_sections']}, {_line(d)}", file=sys.stderr,
               flush=True)
     tasks = order_tasks(args.seed, rounds, args.max_points)
+    tasks += many_mode_tasks(args.many_modes, args.seed)
     ladders = run_ladders(tasks, path, args.workers, progress)
     md, js = report(command, ladders, rounds, args.seed, args.max_points,
                     time.perf_counter() - t0)

@@ -24,7 +24,9 @@ the data:
    :data:`MODE_TOLERANCE` (relative).
 
 Without a consistent order it stops after :data:`PATIENCE` orders in a row that do not
-lower the RMS significantly (for a structured residual the share fitting noise could take
+lower the RMS significantly, but not before as many sections as the data show resonance
+peaks (:func:`resonance_count`: with fifteen modes, one more section lowers the RMS by a few
+per cent, below the significance floor, until the last modes are fitted) (for a structured residual the share fitting noise could take
 shrinks with the noise's share of its mean square, :func:`noise_share`;
 ``"no-improvement"``: the model class, not the order, limits the fit; the smallest of the
 best orders is kept; orders no better than the trivial model, RMS >= ``TRIVIAL_RMS``, do
@@ -62,7 +64,8 @@ __all__ = ["OrderStep", "OrderChoice", "choose_order", "decide", "with_order_rec
            "explaining_step", "fit_step",
            "whiteness", "significant", "beats_noise", "noise_share", "with_free_zeros",
            "WHITE_RATIO", "EXACT_RMS", "MODE_TOLERANCE", "PATIENCE", "MAX_SECTIONS",
-           "FREE_ZEROS_GAIN", "ORDER_ALPHA", "MIN_FALL"]
+           "FREE_ZEROS_GAIN", "ORDER_ALPHA", "MIN_FALL", "resonance_count",
+           "PEAK_PROMINENCE_DB", "PEAK_NOISE"]
 
 #: RMS / roughness of a residual consistent with white noise (1 for white noise; the
 #: estimate scatters by about 1/sqrt(M)).
@@ -84,6 +87,13 @@ ORDER_ALPHA = 0.01
 #: The least RMS fall the F-test counts: on thousands of points it alone would keep a
 #: section for a fall of 0.3 %, which a small systematic error of real data gives.
 MIN_FALL = 0.03
+#: Least prominence of a resonance peak of ``|G|`` that :func:`resonance_count` counts, dB.
+PEAK_PROMINENCE_DB = 6.0
+#: ... and in multiples of the noise of ``log |G|`` (its point-to-point spread): a measured
+#: FRF's heavy-tailed noise (an electro-mechanical positioning system's published FRF, 1024
+#: points) gave local maxima up to 15 of these above their surroundings without the running
+#: median, 5 peaks where it has no resonance (none with the median, at 10 or 20 of these).
+PEAK_NOISE = 20.0
 #: A minimum-phase order search that found no consistent order offers the free-zeros one
 #: when that reaches at most this fraction of its RMS (as fit's ``non-minimum-phase``
 #: diagnostic: ``check_minimum_phase``'s ratio).
@@ -139,6 +149,9 @@ class OrderChoice:
         Every order tried, in order.
     message : str
         One sentence: the order, why, and the numbers.
+    peaks : int
+        Resonance peaks of the data (:func:`resonance_count`), below which the search did
+        not stop for want of improvement.
     """
 
     result: object
@@ -146,6 +159,7 @@ class OrderChoice:
     reason: str
     steps: tuple
     message: str
+    peaks: int = 0
 
 
 def whiteness(residual, weights=None):
@@ -258,6 +272,44 @@ def noise_share(step):
     return min(1.0, 1.0 / step.ratio ** 2)
 
 
+def resonance_count(omega, response, weights=None):
+    """Resonance peaks the data show: local maxima of ``log |G|`` over frequency, after a
+    running median of 3 points (a single outlying point makes no peak), whose prominence is
+    at least :data:`PEAK_PROMINENCE_DB` and :data:`PEAK_NOISE` times the noise of ``log
+    |G|`` (from the median absolute second difference, as white noise would give it). Each
+    needs a lightly damped pole pair, one section; close modes that merge into one peak,
+    heavily damped ones and those the noise hides are not counted, so the count is a lower
+    bound on the sections the data need (measured on 300 corpus cases: at most the true
+    sections in 297, one more in 3).
+
+    Parameters
+    ----------
+    omega : ndarray of float, shape (M,)
+        Frequencies by increasing value (their unit does not matter).
+    response : ndarray of complex, shape (M,)
+    weights : ndarray of float, shape (M,), optional
+        Points of weight 0 are left out.
+
+    Returns
+    -------
+    int
+    """
+    from scipy.signal import find_peaks
+
+    g = np.asarray(response, complex)
+    keep = np.isfinite(g) & (np.abs(g) > 0)
+    if weights is not None:
+        keep &= np.asarray(weights, float) > 0
+    y = np.log(np.abs(g[keep]))
+    if y.size < 5:
+        return 0
+    noise = float(np.median(np.abs(np.diff(y, 2)))) / 0.6745 / math.sqrt(6.0)
+    least = max(PEAK_PROMINENCE_DB / 20 * math.log(10), PEAK_NOISE * noise)
+    smooth = y.copy()
+    smooth[1:-1] = np.median(np.stack([y[:-2], y[1:-1], y[2:]]), axis=0)
+    return int(find_peaks(smooth, prominence=least)[0].size)
+
+
 def explaining_step(step, free=None):
     """The step the order rule reads for one order: ``step`` (the minimum-phase fit), or
     ``free`` (its ``zeros="free"`` alternative) when ``step`` is not consistent with the
@@ -355,7 +407,8 @@ def _best(steps, n_points, share=noise_share):
                 if not significant(s.rms, best, n_points, share(s)))
 
 
-def decide(steps, poles, omega, n_points, *, end=None, share=noise_share, alpha=ORDER_ALPHA):
+def decide(steps, poles, omega, n_points, *, end=None, share=noise_share, alpha=ORDER_ALPHA,
+           peaks=0):
     """The rule of :func:`choose_order` (module docstring), on the orders tried so far.
 
     Parameters
@@ -376,6 +429,9 @@ def decide(steps, poles, omega, n_points, *, end=None, share=noise_share, alpha=
     alpha : float
         Level of :func:`beats_noise` for an order consistent with the noise (0: that
         test off, the rule before it).
+    peaks : int
+        Resonance peaks of the data (:func:`resonance_count`): the search does not stop for
+        want of improvement below that many sections (0: the rule before it).
 
     Returns
     -------
@@ -393,7 +449,7 @@ def decide(steps, poles, omega, n_points, *, end=None, share=noise_share, alpha=
         if _consistent(prev) and (not better or exact) and _modes_stable(
                 poles[-2], poles[-1], omega) <= MODE_TOLERANCE:
             return len(steps) - 2, _explained(prev)
-        if _stale(steps, n_points, share) >= PATIENCE:
+        if cur.n_sections >= peaks and _stale(steps, n_points, share) >= PATIENCE:
             return _best(steps, n_points, share), "no-improvement"
         return None
     if steps and _consistent(steps[-1]):
@@ -443,17 +499,19 @@ def choose_order(fit_one, *, max_sections=MAX_SECTIONS, min_sections=1):
                 raise
             end = "data-limit"
             break
+        if not results:
+            data = res.data
+            peaks = resonance_count(data.omega, data.response, data.weights)
         results.append(res)
         step, p = _step(res)
         steps.append(step)
         poles.append(p)
-        verdict = decide(steps, poles, results[0].data.omega, results[0].data.omega.size)
+        verdict = decide(steps, poles, data.omega, data.omega.size, peaks=peaks)
         if verdict is not None:
             break
-    omega = results[0].data.omega
     if verdict is None:
-        verdict = decide(steps, poles, omega, omega.size, end=end)
-    return _choice(results, steps, poles, *verdict, omega)
+        verdict = decide(steps, poles, data.omega, data.omega.size, end=end)
+    return _choice(results, steps, poles, *verdict, data.omega, peaks)
 
 
 #: The order rule's test, named where it fails: it is stricter than the fit's status check
@@ -474,7 +532,7 @@ _WHY = {
 }
 
 
-def _choice(results, steps, poles, k, reason, omega):
+def _choice(results, steps, poles, k, reason, omega, peaks=0):
     step = steps[k]
     weighted = getattr(getattr(results[0], "data", None), "weights", None) is not None
     rms = "weighted RMS" if weighted else "RMS"
@@ -504,8 +562,11 @@ def _choice(results, steps, poles, k, reason, omega):
     message = (f"n_sections='auto' chose {step.n_sections} section{plural}: {why} "
                f"({own}){nxt}; "
                f"orders tried ({rms}, x roughness; * with free zeros) {tried}")
+    if peaks > 1:
+        message += (f"; the data show {peaks} resonance peaks (the search does not stop for "
+                    "want of improvement before that many sections)")
     return OrderChoice(result=results[k], n_sections=step.n_sections, reason=reason,
-                       steps=tuple(steps), message=message)
+                       steps=tuple(steps), message=message, peaks=int(peaks))
 
 
 def with_order_record(choice):
@@ -526,7 +587,7 @@ def with_order_record(choice):
         "orders": [s.n_sections for s in choice.steps],
         "rms": [s.rms for s in choice.steps], "ratio": [s.ratio for s in choice.steps],
         "local_ratio": [s.local_ratio for s in choice.steps],
-        "free_zeros": [s.free for s in choice.steps]})
+        "free_zeros": [s.free for s in choice.steps], "resonance_peaks": choice.peaks})
     try:
         diagnostics, message = _not_the_order(choice)
         return dataclasses.replace(choice.result, diagnostics=diagnostics + (d,),

@@ -10,22 +10,26 @@ rule can then be judged on many cases for the cost of fitting them once.
 """
 
 import json
+import math
 import multiprocessing
 import time
+import types
 import warnings
 
 import numpy as np
 
+from ..core.data import FrequencyData
 from ..errors import DataError, StructureError
 from ..fitting.fit import fit
-from ..fitting.order import MAX_SECTIONS, OrderStep, explaining_step, fit_step
+from ..fitting.order import (MAX_SECTIONS, OrderStep, explaining_step, fit_step,
+                             resonance_count)
 from ..report.folder import code_fingerprint
 from ..systems.corpus import FAMILIES, case
 from .corpus import (CPU_BUDGET, FLOOR_FACTOR, FULL_CASES, SUBSET_EVERY, TimeLimit, _budget,
                      json_lines)
 
 __all__ = ["EXTRA", "SUBSET_ROUNDS", "RULES", "ladder", "run_ladders", "replay", "judge",
-           "order_tasks"]
+           "order_tasks", "many_mode_case", "many_mode_tasks", "MANY_MODES"]
 
 #: Orders past the true one a ladder fits (a choice above true + 1 is a miss whatever it
 #: is, and a rule needs N + 1 (and its patience) to decide on N).
@@ -62,6 +66,74 @@ def order_tasks(seed=0, rounds=SUBSET_ROUNDS, max_points=120):
     return out
 
 
+#: Modes of the many-mode cases, by index (:func:`many_mode_case`).
+MANY_MODES = (6, 8, 10, 12, 14, 16)
+
+
+def many_mode_case(index, seed=0, n_points=400):
+    """A lightly damped flexible structure with many modes, measured collocated: the
+    modes' natural frequencies log-uniform over 2.5 decades, damping ratios log-uniform in
+    [0.005, 0.05], positive residues (so poles and zeros interlace: minimum phase), a
+    feedthrough in every other case, a delay up to a tenth of a turn at the top frequency
+    and flat complex Gaussian relative noise of 0.3-3 %, at ``n_points`` log-spaced
+    frequencies over 3 decades around the modes. The corpus's families have at most 6
+    modes; these test the order search where one section is one mode of many.
+
+    Parameters
+    ----------
+    index, seed : int
+        Case ``index`` has ``MANY_MODES[index % 6]`` modes; its draws come from
+        ``numpy.random.default_rng([seed, index, 6])``.
+    n_points : int
+
+    Returns
+    -------
+    types.SimpleNamespace
+        ``name, family ("many-modes"), n_sections, noise, n_points, in_class (True), data``
+        (:class:`~freqid_casadi.core.data.FrequencyData`, rad/s).
+    """
+    rng = np.random.default_rng([int(seed), int(index), 6])
+    modes = MANY_MODES[index % len(MANY_MODES)]
+    wn = np.sort(np.exp(rng.uniform(0.0, 2.5 * math.log(10), modes)))
+    zeta = np.exp(rng.uniform(math.log(0.005), math.log(0.05), modes))
+    residue = rng.uniform(0.3, 1.0, modes)
+    omega = np.geomspace(wn[0] / 3, wn[-1] * 3, int(n_points))
+    s = 1j * omega
+    g = np.sum(residue[:, None] * wn[:, None] ** 2
+               / (s ** 2 + 2 * zeta[:, None] * wn[:, None] * s + wn[:, None] ** 2), axis=0)
+    g = g + (0.05 * rng.uniform(0.2, 1.0) if index % 2 else 0.0)
+    g = g * np.exp(-s * rng.uniform(0.0, 0.1) * 2 * math.pi / omega[-1])
+    noise = math.exp(rng.uniform(math.log(0.003), math.log(0.03)))
+    n = (rng.standard_normal(omega.size) + 1j * rng.standard_normal(omega.size)) / math.sqrt(2)
+    name = f"many-modes-{index}"
+    return types.SimpleNamespace(
+        name=name, family="many-modes", n_sections=modes, noise=noise,
+        n_points=omega.size, in_class=True,
+        data=FrequencyData(omega, g * (1 + noise * n), name, None))
+
+
+def many_mode_tasks(n, seed=0, n_points=400):
+    """Tasks ``("many-modes", index, seed, n_points)`` of :func:`ladder` for the first
+    ``n`` many-mode cases (:func:`many_mode_case`).
+
+    Parameters
+    ----------
+    n, seed, n_points : int
+
+    Returns
+    -------
+    list of tuple
+    """
+    return [("many-modes", i, int(seed), int(n_points)) for i in range(int(n))]
+
+
+def _case(task):
+    if task[0] == "many-modes":
+        return many_mode_case(*task[1:])
+    index, seed, max_points = task
+    return case(index, seed, max_points=max_points)
+
+
 def ladder(task, top=None):
     """Fit case ``task = (index, seed, max_points)`` at N = 1 ... true + EXTRA sections
     (``top`` if given; default options otherwise), each within the corpus run's CPU budget.
@@ -69,7 +141,8 @@ def ladder(task, top=None):
     Parameters
     ----------
     task : tuple
-        ``(index, seed, max_points)`` of :func:`order_tasks`.
+        ``(index, seed, max_points)`` of :func:`order_tasks`, or a many-mode case's
+        ``("many-modes", index, seed, n_points)`` (:func:`many_mode_tasks`).
     top : int, optional
         Largest number of sections fitted (default true + :data:`EXTRA`).
 
@@ -81,8 +154,7 @@ def ladder(task, top=None):
         the fit offers a ``zeros="free"`` alternative, ``free`` (its ``rms, ratio,
         success, status, poles``), or ``error`` (the exception, then the ladder ends).
     """
-    index, seed, max_points = task
-    c = case(index, seed, max_points=max_points)
+    c = _case(task)
     top = min(MAX_SECTIONS, c.n_sections + EXTRA) if top is None else int(top)
     out = dict(task=list(task), case=c.name, family=c.family, true_sections=c.n_sections,
                noise=c.noise, n_points=c.n_points, in_class=c.in_class,
@@ -149,7 +221,7 @@ class _Beyond(Exception):
     pass
 
 
-def replay(lad, decide=None, *, free_zeros=True, **kw):
+def replay(lad, decide=None, *, free_zeros=True, peaks=True, **kw):
     """The order ``decide`` (default :func:`freqid_casadi.fitting.order.decide`) chooses
     over a :func:`ladder`: ``(n_sections, reason)``, or ``(None, "beyond")`` when the rule
     asked for an order the ladder did not fit (a choice above ``true + 1`` in any case
@@ -165,6 +237,9 @@ def replay(lad, decide=None, *, free_zeros=True, **kw):
         Read an order from its ``zeros="free"`` alternative where
         :func:`~freqid_casadi.fitting.order.explaining_step` does (as ``choose_order``);
         False: from the minimum-phase fit alone (the rule before it).
+    peaks : bool
+        Do not stop for want of improvement below the data's resonance peaks (as
+        ``choose_order``, counted on the ladder's case); False: the rule before it.
     **kw
         Passed to ``decide``.
 
@@ -176,6 +251,9 @@ def replay(lad, decide=None, *, free_zeros=True, **kw):
     decide = decide or _order.decide
     orders = {o["n_sections"]: o for o in lad["orders"]}
     omega = np.array(lad["omega"])
+    if peaks:
+        data = _case(lad["task"]).data
+        kw = dict(kw, peaks=resonance_count(data.omega, data.response, data.weights))
     steps, poles = [], []
     for n in range(1, MAX_SECTIONS + 1):
         o = orders.get(n)
@@ -232,7 +310,8 @@ def judge(ladders, decide=None, **options):
                     "reason": reason, "right": n is not None and t <= n <= t + 1,
                     "below": n is not None and n < t,
                     "above": n is None and reason == "beyond" or n is not None and n > t + 1,
-                    "subset": d["task"][0] // len(FAMILIES) in SUBSET_ROUNDS,
+                    "subset": isinstance(d["task"][0], int)
+                    and d["task"][0] // len(FAMILIES) in SUBSET_ROUNDS,
                     "floor": at_true is not None
                     and at_true["rms"] <= FLOOR_FACTOR * d["noise"]})
     return out
@@ -250,7 +329,11 @@ RULES = {
                     "fit is not consistent with the noise is read from the zeros='free' model "
                     "that fit offers, when that reaches at most half its RMS "
                     "(`explaining_step`): the search stops where the offered model explains "
-                    "the data", {}),
-    "previous": (None, "the same, every order read from its minimum-phase fit alone (the "
-                       "rule of the previous results/corpus-order)", {"free_zeros": False}),
+                    "the data. It does not stop for want of improvement below as many "
+                    "sections as the data show resonance peaks (`resonance_count`)", {}),
+    "previous": (None, "the same without the resonance peaks (the rule of the previous "
+                       "results/corpus-order)", {"peaks": False}),
+    "before free zeros": (None, "the previous rule, every order read from its "
+                                "minimum-phase fit alone", {"peaks": False,
+                                                            "free_zeros": False}),
 }
