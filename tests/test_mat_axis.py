@@ -114,7 +114,7 @@ def test_two_arrays_beside_the_axis_are_named(tmp_path):
     with pytest.raises(DataError, match=r"gives a frequency axis \(df, f_end, f_start\) "
                        r"beside 2 other arrays, not one response \(found H21 \(4 x 2\), H22 "
                        r"\(4 x 2\), df \(scalar\), f_end \(scalar\), f_start \(scalar\)\): "
-                       r"keep one response in the file"):
+                       r"choose the response with parameter='H21'"):
         fc.load(path, freq_unit="Hz")
 
 
@@ -140,3 +140,31 @@ def test_a_response_without_any_axis_lists_the_variables_and_what_to_save(tmp_pa
                        r"their start and step as scalars f_start and df .*or build the data "
                        r"in Python: freqid_casadi\.FrequencyData\(omega, response\)"):
         fc.load(path)
+
+
+# -- several responses in one file: parameter= chooses one --------------------------------
+
+def test_parameter_chooses_one_of_several_responses_beside_one_axis(tmp_path):
+    # a modal test's file: two FRFs as real N x 2 matrices (real, imaginary) beside the
+    # scalars of the axis
+    h21 = np.column_stack([H.real, H.imag])
+    path = _mat(tmp_path, "H2.mat", H21=h21, H22=2 * h21, f_start=10.0, df=2.5)
+    with pytest.raises(DataError, match=r"parameter='H21' \(command line --parameter H21\)"):
+        fc.load(path, freq_unit="Hz")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        data = fc.load(path, freq_unit="Hz", parameter="H22")
+    np.testing.assert_array_equal(data.response, 2 * H)
+    np.testing.assert_allclose(data.omega / (2 * np.pi), [10.0, 12.5, 15.0, 17.5], rtol=1e-15)
+    with pytest.raises(DataError, match="no variable 'H2'; its arrays: H21, H22"):
+        fc.load(path, freq_unit="Hz", parameter="H2")
+    with pytest.raises(DataError, match="df .*is not a response"):
+        fc.load(path, freq_unit="Hz", parameter="df")
+
+
+def test_parameter_chooses_a_complex_response_beside_a_frequency_vector(tmp_path):
+    path = _mat(tmp_path, freq_hz=np.array([1.0, 2.0, 4.0, 8.0]), H11=H, H21=1j * H)
+    data = fc.load(path, parameter="H21")
+    np.testing.assert_array_equal(data.response, 1j * H)
+    np.testing.assert_allclose(data.omega, 2 * np.pi * np.array([1.0, 2.0, 4.0, 8.0]),
+                               rtol=1e-15)

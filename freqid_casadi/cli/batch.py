@@ -93,7 +93,7 @@ def add_cli(subparsers):
                         "of an LTspice export")
     p.add_argument("--parameter", metavar="S21",
                    help="which parameter of each Touchstone file or network analyser's CSV "
-                        "(default S11)")
+                        "(default S11), or which response variable of each .mat file")
     _add_model_arguments(p, integrator=False)
     p.add_argument("--method", choices=METHODS, default="ipopt",
                    help="stage solver (default ipopt)")

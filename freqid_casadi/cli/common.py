@@ -113,7 +113,8 @@ def add_data_options(parser, records=False, weights=None):
                  "parameter (default S11; S21 is the transfer from port 1 to port 2; S10,11 "
                  "for ten and more ports); also which S-parameter or receiver ratio of a "
                  "network analyser's CSV whose header names several (S21(REAL),S21(IMAG),"
-                 "S11(REAL),...,A2/A1(REAL),...)")
+                 "S11(REAL),...,A2/A1(REAL),...); and which variable of a .mat file "
+                 "holding several responses beside one frequency axis (H21)")
     if records if weights is None else weights:
         parser.add_argument(
             "--weights", metavar="STATS.csv",

@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import DataError
 
 __all__ = ["read_mat_arrays", "records_hint", "start_step_axis", "axis_variables",
-           "MIN_RECORD"]
+           "chosen_response", "MIN_RECORD"]
 
 #: Shortest vector counted as a time record.
 MIN_RECORD = 16
@@ -198,6 +198,63 @@ def axis_variables(arrays):
     """
     return [key for key, arr in arrays.items() if _axis_role(key) is not None
             and np.size(arr) == 1 and not np.iscomplexobj(arr)]
+
+
+def chosen_response(path, arrays, parameter, is_freq):
+    """The variables of a ``.mat`` file that holds several responses (``H21`` and ``H22``
+    beside one frequency axis) with ``parameter``, the one chosen, as its response: a
+    complex vector named ``response``, or a real N x 2 matrix's columns as ``re`` and
+    ``im`` (with a DataWarning); the frequency variables kept, every other array left out.
+
+    Parameters
+    ----------
+    path : str
+        The file, for messages.
+    arrays : dict of str to ndarray
+        Its numeric variables (:func:`read_mat_arrays`).
+    parameter : str
+        The response's MATLAB name (``H21``, ``frf.H21``).
+    is_freq : callable
+        ``name -> bool``: a variable name the reader takes for a frequency vector.
+
+    Returns
+    -------
+    dict of str to ndarray
+
+    Raises
+    ------
+    DataError
+        No such variable, or one that is not a response.
+    """
+    import warnings
+
+    from ._readfile import DataWarning
+
+    if parameter not in arrays:
+        raise DataError(f"{path!r} has no variable {parameter!r}; its arrays: "
+                        f"{', '.join(k for k in arrays if np.size(arrays[k]) > 1)}: pass "
+                        "one of them as parameter= (command line --parameter)")
+    axis = axis_variables(arrays)
+    out = {k: a for k, a in arrays.items() if k != parameter and (
+        k in axis or np.size(a) > 1 and not np.iscomplexobj(a) and is_freq(k))}
+    a = np.asarray(arrays[parameter])
+    shape = a.shape
+    if np.iscomplexobj(a) and a.size > 1 and a.size == max(shape):
+        out["response"] = a.reshape(-1)
+    elif a.ndim == 2 and 2 in shape and max(shape) > 2 and not np.iscomplexobj(a):
+        mat = np.asarray(a, float)
+        mat = mat if mat.shape[1] == 2 else mat.T
+        warnings.warn(f"{path!r}: read the two columns of {parameter} ({mat.shape[0]} x 2) "
+                      "as the real and imaginary parts of the response; if they are "
+                      "magnitude and phase, save the response as one complex vector",
+                      DataWarning, stacklevel=4)
+        out["re"], out["im"] = mat[:, 0], mat[:, 1]
+    else:
+        raise DataError(f"{path!r}: {parameter} ({' x '.join(map(str, shape)) or 'scalar'}"
+                        f"{', real' if not np.iscomplexobj(a) else ''}) is not a response: "
+                        "choose a complex vector, or a real N x 2 matrix of real and "
+                        "imaginary parts")
+    return out
 
 
 def _axis_parts(arrays):

@@ -25,7 +25,8 @@ import zipfile
 
 import numpy as np
 
-from ._mat import axis_variables, read_mat_arrays, records_hint, start_step_axis
+from ._mat import (axis_variables, chosen_response, read_mat_arrays, records_hint,
+                   start_step_axis)
 from ._touchstone import is_touchstone, load_touchstone
 from ._traces import read_traces
 from ._uff import load_uff, read_uff
@@ -115,7 +116,8 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
                               "option line gives the units); drop them")
         return load_touchstone(path, name, parameter=parameter, band=band)
     if lower.endswith(".mat"):
-        return load_mat(path, name, freq_unit=freq_unit, columns=cols, band=band)
+        return load_mat(path, name, freq_unit=freq_unit, columns=cols, band=band,
+                        parameter=parameter)
     if lower.endswith(".json"):
         raise DataError(f"{os.fspath(path)!r} is JSON, not frequency-response data: a model "
                         "file that freqid wrote (model.json) is read with "
@@ -197,10 +199,11 @@ def refuse_options(path, *, record=None, parameter=None, columns=None, flag=Fals
         raise OptionError(f"{spell('record')} chooses a record of a UFF file (.uff/.unv) or "
                           f"a run of an LTspice export with .step runs, not of {path!r}; "
                           "drop it")
-    if parameter is not None and lower.endswith((".npz", ".mat") + _UFF_EXT):
+    if parameter is not None and lower.endswith((".npz",) + _UFF_EXT):
         raise OptionError(f"{spell('parameter')} chooses a parameter of a Touchstone file "
-                          "(.s1p, .s2p, ..., .sNp, .ts) or of a text table whose header "
-                          f"names S-parameters, not of {path!r}; drop it")
+                          "(.s1p, .s2p, ..., .sNp, .ts), of a text table whose header "
+                          "names S-parameters or the response variable of a .mat file, not "
+                          f"of {path!r}; drop it")
     if columns is not None and lower.endswith((".npz",) + _UFF_EXT):
         raise OptionError(f"{spell('columns')} names the columns of a text table or a .mat "
                           f"matrix; {path!r} names its own arrays or records: drop it")
@@ -432,7 +435,7 @@ def load_npz(path, name=None, *, freq_unit=None, band=None):
 
 # --------------------------------------------------------------------------- mat
 
-def load_mat(path, name=None, *, freq_unit=None, columns=None, band=None):
+def load_mat(path, name=None, *, freq_unit=None, columns=None, band=None, parameter=None):
     """Read data from a MATLAB ``.mat`` file (v4 to v7.2, via ``scipy.io.loadmat``).
 
     Parameters
@@ -445,6 +448,10 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None, band=None):
         Names of the columns of the single numeric matrix (N x k, or k x N) the file holds.
     band : (float, float), optional
         As :func:`load_text`.
+    parameter : str, optional
+        The variable that holds the response, for a file of several (``"H21"`` beside
+        ``H22`` and one frequency axis): a complex vector, or a real N x 2 matrix of real
+        and imaginary parts; the frequency variables are read as without it.
 
     Returns
     -------
@@ -484,6 +491,8 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None, band=None):
     band = parse_band(band)
     path, payload = read_regular_file(path)
     arrays = read_mat_arrays(path, payload, MAX_ELEMENTS)
+    if parameter is not None:
+        arrays = chosen_response(path, arrays, str(parameter), _is_freq)
     table = _mat_table(path, arrays, columns, freq_unit)
     omega, response = table_response(table)
     return _finish(path, omega, response, name, band=band, **_band_unit(table.unit("freq")))
@@ -526,6 +535,11 @@ def _mat_table(path, arrays, columns, freq_unit):
     table = Table(path, cols, values, np.arange(1, n + 1), where="row")
     _check_finite(table)
     return table
+
+
+def _is_freq(name):
+    col = recognise(name.rsplit(".", 1)[-1])
+    return col is not None and col.role == "freq"
 
 
 def _mat_vectors(path, arrays, named):
@@ -583,9 +597,9 @@ def _beside_axis(path, arrays):
         raise DataError(hint)
     raise DataError(
         f"{path!r} gives a frequency axis ({', '.join(axis)}) beside "
-        f"{len(rest)} other arrays, not one response (found {_found(arrays)}): keep one "
-        "response in the file, named response (a complex vector) or re and im, beside the "
-        "axis; or build the data in Python: freqid_casadi.FrequencyData(omega, response)")
+        f"{len(rest)} other arrays, not one response (found {_found(arrays)}): choose the "
+        f"response with parameter='{next(iter(rest))}' (command line --parameter "
+        f"{next(iter(rest))})")
 
 
 def _mat_matrix(path, arrays, columns, named):
