@@ -9,6 +9,7 @@ the comments; the thresholds keep a stated margin below them.
 
 import json
 import math
+import warnings
 
 import numpy as np
 import pytest
@@ -543,3 +544,20 @@ def test_auto_order_on_a_twelve_mode_structure(monkeypatch):
     rec = next(d for d in before.diagnostics if d.code == "order-chosen")
     assert before.model.n_sections <= 4 and rec.values["reason"] == "no-improvement"
     assert before.rms_rel_error > 0.5
+
+
+def test_the_search_issues_the_warnings_of_the_order_it_keeps_only():
+    # an order's warnings concern its model: six ResolutionWarnings of orders the search
+    # passed over reached a user of n_sections="auto" on a 12-mode structure
+    w = np.logspace(-1, 1, 60)
+    s = 1j * w
+    data = fc.FrequencyData(w, 4 / (s * s + 0.4 * s + 4))
+
+    def fit_one(n):
+        warnings.warn(f"about the model of {n} sections", UserWarning)
+        return fc.fit(data, n_sections=n, integrator=False)
+    with warnings.catch_warnings(record=True) as issued:
+        warnings.simplefilter("always")
+        choice = choose_order(fit_one, max_sections=3)
+    assert choice.n_sections == 1 and [s.n_sections for s in choice.steps] == [1, 2]
+    assert [str(x.message) for x in issued] == ["about the model of 1 sections"]

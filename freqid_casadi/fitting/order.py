@@ -51,6 +51,7 @@ This module takes the fit as a callable (``fit_one(n) -> FitResult``), so the pi
 
 import dataclasses
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -463,7 +464,8 @@ def _explained(step):
 
 def choose_order(fit_one, *, max_sections=MAX_SECTIONS, min_sections=1):
     """Fit orders ``min_sections, ...`` with ``fit_one`` and choose one (module docstring;
-    the rule is :func:`decide`).
+    the rule is :func:`decide`). The warnings a fit issues concern its model: those of the
+    order kept are issued again, the others' not at all.
 
     Parameters
     ----------
@@ -489,16 +491,19 @@ def choose_order(fit_one, *, max_sections=MAX_SECTIONS, min_sections=1):
     if min_sections > max_sections:
         raise OptionError(f"min_sections={min_sections} > max_sections={max_sections}: "
                           "raise max_sections")
-    results, steps, poles = [], [], []
+    results, steps, poles, caught = [], [], [], []
     verdict, end = None, "max-sections"
     for n in range(int(min_sections), int(max_sections) + 1):
         try:
-            res = fit_one(n)
+            with warnings.catch_warnings(record=True) as issued:
+                warnings.simplefilter("always")
+                res = fit_one(n)
         except (StructureError, DataError):     # more parameters than the data have points
             if not results:
                 raise
             end = "data-limit"
             break
+        caught.append(issued)
         if not results:
             data = res.data
             peaks = resonance_count(data.omega, data.response, data.weights)
@@ -511,6 +516,8 @@ def choose_order(fit_one, *, max_sections=MAX_SECTIONS, min_sections=1):
             break
     if verdict is None:
         verdict = decide(steps, poles, data.omega, data.omega.size, end=end)
+    for w in caught[verdict[0]]:     # an order's warnings concern its model: the kept one's
+        warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
     return _choice(results, steps, poles, *verdict, data.omega, peaks)
 
 
