@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import DataError
 
 __all__ = ["read_mat_arrays", "records_hint", "start_step_axis", "axis_variables",
-           "chosen_response", "MIN_RECORD"]
+           "chosen_response", "response_parts", "MIN_RECORD"]
 
 #: Shortest vector counted as a time record.
 MIN_RECORD = 16
@@ -226,10 +226,6 @@ def chosen_response(path, arrays, parameter, is_freq):
     DataError
         No such variable, or one that is not a response.
     """
-    import warnings
-
-    from ._readfile import DataWarning
-
     if parameter not in arrays:
         raise DataError(f"{path!r} has no variable {parameter!r}; its arrays: "
                         f"{', '.join(k for k in arrays if np.size(arrays[k]) > 1)}: pass "
@@ -237,24 +233,52 @@ def chosen_response(path, arrays, parameter, is_freq):
     axis = axis_variables(arrays)
     out = {k: a for k, a in arrays.items() if k != parameter and (
         k in axis or np.size(a) > 1 and not np.iscomplexobj(a) and is_freq(k))}
-    a = np.asarray(arrays[parameter])
-    shape = a.shape
-    if np.iscomplexobj(a) and a.size > 1 and a.size == max(shape):
-        out["response"] = a.reshape(-1)
-    elif a.ndim == 2 and 2 in shape and max(shape) > 2 and not np.iscomplexobj(a):
-        mat = np.asarray(a, float)
-        mat = mat if mat.shape[1] == 2 else mat.T
-        warnings.warn(f"{path!r}: read the two columns of {parameter} ({mat.shape[0]} x 2) "
-                      "as the real and imaginary parts of the response; if they are "
-                      "magnitude and phase, save the response as one complex vector",
-                      DataWarning, stacklevel=4)
-        out["re"], out["im"] = mat[:, 0], mat[:, 1]
-    else:
-        raise DataError(f"{path!r}: {parameter} ({' x '.join(map(str, shape)) or 'scalar'}"
+    parts = response_parts(path, parameter, arrays[parameter], stacklevel=5)
+    if parts is None:
+        a = np.asarray(arrays[parameter])
+        raise DataError(f"{path!r}: {parameter} ({' x '.join(map(str, a.shape)) or 'scalar'}"
                         f"{', real' if not np.iscomplexobj(a) else ''}) is not a response: "
                         "choose a complex vector, or a real N x 2 matrix of real and "
                         "imaginary parts")
+    out.update({"response" if k == "complex" else k: v for k, v in parts.items()})
     return out
+
+
+def response_parts(path, name, array, stacklevel=4):
+    """``{"complex": vector}`` of a complex vector, ``{"re": ..., "im": ...}`` of the two
+    columns of a real N x 2 (or 2 x N) matrix (with a DataWarning saying so), else None:
+    the array of a ``.mat`` file the reader takes for a response whatever its name.
+
+    Parameters
+    ----------
+    path : str
+        The file, for the note.
+    name : str
+        The array's MATLAB name.
+    array : ndarray
+    stacklevel : int
+        Of the DataWarning.
+
+    Returns
+    -------
+    dict of str to ndarray, or None
+    """
+    import warnings
+
+    from ._readfile import DataWarning
+
+    a = np.asarray(array)
+    if np.iscomplexobj(a) and a.size > 1 and a.size == max(a.shape):
+        return {"complex": a.reshape(-1)}
+    if a.ndim == 2 and 2 in a.shape and max(a.shape) > 2 and not np.iscomplexobj(a):
+        mat = np.asarray(a, float)
+        mat = mat if mat.shape[1] == 2 else mat.T
+        warnings.warn(f"{path!r}: read the two columns of {name} ({mat.shape[0]} x 2) as the "
+                      "real and imaginary parts of the response; if they are magnitude and "
+                      "phase, save the response as one complex vector", DataWarning,
+                      stacklevel=stacklevel)
+        return {"re": mat[:, 0], "im": mat[:, 1]}
+    return None
 
 
 def _axis_parts(arrays):

@@ -20,13 +20,12 @@ allocating). Raise these module constants to read larger files.
 import io
 import os
 import re
-import warnings
 import zipfile
 
 import numpy as np
 
 from ._mat import (axis_variables, chosen_response, read_mat_arrays, records_hint,
-                   start_step_axis)
+                   response_parts, start_step_axis)
 from ._touchstone import is_touchstone, load_touchstone
 from ._traces import read_traces
 from ._uff import load_uff, read_uff
@@ -577,21 +576,13 @@ def _beside_axis(path, arrays):
     headerless table's columns are read, stated by a DataWarning)."""
     axis = axis_variables(arrays)
     rest = {k: a for k, a in arrays.items() if k not in axis}
-    shape = np.shape(next(iter(rest.values()))) if len(rest) == 1 else ()
     key = next(iter(rest)) if rest else None
-    if len(rest) == 1 and np.iscomplexobj(rest[key]) and np.size(rest[key]) == max(shape):
-        vec = np.asarray(rest[key]).reshape(-1)
-        return (Column("complex", None, key),), {"complex": vec}, vec.size
-    if len(rest) == 1 and len(shape) == 2 and 2 in shape and max(shape) > 2 \
-            and not np.iscomplexobj(rest[key]):
-        mat = np.asarray(rest[key], float)
-        mat = mat if mat.shape[1] == 2 else mat.T
-        warnings.warn(f"{path!r}: read the two columns of {key} ({mat.shape[0]} x 2) as the "
-                      "real and imaginary parts of the response; if they are magnitude and "
-                      "phase, save the response as one complex vector", DataWarning,
-                      stacklevel=5)
+    parts = response_parts(path, key, rest[key], stacklevel=6) if len(rest) == 1 else None
+    if parts is not None and "complex" in parts:
+        return (Column("complex", None, key),), parts, parts["complex"].size
+    if parts is not None:
         return ((Column("re", None, f"{key}(:, 1)"), Column("im", None, f"{key}(:, 2)")),
-                {"re": mat[:, 0], "im": mat[:, 1]}, mat.shape[0])
+                parts, parts["re"].size)
     hint = records_hint(path, rest)
     if hint:
         raise DataError(hint)
