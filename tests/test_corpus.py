@@ -561,3 +561,16 @@ def test_the_search_issues_the_warnings_of_the_order_it_keeps_only():
         choice = choose_order(fit_one, max_sections=3)
     assert choice.n_sections == 1 and [s.n_sections for s in choice.steps] == [1, 2]
     assert [str(x.message) for x in issued] == ["about the model of 1 sections"]
+
+
+def test_more_peaks_than_sections_tried_says_what_to_pass():
+    from freqid_casadi.fitting.order import OrderStep, _choice
+
+    steps = [OrderStep(n, 0.9 - 0.05 * n, 3.0, True) for n in (1, 2, 3)]
+    poles = [np.array([-1 + 10j, -1 - 10j])] * 3
+    choice = _choice([None] * 3, steps, poles, 2, "max-sections", np.array([1.0, 100.0]),
+                     peaks=23)
+    assert choice.peaks == 23
+    assert choice.message.endswith(
+        "the data show 23 resonance peaks, more than the 3 sections tried: pass "
+        "n_sections=range(1, 24) (command line --max-sections 23), or fit a narrower band")

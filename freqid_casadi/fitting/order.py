@@ -569,7 +569,12 @@ def _choice(results, steps, poles, k, reason, omega, peaks=0):
     message = (f"n_sections='auto' chose {step.n_sections} section{plural}: {why} "
                f"({own}){nxt}; "
                f"orders tried ({rms}, x roughness; * with free zeros) {tried}")
-    if peaks > 1:
+    top = steps[-1].n_sections
+    if peaks > top and reason == "max-sections":
+        message += (f"; the data show {peaks} resonance peaks, more than the {top} sections "
+                    f"tried: pass n_sections=range(1, {peaks + 1}) (command line "
+                    f"--max-sections {peaks}), or fit a narrower band")
+    elif peaks > 1:
         message += (f"; the data show {peaks} resonance peaks (the search does not stop for "
                     "want of improvement before that many sections)")
     return OrderChoice(result=results[k], n_sections=step.n_sections, reason=reason,
