@@ -23,8 +23,8 @@ from . import systems
 from .core.data import FrequencyData
 from .errors import DataError, FreqidError, OptionError, SolverError, StructureError
 from .fitting.fit import FitResult, FitStatus, StageRecord, fit
-from .io.loaders import (DataWarning, load, load_csv, load_mat, load_npz, load_text,
-                      load_touchstone, load_uff, save_csv)
+from .io.loaders import (DataWarning, load, load_all, load_csv, load_mat, load_npz,
+                         load_text, load_touchstone, load_uff, save_csv)
 from .core.model import RationalDelayModel, Structure
 from .core.modes import ModeShapes, mac
 from .modal.survey import stabilization
@@ -37,7 +37,7 @@ __all__ = [
     "fit", "FitResult", "FitStatus", "StageRecord", "IpoptOptions", "BarrierLMOptions",
     "LoopOptions",
     "FitOptions", "VectorFittingOptions", "FrequencyData", "RationalDelayModel", "Structure",
-    "load", "load_csv", "load_npz", "load_text", "load_mat", "load_uff",
+    "load", "load_all", "load_csv", "load_npz", "load_text", "load_mat", "load_uff",
     "load_touchstone", "save_csv",
     "DataWarning", "systems",
     "FreqidError", "DataError", "StructureError", "OptionError", "SolverError",

@@ -11,7 +11,8 @@ Usage::
                  [--coordinates X1,X2,...|FILE] [--reference-shapes FILE]
 
 Reads one FRF per file (:func:`freqid_casadi.load`; all on one omega grid; every
-frequency-response record of a UFF file, each a channel), estimates
+frequency-response record of a UFF file, and every response of a ``.mat`` file (the
+channels of an FRF matrix), each a channel: :func:`freqid_casadi.load_all`), estimates
 every order of ``--orders`` with shared poles
 (:func:`freqid_casadi.modal.survey.stabilization`: shared-pole vector fitting at each
 order, the selected modes then fitted once with ``fit_shared``; ``--estimator full`` fits
@@ -72,7 +73,9 @@ def add_cli(subparsers):
                    help="FRF files (text/CSV, .npz, .mat, .uff/.unv, .s1p/.s2p, read as by "
                         "'freqid fit'; see its --help for the columns and units); a UFF "
                         "file gives every frequency-response record it holds, one channel "
-                        "each (--record K: only that one)")
+                        "each (--record K: only that one), a .mat file every response "
+                        "(each column of an FRF matrix H: H(:,1), H(:,2), ...; "
+                        "--parameter 'H(:,2)': only that one)")
     add_data_options(p, records=True, weights=False)
     p.add_argument("--orders", default="2:40:2", metavar="START:STOP:STEP",
                    help="model orders (number of shared poles, even), stop included, or a "
@@ -175,16 +178,20 @@ def _reference(path, n):
 
 
 def _file_channels(args, path):
-    """The FRFs of one file: its one data set, or every frequency-response record of a UFF
-    file (a modal test's file holds one per channel; ``--record K`` reads one)."""
+    """The FRFs of one file: its one data set, every frequency-response record of a UFF
+    file (a modal test's file holds one per channel; ``--record K`` reads one), or every
+    response of a ``.mat`` file (an FRF matrix's channels; ``--parameter`` reads one)."""
     from .common import load_data, load_options, refuse_flags
-    from ..io.loaders import is_uff, load_uff
+    from ..io.loaders import is_uff, load_all
 
     opts = load_options(args)
-    if opts.get("record") is not None or not is_uff(path):
+    mat = str(path).lower().endswith(".mat")
+    if (opts.get("record") is not None or opts.get("parameter") is not None
+            or not (mat or is_uff(path))):
         return [load_data(args, path)]
     refuse_flags(path, opts)
-    return list(load_uff(path, freq_unit=opts.get("freq_unit"), band=opts.get("band")))
+    return load_all(path, freq_unit=opts.get("freq_unit"), columns=opts.get("columns"),
+                    band=opts.get("band"))
 
 
 #: The least share of the largest grid the frequencies all channels share must keep for

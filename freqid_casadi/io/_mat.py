@@ -18,7 +18,7 @@ import numpy as np
 from ..errors import DataError
 
 __all__ = ["read_mat_arrays", "records_hint", "start_step_axis", "axis_variables",
-           "chosen_response", "response_parts", "MIN_RECORD"]
+           "chosen_response", "response_parts", "matrix_channels", "MIN_RECORD"]
 
 #: Shortest vector counted as a time record.
 MIN_RECORD = 16
@@ -213,7 +213,8 @@ def chosen_response(path, arrays, parameter, is_freq):
     arrays : dict of str to ndarray
         Its numeric variables (:func:`read_mat_arrays`).
     parameter : str
-        The response's MATLAB name (``H21``, ``frf.H21``).
+        The response's MATLAB name (``H21``, ``frf.H21``; a channel of a matrix,
+        ``H(:,3)``, when ``arrays`` holds :func:`matrix_channels`).
     is_freq : callable
         ``name -> bool``: a variable name the reader takes for a frequency vector.
 
@@ -227,9 +228,11 @@ def chosen_response(path, arrays, parameter, is_freq):
         No such variable, or one that is not a response.
     """
     if parameter not in arrays:
+        shown = [k for k in arrays if np.size(arrays[k]) > 1]
+        more = f", ... ({len(shown)} in all)" if len(shown) > 12 else ""
         raise DataError(f"{path!r} has no variable {parameter!r}; its arrays: "
-                        f"{', '.join(k for k in arrays if np.size(arrays[k]) > 1)}: pass "
-                        "one of them as parameter= (command line --parameter)")
+                        f"{', '.join(shown[:12])}{more}: pass one of them as parameter= "
+                        "(command line --parameter)")
     axis = axis_variables(arrays)
     out = {k: a for k, a in arrays.items() if k != parameter and (
         k in axis or np.size(a) > 1 and not np.iscomplexobj(a) and is_freq(k))}
@@ -241,6 +244,44 @@ def chosen_response(path, arrays, parameter, is_freq):
                         "choose a complex vector, or a real N x 2 matrix of real and "
                         "imaginary parts")
     out.update({"response" if k == "complex" else k: v for k, v in parts.items()})
+    return out
+
+
+def matrix_channels(arrays, n):
+    """Each channel of every complex array of two or more dimensions with exactly one of
+    length ``n`` (an FRF matrix beside ``n`` frequencies: ``H``, 512 x 9, or MATLAB's
+    ``modalfrf`` output ``frf``, 512 x 3 x 2), named as MATLAB indexes it: ``H(:,3)``,
+    ``frf(:,2,1)``, ``FRF(3,:)`` (1-based).
+
+    Parameters
+    ----------
+    arrays : dict of str to ndarray
+        A file's numeric variables (:func:`read_mat_arrays`; MATLAB's singleton dimensions
+        are already squeezed, so an ``N x 3 x 1`` array is named ``(:,k)``).
+    n : int
+        The number of frequencies.
+
+    Returns
+    -------
+    dict of str to ndarray
+        Complex vectors of length ``n``, in file order, channels in MATLAB's column-major
+        order (the first index fastest).
+    """
+    out = {}
+    for key, arr in arrays.items():
+        a = np.asarray(arr)
+        if not np.iscomplexobj(a) or a.ndim < 2 or a.size == max(a.shape):
+            continue
+        axes = [i for i, d in enumerate(a.shape) if d == n]
+        if len(axes) != 1:
+            continue
+        rest = [d for i, d in enumerate(a.shape) if i != axes[0]]
+        for index in np.ndindex(*reversed(rest)):        # MATLAB order: first index fastest
+            index = list(reversed(index))
+            where = index[:axes[0]] + [slice(None)] + index[axes[0]:]
+            shown = [str(i + 1) for i in index]
+            shown.insert(axes[0], ":")
+            out[f"{key}({','.join(shown)})"] = a[tuple(where)]
     return out
 
 

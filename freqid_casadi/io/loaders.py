@@ -24,8 +24,8 @@ import zipfile
 
 import numpy as np
 
-from ._mat import (axis_variables, chosen_response, read_mat_arrays, records_hint,
-                   response_parts, start_step_axis)
+from ._mat import (axis_variables, chosen_response, matrix_channels, read_mat_arrays,
+                   records_hint, response_parts, start_step_axis)
 from ._touchstone import is_touchstone, load_touchstone
 from ._traces import read_traces
 from ._uff import load_uff, read_uff
@@ -37,7 +37,7 @@ from ._table import (Column, Table, _check_finite, _default_columns, _layout_pro
 from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 
-__all__ = ["load", "is_uff", "load_text", "load_csv", "load_npz", "load_mat", "load_uff",
+__all__ = ["load", "load_all", "is_uff", "load_text", "load_csv", "load_npz", "load_mat", "load_uff",
            "load_touchstone", "is_touchstone", "parse_band", "save_csv",
            "read_regular_file", "DataWarning", "MAX_FILE_BYTES", "MAX_ROWS", "MAX_ELEMENTS"]
 
@@ -138,6 +138,47 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
         return data if name is None else FrequencyData(data.omega, data.response, name)
     return load_text(path, name, freq_unit=freq_unit, columns=cols, band=band,
                      parameter=parameter, record=record)
+
+
+def load_all(path, *, freq_unit=None, columns=None, band=None):
+    """Every frequency response a file holds, one data set each (the channels of a modal
+    test, for :func:`freqid_casadi.fit_shared`).
+
+    Parameters
+    ----------
+    path : str or path-like
+        A UFF file gives each frequency-response record (:func:`load_uff`); a ``.mat`` file
+        each complex response beside its frequency vector: every channel of an FRF matrix
+        (``H``, N x 9, named ``H(:,1)`` ... ``H(:,9)``; MATLAB ``modalfrf``'s ``frf``, N x
+        outputs x inputs, ``frf(:,2,1)``) and each complex vector (``H21``, ``H22``). Any
+        other file gives the one response :func:`load` reads (a Touchstone file's chosen
+        parameter: ``load(path, parameter="S21")``).
+    freq_unit, columns, band
+        As for :func:`load`.
+
+    Returns
+    -------
+    list of FrequencyData
+        In the file's order, each named by its record (UFF) or MATLAB name (``.mat``);
+        ``omega`` in rad/s.
+
+    Raises
+    ------
+    DataError, OptionError
+        As :func:`load`.
+    """
+    freq_unit = parse_freq_unit(freq_unit)
+    band = parse_band(band)
+    lower = os.fspath(path).lower() if isinstance(path, (str, os.PathLike)) else ""
+    if lower.endswith(".mat"):
+        return _mat_all(path, freq_unit, columns, band)
+    plain = lower.endswith((".npz", ".json")) or is_touchstone(lower)
+    if not plain and is_uff(path):
+        if parse_columns(columns) is not None:
+            raise OptionError(f"{os.fspath(path)!r} is a universal file (UFF): its records "
+                              "name their own units and values; drop columns= (--columns)")
+        return list(load_uff(path, freq_unit=freq_unit, band=band))
+    return [load(path, freq_unit=freq_unit, columns=columns, band=band)]
 
 
 def is_uff(path):
@@ -490,11 +531,63 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None, band=None, parame
     band = parse_band(band)
     path, payload = read_regular_file(path)
     arrays = read_mat_arrays(path, payload, MAX_ELEMENTS)
+    channels = matrix_channels(arrays, _freq_length(arrays))
     if parameter is not None:
-        arrays = chosen_response(path, arrays, str(parameter), _is_freq)
-    table = _mat_table(path, arrays, columns, freq_unit)
+        arrays = chosen_response(path, {**arrays, **channels}, str(parameter), _is_freq)
+    try:
+        table = _mat_table(path, arrays, columns, freq_unit)
+    except DataError:
+        if channels and parameter is None and columns is None:
+            raise DataError(_several_channels(path, arrays, channels)) from None
+        raise
     omega, response = table_response(table)
     return _finish(path, omega, response, name, band=band, **_band_unit(table.unit("freq")))
+
+
+def _mat_all(path, freq_unit, columns, band):
+    """Every complex response of a ``.mat`` file beside its frequency axis
+    (:func:`load_all`); the file's one response, as :func:`load_mat` reads it, when it
+    holds fewer than two."""
+    where, payload = read_regular_file(path)
+    arrays = read_mat_arrays(where, payload, MAX_ELEMENTS)
+    n = _freq_length(arrays)
+    if not n and axis_variables(arrays):            # an axis of start and step: the
+        sizes = {np.size(a) for a in arrays.values()     # responses' common length
+                 if np.ndim(a) == 1 and np.size(a) > 1 and np.iscomplexobj(a)}
+        n = sizes.pop() if len(sizes) == 1 else 0
+    channels = matrix_channels(arrays, n) if n else {}
+    names = [k for k, a in arrays.items()
+             if np.ndim(a) == 1 and np.size(a) == n and np.iscomplexobj(a)] + list(channels)
+    if parse_columns(columns) is not None or not n or len(names) < 2:
+        return [load_mat(path, freq_unit=freq_unit, columns=columns, band=band)]
+    arrays.update(channels)
+    out = []
+    for key in names:
+        table = _mat_table(where, chosen_response(where, arrays, key, _is_freq), None,
+                           freq_unit)
+        omega, response = table_response(table)
+        out.append(_finish(where, omega, response, key, band=band,
+                           **_band_unit(table.unit("freq"))))
+    return out
+
+
+def _freq_length(arrays):
+    """The length of a ``.mat`` file's frequency vectors (real vectors named as one), or 0
+    when it has none or several lengths."""
+    sizes = {np.size(a) for k, a in arrays.items() if np.ndim(a) == 1 and np.size(a) > 1
+             and not np.iscomplexobj(a) and _is_freq(k)}
+    return sizes.pop() if len(sizes) == 1 else 0
+
+
+def _several_channels(path, arrays, channels):
+    """The message for a ``.mat`` file whose response is a matrix of several channels."""
+    keys = list(channels)
+    matrices = sorted({k.split("(", 1)[0] for k in keys}, key=list(arrays).index)
+    shown = ", ".join(f"{m} ({' x '.join(map(str, np.shape(arrays[m])))})" for m in matrices)
+    return (f"{path!r} holds {len(keys)} responses ({shown}: one per channel beside the "
+            f"frequencies), not one: choose one with parameter='{keys[0]}' ... "
+            f"'{keys[-1]}' (command line --parameter '{keys[0]}'), or read them all with "
+            "freqid_casadi.load_all (freqid modal reads them all, one channel each)")
 
 
 # --------------------------------------------------------------------------- .mat

@@ -1,0 +1,109 @@
+"""A ``.mat`` file of several responses: an FRF matrix beside one frequency vector (``H``,
+N x channels or channels x N; MATLAB ``modalfrf``'s ``frf``, N x outputs x inputs) or
+several complex vectors (``H11``, ``H21``). ``load`` reads one (``parameter='H(:,3)'``)
+and says how to choose; ``load_all`` and ``freqid modal`` read every one.
+
+The files are written as MATLAB writes them (``save(..., '-v7')``, through scipy.io).
+"""
+
+import json
+import os
+import warnings
+
+import numpy as np
+import pytest
+import scipy.io
+
+import freqid_casadi as fc
+from freqid_casadi.cli import main
+from freqid_casadi.errors import DataError
+
+F = np.linspace(1.0, 10.0, 40)
+#: 6 channels: first-order lags of corner 1..6 Hz, column k is channel k + 1
+H = 1.0 / (1.0 + 1j * F[:, None] / np.arange(1.0, 7.0))
+
+
+def _mat(tmp_path, name="test.mat", **variables):
+    path = tmp_path / name
+    scipy.io.savemat(str(path), variables)
+    return path
+
+
+@pytest.mark.parametrize("stored, names", [
+    (H, [f"H(:,{k})" for k in range(1, 7)]),
+    (H.T, [f"H({k},:)" for k in range(1, 7)]),
+    # modalfrf's N x outputs x inputs (3 outputs, 2 inputs), MATLAB's column-major order
+    (H.reshape(40, 3, 2, order="F"), [f"H(:,{i},{j})" for j in (1, 2) for i in (1, 2, 3)]),
+])
+def test_every_channel_of_a_matrix_is_read_and_named_as_matlab_indexes_it(tmp_path, stored,
+                                                                           names):
+    path = _mat(tmp_path, freq_hz=F, H=stored)
+    datas = fc.load_all(path)
+    assert [d.name for d in datas] == names
+    np.testing.assert_array_equal(np.array([d.response for d in datas]).T, H)
+    np.testing.assert_allclose(datas[0].omega, 2 * np.pi * F, rtol=1e-15)
+    # load reads one, chosen by its MATLAB name
+    third = fc.load(path, parameter=names[2])
+    np.testing.assert_array_equal(third.response, H[:, 2])
+    np.testing.assert_array_equal(third.omega, datas[2].omega)
+
+
+def test_load_of_a_matrix_says_how_to_choose_one_or_read_all(tmp_path):
+    path = _mat(tmp_path, f=F, frf=H)
+    with pytest.raises(DataError, match=r"holds 6 responses \(frf \(40 x 6\): one per channel "
+                       r"beside the frequencies\), not one: choose one with "
+                       r"parameter='frf\(:,1\)' \.\.\. 'frf\(:,6\)' \(command line --parameter "
+                       r"'frf\(:,1\)'\), or read them all with freqid_casadi\.load_all"):
+        fc.load(path, freq_unit="Hz")
+    with pytest.raises(DataError, match=r"no variable 'frf\(:,7\)'; its arrays: f, frf, "
+                       r"frf\(:,1\), .*frf\(:,6\): pass one"):
+        fc.load(path, freq_unit="Hz", parameter="frf(:,7)")
+    assert fc.load(path, freq_unit="Hz", parameter="frf(:,6)").response[0] == H[0, 5]
+
+
+def test_several_complex_vectors_and_single_responses(tmp_path):
+    path = _mat(tmp_path, freq_hz=F, H11=H[:, 0], H21=H[:, 1])
+    assert [d.name for d in fc.load_all(path)] == ["H11", "H21"]
+    # one response: load_all gives what load gives
+    path = _mat(tmp_path, "one.mat", freq_hz=F, response=H[:, 3])
+    (only,) = fc.load_all(path)
+    np.testing.assert_array_equal(only.response, fc.load(path).response)
+    assert only.name == "one"
+    # a text file: the one response load reads
+    csv = tmp_path / "x.csv"
+    fc.save_csv(only, csv)
+    (same,) = fc.load_all(csv)
+    np.testing.assert_array_equal(same.response, only.response)
+    # band applies to each channel
+    path = _mat(tmp_path, "m.mat", freq_hz=F, H=H)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", fc.DataWarning)
+        cut = fc.load_all(path, band=(2.0, 5.0))
+    assert len(cut) == 6 and all(d.n_points == int(np.sum((F >= 2) & (F <= 5))) for d in cut)
+
+
+def test_freqid_modal_reads_every_channel_of_an_frf_matrix(tmp_path, capsys):
+    # two well-separated modes seen by three sensors, stored as MATLAB's modalfrf writes
+    # its output: frf (N x 3) beside f (Hz)
+    f = np.linspace(0.5, 6.0, 160)
+    s = 2j * np.pi * f
+    shapes = np.array([[1.0, 0.6], [0.7, -0.5], [0.4, -0.9]])
+    poles = [(2 * np.pi * 1.5, 0.02), (2 * np.pi * 4.0, 0.01)]
+    frf = sum(np.outer(1.0 / (s * s + 2 * z * p * s + p * p), shapes[:, k] * shapes[0, k])
+              for k, (p, z) in enumerate(poles))
+    path = _mat(tmp_path, f=f, frf=frf)
+    out = tmp_path / "rep"
+    assert main(["modal", str(path), "--freq-unit", "hz", "--orders", "2:8:2",
+                 "--min-stable", "2", "--zeros", "free", "--out", str(out)]) == 0
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["n_modes_selected"] == 2
+    assert [m["omega_n"] for m in summary["modes"]] == pytest.approx(
+        [p for p, _ in poles], rel=1e-6)
+    assert summary["channels"] == ["frf_1", "frf_2", "frf_3"]
+    assert {"bode_frf_1.png", "bode_frf_2.png", "bode_frf_3.png"} <= set(os.listdir(out))
+    # --parameter: that channel alone
+    assert main(["modal", str(path), "--freq-unit", "hz", "--parameter", "frf(:,2)",
+                 "--orders", "2:6:2", "--min-stable", "2", "--zeros", "free",
+                 "--out", str(tmp_path / "one")]) == 0
+    one = json.loads((tmp_path / "one" / "summary.json").read_text())
+    assert one["channels"] == ["test"]
