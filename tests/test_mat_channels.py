@@ -93,13 +93,17 @@ def test_freqid_modal_reads_every_channel_of_an_frf_matrix(tmp_path, capsys):
               for k, (p, z) in enumerate(poles))
     path = _mat(tmp_path, f=f, frf=frf)
     out = tmp_path / "rep"
+    # (free zeros, the default: the third sensor's FRF has a right-half-plane zero)
     assert main(["modal", str(path), "--freq-unit", "hz", "--orders", "2:8:2",
-                 "--min-stable", "2", "--zeros", "free", "--out", str(out)]) == 0
+                 "--min-stable", "2", "--out", str(out)]) == 0
     summary = json.loads((out / "summary.json").read_text())
     assert summary["n_modes_selected"] == 2
     assert [m["omega_n"] for m in summary["modes"]] == pytest.approx(
         [p for p, _ in poles], rel=1e-6)
     assert summary["channels"] == ["frf_1", "frf_2", "frf_3"]
+    assert summary["top_order"]["rhp_zeros_in_band"] == {"frf_1": False, "frf_2": False,
+                                                         "frf_3": True}
+    assert "| frf_3 | " in (out / "summary.md").read_text()
     assert {"bode_frf_1.png", "bode_frf_2.png", "bode_frf_3.png"} <= set(os.listdir(out))
     # --parameter: that channel alone
     assert main(["modal", str(path), "--freq-unit", "hz", "--parameter", "frf(:,2)",

@@ -4,7 +4,7 @@ Usage::
 
     freqid modal FILES... --orders 2:40:2 --out DIR [--force] [--freq-unit hz|rad/s]
                  [--columns LIST] [--delay per-channel|shared|none]
-                 [--zeros minimum-phase|free|LIST] [--integrator] [--freq-tol 0.01]
+                 [--zeros free|minimum-phase|LIST] [--integrator] [--freq-tol 0.01]
                  [--damping-tol 0.10] [--min-stable 3] [--max-iter 100]
                  [--channel-sections K] [--balance-channels] [--estimator rational|full]
                  [--jobs N]
@@ -84,9 +84,12 @@ def add_cli(subparsers):
     p.add_argument("--force", action="store_true", help="replace an existing DIR")
     p.add_argument("--delay", default="none", choices=["per-channel", "shared", "none"],
                    help="delays: one per channel, one for all, or none (default none)")
-    p.add_argument("--zeros", default="minimum-phase", metavar="KIND[,KIND...]",
-                   help="minimum-phase (default) or free (right-half-plane zeros allowed, "
-                        "for non-collocated sensors); one value or one per file")
+    p.add_argument("--zeros", default="free", metavar="KIND[,KIND...]",
+                   help="free (default: right-half-plane zeros allowed, as a "
+                        "non-collocated sensor's FRF has them; the table says which "
+                        "channels' models are minimum phase) or minimum-phase; one value "
+                        "or one per channel (before 2026-12 the default was "
+                        "minimum-phase)")
     p.add_argument("--integrator", action="store_true", help="a factor 1/s in every channel")
     p.add_argument("--freq-tol", type=float, default=0.01,
                    help="relative frequency tolerance of a stable pole (default 0.01)")
@@ -246,8 +249,8 @@ def _zeros(text, n):
     if len(kinds) == 1:
         kinds = kinds * n
     if len(kinds) != n or any(k not in ("minimum-phase", "free") for k in kinds):
-        raise OptionError(f"--zeros must be minimum-phase or free, once or once per file "
-                          f"({n}), got {text!r}")
+        raise OptionError(f"--zeros must be free or minimum-phase, once or once per "
+                          f"channel ({n}), got {text!r}")
     return kinds
 
 
@@ -370,6 +373,8 @@ def _model_fit(res):
 
 
 def _summary(res, names, command):
+    from ..modal.shared import turns_phase
+
     top, label = _model_fit(res)
     return {
         "command": command, "orders": list(res.orders), "channels": names,
@@ -390,6 +395,8 @@ def _summary(res, names, command):
                       "delays": dict(zip(names, map(float, top.delays))),
                       "minimum_phase": dict(zip(names, [m.is_minimum_phase()
                                                         for m in top.models])),
+                      "rhp_zeros_in_band": dict(zip(names, [
+                          turns_phase(m, d.omega) for m, d in zip(top.models, top.datas)])),
                       "channel_poles_omega_n": dict(zip(names, [
                           sorted(float(abs(p)) for p in ps if p.imag >= 0)
                           for ps in top.channel_poles])),
@@ -435,16 +442,24 @@ def _markdown(s, res, names):
         return "\n".join(lines) + "\n"
     lines += ["", f"## Channels, model of {s['model']}", "",
               f"How the fit ended: {s['model_message']}", "",
-              "| channel | max rel. error | RMS rel. error | delay (s) | minimum phase |",
-              "|---|---:|---:|---:|---|"]
+              "| channel | max rel. error | RMS rel. error | delay (s) | minimum phase | "
+              "right-half-plane zeros in the band |",
+              "|---|---:|---:|---:|---|---|"]
     lines += [f"| {n} | {t['max_rel_errors'][n]:.3g} | {t['rms_rel_errors'][n]:.3g} | "
-              f"{t['delays'][n]:.6g} | {'yes' if t['minimum_phase'][n] else 'no'} |"
-              for n in names]
+              f"{t['delays'][n]:.6g} | {'yes' if t['minimum_phase'][n] else 'no'} | "
+              f"{_in_band(t, n)} |" for n in names]
     lines += _shape_lines(s, names)
     lines += ["", "Files: modes.csv/.md, shapes.csv, shape_<k>.png, stabilization.csv/.png, "
               "bode_<channel>.png, model_<channel>.json, summary.json"
               + (", mac.csv." if "mac_vs_reference" in s else ".")]
     return "\n".join(lines) + "\n"
+
+
+def _in_band(t, name):
+    """The summary's cell: whether a channel's right-half-plane zeros turn its phase in
+    the band (absent in a summary.json written before they were recorded)."""
+    value = t.get("rhp_zeros_in_band", {}).get(name)
+    return "" if value is None else ("yes" if value else "no")
 
 
 def _shape_lines(s, names):

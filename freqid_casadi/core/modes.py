@@ -85,19 +85,25 @@ class Modes(tuple):
 
 
 def _residue(model, pole, j):
-    """Residue of ``model`` at ``pole``, a root of its denominator section ``j``."""
-    val = np.exp(-pole * model.delay) * model.gain
+    """Residue of ``model`` at ``pole``, a root of its denominator section ``j``: the
+    product of its factors, or, where that product leaves float64's range midway (a
+    model of extreme coefficients), the exponential of the sum of their logarithms."""
     k = model.origin_order
-    if k == 1:
-        val /= pole
-    elif k:
-        val /= pole ** k
-    for k, (a, zn, wn, b, zd, wd) in enumerate(model.sections()):
-        val *= a * pole ** 2 + 2 * zn * wn * pole + wn ** 2
-        if k == j:
-            val /= b * (pole - np.conj(pole))
-        else:
-            val /= b * pole ** 2 + 2 * zd * wd * pole + wd ** 2
+    nums, dens = [np.exp(-pole * model.delay) * model.gain], [pole ** k if k != 1 else pole]
+    for i, (a, zn, wn, b, zd, wd) in enumerate(model.sections()):
+        nums.append(a * pole ** 2 + 2 * zn * wn * pole + wn ** 2)
+        dens.append(b * (pole - np.conj(pole)) if i == j else
+                    b * pole ** 2 + 2 * zd * wd * pole + wd ** 2)
+    with np.errstate(over="ignore", invalid="ignore", divide="ignore"):
+        val = nums[0]
+        if k:
+            val /= dens[0]
+        for num, den in zip(nums[1:], dens[1:]):
+            val *= num
+            val /= den
+        if not np.isfinite(val):
+            val = np.exp(np.sum(np.log(np.asarray(nums, complex)))
+                         - np.sum(np.log(np.asarray(dens[0 if k else 1:], complex))))
     return complex(val)
 
 

@@ -57,11 +57,12 @@ from ..fitting.start import significant_group_delay
 from ..options import IpoptOptions, VectorFittingOptions, ipopt_limits, warn_renamed
 from ..solvers.common import TERMINATION_MESSAGES, Status
 from ._nlp import SharedProblem
+from ._zeros import offer_free_zeros, turns_phase
 from ._stages import (SharedStage, lawson_rounds, logger, rational_start, sequential_start,
                       stage_line)
 
 __all__ = ["fit_shared", "SharedFitResult", "SharedStage", "DELAYS", "ZEROS", "SHARED_STARTS",
-           "DEFAULT_METHOD", "check_largest_order"]
+           "DEFAULT_METHOD", "check_largest_order", "turns_phase"]
 
 DELAYS = ("per-channel", "shared", False)
 ZEROS = ("minimum-phase", "free")
@@ -499,7 +500,11 @@ def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
         "minimum-phase": gain and numerator coefficients >= 0 (zeros in the closed left
         half plane). "free": unbounded (a non-collocated sensor's right-half-plane zeros or
         negative gain); such a channel's model has ``structure.zeros = "free"`` (and
-        ``gain_sign = -1`` for a negative gain).
+        ``gain_sign = -1`` for a negative gain). When a fit with minimum-phase channels
+        is not "ok", it is run again with free zeros, and offered in the message (and
+        ``details["free_zeros"]``) when it explains the data or halves the worst RMS
+        error: a modal test's non-collocated sensors need right-half-plane zeros
+        (:mod:`freqid_casadi.modal._zeros`).
     weights : array_like of float, shape (C, M), (M,) or scalar, optional
         Weights of the squared relative residuals, multiplying the datas' own weights.
     start : {"best", "rational", "sequential"}
@@ -569,8 +574,11 @@ def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
     solver, vf = _solver_options(method, vector_fitting, max_iter, n_vf_iter)
     progress = check_progress(progress, "each SharedStage")
     with single_threaded_blas(), channel(progress, stage_line) as emit:
-        return _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start,
-                           emit, delay_max, solver, vf, channel_sections, balance_channels)
+        def fit(zs, report=emit):
+            return _fit_shared(datas, n_sections, integrator, delay, zs, weights, start,
+                               report, delay_max, solver, vf, channel_sections,
+                               balance_channels)
+        return offer_free_zeros(fit(zeros), lambda zs: fit(zs, _ignore))
 
 
 def _fit_shared(datas, n_sections, integrator, delay, zeros, weights, start, emit,

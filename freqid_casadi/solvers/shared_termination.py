@@ -255,7 +255,10 @@ class SharedMonitor(StageMonitor):
                                SNAP * np.sqrt(max(cost, 0.0)))
         if xs is None:
             return x, cost, grad, cn
-        c2, g2, n2 = gradient_and_norms(self.shared, xs, self.window)
+        with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+            # (a numerator moved onto its bound can vanish at a data point: the trial's
+            # cost is then not finite, and it is not taken)
+            c2, g2, n2 = gradient_and_norms(self.shared, xs, self.window)
         if np.isfinite(c2) and c2 <= cost and np.all(np.isfinite(g2)):
             return xs, c2, g2, n2
         return x, cost, grad, cn
