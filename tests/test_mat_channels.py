@@ -55,9 +55,9 @@ def test_load_of_a_matrix_says_how_to_choose_one_or_read_all(tmp_path):
                        r"parameter='frf\(:,1\)' \.\.\. 'frf\(:,6\)' \(command line --parameter "
                        r"'frf\(:,1\)'\), or read them all with freqid_casadi\.load_all"):
         fc.load(path, freq_unit="Hz")
-    with pytest.raises(DataError, match=r"no variable 'frf\(:,7\)'; its arrays: f, frf, "
-                       r"frf\(:,1\), .*frf\(:,6\): pass one"):
-        fc.load(path, freq_unit="Hz", parameter="frf(:,7)")
+    with pytest.raises(DataError, match=r"no variable 'H'; its arrays: frf, frf\(:,1\), "
+                       r".*frf\(:,6\), f: pass one"):
+        fc.load(path, freq_unit="Hz", parameter="H")
     assert fc.load(path, freq_unit="Hz", parameter="frf(:,6)").response[0] == H[0, 5]
 
 
@@ -111,3 +111,64 @@ def test_freqid_modal_reads_every_channel_of_an_frf_matrix(tmp_path, capsys):
                  "--out", str(tmp_path / "one")]) == 0
     one = json.loads((tmp_path / "one" / "summary.json").read_text())
     assert one["channels"] == ["test"]
+
+
+def test_a_frequency_vector_named_outside_the_vocabulary_is_the_axis(tmp_path):
+    # published layouts: an EMA demo's FRF (32 x 9) beside frequencyBand (uint8, 0:5:155
+    # Hz, a column); a course's G_exp (N x 6) beside freqs (a row)
+    band = np.arange(0, 160, 5, dtype=np.uint8).reshape(-1, 1)
+    frf = 1.0 / (1.0 + 1j * band / np.arange(1.0, 10.0))
+    path = _mat(tmp_path, "ema.mat", FRF=frf, frequencyBand=band)
+    with pytest.raises(DataError, match=r"the unit of the frequency variable frequencyBand is "
+                       r"unknown: pass freq_unit='Hz'"):
+        fc.load_all(path)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", fc.DataWarning)     # the 0 Hz row is dropped
+        datas = fc.load_all(path, freq_unit="Hz")
+    assert [d.name for d in datas] == [f"FRF(:,{k})" for k in range(1, 10)]
+    assert datas[0].n_points == 31
+    np.testing.assert_allclose(datas[8].omega, 2 * np.pi * band[1:, 0], rtol=1e-15)
+    np.testing.assert_array_equal(datas[8].response, frf[1:, 8])
+    path = _mat(tmp_path, "cant.mat", G_exp=H, freqs=F.reshape(1, -1))
+    assert len(fc.load_all(path, freq_unit="Hz")) == 6
+    # a vector that is not increasing is no axis
+    path = _mat(tmp_path, "bad.mat", G_exp=H, freqs=F[::-1].copy())
+    with pytest.raises(DataError):
+        fc.load_all(path, freq_unit="Hz")
+
+
+def test_load_all_reads_several_real_and_imaginary_pairs_beside_one_axis(tmp_path):
+    # H21 and H22 as N x 2 (real, imaginary) beside f_start, df and f_end
+    h = np.column_stack([H[:, 0].real, H[:, 0].imag])
+    path = _mat(tmp_path, "H2.mat", H21=h, H22=2 * h, df=1.0, f_start=1.0, f_end=40.0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", fc.DataWarning)
+        datas = fc.load_all(path, freq_unit="Hz")
+    assert [d.name for d in datas] == ["H21", "H22"]
+    np.testing.assert_array_equal(datas[1].response, 2 * H[:, 0])
+
+
+def test_complex_matrices_without_frequencies_say_so(tmp_path):
+    path = _mat(tmp_path, "mob.mat", mobilityMatrix=H)
+    with pytest.raises(DataError, match=r"holds complex responses but no frequency variable "
+                       r"\(found mobilityMatrix \(40 x 6, complex\)\): save the frequencies"):
+        fc.load_all(path, freq_unit="Hz")
+
+
+def test_a_channel_name_with_a_space_or_out_of_range(tmp_path):
+    path = _mat(tmp_path, f=F, frf=H)
+    one = fc.load(path, freq_unit="Hz", parameter="frf(:, 2)")
+    np.testing.assert_array_equal(one.response, H[:, 1])
+    with pytest.raises(DataError, match=r"'frf\(:,7\)' is not a channel of frf \(40 x 6\): "
+                       r"its channels are frf\(:,1\) \.\.\. frf\(:,6\) \(6\)"):
+        fc.load(path, freq_unit="Hz", parameter="frf(:,7)")
+
+
+def test_modal_report_words_the_advice_as_options():
+    from freqid_casadi.cli.modal import modal_words
+
+    assert modal_words("— pass n_sections=4 or more for a mode the shared poles miss, or "
+                       "channel_sections=1 for modes outside the band") == (
+        "— pass --orders reaching 8 or more for a mode the shared poles miss, or "
+        "--channel-sections 1 for modes outside the band")
+    assert modal_words("pass zeros='free' (freqid modal --zeros free)") == "pass --zeros free"

@@ -48,7 +48,7 @@ from .common import add_data_options
 from ..errors import OptionError
 from ..options import IpoptOptions
 
-__all__ = ["add_cli", "run_cli", "NAME"]
+__all__ = ["add_cli", "run_cli", "modal_words", "NAME"]
 
 #: Name of the command.
 NAME = "modal"
@@ -441,7 +441,7 @@ def _markdown(s, res, names):
         lines += _shape_lines(s, names)
         return "\n".join(lines) + "\n"
     lines += ["", f"## Channels, model of {s['model']}", "",
-              f"How the fit ended: {s['model_message']}", "",
+              f"How the fit ended: {modal_words(s['model_message'])}", "",
               "| channel | max rel. error | RMS rel. error | delay (s) | minimum phase | "
               "right-half-plane zeros in the band |",
               "|---|---:|---:|---:|---|---|"]
@@ -453,6 +453,26 @@ def _markdown(s, res, names):
               "bode_<channel>.png, model_<channel>.json, summary.json"
               + (", mac.csv." if "mac_vs_reference" in s else ".")]
     return "\n".join(lines) + "\n"
+
+
+def modal_words(text):
+    """``text`` (a shared fit's message) with its advice in this command's words:
+    ``n_sections=5 or more`` as ``--orders reaching 10 or more``, ``channel_sections=2`` as
+    ``--channel-sections 2``, ``zeros='free'`` as ``--zeros free``.
+
+    Parameters
+    ----------
+    text : str
+
+    Returns
+    -------
+    str
+    """
+    text = re.sub(r"n_sections=(\d+) or more",
+                  lambda m: f"--orders reaching {2 * int(m.group(1))} or more", text)
+    text = re.sub(r"channel_sections=(\d+)", r"--channel-sections \1", text)
+    text = text.replace("zeros='free' (freqid modal --zeros free)", "--zeros free")
+    return text.replace("zeros='free'", "--zeros free")
 
 
 def _in_band(t, name):

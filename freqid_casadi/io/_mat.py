@@ -227,8 +227,18 @@ def chosen_response(path, arrays, parameter, is_freq):
     DataError
         No such variable, or one that is not a response.
     """
+    if parameter not in arrays and "(" in parameter:
+        parameter = "".join(parameter.split())          # MATLAB's H(:, 3) is H(:,3)
     if parameter not in arrays:
-        shown = [k for k in arrays if np.size(arrays[k]) > 1]
+        base = parameter.split("(", 1)[0]
+        chans = [k for k in arrays if k.startswith(base + "(")]
+        if base in arrays and chans and "(" in parameter:
+            shape = " x ".join(map(str, np.shape(arrays[base])))
+            raise DataError(f"{path!r}: {parameter!r} is not a channel of {base} ({shape}): "
+                            f"its channels are {chans[0]} ... {chans[-1]} ({len(chans)})")
+        # the responses first (complex arrays, matrix channels), then the others
+        shown = sorted((k for k in arrays if np.size(arrays[k]) > 1),
+                       key=lambda k: not np.iscomplexobj(arrays[k]))
         more = f", ... ({len(shown)} in all)" if len(shown) > 12 else ""
         raise DataError(f"{path!r} has no variable {parameter!r}; its arrays: "
                         f"{', '.join(shown[:12])}{more}: pass one of them as parameter= "

@@ -531,11 +531,13 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None, band=None, parame
     band = parse_band(band)
     path, payload = read_regular_file(path)
     arrays = read_mat_arrays(path, payload, MAX_ELEMENTS)
-    channels = matrix_channels(arrays, _freq_length(arrays))
+    n, alias = _freq_axis(arrays)
+    channels = matrix_channels(arrays, n)
     if parameter is not None:
-        arrays = chosen_response(path, {**arrays, **channels}, str(parameter), _is_freq)
+        arrays = chosen_response(path, {**arrays, **channels}, str(parameter),
+                                 _freq_names(alias))
     try:
-        table = _mat_table(path, arrays, columns, freq_unit)
+        table = _mat_table(path, arrays, columns, freq_unit, alias)
     except DataError:
         if channels and parameter is None and columns is None:
             raise DataError(_several_channels(path, arrays, channels)) from None
@@ -545,38 +547,75 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None, band=None, parame
 
 
 def _mat_all(path, freq_unit, columns, band):
-    """Every complex response of a ``.mat`` file beside its frequency axis
-    (:func:`load_all`); the file's one response, as :func:`load_mat` reads it, when it
-    holds fewer than two."""
+    """Every response of a ``.mat`` file beside its frequency axis (:func:`load_all`):
+    complex vectors and matrix channels, else real N x 2 matrices of real and imaginary
+    parts; the file's one response, as :func:`load_mat` reads it, when it holds fewer
+    than two."""
     where, payload = read_regular_file(path)
     arrays = read_mat_arrays(where, payload, MAX_ELEMENTS)
-    n = _freq_length(arrays)
+    n, alias = _freq_axis(arrays)
     if not n and axis_variables(arrays):            # an axis of start and step: the
-        sizes = {np.size(a) for a in arrays.values()     # responses' common length
-                 if np.ndim(a) == 1 and np.size(a) > 1 and np.iscomplexobj(a)}
+        sizes = {_response_length(a) for a in arrays.values()}   # responses' length
+        sizes.discard(0)
         n = sizes.pop() if len(sizes) == 1 else 0
     channels = matrix_channels(arrays, n) if n else {}
     names = [k for k, a in arrays.items()
              if np.ndim(a) == 1 and np.size(a) == n and np.iscomplexobj(a)] + list(channels)
+    if not names:                                   # real and imaginary parts, N x 2
+        names = [k for k, a in arrays.items() if k != alias and not _is_freq(k)
+                 and not np.iscomplexobj(a) and _response_length(a) == n]
     if parse_columns(columns) is not None or not n or len(names) < 2:
         return [load_mat(path, freq_unit=freq_unit, columns=columns, band=band)]
     arrays.update(channels)
     out = []
     for key in names:
-        table = _mat_table(where, chosen_response(where, arrays, key, _is_freq), None,
-                           freq_unit)
+        chosen = chosen_response(where, arrays, key, _freq_names(alias))
+        table = _mat_table(where, chosen, None, freq_unit, alias)
         omega, response = table_response(table)
         out.append(_finish(where, omega, response, key, band=band,
                            **_band_unit(table.unit("freq"))))
     return out
 
 
-def _freq_length(arrays):
-    """The length of a ``.mat`` file's frequency vectors (real vectors named as one), or 0
-    when it has none or several lengths."""
+def _response_length(array):
+    """The points of an array read as a response (a complex vector, or a real N x 2
+    matrix of real and imaginary parts), else 0."""
+    shape = np.shape(array)
+    if np.iscomplexobj(array) and len(shape) == 1 and shape[0] > 1:
+        return shape[0]
+    if not np.iscomplexobj(array) and len(shape) == 2 and 2 in shape and max(shape) > 2:
+        return max(shape)
+    return 0
+
+
+#: Words (lower case, anywhere in a variable's name) of a frequency vector the reader's
+#: vocabulary does not know (``freqs``, ``frequencyBand``, ``FreqAxis``), taken for the
+#: axis when it is the file's only such vector, increasing, as long as a response.
+_AXIS_WORDS = ("freq", "omega")
+
+
+def _freq_axis(arrays):
+    """``(n, alias)``: the length of a ``.mat`` file's frequency vectors (real vectors
+    named as one) and None; else, when one real increasing vector named like one
+    (:data:`_AXIS_WORDS`) is as long as a response or a complex matrix's dimension, its
+    length and name; else ``(0, None)``."""
     sizes = {np.size(a) for k, a in arrays.items() if np.ndim(a) == 1 and np.size(a) > 1
              and not np.iscomplexobj(a) and _is_freq(k)}
-    return sizes.pop() if len(sizes) == 1 else 0
+    if sizes:
+        return (sizes.pop(), None) if len(sizes) == 1 else (0, None)
+    dims = {d for a in arrays.values() if np.iscomplexobj(a) for d in np.shape(a)}
+    dims |= {_response_length(a) for a in arrays.values()}
+    found = [k for k, a in arrays.items()
+             if np.ndim(a) == 1 and np.size(a) in dims and np.size(a) > 1
+             and not np.iscomplexobj(a)
+             and any(w in k.rsplit(".", 1)[-1].lower() for w in _AXIS_WORDS)
+             and np.all(np.diff(np.asarray(a, float)) > 0)]
+    return (np.size(arrays[found[0]]), found[0]) if len(found) == 1 else (0, None)
+
+
+def _freq_names(alias):
+    """``name -> bool``: the names the reader takes for a frequency vector, and ``alias``."""
+    return _is_freq if alias is None else (lambda key: key == alias or _is_freq(key))
 
 
 def _several_channels(path, arrays, channels):
@@ -592,13 +631,16 @@ def _several_channels(path, arrays, channels):
 
 # --------------------------------------------------------------------------- .mat
 
-def _mat_table(path, arrays, columns, freq_unit):
+def _mat_table(path, arrays, columns, freq_unit, alias=None):
     """A :class:`Table` from the numeric variables of a ``.mat`` file (see
-    ``loaders.load_mat``)."""
+    ``loaders.load_mat``); ``alias`` names a frequency vector outside the vocabulary
+    (:func:`_freq_axis`)."""
     named = {}
     if columns is None:
         for key, arr in arrays.items():
             col = recognise(key.rsplit(".", 1)[-1])
+            if key == alias:
+                col = Column("freq", _alias_unit(key), key)
             if col is not None and col.role != "skip":
                 named[key] = Column(col.role, col.unit, key)
     cols = tuple(named.values())
@@ -621,12 +663,24 @@ def _mat_table(path, arrays, columns, freq_unit):
         cols += (Column("freq", axis[1], axis[2]),)
     else:
         cols, values, n = _mat_matrix(path, arrays, columns, named)
+    freq = next((c for c in cols if c.role == "freq"), None)
+    if named and freq is not None and freq.unit is None and freq_unit is None:
+        raise DataError(f"{path!r}: the unit of the frequency variable {freq.label} is "
+                        "unknown: pass freq_unit='Hz' or freq_unit='rad/s' (command line "
+                        "--freq-unit hz|rad/s), or save it as freq_hz (Hz) or omega (rad/s)")
     cols = _resolve_units(path, cols, freq_unit, ",".join(named) if named else None)
     for k, arr in values.items():
         values[k] = np.asarray(arr, complex if k == "complex" else float)
     table = Table(path, cols, values, np.arange(1, n + 1), where="row")
     _check_finite(table)
     return table
+
+
+def _alias_unit(name):
+    """The unit a frequency variable's name outside the vocabulary states (``freq_hz_axis``,
+    ``omega_vec``), or None."""
+    low = name.rsplit(".", 1)[-1].lower()
+    return "hz" if "hz" in low else "rad/s" if "omega" in low or "rad" in low else None
 
 
 def _is_freq(name):
@@ -643,6 +697,16 @@ def _mat_vectors(path, arrays, named):
         raise DataError(f"{path!r}: variables {', '.join(named)} must be vectors of equal "
                         "length")
     return dict(zip((c.role for c in named.values()), vecs)), vecs[0].size
+
+
+def _no_frequencies(arrays):
+    """Whether a ``.mat`` file's arrays are complex matrices (more than 3 columns, or
+    several of them) and no real vector could be their frequency axis."""
+    complex_ = [a for a in arrays.values() if np.iscomplexobj(a) and np.ndim(a) >= 2]
+    real = [a for a in arrays.values() if not np.iscomplexobj(a) and np.size(a) > 1]
+    if not complex_ or real:
+        return False
+    return len(complex_) > 1 or min(np.shape(complex_[0])) > 3
 
 
 def _found(arrays):
@@ -692,6 +756,13 @@ def _mat_matrix(path, arrays, columns, named):
     hint = records_hint(path, arrays) if columns is None and not named else None
     if hint:
         raise DataError(hint)
+    if columns is None and _no_frequencies(arrays):
+        raise DataError(
+            f"{path!r} holds complex responses but no frequency variable (found "
+            f"{_found(arrays)}): save the frequencies beside them as freq_hz (Hz) or omega "
+            "(rad/s), a vector as long as the responses (or f with freq_unit='Hz', "
+            "command line --freq-unit hz), or their start and step as scalars f_start and "
+            "df")
     if len(arrays) != 1 or np.ndim(next(iter(arrays.values()))) != 2:
         raise DataError(
             f"{path!r}: cannot tell the variables apart (found {_found(arrays)}); name them "
