@@ -299,9 +299,9 @@ def test_frf_reads_one_row_of_a_matrix_of_records(tmp_path):
     data = load_csv(out)
     exact = 1 / (1 - 0.5 * np.exp(-1j * data.omega / 400.0))
     assert np.max(np.abs(data.response / exact - 1)) < 1e-9
-    with pytest.raises(OptionError, match=r"--y 'Acceleration' is not a time record of the "
-                       r"file; the records are Force, Acceleration\(1,:\), Acceleration\(2,:\), "
-                       r"Acceleration\(3,:\)"):
+    with pytest.raises(OptionError, match=r"the input is one record and the output a matrix "
+                       r"of 3 records \(its rows or columns\): choose one of them, e\.g\. --y "
+                       r"'NAME\(2,:\)'"):
         cli_frf.run_cli(_args(tmp_path / "rec.mat", tmp_path / "o.csv", u="Force",
                               y="Acceleration"), "freqid frf")
 
@@ -412,7 +412,7 @@ def _namespace(files, **kw):
 
 @pytest.mark.parametrize("case, error, match", [
     ("length", DataError, r"the input 'uval' of --u-file '.*u\.mat' holds 768 samples, the "
-                          r"output 'yval' of --y-file '.*y\.mat' holds 512: the two records "
+                          r"output 'yval' of --y-file '.*y\.mat' holds 512 samples: the two records "
                           r"must cover the same samples"),
     ("rates", DataError, r"--u-file '.*u\.mat' states the sampling rate 1000 Hz, --y-file "
                          r"'.*y\.mat' 400 Hz: the input and the output must be sampled "

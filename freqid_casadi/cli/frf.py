@@ -41,6 +41,7 @@ defines the parser (:func:`add_cli`) and the command (:func:`run_cli`);
 
 import math
 import os
+import re
 
 import numpy as np
 
@@ -48,8 +49,9 @@ from ..report.outputs import check_out_file
 
 from .._textio import atomic_write_text
 from ..errors import DataError, OptionError
-from ..experiment import (ESTIMATORS, frf_from_periodic, frf_from_records, load_daq_records,
-                         load_records_mat, load_records_table, lvm_segments)
+from ..experiment import (ESTIMATORS, frf_from_periodic, frf_from_realisations,
+                         frf_from_records, load_daq_records, load_records_mat,
+                         load_records_table, lvm_segments)
 from .common import _ASCII_FLOAT, _ASCII_INT, _ascii, _checked   # the CLI's own type helpers
 from .common import parse_band_text
 from ..io.loaders import read_regular_file, save_csv
@@ -228,10 +230,11 @@ def _file_record(path, opt, args):
         else:
             raise OptionError(f"--{opt}-file {path!r} holds several records ({names}): "
                               f"choose the {alias} with --{opt} NAME")
-    if name not in rec.channels:
+    found = _record(rec.channels, name)
+    if found is None:
         raise OptionError(f"--{opt} {name!r} is not a time record of --{opt}-file {path!r}; "
                           f"its records are {names}")
-    return rec.channels[name], name, rec
+    return found, name, rec
 
 
 def _two_file_records(args):
@@ -239,12 +242,12 @@ def _two_file_records(args):
     ``--y-file``: records of one length, files that state no contradicting rates."""
     u, u_name, u_rec = _file_record(args.u_file, "u", args)
     y, y_name, y_rec = _file_record(args.y_file, "y", args)
-    if u.size != y.size:
-        raise DataError(f"the input {u_name!r} of --u-file {args.u_file!r} holds {u.size} "
-                        f"samples, the output {y_name!r} of --y-file {args.y_file!r} holds "
-                        f"{y.size}: the two records must cover the same samples; choose "
-                        "records of one experiment (--u NAME, --y NAME) or cut the longer "
-                        "one")
+    if u.shape != y.shape:
+        raise DataError(f"the input {u_name!r} of --u-file {args.u_file!r} holds "
+                        f"{_samples(u)}, the output {y_name!r} of --y-file {args.y_file!r} "
+                        f"holds {_samples(y)}: the two records must cover the same samples; "
+                        "choose records of one experiment (--u NAME, --y NAME) or cut the "
+                        "longer one")
     if (u_rec.fs is not None and y_rec.fs is not None
             and not math.isclose(u_rec.fs, y_rec.fs, rel_tol=1e-9)):
         raise DataError(f"--u-file {args.u_file!r} states the sampling rate {u_rec.fs:g} Hz, "
@@ -257,8 +260,8 @@ def _two_file_records(args):
     if ref is None:
         return u, y, fs, None
     for rec in (u_rec, y_rec):
-        if ref in rec.channels:
-            return u, y, fs, rec.channels[ref]
+        if _record(rec.channels, ref) is not None:
+            return u, y, fs, _record(rec.channels, ref)
     raise OptionError(f"--reference {ref!r} is not a time record of --u-file or --y-file; "
                       f"their records are {', '.join(list(u_rec.channels) + list(y_rec.channels))}")
 
@@ -300,20 +303,67 @@ def _mat_records(args):
     chosen = []
     for opt, alias, default in (("u", "input", "u"), ("y", "output", "y")):
         name = getattr(args, opt, None) or getattr(args, alias, None)
-        if name is None and default in rec.channels:
+        if name is None and _record(rec.channels, default) is not None:
             name = default
-        if name not in rec.channels:
+        if _record(rec.channels, name) is None:
             what = (f"is required: name the {alias} record's variable" if name is None
                     else f"{name!r} is not a time record of the file")
             raise OptionError(f"--{opt} {what}; the records are {names} (e.g. freqid frf "
                               f"FILE --u NAME --y NAME)")
-        chosen.append(rec.channels[name])
+        chosen.append(_record(rec.channels, name))
     ref = getattr(args, "reference", None)
-    if ref is not None and ref not in rec.channels:
+    if ref is not None and _record(rec.channels, ref) is None:
         raise OptionError(f"--reference {ref!r} is not a time record of the file; the "
                           f"records are {names}")
     _same_rate(args, rec.fs)
-    return chosen[0], chosen[1], rec.fs, None if ref is None else rec.channels[ref]
+    return chosen[0], chosen[1], rec.fs, None if ref is None else _record(rec.channels, ref)
+
+
+def _record(channels, name):
+    """The record ``name`` of a .mat file's ``channels``: a vector, or, for a matrix read
+    row by row (``uval(1,:)``, ``uval(2,:)``, ... or by columns), its realisations as an
+    (R, N) array; None when there is no such record."""
+    if name is None:
+        return None
+    if name in channels:
+        return channels[name]
+    for pattern in (r"\((\d+),:\)", r"\(:,(\d+)\)"):
+        rows = sorted((int(m.group(1)), k) for k in channels
+                      for m in [re.fullmatch(re.escape(name) + pattern, k)] if m)
+        if rows:
+            return np.array([channels[k] for _, k in rows])
+    return None
+
+
+def _samples(x):
+    """``"8192 samples"`` or ``"3 realisations of 8192 samples"``."""
+    return (f"{x.size} samples" if x.ndim == 1 else
+            f"{x.shape[0]} realisations of {x.shape[1]} samples")
+
+
+def _check_realisations(u, y, ref, estimator):
+    """OptionError/DataError for realisations (an R x N record) the estimate cannot take:
+    another count in the output, a one-record reference, or a Welch estimator."""
+    if u.ndim == 1 and y.ndim == 1:
+        return
+    if u.ndim != y.ndim:
+        one, many, x = ("input", "output", y) if u.ndim == 1 else ("output", "input", u)
+        flag = "--y" if many == "output" else "--u"
+        raise OptionError(f"the {one} is one record and the {many} a matrix of {x.shape[0]} "
+                          f"records (its rows or columns): choose one of them, e.g. {flag} "
+                          "'NAME(2,:)'; realisations are averaged when the input and the "
+                          "output are both matrices of them")
+    if u.shape != y.shape:
+        raise DataError(f"the input holds {_samples(u)} and the output {_samples(y)}: "
+                        "pass the input and the output of the same realisations")
+    if estimator != "periodic":
+        raise OptionError(f"the records hold {u.shape[0]} realisations (a matrix's rows or "
+                          "columns): they are averaged for a periodic excitation (--period "
+                          f"N); for --estimator {estimator} choose one, e.g. --u 'NAME(2,:)' "
+                          "--y 'NAME(2,:)'")
+    if ref is not None and np.shape(ref) != u.shape:
+        raise DataError(f"--reference holds {_samples(np.asarray(ref))} for {_samples(u)} "
+                        "of the input: pass the generated excitation of every realisation")
 
 
 def read_excitation(args):
@@ -477,12 +527,17 @@ def run_cli(args, command):
     if estimator != "periodic" and period is not None:
         raise OptionError(f"--period is for a periodic excitation, not --estimator {estimator}")
     u, y, fs_file, ref = read_excitation(args)
+    _check_realisations(u, y, ref, estimator)
     if not two_files and _is_lvm(args.records):
         _segments_note(args.records, getattr(args, "lvm_segment", None))
     fs = getattr(args, "fs", None) or fs_file
     name = os.path.splitext(os.path.basename(os.fspath(args.y_file if two_files
                                                       else args.records)))[0]
-    if estimator == "periodic":
+    if estimator == "periodic" and u.ndim == 2:
+        est = frf_from_realisations(u, y, period, fs=fs,
+                                    skip_periods=getattr(args, "skip_periods", 0) or 0,
+                                    name=name, references=ref)
+    elif estimator == "periodic":
         est = frf_from_periodic(u, y, period, fs=fs,
                                 skip_periods=getattr(args, "skip_periods", 0) or 0, name=name,
                                 reference=ref)
@@ -563,6 +618,22 @@ def _in_band(est, band):
 LOW_COHERENCE = 0.3
 
 
+def _distortion_line(est):
+    """The realisations' variance against their noise's: the nonlinear distortions."""
+    g2 = np.abs(est.data.response) ** 2
+    total = float(np.sqrt(np.median(est.variance / g2)))
+    noise = float(np.sqrt(np.median(est.noise_variance / g2)))
+    ratio = total / noise if noise > 0 else math.inf
+    verdict = ("the spread over the realisations is the noise: no nonlinear distortion "
+               "shows" if ratio < 1.5 else
+               "the realisations differ by more than their noise: nonlinear distortions "
+               "(the variance in frf.stats.csv holds them, so a fit weighted by it treats "
+               "them as noise)")
+    return (f"relative standard deviation of the estimate (median over the bins): {total:.3g} "
+            f"from the realisations, {noise:.3g} from the periods' noise ({ratio:.2g}x): "
+            f"{verdict}")
+
+
 def _summary(est, out, sidecar):
     unit = "rad/s" if est.fs is not None else "rad/sample"
     d = est.data
@@ -581,9 +652,12 @@ def _summary(est, out, sidecar):
                   "with --nperseg the length of one event, and check the input's spectrum "
                   "covers the band (--min-coherence drops the worst bins)")
     else:
+        each = (f"{est.n_realisations} realisations of {est.n_periods} period(s) each"
+                if est.n_realisations else f"{est.n_periods} period(s)")
         print(f"{d.n_points} excited bins ({int(est.bins[0])}..{int(est.bins[-1])}), "
-              f"omega {d.omega[0]:.4g} to {d.omega[-1]:.4g} {unit}, {est.n_periods} period(s) "
-              f"averaged")
+              f"omega {d.omega[0]:.4g} to {d.omega[-1]:.4g} {unit}, {each} averaged")
+        if est.noise_variance is not None:
+            print(_distortion_line(est))
     if est.fs is None:
         print("no --fs: the omega column is in rad/sample, so a fit of it gives the delay in "
               "samples, not seconds (pass --fs HZ for rad/s)")

@@ -4,6 +4,8 @@ Estimators (each returns a frozen :class:`FrfEstimate` whose ``data`` is a
 :class:`~freqid_casadi.core.data.FrequencyData` ready for the fitters):
 
 - :func:`frf_from_periodic`: periodic (multisine) excitation, averaged over whole periods;
+- :func:`frf_from_realisations`: several realisations of it (new random phases), averaged,
+  the noise told from the nonlinear distortions;
 - :func:`frf_stepped_sine`: one record per frequency;
 - :func:`frf_from_records`: any excitation (chirp, random, impulse): Welch H1/H2 with the
   coherence and the variance at every frequency.
@@ -23,11 +25,13 @@ from .records import (ACTUATOR_FILE, ROBOT_ARM_FILE, SHARED_ENV, DaqRecords, Lvm
                       _find_robot_arm, actuator_records, dataset_path, load_daisy,
                       load_daq_records, load_records_csv, load_records_mat,
                       load_records_table, lvm_segments, robot_arm)
+from .realisations import frf_from_realisations
 from .welch import ESTIMATORS, frf_from_records
 
 __all__ = [
     "FrfEstimate",
     "frf_from_periodic",
+    "frf_from_realisations",
     "frf_stepped_sine",
     "frf_from_records",
     "ESTIMATORS",

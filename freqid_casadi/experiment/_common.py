@@ -52,6 +52,13 @@ class FrfEstimate:
     estimator : str or None
         "h1" or "h2" for a Welch estimate, "periodic" or "stepped-sine" otherwise (None
         when built by hand).
+    n_realisations : int or None
+        Realisations averaged (:func:`frf_from_realisations`, two or more); None
+        otherwise.
+    noise_variance : ndarray of float, shape (M,) or None
+        With realisations: the noise's share of ``variance`` (from the spread over the
+        periods of each realisation; ``variance`` minus it is the nonlinear distortions'
+        share, up to the estimates' scatter); None otherwise or with one period each.
     """
 
     data: FrequencyData
@@ -64,9 +71,11 @@ class FrfEstimate:
     n_averages: int = None
     nperseg: int = None
     estimator: str = None
+    n_realisations: int = None
+    noise_variance: np.ndarray = None
 
     def __post_init__(self):
-        for name in ("bins", "variance", "coherence"):
+        for name in ("bins", "variance", "coherence", "noise_variance"):
             value = getattr(self, name)
             if value is not None:
                 value = np.array(value, copy=True)
@@ -99,7 +108,7 @@ class FrfEstimate:
         w = None if d.weights is None else d.weights[keep] / d.weights[keep].mean()
         data = FrequencyData(d.omega[keep], d.response[keep], d.name, w, d.unit)
         pick = {n: None if getattr(self, n) is None else getattr(self, n)[keep]
-                for n in ("bins", "variance", "coherence")}
+                for n in ("bins", "variance", "coherence", "noise_variance")}
         return dataclasses.replace(self, data=data, **pick)
 
 
