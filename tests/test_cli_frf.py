@@ -412,8 +412,8 @@ def _namespace(files, **kw):
 
 @pytest.mark.parametrize("case, error, match", [
     ("length", DataError, r"the input 'uval' of --u-file '.*u\.mat' holds 768 samples, the "
-                          r"output 'yval' of --y-file '.*y\.mat' holds 512 samples: the two records "
-                          r"must cover the same samples"),
+                          r"output 'yval' of --y-file '.*y\.mat' holds 512 samples: the two "
+                          r"records must cover the same samples"),
     ("rates", DataError, r"--u-file '.*u\.mat' states the sampling rate 1000 Hz, --y-file "
                          r"'.*y\.mat' 400 Hz: the input and the output must be sampled "
                          r"together"),

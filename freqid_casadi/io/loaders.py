@@ -37,7 +37,8 @@ from ._table import (Column, Table, _check_finite, _default_columns, _layout_pro
 from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 
-__all__ = ["load", "load_all", "is_uff", "load_text", "load_csv", "load_npz", "load_mat", "load_uff",
+__all__ = ["load", "load_all", "is_uff", "load_text", "load_csv", "load_npz", "load_mat",
+           "load_uff",
            "load_touchstone", "is_touchstone", "parse_band", "save_csv",
            "read_regular_file", "DataWarning", "MAX_FILE_BYTES", "MAX_ROWS", "MAX_ELEMENTS"]
 

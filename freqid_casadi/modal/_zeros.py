@@ -9,7 +9,8 @@ phase: the fit ends poor (or does not converge), and the shared poles it keeps a
 away from the modes. Measured on 4 sensors of a 3-mode structure (0.5 % noise; the
 gallery's ``plot_42_modal_mat_zeros``): minimum phase, the first mode at 10.009 Hz and
 2.37 % damping for 10 Hz and 2.00 %, worst channel RMS 0.72; with free zeros 10.000 Hz,
-2.000 %, RMS 0.0071 (the noise), in a tenth of the time. ``python scripts/modal_zeros.py`` measures it on random modal tests
+2.000 %, RMS 0.0071 (the noise), in a tenth of the time. ``python
+scripts/modal_zeros.py`` measures it on random modal tests
 (results/modal-zeros).
 
 :func:`offer_free_zeros` fits such a result again with free zeros in every channel and,
