@@ -123,3 +123,50 @@ def test_freqid_frf_averages_the_rows_or_columns_of_a_mat_file(tmp_path, capsys)
     assert main(["frf", str(rows), "--u", "uval(2,:)", "--y", "yval(2,:)", "--period",
                  str(N), "--out", str(tmp_path / "d.csv")]) == 0
     assert "3 period(s) averaged" in capsys.readouterr().out
+
+
+def test_a_stated_rate_wins_over_a_time_vector_in_other_units(tmp_path, capsys):
+    # a published motor bench: time counts microseconds (int32) before fs = 2500 (uint16);
+    # the rate came from the time vector, 0.0025 Hz, and --fs 2500 was refused
+    us, ys = _records(1, 3, 0.0, 0.01)
+    t = (np.arange(us.size) * 400).astype(np.int32)
+    path = tmp_path / "bench.mat"
+    scipy.io.savemat(str(path), {"time": t, "iq": us[0], "theta": ys[0],
+                                 "fs": np.uint16(2500)})
+    assert main(["frf", str(path), "--u", "iq", "--y", "theta", "--period", str(N), "--fs",
+                 "2500", "--out", str(tmp_path / "f.csv")]) == 0
+    assert "omega 61.36 to 3620 rad/s" in capsys.readouterr().out      # 2 pi k 2500/256
+
+
+def test_arrays_of_three_dimensions_and_mismatched_layouts_say_what_to_do(tmp_path, capsys):
+    us, ys = _records(3, 2, 0.0, 0.01)
+    path = tmp_path / "rpn.mat"
+    scipy.io.savemat(str(path), {"u": us.reshape(3, 2, N), "y": ys.reshape(3, 2, N),
+                                 "r": us[:, :N], "fs": FS})
+    assert main(["frf", str(path), "--period", str(N), "--out", str(tmp_path / "a.csv")]) == 2
+    assert ("--u 'u' is a 3 x 2 x 256 array, not a record or a matrix of realisations"
+            in capsys.readouterr().err)
+    with pytest.raises(DataError, match=r"us must be R x N \(one realisation of N samples a "
+                       r"row\), got 3 x 2 x 256: for realisation x period x sample arrays "
+                       r"pass us\.reshape\(R, -1\)"):
+        frf_from_realisations(us.reshape(3, 2, N), ys, N)
+    # a reference of one period per realisation beside records of two
+    flat = tmp_path / "rn.mat"
+    scipy.io.savemat(str(flat), {"u": us, "y": ys, "r": us[:, :N], "fs": FS})
+    assert main(["frf", str(flat), "--period", str(N), "--reference", "r",
+                 "--out", str(tmp_path / "b.csv")]) == 0
+    assert "3 realisations of 2 period(s) each averaged" in capsys.readouterr().out
+    # two files: one matrix each is read as its realisations; one record beside a matrix
+    # of outputs is refused saying which to choose
+    scipy.io.savemat(str(tmp_path / "U.mat"), {"uval": us})
+    scipy.io.savemat(str(tmp_path / "Y.mat"), {"yval": ys})
+    scipy.io.savemat(str(tmp_path / "U1.mat"), {"u": us[0]})
+    assert main(["frf", "--u-file", str(tmp_path / "U.mat"), "--y-file",
+                 str(tmp_path / "Y.mat"), "--period", str(N), "--fs", str(FS), "--out",
+                 str(tmp_path / "c.csv")]) == 0
+    assert (tmp_path / "c.csv").read_bytes() == (tmp_path / "b.csv").read_bytes()
+    assert main(["frf", "--u-file", str(tmp_path / "U1.mat"), "--y-file",
+                 str(tmp_path / "Y.mat"), "--period", str(N), "--out",
+                 str(tmp_path / "d.csv")]) == 2
+    assert "the input is one record and the output a matrix of 3 records" in \
+        capsys.readouterr().err

@@ -54,7 +54,7 @@ from ..experiment import (ESTIMATORS, frf_from_periodic, frf_from_realisations,
                          load_records_table, lvm_segments)
 from .common import _ASCII_FLOAT, _ASCII_INT, _ascii, _checked   # the CLI's own type helpers
 from .common import parse_band_text
-from ..io.loaders import read_regular_file, save_csv
+from ..io.loaders import MAX_FILE_BYTES, read_regular_file, save_csv
 
 __all__ = ["add_cli", "run_cli", "read_records", "read_excitation", "stats_path", "NAME"]
 
@@ -222,9 +222,12 @@ def _file_record(path, opt, args):
     rec = load_records_mat(path, min_records=1)
     names = ", ".join(rec.channels)
     name = getattr(args, opt, None) or getattr(args, alias, None)
+    bases = {re.sub(r"\((\d+,:|:,\d+)\)$", "", k) for k in rec.channels}
     if name is None:
         if len(rec.channels) == 1:
             name = next(iter(rec.channels))
+        elif len(bases) == 1 and _record(rec.channels, next(iter(bases))) is not None:
+            name = next(iter(bases))        # one matrix: its rows (or columns) are realisations
         elif opt in rec.channels:
             name = opt
         else:
@@ -232,7 +235,8 @@ def _file_record(path, opt, args):
                               f"choose the {alias} with --{opt} NAME")
     found = _record(rec.channels, name)
     if found is None:
-        raise OptionError(f"--{opt} {name!r} is not a time record of --{opt}-file {path!r}; "
+        raise OptionError(_nd_hint(path, name, opt) or
+                          f"--{opt} {name!r} is not a time record of --{opt}-file {path!r}; "
                           f"its records are {names}")
     return found, name, rec
 
@@ -242,6 +246,8 @@ def _two_file_records(args):
     ``--y-file``: records of one length, files that state no contradicting rates."""
     u, u_name, u_rec = _file_record(args.u_file, "u", args)
     y, y_name, y_rec = _file_record(args.y_file, "y", args)
+    if u.ndim != y.ndim:
+        _check_realisations(u, y, None, "periodic")
     if u.shape != y.shape:
         raise DataError(f"the input {u_name!r} of --u-file {args.u_file!r} holds "
                         f"{_samples(u)}, the output {y_name!r} of --y-file {args.y_file!r} "
@@ -308,15 +314,36 @@ def _mat_records(args):
         if _record(rec.channels, name) is None:
             what = (f"is required: name the {alias} record's variable" if name is None
                     else f"{name!r} is not a time record of the file")
-            raise OptionError(f"--{opt} {what}; the records are {names} (e.g. freqid frf "
+            raise OptionError(_nd_hint(args.records, name or default, opt) or
+                              f"--{opt} {what}; the records are {names} (e.g. freqid frf "
                               f"FILE --u NAME --y NAME)")
         chosen.append(_record(rec.channels, name))
     ref = getattr(args, "reference", None)
-    if ref is not None and _record(rec.channels, ref) is None:
-        raise OptionError(f"--reference {ref!r} is not a time record of the file; the "
-                          f"records are {names}")
     _same_rate(args, rec.fs)
-    return chosen[0], chosen[1], rec.fs, None if ref is None else _record(rec.channels, ref)
+    if ref is None:
+        return chosen[0], chosen[1], rec.fs, None
+    found = _record(rec.channels, ref)
+    if found is None and chosen[0].ndim == 2:
+        found = _period_reference(args.records, ref, chosen[0].shape[0])
+    if found is None:
+        raise OptionError(_nd_hint(args.records, ref, "reference") or
+                          f"--reference {ref!r} is not a time record of the file (a "
+                          f"reference is as long as the records); the records are {names}")
+    return chosen[0], chosen[1], rec.fs, found
+
+
+def _period_reference(path, name, count):
+    """The rows of the matrix ``name`` of the .mat file ``path`` when it holds ``count``
+    records (rows or columns) of another length than the records (a generator's one
+    period per realisation, repeated by :func:`~freqid_casadi.experiment.
+    frf_from_realisations`); else None."""
+    from ..io import read_mat_arrays
+
+    _, payload = read_regular_file(path, "records file")
+    a = read_mat_arrays(path, payload, MAX_FILE_BYTES // 8).get(name)
+    if a is None or a.ndim != 2 or a.dtype.kind not in "iuf" or count not in a.shape:
+        return None
+    return np.asarray(a if a.shape[0] == count else a.T, float)
 
 
 def _record(channels, name):
@@ -333,6 +360,25 @@ def _record(channels, name):
         if rows:
             return np.array([channels[k] for _, k in rows])
     return None
+
+
+def _nd_hint(path, name, opt):
+    """The message for ``--{opt} NAME`` naming an array of three or more dimensions (or a
+    matrix of another length than the records) in the .mat file ``path``, else None."""
+    from ..io import read_mat_arrays
+
+    if name is None:
+        return None
+    _, payload = read_regular_file(path, "records file")
+    a = read_mat_arrays(path, payload, MAX_FILE_BYTES // 8).get(name)
+    if a is None or a.ndim < 2:
+        return None
+    shape = " x ".join(map(str, a.shape))
+    return (f"--{opt} {name!r} is a {shape} array, not a record or a matrix of "
+            "realisations of the records' length: freqid frf reads a record as a vector, "
+            "realisations as the rows (or columns) of a matrix; for a realisation x period x "
+            "sample array, in Python: experiment.frf_from_realisations(u.reshape(R, -1), "
+            "y.reshape(R, -1), period, fs=...)")
 
 
 def _samples(x):
@@ -361,7 +407,7 @@ def _check_realisations(u, y, ref, estimator):
                           "columns): they are averaged for a periodic excitation (--period "
                           f"N); for --estimator {estimator} choose one, e.g. --u 'NAME(2,:)' "
                           "--y 'NAME(2,:)'")
-    if ref is not None and np.shape(ref) != u.shape:
+    if ref is not None and np.shape(ref)[0] != u.shape[0]:
         raise DataError(f"--reference holds {_samples(np.asarray(ref))} for {_samples(u)} "
                         "of the input: pass the generated excitation of every realisation")
 
@@ -533,14 +579,17 @@ def run_cli(args, command):
     fs = getattr(args, "fs", None) or fs_file
     name = os.path.splitext(os.path.basename(os.fspath(args.y_file if two_files
                                                       else args.records)))[0]
-    if estimator == "periodic" and u.ndim == 2:
-        est = frf_from_realisations(u, y, period, fs=fs,
-                                    skip_periods=getattr(args, "skip_periods", 0) or 0,
-                                    name=name, references=ref)
-    elif estimator == "periodic":
-        est = frf_from_periodic(u, y, period, fs=fs,
-                                skip_periods=getattr(args, "skip_periods", 0) or 0, name=name,
-                                reference=ref)
+    if estimator == "periodic":
+        skip = getattr(args, "skip_periods", 0) or 0
+        try:
+            est = (frf_from_realisations(u, y, period, fs=fs, skip_periods=skip, name=name,
+                                         references=ref) if u.ndim == 2 else
+                   frf_from_periodic(u, y, period, fs=fs, skip_periods=skip, name=name,
+                                     reference=ref))
+        except DataError as exc:        # the Python-only option, in this command's words
+            raise DataError(str(exc).replace(
+                "give the right period, or pass allow_partial=True to drop the trailing "
+                "partial period", "or give the right period")) from None
     else:
         est = frf_from_records(u, y, fs=fs, estimator=estimator,
                                nperseg=getattr(args, "nperseg", None),
@@ -658,6 +707,10 @@ def _summary(est, out, sidecar):
               f"omega {d.omega[0]:.4g} to {d.omega[-1]:.4g} {unit}, {each} averaged")
         if est.noise_variance is not None:
             print(_distortion_line(est))
+        elif est.n_realisations and est.variance is not None:
+            print("one period each: the spread over the realisations holds the noise and "
+                  "the nonlinear distortions together (two or more periods each tell them "
+                  "apart)")
     if est.fs is None:
         print("no --fs: the omega column is in rad/sample, so a fit of it gives the delay in "
               "samples, not seconds (pass --fs HZ for rad/s)")

@@ -20,17 +20,35 @@ __all__ = ["frf_from_realisations"]
 
 
 def _rows(x, name):
-    """``x`` as a list of 1-D float arrays (the rows of an (R, N) array, or a sequence)."""
-    if isinstance(x, np.ndarray) and x.ndim == 2:
-        return [np.asarray(r, float) for r in x]
+    """``x`` as a list of 1-D float arrays (the rows of an (R, N) array, or a sequence of
+    R vectors; a vector is one realisation)."""
+    shape = np.shape(x) if isinstance(x, np.ndarray) else None
+    if shape is not None and len(shape) == 1:
+        return [np.asarray(x, float)]
     try:
-        rows = [np.asarray(r, float).reshape(-1) for r in x]
+        rows = [np.asarray(r, float) for r in x]
     except (TypeError, ValueError):
-        raise DataError(f"{name} must be R records of equal length (an R x N array or a "
-                        f"list of R arrays), got {type(x).__name__}") from None
+        raise DataError(f"{name} must be R records (an R x N array or a list of R "
+                        f"vectors), got {type(x).__name__}") from None
     if not rows:
         raise DataError(f"{name} holds no realisation")
-    return rows
+    bad = next((r.shape for r in rows if r.ndim != 1 and r.size != max(r.shape, default=0)),
+               None)
+    if bad is not None:
+        shown = " x ".join(map(str, shape if shape is not None else (len(rows),) + bad))
+        raise DataError(f"{name} must be R x N (one realisation of N samples a row), got "
+                        f"{shown}: for realisation x period x sample arrays pass "
+                        f"{name}.reshape(R, -1)")
+    return [r.reshape(-1) for r in rows]
+
+
+def _whole_length(ref, n, period):
+    """A reference of one period repeated to ``n`` samples (a generator's one-period
+    signal beside records of several periods); any other reference as it is."""
+    if ref is None:
+        return None
+    r = np.asarray(ref, float).reshape(-1)
+    return np.tile(r, n // period + 1)[:n] if r.size == period and n > period else r
 
 
 def _period_means(x, period, skip):
@@ -56,7 +74,8 @@ def frf_from_realisations(us, ys, period, *, fs=None, bins=None, skip_periods=0,
         As :func:`~freqid_casadi.experiment.periodic.frf_from_periodic`, for each
         realisation.
     references : sequence of R array_like, optional
-        Each realisation's generated excitation (``reference`` of ``frf_from_periodic``).
+        Each realisation's generated excitation (``reference`` of ``frf_from_periodic``),
+        as long as its records or one period (repeated).
 
     Returns
     -------
@@ -92,7 +111,7 @@ def frf_from_realisations(us, ys, period, *, fs=None, bins=None, skip_periods=0,
                                           skip_periods=skip_periods, threshold=threshold,
                                           allow_partial=allow_partial,
                                           periodic_rtol=periodic_rtol, name=name,
-                                          reference=ref))
+                                          reference=_whole_length(ref, u.size, period)))
         except DataError as exc:
             raise DataError(f"realisation {r + 1} of {len(us)}: {exc}") from None
     if len(ests) == 1:

@@ -20,13 +20,14 @@ import lzma
 import math
 import numbers
 import os
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..io import NUMBER, decode_text, shown_cell
 from ..errors import DataError, OptionError
-from ..io.loaders import MAX_FILE_BYTES, MAX_ROWS, read_regular_file
+from ..io.loaders import MAX_FILE_BYTES, MAX_ROWS, DataWarning, read_regular_file
 from ._lvm import column_rate, column_start, heading, lvm_layout
 from .periodic import _detect_period, frf_from_periodic
 
@@ -679,20 +680,32 @@ _T_NAMES = ("t", "time")
 
 def _mat_fs(path, arrays, n):
     """Sampling rate (Hz) that a ``.mat`` file states: a scalar ``fs`` (or ``SampleRate``
-    ...), ``dt``/``Ts`` (s), or a time vector ``t``/``time`` of the records' length; None."""
+    ...) or ``dt``/``Ts`` (s), else a time vector ``t``/``time`` of the records' length
+    (whose unit the file does not say: a published motor bench's ``time`` counts
+    microseconds beside ``fs`` = 2500); None. A time vector whose rate differs from the
+    stated one by other than a power of 1000 (ms, us stamps) is noted."""
+    stated = stamped = None
     for key, arr in arrays.items():
         last = key.rsplit(".", 1)[-1].lower()
         value = float(arr) if arr.size == 1 and arr.dtype.kind in "iuf" else None
-        if value is not None and np.isfinite(value) and value > 0:
+        if value is not None and np.isfinite(value) and value > 0 and stated is None:
             if last in _FS_NAMES:
-                return value
-            if last in _DT_NAMES:
-                return 1.0 / value
-        if last in _T_NAMES and arr.ndim == 1 and arr.size == n:
+                stated = (value, key)
+            elif last in _DT_NAMES:
+                stated = (1.0 / value, key)
+        if last in _T_NAMES and arr.ndim == 1 and arr.size == n and stamped is None:
             fs = uniform_rate(arr)
             if fs is not None:
-                return fs
-    return None
+                stamped = (fs, key)
+    if stated is None:
+        return None if stamped is None else stamped[0]
+    if stamped is not None:
+        power = math.log(stated[0] / stamped[0], 1000.0)
+        if abs(power - round(power)) > 1e-3:
+            warnings.warn(f"{path!r}: {stamped[1]} steps at {stamped[0]:.6g} per unit, "
+                          f"{stated[1]} says {stated[0]:.6g} Hz: used {stated[1]}",
+                          DataWarning, stacklevel=3)
+    return stated[0]
 
 
 #: Largest spread of a time column's steps, relative to their mean, read as uniform
