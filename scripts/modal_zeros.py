@@ -39,8 +39,11 @@ def render(command, s):
               "noise. Each is fitted by `fit_shared` at its true order, delay none, once "
               "with every channel's zeros minimum phase and once free. A fit **finds the "
               f"modes** when every natural frequency is within {100 * FREQ_TOL:g} %, every "
-              f"damping ratio within {100 * DAMPING_TOL:g} % and every residue vector's MAC "
-              f"against the truth above {MAC_TOL}. {s['seconds']:.0f} s.", ""]
+              f"damping ratio within {100 * DAMPING_TOL:g} % and the MAC of every mode's "
+              f"residue vector (the fitted models' `Mode.residues`) against the truth above "
+              f"{MAC_TOL}; `mode_shapes()`, whose modal constants are re-estimated by least "
+              "squares at the fit's poles, gives shapes closer to the truth than a poor "
+              f"model's residues. {s['seconds']:.0f} s.", ""]
     names = {"minimum-phase": "minimum phase", "free": "free"}
     rows = [(names[c], v["cases"], v["found"], v["ok"],
              f"{len(v['ok_not_found'])} {', '.join(map(str, v['ok_not_found']))}".strip(),
