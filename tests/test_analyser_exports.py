@@ -217,7 +217,7 @@ def test_headerless_file_gets_an_example_with_as_many_names_as_columns(tmp_path)
             "120.226443\t-4.405273\t0.602194\t-1.700000\n")
     path = _write(tmp_path, text, "bode_5d.txt", newline="\r\n")
     with pytest.raises(DataError, match=r"has no header and 4 columns.*e\.g\. "
-                       r"columns='f,mag_db,phase_deg,skip',"):
+                       r"columns='freq_hz,mag_db,phase_deg,skip',"):
         fc.load(path)
     data = fc.load(path, columns="freq_hz,mag_db,skip,phase_deg")
     np.testing.assert_allclose(data.response, _polar([-4.405273] * 3, [-1.4, -1.5, -1.7]),
@@ -395,3 +395,57 @@ def test_one_trace_block(tmp_path):
     with pytest.raises(DataError, match=r"line 21: the first column of trace A is 'DC Bias', "
                        r"not a frequency: the analyser swept another quantity"):
         _load(_write(tmp_path, text, "bias.txt"))
+
+
+def test_loudspeaker_frd_and_zma_files_follow_their_convention(tmp_path):
+    # published loudspeaker data: .frd is Hz, dB, degrees; .zma Hz, ohms, degrees, both
+    # without a header (a .zma may open with '*' comment lines); they were read as
+    # frequency, real, imaginary (-57.66 - 284.6j for -57.66 dB at 75.4 degrees)
+    frd = tmp_path / "F144OB.frd"
+    frd.write_text("0  -80.000  0.00\n5  -57.663  -284.60\n10  -45.100  -250.00\n")
+    zma = tmp_path / "L16.zma"
+    zma.write_text("* Data: Impedance (ohms), Phase (degrees)\n*\n"
+                   "10.000 +7.1929 +25.7824\n20.000 +9.5000 +40.0000\n30.0 12.0 10.0\n")
+    with pytest.warns(DataWarning, match=r"no header: read as freq_hz, mag_db, phase_deg "
+                      r"\(the \.frd convention\)"):
+        d = fc.load(frd)
+    assert d.n_points == 2 and d.omega[0] == pytest.approx(2 * np.pi * 5)
+    assert abs(d.response[0]) == pytest.approx(10 ** (-57.663 / 20), rel=1e-12)
+    assert np.degrees(np.angle(d.response[0])) == pytest.approx(-284.60 + 360, rel=1e-12)
+    with pytest.warns(DataWarning, match=r"read as freq_hz, mag, phase_deg \(the \.zma"):
+        z = fc.load(zma)
+    assert abs(z.response[0]) == pytest.approx(7.1929, rel=1e-12)
+    assert np.degrees(np.angle(z.response[0])) == pytest.approx(25.7824, rel=1e-12)
+    # columns= still decides
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        ri = fc.load(zma, columns="freq_hz,re,im")
+    assert ri.response[0] == pytest.approx(7.1929 + 25.7824j)
+
+
+def test_a_pulse_ascii_export_index_column_and_footer(tmp_path):
+    # a Brueel & Kjaer PULSE LabShop ASCII export: index, frequency, value rows between a
+    # preamble and a 7-line footer (TagsBegin: ... TagScalesEnd:); read as frequency, real,
+    # imaginary the index became the frequency
+    rows = "".join(f"{k}\t {k - 1.0:.10e}\t {1e-9 * (1 + k % 3):.5e}\n" for k in range(1, 40))
+    footer = ("TagsBegin:\t \t \nOverLoad:\t \tFalse\nAverageNumber: []\t \t 1.00000e+001\n"
+              "OverLoadRatio: []\t \t 1.19209e-007\nTagsEnd:\t \t \nTagScalesBegin:\t \t \n"
+              "TagScalesEnd:\t \t \n")
+    path = tmp_path / "pls1.txt"
+    head = "".join(f"{k}:\t{v}\t \n" for k, v in (
+        ("Header Size", " 12"), ("Decimal Symbol", "."), ("Data Type", "Real"),
+        ("X-Axis type", "Linear"), ("X-Axis size", "39"), ("X-Axis unit", "Hz"),
+        ("X-Axis first value", " 0.0000000000e+000"), ("X-Axis delta", " 1.0e+000"),
+        ("AmplitudeUnit", "V"), ("Analyzer", "FFT_Spectrum_Averaging")))
+    path.write_text(head + "\t \t \nZ-index:\t \t1\nDate:\t \t2018/7/5\n" + rows + footer)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        with pytest.raises(DataError, match=r"the first column counts the rows \(1\.\.39\): "
+                           r"an index, not a frequency"):
+            fc.load(path, freq_unit="Hz")
+        with pytest.raises(OptionError, match="the columns must be one frequency and "
+                           "real\\+imaginary, magnitude\\+phase or one complex column"):
+            fc.load(path, columns="skip,freq_hz,mag")
+    with pytest.warns(DataWarning, match=r"skipped 7 line\(s\) after the data"):
+        with pytest.raises(DataError):
+            fc.load(path, freq_unit="Hz")

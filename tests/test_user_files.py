@@ -195,7 +195,7 @@ def test_headerless_three_columns_say_how_they_are_read(tmp_path):
     path = tmp_path / "h.txt"
     path.write_text("".join(f"{f} {m} {p}\n" for f, m, p in zip(F_HZ, DB, DEG)))
     with pytest.raises(DataError, match=r"read as frequency, real, imaginary unless "
-                                        r"columns='f,mag_db,phase_deg' \(--columns\)"):
+                                        r"columns='freq_hz,mag_db,phase_deg' \(--columns\)"):
         load(path)
 
 

@@ -9,6 +9,7 @@ digits, which a data file never means.
 import cmath
 import codecs
 import math
+import os
 import re
 import warnings
 from dataclasses import dataclass
@@ -349,13 +350,27 @@ def _header_columns(path, cells, parameter=None, line=1):
     return tuple(cols)
 
 
+#: The columns of a headerless loudspeaker-measurement file, by suffix: ``.frd``
+#: (frequency response data: Hz, SPL in dB, phase in degrees) and ``.zma`` (impedance: Hz,
+#: ohms, degrees), as the loudspeaker tools write and read them.
+_SUFFIX_COLUMNS = {".frd": ("freq_hz", "mag_db", "phase_deg"),
+                   ".zma": ("freq_hz", "mag", "phase_deg")}
+
+
 def _default_columns(path, cells):
+    suffix = os.path.splitext(str(path).strip("'\""))[1].lower()
+    if len(cells) == 3 and suffix in _SUFFIX_COLUMNS:
+        names = _SUFFIX_COLUMNS[suffix]
+        warnings.warn(f"{path!r}: no header: read as {', '.join(names)} (the {suffix} "
+                      "convention); pass columns=... (command line --columns) otherwise",
+                      DataWarning, stacklevel=5)
+        return tuple(recognise(n) for n in names)
     if len(cells) == 3:
         return (Column("freq", None, "frequency"), Column("re", None, "real"),
                 Column("im", None, "imag"))
     if len(cells) == 2 and not NUMBER.fullmatch(_clean(cells[1])):
         return Column("freq", None, "frequency"), Column("complex", None, "response")
-    example = ",".join(["f", "mag_db", "phase_deg"] + ["skip"] * (len(cells) - 3))
+    example = ",".join(["freq_hz", "mag_db", "phase_deg"] + ["skip"] * (len(cells) - 3))
     records = (" If it holds time records (input and output samples), estimate the "
                "frequency response first: freqid frf FILE --out frf.csv (see freqid frf "
                "--help)." if len(cells) == 2 else "")
@@ -374,7 +389,7 @@ def _resolve_units(path, cols, freq_unit, header):
             what = (f"unrecognised header {header!r}: column {freq.label!r} has no unit"
                     if header else "it has no header line" + (
                         "; its columns are read as frequency, real, imaginary unless columns="
-                        "'f,mag_db,phase_deg' (--columns) says otherwise"
+                        "'freq_hz,mag_db,phase_deg' (--columns) says otherwise"
                         if [c.role for c in cols] == ["freq", "re", "im"]
                         and cols[1].label == "real" else ""))
             raise DataError(
@@ -604,12 +619,17 @@ def _one_run(path, rows, record):
     return rows[:marks[0]] + runs[k]
 
 
+#: Most closing lines after the data that :func:`_footer` drops (a Brüel & Kjær PULSE
+#: ASCII export ends with 7: ``TagsBegin:``, ``OverLoad:``, ... ``TagScalesEnd:``).
+MAX_FOOTER = 16
+
+
 def _footer(path, rows):
-    """``rows`` without up to 5 closing lines after the data that are no data (``[End]``,
-    ``End of data``, ``Key: value``), stated by a DataWarning."""
+    """``rows`` without up to :data:`MAX_FOOTER` closing lines after the data that are no
+    data (``[End]``, ``End of data``, ``Key: value``), stated by a DataWarning."""
     n = len(rows)
     k = n
-    while k > 1 and n - k < 5 and _END.match(rows[k - 1][1]):
+    while k > 1 and n - k < MAX_FOOTER and _END.match(rows[k - 1][1]):
         k -= 1
     if k == n or not all(_is_value(c) for c in _row_cells(rows[k - 1][1])):
         return rows
@@ -688,7 +708,27 @@ def read_table(path, payload, columns, freq_unit, max_rows, parameter=None, reco
     _check_finite(table)
     if any(c.same for c in cols):
         _check_same(table, rows, split)
+    if not header and columns is None and [c.label for c in cols] == [
+            "frequency", "real", "imag"]:
+        _check_guessed(path, values)
     return table
+
+
+def _check_guessed(path, values):
+    """A headerless file read as frequency, real, imaginary: refuse a first column that
+    counts the rows beside a second that increases like a frequency (an analyser's index,
+    frequency, value: a Brüel & Kjær PULSE ASCII export), else say how it was read."""
+    f, re_ = values["freq"], values["re"].real
+    index = f.size > 2 and f[0] in (0.0, 1.0) and np.array_equal(f, f[0] + np.arange(f.size))
+    if index and np.all(np.diff(re_) > 0) and re_[0] >= 0:
+        raise DataError(f"{path!r}: the first column counts the rows ({f[0]:g}..{f[-1]:g}): "
+                        "an index, not a frequency, and the second increases at every row "
+                        "like a frequency; name the columns, e.g. columns='skip,freq_hz,re,im' "
+                        "or 'skip,freq_hz,mag_db,phase_deg' (command line --columns); a "
+                        "real-valued function (an autospectrum) has no phase to fit")
+    warnings.warn(f"{path!r}: no header: read the columns as frequency, real, imaginary; if "
+                  "they are magnitude and phase, pass columns='freq_hz,mag_db,phase_deg' "
+                  "(or mag, phase_rad; command line --columns)", DataWarning, stacklevel=5)
 
 
 #: How closely a column that repeats the response in another form (an analyser's second
