@@ -449,3 +449,13 @@ def test_a_pulse_ascii_export_index_column_and_footer(tmp_path):
     with pytest.warns(DataWarning, match=r"skipped 7 line\(s\) after the data"):
         with pytest.raises(DataError):
             fc.load(path, freq_unit="Hz")
+
+
+def test_both_missing_units_are_named_at_once(tmp_path):
+    # a driver maker's 'Freq dB Phase' export: the frequency's unit and then, on the next
+    # try, the phase's were asked for one at a time
+    path = tmp_path / "TW022.txt"
+    path.write_text("Freq dB Phase\n200 67.64 162.82\n250 68.1 150.2\n")
+    with pytest.raises(DataError, match=r"column 'Freq' has no unit\).*; the phase column "
+                       r"'Phase' does not give its unit either: name it phase_deg"):
+        fc.load(path)

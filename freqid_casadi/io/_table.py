@@ -392,10 +392,13 @@ def _resolve_units(path, cols, freq_unit, header):
                         "'freq_hz,mag_db,phase_deg' (--columns) says otherwise"
                         if [c.role for c in cols] == ["freq", "re", "im"]
                         and cols[1].label == "real" else ""))
+            phase = [c for c in cols if c.role == "phase" and c.unit is None]
+            also = (f"; the phase column {phase[0].label!r} does not give its unit either: "
+                    "name it phase_deg or phase_rad (or 'phase [deg]')" if phase else "")
             raise DataError(
                 f"{path!r}: the frequency unit is unknown ({what}): pass freq_unit='Hz' or "
                 "freq_unit='rad/s' (command line --freq-unit hz|rad/s), or name the column "
-                "'omega' (rad/s) or 'freq_hz' / 'f [Hz]' (Hz) in a header")
+                f"'omega' (rad/s) or 'freq_hz' / 'f [Hz]' (Hz) in a header{also}")
         freq_unit_col = Column("freq", freq_unit, freq.label)
         cols = tuple(freq_unit_col if c is freq else c for c in cols)
     elif freq_unit is not None and freq_unit != freq.unit:
