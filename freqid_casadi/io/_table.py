@@ -9,7 +9,6 @@ digits, which a data file never means.
 import cmath
 import codecs
 import math
-import os
 import re
 import warnings
 from dataclasses import dataclass
@@ -19,6 +18,7 @@ import numpy as np
 from ._columns import (_UNITS, COLUMN_HELP, DERIVED, Column, _layout_problem, columns_option,
                        complete_channels, one_layout, parse_columns, parse_freq_unit,
                        recognise, sparameters, with_parameter)
+from ._headerless import check_guessed, suffix_columns
 from ._readfile import DataWarning
 from ..errors import DataError, OptionError
 
@@ -350,21 +350,10 @@ def _header_columns(path, cells, parameter=None, line=1):
     return tuple(cols)
 
 
-#: The columns of a headerless loudspeaker-measurement file, by suffix: ``.frd``
-#: (frequency response data: Hz, SPL in dB, phase in degrees) and ``.zma`` (impedance: Hz,
-#: ohms, degrees), as the loudspeaker tools write and read them.
-_SUFFIX_COLUMNS = {".frd": ("freq_hz", "mag_db", "phase_deg"),
-                   ".zma": ("freq_hz", "mag", "phase_deg")}
-
-
 def _default_columns(path, cells):
-    suffix = os.path.splitext(str(path).strip("'\""))[1].lower()
-    if len(cells) == 3 and suffix in _SUFFIX_COLUMNS:
-        names = _SUFFIX_COLUMNS[suffix]
-        warnings.warn(f"{path!r}: no header: read as {', '.join(names)} (the {suffix} "
-                      "convention); pass columns=... (command line --columns) otherwise",
-                      DataWarning, stacklevel=5)
-        return tuple(recognise(n) for n in names)
+    by_suffix = suffix_columns(path, len(cells))
+    if by_suffix is not None:
+        return by_suffix
     if len(cells) == 3:
         return (Column("freq", None, "frequency"), Column("re", None, "real"),
                 Column("im", None, "imag"))
@@ -713,25 +702,8 @@ def read_table(path, payload, columns, freq_unit, max_rows, parameter=None, reco
         _check_same(table, rows, split)
     if not header and columns is None and [c.label for c in cols] == [
             "frequency", "real", "imag"]:
-        _check_guessed(path, values)
+        check_guessed(path, values)
     return table
-
-
-def _check_guessed(path, values):
-    """A headerless file read as frequency, real, imaginary: refuse a first column that
-    counts the rows beside a second that increases like a frequency (an analyser's index,
-    frequency, value: a Brüel & Kjær PULSE ASCII export), else say how it was read."""
-    f, re_ = values["freq"], values["re"].real
-    index = f.size > 2 and f[0] in (0.0, 1.0) and np.array_equal(f, f[0] + np.arange(f.size))
-    if index and np.all(np.diff(re_) > 0) and re_[0] >= 0:
-        raise DataError(f"{path!r}: the first column counts the rows ({f[0]:g}..{f[-1]:g}): "
-                        "an index, not a frequency, and the second increases at every row "
-                        "like a frequency; name the columns, e.g. columns='skip,freq_hz,re,im' "
-                        "or 'skip,freq_hz,mag_db,phase_deg' (command line --columns); a "
-                        "real-valued function (an autospectrum) has no phase to fit")
-    warnings.warn(f"{path!r}: no header: read the columns as frequency, real, imaginary; if "
-                  "they are magnitude and phase, pass columns='freq_hz,mag_db,phase_deg' "
-                  "(or mag, phase_rad; command line --columns)", DataWarning, stacklevel=5)
 
 
 #: How closely a column that repeats the response in another form (an analyser's second
