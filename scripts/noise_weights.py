@@ -12,7 +12,6 @@ of the first ``--cases`` corpus indices, for each noise kind, in 2 processes) an
 """
 
 import argparse
-import json
 import os
 import shlex
 import sys
@@ -20,7 +19,7 @@ import time
 
 from freqid_casadi.errors import FreqidError
 from freqid_casadi.report.environment import computed_on_lines, environment
-from freqid_casadi.report.folder import atomic_write_text, check_out_dir, report_folder
+from freqid_casadi.report.folder import check_out_dir, write_study_report
 from freqid_casadi.report.formatting import generated_by_line, json_safe, markdown_table
 from freqid_casadi.studies.noise_weights import KINDS, WAYS, run_study, summarise
 
@@ -83,10 +82,7 @@ def main(argv=None):
                        "max_points": args.max_points, "seconds": time.perf_counter() - t0,
                        "summary": summarise(rows), "rows": rows,
                        "environment": environment()})
-        with report_folder(args.out, args.force) as (tmp, _):
-            atomic_write_text(os.path.join(tmp, "report.json"),
-                              json.dumps(s, indent=1, allow_nan=False) + "\n")
-            atomic_write_text(os.path.join(tmp, "report.md"), render(command, s))
+        write_study_report(args.out, s, render(command, s), force=args.force)
     except (FreqidError, OSError) as exc:
         sys.stderr.write(f"error: {' '.join(str(exc).split())}\n")
         return 2

@@ -41,7 +41,6 @@ defines the parser (:func:`add_cli`) and the command (:func:`run_cli`);
 
 import math
 import os
-import re
 
 import numpy as np
 
@@ -54,7 +53,7 @@ from ..experiment import (ESTIMATORS, frf_from_periodic, frf_from_realisations,
                          load_records_table, lvm_segments)
 from .common import _ASCII_FLOAT, _ASCII_INT, _ascii, _checked   # the CLI's own type helpers
 from .common import parse_band_text
-from ..io.loaders import MAX_FILE_BYTES, read_regular_file, save_csv
+from ..io.loaders import read_regular_file, save_csv
 
 __all__ = ["add_cli", "run_cli", "read_records", "read_excitation", "stats_path", "NAME"]
 
@@ -222,20 +221,22 @@ def _file_record(path, opt, args):
     rec = load_records_mat(path, min_records=1)
     names = ", ".join(rec.channels)
     name = getattr(args, opt, None) or getattr(args, alias, None)
-    bases = {re.sub(r"\((\d+,:|:,\d+)\)$", "", k) for k in rec.channels}
+    # one matrix whose rows (or columns) are all the file's records: its realisations
+    whole = [k for k in rec.matrices if (r := rec.realisations(k)) is not None
+             and r.shape[0] == len(rec.channels)]
     if name is None:
         if len(rec.channels) == 1:
             name = next(iter(rec.channels))
-        elif len(bases) == 1 and _record(rec.channels, next(iter(bases))) is not None:
-            name = next(iter(bases))        # one matrix: its rows (or columns) are realisations
+        elif len(whole) == 1:
+            name = whole[0]
         elif opt in rec.channels:
             name = opt
         else:
             raise OptionError(f"--{opt}-file {path!r} holds several records ({names}): "
                               f"choose the {alias} with --{opt} NAME")
-    found = _record(rec.channels, name)
+    found = _record(rec, name)
     if found is None:
-        raise OptionError(_nd_hint(path, name, opt) or
+        raise OptionError(_nd_hint(rec, name, opt) or
                           f"--{opt} {name!r} is not a time record of --{opt}-file {path!r}; "
                           f"its records are {names}")
     return found, name, rec
@@ -246,9 +247,7 @@ def _two_file_records(args):
     ``--y-file``: records of one length, files that state no contradicting rates."""
     u, u_name, u_rec = _file_record(args.u_file, "u", args)
     y, y_name, y_rec = _file_record(args.y_file, "y", args)
-    if u.ndim != y.ndim:
-        _check_realisations(u, y, None, "periodic")
-    if u.shape != y.shape:
+    if u.ndim == y.ndim and u.shape != y.shape:    # (run_cli refuses other layouts)
         raise DataError(f"the input {u_name!r} of --u-file {args.u_file!r} holds "
                         f"{_samples(u)}, the output {y_name!r} of --y-file {args.y_file!r} "
                         f"holds {_samples(y)}: the two records must cover the same samples; "
@@ -266,8 +265,9 @@ def _two_file_records(args):
     if ref is None:
         return u, y, fs, None
     for rec in (u_rec, y_rec):
-        if _record(rec.channels, ref) is not None:
-            return u, y, fs, _record(rec.channels, ref)
+        found = _record(rec, ref)
+        if found is not None:
+            return u, y, fs, found
     raise OptionError(f"--reference {ref!r} is not a time record of --u-file or --y-file; "
                       f"their records are {', '.join(list(u_rec.channels) + list(y_rec.channels))}")
 
@@ -309,69 +309,53 @@ def _mat_records(args):
     chosen = []
     for opt, alias, default in (("u", "input", "u"), ("y", "output", "y")):
         name = getattr(args, opt, None) or getattr(args, alias, None)
-        if name is None and _record(rec.channels, default) is not None:
-            name = default
-        if _record(rec.channels, name) is None:
+        found = _record(rec, name if name is not None else default)
+        if found is None:
             what = (f"is required: name the {alias} record's variable" if name is None
                     else f"{name!r} is not a time record of the file")
-            raise OptionError(_nd_hint(args.records, name or default, opt) or
+            raise OptionError(_nd_hint(rec, name or default, opt) or
                               f"--{opt} {what}; the records are {names} (e.g. freqid frf "
                               f"FILE --u NAME --y NAME)")
-        chosen.append(_record(rec.channels, name))
+        chosen.append(found)
     ref = getattr(args, "reference", None)
     _same_rate(args, rec.fs)
     if ref is None:
         return chosen[0], chosen[1], rec.fs, None
-    found = _record(rec.channels, ref)
+    found = _record(rec, ref)
     if found is None and chosen[0].ndim == 2:
-        found = _period_reference(args.records, ref, chosen[0].shape[0])
+        found = _period_reference(rec, ref, chosen[0].shape[0])
     if found is None:
-        raise OptionError(_nd_hint(args.records, ref, "reference") or
+        raise OptionError(_nd_hint(rec, ref, "reference") or
                           f"--reference {ref!r} is not a time record of the file (a "
                           f"reference is as long as the records); the records are {names}")
     return chosen[0], chosen[1], rec.fs, found
 
 
-def _period_reference(path, name, count):
-    """The rows of the matrix ``name`` of the .mat file ``path`` when it holds ``count``
+def _period_reference(rec, name, count):
+    """The rows of the matrix ``name`` of the .mat records ``rec`` when it holds ``count``
     records (rows or columns) of another length than the records (a generator's one
     period per realisation, repeated by :func:`~freqid_casadi.experiment.
     frf_from_realisations`); else None."""
-    from ..io import read_mat_arrays
-
-    _, payload = read_regular_file(path, "records file")
-    a = read_mat_arrays(path, payload, MAX_FILE_BYTES // 8).get(name)
-    if a is None or a.ndim != 2 or a.dtype.kind not in "iuf" or count not in a.shape:
+    a = rec.matrices.get(name)
+    if a is None or a.ndim != 2 or count not in a.shape:
         return None
     return np.asarray(a if a.shape[0] == count else a.T, float)
 
 
-def _record(channels, name):
-    """The record ``name`` of a .mat file's ``channels``: a vector, or, for a matrix read
-    row by row (``uval(1,:)``, ``uval(2,:)``, ... or by columns), its realisations as an
-    (R, N) array; None when there is no such record."""
+def _record(rec, name):
+    """The record ``name`` of the .mat records ``rec``: a vector, or a matrix's
+    realisations as an (R, N) array (:meth:`~freqid_casadi.experiment.DaqRecords.
+    realisations`); None when there is no such record."""
     if name is None:
         return None
-    if name in channels:
-        return channels[name]
-    for pattern in (r"\((\d+),:\)", r"\(:,(\d+)\)"):
-        rows = sorted((int(m.group(1)), k) for k in channels
-                      for m in [re.fullmatch(re.escape(name) + pattern, k)] if m)
-        if rows:
-            return np.array([channels[k] for _, k in rows])
-    return None
+    return rec.channels[name] if name in rec.channels else rec.realisations(name)
 
 
-def _nd_hint(path, name, opt):
+def _nd_hint(rec, name, opt):
     """The message for ``--{opt} NAME`` naming an array of three or more dimensions (or a
-    matrix of another length than the records) in the .mat file ``path``, else None."""
-    from ..io import read_mat_arrays
-
-    if name is None:
-        return None
-    _, payload = read_regular_file(path, "records file")
-    a = read_mat_arrays(path, payload, MAX_FILE_BYTES // 8).get(name)
-    if a is None or a.ndim < 2:
+    matrix of another length than the records) of the .mat records ``rec``, else None."""
+    a = rec.matrices.get(name)
+    if a is None:
         return None
     shape = " x ".join(map(str, a.shape))
     return (f"--{opt} {name!r} is a {shape} array, not a record or a matrix of "

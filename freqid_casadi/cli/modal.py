@@ -468,11 +468,12 @@ def modal_words(text):
     -------
     str
     """
+    from .common import cli_words
+
     text = re.sub(r"n_sections=(\d+) or more",
                   lambda m: f"--orders reaching {2 * int(m.group(1))} or more", text)
     text = re.sub(r"channel_sections=(\d+)", r"--channel-sections \1", text)
-    text = text.replace("zeros='free' (freqid modal --zeros free)", "--zeros free")
-    return text.replace("zeros='free'", "--zeros free")
+    return cli_words(text.replace(" (freqid modal --zeros free)", ""))
 
 
 def _in_band(t, name):

@@ -124,27 +124,30 @@ def _combined(ests, us, ys, period, skip, fs, name):
     :func:`frf_from_realisations`)."""
     k_all = np.unique(np.concatenate([e.bins for e in ests]))
     n_real = len(ests)
-    G = np.zeros(k_all.size, complex)
-    total = np.full(k_all.size, np.nan)
-    noise = np.full(k_all.size, np.nan)
+    g = np.zeros((n_real, k_all.size), complex)     # each realisation's estimate, 0 where
+    var = np.zeros((n_real, k_all.size))            # it does not excite the bin
+    excites = np.zeros((n_real, k_all.size), bool)
+    no_var = np.zeros(k_all.size, bool)             # a realisation of one period excites it
     cross = np.zeros(k_all.size, complex)
     auto_u, auto_y = np.zeros(k_all.size), np.zeros(k_all.size)
-    for j, k in enumerate(k_all):
-        est_k = [(e, int(np.searchsorted(e.bins, k))) for e in ests if k in e.bins]
-        g = np.array([e.data.response[i] for e, i in est_k])
-        G[j] = g.mean()
-        if g.size >= 2:
-            total[j] = np.sum(np.abs(g - G[j]) ** 2) / (g.size * (g.size - 1))
-        if all(e.variance is not None for e, _ in est_k):
-            noise[j] = np.mean([e.variance[i] for e, i in est_k]) / g.size
-            if g.size == 1:
-                total[j] = noise[j]
-    for e, u, y in zip(ests, us, ys):
-        here = np.isin(k_all, e.bins)
-        U, Y = _period_means(u, period, skip), _period_means(y, period, skip)
-        cross[here] += Y[k_all[here]] * np.conj(U[k_all[here]])
-        auto_u[here] += np.abs(U[k_all[here]]) ** 2
-        auto_y[here] += np.abs(Y[k_all[here]]) ** 2
+    for r, (e, u, y) in enumerate(zip(ests, us, ys)):
+        at = np.searchsorted(k_all, e.bins)
+        g[r, at], excites[r, at] = e.data.response, True
+        if e.variance is None:
+            no_var[at] = True
+        else:
+            var[r, at] = e.variance
+        U, Y = _period_means(u, period, skip)[e.bins], _period_means(y, period, skip)[e.bins]
+        cross[at] += Y * np.conj(U)
+        auto_u[at] += np.abs(U) ** 2
+        auto_y[at] += np.abs(Y) ** 2
+    count = excites.sum(axis=0)
+    G = g.sum(axis=0) / count
+    with np.errstate(invalid="ignore", divide="ignore"):
+        total = np.where(count >= 2, np.sum(np.abs(g - G) ** 2 * excites, axis=0)
+                         / (count * (count - 1)), np.nan)
+    noise = np.where(no_var, np.nan, var.sum(axis=0) / count ** 2)
+    total = np.where(count == 1, noise, total)
     with np.errstate(invalid="ignore", divide="ignore"):
         coherence = np.minimum(np.abs(cross) ** 2 / (auto_u * auto_y), 1.0)
     coherence = np.where(np.isfinite(coherence), coherence, 0.0)

@@ -496,17 +496,41 @@ class DaqRecords:
         ``(sample index, text)`` of every event mark (e.g. ``"DAQ Start"``).
     header : dict of str to str
         The ``key: value`` header lines.
+    matrices : dict of str to ndarray
+        A ``.mat`` file's numeric arrays of two or more dimensions (singleton dimensions
+        squeezed), by MATLAB name, read-only; empty for other files.
     """
 
     fs: float
     channels: dict
     events: tuple = ()
     header: dict = field(default_factory=dict)
+    matrices: dict = field(default_factory=dict)
 
     @property
     def n_samples(self):
         """Number of samples N per channel."""
         return next(iter(self.channels.values())).size
+
+    def realisations(self, name):
+        """The records of the matrix ``name`` (its rows, or its columns, as
+        ``load_records_mat`` reads them: ``uval(1,:)``, ``uval(2,:)``, ...) as an (R, N)
+        float array, or None when ``name`` is no such matrix of the records' length.
+
+        Parameters
+        ----------
+        name : str
+
+        Returns
+        -------
+        ndarray of float, shape (R, N), or None
+        """
+        m = self.matrices.get(name)
+        axis = None if m is None or m.dtype.kind not in "iuf" else _record_axis(m)
+        if axis is None:
+            return None
+        rows = np.asarray(m if axis == 0 else m.T, float)
+        return rows if rows.shape[1] == self.n_samples else None
 
 
 def _daq_header(path, lines):
@@ -747,13 +771,24 @@ def _matrix_rows(arrays):
     out = dict(arrays)
     for key, a in arrays.items():
         m = np.squeeze(a)
-        if a.ndim < 2 or m.ndim != 2 or a.dtype.kind not in "iuf":
-            continue
-        if m.shape[0] <= min(m.shape[1], MAX_MATRIX_RECORDS) and m.shape[1] >= 16:
+        axis = _record_axis(m) if a.ndim >= 2 and a.dtype.kind in "iuf" else None
+        if axis == 0:
             out.update({f"{key}({i + 1},:)": m[i] for i in range(m.shape[0])})
-        elif m.shape[1] <= min(m.shape[0], MAX_MATRIX_RECORDS) and m.shape[0] >= 16:
+        elif axis == 1:
             out.update({f"{key}(:,{j + 1})": m[:, j] for j in range(m.shape[1])})
     return out
+
+
+def _record_axis(m):
+    """0 when the rows of the matrix ``m`` are records (a few rows of 16 or more samples),
+    1 when its columns are, None otherwise (not a matrix, or too many of either)."""
+    if m.ndim != 2:
+        return None
+    if m.shape[0] <= min(m.shape[1], MAX_MATRIX_RECORDS) and m.shape[1] >= 16:
+        return 0
+    if m.shape[1] <= min(m.shape[0], MAX_MATRIX_RECORDS) and m.shape[0] >= 16:
+        return 1
+    return None
 
 
 def load_records_mat(path, min_records=2):
@@ -815,4 +850,10 @@ def load_records_mat(path, min_records=2):
             v.flags.writeable = False
             channels[key] = v
     header = {k: repr(a.item()) for k, a in arrays.items() if a.size == 1}
-    return DaqRecords(_mat_fs(path, arrays, n), channels, (), header)
+    matrices = {}
+    for key, a in arrays.items():
+        m = np.squeeze(a)
+        if m.ndim >= 2 and m.dtype.kind in "iuf":
+            m.flags.writeable = False
+            matrices[key] = m
+    return DaqRecords(_mat_fs(path, arrays, n), channels, (), header, matrices)

@@ -27,14 +27,14 @@ def suffix_columns(path, n_cells):
     Parameters
     ----------
     path : str
-        The file (its ``repr`` as the messages show it is accepted).
+        The file.
     n_cells : int
 
     Returns
     -------
     tuple of Column or None
     """
-    suffix = os.path.splitext(str(path).strip("'\""))[1].lower()
+    suffix = os.path.splitext(str(path))[1].lower()
     if n_cells != 3 or suffix not in SUFFIX_COLUMNS:
         return None
     names = SUFFIX_COLUMNS[suffix]

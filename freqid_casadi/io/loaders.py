@@ -533,7 +533,14 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None, band=None, parame
     path, payload = read_regular_file(path)
     arrays = read_mat_arrays(path, payload, MAX_ELEMENTS)
     n, alias = _freq_axis(arrays)
-    channels = matrix_channels(arrays, n)
+    return _mat_data(path, arrays, matrix_channels(arrays, n), alias, parameter, columns,
+                     freq_unit, band, name)
+
+
+def _mat_data(path, arrays, channels, alias, parameter, columns, freq_unit, band, name):
+    """The one response of a ``.mat`` file's ``arrays`` that :func:`load_mat` reads
+    (``parameter`` chooses among ``arrays`` and the matrix ``channels``; ``alias``: see
+    :func:`_freq_axis`)."""
     if parameter is not None:
         arrays = chosen_response(path, {**arrays, **channels}, str(parameter),
                                  _freq_names(alias))
@@ -552,9 +559,11 @@ def _mat_all(path, freq_unit, columns, band):
     complex vectors and matrix channels, else real N x 2 matrices of real and imaginary
     parts; the file's one response, as :func:`load_mat` reads it, when it holds fewer
     than two."""
+    columns = parse_columns(columns)
     where, payload = read_regular_file(path)
     arrays = read_mat_arrays(where, payload, MAX_ELEMENTS)
     n, alias = _freq_axis(arrays)
+    one = (where, arrays, matrix_channels(arrays, n), alias)      # as load_mat reads it
     if not n and axis_variables(arrays):            # an axis of start and step: the
         sizes = {_response_length(a) for a in arrays.values()}   # responses' length
         sizes.discard(0)
@@ -565,17 +574,10 @@ def _mat_all(path, freq_unit, columns, band):
     if not names:                                   # real and imaginary parts, N x 2
         names = [k for k, a in arrays.items() if k != alias and not _is_freq(k)
                  and not np.iscomplexobj(a) and _response_length(a) == n]
-    if parse_columns(columns) is not None or not n or len(names) < 2:
-        return [load_mat(path, freq_unit=freq_unit, columns=columns, band=band)]
-    arrays.update(channels)
-    out = []
-    for key in names:
-        chosen = chosen_response(where, arrays, key, _freq_names(alias))
-        table = _mat_table(where, chosen, None, freq_unit, alias)
-        omega, response = table_response(table)
-        out.append(_finish(where, omega, response, key, band=band,
-                           **_band_unit(table.unit("freq"))))
-    return out
+    if columns is not None or not n or len(names) < 2:
+        return [_mat_data(*one, None, columns, freq_unit, band, None)]
+    return [_mat_data(where, arrays, channels, alias, key, None, freq_unit, band, key)
+            for key in names]
 
 
 def _response_length(array):

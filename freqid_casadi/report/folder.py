@@ -36,8 +36,8 @@ from .formatting import csv_text, generated_by_line, json_safe, markdown_table, 
 from .summary import (REPORT_FILES, REPORT_FORMAT, REPORT_VERSION, dense_error, fit_summary,
                       render_fit_summary)
 
-__all__ = ["write_fit_report", "write_sweep_report", "report_folder", "fit_summary",
-           "render_fit_summary", "dense_error", "check_out_dir", "markdown_table",
+__all__ = ["write_fit_report", "write_sweep_report", "write_study_report", "report_folder",
+           "fit_summary", "render_fit_summary", "dense_error", "check_out_dir", "markdown_table",
            "generated_by_line", "atomic_write_text", "code_fingerprint", "REPORT_FILES",
            "REPORT_FORMAT", "REPORT_VERSION"]
 
@@ -171,6 +171,26 @@ def report_folder(out_dir, force=False):
     """
     with _outputs.building(out_dir, force) as built:
         yield built
+
+
+def write_study_report(out_dir, content, markdown, *, force=False):
+    """Write a study's report folder atomically (:func:`report_folder`): ``report.json``
+    (``content``, every number) and ``report.md`` (``markdown``).
+
+    Parameters
+    ----------
+    out_dir : str or path-like
+    content : dict
+        JSON-ready (:func:`~freqid_casadi.report.formatting.json_safe`); no NaN.
+    markdown : str
+        The report's text, its first line :func:`generated_by_line`.
+    force : bool, optional
+        Replace a folder this package wrote (default False).
+    """
+    with report_folder(out_dir, force) as (tmp, _):
+        atomic_write_text(os.path.join(tmp, "report.json"),
+                          json.dumps(content, indent=1, allow_nan=False) + "\n")
+        atomic_write_text(os.path.join(tmp, "report.md"), markdown)
 
 
 def write_fit_report(result, out_dir, *, command, force=False, title=None, thesis=None,
