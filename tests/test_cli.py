@@ -391,6 +391,27 @@ def test_notes_of_many_files_are_printed_once_per_text(capsys):
                    "0xb2 on line 9): read as Windows-1252"]
 
 
+def test_report_records_how_the_data_were_read(workdir, capsys, fake_fit, fast_figures):
+    # an analyser's export: a preamble of metadata above the header; the note printed on
+    # stderr is also the report's (a reader of summary.md sees how the file was taken)
+    text = open("plant.csv").read()
+    with open("export.csv", "w") as fh:
+        fh.write("Instrument: Analyzer 9\nDate: 2026-12-07\n" + text)
+    code, _, err = run(capsys, "fit", "export.csv", "--sections", "2", "--out", "rep")
+    assert code == 0, err
+    notes = [t[len("note: "):] for t in err.splitlines() if t.startswith("note: ")]
+    assert len(notes) == 1 and "skipped 2 line(s) of metadata" in notes[0], err
+    summary = json.load(open("rep/summary.json"))
+    assert summary["data"]["read_notes"] == notes
+    md = open("rep/summary.md").read()
+    assert "## How the data were read\n\n- 'export.csv': skipped 2 line(s)" in md
+    # a file read without a note: no such section, no key
+    code, _, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--out", "rep2")
+    assert code == 0 and "note:" not in err, err
+    assert "read_notes" not in json.load(open("rep2/summary.json"))["data"]
+    assert "How the data were read" not in open("rep2/summary.md").read()
+
+
 def test_sweep_target_line_says_when_the_order_meeting_it_did_not_converge(
         workdir, capsys, monkeypatch):
     # a Siglent export swept 2:8:2 with --target 1e-2: "smallest order ... : 4" where order

@@ -171,6 +171,7 @@ def test_cli_modal_writes_report_and_refuses_existing_out(tmp_path, capsys):
     assert summary["model_message"].startswith("ok: converged")
     text = (out / "summary.md").read_text()
     assert f"How the fit ended: {summary['model_message']}" in text
+    assert summary["read_notes"] == [] and summary["sources"]["ch1"]["file"] == files[0]
     model = RationalDelayModel.load(out / "model_ch2.json")
     assert model.structure.zeros == "free" and model.n_sections == n
     before = (out / "modes.csv").read_text()
@@ -208,6 +209,12 @@ def test_cli_modal_reads_every_record_of_a_uff_file(tmp_path, capsys):
     assert "kept the 119 frequencies all 2 channels share" in err
     summary = json.loads((out / "summary.json").read_text())
     assert summary["n_modes_selected"] == 2
+    # the notes printed are the report's, with where each channel came from
+    notes = [t[len("note: "):] for t in err.splitlines() if t.startswith("note: ")]
+    assert len(notes) == 2 and summary["read_notes"] == notes
+    assert summary["sources"]["point_2"] == {"file": str(path), "response": "point 2"}
+    text = (out / "summary.md").read_text()
+    assert f"| point_2 | {path} | point 2 |" in text and f"- {notes[1]}" in text
     assert [m["omega_n"] for m in summary["modes"]] == pytest.approx([5.0, 17.0], rel=1e-3)
     # each record has its own ID line, the user's label: the channels keep those names
     assert {"bode_point_1.png", "bode_point_2.png"} <= set(os.listdir(out))

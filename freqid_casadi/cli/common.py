@@ -163,12 +163,16 @@ def notes_to_stderr():
     ``note: ...`` lines on stderr after the block succeeds (none if it raises), the same
     text for several files once (:func:`grouped_notes`); other warnings are passed on
     unchanged. Nested in another such block, the notes are passed to the outer one (a
-    command reading many files prints their notes together)."""
+    command reading many files prints their notes together).
+
+    Yields a list that holds the printed lines once the block has ended (for the report
+    to record how the data were read; empty for a nested block)."""
+    printed = []
     _NOTE_DEPTH[0] += 1
     try:
         with warnings.catch_warnings(record=True) as caught:
             warnings.simplefilter("always", DataWarning)
-            yield
+            yield printed
     finally:
         _NOTE_DEPTH[0] -= 1
     notes = []
@@ -177,7 +181,8 @@ def notes_to_stderr():
             notes.append(" ".join(str(w.message).split()))
         else:
             warnings.warn_explicit(w.message, w.category, w.filename, w.lineno)
-    for line in grouped_notes(notes):
+    printed += grouped_notes(notes)
+    for line in printed:
         sys.stderr.write(f"note: {line}\n")
 
 
@@ -240,7 +245,7 @@ def refuse_flags(path, opts):
                    columns=opts.get("columns"), flag=True)
 
 
-def load_data(args, path, noise_weights=False):
+def load_data(args, path, noise_weights=False, notes=None):
     """Load ``path`` with the options in ``args``; reader notes go to stderr as ``note:``.
 
     Parameters
@@ -252,6 +257,8 @@ def load_data(args, path, noise_weights=False):
     noise_weights : bool
         The command takes ``--weights noise`` (the data are returned without weights;
         the command passes ``weights="noise"`` to the fit); else it is refused.
+    notes : list, optional
+        Receives the notes printed (how the file was read), for the report.
 
     Returns
     -------
@@ -264,8 +271,10 @@ def load_data(args, path, noise_weights=False):
     """
     opts = load_options(args)
     refuse_flags(path, opts)
-    with notes_to_stderr():
+    with notes_to_stderr() as printed:
         data = load(path, **opts)
+    if notes is not None:
+        notes += printed
     weights = getattr(args, "weights", None)
     if weights == NOISE_WEIGHTS:
         if not noise_weights:

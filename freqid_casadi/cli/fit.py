@@ -126,7 +126,8 @@ def run_cli(args, command):
     command : str
         The command line, written as the first line of the report.
     """
-    data = load_data(args, args.file, noise_weights=True)    # DataError on bad files
+    notes = []                                        # how the file was read, for the report
+    data = load_data(args, args.file, noise_weights=True, notes=notes)   # DataError if bad
     check_out_dir(args.out, args.force)              # before the (long) fit
     if args.max_sections is not None:
         if args.sections != "auto":
@@ -146,7 +147,8 @@ def run_cli(args, command):
                          **({"weights": NOISE_WEIGHTS} if args.weights == NOISE_WEIGHTS
                             else {}))
     _resolution_warning(result)
-    path = write_fit_report(result, args.out, command=command, force=args.force)
+    path = write_fit_report(result, args.out, command=command, force=args.force,
+                            data_notes=notes)
     print(cli_words(result.summary()))
     print_continue_hint(result)
     print(f"report: {path}")

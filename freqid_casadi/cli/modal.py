@@ -43,7 +43,7 @@ import warnings
 
 import numpy as np
 
-from .._textio import atomic_write_text
+from .._textio import atomic_write_text, md_cell, md_text
 from .common import add_data_options
 from ..errors import OptionError
 from ..options import IpoptOptions
@@ -279,9 +279,9 @@ def run_cli(args, command):
 
     check_out_dir(args.out, args.force)
     orders = parse_orders(args.orders)
-    with notes_to_stderr():                  # the files' notes together, each text once
+    with notes_to_stderr() as notes:         # the files' notes together, each text once
         channels = [(d, f) for f in args.files for d in _file_channels(args, f)]
-    datas, files = _common_grid([d for d, _ in channels]), [f for _, f in channels]
+        datas, files = _common_grid([d for d, _ in channels]), [f for _, f in channels]
     names = _channel_names(datas, files)
     delay = False if args.delay == "none" else args.delay
     if args.min_stable < 1 or args.max_iter < 1 or args.jobs < 1:
@@ -300,7 +300,8 @@ def run_cli(args, command):
                         balance_channels=args.balance_channels, estimator=args.estimator,
                         n_jobs=args.jobs)
     with report_folder(args.out, args.force) as (tmp, path):
-        _write_report(res, tmp, names, command, coords, ref)
+        _write_report(res, tmp, names, command, coords, ref,
+                      read=(notes, [(f, d.name) for d, f in zip(datas, files)]))
     print(f"{len(res.modes)} modes selected; report in {path}")
     if not res.modes:
         print(f"none: a mode is selected when it is stable in frequency and damping at each "
@@ -330,7 +331,9 @@ def _write_shapes(res, folder, names, coords, ref):
     return shapes, m
 
 
-def _write_report(res, folder, names, command, coords=None, ref=None):
+def _write_report(res, folder, names, command, coords=None, ref=None, read=((), ())):
+    """The report's files; ``read``: the reader's notes and each channel's (file, name in
+    the file), for the section on how the data were read."""
     from ..core.modes import modes_csv, modes_markdown
     from ..modal.survey import stabilization_csv
     from ..plots import bode, save_figure
@@ -350,6 +353,9 @@ def _write_report(res, folder, names, command, coords=None, ref=None):
     shapes, m = _write_shapes(res, folder, names, coords, ref)
     summary = _summary(res, names, command)
     summary["selection_note"] = res.selection_note
+    summary["read_notes"] = list(read[0])
+    summary["sources"] = {n: {"file": str(f), "response": str(r or "")}
+                          for n, (f, r) in zip(names, read[1])}
     summary["shapes"] = [{"frequency_hz": float(f), "mpc": float(p), "mpd_deg": float(d),
                           "real": bool(r), "shape": [float(v) for v in a.real]}
                          for f, p, d, r, a in zip(shapes.frequency_hz, shapes.mpc,
@@ -439,6 +445,7 @@ def _markdown(s, res, names):
         lines += ["", "No model: no mode was selected (model files and Bode plots are "
                   "written for the fit of the selected modes).", ""]
         lines += _shape_lines(s, names)
+        lines += _read_lines(s, names)
         return "\n".join(lines) + "\n"
     lines += ["", f"## Channels, model of {s['model']}", "",
               f"How the fit ended: {modal_words(s['model_message'])}", "",
@@ -449,10 +456,26 @@ def _markdown(s, res, names):
               f"{t['delays'][n]:.6g} | {'yes' if t['minimum_phase'][n] else 'no'} | "
               f"{_in_band(t, n)} |" for n in names]
     lines += _shape_lines(s, names)
+    lines += _read_lines(s, names)
     lines += ["", "Files: modes.csv/.md, shapes.csv, shape_<k>.png, stabilization.csv/.png, "
               "bode_<channel>.png, model_<channel>.json, summary.json"
               + (", mac.csv." if "mac_vs_reference" in s else ".")]
     return "\n".join(lines) + "\n"
+
+
+def _read_lines(s, names):
+    """Where each channel came from (its file and the response's name in it) and the
+    readers' notes."""
+    sources = s.get("sources") or {}
+    if not sources:
+        return []
+    lines = ["", "## How the data were read", "", "| channel | file | response |",
+             "|---|---|---|"]
+    lines += [f"| {md_cell(n)} | {md_cell(sources[n]['file'])} | "
+              f"{md_cell(sources[n]['response'])} |" for n in names if n in sources]
+    if s.get("read_notes"):
+        lines += [""] + [f"- {md_text(t)}" for t in s["read_notes"]]
+    return lines
 
 
 def modal_words(text):

@@ -194,7 +194,7 @@ def write_study_report(out_dir, content, markdown, *, force=False):
 
 
 def write_fit_report(result, out_dir, *, command, force=False, title=None, thesis=None,
-                     truth=None):
+                     truth=None, data_notes=()):
     """Write the report folder of a fit (see the module docstring for its files).
 
     Parameters
@@ -212,6 +212,8 @@ def write_fit_report(result, out_dir, *, command, force=False, title=None, thesi
         Published numbers for a "thesis vs ours" table (see :func:`fit_summary`).
     truth : callable, optional
         The true system, for the error on a 10x denser grid (see :func:`fit_summary`).
+    data_notes : sequence of str
+        How the data file was read (see :func:`fit_summary`).
 
     Returns
     -------
@@ -230,7 +232,8 @@ def write_fit_report(result, out_dir, *, command, force=False, title=None, thesi
         raise OptionError(f"result must be a FitResult (from fit), got "
                           f"{type(result).__name__}")
     path = check_out_dir(out_dir, force)
-    summary = fit_summary(result, command=command, title=title, thesis=thesis, truth=truth)
+    summary = fit_summary(result, command=command, title=title, thesis=thesis, truth=truth,
+                          data_notes=data_notes)
     with report_folder(out_dir, force) as (tmp, _):
         result.model.save(os.path.join(tmp, "model.json"))
         _write_rel_error_csv(result, os.path.join(tmp, "rel_error.csv"))

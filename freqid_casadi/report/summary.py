@@ -29,7 +29,8 @@ REPORT_FILES = (_outputs.MARKER, "model.json", "rel_error.csv", "stages.csv", "b
 
 
 
-def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_factor=10):
+def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_factor=10,
+                data_notes=()):
     """Everything a fit report states, as a JSON-safe dict (the content of summary.json).
 
     Parameters
@@ -47,6 +48,10 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
         report then also gives the relative error on a log grid ``dense_factor`` times
         denser than the data (the honest error between the samples).
     dense_factor : int
+    data_notes : sequence of str
+        How the data file was read (the reader's notes: a skipped preamble, the units
+        taken, the columns chosen by convention), recorded under ``data.read_notes`` and
+        as the section "How the data were read" of summary.md.
 
     Returns
     -------
@@ -72,7 +77,8 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
                  "unit": data.unit,
                  **({"f_min_hz": float(data.omega[0] / (2 * np.pi)),
                      "f_max_hz": float(data.omega[-1] / (2 * np.pi))}
-                    if data.unit == "rad/s" else {})},
+                    if data.unit == "rad/s" else {}),
+                 **({"read_notes": [str(t) for t in data_notes]} if data_notes else {})},
         "structure": {"n_sections": st.n_sections, "basis": st.basis,
                       "integrator": st.integrator, "delay": st.delay,
                       "order_rational_part": per * st.n_sections, "order": st.order,
@@ -216,6 +222,7 @@ def render_fit_summary(summary):
     lines = [generated_by_line(s["command"]), "", f"# {md_text(s['title'])}", ""]
     lines += _status_lines(s)
     lines += [markdown_table(_overview_rows(s), ("quantity", "value")), ""]
+    lines += _read_lines(s)
     lines += _diagnostic_lines(s)
     lines += _uncertainty_lines(s)
     lines += _thesis_lines(s)
@@ -229,6 +236,14 @@ def render_fit_summary(summary):
               "`model.json` (the model; `RationalDelayModel.load`), `rel_error.csv`, "
               "`stages.csv`, `summary.json` (every number above, full precision).", ""]
     return "\n".join(lines)
+
+
+def _read_lines(s):
+    """The reader's notes on the data file (its preamble, units, columns), if any."""
+    notes = s["data"].get("read_notes") or ()
+    if not notes:
+        return []
+    return (["## How the data were read", ""] + [f"- {md_text(t)}" for t in notes] + [""])
 
 
 def _status_lines(s):
