@@ -53,7 +53,7 @@ from ..experiment import (ESTIMATORS, frf_from_periodic, frf_from_realisations,
                          load_records_table, lvm_segments)
 from .common import _ASCII_FLOAT, _ASCII_INT, _ascii, _checked   # the CLI's own type helpers
 from .common import parse_band_text
-from ..io.loaders import read_regular_file, save_csv
+from ..io.loaders import is_mat, read_regular_file, save_csv
 
 __all__ = ["add_cli", "run_cli", "read_records", "read_excitation", "stats_path", "NAME"]
 
@@ -280,7 +280,7 @@ def _is_daq(path):
 
 
 def _is_mat(path):
-    return os.fspath(path).lower().endswith(".mat")
+    return is_mat(path)
 
 
 def _is_lvm(path):

@@ -185,10 +185,10 @@ def _file_channels(args, path):
     file (a modal test's file holds one per channel; ``--record K`` reads one), or every
     response of a ``.mat`` file (an FRF matrix's channels; ``--parameter`` reads one)."""
     from .common import load_data, load_options, refuse_flags
-    from ..io.loaders import is_uff, load_all
+    from ..io.loaders import is_mat, is_uff, load_all
 
     opts = load_options(args)
-    mat = str(path).lower().endswith(".mat")
+    mat = is_mat(path)
     if (opts.get("record") is not None or opts.get("parameter") is not None
             or not (mat or is_uff(path))):
         return [load_data(args, path)]

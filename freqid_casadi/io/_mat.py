@@ -1,6 +1,7 @@
 """The numeric variables of a MATLAB ``.mat`` file, structs flattened (layer L1).
 
-:func:`read_mat_arrays` reads a MATLAB v4 to v7.2 file (``scipy.io.loadmat``) into a dict
+:func:`read_mat_arrays` reads a MATLAB v4 to v7.2 file (``scipy.io.loadmat``), or GNU Octave's
+text format (:mod:`freqid_casadi.io._octave`, whatever the extension), into a dict
 of numeric arrays named by their MATLAB path: ``u``, ``meas.input``, ``run(2).y``,
 ``runs{3}`` (structs, struct arrays and cell arrays flattened; strings and other classes
 left out).
@@ -16,6 +17,7 @@ import io
 import numpy as np
 
 from ..errors import DataError
+from ._octave import is_octave_text, read_octave_arrays
 
 __all__ = ["read_mat_arrays", "records_hint", "start_step_axis", "axis_variables",
            "chosen_response", "response_parts", "matrix_channels", "MIN_RECORD"]
@@ -90,6 +92,27 @@ def read_mat_arrays(path, payload, max_elements):
     DataError
         v7.3 (HDF5), not a MATLAB file, an array above ``max_elements``, no numeric data.
     """
+    if is_octave_text(payload):
+        mat = read_octave_arrays(path, payload.removeprefix(b"\xef\xbb\xbf").decode(
+            "latin-1"))                  # numbers and headers are ASCII; strings skipped
+    else:
+        mat = _loadmat(path, payload, max_elements)
+    out = {}
+    for key, value in mat.items():
+        if not key.startswith("__"):
+            _flatten(key, value, out)
+    for key, arr in out.items():
+        if arr.size > max_elements:
+            raise DataError(f"{path!r}: variable {key!r} holds {arr.size} elements, above the "
+                            f"limit of {max_elements} (freqid_casadi.io.loaders.MAX_ELEMENTS)")
+    if not out:
+        raise DataError(f"{path!r} holds no numeric variables; save omega and response "
+                        "(or time records u and y) as numeric arrays")
+    return out
+
+
+def _loadmat(path, payload, max_elements):
+    """``scipy.io.loadmat`` of a binary file, its errors as DataErrors."""
     import scipy.io
 
     _whos(path, payload, max_elements)
@@ -106,18 +129,7 @@ def read_mat_arrays(path, payload, max_elements):
     if mat is None:
         raise DataError(f"cannot read {path!r} as a MATLAB .mat file ({error}); save the "
                         "arrays with save(..., '-v7')")
-    out = {}
-    for key, value in mat.items():
-        if not key.startswith("__"):
-            _flatten(key, value, out)
-    for key, arr in out.items():
-        if arr.size > max_elements:
-            raise DataError(f"{path!r}: variable {key!r} holds {arr.size} elements, above the "
-                            f"limit of {max_elements} (freqid_casadi.io.loaders.MAX_ELEMENTS)")
-    if not out:
-        raise DataError(f"{path!r} holds no numeric variables; save omega and response "
-                        "(or time records u and y) as numeric arrays")
-    return out
+    return mat
 
 
 def records_hint(path, arrays):

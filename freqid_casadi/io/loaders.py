@@ -26,6 +26,7 @@ import numpy as np
 
 from ._mat import (axis_variables, chosen_response, matrix_channels, read_mat_arrays,
                    records_hint, response_parts, start_step_axis)
+from ._octave import is_octave_text
 from ._touchstone import is_touchstone, load_touchstone
 from ._traces import read_traces
 from ._uff import load_uff, read_uff
@@ -37,7 +38,7 @@ from ._table import (Column, Table, _check_finite, _default_columns, _layout_pro
 from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 
-__all__ = ["load", "load_all", "is_uff", "load_text", "load_csv", "load_npz", "load_mat",
+__all__ = ["load", "load_all", "is_uff", "is_mat", "load_text", "load_csv", "load_npz", "load_mat",
            "load_uff",
            "load_touchstone", "is_touchstone", "parse_band", "save_csv",
            "read_regular_file", "DataWarning", "MAX_FILE_BYTES", "MAX_ROWS", "MAX_ELEMENTS"]
@@ -115,7 +116,7 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
             raise OptionError("freq_unit and columns do not apply to Touchstone files (the "
                               "option line gives the units); drop them")
         return load_touchstone(path, name, parameter=parameter, band=band)
-    if lower.endswith(".mat"):
+    if is_mat(path):
         return load_mat(path, name, freq_unit=freq_unit, columns=cols, band=band,
                         parameter=parameter)
     if lower.endswith(".json"):
@@ -171,7 +172,7 @@ def load_all(path, *, freq_unit=None, columns=None, band=None):
     freq_unit = parse_freq_unit(freq_unit)
     band = parse_band(band)
     lower = os.fspath(path).lower() if isinstance(path, (str, os.PathLike)) else ""
-    if lower.endswith(".mat"):
+    if is_mat(path):
         return _mat_all(path, freq_unit, columns, band)
     plain = lower.endswith((".npz", ".json")) or is_touchstone(lower)
     if not plain and is_uff(path):
@@ -180,6 +181,32 @@ def load_all(path, *, freq_unit=None, columns=None, band=None):
                               "name their own units and values; drop columns= (--columns)")
         return list(load_uff(path, freq_unit=freq_unit, band=band))
     return [load(path, freq_unit=freq_unit, columns=columns, band=band)]
+
+
+def is_mat(path):
+    """Whether ``path`` is read as a MATLAB file: a ``.mat`` name, or a regular file of
+    another name that begins as GNU Octave's text format (``# Created by Octave``, or
+    ``# name:`` and ``# type:`` lines), which Octave's ``save`` writes by default.
+
+    Parameters
+    ----------
+    path : str or path-like
+
+    Returns
+    -------
+    bool
+    """
+    if not isinstance(path, (str, os.PathLike)):
+        return False
+    if os.fspath(path).lower().endswith(".mat"):
+        return True
+    try:
+        if not os.path.isfile(path):     # a FIFO or a device is not opened (it may block)
+            return False
+        with open(path, "rb") as fh:
+            return is_octave_text(fh.read(400))
+    except OSError:
+        return False
 
 
 def is_uff(path):
@@ -236,7 +263,8 @@ def refuse_options(path, *, record=None, parameter=None, columns=None, flag=Fals
     """
     lower = os.fspath(path).lower() if isinstance(path, (str, os.PathLike)) else ""
     spell = (lambda k: f"--{k}") if flag else (lambda k: f"{k}=")
-    if record is not None and (lower.endswith((".npz", ".mat")) or is_touchstone(lower)):
+    if record is not None and (lower.endswith(".npz") or is_mat(path)
+                               or is_touchstone(lower)):
         raise OptionError(f"{spell('record')} chooses a record of a UFF file (.uff/.unv) or "
                           f"a run of an LTspice export with .step runs, not of {path!r}; "
                           "drop it")
