@@ -172,3 +172,65 @@ def test_modal_report_words_the_advice_as_options():
         "— pass --orders reaching 8 or more for a mode the shared poles miss, or "
         "--channel-sections 1 for modes outside the band")
     assert modal_words("pass zeros='free' (freqid modal --zeros free)") == "pass --zeros free"
+
+
+def test_spectra_saved_beside_the_frf_are_named_and_not_read_as_responses(tmp_path):
+    # an analyser's export (a vibration toolbox's case file): the FRF Hf_chan_2 beside its
+    # cross-spectrum, coherence, PSDs and time records; load read nothing ("cannot tell
+    # the variables apart") and load_all gave the cross-spectrum as a second channel
+    rng = np.random.default_rng(3)
+    f = np.arange(0.0, 40 * 0.3125, 0.3125)
+    frf = 1.0 / (1.0 + 1j * f / 4.0)
+    path = _mat(tmp_path, Time_domain=np.arange(128) / 100.0,
+                Time_chan_1=rng.standard_normal(128), Time_chan_2=rng.standard_normal(128),
+                Freq_domain=f, PSD_chan_1=np.abs(frf), Hf_chan_2=frf,
+                Hf_coh_chan_2=np.ones(f.size), Hf_Cross_Spec_chan_2=frf * 3.0)
+    with pytest.warns(fc.io.loaders.DataWarning, match=r"read Hf_chan_2 as the response; not "
+                      r"read: Hf_Cross_Spec_chan_2 \(a cross-spectrum\)"):
+        data = fc.load(path, freq_unit="Hz")
+    np.testing.assert_array_equal(data.response, frf[1:])            # (0 Hz dropped)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        datas = fc.load_all(path, freq_unit="Hz")
+    assert len(datas) == 1 and np.array_equal(datas[0].response, frf[1:])
+    # two FRFs and a coherence: load says how to choose, load_all reads the two
+    both = _mat(tmp_path, "h1h2.mat", freq=F, H1=H[:, 0], H2=H[:, 1], coh=H[:, 2])
+    with pytest.raises(DataError, match=r"holds 3 complex vectors \(H1, H2, coh \(a "
+                       r"coherence\)\), not one response: choose the response with "
+                       r"parameter='H1' \(command line --parameter H1\), or read every one "
+                       r"with freqid_casadi\.load_all"):
+        fc.load(both, freq_unit="Hz")
+    with pytest.warns(fc.io.loaders.DataWarning, match=r"not read: coh \(a coherence\)"):
+        datas = fc.load_all(both, freq_unit="Hz")
+    assert [d.name for d in datas] == ["H1", "H2"]
+
+
+@pytest.mark.parametrize("name, kind", [
+    ("Hf_Cross_Spec_chan_2", "cross-spectrum"), ("meas.Gxy1", "cross-spectrum"),
+    ("coh", "coherence"), ("crossSpectrum", "cross-spectrum"), ("PSD_chan_1", "auto-spectrum"),
+    ("H1", None), ("Hf_chan_2", None), ("frf(:,2)", None), ("H21", None), ("Txy", None),
+    ("response", None)])
+def test_spectrum_kind_reads_the_words_of_a_name(name, kind):
+    from freqid_casadi.io._mat import spectrum_kind
+
+    assert spectrum_kind(name) == kind
+
+
+def test_time_records_in_matrices_of_columns_point_to_freqid_frf(tmp_path):
+    # a lab's shaker run: times (1 x N-1), inputvalues and outputvalues (N x 2 each)
+    rng = np.random.default_rng(0)
+    path = _mat(tmp_path, "run.mat", times=np.arange(299) / 1000.0,
+                outputvalues=rng.standard_normal((300, 2)),
+                inputvalues=rng.standard_normal((300, 2)))
+    with pytest.raises(DataError, match=r"holds time records \(outputvalues\(:,1\), "
+                       r"outputvalues\(:,2\), inputvalues\(:,1\), inputvalues\(:,2\): 300 "
+                       r"samples each\), not a frequency response: estimate it with 'freqid "
+                       r"frf FILE --u NAME --y NAME'"):
+        fc.load(path)
+    # its time vector, one stamp short of the records, gives the sampling rate (noted)
+    from freqid_casadi.experiment import load_records_mat
+
+    with pytest.warns(fc.io.loaders.DataWarning, match=r"the sampling rate 1000 Hz from the "
+                      r"steps of times \(299 stamps for 300 samples\)"):
+        rec = load_records_mat(str(path))
+    assert rec.fs == pytest.approx(1000.0, rel=1e-12)

@@ -699,13 +699,13 @@ def robot_arm(path=None):
 _FS_NAMES = ("fs", "samplerate", "sample_rate", "sampling_rate", "samplingrate",
              "sampling_frequency", "srate", "sf")
 _DT_NAMES = ("dt", "ts", "sample_time", "sampling_interval", "delta_t")
-_T_NAMES = ("t", "time")
+_T_NAMES = ("t", "time", "times", "tt", "t_s", "time_s")
 
 
 def _mat_fs(path, arrays, n):
     """Sampling rate (Hz) that a ``.mat`` file states: a scalar ``fs`` (or ``SampleRate``
-    ...) or ``dt``/``Ts`` (s), else a time vector ``t``/``time`` of the records' length
-    (whose unit the file does not say: a published motor bench's ``time`` counts
+    ...) or ``dt``/``Ts`` (s), else a time vector ``t``/``time``/``times`` of the records'
+    length, or one more or less (whose unit the file does not say: a published motor bench's ``time`` counts
     microseconds beside ``fs`` = 2500); None. A time vector whose rate differs from the
     stated one by other than a power of 1000 (ms, us stamps) is noted."""
     stated = stamped = None
@@ -717,10 +717,15 @@ def _mat_fs(path, arrays, n):
                 stated = (value, key)
             elif last in _DT_NAMES:
                 stated = (1.0 / value, key)
-        if last in _T_NAMES and arr.ndim == 1 and arr.size == n and stamped is None:
+        if last in _T_NAMES and arr.ndim == 1 and abs(arr.size - n) <= 1 and \
+                arr.size > 1 and stamped is None:     # (0:dt:T beside T/dt samples)
             fs = uniform_rate(arr)
             if fs is not None:
-                stamped = (fs, key)
+                stamped = (fs, key, arr.size)
+    if stated is None and stamped is not None and stamped[2] != n:
+        warnings.warn(f"{path!r}: the sampling rate {stamped[0]:.6g} Hz from the steps of "
+                      f"{stamped[1]} ({stamped[2]} stamps for {n} samples)", DataWarning,
+                      stacklevel=3)
     if stated is None:
         return None if stamped is None else stamped[0]
     if stamped is not None:

@@ -13,13 +13,14 @@ step (``f_start`` and ``df``) beside the response. Used by
 """
 
 import io
+import re
 
 import numpy as np
 
 from ..errors import DataError
 from ._octave import is_octave_text, read_octave_arrays
 
-__all__ = ["read_mat_arrays", "records_hint", "start_step_axis", "axis_variables",
+__all__ = ["read_mat_arrays", "records_hint", "spectrum_kind", "start_step_axis", "axis_variables",
            "chosen_response", "response_parts", "matrix_channels", "MIN_RECORD"]
 
 #: Shortest vector counted as a time record.
@@ -132,11 +133,59 @@ def _loadmat(path, payload, max_elements):
     return mat
 
 
+#: Most columns (or rows) of a real matrix counted as records, one each (``u(:,2)``).
+RECORD_COLUMNS = 8
+
+
+#: Words of a variable's name (split at ``_``, digits and case changes) that say it holds
+#: a spectrum an analyser saves beside the FRF, not a response: complex cross-spectra and
+#: coherence estimates (``Hf_Cross_Spec_chan_2``, ``Gxy``, ``coh``), by what they hold.
+_SPECTRUM_WORDS = {
+    "coherence": ("coh", "coher", "coherence", "cohere", "mscohere", "gamma2"),
+    "cross-spectrum": ("cross", "csd", "cpsd", "gxy", "gyx", "sxy", "syx", "pxy", "pyx",
+                       "gfx", "gxf", "sfx", "sxf"),
+    "auto-spectrum": ("psd", "apsd", "autospec", "autospectrum", "gxx", "gyy", "gff", "sxx",
+                      "syy", "sff", "pxx", "pyy", "auto", "power"),
+}
+
+
+def spectrum_kind(name):
+    """What a variable holds when its name says it is a spectrum, not a response:
+    ``"coherence"``, ``"cross-spectrum"`` or ``"auto-spectrum"``; else None.
+
+    Parameters
+    ----------
+    name : str
+        A MATLAB name (``Hf_Cross_Spec_chan_2``, ``meas.Gxy``, ``H(:,2)``).
+
+    Returns
+    -------
+    str or None
+    """
+    leaf = name.rsplit(".", 1)[-1].split("(", 1)[0]
+    words = re.findall(r"[A-Z]+(?![a-z])|[A-Z]?[a-z]+", leaf)
+    words = {w.lower() for w in words} | {leaf.lower()}
+    for kind, names in _SPECTRUM_WORDS.items():
+        if words & set(names):
+            return kind
+    return None
+
+
 def records_hint(path, arrays):
     """A DataError message when ``arrays`` look like time records (two or more real
-    vectors of one length >= :data:`MIN_RECORD`, none of them complex), else None."""
+    vectors of one length >= :data:`MIN_RECORD`, the columns of a matrix of at most
+    :data:`RECORD_COLUMNS` counted each; none of them complex), else None."""
+    if any(np.iscomplexobj(a) for a in arrays.values()):
+        return None
     vectors = {k: a for k, a in arrays.items()
                if a.ndim == 1 and a.size >= MIN_RECORD and a.dtype.kind in "iuf"}
+    for key, a in arrays.items():
+        if a.ndim == 2 and a.dtype.kind in "iuf" and max(a.shape) >= MIN_RECORD \
+                and 1 < min(a.shape) <= RECORD_COLUMNS:
+            tall = a if a.shape[0] > a.shape[1] else a.T
+            name = "{0}(:,{1})" if a.shape[0] > a.shape[1] else "{0}({1},:)"
+            vectors.update({name.format(key, j + 1): tall[:, j]
+                            for j in range(tall.shape[1])})
     by_size = {}
     for key, a in vectors.items():
         by_size.setdefault(a.size, []).append(key)

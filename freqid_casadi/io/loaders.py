@@ -20,12 +20,13 @@ allocating). Raise these module constants to read larger files.
 import io
 import os
 import re
+import warnings
 import zipfile
 
 import numpy as np
 
 from ._mat import (axis_variables, chosen_response, matrix_channels, read_mat_arrays,
-                   records_hint, response_parts, start_step_axis)
+                   records_hint, response_parts, spectrum_kind, start_step_axis)
 from ._octave import is_octave_text
 from ._touchstone import is_touchstone, load_touchstone
 from ._traces import read_traces
@@ -569,6 +570,8 @@ def _mat_data(path, arrays, channels, alias, parameter, columns, freq_unit, band
     """The one response of a ``.mat`` file's ``arrays`` that :func:`load_mat` reads
     (``parameter`` chooses among ``arrays`` and the matrix ``channels``; ``alias``: see
     :func:`_freq_axis`)."""
+    if parameter is None:
+        parameter = _beside_spectra(path, arrays, alias)
     if parameter is not None:
         arrays = chosen_response(path, {**arrays, **channels}, str(parameter),
                                  _freq_names(alias))
@@ -580,6 +583,33 @@ def _mat_data(path, arrays, channels, alias, parameter, columns, freq_unit, band
         raise
     omega, response = table_response(table)
     return _finish(path, omega, response, name, band=band, **_band_unit(table.unit("freq")))
+
+
+def _complex_vectors(arrays, alias):
+    """The complex vectors of a ``.mat`` file as long as its frequency vector (any length
+    when it has none), in file order."""
+    n = _freq_axis(arrays)[0] if alias is None else np.size(arrays[alias])
+    return [k for k, a in arrays.items() if np.iscomplexobj(a) and np.ndim(a) == 1
+            and np.size(a) > 1 and (not n or np.size(a) == n)]
+
+
+def _beside_spectra(path, arrays, alias):
+    """The one complex vector of a ``.mat`` file whose name does not say it is a spectrum
+    (:func:`spectrum_kind`) when every other one is (an analyser's ``Hf_chan_2`` beside
+    ``Hf_Cross_Spec_chan_2``), noted; else None (the file is read as it names itself)."""
+    found = _complex_vectors(arrays, alias)
+    spectra = [k for k in found if spectrum_kind(k)]
+    if not spectra or len(found) - len(spectra) != 1:
+        return None
+    key = next(k for k in found if k not in spectra)
+    warnings.warn(f"{path!r}: read {key} as the response; not read: "
+                  f"{_spectra_words(spectra)}", DataWarning, stacklevel=5)
+    return key
+
+
+def _spectra_words(names):
+    """``'Gxy (a cross-spectrum), coh (a coherence)'``."""
+    return ", ".join(f"{k} (a {spectrum_kind(k)})" for k in names)
 
 
 def _mat_all(path, freq_unit, columns, band):
@@ -602,6 +632,13 @@ def _mat_all(path, freq_unit, columns, band):
     if not names:                                   # real and imaginary parts, N x 2
         names = [k for k, a in arrays.items() if k != alias and not _is_freq(k)
                  and not np.iscomplexobj(a) and _response_length(a) == n]
+    spectra = [k for k in names if spectrum_kind(k)]
+    kept = [k for k in names if k not in spectra]
+    if spectra and kept:
+        if len(kept) >= 2:                       # (one: load_mat reads it, with its note)
+            warnings.warn(f"{where!r}: not read: {_spectra_words(spectra)}", DataWarning,
+                          stacklevel=3)
+        names = kept
     if columns is not None or not n or len(names) < 2:
         return [_mat_data(*one, None, columns, freq_unit, band, None)]
     return [_mat_data(where, arrays, channels, alias, key, None, freq_unit, band, key)
@@ -795,6 +832,19 @@ def _mat_matrix(path, arrays, columns, named):
             "command line --freq-unit hz), or their start and step as scalars f_start and "
             "df")
     if len(arrays) != 1 or np.ndim(next(iter(arrays.values()))) != 2:
+        hint = records_hint(path, arrays) if columns is None else None
+        if hint:
+            raise DataError(hint)
+        found = _complex_vectors(arrays, None)
+        if columns is None and len(found) >= 2:
+            first = next((k for k in found if not spectrum_kind(k)), found[0])
+            shown = ", ".join(f"{k} (a {spectrum_kind(k)})" if spectrum_kind(k) else k
+                              for k in found)
+            raise DataError(
+                f"{path!r} holds {len(found)} complex vectors ({shown}), not one response: "
+                f"choose the response with parameter='{first}' (command line --parameter "
+                f"{first}), or read every one with freqid_casadi.load_all (freqid modal "
+                f"reads them all, one channel each); the file holds {_found(arrays)}")
         raise DataError(
             f"{path!r}: cannot tell the variables apart (found {_found(arrays)}); name them "
             "omega (rad/s) or freq_hz (Hz) and response (complex), or save one N x k "
