@@ -234,3 +234,44 @@ def test_time_records_in_matrices_of_columns_point_to_freqid_frf(tmp_path):
                       r"steps of times \(299 stamps for 300 samples\)"):
         rec = load_records_mat(str(path))
     assert rec.fs == pytest.approx(1000.0, rel=1e-12)
+
+
+def test_an_npz_archive_another_program_wrote_is_read_by_its_arrays_names(tmp_path):
+    # a Raspberry Pi vibration logger's archive: freq (Hz), H1 and H2 (complex64), the
+    # coherence, and the int16 time records; refused before ("lacks array(s) ['omega',
+    # 'response']") whatever the options
+    rng = np.random.default_rng(1)
+    h1 = H[:, 0].astype(np.complex64)
+    path = tmp_path / "test.npz"
+    np.savez(path, input=rng.integers(-99, 99, 500).astype(np.int16),
+             output=rng.integers(-99, 99, 500).astype(np.int16), freq=F, H1=h1,
+             H2=H[:, 1].astype(np.complex64), coh=np.ones(F.size, np.complex64))
+    with pytest.raises(DataError, match=r"holds 3 complex vectors \(H1, H2, coh \(a "
+                       r"coherence\)\), not one response: choose the response with "
+                       r"parameter='H1'"):
+        fc.load(path, freq_unit="Hz")
+    data = fc.load(path, freq_unit="Hz", parameter="H1")
+    np.testing.assert_array_equal(data.response, h1)
+    np.testing.assert_allclose(data.omega, 2 * np.pi * F, rtol=1e-15)
+    with pytest.warns(fc.io.loaders.DataWarning, match=r"not read: coh \(a coherence\)"):
+        assert [d.name for d in fc.load_all(path, freq_unit="Hz")] == ["H1", "H2"]
+    # an FRF matrix without frequencies: refused saying what is missing
+    bare = tmp_path / "building.npz"
+    np.savez(bare, data=H)
+    with pytest.raises(DataError, match=r"holds complex responses but no frequency variable "
+                       r"\(found data \(40 x 6, complex\)\)"):
+        fc.load(bare)
+    # time records alone: pointed to the Python estimate (freqid frf reads .mat and CSV)
+    runs = tmp_path / "runs.npz"
+    np.savez(runs, u=rng.standard_normal(256), y=rng.standard_normal(256))
+    with pytest.raises(DataError, match=r"holds time records \(u, y: 256 samples each\), not "
+                       r"a frequency response: estimate it in Python, freqid_casadi\."
+                       r"experiment\.frf_from_records"):
+        fc.load(runs)
+    # the package's own format is read as before, its options refused
+    own = tmp_path / "own.npz"
+    np.savez(own, omega=2 * np.pi * F, response=H[:, 2])
+    np.testing.assert_array_equal(fc.load(own).response, H[:, 2])
+    with pytest.raises(fc.errors.OptionError, match=r"columns= names the columns .* names "
+                       r"its own arrays: drop it"):
+        fc.load(own, columns="f,re,im")

@@ -266,6 +266,7 @@ def test_cli_record_and_parameter_are_refused_for_other_files(tmp_path):
                                           "them; .*d.csv.: its columns name no S-parameter"):
         cli_common.load_data(_args(path, "--parameter", "S21"), str(path))
     npz = tmp_path / "d.npz"
+    np.savez(npz, freq_hz=F_HZ, response=RESP)
     with pytest.raises(OptionError, match="--parameter chooses a parameter of a Touchstone"):
         cli_common.load_data(_args(npz, "--parameter", "S21"), str(npz))
     assert cli.main(["fit", str(path), "--sections", "1", "--out", "r", "--record", "-1"]) == 2

@@ -20,22 +20,19 @@ allocating). Raise these module constants to read larger files.
 import io
 import os
 import re
-import warnings
 import zipfile
 
 import numpy as np
 
-from ._mat import (axis_variables, chosen_response, matrix_channels, read_mat_arrays,
-                   records_hint, response_parts, spectrum_kind, start_step_axis)
+from ._mat import matrix_channels, read_mat_arrays
+from ._named import SAVEZ, band_unit, frequency_axis, named_response, named_responses
 from ._octave import is_octave_text
 from ._touchstone import is_touchstone, load_touchstone
 from ._traces import read_traces
 from ._uff import load_uff, read_uff
 from ._readfile import (MAX_ELEMENTS, MAX_FILE_BYTES, MAX_ROWS, DataWarning, _finish,
                         parse_band, read_regular_file)
-from ._table import (Column, Table, _check_finite, _default_columns, _layout_problem,
-                     _resolve_units, parse_columns, parse_freq_unit, read_table, recognise,
-                     table_response)
+from ._table import parse_columns, parse_freq_unit, read_table, table_response
 from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 
@@ -111,7 +108,8 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
     lower = os.fspath(path).lower() if isinstance(path, (str, os.PathLike)) else ""
     refuse_options(path, record=record, parameter=parameter, columns=cols)
     if lower.endswith(".npz"):
-        return load_npz(path, name, freq_unit=freq_unit, band=band)
+        return load_npz(path, name, freq_unit=freq_unit, band=band, columns=cols,
+                        parameter=parameter)
     if is_touchstone(lower):
         if freq_unit is not None or cols is not None:
             raise OptionError("freq_unit and columns do not apply to Touchstone files (the "
@@ -175,7 +173,9 @@ def load_all(path, *, freq_unit=None, columns=None, band=None):
     lower = os.fspath(path).lower() if isinstance(path, (str, os.PathLike)) else ""
     if is_mat(path):
         return _mat_all(path, freq_unit, columns, band)
-    plain = lower.endswith((".npz", ".json")) or is_touchstone(lower)
+    if lower.endswith(".npz"):
+        return _npz_all(path, freq_unit, columns, band)
+    plain = lower.endswith(".json") or is_touchstone(lower)
     if not plain and is_uff(path):
         if parse_columns(columns) is not None:
             raise OptionError(f"{os.fspath(path)!r} is a universal file (UFF): its records "
@@ -246,8 +246,8 @@ def _looks_like_uff(path):
 def refuse_options(path, *, record=None, parameter=None, columns=None, flag=False):
     """Refuse an option given to :func:`load` for a kind of file it does not apply to
     (it would be ignored): ``record`` of a .npz, .mat or Touchstone file (it chooses a UFF
-    record or an LTspice run), ``parameter`` of a .npz, .mat or UFF file (it chooses a
-    Touchstone or text table's S-parameter), ``columns`` of a .npz or UFF file.
+    record or an LTspice run), ``parameter`` and ``columns`` of a UFF file (its records
+    name their own values).
 
     Parameters
     ----------
@@ -269,14 +269,27 @@ def refuse_options(path, *, record=None, parameter=None, columns=None, flag=Fals
         raise OptionError(f"{spell('record')} chooses a record of a UFF file (.uff/.unv) or "
                           f"a run of an LTspice export with .step runs, not of {path!r}; "
                           "drop it")
-    if parameter is not None and lower.endswith((".npz",) + _UFF_EXT):
+    own = lower.endswith(".npz") and _own_npz(path)       # omega/freq_hz and response
+    if parameter is not None and (lower.endswith(_UFF_EXT) or own):
         raise OptionError(f"{spell('parameter')} chooses a parameter of a Touchstone file "
                           "(.s1p, .s2p, ..., .sNp, .ts), of a text table whose header "
-                          "names S-parameters or the response variable of a .mat file, not "
-                          f"of {path!r}; drop it")
-    if columns is not None and lower.endswith((".npz",) + _UFF_EXT):
-        raise OptionError(f"{spell('columns')} names the columns of a text table or a .mat "
-                          f"matrix; {path!r} names its own arrays or records: drop it")
+                          "names S-parameters or the response variable of a .mat or .npz "
+                          f"file of several, not of {path!r}; drop it")
+    if columns is not None and (lower.endswith(_UFF_EXT) or own):
+        raise OptionError(f"{spell('columns')} names the columns of a text table or of a "
+                          f".mat or .npz matrix; {path!r} names its own "
+                          f"{'arrays' if own else 'records'}: drop it")
+
+
+def _own_npz(path):
+    """Whether ``path`` is an ``.npz`` archive of this package's format (``omega`` or
+    ``freq_hz`` beside ``response``); False for anything unreadable (the reader says)."""
+    try:
+        with zipfile.ZipFile(path) as zf:
+            names = {n[:-4] if n.endswith(".npy") else n for n in zf.namelist()}
+    except (OSError, zipfile.BadZipFile, zipfile.LargeZipFile, ValueError):
+        return False
+    return "response" in names and bool({"omega", "freq_hz"} & names)
 
 
 def load_text(path, name=None, *, freq_unit=None, columns=None, band=None, parameter=None,
@@ -373,13 +386,7 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None, param
     omega, response = table_response(table)
     unit = "rad/sample" if table.unit("freq") == "rad/sample" else "rad/s"
     return _finish(path, omega, response, name, lines=table.lines, unit=unit, band=band,
-                   **_band_unit(table.unit("freq")))
-
-
-def _band_unit(unit):
-    """``scale`` and ``file_unit`` keywords of ``_finish`` for a table's frequency unit."""
-    return ({"scale": 2 * np.pi, "file_unit": "Hz"} if unit == "hz" else
-            {"scale": 1.0, "file_unit": unit})
+                   **band_unit(table.unit("freq")))
 
 
 def load_csv(path, name=None, *, freq_unit=None, columns=None, band=None):
@@ -400,7 +407,6 @@ def load_csv(path, name=None, *, freq_unit=None, columns=None, band=None):
 
 # --------------------------------------------------------------------------- npz
 
-_SAVEZ = "np.savez(path, omega=omega, response=response)"
 
 
 def _npz_headers(path, payload):
@@ -425,36 +431,60 @@ def _npz_headers(path, payload):
                     "is damaged or not frequency-response data")
             if n * dtype.itemsize > info.file_size:
                 raise DataError(f"{path!r}: array {key!r} is truncated (its header claims "
-                                f"{n} elements of {dtype}); save the file again with {_SAVEZ}")
+                                f"{n} elements of {dtype}); save the file again with {SAVEZ}")
             found[key] = (shape, dtype)
     return found
+
+
+def _npz_arrays(path, payload, headers):
+    """The numeric arrays of an ``.npz`` archive, by name, squeezed (as a ``.mat`` file's
+    variables are read); others (strings, objects, dates) left out."""
+    out = {}
+    with np.load(io.BytesIO(payload), allow_pickle=False) as npz:
+        for key, (_, dtype) in headers.items():
+            if dtype.kind in "iufc":
+                a = np.squeeze(npz[key])
+                out[key] = a if a.dtype.kind in "fc" else a.astype(float)
+    if not out:
+        raise DataError(f"{path!r} holds no numeric arrays; save with {SAVEZ}")
+    return out
 
 
 def _check_dtype(path, key, dtype, complex_ok):
     unit = " (rad/s)" if key == "omega" else ""
     if dtype.kind == "c" and not complex_ok:
         raise DataError(f"{path!r}: array {key!r} has dtype {dtype}: {key} must be real{unit}; "
-                        f"save it as floats with {_SAVEZ}")
+                        f"save it as floats with {SAVEZ}")
     if dtype.kind not in "iufc":
         what = "datetimes" if dtype.kind in "Mm" else f"dtype {dtype}"
         raise DataError(f"{path!r}: array {key!r} holds {what}: {key} must be an array of "
-                        f"numbers{unit}; save plain floats with {_SAVEZ}")
+                        f"numbers{unit}; save plain floats with {SAVEZ}")
 
 
-def load_npz(path, name=None, *, freq_unit=None, band=None):
+def load_npz(path, name=None, *, freq_unit=None, band=None, columns=None, parameter=None):
     """Read data from a NumPy ``.npz`` archive.
 
     Parameters
     ----------
     path : str or path-like
         Arrays ``omega`` (rad/s; or ``freq_hz`` in Hz), ``response`` (complex) and
-        optionally ``weights``.
+        optionally ``weights``, as :func:`save_npz` writes them. An archive another program
+        wrote (``freq`` beside ``H1``, ``H2``, ``coh``) is read by its arrays' names as a
+        ``.mat`` file's variables are (:func:`load_mat`: the frequency vector by its name
+        and ``freq_unit``, the one complex response or ``parameter``, an FRF matrix's
+        channels as ``data(:,3)``).
     name : str, optional
     freq_unit : {"Hz", "rad/s"}, optional
         Unit of the array ``omega`` when it is not in rad/s ("Hz": multiplied by 2 pi).
     band : (float, float), optional
         Keep only the points with ``lo <= f <= hi`` (Hz for ``freq_hz`` or
         ``freq_unit="Hz"``, else rad/s).
+    columns : str or sequence of str, optional
+        Of an archive holding one N x k matrix: the names of its columns (as
+        :func:`load_mat`).
+    parameter : str, optional
+        Of an archive of several responses: the array that holds the one to read
+        (``"H1"``, ``"data(:,3)"``).
 
     Returns
     -------
@@ -474,14 +504,23 @@ def load_npz(path, name=None, *, freq_unit=None, band=None):
     path, payload = read_regular_file(path)
     if payload.startswith(b"\x93NUMPY"):
         raise DataError(f"{path!r} holds a single array (.npy), not an .npz archive; save "
-                        f"with {_SAVEZ}")
+                        f"with {SAVEZ}")
     try:
         headers = _npz_headers(path, payload)
         keys = set(headers)
         freq_key = "omega" if "omega" in keys or "freq_hz" not in keys else "freq_hz"
         missing = {freq_key, "response"} - keys
-        if missing:
-            raise DataError(f"{path!r} lacks array(s) {sorted(missing)}; save with {_SAVEZ}")
+        if missing or parameter is not None or columns is not None:   # another program's
+            arrays = _npz_arrays(path, payload, headers)
+            n, alias = frequency_axis(arrays)
+            try:
+                return named_response(path, arrays, matrix_channels(arrays, n), alias, parameter,
+                                 parse_columns(columns), freq_unit, band, name)
+            except DataError:
+                if keys & {"omega", "freq_hz", "response"}:     # this format, incomplete
+                    raise DataError(f"{path!r} lacks array(s) {sorted(missing)}; save with "
+                                    f"{SAVEZ}") from None
+                raise
         for key, complex_ok in ((freq_key, False), ("response", True), ("weights", False)):
             if key in headers:
                 _check_dtype(path, key, headers[key][1], complex_ok)
@@ -491,7 +530,7 @@ def load_npz(path, name=None, *, freq_unit=None, band=None):
     except DataError:
         raise
     except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile) as exc:
-        raise DataError(f"cannot read {path!r} as .npz ({exc}); save it with {_SAVEZ}") \
+        raise DataError(f"cannot read {path!r} as .npz ({exc}); save it with {SAVEZ}") \
             from None
     if freq_key == "freq_hz" and freq_unit == "rad/s":
         raise DataError(f"{path!r}: array 'freq_hz' is in Hz, but freq_unit='rad/s'; drop "
@@ -500,7 +539,7 @@ def load_npz(path, name=None, *, freq_unit=None, band=None):
     if hz:
         omega = 2 * np.pi * np.asarray(omega, float)
     return _finish(path, omega, response, name, weights, band=band,
-                   **_band_unit("hz" if hz else "rad/s"))
+                   **band_unit("hz" if hz else "rad/s"))
 
 
 # --------------------------------------------------------------------------- mat
@@ -561,55 +600,29 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None, band=None, parame
     band = parse_band(band)
     path, payload = read_regular_file(path)
     arrays = read_mat_arrays(path, payload, MAX_ELEMENTS)
-    n, alias = _freq_axis(arrays)
-    return _mat_data(path, arrays, matrix_channels(arrays, n), alias, parameter, columns,
+    n, alias = frequency_axis(arrays)
+    return named_response(path, arrays, matrix_channels(arrays, n), alias, parameter, columns,
                      freq_unit, band, name)
 
 
-def _mat_data(path, arrays, channels, alias, parameter, columns, freq_unit, band, name):
-    """The one response of a ``.mat`` file's ``arrays`` that :func:`load_mat` reads
-    (``parameter`` chooses among ``arrays`` and the matrix ``channels``; ``alias``: see
-    :func:`_freq_axis`)."""
-    if parameter is None:
-        parameter = _beside_spectra(path, arrays, alias)
-    if parameter is not None:
-        arrays = chosen_response(path, {**arrays, **channels}, str(parameter),
-                                 _freq_names(alias))
+def _npz_all(path, freq_unit, columns, band):
+    """Every response of an ``.npz`` archive: its one, as :func:`load_npz` reads it, for
+    the package's own format; else as a ``.mat`` file's (:func:`_mat_all`)."""
+    where, payload = read_regular_file(path)
+    if payload.startswith(b"\x93NUMPY"):
+        return [load_npz(path, freq_unit=freq_unit, band=band, columns=columns)]
     try:
-        table = _mat_table(path, arrays, columns, freq_unit, alias)
+        headers = _npz_headers(where, payload)
+        if {"response"} <= set(headers) and ({"omega", "freq_hz"} & set(headers)) \
+                and columns is None:
+            return [load_npz(path, freq_unit=freq_unit, band=band)]
+        arrays = _npz_arrays(where, payload, headers)
     except DataError:
-        if channels and parameter is None and columns is None:
-            raise DataError(_several_channels(path, arrays, channels)) from None
         raise
-    omega, response = table_response(table)
-    return _finish(path, omega, response, name, band=band, **_band_unit(table.unit("freq")))
-
-
-def _complex_vectors(arrays, alias):
-    """The complex vectors of a ``.mat`` file as long as its frequency vector (any length
-    when it has none), in file order."""
-    n = _freq_axis(arrays)[0] if alias is None else np.size(arrays[alias])
-    return [k for k, a in arrays.items() if np.iscomplexobj(a) and np.ndim(a) == 1
-            and np.size(a) > 1 and (not n or np.size(a) == n)]
-
-
-def _beside_spectra(path, arrays, alias):
-    """The one complex vector of a ``.mat`` file whose name does not say it is a spectrum
-    (:func:`spectrum_kind`) when every other one is (an analyser's ``Hf_chan_2`` beside
-    ``Hf_Cross_Spec_chan_2``), noted; else None (the file is read as it names itself)."""
-    found = _complex_vectors(arrays, alias)
-    spectra = [k for k in found if spectrum_kind(k)]
-    if not spectra or len(found) - len(spectra) != 1:
-        return None
-    key = next(k for k in found if k not in spectra)
-    warnings.warn(f"{path!r}: read {key} as the response; not read: "
-                  f"{_spectra_words(spectra)}", DataWarning, stacklevel=5)
-    return key
-
-
-def _spectra_words(names):
-    """``'Gxy (a cross-spectrum), coh (a coherence)'``."""
-    return ", ".join(f"{k} (a {spectrum_kind(k)})" for k in names)
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile) as exc:
+        raise DataError(f"cannot read {where!r} as .npz ({exc}); save it with {SAVEZ}") \
+            from None
+    return named_responses(where, arrays, freq_unit, parse_columns(columns), band)
 
 
 def _mat_all(path, freq_unit, columns, band):
@@ -620,251 +633,7 @@ def _mat_all(path, freq_unit, columns, band):
     columns = parse_columns(columns)
     where, payload = read_regular_file(path)
     arrays = read_mat_arrays(where, payload, MAX_ELEMENTS)
-    n, alias = _freq_axis(arrays)
-    one = (where, arrays, matrix_channels(arrays, n), alias)      # as load_mat reads it
-    if not n and axis_variables(arrays):            # an axis of start and step: the
-        sizes = {_response_length(a) for a in arrays.values()}   # responses' length
-        sizes.discard(0)
-        n = sizes.pop() if len(sizes) == 1 else 0
-    channels = matrix_channels(arrays, n) if n else {}
-    names = [k for k, a in arrays.items()
-             if np.ndim(a) == 1 and np.size(a) == n and np.iscomplexobj(a)] + list(channels)
-    if not names:                                   # real and imaginary parts, N x 2
-        names = [k for k, a in arrays.items() if k != alias and not _is_freq(k)
-                 and not np.iscomplexobj(a) and _response_length(a) == n]
-    spectra = [k for k in names if spectrum_kind(k)]
-    kept = [k for k in names if k not in spectra]
-    if spectra and kept:
-        if len(kept) >= 2:                       # (one: load_mat reads it, with its note)
-            warnings.warn(f"{where!r}: not read: {_spectra_words(spectra)}", DataWarning,
-                          stacklevel=3)
-        names = kept
-    if columns is not None or not n or len(names) < 2:
-        return [_mat_data(*one, None, columns, freq_unit, band, None)]
-    return [_mat_data(where, arrays, channels, alias, key, None, freq_unit, band, key)
-            for key in names]
-
-
-def _response_length(array):
-    """The points of an array read as a response (a complex vector, or a real N x 2
-    matrix of real and imaginary parts), else 0."""
-    shape = np.shape(array)
-    if np.iscomplexobj(array) and len(shape) == 1 and shape[0] > 1:
-        return shape[0]
-    if not np.iscomplexobj(array) and len(shape) == 2 and 2 in shape and max(shape) > 2:
-        return max(shape)
-    return 0
-
-
-#: Words (lower case, anywhere in a variable's name) of a frequency vector the reader's
-#: vocabulary does not know (``freqs``, ``frequencyBand``, ``FreqAxis``), taken for the
-#: axis when it is the file's only such vector, increasing, as long as a response.
-_AXIS_WORDS = ("freq", "omega")
-
-
-def _freq_axis(arrays):
-    """``(n, alias)``: the length of a ``.mat`` file's frequency vectors (real vectors
-    named as one) and None; else, when one real increasing vector named like one
-    (:data:`_AXIS_WORDS`) is as long as a response or a complex matrix's dimension, its
-    length and name; else ``(0, None)``."""
-    sizes = {np.size(a) for k, a in arrays.items() if np.ndim(a) == 1 and np.size(a) > 1
-             and not np.iscomplexobj(a) and _is_freq(k)}
-    if sizes:
-        return (sizes.pop(), None) if len(sizes) == 1 else (0, None)
-    dims = {d for a in arrays.values() if np.iscomplexobj(a) for d in np.shape(a)}
-    dims |= {_response_length(a) for a in arrays.values()}
-    found = [k for k, a in arrays.items()
-             if np.ndim(a) == 1 and np.size(a) in dims and np.size(a) > 1
-             and not np.iscomplexobj(a)
-             and any(w in k.rsplit(".", 1)[-1].lower() for w in _AXIS_WORDS)
-             and np.all(np.diff(np.asarray(a, float)) > 0)]
-    return (np.size(arrays[found[0]]), found[0]) if len(found) == 1 else (0, None)
-
-
-def _freq_names(alias):
-    """``name -> bool``: the names the reader takes for a frequency vector, and ``alias``."""
-    return _is_freq if alias is None else (lambda key: key == alias or _is_freq(key))
-
-
-def _several_channels(path, arrays, channels):
-    """The message for a ``.mat`` file whose response is a matrix of several channels."""
-    keys = list(channels)
-    matrices = sorted({k.split("(", 1)[0] for k in keys}, key=list(arrays).index)
-    shown = ", ".join(f"{m} ({' x '.join(map(str, np.shape(arrays[m])))})" for m in matrices)
-    return (f"{path!r} holds {len(keys)} responses ({shown}: one per channel beside the "
-            f"frequencies), not one: choose one with parameter='{keys[0]}' ... "
-            f"'{keys[-1]}' (command line --parameter '{keys[0]}'), or read them all with "
-            "freqid_casadi.load_all (freqid modal reads them all, one channel each)")
-
-
-# --------------------------------------------------------------------------- .mat
-
-def _mat_table(path, arrays, columns, freq_unit, alias=None):
-    """A :class:`Table` from the numeric variables of a ``.mat`` file (see
-    ``loaders.load_mat``); ``alias`` names a frequency vector outside the vocabulary
-    (:func:`_freq_axis`)."""
-    named = {}
-    if columns is None:
-        for key, arr in arrays.items():
-            col = recognise(key.rsplit(".", 1)[-1])
-            if key == alias:
-                col = Column("freq", _alias_unit(key), key)
-            if col is not None and col.role != "skip":
-                named[key] = Column(col.role, col.unit, key)
-    cols = tuple(named.values())
-    if named and _layout_problem(cols) is not None and \
-            _layout_problem(cols + (Column("freq"),)) is None and \
-            all(np.ndim(arrays[k]) <= 1 or 1 in np.shape(arrays[k]) for k in named):
-        # a response without a frequency vector: an axis of start and step beside it?
-        values, n = _mat_vectors(path, arrays, named)
-        axis = start_step_axis(path, arrays, n, freq_unit)
-        if axis is None:
-            raise DataError(_no_axis(path, arrays, named))
-        values["freq"] = axis[0]
-        cols += (Column("freq", axis[1], axis[2]),)
-    elif named and _layout_problem(cols) is None:
-        values, n = _mat_vectors(path, arrays, named)
-    elif columns is None and not named and axis_variables(arrays):
-        cols, values, n = _beside_axis(path, arrays)
-        axis = start_step_axis(path, arrays, n, freq_unit)
-        values["freq"] = axis[0]
-        cols += (Column("freq", axis[1], axis[2]),)
-    else:
-        cols, values, n = _mat_matrix(path, arrays, columns, named)
-    freq = next((c for c in cols if c.role == "freq"), None)
-    if named and freq is not None and freq.unit is None and freq_unit is None:
-        raise DataError(f"{path!r}: the unit of the frequency variable {freq.label} is "
-                        "unknown: pass freq_unit='Hz' or freq_unit='rad/s' (command line "
-                        "--freq-unit hz|rad/s), or save it as freq_hz (Hz) or omega (rad/s)")
-    cols = _resolve_units(path, cols, freq_unit, ",".join(named) if named else None)
-    for k, arr in values.items():
-        values[k] = np.asarray(arr, complex if k == "complex" else float)
-    table = Table(path, cols, values, np.arange(1, n + 1), where="row")
-    _check_finite(table)
-    return table
-
-
-def _alias_unit(name):
-    """The unit a frequency variable's name outside the vocabulary states (``freq_hz_axis``,
-    ``omega_vec``), or None."""
-    low = name.rsplit(".", 1)[-1].lower()
-    return "hz" if "hz" in low else "rad/s" if "omega" in low or "rad" in low else None
-
-
-def _is_freq(name):
-    col = recognise(name.rsplit(".", 1)[-1])
-    return col is not None and col.role == "freq"
-
-
-def _mat_vectors(path, arrays, named):
-    """``({role: vector}, length)`` of the variables ``named`` (name: Column), which must be
-    vectors of one length."""
-    vecs = [np.asarray(arrays[k]).reshape(-1) if 1 in np.shape(arrays[k]) or
-            np.ndim(arrays[k]) <= 1 else None for k in named]
-    if any(v is None for v in vecs) or len({v.size for v in vecs}) != 1:
-        raise DataError(f"{path!r}: variables {', '.join(named)} must be vectors of equal "
-                        "length")
-    return dict(zip((c.role for c in named.values()), vecs)), vecs[0].size
-
-
-def _no_frequencies(arrays):
-    """Whether a ``.mat`` file's arrays are complex matrices (more than 3 columns, or
-    several of them) and no real vector could be their frequency axis."""
-    complex_ = [a for a in arrays.values() if np.iscomplexobj(a) and np.ndim(a) >= 2]
-    real = [a for a in arrays.values() if not np.iscomplexobj(a) and np.size(a) > 1]
-    if not complex_ or real:
-        return False
-    return len(complex_) > 1 or min(np.shape(complex_[0])) > 3
-
-
-def _found(arrays):
-    """``'frf (512, complex), df (scalar)'``: the variables of a .mat file, for a message."""
-    return ", ".join(f"{k} ({' x '.join(map(str, np.shape(a))) or 'scalar'}"
-                     f"{', complex' if np.iscomplexobj(a) else ''})" for k, a in arrays.items())
-
-
-def _no_axis(path, arrays, named):
-    """The message for a .mat file whose response (the variables ``named``) has no
-    frequency axis beside it."""
-    return (f"{path!r} holds a response ({', '.join(named)}) but no frequency axis (found "
-            f"{_found(arrays)}): save the frequencies beside it as freq_hz (Hz) or omega "
-            "(rad/s) (or f with freq_unit='Hz', command line --freq-unit hz), or their start "
-            "and step as scalars f_start and df (the count is the response's length; "
-            "f_start_hz and df_hz say Hz, else pass freq_unit); or build the data in "
-            "Python: freqid_casadi.FrequencyData(omega, response)")
-
-
-def _beside_axis(path, arrays):
-    """``(columns, {role: vector}, length)`` of the one array beside the scalars of a
-    frequency axis (``f_start``, ``df``) whose name is not one the reader knows: a complex
-    vector is the response, a real N x 2 matrix its real and imaginary parts (as a
-    headerless table's columns are read, stated by a DataWarning)."""
-    axis = axis_variables(arrays)
-    rest = {k: a for k, a in arrays.items() if k not in axis}
-    key = next(iter(rest)) if rest else None
-    parts = response_parts(path, key, rest[key], stacklevel=6) if len(rest) == 1 else None
-    if parts is not None and "complex" in parts:
-        return (Column("complex", None, key),), parts, parts["complex"].size
-    if parts is not None:
-        return ((Column("re", None, f"{key}(:, 1)"), Column("im", None, f"{key}(:, 2)")),
-                parts, parts["re"].size)
-    hint = records_hint(path, rest)
-    if hint:
-        raise DataError(hint)
-    raise DataError(
-        f"{path!r} gives a frequency axis ({', '.join(axis)}) beside "
-        f"{len(rest)} other arrays, not one response (found {_found(arrays)}): choose the "
-        f"response with parameter='{next(iter(rest))}' (command line --parameter "
-        f"{next(iter(rest))})")
-
-
-def _mat_matrix(path, arrays, columns, named):
-    """``(columns, {role: vector}, rows)`` of the single N x k matrix of a .mat file,
-    read like a headerless text table (``columns`` names its columns)."""
-    hint = records_hint(path, arrays) if columns is None and not named else None
-    if hint:
-        raise DataError(hint)
-    if columns is None and _no_frequencies(arrays):
-        raise DataError(
-            f"{path!r} holds complex responses but no frequency variable (found "
-            f"{_found(arrays)}): save the frequencies beside them as freq_hz (Hz) or omega "
-            "(rad/s), a vector as long as the responses (or f with freq_unit='Hz', "
-            "command line --freq-unit hz), or their start and step as scalars f_start and "
-            "df")
-    if len(arrays) != 1 or np.ndim(next(iter(arrays.values()))) != 2:
-        hint = records_hint(path, arrays) if columns is None else None
-        if hint:
-            raise DataError(hint)
-        found = _complex_vectors(arrays, None)
-        if columns is None and len(found) >= 2:
-            first = next((k for k in found if not spectrum_kind(k)), found[0])
-            shown = ", ".join(f"{k} (a {spectrum_kind(k)})" if spectrum_kind(k) else k
-                              for k in found)
-            raise DataError(
-                f"{path!r} holds {len(found)} complex vectors ({shown}), not one response: "
-                f"choose the response with parameter='{first}' (command line --parameter "
-                f"{first}), or read every one with freqid_casadi.load_all (freqid modal "
-                f"reads them all, one channel each); the file holds {_found(arrays)}")
-        raise DataError(
-            f"{path!r}: cannot tell the variables apart (found {_found(arrays)}); name them "
-            "omega (rad/s) or freq_hz (Hz) and response (complex), or save one N x k "
-            "matrix and pass columns=...; for one channel of an FRF matrix, in MATLAB: "
-            "freq_hz = <frequencies>; response = <matrix>(:, k); save('frf_k.mat', "
-            "'freq_hz', 'response', '-v7')")
-    mat = np.asarray(next(iter(arrays.values())))
-    if mat.shape[0] < mat.shape[1]:
-        mat = mat.T
-    first = [str(x) for x in mat[0]]
-    cols = columns if columns is not None else _default_columns(path, first)
-    if len(cols) != mat.shape[1]:
-        raise DataError(f"{path!r}: the matrix has {mat.shape[1]} columns, columns= "
-                        f"names {len(cols)}")
-    values = {}
-    for j, c in enumerate(cols):
-        if c.role != "skip":
-            col = mat[:, j]
-            values[c.role] = col if c.role == "complex" else np.real(col)
-    return cols, values, mat.shape[0]
+    return named_responses(where, arrays, freq_unit, columns, band)
 
 
 # --------------------------------------------------------------------------- writer
