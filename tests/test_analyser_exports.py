@@ -103,6 +103,14 @@ def test_siglent_bode_export_of_two_complete_channels_asks_which(tmp_path):
                                rtol=1e-9)
     assert any("skipped 28 line(s) of metadata before the data (lines 1-28, the first "
                "'Instrument Name,SDS2104X HD')" in n for n in notes)
+    # load_all reads both, named as the header names them
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        both = fc.load_all(path)
+    assert [d.name for d in both] == ["CH1", "CH2"]
+    np.testing.assert_array_equal(both[1].response, data.response)
+    f, db1, deg1 = np.array(_SIGLENT_ROWS).T[:3]
+    np.testing.assert_allclose(both[0].response, _polar(db1, deg1), rtol=1e-13)
 
 
 def test_a_header_on_the_first_line_is_still_named_so(tmp_path):

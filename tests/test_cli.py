@@ -380,7 +380,7 @@ def test_notes_of_many_files_are_printed_once_per_text(capsys):
         "as Windows-1252", "'H1.txt': band [65, 1000] Hz: kept 10 of 12 points"]
     assert grouped_notes(["'a': x", "'b': x"]) == ["'a', 'b' (each of 2 files): x"]
     # the records of one UFF file: one file, several records
-    assert grouped_notes(["'t.unv': x"] * 3) == ["'t.unv' (each of 3 records): x"]
+    assert grouped_notes(["'t.unv': x"] * 3) == ["'t.unv' (each of 3 responses): x"]
     assert grouped_notes(["'a': x", "'a': x", "'b': x"]) == ["'a', 'b' (each of 2 files): x"]
     with notes_to_stderr():                       # nested blocks: the outer one prints
         for t in texts[:3]:

@@ -343,6 +343,13 @@ def test_network_analyser_csv_reads_the_s_parameter_asked_for(tmp_path):
         _same(cli_common.load_data(_args(path, "--parameter", "S21"), str(path)), rtol=1e-15)
     with pytest.raises(OptionError, match="vna.csv': its columns name S21, S11, S22, S12"):
         load(path, parameter="S31")
+    # load_all: each S-parameter, named
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        every = fc.load_all(path)
+    assert [d.name for d in every] == ["S21", "S11", "S22", "S12"]
+    _same(every[0], rtol=1e-15)
+    np.testing.assert_allclose(every[3].response, other, rtol=1e-15)
 
 
 @pytest.mark.filterwarnings("ignore::freqid_casadi.io.loaders.DataWarning")
@@ -405,6 +412,9 @@ def test_ltspice_ac_export_is_read_in_hz(tmp_path, encoding):
                                             r"skip' to read V\(a\)"):
             load(path)
         _same(load(path, columns="freq_hz,complex,skip,skip"), rtol=1e-12)
+        traces = fc.load_all(path)
+    assert [d.name for d in traces] == ["V(a)", "V(out)/V(in)", "V(b)"]
+    np.testing.assert_allclose(traces[2].response, 1.0, rtol=1e-15)
 
 
 def test_ltspice_step_runs_are_chosen_by_record(tmp_path):

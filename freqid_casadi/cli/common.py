@@ -215,7 +215,7 @@ def grouped_notes(notes):
         elif len(paths) == 1:
             out.append(f"'{paths[0]}'{rest}")
         elif len(set(paths)) == 1:              # the records of one file (a UFF test)
-            out.append(f"'{paths[0]}' (each of {len(paths)} records){rest}")
+            out.append(f"'{paths[0]}' (each of {len(paths)} responses){rest}")
         else:
             paths = list(dict.fromkeys(paths))
             shown = (f"'{paths[0]}' ... '{paths[-1]}'" if len(paths) > 3

@@ -181,16 +181,16 @@ def _reference(path, n):
 
 
 def _file_channels(args, path):
-    """The FRFs of one file: its one data set, every frequency-response record of a UFF
-    file (a modal test's file holds one per channel; ``--record K`` reads one), or every
-    response of a ``.mat`` file (an FRF matrix's channels; ``--parameter`` reads one)."""
+    """The FRFs of one file (:func:`freqid_casadi.io.loaders.load_all`): its one data
+    set, every frequency-response record of a UFF file (a modal test's file holds one per
+    channel; ``--record K`` reads one), every response of a ``.mat`` or ``.npz`` file (an
+    FRF matrix's channels; ``--parameter`` reads one) or of a table whose header gives
+    several (``--columns`` reads one)."""
     from .common import load_data, load_options, refuse_flags
-    from ..io.loaders import is_mat, is_uff, load_all
+    from ..io.loaders import load_all
 
     opts = load_options(args)
-    mat = is_mat(path)
-    if (opts.get("record") is not None or opts.get("parameter") is not None
-            or not (mat or is_uff(path))):
+    if any(opts.get(k) is not None for k in ("record", "parameter", "columns")):
         return [load_data(args, path)]
     refuse_flags(path, opts)
     return load_all(path, freq_unit=opts.get("freq_unit"), columns=opts.get("columns"),

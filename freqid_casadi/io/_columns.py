@@ -9,11 +9,11 @@ and a unit: :func:`recognise` reads one header cell or name, :func:`parse_column
 import re
 from dataclasses import dataclass
 
-from ..errors import OptionError
+from ..errors import DataError, OptionError
 
 __all__ = ["Column", "recognise", "parse_columns", "parse_freq_unit", "COLUMN_HELP",
            "one_layout", "columns_option", "complete_channels", "sparameter_of",
-           "sparameters", "with_parameter", "DERIVED"]
+           "sparameters", "with_parameter", "DERIVED", "ChannelChoice", "several_responses"]
 
 #: A channel or trace number before a column's name: ``Channel 2 Phase (deg)``, ``Ch1 Re``
 #: (``_CHANNEL``: the number and the name after it).
@@ -353,3 +353,60 @@ def parse_columns(columns):
         raise OptionError(f"columns={columns!r}: {problem}; e.g. columns='f,re,im' or "
                           "('freq_hz', 'mag_db', 'phase_deg')")
     return tuple(cols)
+
+
+class ChannelChoice(DataError):
+    """A table whose header gives several complete responses (an oscilloscope's channels,
+    a network analyser's S-parameters, LTspice's traces): ``load`` reads one when told
+    which; ``choices`` is ``[(name, load keywords), ...]``, one per response, for
+    ``load_all`` to read them all."""
+
+    def __init__(self, message, choices):
+        super().__init__(message)
+        self.choices = list(choices)
+
+
+def several_responses(cells, cols, traces=()):
+    """``(text, choices)`` for a header whose layout is not one response: the sentence an
+    error adds (the ``columns=`` or ``parameter=`` that reads each response it gives) and
+    the responses as ``[(name, load keywords), ...]`` (:class:`ChannelChoice`); the
+    channel alone when only one is complete (``choices`` then empty).
+
+    Parameters
+    ----------
+    cells : sequence of str
+        The header's cells.
+    cols : sequence of Column
+        Their columns as recognised.
+    traces : sequence of str
+        LTspice's traces, when the header is its export.
+
+    Returns
+    -------
+    (str, list)
+    """
+    text, choices = "", []
+    channels = complete_channels(cols)
+    if len(channels) == 1:
+        text += (f"; to read channel {channels[0][0]}, the one whose columns make a "
+                 f"response, pass columns='{channels[0][1]}'")
+    elif channels:
+        text += (f"; it gives {len(channels)} channels, each a complete response: which "
+                 "is the system's response is yours to choose: pass " +
+                 " or ".join(f"columns='{option}' to read {name}"
+                             for _, option, name in channels) + " (command line --columns)")
+        choices = [(name, {"columns": option}) for _, option, name in channels]
+    named = [p.upper() for p in sparameters(cells)]
+    if len(named) > 1:
+        kinds = "S-parameters and ratios" if any("/" in p for p in named) else "S-parameters"
+        text += (f"; its columns give {len(named)} {kinds} ({', '.join(named)}): pass "
+                 f"parameter='{named[0]}' (command line --parameter {named[0]}) to read one")
+        choices = choices or [(p, {"parameter": p}) for p in named]
+    if traces:
+        text += (f"; LTspice wrote {len(traces)} traces ({', '.join(traces)}): pass "
+                 f"columns='freq_hz,complex{',skip' * (len(traces) - 1)}' to read "
+                 f"{traces[0]} ('complex' in another trace's place reads that one)")
+        choices = choices or [(t, {"columns": ",".join(
+            ["freq_hz"] + ["complex" if j == k else "skip" for j in range(len(traces))])})
+            for k, t in enumerate(traces)]
+    return text, choices

@@ -15,9 +15,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._columns import (_UNITS, COLUMN_HELP, DERIVED, Column, _layout_problem, columns_option,
-                       complete_channels, one_layout, parse_columns, parse_freq_unit,
-                       recognise, sparameters, with_parameter)
+from ._columns import (_UNITS, COLUMN_HELP, DERIVED, ChannelChoice, Column, _layout_problem,
+                       columns_option, one_layout, parse_columns, parse_freq_unit, recognise,
+                       several_responses, with_parameter)
 from ._headerless import check_guessed, suffix_columns
 from ._readfile import DataWarning
 from ..errors import DataError, OptionError
@@ -305,42 +305,24 @@ def _header_columns(path, cells, parameter=None, line=1):
     if parameter is not None and None not in cols:
         cols = with_parameter(cols, parameter, repr(path))
     cols = one_layout(cols)
-    problem = None
+    problem, choices = None, []
     if any(c is None for c in cols):
         bad = cells[[c is None for c in cols].index(True)]
         problem = f"column {_clean(bad)!r} is not a known name"
     else:
         problem = _layout_problem(cols)
-        choice = complete_channels(cols) if problem else []
-        if len(choice) == 1:
-            problem += (f"; to read channel {choice[0][0]}, the one whose columns make a "
-                        f"response, pass columns='{choice[0][1]}'")
-        elif choice:
-            problem += (f"; it gives {len(choice)} channels, each a complete response: "
-                        "which is the system's response is yours to choose: pass " +
-                        " or ".join(f"columns='{option}' to read {name}"
-                                    for _, option, name in choice) +
-                        " (command line --columns)")
-        named = [p.upper() for p in sparameters(cells)]
-        if problem and len(named) > 1:
-            kinds = "S-parameters and ratios" if any("/" in p for p in named) else \
-                "S-parameters"
-            problem += (f"; its columns give {len(named)} {kinds} ({', '.join(named)}): "
-                        f"pass parameter='{named[0]}' (command line --parameter "
-                        f"{named[0]}) to read one")
-        if problem and ltspice:
-            problem += (f"; LTspice wrote {len(traces)} traces ({', '.join(traces)}): pass "
-                        f"columns='freq_hz,complex{',skip' * (len(traces) - 1)}' to read "
-                        f"{traces[0]} ('complex' in another trace's place reads that one)")
+        if problem:
+            more, choices = several_responses(cells, cols, traces if ltspice else ())
+            problem += more
     if problem:
-        raise DataError(
+        raise ChannelChoice(
             f"{path!r}: unrecognised header {','.join(_clean(c) for c in cells)!r} "
             f"({problem}); "
             f"{'the first line' if line == 1 else f'the header (line {line})'} must be "
             "'omega,real,imag' or "
             "'omega,magnitude_db,phase_deg' (rad/s), or another layout such as "
             "'freq_hz,mag_db,phase_deg'; or pass columns=... (command line --columns) to "
-            f"{COLUMN_HELP}")
+            f"{COLUMN_HELP}", choices)
     derived = [repr(c.label) for c in cols if c.unit == DERIVED]
     if derived:
         warnings.warn(f"{path!r}: skipped {', '.join(derived)}: a quantity the analyser "

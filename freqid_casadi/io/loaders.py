@@ -32,6 +32,7 @@ from ._traces import read_traces
 from ._uff import load_uff, read_uff
 from ._readfile import (MAX_ELEMENTS, MAX_FILE_BYTES, MAX_ROWS, DataWarning, _finish,
                         parse_band, read_regular_file)
+from ._columns import ChannelChoice
 from ._table import parse_columns, parse_freq_unit, read_table, table_response
 from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
@@ -151,9 +152,12 @@ def load_all(path, *, freq_unit=None, columns=None, band=None):
         A UFF file gives each frequency-response record (:func:`load_uff`); a ``.mat`` file
         each complex response beside its frequency vector: every channel of an FRF matrix
         (``H``, N x 9, named ``H(:,1)`` ... ``H(:,9)``; MATLAB ``modalfrf``'s ``frf``, N x
-        outputs x inputs, ``frf(:,2,1)``) and each complex vector (``H21``, ``H22``). Any
-        other file gives the one response :func:`load` reads (a Touchstone file's chosen
-        parameter: ``load(path, parameter="S21")``).
+        outputs x inputs, ``frf(:,2,1)``) and each complex vector (``H21``, ``H22``); an
+        ``.npz`` archive as a ``.mat`` file; a text table whose header gives several
+        complete responses each of them (an oscilloscope's Bode export of CH1 and CH2, a
+        network analyser's S-parameter columns, LTspice's traces), named as the header
+        names it (``CH2``, ``S21``). Any other file gives the one response :func:`load`
+        reads (a Touchstone file's chosen parameter: ``load(path, parameter="S21")``).
     freq_unit, columns, band
         As for :func:`load`.
 
@@ -181,7 +185,13 @@ def load_all(path, *, freq_unit=None, columns=None, band=None):
             raise OptionError(f"{os.fspath(path)!r} is a universal file (UFF): its records "
                               "name their own units and values; drop columns= (--columns)")
         return list(load_uff(path, freq_unit=freq_unit, band=band))
-    return [load(path, freq_unit=freq_unit, columns=columns, band=band)]
+    try:
+        return [load(path, freq_unit=freq_unit, columns=columns, band=band)]
+    except ChannelChoice as exc:
+        if columns is not None or not exc.choices:
+            raise
+        return [load(path, name, freq_unit=freq_unit, band=band, **kw)
+                for name, kw in exc.choices]
 
 
 def is_mat(path):
