@@ -467,3 +467,27 @@ def test_both_missing_units_are_named_at_once(tmp_path):
     with pytest.raises(DataError, match=r"column 'Freq' has no unit\).*; the phase column "
                        r"'Phase' does not give its unit either: name it phase_deg"):
         fc.load(path)
+
+
+def test_a_headerless_third_column_that_wraps_as_degrees_is_not_read_as_imaginary(tmp_path):
+    # a lab's hand-typed Bode table (Hz, dB, degrees) without a header: with freq_unit it
+    # was read as real and imaginary parts (6.8 dB at 75 degrees became 6.8 + 75j)
+    f = np.arange(10.0, 600.0, 10.0)
+    deg = (75.0 - 0.6 * f + 180.0) % 360.0 - 180.0            # wraps from -177 to 178
+    path = tmp_path / "bode.txt"
+    path.write_text("".join(f"{a:g},{20 - a / 50:.3g},{p:.4g}\n" for a, p in zip(f, deg)))
+    with pytest.raises(DataError, match=r"no header, and the third column stays within "
+                       r"\+-180 and jumps from -177 to 177 between data rows 42 and 43, as a "
+                       r"phase in degrees wraps: name the columns, e.g. columns='freq_hz,"
+                       r"mag_db,phase_deg'"):
+        fc.load(path, freq_unit="Hz")
+    data = fc.load(path, columns="freq_hz,mag_db,phase_deg")
+    np.testing.assert_allclose(np.degrees(np.angle(data.response)), deg, atol=1e-3)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        assert fc.load(path, columns="f,re,im", freq_unit="Hz").response[0] == 19.8 + 69j
+    # real and imaginary parts that stay within +-180 but do not jump are read as before
+    path.write_text("".join(f"{a:g},{-a / 5:g},{a / 4:g}\n" for a in f))
+    with pytest.warns(DataWarning, match="no header: read the columns as frequency, real, "
+                      "imaginary"):
+        assert fc.load(path, freq_unit="Hz").response[-1] == -118 + 147.5j

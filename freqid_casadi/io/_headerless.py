@@ -11,7 +11,7 @@ from ._columns import recognise
 from ._readfile import DataWarning
 from ..errors import DataError
 
-__all__ = ["SUFFIX_COLUMNS", "suffix_columns", "check_guessed"]
+__all__ = ["SUFFIX_COLUMNS", "suffix_columns", "check_guessed", "WRAP_JUMP"]
 
 #: The columns of a headerless loudspeaker-measurement file, by suffix: ``.frd``
 #: (frequency response data: Hz, SPL in dB, phase in degrees) and ``.zma`` (impedance: Hz,
@@ -44,10 +44,17 @@ def suffix_columns(path, n_cells):
     return tuple(recognise(n) for n in names)
 
 
+#: Least jump between neighbouring values of a headerless file's third column, all within
+#: +-180, read as a phase in degrees wrapping (-177 to 178): an imaginary part does not
+#: cross from near -180 to near +180 in one step.
+WRAP_JUMP = 300.0
+
+
 def check_guessed(path, values):
     """A headerless file read as frequency, real, imaginary: refuse a first column that
     counts the rows beside a second that increases like a frequency (an analyser's index,
-    frequency, value: a Brüel & Kjær PULSE ASCII export), else say how it was read.
+    frequency, value: a Brüel & Kjær PULSE ASCII export), or a third column that wraps as
+    a phase in degrees does (:data:`WRAP_JUMP`), else say how it was read.
 
     Parameters
     ----------
@@ -58,7 +65,7 @@ def check_guessed(path, values):
     Raises
     ------
     DataError
-        The first column is a row index.
+        The first column is a row index, or the third a phase in degrees.
     """
     f, re_ = values["freq"], values["re"].real
     index = f.size > 2 and f[0] in (0.0, 1.0) and np.array_equal(f, f[0] + np.arange(f.size))
@@ -68,6 +75,16 @@ def check_guessed(path, values):
                         "like a frequency; name the columns, e.g. columns='skip,freq_hz,re,im' "
                         "or 'skip,freq_hz,mag_db,phase_deg' (command line --columns); a "
                         "real-valued function (an autospectrum) has no phase to fit")
+    im = values["im"].real
+    wraps = np.flatnonzero(np.abs(np.diff(im)) > WRAP_JUMP) if im.size > 1 else []
+    if len(wraps) and np.all(np.abs(im) <= 180.0 + 1e-9):
+        k = int(wraps[0])
+        raise DataError(f"{path!r}: no header, and the third column stays within +-180 and "
+                        f"jumps from {im[k]:g} to {im[k + 1]:g} between data rows {k + 1} "
+                        f"and {k + 2}, as a phase in degrees wraps: name the columns, e.g. "
+                        "columns='freq_hz,mag_db,phase_deg' (or mag, phase_deg; command line "
+                        "--columns); columns='f,re,im' reads them as real and imaginary "
+                        "parts")
     warnings.warn(f"{path!r}: no header: read the columns as frequency, real, imaginary; if "
                   "they are magnitude and phase, pass columns='freq_hz,mag_db,phase_deg' "
                   "(or mag, phase_rad; command line --columns)", DataWarning, stacklevel=5)
