@@ -491,3 +491,20 @@ def test_a_headerless_third_column_that_wraps_as_degrees_is_not_read_as_imaginar
     with pytest.warns(DataWarning, match="no header: read the columns as frequency, real, "
                       "imaginary"):
         assert fc.load(path, freq_unit="Hz").response[-1] == -118 + 147.5j
+
+
+def test_a_magnitude_alone_and_a_complex_column_of_imaginary_parts_are_explained(tmp_path):
+    # a microphone calibration file (Hz, dB): columns= naming them said only which
+    # layouts are allowed; a script's 'freq (Hz), real, complex' table whose 'complex'
+    # column holds the imaginary parts
+    mic = tmp_path / "mic.txt"
+    mic.write_text("20 -0.5\n40 -0.2\n80 0.0\n")
+    with pytest.raises(OptionError, match=r"got freq, mag; a magnitude alone cannot be "
+                       r"fitted: the model's delay and zeros need the phase too"):
+        fc.load(mic, columns="freq_hz,mag_db")
+    tsv = tmp_path / "fake.tsv"
+    tsv.write_text("freq (Hz)\treal\tcomplex\n1.0\t0.5\t-0.1\n2.0\t0.4\t-0.2\n")
+    with pytest.raises(DataError, match=r"if the column read as 'complex' holds the imaginary "
+                       r"parts, name it im \(columns='freq_hz,re,im'\)"):
+        fc.load(tsv)
+    assert fc.load(tsv, columns="freq_hz,re,im").response[1] == 0.4 - 0.2j

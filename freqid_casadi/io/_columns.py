@@ -309,8 +309,18 @@ def _layout_problem(cols):
         dup = next(r for r in roles if roles.count(r) > 1)
         return f"two columns are {dup!r}"
     if set(roles) not in _LAYOUTS:
+        why = ""
+        if set(roles) == {"freq", "mag"}:
+            why = ("; a magnitude alone cannot be fitted: the model's delay and zeros need "
+                   "the phase too")
+        elif set(roles) == {"freq", "re", "complex"}:
+            why = ("; if the column read as 'complex' holds the imaginary parts, name it im "
+                   "(columns='" + ",".join({"freq": "freq_hz" if c.unit == "hz" else "f",
+                                            "re": "re", "complex": "im"}[c.role]
+                                           if c.role != "skip" else "skip" for c in cols)
+                   + "')")
         return ("the columns must be one frequency and real+imaginary, magnitude+phase or "
-                f"one complex column, got {', '.join(roles) or 'none'}")
+                f"one complex column, got {', '.join(roles) or 'none'}{why}")
     return None
 
 
