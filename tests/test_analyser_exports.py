@@ -6,6 +6,7 @@ headerless four-column file, Digilent WaveForms' impedance export (``Trace th (*
 theta, R and X, or a log magnitude and a phase: one response).
 """
 
+import re
 import warnings
 
 import numpy as np
@@ -508,3 +509,24 @@ def test_a_magnitude_alone_and_a_complex_column_of_imaginary_parts_are_explained
                        r"parts, name it im \(columns='freq_hz,re,im'\)"):
         fc.load(tsv)
     assert fc.load(tsv, columns="freq_hz,re,im").response[1] == 0.4 - 0.2j
+
+
+@pytest.mark.parametrize("text, first", [
+    # an acoustics program's export of impulse responses: the header in a comment
+    ("#\n# Measurement exported using HOLM Acoustics software\n# Samplerate: 44100\n#\n"
+     "## sample,0 (F144/W_0d_0) ,1 (F144/W_0d_1) \n-2,1e-8,2e-7\n-1,4e-7,-1e-7\n0,0.5,0.4\n",
+     "sample"),
+    ("time,u,y\n0,1,2\n0.001,2,3\n0.002,3,4\n", "time"),
+    ("t [s];force;accel\n0;1;2\n0,001;2;3\n", "t [s]"),
+])
+def test_a_table_of_time_samples_is_refused_as_such(tmp_path, text, first):
+    # it was refused as 'no header and 10 columns: cannot tell what they are' or as an
+    # unknown column name, with columns= examples for a frequency response
+    path = tmp_path / "rec.txt"
+    path.write_text(text)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore", DataWarning)
+        with pytest.raises(DataError, match=rf"holds time-domain samples, not a frequency "
+                           rf"response: its first column '{re.escape(first)}' counts time "
+                           r".*freqid frf FILE --u NAME --y NAME"):
+            fc.load(path)

@@ -13,7 +13,8 @@ from ..errors import DataError, OptionError
 
 __all__ = ["Column", "recognise", "parse_columns", "parse_freq_unit", "COLUMN_HELP",
            "one_layout", "columns_option", "complete_channels", "sparameter_of",
-           "sparameters", "with_parameter", "DERIVED", "ChannelChoice", "several_responses"]
+           "sparameters", "with_parameter", "DERIVED", "ChannelChoice", "several_responses", "time_column",
+           "time_records"]
 
 #: A channel or trace number before a column's name: ``Channel 2 Phase (deg)``, ``Ch1 Re``
 #: (``_CHANNEL``: the number and the name after it).
@@ -420,3 +421,24 @@ def several_responses(cells, cols, traces=()):
             ["freq_hz"] + ["complex" if j == k else "skip" for j in range(len(traces))])})
             for k, t in enumerate(traces)]
     return text, choices
+
+
+#: A column of time stamps or sample numbers, by its name (units in brackets allowed).
+_TIME = re.compile(r"^\s*(t|time|times|sample|samples|sample[ _]?(no|nr|number)|time[ _]?stamp)"
+                   r"\s*([\[(].*[\])])?\s*$", re.IGNORECASE)
+
+
+def time_column(label):
+    """True if a header cell names time stamps or sample numbers (``time``, ``t [s]``,
+    ``sample``), the first column of a file of time records or of an impulse response."""
+    return bool(_TIME.match(label.strip().strip("\"'")))
+
+
+def time_records(path, cells):
+    """The message for a table whose header's first column counts time (``cells``)."""
+    shown = ",".join(c.strip() for c in cells[:6]) + (",..." if len(cells) > 6 else "")
+    return (f"{path!r} holds time-domain samples, not a frequency response: its first "
+            f"column {cells[0].strip()!r} counts time (header {shown!r}); estimate the "
+            "frequency response first: input and output records with 'freqid frf FILE "
+            "--u NAME --y NAME' (see freqid frf --help), an impulse response by its Fourier "
+            "transform (numpy.fft.rfft, frequencies numpy.fft.rfftfreq(n, 1/fs))")

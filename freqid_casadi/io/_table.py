@@ -17,7 +17,7 @@ import numpy as np
 
 from ._columns import (_UNITS, COLUMN_HELP, DERIVED, ChannelChoice, Column, _layout_problem,
                        columns_option, one_layout, parse_columns, parse_freq_unit, recognise,
-                       several_responses, with_parameter)
+                       several_responses, time_column, time_records, with_parameter)
 from ._headerless import check_guessed, suffix_columns
 from ._readfile import DataWarning
 from ..errors import DataError, OptionError
@@ -275,18 +275,22 @@ def _content(path, text, max_rows):
     if not rows:
         raise DataError(f"{path!r} is empty: expected a header such as 'omega,real,imag' "
                         "and data rows")
-    return _comment_header(rows, comment)
+    return _comment_header(path, rows, comment)
 
 
-def _comment_header(rows, comment):
+def _comment_header(path, rows, comment):
     """``rows`` led by the last comment line before the data when the data have no header
-    and that line names every column (``% f [Hz]  Re  Im``, as analysers write)."""
+    and that line names every column (``% f [Hz]  Re  Im``, as analysers write); a
+    DataError when it names a first column of time (``## sample,0 (F144/W_0d_0) ,...``,
+    an acoustics program's impulse responses)."""
     sep = _separator(rows[0][1])
     first = _row_cells(rows[0][1])
     if comment is None or not all(_is_value(c) for c in first):
         return rows
     cells = _splitter(sep)(comment[1]) if sep and sep in comment[1] else \
         _split_space(comment[1])
+    if len(cells) == len(first) > 1 and time_column(_clean(cells[0])):
+        raise DataError(time_records(path, cells))
     cols = one_layout([recognise(_clean(c)) for c in cells])
     if len(cells) != len(first) or None in cols or _layout_problem(cols):
         return rows
@@ -306,6 +310,8 @@ def _header_columns(path, cells, parameter=None, line=1):
         cols = with_parameter(cols, parameter, repr(path))
     cols = one_layout(cols)
     problem, choices = None, []
+    if cols[0] is None and len(cells) > 1 and time_column(_clean(cells[0])):
+        raise DataError(time_records(path, [_clean(c) for c in cells]))
     if any(c is None for c in cols):
         bad = cells[[c is None for c in cols].index(True)]
         problem = f"column {_clean(bad)!r} is not a known name"
