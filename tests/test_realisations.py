@@ -170,3 +170,24 @@ def test_arrays_of_three_dimensions_and_mismatched_layouts_say_what_to_do(tmp_pa
                  str(tmp_path / "d.csv")]) == 2
     assert "the input is one record and the output a matrix of 3 records" in \
         capsys.readouterr().err
+
+
+def test_a_one_period_reference_beside_a_single_record_is_repeated(tmp_path, capsys):
+    # a generator's table of one period saved beside the records of several: it was
+    # refused ("not a time record of the file") unless it was a matrix of realisations
+    us, ys = _records(1, 4, 0.0, 0.0)
+    rng = np.random.default_rng(5)
+    u = us[0] + 1e-3 * rng.standard_normal(us[0].size)      # noise at every line
+    full = frf_from_periodic(u, ys[0], N, fs=FS, reference=us[0])
+    one = frf_from_periodic(u, ys[0], N, fs=FS, reference=us[0][:N])
+    np.testing.assert_array_equal(one.bins, full.bins)
+    np.testing.assert_array_equal(one.data.response, full.data.response)
+    assert one.data.n_points == 59                      # the generated lines, not the noise
+    with pytest.raises(DataError, match=r"reference must be a record as long as u \(1024 "
+                       r"samples\) or one period \(256\), got shape \(100,\)"):
+        frf_from_periodic(u, ys[0], N, fs=FS, reference=us[0][:100])
+    path = tmp_path / "ms.mat"
+    scipy.io.savemat(str(path), {"u": u, "y": ys[0], "r": us[0][:N], "fs": FS})
+    assert main(["frf", str(path), "--period", str(N), "--reference", "r",
+                 "--out", str(tmp_path / "a.csv")]) == 0
+    assert "59 excited bins (1..59)" in capsys.readouterr().out

@@ -324,10 +324,13 @@ def _mat_records(args):
     found = _record(rec, ref)
     if found is None and chosen[0].ndim == 2:
         found = _period_reference(rec, ref, chosen[0].shape[0])
+    if found is None and chosen[0].ndim == 1 and ref in rec.others:
+        found = rec.others[ref]          # one period, repeated (else the estimate says)
     if found is None:
         raise OptionError(_nd_hint(rec, ref, "reference") or
                           f"--reference {ref!r} is not a time record of the file (a "
-                          f"reference is as long as the records); the records are {names}")
+                          "reference is as long as the records, or one period); the "
+                          f"records are {names}")
     return chosen[0], chosen[1], rec.fs, found
 
 

@@ -54,10 +54,10 @@ def frf_from_periodic(u, y, period, *, fs=None, bins=None, skip_periods=0, thres
         RMS of the (mean-removed) input; measurement noise on ``u`` must stay below it.
     name : str, optional
         Name of the resulting :class:`FrequencyData`.
-    reference : array_like of float, shape (N,), optional
+    reference : array_like of float, shape (N,) or (period,), optional
         The excitation as generated (the multisine sent to the shaker or amplifier), whose
         nonzero lines are the excited bins; the measured input ``u`` may hold noise at the
-        other lines.
+        other lines. One period of it (a generator's table) is repeated.
 
     Returns
     -------
@@ -162,9 +162,12 @@ def _reference_spectrum(reference, n, period, skip_periods, n_half):
     if reference is None:
         return None
     r = np.asarray(reference, float).reshape(-1) if np.ndim(reference) else None
+    if r is not None and r.size == period and n > period:   # a generator's one period
+        r = np.tile(r, n // period + 1)[:n]
     if r is None or r.size != n:
-        raise DataError(f"reference must be a record as long as u ({n} samples), got shape "
-                        f"{np.shape(reference)}; pass the generated excitation signal")
+        raise DataError(f"reference must be a record as long as u ({n} samples) or one "
+                        f"period ({period}), got shape {np.shape(reference)}; pass the "
+                        "generated excitation signal")
     if not np.all(np.isfinite(r)):
         raise DataError("reference holds non-finite samples; repair or cut out the bad "
                         "samples")

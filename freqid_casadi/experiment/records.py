@@ -499,6 +499,10 @@ class DaqRecords:
     matrices : dict of str to ndarray
         A ``.mat`` file's numeric arrays of two or more dimensions (singleton dimensions
         squeezed), by MATLAB name, read-only; empty for other files.
+    others : dict of str to ndarray of float
+        A ``.mat`` file's real vectors of 16 or more samples but another length than the
+        records (a generator's one period, beside records of several), read-only; empty
+        for other files.
     """
 
     fs: float
@@ -506,6 +510,7 @@ class DaqRecords:
     events: tuple = ()
     header: dict = field(default_factory=dict)
     matrices: dict = field(default_factory=dict)
+    others: dict = field(default_factory=dict)
 
     @property
     def n_samples(self):
@@ -854,6 +859,10 @@ def load_records_mat(path, min_records=2):
                                 "finite; repair or cut out the bad samples")
             v.flags.writeable = False
             channels[key] = v
+    others = {k: np.array(a, float) for k, a in vectors.items()
+              if a.size != n and k.rsplit(".", 1)[-1].lower() not in _T_NAMES}
+    for v in others.values():
+        v.flags.writeable = False
     header = {k: repr(a.item()) for k, a in arrays.items() if a.size == 1}
     matrices = {}
     for key, a in arrays.items():
@@ -861,4 +870,4 @@ def load_records_mat(path, min_records=2):
         if m.ndim >= 2 and m.dtype.kind in "iuf":
             m.flags.writeable = False
             matrices[key] = m
-    return DaqRecords(_mat_fs(path, arrays, n), channels, (), header, matrices)
+    return DaqRecords(_mat_fs(path, arrays, n), channels, (), header, matrices, others)
