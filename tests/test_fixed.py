@@ -1,5 +1,8 @@
 """fit(..., fixed={"delay": h, "dc_gain": k}): known parameters held exactly."""
 
+import re
+import warnings
+
 import numpy as np
 import pytest
 
@@ -108,3 +111,31 @@ def test_cli_fix(tmp_path, capsys):
     assert main(["fit", str(path), "--sections", "2", "--out", str(tmp_path / "r"),
                  "--fix", f"delay={DELAY!r}", "--quiet"]) == 0
     assert "delay 0.02 s" in capsys.readouterr().out
+
+
+def test_a_held_gain_the_data_do_not_support_is_a_poor_fit_that_says_so():
+    # the verdict was the free fit's: "ok ... exact to rounding" above a model whose max
+    # rel. error was 0.333 (a command line's --fix dc_gain=1.5 for a gain of 2)
+    w = np.logspace(-1, np.log10(200.0), 100)
+    g = 2.0 / (1 + 0.1j * w + (1j * w / 10) ** 2) * np.exp(-0.02j * w)
+    free = fc.fit(w, g, n_sections=1)
+    assert free.status.value == "ok"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        held = fc.fit(w, g, n_sections=1, fixed={"dc_gain": 1.5})
+    assert held.status.value == "poor-fit" and held.success     # (converged)
+    assert held.model.frequency_response(np.array([1e-9]))[0].real == pytest.approx(1.5)
+    assert held.max_rel_error > 0.2 and held.stages[-1].kind.value == "final"
+    assert held.max_rel_error == pytest.approx(float(np.max(np.abs(
+        g / held.model.frequency_response(w) - 1))), rel=1e-12)
+    assert re.search(r"^poor-fit: converged, but the residual \(RMS 0\.\d+\) is [\d.]+ times "
+                     r"the noise .* the likely cause is the held dc_gain 1\.5: without it "
+                     r"the fit reaches RMS [\d.e-]+ \(max rel\. error [\d.e-]+\); check the "
+                     r"value, or fit without it; dc_gain held at 1\.5", held.message)
+    assert [d.values.get("cause") for d in held.diagnostics if d.code == "poor-fit"] == \
+        ["held-gain"]
+    # the right gain held: ok, as the free fit
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        right = fc.fit(w, g, n_sections=1, fixed={"dc_gain": 2.0})
+    assert right.status.value == "ok" and right.max_rel_error < 1e-8

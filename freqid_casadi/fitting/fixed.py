@@ -37,7 +37,9 @@ from ..core.objective import Parametrization
 from ..core.resolution import default_delay_max
 from ..errors import OptionError
 from ..options import LoopOptions, solver_options
-from .stages import StageSolver, keep_better
+from ._checks import after_fit, verdict
+from .stages import StageKind, StageSolver, keep_better, stage_record
+from .verdict import residual_noise, with_cause
 
 __all__ = ["FIXED_KEYS", "check_fixed", "fit_with_fixed", "hold_gain", "without_delay"]
 
@@ -151,6 +153,8 @@ def hold_gain(model, data, dc_gain, *, method="ipopt", loop=None, delay_max=None
         Its gain (``model.gain`` times the sections' DC values) is ``dc_gain`` to rounding.
     result : StageResult
         The stage's solve.
+    record : StageRecord
+        The stage as the fit's stages record it (a final all-data stage).
     """
     solver = solver_options(method)
     loop = LoopOptions() if loop is None else loop
@@ -177,11 +181,47 @@ def hold_gain(model, data, dc_gain, *, method="ipopt", loop=None, delay_max=None
     res = StageSolver(solver, dataclasses.replace(loop, gauge="dc"), zeta_min,
                       onto_bounds=True)(param, data, z0, None,
                                         max_iter=solver.final_max_iter, final=True)
-    z = keep_better(param, data, z0, np.zeros_like(z0), res)[0]
+    z, _, kept = keep_better(param, data, z0, np.zeros_like(z0), res)
     z[1] = 1.0
     held = param.to_model(z)
+    record = stage_record(st.n_sections + 1, param, z, data, data.n_points, float("nan"), res,
+                          res.nit, res.nfev, res.wall_time, kept, StageKind.FINAL)
     return RationalDelayModel(dataclasses.replace(held.structure, gain_sign=sign),
-                              held.beta), res
+                              held.beta), res, record
+
+
+#: Diagnostics of the fitted model itself, made again for the model a held gain returns
+#: (the others, of the data and the fit's choices, are kept).
+_MODEL_CODES = ("no-better-than-trivial", "delay-undetermined", "non-minimum-phase",
+                "root-below-band", "poor-fit")
+
+
+def _held_verdict(res, model, data, record, dc_gain):
+    """``res`` (the free fit) with the verdict of ``model``, its gain held at ``dc_gain``
+    by the stage ``record``: status, message, diagnostics and success are the held
+    model's (a held gain the data do not support is a poor fit, blamed on the gain when
+    the free fit does at least twice as well), the stage appended."""
+    stats = relative_error(model, data)
+    with np.errstate(all="ignore"):
+        residual = data.response / model.frequency_response(data.omega) - 1.0
+    noise = residual_noise(residual, data.omega, data.weights)
+    found = tuple(d for d in res.diagnostics if d.code not in _MODEL_CODES)
+    found += after_fit(model, data, stats, res.delay_max, noise=noise)
+    success, status, message, details, found = verdict(
+        record, stats, residual, data, found, model.n_sections, res.start, noise=noise)
+    poor = [d for d in found if d.code == "poor-fit"]
+    if poor and res.rms_rel_error <= 0.5 * stats.rms:
+        diag = with_cause(poor[0], "held-gain", (
+            f"the held dc_gain {dc_gain:.6g}: without it the fit reaches RMS "
+            f"{res.rms_rel_error:.3g} (max rel. error {res.max_rel_error:.3g}); check the "
+            "value, or fit without it"))
+        found = tuple(diag if d is poor[0] else d for d in found)
+        message = f"poor-fit: converged, but {diag.message}"
+    return dataclasses.replace(res, model=model, success=success, status=status,
+                               rel_error=stats.values, max_rel_error=stats.max,
+                               rms_rel_error=stats.rms,
+                               message=message, details=dict(res.details, **details),
+                               diagnostics=found, stages=tuple(res.stages) + (record,))
 
 
 def fit_with_fixed(run, data, fixed, *, delay, loop, method):
@@ -213,11 +253,17 @@ def fit_with_fixed(run, data, fixed, *, delay, loop, method):
     res = run(fit_data, delay if h is None else False)
     model, notes, success = res.model, [], res.success
     if "dc_gain" in fixed:
-        model, stage = hold_gain(model, fit_data, fixed["dc_gain"], method=method, loop=loop,
-                                 delay_max=res.delay_max, zeta_min=res.zeta_min)
-        success = success and stage.success
+        free = res
+        model, stage, record = hold_gain(model, fit_data, fixed["dc_gain"], method=method,
+                                         loop=loop, delay_max=res.delay_max,
+                                         zeta_min=res.zeta_min)
+        res = _held_verdict(res, model, fit_data, record, fixed["dc_gain"])
+        success = res.success
+        cost = (f"; without it max rel. error {free.max_rel_error:.3g}, RMS "
+                f"{free.rms_rel_error:.3g}" if res.rms_rel_error > 1.1 * free.rms_rel_error
+                and "cause is the held dc_gain" not in res.message else "")
         notes.append(f"dc_gain held at {fixed['dc_gain']:.6g} by a final stage "
-                     f"({stage.solver_status})")
+                     f"({stage.solver_status}){cost}")
     options = res.options
     if h is not None:
         beta = np.array(model.beta)
