@@ -139,3 +139,14 @@ def test_a_held_gain_the_data_do_not_support_is_a_poor_fit_that_says_so():
         warnings.simplefilter("ignore")
         right = fc.fit(w, g, n_sections=1, fixed={"dc_gain": 2.0})
     assert right.status.value == "ok" and right.max_rel_error < 1e-8
+
+
+def test_a_held_gain_says_it_is_k0_when_the_auto_integrator_chose_a_pole_at_the_origin():
+    w = np.logspace(-1, 2, 200)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = fc.fit(w, 4.0 / (1j * w * (1 + 1j * w / 2)), n_sections=1,
+                     fixed={"dc_gain": 4.0})
+    assert res.model.structure.origin_order == 1 and res.status.value == "ok"
+    assert ("dc_gain held at 4 as K0 of K0/s (the model has 1 pole(s) at the origin; "
+            "integrator=False holds G(0))") in res.message

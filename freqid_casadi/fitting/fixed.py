@@ -262,7 +262,12 @@ def fit_with_fixed(run, data, fixed, *, delay, loop, method):
         cost = (f"; without it max rel. error {free.max_rel_error:.3g}, RMS "
                 f"{free.rms_rel_error:.3g}" if res.rms_rel_error > 1.1 * free.rms_rel_error
                 and "cause is the held dc_gain" not in res.message else "")
-        notes.append(f"dc_gain held at {fixed['dc_gain']:.6g} by a final stage "
+        k = model.structure.origin_order
+        form = {1: "K0/s", -1: "K0 s"}.get(k, f"K0/s^{k}" if k > 0 else f"K0 s^{-k}")
+        what = ("" if k == 0 else f" as K0 of {form} (the model has {abs(k)} "
+                f"{'pole' if k > 0 else 'zero'}(s) at the origin; integrator=False holds "
+                "G(0))")
+        notes.append(f"dc_gain held at {fixed['dc_gain']:.6g}{what} by a final stage "
                      f"({stage.solver_status}){cost}")
     options = res.options
     if h is not None:
