@@ -205,6 +205,24 @@ def test_fit_options_are_passed(workdir, capsys, fake_fit, fast_figures):
                       zeros="minimum-phase")
 
 
+def test_fit_loop_switches_are_options(workdir, capsys, fake_fit, fast_figures):
+    # the guard's and the delay hold's messages named LoopOptions(...) on the command line
+    code, _, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--no-resolution-guard",
+                       "--no-hold-delay", "--out", "rep")
+    assert code == 0, err
+    assert fake_fit[0][1]["loop"] == fc.LoopOptions(resolution_guard=False, hold_delay=False)
+    code, _, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--no-hold-delay",
+                       "--out", "rep2")
+    assert fake_fit[1][1]["loop"] == fc.LoopOptions(hold_delay=False)
+    from freqid_casadi.cli.common import cli_words
+
+    assert cli_words("refit kept; pass loop=LoopOptions(resolution_guard=False) to keep the "
+                     "free fit (FitResult.alternatives['min_damping=None'] holds it)") == \
+        "refit kept; pass --no-resolution-guard to keep the free fit"
+    assert cli_words("held (RMS 0.1); LoopOptions(hold_delay=False) keeps the free fit") == \
+        "held (RMS 0.1); --no-hold-delay keeps the free fit"
+
+
 def test_fit_min_damping_option(workdir, capsys, fake_fit, fast_figures):
     code, _, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--min-damping", "auto",
                        "--out", "rep")
@@ -283,6 +301,14 @@ def test_fit_prints_its_advice_as_the_commands_options(workdir, capsys, monkeypa
     code, _, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--integrator", "0",
                        "--gain-sign", "positive", "--zeros", "free", "--min-damping", "auto",
                        "--final-max-iter", "2000", "--out", "rep2")
+    assert code == 0, err
+    # freqid example words it the same way (it printed n_sections=10, min_damping='auto'),
+    # and takes the --sections and --min-damping it names
+    code, out, err = run(capsys, "example", "B", "--out", "rep3")
+    assert code == 0 and "pass --sections 2 or more (or --min-damping auto" in out, out
+    assert "FitResult" not in out and "IpoptOptions" not in out
+    code, _, err = run(capsys, "example", "B", "--sections", "10", "--min-damping", "auto",
+                       "--out", "rep4")
     assert code == 0, err
 
 

@@ -32,7 +32,7 @@ import os
 import stat
 import warnings
 
-from .common import (NOISE_WEIGHTS, cli_words, load_options, method_option,
+from .common import (NOISE_WEIGHTS, cli_words, load_options, loop_option, method_option,
                      notes_to_stderr, refuse_flags)
 from .._textio import atomic_write_text, csv_row, one_line
 from ..fitting.batch import BATCH_STATUSES, fit_many
@@ -314,7 +314,8 @@ def run_cli(args, command):
                          load_options=opts,
                          n_sections=args.sections, integrator=args.integrator,
                          delay=args.delay, basis=args.basis, method=method_option(args),
-                         tol=args.tol, **({"weights": args.weights} if args.weights else {}))
+                         tol=args.tol, **loop_option(args),
+                         **({"weights": args.weights} if args.weights else {}))
     items = [_as_flag_refusal(item, opts) for item in items]
     # the summary names the text tables not fitted, not a link's target outside the folder
     tables = [(n, why) for n, why in skipped if n.lower().endswith(_OTHER_DATA)]
@@ -324,5 +325,9 @@ def run_cli(args, command):
     for item, f in zip(items, files):
         what = cli_words(item.result.summary()) if item.result is not None else item.error
         print(f"{item.status}: {one_line(os.path.basename(f))}: {one_line(what)}")
-    print(f"{n_ok}/{len(items)} converged; report: {path}")
+    counts = {}
+    for item in items:
+        counts[item.status] = counts.get(item.status, 0) + 1
+    tally = ", ".join(f"{n} {status}" for status, n in counts.items())
+    print(f"{n_ok}/{len(items)} converged ({tally}); report: {path}")
     return 0 if n_ok == len(items) else 1

@@ -32,11 +32,11 @@ from ..report.formatting import number
 from ..core.data import FrequencyData
 from ..io.loaders import DataWarning, load, refuse_options
 from ..errors import DataError, OptionError
-from ..options import solver_options
+from ..options import LoopOptions, solver_options
 
 __all__ = ["add_data_options", "parse_band_text", "load_data", "load_options", "refuse_flags",
            "notes_to_stderr", "grouped_notes", "with_weights", "error_line", "os_exit",
-           "method_option", "print_continue_hint"]
+           "method_option", "print_continue_hint", "loop_option"]
 
 
 def _columns(text):
@@ -460,16 +460,21 @@ _FLAGS = {"n_sections": "--sections", "max_sections": "--max-sections",
 _KEYWORD = re.compile(r"(?<![\w'\[.])(" + "|".join(_FLAGS) +
                       r")=('[^']*'|True|False|k|-?\d+(?:\.\d+)?(?:e-?\d+)?)(?![\w(])")
 _CONTINUE = re.compile(r"method=(?:IpoptOptions|BarrierLMOptions)\(final_max_iter=(\d+)\)")
-_ALTERNATIVE = re.compile(r" ?\(?FitResult\.alternatives\['zeros=free'\](?: holds that "
-                          r"model)?\)?")
+_ALTERNATIVE = re.compile(r" ?\(?FitResult\.alternatives\['(?:zeros=free|min_damping=None)'\]"
+                          r"(?: holds (?:that model|it))?\)?")
+#: ``LoopOptions`` switches and the options of ``freqid fit`` that set them.
+_LOOP = {r"(?:pass )?(?:loop=)?LoopOptions\(resolution_guard=False\)": "pass --no-resolution-guard",
+         r"(?:pass )?(?:loop=)?LoopOptions\(hold_delay=False\)": "--no-hold-delay"}
 
 
 def cli_words(text):
     """``text`` (a fit's message or summary) with its advice in the command's words:
     ``integrator=2`` as ``--integrator 2``, ``zeros='free'`` as ``--zeros free``,
-    ``method=IpoptOptions(final_max_iter=2000)`` as ``--final-max-iter 2000``; the
-    Python-only pointer to ``FitResult.alternatives['zeros=free']`` (a report folder does
-    not hold the alternative) is dropped, the option to pass stays.
+    ``method=IpoptOptions(final_max_iter=2000)`` as ``--final-max-iter 2000``,
+    ``loop=LoopOptions(resolution_guard=False)`` as ``--no-resolution-guard`` (and
+    ``hold_delay`` as ``--no-hold-delay``); the Python-only pointers to
+    ``FitResult.alternatives[...]`` (a report folder does not hold the alternative) are
+    dropped, the option to pass stays.
 
     Parameters
     ----------
@@ -487,6 +492,8 @@ def cli_words(text):
         return f"{_FLAGS[key]} {value.strip(chr(39))}"
     text = _CONTINUE.sub(r"--final-max-iter \1", text)
     text = _ALTERNATIVE.sub("", text)
+    for pattern, option in _LOOP.items():
+        text = re.sub(pattern, option, text)
     return _KEYWORD.sub(flag, text)
 
 
@@ -559,11 +566,36 @@ def _add_model_arguments(p, tol=True, integrator="auto"):
                         f"(default {'auto' if integrator == 'auto' else 'none'})")
     p.add_argument("--no-delay", dest="delay", action="store_false",
                    help="fix the delay h at 0")
+    p.add_argument("--no-resolution-guard", dest="resolution_guard", action="store_false",
+                   help="keep the fit as asked for when a pole or zero is narrower than the "
+                        "frequency spacing (by default a refit with the damping floor of "
+                        "the spacing is kept when it explains the data as well)")
+    p.add_argument("--no-hold-delay", dest="hold_delay", action="store_false",
+                   help="keep the free fit's delay when the data do not determine it (by "
+                        "default it is held at a simpler fit's value when that explains "
+                        "the data as well)")
     p.add_argument("--basis", choices=BASES, default="second-order",
                    help="section type (default second-order)")
     if tol:
         p.add_argument("--tol", type=_positive_float, metavar="X",
                        help="stop adding sections once the max relative error is below X")
+
+
+def loop_option(args):
+    """``{"loop": LoopOptions(...)}`` of ``--no-resolution-guard`` / ``--no-hold-delay``
+    (:func:`_add_model_arguments`), or ``{}`` (the fit's default loop).
+
+    Parameters
+    ----------
+    args : argparse.Namespace
+
+    Returns
+    -------
+    dict
+    """
+    off = {k: False for k in ("resolution_guard", "hold_delay")
+           if getattr(args, k, True) is False}
+    return {"loop": LoopOptions(**off)} if off else {}
 
 
 def _add_input(p, name, metavar, text, records=False):

@@ -14,7 +14,8 @@ import warnings
 
 from . import app
 from .common import (_common, _g, _positive_int, _progress, _resolution_warning,
-                     method_option, print_continue_hint)
+                     cli_words, method_option, print_continue_hint)
+from .fit import _min_damping
 from ..errors import ResolutionWarning
 from ..report.folder import check_out_dir, dense_error, write_fit_report
 from ..report.formatting import text_table
@@ -42,6 +43,9 @@ def add_cli(sub):
                         f"fractional {FRACTIONAL_SECTIONS} first-order)")
     # the thesis's loop (its published numbers); --start best or rational to compare
     _common(p, out_required=False, start="sequential")
+    p.add_argument("--min-damping", type=_min_damping, metavar="auto|ZETA",
+                   help="floor on the damping ratio of every pole and zero; 'auto' ties it "
+                        "to the frequency spacing (default none: the thesis's fit)")
     return p
 
 
@@ -66,7 +70,9 @@ def run_cli(args, command):
         warnings.simplefilter("ignore", ResolutionWarning)   # reported below, one line
         result = app.fit(data, **structure, method=method_option(args),
                          progress=_progress(args),
-                         start=args.start, objective=args.objective)
+                         start=args.start, objective=args.objective,
+                         **({"min_damping": args.min_damping}
+                            if args.min_damping is not None else {}))
     thesis = ex.thesis.as_dict() if ex.thesis is not None else None
     path = write_fit_report(result, out, command=command, force=args.force,
                             title=f"Example {args.name}: {data.name}", thesis=thesis,
@@ -78,7 +84,7 @@ def run_cli(args, command):
            _g(dense["max_rel_error"]), _g(result.rms_rel_error),
            _g(result.model.delay), f"{result.wall_time:.1f}",
            t.get("order", "-"), _g(t.get("max_rel_error")), _g(t.get("delay")))
-    print(result.message)
+    print(cli_words(result.message))
     print(text_table([row], ("example", "order", "max rel. err", "10x grid",
                               "RMS rel. err", "delay (s)", "time (s)", "thesis order",
                               "thesis max", "thesis delay")))

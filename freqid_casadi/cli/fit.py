@@ -19,7 +19,7 @@ import warnings
 from . import app
 from .common import (_ASCII_FLOAT, _add_choices, _add_input, _add_model_arguments, _ascii,
                      _checked, _common, _positive_int, _progress, _resolution_warning,
-                     NOISE_WEIGHTS, cli_words, load_data, method_option,
+                     NOISE_WEIGHTS, cli_words, load_data, loop_option, method_option,
                      print_continue_hint)
 from ..errors import OptionError, ResolutionWarning
 from .._validate import check_jobs
@@ -144,6 +144,7 @@ def run_cli(args, command):
                          min_damping=args.min_damping, gain_sign=args.gain_sign,
                          zeros=args.zeros, **({"fixed": dict(args.fix)} if args.fix else {}),
                          **({"n_jobs": args.jobs} if args.jobs != 1 else {}),
+                         **loop_option(args),
                          **({"weights": NOISE_WEIGHTS} if args.weights == NOISE_WEIGHTS
                             else {}))
     _resolution_warning(result)

@@ -13,7 +13,8 @@ the table and, with ``--target``, the smallest order that meets it.
 
 import sys
 
-from .common import _add_input, _add_model_arguments, _g, _positive_float, load_data
+from .common import (_add_input, _add_model_arguments, _g, _positive_float, load_data,
+                     loop_option)
 from ..errors import OptionError
 from ..fitting.fit import METHODS, STARTS
 from ..report.folder import check_out_dir
@@ -90,7 +91,7 @@ def run_cli(args, command):
 
     result = sweep(data, orders, target=args.target, truth=truth, progress=report,
                    integrator=integrator, delay=args.delay, basis=args.basis,
-                   method=args.method, start=args.start)
+                   method=args.method, start=args.start, **loop_option(args))
     path = write_sweep_report(result, args.out, command=command, force=args.force)
     rows = [(r.order, _g(r.max_rel_error), _g(r.rms_rel_error), _g(r.max_rel_error_dense),
              _g(r.delay, 6), f"{r.wall_time:.1f}", str(r.status)) for r in result.rows]

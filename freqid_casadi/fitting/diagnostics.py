@@ -50,7 +50,7 @@ import numpy as np
 
 from ..core.data import FrequencyData
 from ..core.metrics import relative_error
-from ..core.model import times_jw_power
+from ..core.model import MAX_ORIGIN_ORDER, times_jw_power
 
 __all__ = ["Diagnostic", "CODES", "TRIVIAL_RMS", "low_frequency_phase", "low_frequency_slope",
            "check_gain_sign", "gain_sign_decision", "rational_gain_sign",
@@ -775,6 +775,11 @@ def check_roots_below_band(model, data, fraction=BELOW_BAND):
         low = roots[np.abs(roots) < fraction * w_min]
         if low.size == 0:
             continue
+        if abs(asked) > MAX_ORIGIN_ORDER:       # no such model: say what is left to do
+            stands = (f"{abs(asked)} {'poles' if asked > 0 else 'zeros'} at the origin, more "
+                      f"than a model may have ({MAX_ORIGIN_ORDER}): the data fall or rise "
+                      "faster at their low end than the model class follows; fit them from "
+                      "a higher lowest frequency (band=), or check the low-frequency points")
         fu = data.unit
         msg = (f"{low.size} {kind}(s) at |r| = {_freqs(low)} {fu}, far "
                f"below the lowest data frequency {w_min:.4g} {fu}: the data cannot tell "
