@@ -20,7 +20,9 @@ from freqid_casadi.cli import app as cli
 def main(argv=None):
     argv = list(sys.argv[1:] if argv is None else argv)
     command = " ".join(["python", "scripts/ablation.py"] + [shlex.quote(a) for a in argv])
-    return cli.main(["ablation", *argv, "--report-command", command])
+    out = [] if any(a == "--out" or a.startswith("--out=") for a in argv) else \
+        ["--out", "results/ablation"]                  # the script writes results/; freqid, ./
+    return cli.main(["ablation", *argv, *out, "--report-command", command])
 
 
 if __name__ == "__main__":

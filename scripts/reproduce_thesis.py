@@ -22,7 +22,9 @@ def main(argv=None):
     command = " ".join(["python", "scripts/reproduce_thesis.py"]
                        + [shlex.quote(a) for a in argv])
     progress = [] if "--quiet" in argv or "--progress" in argv else ["--progress"]
-    return cli.main(["reproduce", *argv, *progress, "--report-command", command])
+    out = [] if any(a == "--out" or a.startswith("--out=") for a in argv) else \
+        ["--out", "results/thesis"]                  # the script writes results/; freqid, ./
+    return cli.main(["reproduce", *argv, *out, *progress, "--report-command", command])
 
 
 if __name__ == "__main__":

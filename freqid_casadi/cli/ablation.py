@@ -44,8 +44,9 @@ def add_cli(subparsers):
     p.add_argument("--quick", action="store_true",
                    help="small problems (300 points, 3 sections) and 3 variants: a smoke "
                         "test of the report, under a minute")
-    p.add_argument("--out", default="results/ablation", metavar="DIR",
-                   help="report folder to create (default results/ablation)")
+    p.add_argument("--out", default="freqid_ablation", metavar="DIR",
+                   help="report folder to create (default ./freqid_ablation; "
+                        "scripts/ablation.py writes results/ablation)")
     p.add_argument("--force", action="store_true",
                    help="replace an existing report folder (after the new one is complete)")
     p.add_argument("--quiet", action="store_true", help="no progress lines on stderr")

@@ -32,9 +32,9 @@ def add_cli(sub):
         "reproduce", help="reproduce the thesis's Table 4.1 and figures 4.1-4.21",
         description="Fit the thesis's examples with our method and the baselines and write "
                     "a report folder (report.md, report.json, figures).")
-    p.add_argument("--out", default="results/thesis", metavar="DIR",
-                   help="report folder to create (default results/thesis; must not exist "
-                        "unless --force)")
+    p.add_argument("--out", default="freqid_thesis", metavar="DIR",
+                   help="report folder to create (default ./freqid_thesis, must not exist "
+                        "unless --force; scripts/reproduce_thesis.py writes results/thesis)")
     p.add_argument("--force", action="store_true",
                    help="replace an existing report folder (after the new one is complete)")
     p.add_argument("--quick", action="store_true",
