@@ -12,6 +12,7 @@ rejected by its header.
 
 import os
 import re
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
@@ -399,3 +400,23 @@ def test_every_error_is_a_freqid_error_subclass_of_a_builtin():
     assert issubclass(DataError, ValueError) and issubclass(OptionError, ValueError)
     assert issubclass(StructureError, ValueError)
     assert issubclass(fc.SolverError, RuntimeError)
+
+
+@pytest.mark.parametrize("make, what", [
+    (lambda g: np.abs(g), r"is it a magnitude \|G\|\?"),
+    (lambda g: 20 * np.log10(np.abs(g)) - 1.0, r"is it a level in dB\?"),
+])
+def test_a_real_response_of_one_sign_is_questioned_as_a_magnitude(make, what):
+    # fit(omega, np.abs(G)) ran and ended poor-fit advising more sections, silently
+    from freqid_casadi.io.loaders import DataWarning
+
+    w = np.logspace(0, 2, 50)
+    g = 1 / (1 + 1j * w / 10)
+    with pytest.warns(DataWarning, match=r"the response is real at every point, of one sign "
+                      rf"and not constant: {what} A frequency response needs its phase"):
+        fc.fit(w, make(g), n_sections=1)
+    # a constant real response is a gain, and undamped modes' real response changes sign:
+    # no such warning
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataWarning)
+        assert fc.fit(w, np.full(w.size, 2.5), n_sections=1).max_rel_error < 1e-6

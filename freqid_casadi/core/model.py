@@ -786,6 +786,6 @@ def _pade(ct, delay, order):
     except (ArithmeticError, FloatingPointError, ValueError):
         ok = False
     if not ok:
-        raise OptionError(f"_pade_order={order} is too high for a finite Pade approximation "
+        raise OptionError(f"pade_order={order} is too high for a finite Pade approximation "
                           f"of the delay {delay:g} s; use an order below about 20")
     return num, den

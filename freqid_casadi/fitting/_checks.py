@@ -7,6 +7,7 @@ import contextlib
 import contextvars
 import math
 import numbers
+import warnings
 
 import numpy as np
 
@@ -15,6 +16,7 @@ from .diagnostics import (TRIVIAL_RMS, check_delay, check_minimum_phase,
                           check_roots_below_band,
                           check_trivial, rhp_zeros_note)
 from ..errors import DataError, FreqidError, OptionError, StructureError
+from ..io.loaders import DataWarning
 from ..core.model import BASES, ZEROS, Structure
 from ..core.resolution import resolution_damping
 from .._validate import check_choice
@@ -128,6 +130,7 @@ def validate(data, response, n_sections, basis, tol, integrator, weights=None):
                                 and math.isfinite(tol) and tol > 0):
         raise OptionError(f"tol must be a number > 0 (a max relative error), got {tol!r}")
     _check_span(data.omega)
+    _check_phase(data.response)
     structure = Structure(int(n_sections), integrator, True, basis)
     n_params = structure.n_params
     if data.n_points < n_params:
@@ -142,6 +145,24 @@ def validate(data, response, n_sections, basis, tol, integrator, weights=None):
         data = data.with_weights(weights)
     check_weighted_points(data, n_params, n_sections)
     return data
+
+
+def _check_phase(response):
+    """A DataWarning for a response real at every point, of one sign and not constant: a
+    magnitude or a level in dB passed as the response (``fit(omega, np.abs(G))``) looks
+    so; a causal system's response does only when it is lossless (undamped modes, whose
+    real response changes sign at each resonance, or a band below the first)."""
+    r = np.asarray(response)
+    if np.any(r.imag != 0) or np.ptp(r.real) <= 1e-12 * np.max(np.abs(r.real)):
+        return
+    if np.all(r.real > 0) or np.all(r.real < 0):
+        what = "a level in dB" if np.all(r.real < 0) else "a magnitude |G|"
+        warnings.warn(f"the response is real at every point, of one sign and not constant: "
+                      f"is it {what}? A frequency response needs its phase, to which the "
+                      "delay and the zeros are fitted: pass the complex response (mag * "
+                      "exp(1j * phase)), or load the file with its phase column "
+                      "(columns='freq_hz,mag_db,phase_deg'); only a lossless system's "
+                      "response is real", DataWarning, stacklevel=5)
 
 
 def check_model_class(gain_sign, zeros, method, gauge, min_damping):
