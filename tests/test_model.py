@@ -400,3 +400,17 @@ def test_an_improper_accelerance_export_says_what_to_export_instead():
     w = np.geomspace(0.5, 100.0, 30)
     got = np.squeeze(ct.frequency_response(disp.to_control(), w).complex) * (1j * w) ** 2
     np.testing.assert_allclose(got, model.rational_response(w), rtol=1e-9)
+
+
+def test_low_frequency_gain_is_k_times_the_sections_dc_values():
+    # model.gain is K alone (the docs called it the low-frequency gain): with sections of
+    # DC value omega_n^2 / omega_d^2 the two differ
+    import control as ct
+
+    m = RationalDelayModel(Structure(1), np.array([0.01, 3.0, 1.0, 0.2, 4.0, 1.0, 0.1, 2.0]))
+    assert m.low_frequency_gain() == pytest.approx(3.0 * 16.0 / 4.0, rel=1e-15)
+    assert m.low_frequency_gain() == pytest.approx(ct.dcgain(m.to_control()), rel=1e-12)
+    k1 = RationalDelayModel(Structure(1, integrator=True), m.beta)
+    assert k1.low_frequency_gain() == pytest.approx(12.0, rel=1e-15)   # K0 of K0/s
+    w = np.array([1e-7])
+    assert abs(1j * w[0] * k1.frequency_response(w)[0]) == pytest.approx(12.0, rel=1e-6)

@@ -494,6 +494,7 @@ def cli_words(text):
     text = _ALTERNATIVE.sub("", text)
     for pattern, option in _LOOP.items():
         text = re.sub(pattern, option, text)
+    text = re.sub(r"fixed=\{'(\w+)': ([^{}]+?)\}", r"--fix \1=\2", text)
     return _KEYWORD.sub(flag, text)
 
 

@@ -362,6 +362,27 @@ class RationalDelayModel(DelayedResponse):
         """Section parameters, shape (N, section_size), in thesis order."""
         return self.beta[2:].reshape(self.n_sections, self.structure.section_size)
 
+    def low_frequency_gain(self):
+        """The gain at low frequency, signed: ``lim s^k G(s)`` as ``s -> 0`` (``G(0)``
+        without poles or zeros at the origin, ``K0`` of ``K0 / s^k`` with them): ``gain``
+        times every section's DC value, what ``fit(..., fixed={"dc_gain": K})`` holds and
+        python-control's ``dcgain`` gives for k = 0. ``gain`` alone is K, in front of
+        sections whose DC values are not 1 (``omega_n^2 / omega_d^2``).
+
+        Returns
+        -------
+        float
+            inf or nan when a section has a pole at 0 exactly (a root at its floor is
+            finite: its value shows what the data leave undetermined below the band).
+        """
+        zero = np.zeros(1)
+        value = self.gain
+        with np.errstate(divide="ignore", invalid="ignore"):
+            for theta in self.sections():
+                num, den = section_response(self.structure.basis, zero, theta)
+                value = value * float(num[0][0]) / float(den[0][0])
+        return float(value)
+
     # ------------------------------------------------------------------ evaluation
     def rational_response(self, omega):
         """K (j omega)^(-k) P_N(j omega), without the delay; complex ndarray like omega.

@@ -742,6 +742,15 @@ def rhp_zeros_note(model):
                         "rhp_zeros": [[float(r.real), float(r.imag)] for r in rhp]}),)
 
 
+def _low_gain(model, w_min):
+    """``(w, |G(jw)|)`` at the lowest nonzero root of P_N below ``w_min``: the gain the
+    model's roots below the band set there."""
+    roots = np.concatenate([model.poles(), model.zeros()])
+    roots = roots[(np.abs(roots) > 0) & (np.abs(roots) < w_min)]
+    w = float(np.min(np.abs(roots))) if roots.size else w_min
+    return w, float(abs(model.frequency_response(np.array([w]))[0]))
+
+
 def check_roots_below_band(model, data, fraction=BELOW_BAND):
     """``root-below-band`` records: poles / zeros of P_N with ``|r| < fraction * omega_min``
     (the integrator's pole, asked for, is not counted).
@@ -781,12 +790,28 @@ def check_roots_below_band(model, data, fraction=BELOW_BAND):
                       "faster at their low end than the model class follows; fit them from "
                       "a higher lowest frequency (band=), or check the low-frequency points")
         fu = data.unit
+        values = {"kind": kind, "roots": [[float(r.real), float(r.imag)] for r in low],
+                  "omega_min": w_min, "fraction": float(fraction),
+                  "integrator_asked": int(asked)}
+        others = model.zeros()[max(-k, 0):] if kind == "pole" else model.poles()[max(k, 0):]
+        partners = others[np.abs(others) < w_min]
         msg = (f"{low.size} {kind}(s) at |r| = {_freqs(low)} {fu}, far "
                f"below the lowest data frequency {w_min:.4g} {fu}: the data cannot tell "
                f"them from 0 and ask for {stands}")
-        found.append(Diagnostic("root-below-band", msg, "warning",
-                                {"kind": kind, "roots": [[float(r.real), float(r.imag)]
-                                                         for r in low],
-                                 "omega_min": w_min, "fraction": float(fraction),
-                                 "integrator_asked": int(asked)}))
+        if partners.size:
+            # the actuator at 2 sections: a pole at 2.4e-7 with a zero at 0.05 rad/s, the
+            # band from 0.77: a lag-lead step at the band's edge, G(0) = 2.1e5 for |G| = 1
+            w0, g0 = _low_gain(model, w_min)
+            other = "zero" if kind == "pole" else "pole"
+            msg = (f"{low.size} {kind}(s) at |r| = {_freqs(low)} {fu}, far below the lowest "
+                   f"data frequency {w_min:.4g} {fu}, with {partners.size} {other}(s) below "
+                   f"it too (|r| = {_freqs(partners)} {fu}): in the band the pair acts as a "
+                   "step at its low edge; below it, it sets the model's low-frequency gain "
+                   f"(|G| = {g0:.3g} at {w0:.4g} {fu}, "
+                   f"against {abs(data.response[0]):.3g} at the lowest data frequency), "
+                   "which the data do not determine: if you know the static gain, hold it "
+                   "(fixed={'dc_gain': K}); an integrator (integrator=True) only if the "
+                   "system integrates; else fit the band from a higher lowest frequency")
+            values["partner_roots"] = [[float(r.real), float(r.imag)] for r in partners]
+        found.append(Diagnostic("root-below-band", msg, "warning", values))
     return tuple(found)

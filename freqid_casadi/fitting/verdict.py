@@ -227,7 +227,9 @@ def poor_fit_diagnostic(check, found, n_sections, unit="rad/s"):
              and (d.code != "integrator" or "origin_mismatch" in d.values)
              # (a root below the band whose refit integrator="auto" made and did not keep,
              # restate_roots_below_band's asked_fit_rms: advising it again goes in a circle)
-             and (d.code != "root-below-band" or "asked_fit_rms" not in d.values)]
+             and (d.code != "root-below-band" or "asked_fit_rms" not in d.values)
+             # (nor one with a partner below the band: a spare lag-lead step, not k)
+             and (d.code != "root-below-band" or "partner_roots" not in d.values)]
     cause = next(((code, text) for code, text in _CAUSES if code in codes), None)
     if cause is None:
         why = ("the order: the residual is largest near omega = "
