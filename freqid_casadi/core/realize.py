@@ -303,8 +303,10 @@ def state_space(model):
             f"the exported system's frequency response differs from the model's by up "
             f"to {error:.2g} (relative): its poles and zeros span {np.log10(hi / lo):.0f} "
             f"decades ({lo:.3g} to {hi:.3g} rad/s), beyond what a state-space evaluation "
-            "resolves; fit fewer sections or prune the far roots "
-            "(freqid_casadi.fitting.validation.prune_sections) before designing with it",
+            "resolves: the roots far from the band are not set by the data (zeros running "
+            "off towards infinity stand for the relative degree the data show); fit fewer "
+            "sections before designing with it, or evaluate the model itself "
+            "(model.frequency_response) where the accuracy matters",
             ExportWarning, stacklevel=3)
     return sys, balance
 
