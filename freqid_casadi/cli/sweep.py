@@ -45,11 +45,20 @@ def add_cli(sub):
     p.add_argument("--target", type=_positive_float, metavar="X",
                    help="name the smallest order whose max relative error is <= X")
     _add_model_arguments(p, tol=False)
-    p.add_argument("--method", choices=METHODS, default="ipopt")
-    p.add_argument("--start", choices=STARTS, default="best")
-    p.add_argument("--out", required=True, metavar="DIR")
-    p.add_argument("--force", action="store_true")
-    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.add_argument("--method", choices=METHODS, default="ipopt",
+                   help="stage solver: IPOPT with bounds or the thesis's barrier-LM "
+                        "(default ipopt)")
+    p.add_argument("--start", choices=STARTS, default="best",
+                   help="the thesis's sequential loop, the rational start, or both with the "
+                        "better kept (default best)")
+    p.add_argument("--out", required=True, metavar="DIR",
+                   help="report folder to create (must not exist unless --force)")
+    p.add_argument("--force", action="store_true",
+                   help="replace an existing report folder (after the new one is complete)")
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--quiet", action="store_true", help="no progress lines")
+    g.add_argument("--progress", dest="quiet", action="store_false",
+                   help="one progress line per order on stderr (the default)")
     return p
 
 

@@ -67,7 +67,9 @@ class FrequencyData:
 
     def __post_init__(self):
         if not isinstance(self.unit, str) or self.unit not in FREQUENCY_UNITS:
-            raise DataError(f"unit must be one of {FREQUENCY_UNITS}, got {self.unit!r}")
+            hint = (": frequencies in Hz are omega = 2 * pi * f in rad/s (or read a file with "
+                    "fc.load(path, freq_unit='Hz'))" if str(self.unit).lower() == "hz" else "")
+            raise DataError(f"unit must be one of {FREQUENCY_UNITS}, got {self.unit!r}{hint}")
         omega = _as_float_vector(self.omega, "omega")
         response = _as_complex_vector(self.response, "response")
         if omega.size == 0:

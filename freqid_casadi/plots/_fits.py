@@ -383,6 +383,12 @@ def sweep(result):
     axes[2].set_ylabel("time (s)")
     axes[2].set_xlabel("order of $P_N$")
     axes[2].grid(True, alpha=0.3)
+    if len(orders) <= 12:                          # the orders fitted, no fractions
+        axes[2].set_xticks(orders)
+    else:
+        from matplotlib.ticker import MaxNLocator
+
+        axes[2].xaxis.set_major_locator(MaxNLocator(integer=True))
     fig.suptitle(f"order sweep: {result.data_name or 'data'}")
     fig.tight_layout()
     return fig
