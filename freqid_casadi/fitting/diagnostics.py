@@ -804,9 +804,9 @@ def check_roots_below_band(model, data, fraction=BELOW_BAND):
             w0, g0 = _low_gain(model, w_min)
             other = "zero" if kind == "pole" else "pole"
             msg = (f"{low.size} {kind}(s) at |r| = {_freqs(low)} {fu}, far below the lowest "
-                   f"data frequency {w_min:.4g} {fu}, with {partners.size} {other}(s) below "
-                   f"it too (|r| = {_freqs(partners)} {fu}): in the band the pair acts as a "
-                   "step at its low edge; below it, it sets the model's low-frequency gain "
+                   f"data frequency {w_min:.4g} {fu}, with {other}(s) below it too (|r| = "
+                   f"{_freqs(partners)} {fu}): in the band they act together as a step at its "
+                   "low edge; below it, they set the model's low-frequency gain "
                    f"(|G| = {g0:.3g} at {w0:.4g} {fu}, "
                    f"against {abs(data.response[0]):.3g} at the lowest data frequency), "
                    "which the data do not determine: if you know the static gain, hold it "
