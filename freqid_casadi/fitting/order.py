@@ -545,7 +545,7 @@ def _choice(results, steps, poles, k, reason, omega, peaks=0):
     rms = "weighted RMS" if weighted else "RMS"
     tried = ", ".join(f"{s.n_sections}: {rms} {s.rms:.3g}{'*' if s.free else ''} "
                       f"(x{s.ratio:.2g})" for s in steps)
-    nxt = ""
+    nxt, moved = "", None
     if k + 1 < len(steps):
         drop = 1 - steps[k + 1].rms / step.rms if step.rms > 0 else 0.0
         moved = _modes_stable(poles[k], poles[k + 1], omega)
@@ -563,9 +563,11 @@ def _choice(results, steps, poles, k, reason, omega, peaks=0):
                f"{results[k].rms_rel_error:.3g}")
     why = _WHY[reason]
     if reason == "no-improvement" and _consistent(step):
-        why = ("the residual is consistent with the noise, but the next order moves its "
-               f"in-band poles by more than {100 * MODE_TOLERANCE:.2g} %, and more sections "
-               "stopped lowering the RMS")
+        # (a BFU520 transistor's S21: "moves ... by more than 5 %" beside "by at most 0 %")
+        why = ("the residual is consistent with the noise" + (
+            f", but the next order moves its in-band poles by more than "
+            f"{100 * MODE_TOLERANCE:.2g} %" if moved is not None and moved > MODE_TOLERANCE
+            else "") + ", and more sections stopped lowering the RMS")
     message = (f"n_sections='auto' chose {step.n_sections} section{plural}: {why} "
                f"({own}){nxt}; "
                f"orders tried ({rms}, x roughness; * with free zeros) {tried}")
