@@ -459,3 +459,24 @@ def test_sweep_target_line_says_when_the_order_meeting_it_did_not_converge(
     assert code == 0, err
     assert ("smallest order with max rel. error <= 0.01: 4 (status not-converged: its error "
             "is measured, the fit did not converge)") in out
+
+
+def test_the_report_a_command_writes_gives_its_advice_as_options(workdir, capsys, monkeypatch,
+                                                                   cached_result):
+    # summary.md said "pass method=IpoptOptions(final_max_iter=2000)" beside a command line
+    import dataclasses
+
+    from freqid_casadi.fitting.diagnostics import Diagnostic
+
+    advised = dataclasses.replace(cached_result, message=(
+        "not-converged: ... — pass method=IpoptOptions(final_max_iter=2000) to continue"),
+        diagnostics=(Diagnostic("poor-fit", "pass n_sections=3 or more", "warning", {}),))
+    monkeypatch.setattr(cli, "fit", lambda data, **kwargs: advised)
+    code, out, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--out", "rep")
+    assert code == 0, err
+    md = open("rep/summary.md").read()
+    assert "pass --final-max-iter 2000 to continue" in md and "IpoptOptions" not in md
+    assert "pass --sections 3 or more" in md
+    s = json.load(open("rep/summary.json"))
+    assert s["message"].endswith("pass --final-max-iter 2000 to continue")
+    assert "to continue: run the same command with --final-max-iter 2000" in out

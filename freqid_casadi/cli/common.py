@@ -36,7 +36,7 @@ from ..options import LoopOptions, solver_options
 
 __all__ = ["add_data_options", "parse_band_text", "load_data", "load_options", "refuse_flags",
            "notes_to_stderr", "grouped_notes", "with_weights", "error_line", "os_exit",
-           "method_option", "print_continue_hint", "loop_option"]
+           "method_option", "print_continue_hint", "loop_option", "in_cli_words"]
 
 
 def _columns(text):
@@ -496,6 +496,24 @@ def cli_words(text):
         text = re.sub(pattern, option, text)
     text = re.sub(r"fixed=\{'(\w+)': ([^{}]+?)\}", r"--fix \1=\2", text)
     return _KEYWORD.sub(flag, text)
+
+
+def in_cli_words(result):
+    """``result`` with its message and its diagnostics' messages in the command's words
+    (:func:`cli_words`), for the report a command writes.
+
+    Parameters
+    ----------
+    result : FitResult
+
+    Returns
+    -------
+    FitResult
+    """
+    diagnostics = tuple(dataclasses.replace(d, message=cli_words(d.message))
+                        for d in getattr(result, "diagnostics", ()) or ())
+    return dataclasses.replace(result, message=cli_words(result.message or ""),
+                               diagnostics=diagnostics)
 
 
 def print_continue_hint(result):

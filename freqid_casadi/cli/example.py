@@ -14,7 +14,7 @@ import warnings
 
 from . import app
 from .common import (_common, _g, _positive_int, _progress, _resolution_warning,
-                     cli_words, method_option, print_continue_hint)
+                     cli_words, in_cli_words, method_option, print_continue_hint)
 from .fit import _min_damping
 from ..errors import ResolutionWarning
 from ..report.folder import check_out_dir, dense_error, write_fit_report
@@ -74,9 +74,9 @@ def run_cli(args, command):
                          **({"min_damping": args.min_damping}
                             if args.min_damping is not None else {}))
     thesis = ex.thesis.as_dict() if ex.thesis is not None else None
-    path = write_fit_report(result, out, command=command, force=args.force,
-                            title=f"Example {args.name}: {data.name}", thesis=thesis,
-                            truth=ex.truth)
+    path = write_fit_report(in_cli_words(result), out, command=command,
+                            force=args.force, title=f"Example {args.name}: {data.name}",
+                            thesis=thesis, truth=ex.truth)
     dense = dense_error(result.model, data.omega, ex.truth)
     t = thesis or {}
     per = 2 if ex.basis == "second-order" else 1

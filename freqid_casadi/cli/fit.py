@@ -19,8 +19,8 @@ import warnings
 from . import app
 from .common import (_ASCII_FLOAT, _add_choices, _add_input, _add_model_arguments, _ascii,
                      _checked, _common, _positive_int, _progress, _resolution_warning,
-                     NOISE_WEIGHTS, cli_words, load_data, loop_option, method_option,
-                     print_continue_hint)
+                     NOISE_WEIGHTS, cli_words, in_cli_words, load_data, loop_option,
+                     method_option, print_continue_hint)
 from ..errors import OptionError, ResolutionWarning
 from .._validate import check_jobs
 from ..fitting.fixed import FIXED_KEYS
@@ -148,8 +148,8 @@ def run_cli(args, command):
                          **({"weights": NOISE_WEIGHTS} if args.weights == NOISE_WEIGHTS
                             else {}))
     _resolution_warning(result)
-    path = write_fit_report(result, args.out, command=command, force=args.force,
-                            data_notes=notes)
+    path = write_fit_report(in_cli_words(result), args.out, command=command,
+                            force=args.force, data_notes=notes)
     print(cli_words(result.summary()))
     print_continue_hint(result)
     print(f"report: {path}")
