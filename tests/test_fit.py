@@ -320,6 +320,17 @@ def test_resolution_warning_names_the_cause(rms, ratio, success, says, not_says)
     assert says in text and not_says not in text
     assert ("continue the fit (a higher final_max_iter)" in text) == (
         not ratio <= 2 and not success)
+    # a floor the user gave is not advised again (a resonator's S21 fitted with
+    # min_damping='auto' was told to refit with min_damping='auto')
+    given = SimpleNamespace(**vars(result), options=SimpleNamespace(min_damping="auto"),
+                            zeta_min=1.2e-4)
+    with pytest.warns(ResolutionWarning) as caught:
+        _warn_unresolved(given, 2)
+    text = str(caught[0].message)
+    assert "refit with min_damping='auto'" not in text and "min_damping='auto')" not in text
+    if ratio <= 2 and rms > 1e-8:
+        assert ("the damping floor given (zeta >= 0.00012) follows the median spacing, "
+                "wider than the spacing there") in text
 
 
 @pytest.mark.parametrize("fixed", [None, {"delay": 0.0}])

@@ -48,7 +48,7 @@ from .delay_search import delay_search_run
 from .far_roots import far_root_run
 from .fixed import check_fixed, fit_with_fixed
 from .diagnostics import gain_sign_decision
-from .guard import guard_resolution
+from .guard import guard_resolution, warn_unresolved as _warn_unresolved
 from ..errors import FreqidError, OptionError, ResolutionWarning
 from .noise_weights import fit_with_noise_weights
 from .order import MAX_SECTIONS, choose_order, with_free_zeros, with_order_record
@@ -825,55 +825,10 @@ def _final_stages(records):
 
 def _resolution_check(model, omega):
     """The model checked against the frequency spacing (None for first-order sections,
-    whose real roots are never narrow); :func:`_warn_unresolved` warns of a failed one."""
+    whose real roots are never narrow); :func:`~.guard.warn_unresolved` warns of a failed one."""
     if model.structure.basis != "second-order" or not model.n_sections:
         return None
     return check_resolution(model, omega)
-
-
-def _warn_unresolved(result, stacklevel):
-    """The ResolutionWarning of a fit whose :func:`check_resolution` failed (nothing for
-    None or a passed check).
-
-    Its advice follows the cause, which the residual tells: on a fit exact to rounding
-    (RMS <= ROUNDING_RMS) the pairs are spare sections, which a damping floor does not
-    remove; on a fit at the noise (the residual's RMS at most CONSISTENT_RATIO times the
-    noise its point-to-point differences show: the verdict's ``details["noise"]
-    ["consistent"]``) they are features between the samples
-    that the noisy data do not determine; otherwise the residual is systematic (a fit
-    stopped on its way, or a model that misses something), and the pairs are sections the
-    fit has not yet put where the data determine them."""
-    check = result.resolution
-    if check is None or check.ok:
-        return
-    noise = (result.details or {}).get("noise", {})
-    ratio = float(noise.get("ratio", math.nan))
-    prune = "freqid_casadi.fitting.validation.prune_sections"
-    if result.rms_rel_error <= ROUNDING_RMS:
-        why = ("the fit is exact to rounding, so these are spare sections (more than the "
-               "data need), placed where the data do not determine them; fit fewer "
-               f"sections, or remove them with {prune} (FitResult.resolution lists them)")
-    elif noise.get("consistent"):
-        why = ("features between the samples that the noisy data do not determine (the "
-               f"residual is at the noise: RMS {ratio:.3g} times it); inspect "
-               "FitResult.resolution, refit with min_damping='auto' (a damping floor from "
-               f"the frequency spacing), remove them with {prune}, or fit fewer sections")
-    else:
-        level = (f"RMS {ratio:.3g} times the noise its point-to-point differences show"
-                 if math.isfinite(ratio) else "no noise level could be estimated")
-        why = (f"features between the samples that the data do not determine, beside a "
-               f"residual that is not noise ({level}): the fit "
-               f"{'stopped on its way' if not result.success else 'misses something'}, and "
-               "these are sections it has not put where the data determine them; inspect "
-               "FitResult.resolution and FitResult.message, "
-               + ("continue the fit (a higher final_max_iter), " if not result.success
-                  else "") +
-               f"fit fewer sections, remove them with {prune}, or refit with "
-               "min_damping='auto'")
-    warnings.warn(
-        f"the model has {len(check.flags)} near-cancelling pole/zero pair(s) and "
-        f"{len(check.unresolved)} pole(s)/zero(s) narrower than the frequency spacing: "
-        + why, ResolutionWarning, stacklevel=stacklevel)
 
 
 def _unscale_record(rec, w_ref):

@@ -20,12 +20,13 @@ and ``alternatives`` holds the fit that was not kept.
 """
 
 import dataclasses
+import math
 import warnings
 
-from ..errors import FreqidError
-from .verdict import FitStatus
+from ..errors import FreqidError, ResolutionWarning
+from .verdict import ROUNDING_RMS, FitStatus
 
-__all__ = ["guard_resolution", "GUARD_RMS_FACTOR"]
+__all__ = ["guard_resolution", "GUARD_RMS_FACTOR", "warn_unresolved"]
 
 #: The floored fit is kept only if its RMS error is at most this factor times the free
 #: fit's (both at the noise: the floor may cost a few per cent of the noise, not more).
@@ -92,3 +93,54 @@ def guard_resolution(result, refit, min_damping):
         floored, message=floored.message + note,
         details=dict(floored.details, resolution_guard=record),
         alternatives=dict(floored.alternatives, **{"min_damping=None": result})), True
+
+
+def warn_unresolved(result, stacklevel):
+    """The ResolutionWarning of a fit whose :func:`~freqid_casadi.fitting.validation.
+    check_resolution` failed (nothing for None or a passed check; ``stacklevel`` of the
+    warning).
+
+    Its advice follows the cause, which the residual tells: on a fit exact to rounding
+    (RMS <= ROUNDING_RMS) the pairs are spare sections, which a damping floor does not
+    remove; on a fit at the noise (the residual's RMS at most CONSISTENT_RATIO times the
+    noise its point-to-point differences show: the verdict's ``details["noise"]
+    ["consistent"]``) they are features between the samples
+    that the noisy data do not determine; otherwise the residual is systematic (a fit
+    stopped on its way, or a model that misses something), and the pairs are sections the
+    fit has not yet put where the data determine them."""
+    check = result.resolution
+    if check is None or check.ok:
+        return
+    noise = (result.details or {}).get("noise", {})
+    ratio = float(noise.get("ratio", math.nan))
+    prune = "freqid_casadi.fitting.validation.prune_sections"
+    given = getattr(getattr(result, "options", None), "min_damping", None) is not None
+    floor = (f"the damping floor given (zeta >= {getattr(result, 'zeta_min', 0) or 0:.3g}) "
+             "follows the "
+             "median spacing, wider than the spacing there" if given else "refit with "
+             "min_damping='auto' (a damping floor from the frequency spacing)")
+    if result.rms_rel_error <= ROUNDING_RMS:
+        why = ("the fit is exact to rounding, so these are spare sections (more than the "
+               "data need), placed where the data do not determine them; fit fewer "
+               f"sections, or remove them with {prune} (FitResult.resolution lists them)")
+    elif noise.get("consistent"):
+        why = ("features between the samples that the noisy data do not determine (the "
+               f"residual is at the noise: RMS {ratio:.3g} times it); inspect "
+               f"FitResult.resolution; {floor}; remove them with {prune}, or fit fewer "
+               "sections")
+    else:
+        level = (f"RMS {ratio:.3g} times the noise its point-to-point differences show"
+                 if math.isfinite(ratio) else "no noise level could be estimated")
+        why = (f"features between the samples that the data do not determine, beside a "
+               f"residual that is not noise ({level}): the fit "
+               f"{'stopped on its way' if not result.success else 'misses something'}, and "
+               "these are sections it has not put where the data determine them; inspect "
+               "FitResult.resolution and FitResult.message, "
+               + ("continue the fit (a higher final_max_iter), " if not result.success
+                  else "") +
+               f"fit fewer sections, or remove them with {prune}"
+               + ("" if given else ", or refit with min_damping='auto'"))
+    warnings.warn(
+        f"the model has {len(check.flags)} near-cancelling pole/zero pair(s) and "
+        f"{len(check.unresolved)} pole(s)/zero(s) narrower than the frequency spacing: "
+        + why, ResolutionWarning, stacklevel=stacklevel)
