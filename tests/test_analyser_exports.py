@@ -528,5 +528,5 @@ def test_a_table_of_time_samples_is_refused_as_such(tmp_path, text, first):
         warnings.simplefilter("ignore", DataWarning)
         with pytest.raises(DataError, match=rf"holds time-domain samples, not a frequency "
                            rf"response: its first column '{re.escape(first)}' counts time "
-                           r".*freqid frf FILE --u NAME --y NAME"):
+                           r".*freqid frf FILE --input NAME --output NAME"):
             fc.load(path)

@@ -207,13 +207,23 @@ def test_spectra_saved_beside_the_frf_are_named_and_not_read_as_responses(tmp_pa
 
 @pytest.mark.parametrize("name, kind", [
     ("Hf_Cross_Spec_chan_2", "cross-spectrum"), ("meas.Gxy1", "cross-spectrum"),
-    ("coh", "coherence"), ("crossSpectrum", "cross-spectrum"), ("PSD_chan_1", "auto-spectrum"),
+    ("coh", "coherence"), ("crossSpectrum", "cross-spectrum"), ("PSD_chan_1", None),
+    # "cross", "power", "auto" alone name no spectrum (a review's H_power_amp beside H_motor
+    # lost one of two responses)
+    ("H_cross_axis", None), ("H_power_amp", None), ("TF_auto_focus", None),
     ("H1", None), ("Hf_chan_2", None), ("frf(:,2)", None), ("H21", None), ("Txy", None),
     ("response", None)])
 def test_spectrum_kind_reads_the_words_of_a_name(name, kind):
     from freqid_casadi.io._mat import spectrum_kind
 
     assert spectrum_kind(name) == kind
+
+
+def test_one_matrix_of_frequency_real_imag_is_a_table_not_records(tmp_path):
+    # [f, re, im] as one N x 3 matrix: refused as time records by the matrices' rule
+    path = _mat(tmp_path, "m3.mat", data=np.c_[F, H[:, 0].real, H[:, 0].imag])
+    data = fc.load(path, freq_unit="Hz")
+    np.testing.assert_allclose(data.response, H[:, 0], rtol=1e-15)
 
 
 def test_time_records_in_matrices_of_columns_point_to_freqid_frf(tmp_path):

@@ -8,6 +8,8 @@ and ``# columns:``, N-d arrays and integer arrays one value per line in column-m
 under ``# ndims:``, complex values as ``(re,im)``, 17 significant digits).
 """
 
+import warnings
+
 import numpy as np
 import pytest
 
@@ -134,3 +136,38 @@ def test_a_damaged_octave_file_is_refused_naming_the_line(tmp_path, body, match)
     path.write_text("# Created by Octave 8.4.0\n" + body)
     with pytest.raises(DataError, match=r"'.*bad\.mat' \(Octave text format\), " + match):
         fc.load(path, freq_unit="Hz")
+
+
+def test_single_precision_zero_step_ranges_and_limits(tmp_path):
+    # Octave writes singles as 'float matrix', a range of step 0 as base, length, 0
+    text = ("# Created by Octave 8.4.0\n# name: s\n# type: float matrix\n# rows: 1\n"
+            "# columns: 3\n 0.5 1.5 2.5\n\n\n# name: c\n# type: float complex scalar\n"
+            "(1,-2)\n\n\n# name: z\n# type: range\n# base, length, increment\n5 4 0\n\n\n")
+    got = read_octave_arrays("x", text)
+    np.testing.assert_array_equal(got["s"], [0.5, 1.5, 2.5])
+    assert got["c"] == 1 - 2j
+    np.testing.assert_array_equal(got["z"], [5.0, 5.0, 5.0, 5.0])
+    # a claimed size above the limit is refused before anything is allocated
+    huge = ("# Created by Octave 8.4.0\n# name: sp\n# type: sparse matrix\n# nnz: 0\n"
+            "# rows: 1000000\n# columns: 1000000\n\n")
+    with pytest.raises(DataError, match=r"line 6: a sparse matrix \(made dense\) of "
+                       r"1000000000000 elements, above the limit of 1000"):
+        read_octave_arrays("x", huge, max_elements=1000)
+    with pytest.raises(DataError, match="a range of 1000000000001 elements"):
+        read_octave_arrays("x", "# name: r\n# type: range\n0 1e12 1\n", max_elements=1000)
+
+
+def test_a_damaged_count_is_a_data_error_and_a_table_with_name_lines_is_a_table(tmp_path):
+    path = tmp_path / "bad.mat"
+    path.write_text("# Created by Octave 8.4.0\n# name: a\n# type: matrix\n# rows: x\n"
+                    "# columns: 2\n1 2\n")
+    with pytest.raises(DataError, match=r"line 4: '# rows: x' is not a count"):
+        fc.load(path, freq_unit="Hz")
+    # a CSV whose comment lines happen to read '# name:' and '# type:' is no Octave file
+    csv = tmp_path / "meta.csv"
+    csv.write_text("# name: sweep 1\n# type: gain/phase\nfreq_hz,mag_db,phase_deg\n"
+                   "10,0,-5\n20,-1,-10\n40,-3,-20\n")
+    assert not is_octave_text(csv.read_bytes())
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert fc.load(csv).n_points == 3

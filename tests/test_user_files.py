@@ -403,6 +403,12 @@ def test_ltspice_ac_export_is_read_in_hz(tmp_path, encoding):
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", DataWarning)
             load(path)
+    with warnings.catch_warnings():        # two traces: load_all reads both (it raised)
+        warnings.simplefilter("ignore", DataWarning)
+        both = fc.load_all(path)
+    assert [d.name for d in both] == ["V(out)", "V(in)"]
+    _same(both[0], rtol=1e-12)
+    np.testing.assert_allclose(both[1].response, 1.0, rtol=1e-15)
     three = "".join(f"{line}\t1.0e+000,0.0e+000\n" for line in two.splitlines())
     path.write_bytes(f"Freq.\tV(a)\tV(out)/V(in)\tV(b)\n{three}".encode(encoding))
     with warnings.catch_warnings():

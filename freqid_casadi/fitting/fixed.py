@@ -39,7 +39,7 @@ from ..errors import OptionError
 from ..options import LoopOptions, solver_options
 from ._checks import after_fit, verdict
 from .stages import StageKind, StageSolver, keep_better, stage_record
-from .verdict import residual_noise, with_cause
+from .verdict import ROUNDING_RMS, residual_noise, with_cause
 
 __all__ = ["FIXED_KEYS", "check_fixed", "fit_with_fixed", "hold_gain", "without_delay"]
 
@@ -261,6 +261,7 @@ def fit_with_fixed(run, data, fixed, *, delay, loop, method):
         success = res.success
         cost = (f"; without it max rel. error {free.max_rel_error:.3g}, RMS "
                 f"{free.rms_rel_error:.3g}" if res.rms_rel_error > 1.1 * free.rms_rel_error
+                and res.rms_rel_error > ROUNDING_RMS
                 and "cause is the held dc_gain" not in res.message else "")
         k = model.structure.origin_order
         form = {1: "K0/s", -1: "K0 s"}.get(k, f"K0/s^{k}" if k > 0 else f"K0 s^{-k}")

@@ -13,8 +13,8 @@ from ..errors import DataError, OptionError
 
 __all__ = ["Column", "recognise", "parse_columns", "parse_freq_unit", "COLUMN_HELP",
            "one_layout", "columns_option", "complete_channels", "sparameter_of",
-           "sparameters", "with_parameter", "DERIVED", "ChannelChoice", "several_responses", "time_column",
-           "time_records"]
+           "sparameters", "with_parameter", "DERIVED", "ChannelChoice", "several_responses",
+           "time_column", "time_records"]
 
 #: A channel or trace number before a column's name: ``Channel 2 Phase (deg)``, ``Ch1 Re``
 #: (``_CHANNEL``: the number and the name after it).
@@ -440,5 +440,6 @@ def time_records(path, cells):
     return (f"{path!r} holds time-domain samples, not a frequency response: its first "
             f"column {cells[0].strip()!r} counts time (header {shown!r}); estimate the "
             "frequency response first: input and output records with 'freqid frf FILE "
-            "--u NAME --y NAME' (see freqid frf --help), an impulse response by its Fourier "
-            "transform (numpy.fft.rfft, frequencies numpy.fft.rfftfreq(n, 1/fs))")
+            "--input NAME --output NAME' (the columns' names; see freqid frf --help), an "
+            "impulse response by its Fourier transform (numpy.fft.rfft, frequencies "
+            "numpy.fft.rfftfreq(n, 1/fs))")

@@ -95,7 +95,7 @@ def read_mat_arrays(path, payload, max_elements):
     """
     if is_octave_text(payload):
         mat = read_octave_arrays(path, payload.removeprefix(b"\xef\xbb\xbf").decode(
-            "latin-1"))                  # numbers and headers are ASCII; strings skipped
+            "latin-1"), max_elements)    # numbers and headers are ASCII; strings skipped
     else:
         mat = _loadmat(path, payload, max_elements)
     out = {}
@@ -142,16 +142,18 @@ RECORD_COLUMNS = 8
 #: coherence estimates (``Hf_Cross_Spec_chan_2``, ``Gxy``, ``coh``), by what they hold.
 _SPECTRUM_WORDS = {
     "coherence": ("coh", "coher", "coherence", "cohere", "mscohere", "gamma2"),
-    "cross-spectrum": ("cross", "csd", "cpsd", "gxy", "gyx", "sxy", "syx", "pxy", "pyx",
-                       "gfx", "gxf", "sfx", "sxf"),
-    "auto-spectrum": ("psd", "apsd", "autospec", "autospectrum", "gxx", "gyy", "gff", "sxx",
-                      "syy", "sff", "pxx", "pyy", "auto", "power"),
+    "cross-spectrum": ("csd", "cpsd", "crossspec", "crossspectrum", "gxy", "gyx", "sxy",
+                       "syx", "pxy", "pyx", "gfx", "gxf", "sfx", "sxf"),
 }
+#: A cross-spectrum named in two words (``Hf_Cross_Spec_chan_2``, ``crossSpectrum``): "cross"
+#: beside one of these (alone, "cross" is no spectrum: ``H_cross_axis``).
+_CROSS_WITH = ("spec", "spectrum", "spectra", "power", "psd")
 
 
 def spectrum_kind(name):
-    """What a variable holds when its name says it is a spectrum, not a response:
-    ``"coherence"``, ``"cross-spectrum"`` or ``"auto-spectrum"``; else None.
+    """What a complex variable holds when its name says it is a spectrum, not a
+    response: ``"coherence"`` or ``"cross-spectrum"``; else None (an auto-spectrum is
+    real: no complex vector is one).
 
     Parameters
     ----------
@@ -168,6 +170,8 @@ def spectrum_kind(name):
     for kind, names in _SPECTRUM_WORDS.items():
         if words & set(names):
             return kind
+    if "cross" in words and words & set(_CROSS_WITH):
+        return "cross-spectrum"
     return None
 
 
@@ -189,7 +193,9 @@ def records_hint(path, arrays):
     by_size = {}
     for key, a in vectors.items():
         by_size.setdefault(a.size, []).append(key)
-    groups = [keys for keys in by_size.values() if len(keys) >= 2]
+    # (the columns of one matrix alone are a table, f, re, im as often as records)
+    groups = [keys for keys in by_size.values()
+              if len(keys) >= 2 and len({k.split("(", 1)[0] for k in keys}) >= 2]
     if not groups:
         return None
     keys = max(groups, key=len)

@@ -23,6 +23,12 @@ from ..errors import DataError
 
 __all__ = ["is_octave_text", "read_octave_arrays"]
 
+#: The types Octave's text format writes (a ``# type:`` line naming another is not it).
+_TYPES = re.compile(r"(global )?((float )?(complex )?(scalar|matrix|diagonal matrix)|"
+                    r"bool( matrix)?|sparse (complex |bool )?matrix|"
+                    r"u?int(8|16|32|64) (scalar|matrix)|string|sq_string|(scalar )?struct|"
+                    r"cell|(\w+_)?range|null_matrix|function handle|inline function|object|"
+                    r"permutation matrix|class)")
 _HEADER = re.compile(r"#\s*(\w[\w ,]*?)\s*:\s*(.*?)\s*$")
 
 #: A value as Octave writes it: a real, ``Inf``/``NaN``/``NA``, or ``(re,im)``.
@@ -38,15 +44,33 @@ def is_octave_text(payload):
         return True
     lines = [t.strip() for t in head.splitlines()[:3]]
     k = 1 if lines and lines[0].startswith(b"# Created by") else 0
-    return (len(lines) > k + 1 and lines[k].startswith(b"# name:")
-            and lines[k + 1].startswith(b"# type:"))
+    if not (len(lines) > k + 1 and lines[k].startswith(b"# name:")):
+        return False
+    kind = lines[k + 1].partition(b":")[2].strip().decode("latin-1")
+    return lines[k + 1].startswith(b"# type:") and bool(_TYPES.fullmatch(kind))
 
 
 class _Lines:
     """The file's lines with a cursor; blank lines are skipped where a value is read."""
 
-    def __init__(self, path, text):
+    def __init__(self, path, text, max_elements=None):
         self.path, self.lines, self.k = path, text.splitlines(), 0
+        self.max_elements = max_elements
+
+    def count(self, key):
+        """The next ``# key: N`` line's non-negative integer N."""
+        value = self.header(key)[1]
+        if not re.fullmatch(r"\d+", value):
+            self.k -= 1
+            self.fail(f"'# {key}: {value[:20]}' is not a count")
+        return int(value)
+
+    def check_size(self, n, what="array"):
+        """Refuse an ``n``-element ``what`` above the reader's limit before allocating."""
+        if self.max_elements is not None and n > self.max_elements:
+            self.k -= 1
+            self.fail(f"a {what} of {n} elements, above the limit of {self.max_elements} "
+                      "(freqid_casadi.io.loaders.MAX_ELEMENTS)")
 
     def fail(self, what):
         line = min(self.k, len(self.lines) - 1) + 1
@@ -120,18 +144,19 @@ def _cells(text, complex_, lines):
 
 def _size(lines):
     """``rows``/``columns`` or ``ndims`` and the dimensions; (shape, column-major)."""
-    key, value = lines.header()
+    key = lines.peek_key()
     if key == "rows":
-        rows = int(value)
-        return (rows, int(lines.header("columns")[1])), False
+        return (lines.count("rows"), lines.count("columns")), False
     if key == "ndims":
-        return tuple(lines.integers(int(value))), True
+        return tuple(lines.integers(lines.count("ndims"))), True
+    lines.header()
     lines.fail(f"expected '# rows:' or '# ndims:', found '# {key}:'")
 
 
 def _array(lines, complex_):
     shape, column_major = _size(lines)
-    n = int(np.prod(shape, dtype=np.int64))
+    n = int(np.prod(shape, dtype=object))
+    lines.check_size(n)
     flat = lines.values(n, complex_)
     if column_major:
         return flat.reshape(shape, order="F")
@@ -149,15 +174,21 @@ def _range(lines):
     if len(vals) not in (3, 4):
         lines.fail(f"{text.strip()[:40]!r} is not a range's base, limit and increment")
     base, limit, inc = vals[:3]
-    if inc == 0 or not np.isfinite([base, limit, inc]).all():
+    if not np.isfinite([base, limit, inc]).all():
         return np.array([], float)
-    n = int(np.floor((limit - base) / inc + 1e-10)) + 1
-    return base + inc * np.arange(max(n, 0))
+    if inc == 0:                         # Octave writes 'base, length, increment' for it
+        n = int(limit) if limit >= 0 and limit == int(limit) else 0
+        lines.check_size(n, "range")
+        return np.full(n, base)
+    n = max(int(np.floor((limit - base) / inc + 1e-10)) + 1, 0)
+    lines.check_size(n, "range")
+    return base + inc * np.arange(n)
 
 
 def _sparse(lines, complex_):
-    nnz = int(lines.header("nnz")[1])
-    shape = (int(lines.header("rows")[1]), int(lines.header("columns")[1]))
+    nnz = lines.count("nnz")
+    shape = (lines.count("rows"), lines.count("columns"))
+    lines.check_size(shape[0] * shape[1], "sparse matrix (made dense)")
     out = np.zeros(shape, complex if complex_ else float)
     for _ in range(nnz):
         text = lines.lines[lines.k].strip() if lines.k < len(lines.lines) else ""
@@ -172,9 +203,9 @@ def _sparse(lines, complex_):
 
 
 def _string(lines):
-    n = int(lines.header("elements")[1])
+    n = lines.count("elements")
     for _ in range(n):
-        length = int(lines.header("length")[1])
+        length = lines.count("length")
         used = -1
         while used < length and lines.k < len(lines.lines):   # the text may hold newlines
             used += len(lines.lines[lines.k]) + 1
@@ -194,13 +225,14 @@ def _dims(lines):
     """A struct's ``# ndims:`` and dimensions (1 x 1 where an old Octave wrote none)."""
     if lines.peek_key() != "ndims":
         return (1, 1)
-    return tuple(lines.integers(int(lines.header("ndims")[1])))
+    return tuple(lines.integers(lines.count("ndims")))
 
 
 def _struct_array(lines):
     shape = _dims(lines)
-    fields = _fields(lines, int(lines.header("length")[1]))      # each a cell of `shape`
-    n = int(np.prod(shape, dtype=np.int64))
+    fields = _fields(lines, lines.count("length"))      # each a cell of `shape`
+    n = int(np.prod(shape, dtype=object))
+    lines.check_size(n, "struct array")
     items = [{} for _ in range(n)]
     for name, cell in fields.items():
         for k in range(n):
@@ -210,7 +242,8 @@ def _struct_array(lines):
 
 def _cell(lines):
     shape, _ = _size(lines)
-    n = int(np.prod(shape, dtype=np.int64))
+    n = int(np.prod(shape, dtype=object))
+    lines.check_size(n, "cell array")
     items = []
     for _ in range(n):                              # column-major, as Octave writes them
         name = lines.header("name")[1]
@@ -225,6 +258,7 @@ _INT = re.compile(r"u?int(8|16|32|64) (scalar|matrix)$")
 def _value(lines, name):
     """The value of the variable or field whose ``# name:`` was just read."""
     kind = lines.header("type")[1].removeprefix("global ")
+    kind = kind.removeprefix("float ")             # single precision: read as double
     if kind in ("scalar", "bool") or (_INT.match(kind) and kind.endswith("scalar")):
         return lines.values(1)[0]
     if kind == "complex scalar":
@@ -235,6 +269,7 @@ def _value(lines, name):
         return _array(lines, True)
     if kind in ("diagonal matrix", "complex diagonal matrix"):
         shape, _ = _size(lines)
+        lines.check_size(shape[0] * shape[1], "diagonal matrix (made dense)")
         diag = lines.values(min(shape), kind.startswith("complex"))
         out = np.zeros(shape, diag.dtype)
         out[np.arange(diag.size), np.arange(diag.size)] = diag
@@ -247,7 +282,7 @@ def _value(lines, name):
         return _string(lines)
     if kind == "scalar struct":
         _dims(lines)
-        return _fields(lines, int(lines.header("length")[1]))
+        return _fields(lines, lines.count("length"))
     if kind == "struct":
         return _struct_array(lines)
     if kind == "cell":
@@ -270,7 +305,7 @@ def _squeezed(value):
     return None if value is None else np.asarray(value)
 
 
-def read_octave_arrays(path, text):
+def read_octave_arrays(path, text, max_elements=None):
     """The variables of an Octave text file, by name, as ``scipy.io.loadmat`` would give
     them (``simplify_cells=True``): arrays squeezed, structs as dicts, cells as lists,
     strings and empty matrices left out.
@@ -281,6 +316,9 @@ def read_octave_arrays(path, text):
         The file, for messages.
     text : str
         Its content.
+    max_elements : int, optional
+        Largest array built (checked before allocating; a range, sparse or diagonal
+        matrix counts its dense size).
 
     Returns
     -------
@@ -291,7 +329,7 @@ def read_octave_arrays(path, text):
     DataError
         A malformed block or a type this reader does not read, naming the line.
     """
-    lines = _Lines(path, text)
+    lines = _Lines(path, text, max_elements)
     while lines.k < len(lines.lines) and (not lines.lines[lines.k].strip()
                                           or lines.lines[lines.k].startswith("# Created")):
         lines.k += 1

@@ -308,7 +308,8 @@ def _header_columns(path, cells, parameter=None, line=1):
                                                   for c in cells[1:]]
     if parameter is not None and None not in cols:
         cols = with_parameter(cols, parameter, repr(path))
-    cols = one_layout(cols)
+    if not (ltspice and len(traces) > 1):        # (LTspice's traces are other signals)
+        cols = one_layout(cols)
     problem, choices = None, []
     if cols[0] is None and len(cells) > 1 and time_column(_clean(cells[0])):
         raise DataError(time_records(path, [_clean(c) for c in cells]))

@@ -178,6 +178,7 @@ def load_all(path, *, freq_unit=None, columns=None, band=None):
     if is_mat(path):
         return _mat_all(path, freq_unit, columns, band)
     if lower.endswith(".npz"):
+        refuse_options(path, columns=parse_columns(columns))   # (this package's format)
         return _npz_all(path, freq_unit, columns, band)
     plain = lower.endswith(".json") or is_touchstone(lower)
     if not plain and is_uff(path):
