@@ -126,8 +126,8 @@ def test_time_records_saved_by_octave_feed_the_records_reader(tmp_path):
      r"line 8: the file ends after 2 of 3 values"),
     ("# name: H\n# type: matrix\n# rows: 2\n# columns: 1\n 1\n x\n",
      r"line 7: 'x' is not a number"),
-    ("# name: g\n# type: function handle\n@(x) x\n\n",
-     r"line 3: variable 'g' is of type 'function handle', which this reader does not read"),
+    ("# name: H\n# type: matrix\n# rows: 1.5\n# columns: 1\n 1\n",
+     r"line 4: '# rows: 1.5' is not a count"),
     ("# name: H\n# type: complex matrix\n# rows: 1\n# columns: 2\n 1 2\n",
      r"line 6: '1 2' is not a row of complex values"),
 ])
@@ -171,3 +171,47 @@ def test_a_damaged_count_is_a_data_error_and_a_table_with_name_lines_is_a_table(
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         assert fc.load(csv).n_points == 3
+
+
+def test_files_as_octave_projects_publish_them(tmp_path):
+    # a measurement table with a comment line before its variable; a cache whose first
+    # line is another program's comment; a tf object beside numbers; an empty string and
+    # matrix; a function handle, after which nothing is read (as published files have them)
+    text = ("# Created by Octave 3.2.4\n#F[MHz]\tF [Hz]\tG\n# name: A2\n# type: matrix\n"
+            "# rows: 2\n# columns: 2\n 1 2\n 3 4\n\n\n"
+            "# name: sys\n# type: object\n# classname: tf\n# length: 1\n"
+            "# name: num\n# type: matrix\n# rows: 1\n# columns: 2\n 1 2\n\n\n"
+            "# name: s\n# type: null_string\n# elements: 0\n\n\n"
+            "# name: e\n# type: null_matrix\n# rows: 0\n# columns: 0\n\n\n"
+            "# name: k\n# type: scalar\n7\n\n\n"
+            "# name: f\n# type: function handle\n@(x) x .^ 2\n\n\n"
+            "# name: after\n# type: scalar\n1\n")
+    from freqid_casadi.io.loaders import DataWarning
+
+    with pytest.warns(DataWarning, match=r"line \d+: variable 'f' is of type 'function "
+                      r"handle', which this reader does not read: read the 2 variable\(s\) "
+                      r"before it, not those after it"):
+        got = read_octave_arrays("x", text)
+    assert set(got) == {"A2", "k"} and got["k"] == 7.0
+    np.testing.assert_array_equal(got["A2"], [[1, 2], [3, 4]])
+    cache = b"# doc-cache created by Octave 11.2.0\n# name: cache\n# type: cell\n"
+    assert is_octave_text(cache)
+    # Octave's binary format: said so, with how to save it readably
+    binary = tmp_path / "octave-workspace"
+    binary.write_bytes(b"Octave-1-L\x00\x00\x00\x00\x01abc")
+    with pytest.raises(DataError, match=r"is in Octave's binary format; in Octave save it as "
+                       r"text \(save -text f\.mat \.\.\., Octave's default\)"):
+        fc.load(binary)
+
+
+def test_an_image_sized_matrix_is_named_not_offered_columns(tmp_path):
+    # Octave's example 'penny.mat' (128 x 128): offered columns= with 125 skips
+    path = tmp_path / "penny.mat"
+    path.write_text("# Created by Octave 3.0\n" + _block("P", np.arange(400.0).reshape(20, 20)))
+    with pytest.raises(DataError, match=r"its only array, P \(20 x 20\), is no response"):
+        fc.load(path, freq_unit="Hz")
+    # an .npz whose empty arrays are no data: named as what is left
+    npz = tmp_path / "linlin.npz"
+    np.savez(npz, Z=np.zeros(0), cnu=np.arange(8.0), data=np.zeros((0, 3)))
+    with pytest.raises(DataError, match=r"\(found cnu \(8\)\)"):
+        fc.load(npz, freq_unit="Hz")

@@ -18,7 +18,7 @@ import re
 import numpy as np
 
 from ..errors import DataError
-from ._octave import is_octave_text, read_octave_arrays
+from ._octave import is_octave_binary, is_octave_text, read_octave_arrays
 
 __all__ = ["read_mat_arrays", "records_hint", "spectrum_kind", "start_step_axis", "axis_variables",
            "chosen_response", "response_parts", "matrix_channels", "MIN_RECORD"]
@@ -93,6 +93,10 @@ def read_mat_arrays(path, payload, max_elements):
     DataError
         v7.3 (HDF5), not a MATLAB file, an array above ``max_elements``, no numeric data.
     """
+    if is_octave_binary(payload):
+        raise DataError(f"{path!r} is in Octave's binary format; in Octave save it as text "
+                        "(save -text f.mat ..., Octave's default) or as a MATLAB file (save "
+                        "-mat7-binary f.mat ...)")
     if is_octave_text(payload):
         mat = read_octave_arrays(path, payload.removeprefix(b"\xef\xbb\xbf").decode(
             "latin-1"), max_elements)    # numbers and headers are ASCII; strings skipped
@@ -129,7 +133,8 @@ def _loadmat(path, payload, max_elements):
             error = exc
     if mat is None:
         raise DataError(f"cannot read {path!r} as a MATLAB .mat file ({error}); save the "
-                        "arrays with save(..., '-v7')")
+                        "arrays with save(..., '-v7') (in Octave: save -mat7-binary, or save "
+                        "-text)")
     return mat
 
 

@@ -32,6 +32,9 @@ def band_unit(unit):
             {"scale": 1.0, "file_unit": unit})
 
 
+#: Most columns of a file's only matrix read as a table (beyond: no response).
+MAX_TABLE_COLUMNS = 16
+
 #: How to save an archive the package reads as it is.
 SAVEZ = "np.savez(path, omega=omega, response=response)"
 
@@ -317,9 +320,17 @@ def _mat_matrix(path, arrays, columns, named):
                 "for one channel of an FRF matrix, in MATLAB: freq_hz = <frequencies>; "
                 "response = <matrix>(:, k); save('frf_k.mat', 'freq_hz', 'response', "
                 "'-v7')"))
-    mat = np.asarray(next(iter(arrays.values())))
+    key, mat = next(iter(arrays.items()))
+    mat = np.asarray(mat)
     if mat.shape[0] < mat.shape[1]:
         mat = mat.T
+    if columns is None and mat.shape[1] > MAX_TABLE_COLUMNS:
+        # Octave's example image 'penny' (128 x 128) was offered columns= of 125 skips
+        raise DataError(f"{path!r}: its only array, {key} ({mat.shape[0]} x {mat.shape[1]}"
+                        f"{', complex' if np.iscomplexobj(mat) else ''}), is no response: a "
+                        "response is a complex vector beside its frequencies, or a table of "
+                        "a frequency column and real/imaginary or magnitude/phase columns "
+                        "(columns= names them)")
     first = [str(x) for x in mat[0]]
     cols = columns if columns is not None else _default_columns(path, first)
     if len(cols) != mat.shape[1]:

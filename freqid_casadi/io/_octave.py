@@ -9,10 +9,10 @@ of arrays by MATLAB path that :func:`freqid_casadi.io._mat.read_mat_arrays` retu
 binary file (``s.field``, ``s(2).f``, ``c{3}``; vectors squeezed, scalars 0-D; strings
 left out), so every ``.mat`` reader takes both.
 
-Read: scalars, matrices and N-d arrays (real, complex, bool, integer), ranges, diagonal
-and sparse matrices (made dense), strings (skipped), cells, scalar structs and struct
-arrays. Any other type (a function handle, a class object) is refused naming the
-variable.
+Read: scalars, matrices and N-d arrays (real, complex, bool, integer, single), ranges,
+diagonal and sparse matrices (made dense), strings (skipped), cells, scalar structs and
+struct arrays; class objects are parsed and left out. At a type it does not parse (a
+function handle) the reader stops, keeps the variables before it and says so.
 """
 
 import re
@@ -21,13 +21,14 @@ import numpy as np
 
 from ..errors import DataError
 
-__all__ = ["is_octave_text", "read_octave_arrays"]
+__all__ = ["is_octave_text", "is_octave_binary", "read_octave_arrays"]
 
 #: The types Octave's text format writes (a ``# type:`` line naming another is not it).
 _TYPES = re.compile(r"(global )?((float )?(complex )?(scalar|matrix|diagonal matrix)|"
                     r"bool( matrix)?|sparse (complex |bool )?matrix|"
                     r"u?int(8|16|32|64) (scalar|matrix)|string|sq_string|(scalar )?struct|"
-                    r"cell|(\w+_)?range|null_matrix|function handle|inline function|object|"
+                    r"cell|(\w+_)?range|null_(matrix|string|sq_string)|function handle|"
+                    r"inline function|object|"
                     r"permutation matrix|class)")
 _HEADER = re.compile(r"#\s*(\w[\w ,]*?)\s*:\s*(.*?)\s*$")
 
@@ -35,19 +36,27 @@ _HEADER = re.compile(r"#\s*(\w[\w ,]*?)\s*:\s*(.*?)\s*$")
 _COMPLEX = re.compile(r"\(\s*([^,()\s]+)\s*,\s*([^,()\s]+)\s*\)")
 
 
+def is_octave_binary(payload):
+    """True if ``payload`` (bytes) is Octave's own binary format (``save -binary``, the
+    ``octave-workspace`` a crash writes): it starts ``Octave-1-L`` or ``Octave-1-B``."""
+    return payload[:10] in (b"Octave-1-L", b"Octave-1-B")
+
+
 def is_octave_text(payload):
     """True if ``payload`` (bytes) starts as Octave's text format does: a ``# Created by
     Octave`` line, or (another program writing it) a first line ``# name: ...`` followed
     by ``# type: ...``."""
-    head = payload[:400].lstrip(b"\xef\xbb\xbf").lstrip()
+    head = payload[:1200].lstrip(b"\xef\xbb\xbf").lstrip()
     if head.startswith(b"# Created by Octave"):
         return True
-    lines = [t.strip() for t in head.splitlines()[:3]]
-    k = 1 if lines and lines[0].startswith(b"# Created by") else 0
-    if not (len(lines) > k + 1 and lines[k].startswith(b"# name:")):
-        return False
-    kind = lines[k + 1].partition(b":")[2].strip().decode("latin-1")
-    return lines[k + 1].startswith(b"# type:") and bool(_TYPES.fullmatch(kind))
+    lines = [t.strip() for t in head.splitlines()[:12]]
+    for k, line in enumerate(lines[:-1]):      # comment lines may come first
+        if line.startswith(b"# name:"):
+            kind = lines[k + 1].partition(b":")[2].strip().decode("latin-1")
+            return lines[k + 1].startswith(b"# type:") and bool(_TYPES.fullmatch(kind))
+        if not line.startswith((b"#", b"%")):
+            return False
+    return False
 
 
 class _Lines:
@@ -77,9 +86,16 @@ class _Lines:
         raise DataError(f"{self.path!r} (Octave text format), line {line}: {what}; "
                         "save the arrays again with save -text or save -mat7-binary")
 
+    def _skippable(self, k):
+        """Blank, or a comment that is no ``# key: value`` header (Octave's load skips
+        such lines between its blocks)."""
+        text = self.lines[k].strip()
+        return not text or (text[0] in "#%" and not _HEADER.match(text))
+
     def header(self, key=None):
-        """The next ``# key: value`` line as (key, value); blank lines before it skipped."""
-        while self.k < len(self.lines) and not self.lines[self.k].strip():
+        """The next ``# key: value`` line as (key, value); blank and comment lines
+        before it skipped."""
+        while self.k < len(self.lines) and self._skippable(self.k):
             self.k += 1
         if self.k >= len(self.lines):
             self.fail(f"the file ends where '# {key or 'name'}:' was expected")
@@ -93,7 +109,7 @@ class _Lines:
     def peek_key(self):
         """The key of the next ``# key: value`` line, or None (end, or not a header)."""
         k = self.k
-        while k < len(self.lines) and not self.lines[k].strip():
+        while k < len(self.lines) and self._skippable(k):
             k += 1
         if k >= len(self.lines):
             return None
@@ -287,10 +303,28 @@ def _value(lines, name):
         return _struct_array(lines)
     if kind == "cell":
         return _cell(lines)
-    if kind == "null_matrix":
+    if kind in ("null_matrix", "null_string", "null_sq_string"):     # [], "", ''
+        if lines.peek_key() == "elements":
+            _string(lines)
+        elif lines.peek_key() in ("rows", "ndims"):
+            _size(lines)                        # 0 x 0: no values follow
+        return None
+    if kind in ("object", "class"):            # a class object (tf, ss): its fields, dropped
+        while lines.peek_key() not in ("length", None):
+            lines.header()                     # classname, parents
+        _fields(lines, lines.count("length"))
         return None
     lines.k -= 1
-    lines.fail(f"variable {name!r} is of type {kind!r}, which this reader does not read")
+    raise _Unread(name, kind, lines.k + 1)
+
+
+class _Unread(Exception):
+    """A variable of a type the reader does not parse (a function handle): where the
+    variables it can read end."""
+
+    def __init__(self, name, kind, line):
+        super().__init__(name, kind, line)
+        self.name, self.kind, self.line = name, kind, line
 
 
 def _squeezed(value):
@@ -336,11 +370,23 @@ def read_octave_arrays(path, text, max_elements=None):
     out = {}
     while lines.peek_key() is not None:
         name = lines.header("name")[1]
-        value = _squeezed(_value(lines, name))
+        try:
+            value = _squeezed(_value(lines, name))
+        except _Unread as stop:
+            import warnings
+
+            from ._readfile import DataWarning
+
+            warnings.warn(f"{path!r} (Octave text format), line {stop.line}: variable "
+                          f"{stop.name!r} is of type {stop.kind!r}, which this reader does "
+                          f"not read: read the {len(out)} variable(s) before it, not those "
+                          "after it", DataWarning, stacklevel=4)
+            return out
         if value is not None:
             out[name] = value
-    while lines.k < len(lines.lines) and not lines.lines[lines.k].strip():
+    while lines.k < len(lines.lines) and lines._skippable(lines.k):
         lines.k += 1
     if lines.k < len(lines.lines):
-        lines.fail(f"{lines.lines[lines.k].strip()[:60]!r} follows the last variable")
+        lines.fail(f"{lines.lines[lines.k].strip()[:60]!r} is not a '# name:' line of a "
+                   "variable")
     return out

@@ -26,7 +26,7 @@ import numpy as np
 
 from ._mat import matrix_channels, read_mat_arrays
 from ._named import SAVEZ, band_unit, frequency_axis, named_response, named_responses
-from ._octave import is_octave_text
+from ._octave import is_octave_binary, is_octave_text
 from ._touchstone import is_touchstone, load_touchstone
 from ._traces import read_traces
 from ._uff import load_uff, read_uff
@@ -198,7 +198,8 @@ def load_all(path, *, freq_unit=None, columns=None, band=None):
 def is_mat(path):
     """Whether ``path`` is read as a MATLAB file: a ``.mat`` name, or a regular file of
     another name that begins as GNU Octave's text format (``# Created by Octave``, or
-    ``# name:`` and ``# type:`` lines), which Octave's ``save`` writes by default.
+    ``# name:`` and ``# type:`` lines), which Octave's ``save`` writes by default, or as
+    Octave's binary format (refused, saying how to save it).
 
     Parameters
     ----------
@@ -216,7 +217,8 @@ def is_mat(path):
         if not os.path.isfile(path):     # a FIFO or a device is not opened (it may block)
             return False
         with open(path, "rb") as fh:
-            return is_octave_text(fh.read(400))
+            head = fh.read(1200)
+        return is_octave_text(head) or is_octave_binary(head)
     except OSError:
         return False
 
@@ -453,8 +455,8 @@ def _npz_arrays(path, payload, headers):
     out = {}
     with np.load(io.BytesIO(payload), allow_pickle=False) as npz:
         for key, (_, dtype) in headers.items():
-            if dtype.kind in "iufc":
-                a = np.squeeze(npz[key])
+            if dtype.kind in "iufc" and np.prod(headers[key][0], dtype=object) > 0:
+                a = np.squeeze(npz[key])                 # (an empty array is no data)
                 out[key] = a if a.dtype.kind in "fc" else a.astype(float)
     if not out:
         raise DataError(f"{path!r} holds no numeric arrays; save with {SAVEZ}")
