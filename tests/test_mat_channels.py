@@ -271,13 +271,19 @@ def test_an_npz_archive_another_program_wrote_is_read_by_its_arrays_names(tmp_pa
     with pytest.raises(DataError, match=r"holds complex responses but no frequency variable "
                        r"\(found data \(40 x 6, complex\)\)"):
         fc.load(bare)
-    # time records alone: pointed to the Python estimate (freqid frf reads .mat and CSV)
+    # time records alone: pointed to freqid frf, which reads them as a .mat file's
     runs = tmp_path / "runs.npz"
-    np.savez(runs, u=rng.standard_normal(256), y=rng.standard_normal(256))
+    np.savez(runs, u=rng.standard_normal(256), y=rng.standard_normal(256), fs=100.0)
     with pytest.raises(DataError, match=r"holds time records \(u, y: 256 samples each\), not "
-                       r"a frequency response: estimate it in Python, freqid_casadi\."
-                       r"experiment\.frf_from_records"):
+                       r"a frequency response: estimate it with 'freqid frf FILE --u NAME "
+                       r"--y NAME'"):
         fc.load(runs)
+    from freqid_casadi.experiment import load_records_mat
+
+    rec = load_records_mat(str(runs))
+    assert rec.fs == 100.0 and set(rec.channels) == {"u", "y"}
+    assert main(["frf", str(runs), "--u", "u", "--y", "y", "--nperseg", "64",
+                 "--out", str(tmp_path / "runs_frf.csv")]) == 0
     # the package's own format is read as before, its options refused
     own = tmp_path / "own.npz"
     np.savez(own, omega=2 * np.pi * F, response=H[:, 2])

@@ -280,7 +280,8 @@ def _is_daq(path):
 
 
 def _is_mat(path):
-    return is_mat(path)
+    """A file of named arrays: MATLAB or Octave (:func:`is_mat`), or a NumPy archive."""
+    return is_mat(path) or os.fspath(path).lower().endswith(".npz")
 
 
 def _is_lvm(path):

@@ -27,7 +27,8 @@ import numpy as np
 
 from ..io import NUMBER, decode_text, shown_cell
 from ..errors import DataError, OptionError
-from ..io.loaders import MAX_FILE_BYTES, MAX_ROWS, DataWarning, read_regular_file
+from ..io.loaders import (MAX_FILE_BYTES, MAX_ROWS, DataWarning, read_npz_arrays,
+                          read_regular_file)
 from ._lvm import column_rate, column_start, heading, lvm_layout
 from .periodic import _detect_period, frf_from_periodic
 
@@ -802,7 +803,8 @@ def _record_axis(m):
 
 
 def load_records_mat(path, min_records=2):
-    """Time records of a MATLAB ``.mat`` file (v4 to v7.2), by variable name.
+    """Time records of a MATLAB ``.mat`` file (v4 to v7.2; Octave's text format; a NumPy
+    ``.npz`` archive by the same rules), by variable name.
 
     Parameters
     ----------
@@ -836,7 +838,9 @@ def load_records_mat(path, min_records=2):
     if min_records not in (1, 2) or isinstance(min_records, bool):
         raise OptionError(f"min_records must be 1 or 2, got {min_records!r}")
     path, payload = read_regular_file(path, "records file")
-    arrays = _matrix_rows(read_mat_arrays(path, payload, MAX_FILE_BYTES // 8))
+    arrays = _matrix_rows(read_npz_arrays(path, payload)
+                          if str(path).lower().endswith(".npz") else
+                          read_mat_arrays(path, payload, MAX_FILE_BYTES // 8))
     vectors = {k: a for k, a in arrays.items()
                if a.ndim == 1 and a.size >= 16 and a.dtype.kind in "iuf"}
     sizes = [a.size for k, a in vectors.items()

@@ -107,7 +107,14 @@ def warn_unresolved(result, stacklevel):
     ["consistent"]``) they are features between the samples
     that the noisy data do not determine; otherwise the residual is systematic (a fit
     stopped on its way, or a model that misses something), and the pairs are sections the
-    fit has not yet put where the data determine them."""
+    fit has not yet put where the data determine them.
+
+    Parameters
+    ----------
+    result : FitResult
+    stacklevel : int
+        Of the warning (the caller's depth below the user's call).
+    """
     check = result.resolution
     if check is None or check.ok:
         return

@@ -205,12 +205,6 @@ def records_hint(path, arrays):
         return None
     keys = max(groups, key=len)
     shown = ", ".join(keys[:6]) + (", ..." if len(keys) > 6 else "")
-    if str(path).lower().endswith(".npz"):
-        return (f"{path!r} holds time records ({shown}: {vectors[keys[0]].size} samples "
-                "each), not a frequency response: estimate it in Python, "
-                "freqid_casadi.experiment.frf_from_records(u, y, fs=FS) with u and y read "
-                "by numpy.load, or save the records as a .mat or CSV file for "
-                "'freqid frf FILE --u NAME --y NAME'")
     return (f"{path!r} holds time records ({shown}: {vectors[keys[0]].size} samples each), "
             "not a frequency response: estimate it with 'freqid frf FILE --u NAME --y NAME' "
             "(add --period N for a periodic excitation, --fs HZ if the file gives no fs), or "

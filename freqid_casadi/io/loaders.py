@@ -37,7 +37,7 @@ from ._table import parse_columns, parse_freq_unit, read_table, table_response
 from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 
-__all__ = ["load", "load_all", "is_uff", "is_mat", "load_text", "load_csv", "load_npz", "load_mat",
+__all__ = ["load", "load_all", "is_uff", "is_mat", "read_npz_arrays", "load_text", "load_csv", "load_npz", "load_mat",
            "load_uff",
            "load_touchstone", "is_touchstone", "parse_band", "save_csv",
            "read_regular_file", "DataWarning", "MAX_FILE_BYTES", "MAX_ROWS", "MAX_ELEMENTS"]
@@ -447,6 +447,36 @@ def _npz_headers(path, payload):
                                 f"{n} elements of {dtype}); save the file again with {SAVEZ}")
             found[key] = (shape, dtype)
     return found
+
+
+def read_npz_arrays(path, payload):
+    """The numeric arrays of an ``.npz`` archive by name (headers checked before reading,
+    as :func:`load_npz`; empty and non-numeric arrays left out), for the readers of time
+    records.
+
+    Parameters
+    ----------
+    path : str
+        The file, for messages.
+    payload : bytes
+        Its content.
+
+    Returns
+    -------
+    dict of str to ndarray
+
+    Raises
+    ------
+    DataError
+        Not an archive, arrays above :data:`MAX_ELEMENTS`, no numeric array.
+    """
+    try:
+        return _npz_arrays(path, payload, _npz_headers(path, payload))
+    except DataError:
+        raise
+    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile) as exc:
+        raise DataError(f"cannot read {path!r} as .npz ({exc}); save it with {SAVEZ}") \
+            from None
 
 
 def _npz_arrays(path, payload, headers):
