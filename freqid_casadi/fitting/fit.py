@@ -698,7 +698,8 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
         found += after_fit(model, data, stats, dmax / w_ref, noise=noise)
     success, status, message, details, found = verdict(
         final[-1], stats, residual, data, found, int(n_sections), start, noise=noise)
-    message = spare_far_pair(not_usable_between_samples(message, check), model, data)
+    message = spare_far_pair(not_usable_between_samples(message, check, min_damping is not None),
+                             model, data)
     details = dict(details, start_skipped=skipped) if skipped else details
     return FitResult(model=model, stages=tuple(records), data=data, rel_error=stats.values,
                      max_rel_error=stats.max, rms_rel_error=stats.rms,
