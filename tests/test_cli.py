@@ -214,6 +214,8 @@ def test_fit_loop_switches_are_options(workdir, capsys, fake_fit, fast_figures):
     code, _, err = run(capsys, "fit", "plant.csv", "--sections", "2", "--no-hold-delay",
                        "--out", "rep2")
     assert fake_fit[1][1]["loop"] == fc.LoopOptions(hold_delay=False)
+    code, _, err = run(capsys, "example", "A", "--no-resolution-guard", "--out", "rep3")
+    assert code == 0 and fake_fit[2][1]["loop"] == fc.LoopOptions(resolution_guard=False)
     from freqid_casadi.cli.common import cli_words
 
     assert cli_words("refit kept; pass loop=LoopOptions(resolution_guard=False) to keep the "

@@ -585,6 +585,16 @@ def _add_model_arguments(p, tol=True, integrator="auto"):
                         f"(default {'auto' if integrator == 'auto' else 'none'})")
     p.add_argument("--no-delay", dest="delay", action="store_false",
                    help="fix the delay h at 0")
+    _add_loop_switches(p)
+    p.add_argument("--basis", choices=BASES, default="second-order",
+                   help="section type (default second-order)")
+    if tol:
+        p.add_argument("--tol", type=_positive_float, metavar="X",
+                       help="stop adding sections once the max relative error is below X")
+
+
+def _add_loop_switches(p):
+    """``--no-resolution-guard`` and ``--no-hold-delay`` (:func:`loop_option`)."""
     p.add_argument("--no-resolution-guard", dest="resolution_guard", action="store_false",
                    help="keep the fit as asked for when a pole or zero is narrower than the "
                         "frequency spacing (by default a refit with the damping floor of "
@@ -593,11 +603,6 @@ def _add_model_arguments(p, tol=True, integrator="auto"):
                    help="keep the free fit's delay when the data do not determine it (by "
                         "default it is held at a simpler fit's value when that explains "
                         "the data as well)")
-    p.add_argument("--basis", choices=BASES, default="second-order",
-                   help="section type (default second-order)")
-    if tol:
-        p.add_argument("--tol", type=_positive_float, metavar="X",
-                       help="stop adding sections once the max relative error is below X")
 
 
 def loop_option(args):

@@ -14,7 +14,8 @@ import warnings
 
 from . import app
 from .common import (_common, _g, _positive_int, _progress, _resolution_warning,
-                     cli_words, in_cli_words, method_option, print_continue_hint)
+                     _add_loop_switches, cli_words, in_cli_words, loop_option, method_option,
+                     print_continue_hint)
 from .fit import _min_damping
 from ..errors import ResolutionWarning
 from ..report.folder import check_out_dir, dense_error, write_fit_report
@@ -46,6 +47,7 @@ def add_cli(sub):
     p.add_argument("--min-damping", type=_min_damping, metavar="auto|ZETA",
                    help="floor on the damping ratio of every pole and zero; 'auto' ties it "
                         "to the frequency spacing (default none: the thesis's fit)")
+    _add_loop_switches(p)
     return p
 
 
@@ -72,7 +74,7 @@ def run_cli(args, command):
                          progress=_progress(args),
                          start=args.start, objective=args.objective,
                          **({"min_damping": args.min_damping}
-                            if args.min_damping is not None else {}))
+                            if args.min_damping is not None else {}), **loop_option(args))
     thesis = ex.thesis.as_dict() if ex.thesis is not None else None
     path = write_fit_report(in_cli_words(result), out, command=command,
                             force=args.force, title=f"Example {args.name}: {data.name}",
