@@ -252,10 +252,10 @@ def test_an_unconverged_fit_with_narrow_roots_offers_the_damping_floor_first():
                "error still fell 0.2 % per iteration; max rel. error 0.0021, RMS 0.00088 (the "
                "model is feasible and these errors are measured) — pass "
                "method=IpoptOptions(final_max_iter=2000) to continue")
-    out = not_usable_between_samples(message, check, floor_given=False)
+    out = not_usable_between_samples(message, check, None)
     assert out.endswith("— 1 pole(s)/zero(s) are narrower than the frequency spacing: refit "
                         "with min_damping='auto' (a damping floor from the spacing), or pass "
                         "method=IpoptOptions(final_max_iter=2000) to continue"), out
-    assert not_usable_between_samples(message, check, floor_given=True) == message
+    assert not_usable_between_samples(message, check, 'auto') == message
     assert not_usable_between_samples(message, ResolutionCheck(
-        ok=True, flags=(), narrow=(), n_sections=3, factor=1.0), floor_given=False) == message
+        ok=True, flags=(), narrow=(), n_sections=3, factor=1.0), None) == message

@@ -310,7 +310,7 @@ def spare_far_pair(message, model, data):
 USABLE = "usable: the residual is consistent with the noise"
 
 
-def not_usable_between_samples(message, check, floor_given=True):
+def not_usable_between_samples(message, check, min_damping="given"):
     """``message`` of an unconverged fit at the noise (:data:`USABLE`) restated when its
     resolution check failed: consistent at the samples, not determined between them (a
     published dam test: an undamped pole at the band's first point, +45 dB between the
@@ -322,8 +322,8 @@ def not_usable_between_samples(message, check, floor_given=True):
         The fit's message.
     check : ResolutionCheck or None
         Its resolution check (:func:`~freqid_casadi.fitting.validation.check_resolution`).
-    floor_given : bool
-        The fit had a damping floor (``min_damping``); if not, an unconverged fit's advice
+    min_damping : None, str or float
+        The fit's ``min_damping``: None (no floor given), an unconverged fit's advice
         starts with one (a transistor's S21: 554 s for ten times the iterations, 19 s to
         "ok" with ``min_damping='auto'``).
 
@@ -339,7 +339,7 @@ def not_usable_between_samples(message, check, floor_given=True):
         return (f"{message}; but {len(check.flags) + len(check.unresolved)} pole(s)/zero(s) "
                 "are narrower than the frequency spacing: the model between the samples is "
                 "not determined there (FitResult.resolution lists them)")
-    if message.startswith("not-converged") and not floor_given and " — " in message \
+    if message.startswith("not-converged") and min_damping is None and " — " in message \
             and "to rounding" not in message:
         n = len(check.flags) + len(check.unresolved)
         head, _, advice = message.partition(" — ")

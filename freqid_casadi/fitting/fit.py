@@ -690,16 +690,14 @@ def _fit(data_or_omega, response, *, n_sections, integrator, delay, basis, metho
                for r in records]
     scaled_omega, scaled_response = data.omega, data.response
     data = user_data     # stats stay the scaled problem's (no overflow at extreme omega)
-    final = _final_stages(records)
     check = _resolution_check(model, data.omega)
     with np.errstate(all="ignore"):     # extreme user scales: a check may give up, not warn
         residual = scaled_response / model_scaled.frequency_response(scaled_omega) - 1.0
         noise = residual_noise(residual, data.omega, data.weights)     # once, for both
         found += after_fit(model, data, stats, dmax / w_ref, noise=noise)
     success, status, message, details, found = verdict(
-        final[-1], stats, residual, data, found, int(n_sections), start, noise=noise)
-    message = spare_far_pair(not_usable_between_samples(message, check, min_damping is not None),
-                             model, data)
+        _final_stages(records)[-1], stats, residual, data, found, int(n_sections), start, noise)
+    message = spare_far_pair(not_usable_between_samples(message, check, min_damping), model, data)
     details = dict(details, start_skipped=skipped) if skipped else details
     return FitResult(model=model, stages=tuple(records), data=data, rel_error=stats.values,
                      max_rel_error=stats.max, rms_rel_error=stats.rms,
