@@ -333,10 +333,14 @@ def stage_errors(results_by_label, *, title=None, figsize=None, window=False):
         y = np.array([s.max_rel_error for s in stages], float)
         color = f"C{k}"
         ax.semilogy(x, y, "-o", color=color, ms=3.5, lw=1.1, label=lab)
-        final = [i for i, s in enumerate(stages) if s.stage > s.n_sections]
+        final = [i for i, s in enumerate(stages)
+                 if s.stage > s.n_sections or getattr(s.kind, "value", s.kind) == "final"]
+        n_points = getattr(getattr(res, "data", None), "n_points", None)
+        if not final and stages and n_points and stages[-1].window >= n_points:
+            final = [len(stages) - 1]    # the last section's window was all the data
         if final:
             ax.semilogy(x[final], y[final], "D", color=color, ms=6)
-            ax.annotate("final", (x[final[-1]], y[final[-1]]), xytext=(5, 5),
+            ax.annotate("final", (x[final[-1]], y[final[-1]]), xytext=(-4, 6), ha="right",
                         textcoords="offset points", fontsize="small", color=color)
         if window:
             yw = np.array([s.max_rel_error_window for s in stages], float)
