@@ -26,6 +26,7 @@ file failed or did not converge (the summary says which), 2 on a usage, option o
 Registered in :data:`freqid_casadi.cli.app.COMMANDS` (its :func:`add_cli` and :func:`run_cli`).
 """
 
+import collections
 import dataclasses
 import math
 import os
@@ -325,9 +326,7 @@ def run_cli(args, command):
     for item, f in zip(items, files):
         what = cli_words(item.result.summary()) if item.result is not None else item.error
         print(f"{item.status}: {one_line(os.path.basename(f))}: {one_line(what)}")
-    counts = {}
-    for item in items:
-        counts[item.status] = counts.get(item.status, 0) + 1
-    tally = ", ".join(f"{n} {status}" for status, n in counts.items())
+    tally = ", ".join(f"{n} {status}"
+                      for status, n in collections.Counter(i.status for i in items).items())
     print(f"{n_ok}/{len(items)} converged ({tally}); report: {path}")
     return 0 if n_ok == len(items) else 1

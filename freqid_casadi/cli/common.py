@@ -463,8 +463,12 @@ _CONTINUE = re.compile(r"method=(?:IpoptOptions|BarrierLMOptions)\(final_max_ite
 _ALTERNATIVE = re.compile(r" ?\(?FitResult\.alternatives\['(?:zeros=free|min_damping=None)'\]"
                           r"(?: holds (?:that model|it))?\)?")
 #: ``LoopOptions`` switches and the options of ``freqid fit`` that set them.
-_LOOP = {r"(?:pass )?(?:loop=)?LoopOptions\(resolution_guard=False\)": "pass --no-resolution-guard",
-         r"(?:pass )?(?:loop=)?LoopOptions\(hold_delay=False\)": "--no-hold-delay"}
+_LOOP = ((re.compile(r"(?:pass )?(?:loop=)?LoopOptions\(resolution_guard=False\)"),
+          "pass --no-resolution-guard"),
+         (re.compile(r"(?:pass )?(?:loop=)?LoopOptions\(hold_delay=False\)"),
+          "--no-hold-delay"))
+#: A held parameter, ``fixed={'dc_gain': K}``: ``--fix dc_gain=K``.
+_FIXED = re.compile(r"fixed=\{'(\w+)': ([^{}]+?)\}")
 
 
 def cli_words(text):
@@ -492,9 +496,9 @@ def cli_words(text):
         return f"{_FLAGS[key]} {value.strip(chr(39))}"
     text = _CONTINUE.sub(r"--final-max-iter \1", text)
     text = _ALTERNATIVE.sub("", text)
-    for pattern, option in _LOOP.items():
-        text = re.sub(pattern, option, text)
-    text = re.sub(r"fixed=\{'(\w+)': ([^{}]+?)\}", r"--fix \1=\2", text)
+    for pattern, option in _LOOP:
+        text = pattern.sub(option, text)
+    text = _FIXED.sub(r"--fix \1=\2", text)
     return _KEYWORD.sub(flag, text)
 
 

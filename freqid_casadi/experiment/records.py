@@ -25,7 +25,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..io import NUMBER, decode_text, shown_cell
+from ..io import NUMBER, decode_text, matrix_records, record_axis, shown_cell
 from ..errors import DataError, OptionError
 from ..io.loaders import (MAX_FILE_BYTES, MAX_ROWS, DataWarning, read_npz_arrays,
                           read_regular_file)
@@ -532,7 +532,8 @@ class DaqRecords:
         ndarray of float, shape (R, N), or None
         """
         m = self.matrices.get(name)
-        axis = None if m is None or m.dtype.kind not in "iuf" else _record_axis(m)
+        axis = (None if m is None or m.dtype.kind not in "iuf" else
+                record_axis(m, MAX_MATRIX_RECORDS))
         if axis is None:
             return None
         rows = np.asarray(m if axis == 0 else m.T, float)
@@ -711,9 +712,10 @@ _T_NAMES = ("t", "time", "times", "tt", "t_s", "time_s")
 def _mat_fs(path, arrays, n):
     """Sampling rate (Hz) that a ``.mat`` file states: a scalar ``fs`` (or ``SampleRate``
     ...) or ``dt``/``Ts`` (s), else a time vector ``t``/``time``/``times`` of the records'
-    length, or one more or less (whose unit the file does not say: a published motor bench's ``time`` counts
-    microseconds beside ``fs`` = 2500); None. A time vector whose rate differs from the
-    stated one by other than a power of 1000 (ms, us stamps) is noted."""
+    length, or one more or less (whose unit the file does not say: a published motor
+    bench's ``time`` counts microseconds beside ``fs`` = 2500); None. A time vector whose
+    rate differs from the stated one by other than a power of 1000 (ms, us stamps), or
+    one a stamp off the records, is noted."""
     stated = stamped = None
     for key, arr in arrays.items():
         last = key.rsplit(".", 1)[-1].lower()
@@ -778,28 +780,8 @@ def _matrix_rows(arrays):
     """``arrays`` with each real matrix of a few rows (or columns) of samples, as a
     benchmark stores its sensors (``Acceleration``, 3 x 73728, or 3 x 1 x 49152), also
     given row by row as vectors named as MATLAB indexes them: ``Acceleration(2,:)``
-    (``(:,2)`` for columns)."""
-    out = dict(arrays)
-    for key, a in arrays.items():
-        m = np.squeeze(a)
-        axis = _record_axis(m) if a.ndim >= 2 and a.dtype.kind in "iuf" else None
-        if axis == 0:
-            out.update({f"{key}({i + 1},:)": m[i] for i in range(m.shape[0])})
-        elif axis == 1:
-            out.update({f"{key}(:,{j + 1})": m[:, j] for j in range(m.shape[1])})
-    return out
-
-
-def _record_axis(m):
-    """0 when the rows of the matrix ``m`` are records (a few rows of 16 or more samples),
-    1 when its columns are, None otherwise (not a matrix, or too many of either)."""
-    if m.ndim != 2:
-        return None
-    if m.shape[0] <= min(m.shape[1], MAX_MATRIX_RECORDS) and m.shape[1] >= 16:
-        return 0
-    if m.shape[1] <= min(m.shape[0], MAX_MATRIX_RECORDS) and m.shape[0] >= 16:
-        return 1
-    return None
+    (``(:,2)`` for columns; :func:`~freqid_casadi.io.matrix_records`)."""
+    return {**arrays, **matrix_records(arrays, MAX_MATRIX_RECORDS)}
 
 
 def load_records_mat(path, min_records=2):

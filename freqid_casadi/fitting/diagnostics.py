@@ -795,10 +795,11 @@ def check_roots_below_band(model, data, fraction=BELOW_BAND):
                   "integrator_asked": int(asked)}
         others = model.zeros()[max(-k, 0):] if kind == "pole" else model.poles()[max(k, 0):]
         partners = others[np.abs(others) < w_min]
-        msg = (f"{low.size} {kind}(s) at |r| = {_freqs(low)} {fu}, far "
-               f"below the lowest data frequency {w_min:.4g} {fu}: the data cannot tell "
-               f"them from 0 and ask for {stands}")
-        if partners.size:
+        if not partners.size:
+            msg = (f"{low.size} {kind}(s) at |r| = {_freqs(low)} {fu}, far "
+                   f"below the lowest data frequency {w_min:.4g} {fu}: the data cannot tell "
+                   f"them from 0 and ask for {stands}")
+        else:
             # the actuator at 2 sections: a pole at 2.4e-7 with a zero at 0.05 rad/s, the
             # band from 0.77: a lag-lead step at the band's edge, G(0) = 2.1e5 for |G| = 1
             w0, g0 = _low_gain(model, w_min)

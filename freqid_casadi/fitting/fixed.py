@@ -259,10 +259,10 @@ def fit_with_fixed(run, data, fixed, *, delay, loop, method):
                                          zeta_min=res.zeta_min)
         res = _held_verdict(res, model, fit_data, record, fixed["dc_gain"])
         success = res.success
+        blamed = any(d.values.get("cause") == "held-gain" for d in res.diagnostics)
         cost = (f"; without it max rel. error {free.max_rel_error:.3g}, RMS "
                 f"{free.rms_rel_error:.3g}" if res.rms_rel_error > 1.1 * free.rms_rel_error
-                and res.rms_rel_error > ROUNDING_RMS
-                and "cause is the held dc_gain" not in res.message else "")
+                and res.rms_rel_error > ROUNDING_RMS and not blamed else "")
         k = model.structure.origin_order
         form = {1: "K0/s", -1: "K0 s"}.get(k, f"K0/s^{k}" if k > 0 else f"K0 s^{-k}")
         what = ("" if k == 0 else f" as K0 of {form} (the model has {abs(k)} "

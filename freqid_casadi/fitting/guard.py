@@ -122,10 +122,10 @@ def warn_unresolved(result, stacklevel):
     ratio = float(noise.get("ratio", math.nan))
     prune = "freqid_casadi.fitting.validation.prune_sections"
     given = getattr(getattr(result, "options", None), "min_damping", None) is not None
-    floor = (f"the damping floor given (zeta >= {getattr(result, 'zeta_min', 0) or 0:.3g}) "
-             "follows the "
-             "median spacing, wider than the spacing there" if given else "refit with "
-             "min_damping='auto' (a damping floor from the frequency spacing)")
+    zeta = getattr(result, "zeta_min", 0) or 0
+    floor = (f"the damping floor given (zeta >= {zeta:.3g}) follows the median spacing, "
+             "wider than the spacing there" if given else
+             "refit with min_damping='auto' (a damping floor from the frequency spacing)")
     if result.rms_rel_error <= ROUNDING_RMS:
         why = ("the fit is exact to rounding, so these are spare sections (more than the "
                "data need), placed where the data do not determine them; fit fewer "

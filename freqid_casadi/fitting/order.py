@@ -568,16 +568,15 @@ def _choice(results, steps, poles, k, reason, omega, peaks=0):
             f", but the next order moves its in-band poles by more than "
             f"{100 * MODE_TOLERANCE:.2g} %" if moved is not None and moved > MODE_TOLERANCE
             else "") + ", and more sections stopped lowering the RMS")
-    if reason == "no-improvement" and k + 1 < len(steps) and \
+    elif reason == "no-improvement" and k + 1 < len(steps) and \
             steps[k + 1].rms > 1.02 * step.rms:
         # a larger model cannot end worse at its optimum: the next fit stopped short (a
         # published line's S21: 10 sections at RMS 0.081 after 9 at 0.057)
-        why = why.replace("(the model class, not the order, limits this fit: see the other "
-                          "diagnostics)", (
-            f"(but the fit at {steps[k + 1].n_sections} sections ended above this one's "
-            "RMS, which a larger model cannot do at its optimum: that fit stopped short, "
-            f"so the order is not ruled out: fit n_sections={steps[k + 1].n_sections} on "
-            "its own, with start='best')"))
+        why = (_NONE + f", and more sections stopped lowering it (but the fit at "
+               f"{steps[k + 1].n_sections} sections ended above this one's RMS, which a "
+               "larger model cannot do at its optimum: that fit stopped short, so the order "
+               f"is not ruled out: fit n_sections={steps[k + 1].n_sections} on its own, "
+               "with start='best')")
     message = (f"n_sections='auto' chose {step.n_sections} section{plural}: {why} "
                f"({own}){nxt}; "
                f"orders tried ({rms}, x roughness; * with free zeros) {tried}")

@@ -315,11 +315,9 @@ def _layout_problem(cols):
             why = ("; a magnitude alone cannot be fitted: the model's delay and zeros need "
                    "the phase too")
         elif set(roles) == {"freq", "re", "complex"}:
+            as_im = [Column("im") if c.role == "complex" else c for c in cols]
             why = ("; if the column read as 'complex' holds the imaginary parts, name it im "
-                   "(columns='" + ",".join({"freq": "freq_hz" if c.unit == "hz" else "f",
-                                            "re": "re", "complex": "im"}[c.role]
-                                           if c.role != "skip" else "skip" for c in cols)
-                   + "')")
+                   f"(columns='{columns_option(as_im)}')")
         return ("the columns must be one frequency and real+imaginary, magnitude+phase or "
                 f"one complex column, got {', '.join(roles) or 'none'}{why}")
     return None

@@ -20,8 +20,9 @@ import numpy as np
 from ..errors import DataError
 from ._octave import is_octave_binary, is_octave_text, read_octave_arrays
 
-__all__ = ["read_mat_arrays", "records_hint", "spectrum_kind", "start_step_axis", "axis_variables",
-           "chosen_response", "response_parts", "matrix_channels", "MIN_RECORD"]
+__all__ = ["read_mat_arrays", "records_hint", "spectrum_kind", "start_step_axis",
+           "axis_variables", "chosen_response", "response_parts", "matrix_channels",
+           "matrix_records", "record_axis", "MIN_RECORD"]
 
 #: Shortest vector counted as a time record.
 MIN_RECORD = 16
@@ -180,6 +181,55 @@ def spectrum_kind(name):
     return None
 
 
+def record_axis(m, most):
+    """0 when the rows of the matrix ``m`` are records (at most ``most`` rows of
+    :data:`MIN_RECORD` or more samples), 1 when its columns are, None otherwise (not a
+    matrix, or too many of either).
+
+    Parameters
+    ----------
+    m : ndarray
+    most : int
+
+    Returns
+    -------
+    int or None
+    """
+    if m.ndim != 2:
+        return None
+    if m.shape[0] <= min(m.shape[1], most) and m.shape[1] >= MIN_RECORD:
+        return 0
+    if m.shape[1] <= min(m.shape[0], most) and m.shape[0] >= MIN_RECORD:
+        return 1
+    return None
+
+
+def matrix_records(arrays, most):
+    """The rows (or columns) of each real matrix of ``arrays`` whose rows (or columns) are
+    records (:func:`record_axis`), as vectors named as MATLAB indexes them:
+    ``Acceleration(2,:)``, ``inputvalues(:,1)``.
+
+    Parameters
+    ----------
+    arrays : dict of str to ndarray
+    most : int
+        Most records a matrix holds.
+
+    Returns
+    -------
+    dict of str to ndarray
+    """
+    out = {}
+    for key, a in arrays.items():
+        m = np.squeeze(a)
+        axis = record_axis(m, most) if a.ndim >= 2 and a.dtype.kind in "iuf" else None
+        if axis == 0:
+            out.update({f"{key}({i + 1},:)": m[i] for i in range(m.shape[0])})
+        elif axis == 1:
+            out.update({f"{key}(:,{j + 1})": m[:, j] for j in range(m.shape[1])})
+    return out
+
+
 def records_hint(path, arrays):
     """A DataError message when ``arrays`` look like time records (two or more real
     vectors of one length >= :data:`MIN_RECORD`, the columns of a matrix of at most
@@ -188,13 +238,7 @@ def records_hint(path, arrays):
         return None
     vectors = {k: a for k, a in arrays.items()
                if a.ndim == 1 and a.size >= MIN_RECORD and a.dtype.kind in "iuf"}
-    for key, a in arrays.items():
-        if a.ndim == 2 and a.dtype.kind in "iuf" and max(a.shape) >= MIN_RECORD \
-                and 1 < min(a.shape) <= RECORD_COLUMNS:
-            tall = a if a.shape[0] > a.shape[1] else a.T
-            name = "{0}(:,{1})" if a.shape[0] > a.shape[1] else "{0}({1},:)"
-            vectors.update({name.format(key, j + 1): tall[:, j]
-                            for j in range(tall.shape[1])})
+    vectors.update(matrix_records(arrays, RECORD_COLUMNS))
     by_size = {}
     for key, a in vectors.items():
         by_size.setdefault(a.size, []).append(key)

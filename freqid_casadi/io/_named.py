@@ -39,12 +39,33 @@ MAX_TABLE_COLUMNS = 16
 SAVEZ = "np.savez(path, omega=omega, response=response)"
 
 
-def named_response(path, arrays, channels, alias, parameter, columns, freq_unit, band, name):
-    """The one response of a ``.mat`` file's ``arrays`` that :func:`load_mat` reads
-    (``parameter`` chooses among ``arrays`` and the matrix ``channels``; ``alias``: see
-    :func:`_freq_axis`)."""
+def named_response(path, arrays, parameter, columns, freq_unit, band, name):
+    """The one response among a file's named ``arrays`` that ``load_mat`` and ``load_npz``
+    read (``parameter`` chooses among the arrays and an FRF matrix's channels).
+
+    Parameters
+    ----------
+    path : str
+        The file, for messages.
+    arrays : dict of str to ndarray
+        Its numeric variables (:func:`~freqid_casadi.io._mat.read_mat_arrays`).
+    parameter, columns, freq_unit, band, name
+        As ``load_mat``'s (``columns`` and ``freq_unit`` already parsed).
+
+    Returns
+    -------
+    FrequencyData
+    """
+    n, alias = frequency_axis(arrays)
+    return _response(path, arrays, n, matrix_channels(arrays, n), alias, parameter, columns,
+                     freq_unit, band, name)
+
+
+def _response(path, arrays, n, channels, alias, parameter, columns, freq_unit, band, name):
+    """:func:`named_response` with the axis's length ``n``, its name ``alias``
+    (:func:`frequency_axis`) and the matrix ``channels`` (``matrix_channels``) given."""
     if parameter is None:
-        parameter = _beside_spectra(path, arrays, alias)
+        parameter = _beside_spectra(path, arrays, n)
     if parameter is not None:
         arrays = chosen_response(path, {**arrays, **channels}, str(parameter),
                                  _freq_names(alias))
@@ -58,19 +79,18 @@ def named_response(path, arrays, channels, alias, parameter, columns, freq_unit,
     return _finish(path, omega, response, name, band=band, **band_unit(table.unit("freq")))
 
 
-def _complex_vectors(arrays, alias):
-    """The complex vectors of a ``.mat`` file as long as its frequency vector (any length
-    when it has none), in file order."""
-    n = frequency_axis(arrays)[0] if alias is None else np.size(arrays[alias])
+def _complex_vectors(arrays, n):
+    """The complex vectors of a ``.mat`` file as long as its frequency vector (``n``; any
+    length when 0: it has none), in file order."""
     return [k for k, a in arrays.items() if np.iscomplexobj(a) and np.ndim(a) == 1
             and np.size(a) > 1 and (not n or np.size(a) == n)]
 
 
-def _beside_spectra(path, arrays, alias):
+def _beside_spectra(path, arrays, n):
     """The one complex vector of a ``.mat`` file whose name does not say it is a spectrum
     (:func:`spectrum_kind`) when every other one is (an analyser's ``Hf_chan_2`` beside
     ``Hf_Cross_Spec_chan_2``), noted; else None (the file is read as it names itself)."""
-    found = _complex_vectors(arrays, alias)
+    found = _complex_vectors(arrays, n)
     spectra = [k for k in found if spectrum_kind(k)]
     if not spectra or len(found) - len(spectra) != 1:
         return None
@@ -88,7 +108,7 @@ def _spectra_words(names):
 def named_responses(where, arrays, freq_unit, columns, band):
     """Every response among a file's named ``arrays`` (:func:`_mat_all`)."""
     n, alias = frequency_axis(arrays)
-    one = (where, arrays, matrix_channels(arrays, n), alias)      # as load_mat reads it
+    one = (where, arrays, n, matrix_channels(arrays, n), alias)   # as load_mat reads it
     if not n and axis_variables(arrays):            # an axis of start and step: the
         sizes = {_response_length(a) for a in arrays.values()}   # responses' length
         sizes.discard(0)
@@ -107,8 +127,8 @@ def named_responses(where, arrays, freq_unit, columns, band):
                           stacklevel=3)
         names = kept
     if columns is not None or not n or len(names) < 2:
-        return [named_response(*one, None, columns, freq_unit, band, None)]
-    return [named_response(where, arrays, channels, alias, key, None, freq_unit, band, key)
+        return [_response(*one, None, columns, freq_unit, band, None)]
+    return [_response(where, arrays, n, channels, alias, key, None, freq_unit, band, key)
             for key in names]
 
 
@@ -169,7 +189,7 @@ def _several_channels(path, arrays, channels):
 def _mat_table(path, arrays, columns, freq_unit, alias=None):
     """A :class:`Table` from the numeric variables of a ``.mat`` file (see
     ``loaders.load_mat``); ``alias`` names a frequency vector outside the vocabulary
-    (:func:`_freq_axis`)."""
+    (:func:`frequency_axis`)."""
     named = {}
     if columns is None:
         for key, arr in arrays.items():
@@ -302,7 +322,7 @@ def _mat_matrix(path, arrays, columns, named):
         hint = records_hint(path, arrays) if columns is None else None
         if hint:
             raise DataError(hint)
-        found = _complex_vectors(arrays, None)
+        found = _complex_vectors(arrays, frequency_axis(arrays)[0])
         if columns is None and len(found) >= 2:
             first = next((k for k in found if not spectrum_kind(k)), found[0])
             shown = ", ".join(f"{k} (a {spectrum_kind(k)})" if spectrum_kind(k) else k

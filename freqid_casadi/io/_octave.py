@@ -16,9 +16,11 @@ function handle) the reader stops, keeps the variables before it and says so.
 """
 
 import re
+import warnings
 
 import numpy as np
 
+from ._readfile import DataWarning
 from ..errors import DataError
 
 __all__ = ["is_octave_text", "is_octave_binary", "read_octave_arrays"]
@@ -88,15 +90,21 @@ class _Lines:
 
     def _skippable(self, k):
         """Blank, or a comment that is no ``# key: value`` header (Octave's load skips
-        such lines between its blocks)."""
+        such lines between its blocks; its ``# Created by Octave 9, Tue ... 10:30:00``
+        line holds a colon but is no header)."""
         text = self.lines[k].strip()
-        return not text or (text[0] in "#%" and not _HEADER.match(text))
+        return not text or (text[0] in "#%" and (not _HEADER.match(text)
+                                                 or text.startswith("# Created by")))
+
+    def skip(self):
+        """Move past blank and comment lines."""
+        while self.k < len(self.lines) and self._skippable(self.k):
+            self.k += 1
 
     def header(self, key=None):
         """The next ``# key: value`` line as (key, value); blank and comment lines
         before it skipped."""
-        while self.k < len(self.lines) and self._skippable(self.k):
-            self.k += 1
+        self.skip()
         if self.k >= len(self.lines):
             self.fail(f"the file ends where '# {key or 'name'}:' was expected")
         m = _HEADER.match(self.lines[self.k].strip())
@@ -180,8 +188,7 @@ def _array(lines, complex_):
 
 
 def _range(lines):
-    while lines.k < len(lines.lines) and lines.lines[lines.k].lstrip().startswith("# base"):
-        lines.k += 1                     # the comment '# base, limit, increment[, reverse]'
+    lines.skip()                         # the comment '# base, limit, increment[, reverse]'
     if lines.k >= len(lines.lines):
         lines.fail("the file ends where a range's base, limit and increment were expected")
     text = lines.lines[lines.k]
@@ -246,9 +253,9 @@ def _dims(lines):
 
 def _struct_array(lines):
     shape = _dims(lines)
-    fields = _fields(lines, lines.count("length"))      # each a cell of `shape`
     n = int(np.prod(shape, dtype=object))
     lines.check_size(n, "struct array")
+    fields = _fields(lines, lines.count("length"))      # each a cell of `shape`
     items = [{} for _ in range(n)]
     for name, cell in fields.items():
         for k in range(n):
@@ -364,19 +371,12 @@ def read_octave_arrays(path, text, max_elements=None):
         A malformed block or a type this reader does not read, naming the line.
     """
     lines = _Lines(path, text, max_elements)
-    while lines.k < len(lines.lines) and (not lines.lines[lines.k].strip()
-                                          or lines.lines[lines.k].startswith("# Created")):
-        lines.k += 1
     out = {}
     while lines.peek_key() is not None:
         name = lines.header("name")[1]
         try:
             value = _squeezed(_value(lines, name))
         except _Unread as stop:
-            import warnings
-
-            from ._readfile import DataWarning
-
             warnings.warn(f"{path!r} (Octave text format), line {stop.line}: variable "
                           f"{stop.name!r} is of type {stop.kind!r}, which this reader does "
                           f"not read: read the {len(out)} variable(s) before it, not those "
@@ -384,8 +384,7 @@ def read_octave_arrays(path, text, max_elements=None):
             return out
         if value is not None:
             out[name] = value
-    while lines.k < len(lines.lines) and lines._skippable(lines.k):
-        lines.k += 1
+    lines.skip()
     if lines.k < len(lines.lines):
         lines.fail(f"{lines.lines[lines.k].strip()[:60]!r} is not a '# name:' line of a "
                    "variable")

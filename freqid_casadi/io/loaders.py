@@ -24,8 +24,8 @@ import zipfile
 
 import numpy as np
 
-from ._mat import matrix_channels, read_mat_arrays
-from ._named import SAVEZ, band_unit, frequency_axis, named_response, named_responses
+from ._mat import read_mat_arrays
+from ._named import SAVEZ, band_unit, named_response, named_responses
 from ._octave import is_octave_binary, is_octave_text
 from ._touchstone import is_touchstone, load_touchstone
 from ._traces import read_traces
@@ -37,10 +37,10 @@ from ._table import parse_columns, parse_freq_unit, read_table, table_response
 from ..core.data import FrequencyData
 from ..errors import DataError, OptionError
 
-__all__ = ["load", "load_all", "is_uff", "is_mat", "read_npz_arrays", "load_text", "load_csv", "load_npz", "load_mat",
-           "load_uff",
-           "load_touchstone", "is_touchstone", "parse_band", "save_csv",
-           "read_regular_file", "DataWarning", "MAX_FILE_BYTES", "MAX_ROWS", "MAX_ELEMENTS"]
+__all__ = ["load", "load_all", "is_uff", "is_mat", "read_npz_arrays", "load_text",
+           "load_csv", "load_npz", "load_mat", "load_uff", "load_touchstone", "is_touchstone",
+           "parse_band", "save_csv", "read_regular_file", "DataWarning", "MAX_FILE_BYTES",
+           "MAX_ROWS", "MAX_ELEMENTS"]
 
 
 _UFF_EXT = (".uff", ".unv", ".uf")
@@ -213,14 +213,21 @@ def is_mat(path):
         return False
     if os.fspath(path).lower().endswith(".mat"):
         return True
+    head = _head(path, 1200)
+    return head is not None and (is_octave_text(head) or is_octave_binary(head))
+
+
+def _head(path, size):
+    """The first ``size`` bytes of the regular file ``path``, or None (not a regular file,
+    or unreadable: a FIFO or a device is not opened, it may block; the reader names the
+    problem)."""
     try:
-        if not os.path.isfile(path):     # a FIFO or a device is not opened (it may block)
-            return False
+        if not os.path.isfile(path):
+            return None
         with open(path, "rb") as fh:
-            head = fh.read(1200)
-        return is_octave_text(head) or is_octave_binary(head)
-    except OSError:
-        return False
+            return fh.read(size)
+    except (OSError, TypeError, ValueError):
+        return None
 
 
 def is_uff(path):
@@ -244,14 +251,10 @@ def _looks_like_uff(path):
     line, then a dataset number such as ``58`` or ``58b``): analysers name their UFF
     exports ``.frf``, ``.ufd``, ``.asc``, ... and the binary ones hold NUL bytes a text
     reader refuses."""
-    try:
-        if not os.path.isfile(path):     # a FIFO or a device is not opened (it may block)
-            return False
-        with open(path, "rb") as fh:
-            head = fh.read(512).decode("latin-1")
-    except (OSError, TypeError, ValueError):
-        return False                     # the reader names the problem
-    lines = [line.strip() for line in head.splitlines() if line.strip()]
+    head = _head(path, 512)
+    if head is None:
+        return False
+    lines = [line.strip() for line in head.decode("latin-1").splitlines() if line.strip()]
     return len(lines) >= 2 and lines[0] == "-1" and re.match(r"\d+b?(\s|$)", lines[1]) \
         is not None
 
@@ -294,11 +297,12 @@ def refuse_options(path, *, record=None, parameter=None, columns=None, flag=Fals
                           f"{'arrays' if own else 'records'}: drop it")
 
 
-def _own_npz(path):
-    """Whether ``path`` is an ``.npz`` archive of this package's format (``omega`` or
-    ``freq_hz`` beside ``response``); False for anything unreadable (the reader says)."""
+def _own_npz(source):
+    """Whether ``source`` (a path or the file's bytes as a stream) is an ``.npz`` archive
+    of this package's format (``omega`` or ``freq_hz`` beside ``response``); False for
+    anything unreadable (the reader says)."""
     try:
-        with zipfile.ZipFile(path) as zf:
+        with zipfile.ZipFile(source) as zf:
             names = {n[:-4] if n.endswith(".npy") else n for n in zf.namelist()}
     except (OSError, zipfile.BadZipFile, zipfile.LargeZipFile, ValueError):
         return False
@@ -555,10 +559,9 @@ def load_npz(path, name=None, *, freq_unit=None, band=None, columns=None, parame
         missing = {freq_key, "response"} - keys
         if missing or parameter is not None or columns is not None:   # another program's
             arrays = _npz_arrays(path, payload, headers)
-            n, alias = frequency_axis(arrays)
             try:
-                return named_response(path, arrays, matrix_channels(arrays, n), alias, parameter,
-                                 parse_columns(columns), freq_unit, band, name)
+                return named_response(path, arrays, parameter, parse_columns(columns),
+                                      freq_unit, band, name)
             except DataError:
                 if keys & {"omega", "freq_hz", "response"}:     # this format, incomplete
                     raise DataError(f"{path!r} lacks array(s) {sorted(missing)}; save with "
@@ -643,29 +646,17 @@ def load_mat(path, name=None, *, freq_unit=None, columns=None, band=None, parame
     band = parse_band(band)
     path, payload = read_regular_file(path)
     arrays = read_mat_arrays(path, payload, MAX_ELEMENTS)
-    n, alias = frequency_axis(arrays)
-    return named_response(path, arrays, matrix_channels(arrays, n), alias, parameter, columns,
-                     freq_unit, band, name)
+    return named_response(path, arrays, parameter, columns, freq_unit, band, name)
 
 
 def _npz_all(path, freq_unit, columns, band):
     """Every response of an ``.npz`` archive: its one, as :func:`load_npz` reads it, for
     the package's own format; else as a ``.mat`` file's (:func:`_mat_all`)."""
     where, payload = read_regular_file(path)
-    if payload.startswith(b"\x93NUMPY"):
+    if payload.startswith(b"\x93NUMPY") or _own_npz(io.BytesIO(payload)):
         return [load_npz(path, freq_unit=freq_unit, band=band, columns=columns)]
-    try:
-        headers = _npz_headers(where, payload)
-        if {"response"} <= set(headers) and ({"omega", "freq_hz"} & set(headers)) \
-                and columns is None:
-            return [load_npz(path, freq_unit=freq_unit, band=band)]
-        arrays = _npz_arrays(where, payload, headers)
-    except DataError:
-        raise
-    except (OSError, ValueError, EOFError, zipfile.BadZipFile, zipfile.LargeZipFile) as exc:
-        raise DataError(f"cannot read {where!r} as .npz ({exc}); save it with {SAVEZ}") \
-            from None
-    return named_responses(where, arrays, freq_unit, parse_columns(columns), band)
+    return named_responses(where, read_npz_arrays(where, payload), freq_unit,
+                           parse_columns(columns), band)
 
 
 def _mat_all(path, freq_unit, columns, band):
