@@ -16,7 +16,7 @@ from . import app
 from .common import (_common, _g, _positive_int, _progress, _resolution_warning,
                      _add_loop_switches, cli_words, in_cli_words, loop_option, method_option,
                      print_continue_hint)
-from .fit import _min_damping
+from .fit import add_min_damping
 from ..errors import ResolutionWarning
 from ..report.folder import check_out_dir, dense_error, write_fit_report
 from ..report.formatting import text_table
@@ -44,9 +44,7 @@ def add_cli(sub):
                         f"fractional {FRACTIONAL_SECTIONS} first-order)")
     # the thesis's loop (its published numbers); --start best or rational to compare
     _common(p, out_required=False, start="sequential")
-    p.add_argument("--min-damping", type=_min_damping, metavar="auto|ZETA",
-                   help="floor on the damping ratio of every pole and zero; 'auto' ties it "
-                        "to the frequency spacing (default none: the thesis's fit)")
+    add_min_damping(p, "default none: the thesis's fit")
     _add_loop_switches(p)
     return p
 

@@ -85,10 +85,7 @@ def add_cli(sub):
                    help="with --sections auto: the largest order tried (default 16)")
     _add_model_arguments(p)
     _add_choices(p, "--gain-sign", "--zeros")
-    p.add_argument("--min-damping", type=_min_damping, metavar="auto|ZETA",
-                   help="floor on the damping ratio of every pole and zero; 'auto' ties it "
-                        "to the frequency spacing (for noisy data: no pole/zero pair "
-                        "narrower than the spacing)")
+    add_min_damping(p, "for noisy data: no pole/zero pair narrower than the spacing")
     p.add_argument("--fix", type=_fix_pair, action="append", metavar="KEY=VALUE",
                    help="hold a known parameter exactly (repeatable): delay=H (s) or "
                         "dc_gain=K (K0 with --integrator, else G(0))")
@@ -101,6 +98,19 @@ def add_cli(sub):
     # loop is skipped when the rational start already reaches the noise)
     _common(p, out_required=True, start="best")
     return p
+
+
+def add_min_damping(p, note):
+    """``--min-damping auto|ZETA`` (fit's ``min_damping``), ``note`` closing its help.
+
+    Parameters
+    ----------
+    p : argparse.ArgumentParser
+    note : str
+    """
+    p.add_argument("--min-damping", type=_min_damping, metavar="auto|ZETA",
+                   help="floor on the damping ratio of every pole and zero; 'auto' ties it "
+                        f"to the frequency spacing ({note})")
 
 
 def _jobs(text):

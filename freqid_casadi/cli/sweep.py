@@ -13,10 +13,9 @@ the table and, with ``--target``, the smallest order that meets it.
 
 import sys
 
-from .common import (_add_input, _add_model_arguments, _g, _positive_float, load_data,
-                     loop_option)
+from .common import (_add_choices, _add_input, _add_model_arguments, _g, _positive_float,
+                     load_data, loop_option)
 from ..errors import OptionError
-from ..fitting.fit import METHODS, STARTS
 from ..report.folder import check_out_dir
 from ..report.formatting import text_table
 from ..systems.examples import EXAMPLES
@@ -45,12 +44,7 @@ def add_cli(sub):
     p.add_argument("--target", type=_positive_float, metavar="X",
                    help="name the smallest order whose max relative error is <= X")
     _add_model_arguments(p, tol=False)
-    p.add_argument("--method", choices=METHODS, default="ipopt",
-                   help="stage solver: IPOPT with bounds or the thesis's barrier-LM "
-                        "(default ipopt)")
-    p.add_argument("--start", choices=STARTS, default="best",
-                   help="the thesis's sequential loop, the rational start, or both with the "
-                        "better kept (default best)")
+    _add_choices(p, "--method", "--start", defaults={"--start": "best"})
     p.add_argument("--out", required=True, metavar="DIR",
                    help="report folder to create (must not exist unless --force)")
     p.add_argument("--force", action="store_true",
