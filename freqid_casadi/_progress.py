@@ -3,7 +3,10 @@ stabilization survey, batches and the bootstrap all take ``progress`` and mean t
 
 - ``progress=False`` (or None): nothing.
 - ``progress=True``: a bar on a terminal (tqdm, one tick per record, the latest record's
-  summary beside it), silent when standard error is not a terminal (a log file, a pipe, CI).
+  summary beside it). When standard error is not a terminal (a log file, a pipe, CI, a
+  notebook) a run stays silent for its first ``HEARTBEAT`` seconds, then writes the latest
+  record's line, with the time elapsed, at most once per ``HEARTBEAT`` seconds: a short run
+  prints nothing, a long one shows it is alive.
 - ``progress="lines"``: one line per record on standard error, terminal or not (what the
   command line's ``--progress`` asks for when its output goes to a file).
 - ``progress=callable``: receives every record (a StageRecord, a SweepRow, ...); its return
@@ -13,6 +16,7 @@ stabilization survey, batches and the bootstrap all take ``progress`` and mean t
 import contextlib
 import numbers
 import sys
+import time
 
 from .errors import OptionError
 
@@ -20,6 +24,9 @@ __all__ = ["check_progress", "channel", "MODES"]
 
 #: The string values ``progress`` takes besides True, False, None and a callable.
 MODES = ("lines",)
+
+#: Seconds between two lines of ``progress=True`` when standard error is not a terminal.
+HEARTBEAT = 30.0
 
 
 def check_progress(progress, what="each record"):
@@ -68,8 +75,11 @@ def channel(progress, describe, *, total=None, unit="stage", what="each record")
             sys.stderr.flush()
         yield write
         return
-    if not progress or not _is_terminal(sys.stderr):
+    if not progress:
         yield _ignore
+        return
+    if not _is_terminal(sys.stderr):
+        yield _heartbeat(describe)
         return
     from tqdm import tqdm
 
@@ -92,6 +102,34 @@ def channel(progress, describe, *, total=None, unit="stage", what="each record")
 
 def _ignore(record):
     return None
+
+
+def _heartbeat(describe):
+    """``emit(record)`` writing the record's line, after the time elapsed, when at least
+    ``HEARTBEAT`` seconds have passed since the run began or since the last line."""
+    start = last = time.monotonic()
+
+    def beat(record):
+        nonlocal last
+        now = time.monotonic()
+        if now - last < HEARTBEAT:
+            return
+        last = now
+        sys.stderr.write(f"[{_elapsed(now - start)}] {describe(record)}\n")
+        sys.stderr.flush()
+    return beat
+
+
+def _elapsed(seconds):
+    """``"45 s"``, ``"3 min 05 s"``, ``"1 h 02 min"``."""
+    seconds = int(seconds)
+    if seconds < 60:
+        return f"{seconds} s"
+    minutes, seconds = divmod(seconds, 60)
+    if minutes < 60:
+        return f"{minutes} min {seconds:02d} s"
+    hours, minutes = divmod(minutes, 60)
+    return f"{hours} h {minutes:02d} min"
 
 
 def _is_terminal(stream):

@@ -196,8 +196,22 @@ def test_progress_lines_writes_one_line_per_stage(capsys):
 
 def test_progress_true_is_silent_off_a_terminal(capsys):
     _, data = two_section_data(n_points=80)
-    fc.fit(data, n_sections=2, integrator=True, progress=True)
+    fc.fit(data, n_sections=2, integrator=True, progress=True)     # well within 30 s
     assert capsys.readouterr().err == ""
+
+
+def test_progress_true_off_a_terminal_writes_a_line_per_heartbeat(monkeypatch, capsys):
+    # a long run in a log file or a pipe shows it is alive: the latest record's line, with
+    # the time elapsed, once HEARTBEAT seconds have passed since the start or the last line
+    from freqid_casadi import _progress
+
+    clock = iter([0.0, 10.0, 31.0, 40.0, 62.0, 3700.0])          # start, then one per record
+    monkeypatch.setattr(_progress.time, "monotonic", lambda: next(clock))
+    with _progress.channel(True, lambda r: f"record {r}") as emit:
+        for record in range(5):
+            emit(record)
+    assert capsys.readouterr().err.splitlines() == [
+        "[31 s] record 1", "[1 min 02 s] record 3", "[1 h 01 min] record 4"]
 
 
 def test_progress_true_draws_a_bar_on_a_terminal(monkeypatch, capsys):

@@ -13,8 +13,8 @@ Commands (one module of :mod:`freqid_casadi.cli` each, listed in :data:`COMMANDS
 
 Each command parses its arguments, calls the API (:func:`freqid_casadi.fitting.fit.fit`), writes a
 report folder (:func:`freqid_casadi.report.folder.write_fit_report`) and prints a short summary.
-Progress (one line per stage) goes to stderr when stderr is a terminal, or with
-``--progress``; ``--quiet`` silences it.
+Progress goes to stderr: a bar when stderr is a terminal, elsewhere a line per 30 s of a
+long run; ``--progress`` writes one line per stage, ``--quiet`` silences it.
 
 Errors: a :class:`~freqid_casadi.errors.FreqidError`, an ``OSError`` while writing, or a
 usage error prints one line ``error: <message>`` to stderr and returns 2;

@@ -556,8 +556,8 @@ def _common(p, *, out_required, start="sequential"):
                    help="replace an existing report folder (after the new one is complete)")
     g = p.add_mutually_exclusive_group()
     g.add_argument("--progress", dest="progress", action="store_true", default=None,
-                   help="print one line per stage to stderr (default when stderr is a "
-                        "terminal)")
+                   help="print one line per stage to stderr (default: a bar on a "
+                        "terminal, elsewhere a line per 30 s of a long run)")
     g.add_argument("--quiet", dest="progress", action="store_false",
                    help="no progress output")
 

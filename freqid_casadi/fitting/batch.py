@@ -169,8 +169,9 @@ def fit_many(datasets, *, n_jobs=1, scheduler=None, load_options=None, progress=
         Keywords of :func:`freqid_casadi.io.loaders.load` for the file paths (``freq_unit``,
         ``columns``).
     progress : bool, "lines" or callable, optional
-        True draws a bar on a terminal (silent otherwise), "lines" writes a line per
-        dataset to stderr, a callable receives each :class:`BatchItem` as it is done.
+        True draws a bar on a terminal (elsewhere a line per 30 s of a long run), "lines"
+        writes a line per dataset to stderr, a callable receives each :class:`BatchItem` as
+        it is done.
     **options
         Keyword arguments of :func:`freqid_casadi.fitting.fit.fit` (``n_sections`` is required).
 

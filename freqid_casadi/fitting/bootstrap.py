@@ -92,9 +92,9 @@ def bootstrap(model, data=None, *, n_boot=200, seed=0, n_jobs=1, refit=None, wei
     bound_tol : float
 
     progress : bool, "lines" or callable, optional
-        True draws a bar on a terminal (silent otherwise), "lines" writes a line per
-        replicate to stderr, a callable receives each replicate's parameter vector
-        (ndarray, NaN where the refit failed).
+        True draws a bar on a terminal (elsewhere a line per 30 s of a long run), "lines"
+        writes a line per replicate to stderr, a callable receives each replicate's
+        parameter vector (ndarray, NaN where the refit failed).
 
     Returns
     -------

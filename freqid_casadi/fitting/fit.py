@@ -370,9 +370,10 @@ def fit(data_or_omega, response=None, *, n_sections, integrator="auto", delay=Tr
         noisy data (it biases lightly damped modes narrower than the spacing); the value
         used is ``FitResult.zeta_min``.
     progress : bool, "lines" or callable
-        True draws a progress bar on a terminal and is silent otherwise; "lines" writes one
-        line per stage to stderr; a callable receives each StageRecord (the same channel as
-        fit_shared, sweep, stabilization, fit_many and bootstrap).
+        True draws a progress bar on a terminal and elsewhere writes a line per 30 s of a
+        long run; "lines" writes one line per stage to stderr; a callable receives each
+        StageRecord (the same channel as fit_shared, sweep, stabilization, fit_many and
+        bootstrap).
     loop : LoopOptions, optional
         Knobs of the main loop (gauge, new-section init, scaling, delay bound, final
         stage, derivative evaluation); default ``LoopOptions()``.

@@ -175,8 +175,9 @@ def sweep(data, orders, *, target=None, truth=None, dense_factor=10, progress=Fa
     dense_factor : int
         Points of the dense grid per data point (:func:`~freqid_casadi.core.data.dense_grid`).
     progress : bool, "lines" or callable, optional
-        True draws a bar on a terminal (silent otherwise), "lines" writes a line per order
-        to stderr, a callable receives each :class:`SweepRow` as it is done.
+        True draws a bar on a terminal (elsewhere a line per 30 s of a long run), "lines"
+        writes a line per order to stderr, a callable receives each :class:`SweepRow` as it
+        is done.
     incremental : bool
         With the sequential start (the default), an order one section above the previous
         is fitted only from the previous order's model with one more section at its

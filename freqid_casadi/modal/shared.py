@@ -517,9 +517,10 @@ def fit_shared(datas, n_sections, *, integrator=False, delay="per-channel",
         all channels (its cost grows with the sections there: pass start="sequential");
         ``details["start_skipped"]`` then says why.
     progress : bool, "lines" or callable
-        As for :func:`freqid_casadi.fit` (:mod:`freqid_casadi._progress`): True draws a
-        bar on a terminal (one tick per stage) and is silent otherwise; "lines" writes one
-        line per stage to stderr; a callable receives every :class:`SharedStage` record.
+        As for :func:`freqid_casadi.fit` (:mod:`freqid_casadi._progress`): True draws a bar
+        on a terminal (one tick per stage) and elsewhere writes a line per 30 s of a long
+        run; "lines" writes one line per stage to stderr; a callable receives every
+        :class:`SharedStage` record.
     delay_max : float, optional
         Largest delay (s); default :func:`~freqid_casadi.fitting.fit.default_delay_max`.
     method : IpoptOptions, optional

@@ -254,9 +254,9 @@ def stabilization(datas, orders=tuple(range(2, 41, 2)), *, freq_tol=0.01, dampin
         :attr:`StabilizationResult.selection_note` says why).
     progress : bool, "lines" or callable
         As for :func:`~freqid_casadi.modal.shared.fit_shared`, one record per order: True
-        draws a bar on a terminal (silent otherwise), "lines" writes one line per order to
-        stderr, a callable receives each :class:`StabilizationOrder` (with ``n_jobs > 1``
-        all of them once every order is done).
+        draws a bar on a terminal (elsewhere a line per 30 s of a long run), "lines" writes
+        one line per order to stderr, a callable receives each :class:`StabilizationOrder`
+        (with ``n_jobs > 1`` all of them once every order is done).
     estimator : {"rational", "full"}
         "rational" (default): each order is the shared-pole vector fitting that
         :func:`~freqid_casadi.fit_shared`'s rational start begins with

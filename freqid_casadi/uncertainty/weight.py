@@ -727,9 +727,9 @@ def fit_uncertainty_weight(result_or_omega, rel_error=None, *, order=2, margin=0
         :data:`WEIGHT_METHOD`, ``IpoptOptions(max_iter=500)``. The other fields must keep
         their defaults.
     progress : bool, "lines" or callable
-        One record per order solved (:mod:`freqid_casadi._progress`): True draws a bar on
-        a terminal (silent otherwise), "lines" writes a line per order to stderr, a
-        callable receives each order's :class:`WeightResult`.
+        One record per order solved (:mod:`freqid_casadi._progress`): True draws a bar on a
+        terminal (elsewhere a line per 30 s of a long run), "lines" writes a line per order
+        to stderr, a callable receives each order's :class:`WeightResult`.
     max_iter : int, optional
         Deprecated (FutureWarning): ``method=IpoptOptions(max_iter=k)``.
     verbose : bool, optional
