@@ -687,3 +687,74 @@ def test_a_labview_file_with_comma_separated_columns(tmp_path):
     np.testing.assert_array_equal(u2, u)
     np.testing.assert_array_equal(y2, y)
     assert fs == pytest.approx(5e5, rel=1e-12)
+
+
+def test_lines_of_the_grid_below_the_threshold_are_named_and_fill_grid_keeps_them(
+        tmp_path, monkeypatch, capsys):
+    # the odd-bin multisine with two lines 25 dB down (a measured force dipping at a
+    # resonance): left out by the -20 dB threshold, named with their level, kept by
+    # --fill-grid; --threshold 30 keeps them too (no other line is near)
+    monkeypatch.chdir(tmp_path)
+    u, y = _multisine(2)
+    U = np.fft.rfft(u[:PERIOD])
+    dips = [15, 17]
+    for k in dips:
+        U[k] *= 10 ** (-25 / 20)
+    scale = np.ones(PERIOD // 2 + 1)
+    scale[dips] = 10 ** (-25 / 20)
+    u1 = np.fft.irfft(U, PERIOD)
+    y1 = np.fft.irfft(np.fft.rfft(y[:PERIOD]) * scale, PERIOD)
+    _write(tmp_path / "rec.csv", np.tile(u1, 2), np.tile(y1, 2))
+    assert cli.main(["frf", "rec.csv", "--period", str(PERIOD), "--out", "a.csv"]) == 0
+    out = capsys.readouterr().out
+    assert "note: 2 line(s) of the excitation's grid (odd bins) inside the band" in out
+    assert "bins 15 (-25 dB), 17 (-25 dB)" in out and "pass --fill-grid" in out
+    assert load_csv("a.csv").n_points == BINS.size - 2
+    for extra in (["--fill-grid"], ["--threshold", "30"]):
+        assert cli.main(["frf", "rec.csv", "--period", str(PERIOD), "--out", "b.csv",
+                         "--force"] + extra) == 0
+        out = capsys.readouterr().out
+        assert "note:" not in out
+        data = load_csv("b.csv")
+        np.testing.assert_allclose(data.omega, 2 * np.pi * BINS / PERIOD, rtol=1e-12)
+        exact = 1 / (1 - 0.5 * np.exp(-1j * data.omega))
+        assert np.max(np.abs(data.response / exact - 1)) < 1e-9
+    assert "--fill-grid: kept 2 line(s)" in (cli.main(
+        ["frf", "rec.csv", "--period", str(PERIOD), "--out", "c.csv", "--fill-grid"]) == 0
+        and capsys.readouterr().out)
+
+
+def test_fill_grid_gives_the_robot_arms_lines(tmp_path, monkeypatch, capsys):
+    # DaISy 96-009: the measured torque dips at the arm's first resonance (bins 59, 61);
+    # with --fill-grid the command gives the 101 odd lines experiment.robot_arm() keeps
+    from freqid_casadi.experiment import ROBOT_ARM_FILE, dataset_path, robot_arm
+    monkeypatch.chdir(tmp_path)
+    shutil.copyfile(dataset_path(ROBOT_ARM_FILE), "robot_arm.dat")
+    assert cli.main(["frf", "robot_arm.dat", "--period", "1024", "--out", "a.csv"]) == 0
+    assert "bins 59 (-29.3 dB), 61 (-22.2 dB)" in capsys.readouterr().out
+    assert load_csv("a.csv").n_points == 99
+    assert cli.main(["frf", "robot_arm.dat", "--period", "1024", "--out", "b.csv",
+                     "--fill-grid"]) == 0
+    data, ref = load_csv("b.csv"), robot_arm().data
+    np.testing.assert_allclose(data.omega, ref.omega, rtol=1e-15)
+    np.testing.assert_allclose(data.response, ref.response, rtol=1e-12)
+
+
+@pytest.mark.parametrize("argv, match", [
+    (["--threshold", "0"], "--threshold: must be a finite number of decibels > 0"),
+    (["--threshold", "x"], "--threshold"),
+    (["--fill-grid", "--estimator", "h1", "--fs", "100"], None),
+])
+def test_threshold_and_fill_grid_option_errors(tmp_path, monkeypatch, capsys, argv, match):
+    monkeypatch.chdir(tmp_path)
+    u, y = _multisine(2)
+    _write(tmp_path / "rec.csv", u, y)
+    base = ["frf", "rec.csv", "--out", "a.csv"]
+    if "--estimator" not in argv:
+        base += ["--period", str(PERIOD)]
+    code = cli.main(base + argv)
+    err = capsys.readouterr().err
+    if match is None:               # --fill-grid is for a periodic excitation
+        assert code == 2 and "--fill-grid is for --estimator periodic" in err
+    else:
+        assert code == 2 and match in err

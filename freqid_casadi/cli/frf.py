@@ -48,7 +48,7 @@ from ..report.outputs import check_out_file
 
 from .._textio import atomic_write_text
 from ..errors import DataError, OptionError
-from ..experiment import (ESTIMATORS, frf_from_periodic, frf_from_realisations,
+from ..experiment import (ESTIMATORS, excitation_gaps, frf_from_periodic, frf_from_realisations,
                          frf_from_records, load_daq_records, load_records_mat,
                          load_records_table, lvm_segments)
 from .common import _ASCII_FLOAT, _ASCII_INT, _ascii, _checked   # the CLI's own type helpers
@@ -89,6 +89,12 @@ def _segment(text):
 def _fraction(text):
     return _checked(text, _FLOAT, lambda v: 0 <= v < 1, "must be a number in [0, 1)",
                     lambda v: f"must be a number in [0, 1), got {text!r}")
+
+
+def _decibels(text):
+    return _checked(text, _FLOAT, lambda v: math.isfinite(v) and v > 0,
+                    "must be a number of decibels > 0",
+                    lambda v: f"must be a finite number of decibels > 0, got {text!r}")
 
 
 def add_cli(subparsers):
@@ -152,6 +158,14 @@ def add_cli(subparsers):
                    help=".mat variable or DAQ channel of the generated excitation: only the "
                         "lines it excites are kept (a measured input holds noise at the "
                         "others)")
+    p.add_argument("--threshold", type=_decibels, metavar="DB",
+                   help="a line counts as excited when its power (of the input, or of "
+                        "--reference) is within DB decibels of the strongest line "
+                        "(default 20)")
+    p.add_argument("--fill-grid", action="store_true",
+                   help="periodic: keep every line of the excitation's grid (odd bins, "
+                        "every k-th bin) between the first and the last excited line, also "
+                        "where the measured input dips below the threshold")
     p.add_argument("--band", type=parse_band_text, metavar="LO:HI",
                    help="keep only the frequencies LO <= f <= HI (Hz with a sampling rate, "
                         "else rad/sample)")
@@ -560,6 +574,9 @@ def run_cli(args, command):
                           "a chirp or random test use --estimator h1")
     if estimator != "periodic" and period is not None:
         raise OptionError(f"--period is for a periodic excitation, not --estimator {estimator}")
+    if estimator != "periodic" and getattr(args, "fill_grid", False):
+        raise OptionError("--fill-grid is for --estimator periodic (the lines of a "
+                          "multisine's grid); a Welch estimate keeps every frequency")
     u, y, fs_file, ref = read_excitation(args)
     _check_realisations(u, y, ref, estimator)
     if not two_files and _is_lvm(args.records):
@@ -567,24 +584,28 @@ def run_cli(args, command):
     fs = getattr(args, "fs", None) or fs_file
     name = os.path.splitext(os.path.basename(os.fspath(args.y_file if two_files
                                                       else args.records)))[0]
+    threshold = 10.0 ** (-(getattr(args, "threshold", None) or DEFAULT_THRESHOLD_DB) / 10)
+    filled = 0
     if estimator == "periodic":
         skip = getattr(args, "skip_periods", 0) or 0
         try:
             est = (frf_from_realisations(u, y, period, fs=fs, skip_periods=skip, name=name,
-                                         references=ref) if u.ndim == 2 else
+                                         references=ref, threshold=threshold)
+                   if u.ndim == 2 else
                    frf_from_periodic(u, y, period, fs=fs, skip_periods=skip, name=name,
-                                     reference=ref))
+                                     reference=ref, threshold=threshold))
         except DataError as exc:        # the Python-only option, in this command's words
             raise DataError(str(exc).replace(
                 "give the right period, or pass allow_partial=True to drop the trailing "
                 "partial period", "or give the right period")) from None
+        est, filled = _filled(est, args, u, y, period, skip, ref)
     else:
         est = frf_from_records(u, y, fs=fs, estimator=estimator,
                                nperseg=getattr(args, "nperseg", None),
                                noverlap=getattr(args, "noverlap", None),
                                window=getattr(args, "window", "hann"),
                                min_coherence=getattr(args, "min_coherence", None), name=name,
-                               reference=ref)
+                               reference=ref, threshold=threshold)
     est = _in_band(est, getattr(args, "band", None))
     sidecar = stats_path(out) if est.variance is not None else None
     if sidecar is not None:
@@ -598,6 +619,11 @@ def run_cli(args, command):
     if stale is not None:
         os.remove(stale)
     _summary(est, out, sidecar)
+    if filled:
+        print(f"--fill-grid: kept {filled} line(s) of the excitation's grid below the "
+              "threshold")
+    elif estimator == "periodic" and u.ndim == 1 and ref is None:
+        _gaps_note(u, period, est.bins, skip, getattr(args, "threshold", None))
     return 0
 
 
@@ -649,6 +675,44 @@ def _in_band(est, band):
         print(f"band {band[0]:g}:{band[1]:g} {unit}: kept {int(keep.sum())} of {keep.size} "
               f"frequencies")
     return est.subset(keep)
+
+
+#: ``--threshold``'s default: a line within 20 dB of the strongest counts as excited.
+DEFAULT_THRESHOLD_DB = 20.0
+
+
+def _gaps_note(u, period, bins, skip, given):
+    """Which lines of the excitation's grid inside the band fell below the threshold."""
+    step, gaps = excitation_gaps(u, period, bins, skip_periods=skip)
+    if not gaps:
+        return
+    grid = "odd bins" if step == 2 and bins[0] % 2 else f"every {step}th bin"
+    shown = ", ".join(f"{k} ({v:.3g} dB)" for k, v in gaps[:8])
+    more = f" and {len(gaps) - 8} more" if len(gaps) > 8 else ""
+    fix = ("pass --fill-grid to keep them" if all(math.isfinite(v) for _, v in gaps)
+           else "they hold no input at all")
+    print(f"note: {len(gaps)} line(s) of the excitation's grid ({grid}) inside the band "
+          f"are below the threshold ({-(given or DEFAULT_THRESHOLD_DB):g} dB of the "
+          f"strongest line) and were left out: {'bins' if len(gaps) > 1 else 'bin'} "
+          f"{shown}{more}. A measured input (a "
+          "force, a torque) dips at a resonance of the structure it drives; an odd-random "
+          f"multisine leaves lines out on purpose. If they were excited, {fix}.")
+
+
+def _filled(est, args, u, y, period, skip, ref):
+    """``--fill-grid``: the estimate at every line of its excitation's grid, and how many
+    lines that added (the estimate as it was and 0 without the option)."""
+    if not getattr(args, "fill_grid", False):
+        return est, 0
+    if u.ndim != 1 or ref is not None:
+        raise OptionError("--fill-grid is for a single record without --reference (the "
+                          "reference's lines are the excited ones)")
+    step, gaps = excitation_gaps(u, period, est.bins, skip_periods=skip)
+    if not gaps:
+        return est, 0
+    bins = np.arange(est.bins[0], est.bins[-1] + 1, step)
+    return frf_from_periodic(u, y, period, fs=est.fs, skip_periods=skip, bins=bins,
+                             name=est.data.name), len(gaps)
 
 
 #: Median coherence of a Welch estimate below which ``freqid frf`` warns.

@@ -20,7 +20,7 @@ of Systems) and :func:`actuator_records` (servo-hydraulic actuator chirp test).
 """
 
 from ._common import FrfEstimate
-from .periodic import _detect_period, frf_from_periodic, frf_stepped_sine
+from .periodic import _detect_period, excitation_gaps, frf_from_periodic, frf_stepped_sine
 from .records import (ACTUATOR_FILE, ROBOT_ARM_FILE, SHARED_ENV, DaqRecords, LvmSegment,
                       _find_robot_arm, actuator_records, dataset_path, load_daisy,
                       load_daq_records, load_records_csv, load_records_mat,
@@ -33,6 +33,7 @@ __all__ = [
     "frf_from_periodic",
     "frf_from_realisations",
     "frf_stepped_sine",
+    "excitation_gaps",
     "frf_from_records",
     "ESTIMATORS",
     "load_records_csv",

@@ -19,7 +19,7 @@ from ..errors import DataError, OptionError
 from ._common import (_REL_VAR_FLOOR, FrfEstimate, _as_count, _as_fraction, _as_fs, _as_pair,
                       _normalised, _rms)
 
-__all__ = ["frf_from_periodic", "frf_stepped_sine"]
+__all__ = ["frf_from_periodic", "frf_stepped_sine", "excitation_gaps"]
 
 # --------------------------------------------------------------------------- periodic
 
@@ -195,6 +195,56 @@ def _excited_bins(U, R, threshold, period):
         noise = np.sum(np.abs(X - mean) ** 2, axis=0) / (X.shape[0] * (X.shape[0] - 1))
         keep &= power > 10 * noise
     return np.flatnonzero(keep)
+
+
+def excitation_gaps(u, period, bins, *, skip_periods=0):
+    """Lines of the excitation's grid left out inside the band, with the input's level.
+
+    The excited bins of a multisine usually lie on a grid (every odd bin, every 4th ...).
+    A measured input (a force, a torque) dips at a resonance of the structure it drives,
+    and a line there can fall below the detection threshold although it was excited;
+    an odd-random multisine leaves lines out on purpose (to detect distortions). This
+    lists the grid's lines between the first and the last bin kept that are not among
+    ``bins``, so the caller can say which.
+
+    Parameters
+    ----------
+    u : array_like of float, shape (N,)
+        The input record (whole periods after ``skip_periods`` are used).
+    period : int
+        Samples per period.
+    bins : array_like of int, shape (K,)
+        The bins kept (increasing).
+    skip_periods : int, optional
+        Leading periods left out.
+
+    Returns
+    -------
+    step : int
+        The grid's step (the greatest common divisor of the kept bins' spacings; 0 when
+        fewer than 3 bins are kept or the step is 1).
+    gaps : list of (int, float)
+        Each missing line's bin and the input's power there in dB relative to the
+        strongest line (averaged over the periods).
+    """
+    bins = np.asarray(bins, int).reshape(-1)
+    if bins.size < 3:
+        return 0, []
+    step = int(np.gcd.reduce(np.diff(bins)))
+    if step < 2:
+        return 0, []
+    grid = np.arange(bins[0], bins[-1] + 1, step)
+    missing = np.setdiff1d(grid, bins)
+    if not missing.size:
+        return step, []
+    u = np.asarray(u, float).reshape(-1)
+    n_whole = u.size // period
+    periods = u[skip_periods * period:n_whole * period].reshape(-1, period)
+    power = np.abs(np.fft.rfft(periods, axis=1).mean(axis=0)) ** 2
+    top = float(np.max(power[1:]))
+    with np.errstate(divide="ignore"):
+        level = 10.0 * np.log10(power[missing] / top)
+    return step, [(int(k), float(v)) for k, v in zip(missing, level)]
 
 
 def _check_finite_spectra(U, Y, u, y):
