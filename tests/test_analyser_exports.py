@@ -258,6 +258,44 @@ def test_impedance_names(name, role, unit):
     assert (col.role, col.unit) == (role, unit)
 
 
+@pytest.mark.parametrize("name, role, unit, negated", [
+    ("Re(Z)/Ohm", "re", None, False), ("-Im(Z)/Ohm", "im", None, True),
+    ("|Z|/Ohm", "mag", "lin", False), ("Phase(Z)/deg", "phase", "deg", False),
+    ("Zreal", "re", None, False), ("Zimag", "im", None, False), ("Zmod", "mag", "lin", False),
+    ("Zphz", "phase", "deg", False), ("Z'", "re", None, False), ("Z''", "im", None, False),
+    ("-Z'' (Ω)", "im", None, True), ('"-Z\'\'"', "im", None, True),
+    ("-Phase (°)", "phase", "deg", True), ("\u2212phase [rad]", "phase", "rad", True),
+    ("-im", "im", None, True), ("TR1: -Phase (deg)", "phase", "deg", True)])
+def test_impedance_analysers_names_and_negated_columns(name, role, unit, negated):
+    # EC-Lab, Gamry, ZView and Autolab name the impedance's parts their own way, and write
+    # -Im(Z) or -Phase (a capacitive impedance then reads positive): the reader negates
+    # them back
+    col = recognise(name)
+    assert (col.role, col.unit, col.negated) == (role, unit, negated)
+
+
+@pytest.mark.parametrize("name", ["-freq", "-mag", "-3dB", "-Zmod", "Zoom"])
+def test_a_minus_before_what_cannot_be_negated_is_no_column(name):
+    assert recognise(name) is None
+
+
+@pytest.mark.parametrize("header, columns", [
+    ("freq/Hz,Re(Z)/Ohm,-Im(Z)/Ohm", None), ("f,re,im", "freq_hz,re,-im"),
+    ("Frequency (Hz),|Z| (Ohm),-Phase (°)", None)])
+def test_a_negated_column_is_read_back_with_its_sign(tmp_path, header, columns):
+    # a capacitive impedance: 645.5 - 90.6j Ohm at 1 Hz, written as -Im(Z) = +90.6 (or
+    # -phase = +7.99 deg): read as written it would be conjugated
+    z = np.array([645.5 - 90.6j, 600.0 - 80.0j, 550.0 - 70.0j])
+    if "Phase" in header:
+        rows = [(abs(v), -np.degrees(np.angle(v))) for v in z]
+    else:
+        rows = [(v.real, -v.imag) for v in z]
+    text = header + "\n" + "".join(f"{k + 1},{float(a)!r},{float(b)!r}\n"
+                                    for k, (a, b) in enumerate(rows))
+    data = fc.load(_write(tmp_path, text, "z.csv"), columns=columns, freq_unit="Hz")
+    np.testing.assert_allclose(data.response, z, rtol=1e-12)
+
+
 # --------------------------------------------------------------------------- 4294A
 
 def _hp_block(trace, fmt, rows):
@@ -530,3 +568,53 @@ def test_a_table_of_time_samples_is_refused_as_such(tmp_path, text, first):
                            rf"response: its first column '{re.escape(first)}' counts time "
                            r".*freqid frf FILE --input NAME --output NAME"):
             fc.load(path)
+
+
+# ------------------------------------------------------------------ impedance analysers
+
+_EIS_Z = np.array([59.89103 - 11.25287j, 58.61285 - 0.965082j, 57.35844 - 14.09869j])
+_EIS_F = np.array([100019.5, 79511.72, 63105.47])
+
+
+def test_gamry_table_with_leading_tabs_and_its_units_line_reads_as_written(tmp_path):
+    # a Gamry Framework .DTA: metadata lines, 'ZCURVE TABLE', a header and a units line
+    # that begin with a tab (the units line's first cell '#'), columns the reader does
+    # not know around Freq, Zreal, Zimag, Zmod and Zphz (degrees); the sweep descends
+    rows = "".join(
+        f"\t{k}\t{7 + k}\t{f!r}\t{z.real!r}\t{z.imag!r}\t1\t{abs(z)!r}\t"
+        f"{float(np.degrees(np.angle(z)))!r}\t-1.4E-006\t-0.0006\t9\t0.0001651\t0.01"
+        "\t1395.2\n" for k, (f, z) in enumerate(zip(_EIS_F.tolist(), _EIS_Z.tolist())))
+    text = ("EXPLAIN\nTAG\tEISPOT\nTITLE\tLABEL\tPotentiostatic EIS\tTest Identifier\n"
+            "VFREQ\tQUANT\t100000\tInitial Freq. (Hz)\nZCURVE\tTABLE\n"
+            "\tPt\tTime\tFreq\tZreal\tZimag\tZsig\tZmod\tZphz\tIdc\tVdc\tIERange\tImod"
+            "\tVmod\tTemp\n\t#\ts\tHz\tohm\tohm\tV\tohm\t\u00b0\tA\tV\t#\tA\tV\t\u00b0C\n"
+            + rows)
+    path = tmp_path / "eis.DTA"
+    path.write_bytes(text.encode("cp1252"))
+    data, notes = _load(str(path))
+    np.testing.assert_allclose(data.omega, 2 * np.pi * _EIS_F[::-1], rtol=1e-15)
+    np.testing.assert_allclose(data.response, _EIS_Z[::-1], rtol=1e-15)
+    assert any("left out columns of names the reader does not know: 'Pt', 'Time', "
+               "'Zsig'" in n for n in notes)
+    assert any("columns 'Zmod', 'Zphz' give the same response" in n for n in notes)
+
+
+def test_ec_lab_and_zplot_exports_read_as_written(tmp_path):
+    # EC-Lab's -Im(Z) beside |Z| and Phase(Z) (checked against the parts); ZPlot's header
+    # followed by its 'End Comments' line before the data
+    z = _EIS_Z
+    lab = ("EC-Lab ASCII FILE\nNb header lines : 4\n\n"
+           "freq/Hz\tRe(Z)/Ohm\t-Im(Z)/Ohm\t|Z|/Ohm\tPhase(Z)/deg\ttime/s\tcycle number\t\n"
+           + "".join(f"{f:.7E}\t{v.real:.7E}\t{-v.imag:.7E}\t{abs(v):.7E}\t"
+                     f"{np.degrees(np.angle(v)):.7E}\t0.78\t1.0\t\n"
+                     for f, v in zip(_EIS_F, z)))
+    data, notes = _load(_write(tmp_path, lab, "eis.mpt"))
+    np.testing.assert_allclose(data.response, z[::-1], rtol=1e-7)
+    zplot = ("ZPLOT2 ASCII\n  Data Points:                3\n"
+             "  Freq(Hz)\tAmpl\tBias\tTime(Sec)\tZ'(a)\tZ''(b)\tGD\tErr\tRange\n"
+             "End Comments\n" + "".join(
+                 f"{f:.6E}\t1.0000E-02\t0.0000E+00\t2.67\t{v.real:.4E}\t{v.imag:.4E}\t0\t0\t3\n"
+                 for f, v in zip(_EIS_F, z)))
+    data, _ = _load(_write(tmp_path, zplot, "eis.z"))
+    np.testing.assert_allclose(data.omega, 2 * np.pi * _EIS_F[::-1], rtol=1e-6)
+    np.testing.assert_allclose(data.response, z[::-1], rtol=1e-4)

@@ -9,7 +9,8 @@ The text primitives below are shared with the time-record readers of
 from ._columns import parse_freq_unit
 from ._mat import matrix_records, read_mat_arrays, record_axis
 from ._readfile import parse_band, read_regular_file
-from ._table import NUMBER, decode_text, parse_columns, shown_cell
+from ._decode import decode_text
+from ._table import NUMBER, parse_columns, shown_cell
 
 __all__ = ["read_regular_file", "read_mat_arrays", "matrix_records", "record_axis",
            "parse_band", "NUMBER", "decode_text", "parse_columns", "parse_freq_unit",

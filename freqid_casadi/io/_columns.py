@@ -7,7 +7,7 @@ and a unit: :func:`recognise` reads one header cell or name, :func:`parse_column
 """
 
 import re
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 from ..errors import DataError, OptionError
 
@@ -57,6 +57,37 @@ _PHASE_UNIT = {"deg": "deg", "degree": "deg", "degrees": "deg", "°": "deg", "ra
                "radian": "rad", "radians": "rad"}
 _COMPLEX = {"complex", "response", "h", "g", "frf", "z", "h1", "h2", "hv", "txy", "tf",
             "impedance", "admittance"}
+#: An impedance analyser's names of the impedance's parts, magnitude and phase (Gamry's
+#: ``Zreal Zimag Zmod Zphz``, EC-Lab's ``Re(Z)/Ohm``, ZView's ``Z'`` and ``Z''``), with an
+#: optional unit after them (``/Ohm``, ``(Ω)``, ``[deg]``): each to its role; the phase is
+#: in degrees unless its unit says radians.
+_IMPEDANCE = re.compile(
+    r"(?P<name>re\s*\(\s*z\s*\)|im\s*\(\s*z\s*\)|\|\s*z\s*\||phase\s*\(\s*z\s*\)|z''|z\"|z'"
+    r"|z_?real|z_?re|z_?imag|z_?img|z_?im|z_?mod|z_?phz|z_?phase)"
+    r"\s*(?:/\s*(?P<din>[^/\[\]()]+)|[\[(]\s*(?P<unit>[^\])]*?)\s*[\])])?\s*")
+_IMPEDANCE_ROLE = {"re": "re", "z'": "re", "zreal": "re", "z_real": "re", "zre": "re",
+                   "z_re": "re", "im": "im", "z''": "im", 'z"': "im", "zimag": "im",
+                   "z_imag": "im", "zimg": "im", "z_img": "im", "zim": "im", "z_im": "im",
+                   "|z|": "mag", "zmod": "mag", "z_mod": "mag", "phase": "phase",
+                   "zphz": "phase", "z_phz": "phase", "zphase": "phase", "z_phase": "phase"}
+
+
+def _impedance_column(s, label):
+    """The :class:`Column` of an impedance analyser's name ``s`` (lower case), or None."""
+    m = _IMPEDANCE.fullmatch(s)
+    if m is None:
+        return None
+    name = re.sub(r"\s+", "", m.group("name"))
+    role = _IMPEDANCE_ROLE.get(name.split("(")[0] if "(" in name else name)
+    unit = (m.group("din") or m.group("unit") or "").strip()
+    if role == "phase":
+        angle = _UNITS.get(unit.replace(" ", ""), "deg") if unit else "deg"
+        return Column("phase", angle, label) if angle in ("deg", "rad") else None
+    if unit and _UNITS.get(unit) not in (None, "lin"):      # "Zmod (dB)", "Z' (deg)"
+        return Column("mag", "db", label) if role == "mag" and _UNITS[unit] == "db" else None
+    return Column(role, "lin" if role == "mag" else None, label)
+
+
 #: A network analyser's scattering parameter (``S21``) or receiver ratio (``A2/A1``,
 #: ``B/R1``, as Keysight's analysers name a ratioed measurement), a complex response like
 #: ``_COMPLEX``.
@@ -84,7 +115,8 @@ _LAYOUTS = ({"freq", "re", "im"}, {"freq", "mag", "phase"}, {"freq", "complex"})
 #: How to name columns, quoted in error messages.
 COLUMN_HELP = ("name each column: omega or w (rad/s), freq_hz or 'f [Hz]' (Hz), f/freq (unit "
                "from freq_unit); re, im; mag or mag_db with phase_deg or phase_rad; complex "
-               "(literals like 1+2j); skip")
+               "(literals like 1+2j); skip; a leading '-' negates re, im or a phase (-im "
+               "for a column of -Im(Z))")
 
 
 @dataclass(frozen=True)
@@ -92,12 +124,20 @@ class Column:
     """One column: ``role`` in freq/re/im/mag/phase/complex/skip, its ``unit`` (freq:
     'hz'/'rad/s'/None, mag: 'lin'/'db', phase: 'deg'/'rad'/None) and its ``label``;
     ``same``: for a skipped column that gives the response again in another form (an
-    analyser's second trace), the role it would have had (:func:`one_layout`)."""
+    analyser's second trace), the role it would have had (:func:`one_layout`);
+    ``negated``: the column holds minus the part or the phase (``-Im(Z)``, ``-Phase``, as
+    impedance analysers write), which the reader negates back."""
 
     role: str
     unit: str = None
     label: str = ""
     same: str = None
+    negated: bool = False
+
+
+#: What a leading minus may negate: a part or the phase (minus a frequency, a magnitude or
+#: a complex column means nothing a file would write).
+NEGATABLE = ("re", "im", "phase")
 
 
 def recognise(label):
@@ -112,8 +152,18 @@ def recognise(label):
                  channel.groups()[-1] if channel else None):
         col = recognise(name) if name else None
         if col is not None:
-            return Column(col.role, col.unit, label.strip())
-    s = label.strip().strip("\"'").strip().lower()
+            return replace(col, label=label.strip())
+    s = label.strip().lower()
+    if len(s) > 1 and s[0] in "\"'" and s[-1] == s[0]:       # a quoted cell, not Z'/Z''
+        s = s[1:-1].strip()
+    if s[:1] in ("-", "\u2212") and s[1:2].isalpha():       # "-Im(Z)", "-Phase (°)", "-im"
+        col = recognise(s[1:])
+        return (replace(col, label=label.strip(), negated=not col.negated)
+                if col is not None and col.role in NEGATABLE else None)
+    col = _impedance_column(s, label.strip())
+    if col is not None:
+        return col
+    s = s.strip("\"'").strip()
     unit = ""
     m = _UNIT_RE.match(s)
     if m:
@@ -219,10 +269,15 @@ def _formatted(fmt, unit, name):
 def _quantity(label):
     """The measured quantity a response column names: ``gain`` of ``TR2: Gain (Degree)``,
     ``s21`` of ``S21 Log Mag(dB)``."""
-    s = label.rpartition(":")[2].strip().strip("\"'").lower()
-    m = _UNIT_RE.match(s)
+    s = label.rpartition(":")[2].strip().lower()
+    bare = s[1:-1].strip() if len(s) > 1 and s[0] in "\"'" and s[-1] == s[0] else s
+    if _IMPEDANCE.fullmatch(bare.lstrip("-\u2212")):
+        return "z"                          # Re(Z), -Im(Z), |Z|, Zphz, Z'' ...
+    s = s.strip("\"'")
+    m = _UNIT_RE.match(s) or re.fullmatch(r"([^/]+)/[^/]*", s)          # "Phase/deg"
     s = (m.group(1) if m else s).strip()
-    return re.sub(r"[\s_\-]+(log[\s_\-]*mag|lin[\s_\-]*mag|phase|real|imag)$", "", s).strip()
+    s = re.sub(r"[\s_\-]+(log[\s_\-]*mag|lin[\s_\-]*mag|phase|real|imag)$", "", s).strip()
+    return "" if s in _PHASE | _DB else s       # a phase, or dB, of whatever quantity
 
 
 def one_layout(cols):
@@ -246,14 +301,14 @@ def one_layout(cols):
         return cols
     freq = [c for c in cols if c.role == "freq"]
     resp = [c for c in cols if c.role not in ("freq", "skip")]
-    if len(freq) != 1 or len({_quantity(c.label) for c in resp}) != 1:
+    if len(freq) != 1 or len({_quantity(c.label) for c in resp} - {""}) > 1:
         return cols
     roles = [c.role for c in cols]
     for want in (("re", "im"), ("complex",), ("mag", "phase")):
         if all(r in roles for r in want):
             keep = {roles.index(r) for r in want}          # the first column of each role
             return tuple(c if c.role in ("freq", "skip") or j in keep
-                         else Column("skip", c.unit, c.label, c.role)
+                         else replace(c, role="skip", same=c.role)
                          for j, c in enumerate(cols))
     return cols
 

@@ -7,7 +7,6 @@ digits, which a data file never means.
 """
 
 import cmath
-import codecs
 import math
 import re
 import warnings
@@ -18,6 +17,7 @@ import numpy as np
 from ._columns import (_UNITS, COLUMN_HELP, DERIVED, ChannelChoice, Column, _layout_problem,
                        columns_option, one_layout, parse_columns, parse_freq_unit, recognise,
                        several_responses, time_column, time_records, with_parameter)
+from ._decode import decode_text
 from ._headerless import check_guessed, suffix_columns
 from ._readfile import DataWarning
 from ..errors import DataError, OptionError
@@ -32,6 +32,7 @@ _DECIMAL_COMMA = re.compile(r"(?<=\d),(?=\d)", re.ASCII)
 #: Marks of a comment line: ``#``, ``%`` (MATLAB), ``!`` (Touchstone) and ``*`` (Room EQ
 #: Wizard's and ARTA's exports, FRD files).
 COMMENTS = ("#", "%", "!", "*")
+_CELL_MARK = re.compile(r"\t[#%!*]\t")
 #: LTspice's export of an AC analysis: a polar cell ``(<dB>dB,<deg>°)`` (the degree sign
 #: in any encoding's reading), a Cartesian cell ``<re>,<im>`` (both in exponent form, as
 #: LTspice writes them: a decimal comma ``1,5`` is not one), and a trace name ``V(out)``,
@@ -76,95 +77,6 @@ class Table:
 
 # --------------------------------------------------------------------------- text
 
-_DECLARED = re.compile(rb"(?:encoding|charset|code[ _-]?page)\s*[:=]?\s*[\"']?"
-                       rb"([A-Za-z][A-Za-z0-9_.:-]{1,30})", re.IGNORECASE)
-
-
-def _declared(payload):
-    """The codec a file's first lines declare (``encoding: latin-1``, ``charset=cp1252``,
-    ``Codepage: 1252``), as a Python codec name, or None."""
-    m = _DECLARED.search(payload[:4096])
-    if m is None:
-        return None
-    name = m.group(1).decode("ascii").rstrip(".:;-")
-    name = f"cp{name}" if name.isdigit() else name
-    try:
-        return codecs.lookup(name).name
-    except LookupError:
-        return None
-
-
-def _utf16(payload):
-    """Text of a UTF-16 file with a byte-order mark, or None when the bytes do not read as
-    mostly ASCII text that way (binary data that happens to start with 0xfffe)."""
-    if not payload.startswith((b"\xff\xfe", b"\xfe\xff")) or len(payload) % 2:
-        return None
-    try:
-        text = payload.decode("utf-16")
-    except UnicodeDecodeError:
-        return None
-    ascii_share = sum(ch.isascii() for ch in text) / max(len(text), 1)
-    return text if text and ascii_share > 0.9 and "\x00" not in text else None
-
-
-def decode_text(path, payload):
-    """The text of a file's bytes ``payload``.
-
-    UTF-8 first (a leading byte-order mark dropped); UTF-16 with a byte-order mark; else
-    the encoding the file declares in its first lines (``encoding: ...``), else
-    Windows-1252 (or Latin-1 where Windows-1252 leaves a byte undefined), as analysers on
-    Windows write (``m/s\u00b2`` in a unit line). A fallback is stated by a
-    :class:`~freqid_casadi.io._readfile.DataWarning` naming the first byte that is not
-    UTF-8.
-
-    Parameters
-    ----------
-    path : str
-        The file, for messages.
-    payload : bytes
-
-    Returns
-    -------
-    str
-
-    Raises
-    ------
-    DataError
-        NUL bytes (binary data, not text).
-    """
-    text = _utf16(payload)
-    if text is not None:
-        return text[1:] if text.startswith("\ufeff") else text
-    if b"\x00" in payload:
-        raise DataError(f"{path!r} is not a text CSV file (not UTF-8): it holds NUL bytes "
-                        "(binary data); export the data as UTF-8 text")
-    try:
-        text = payload.decode("utf-8")
-    except UnicodeDecodeError as exc:
-        text = _fallback(path, payload, exc)
-    return text[1:] if text.startswith("\ufeff") else text
-
-
-def _fallback(path, payload, exc):
-    line = payload[:exc.start].count(b"\n") + 1
-    declared = _declared(payload)
-    tried = [c for c in (declared, "cp1252", "latin-1") if c]
-    for codec in tried:
-        try:
-            text = payload.decode(codec)
-        except (UnicodeDecodeError, LookupError):
-            continue
-        shown = {"cp1252": "Windows-1252", "latin-1": "Latin-1",
-                 "iso8859-1": "Latin-1"}.get(codec, codec)
-        warnings.warn(f"{path!r} is not UTF-8 (byte 0x{payload[exc.start]:02x} on line "
-                      f"{line}): read as {shown}"
-                      f"{' (as it declares)' if codec == declared else ''}; save it as UTF-8 "
-                      "to silence this note", DataWarning, stacklevel=4)
-        return text
-    raise DataError(f"{path!r} is not UTF-8 text (byte 0x{payload[exc.start]:02x} on line "
-                    f"{line}); save the file as UTF-8 text")          # latin-1 never fails
-
-
 def _separator(first):
     if _spaced_commas(first):
         return None
@@ -189,8 +101,10 @@ def _splitter(sep):
 
 def _trimmed(cells):
     """``cells`` without the empty cell a trailing tab leaves (``1\t2\t3\t``, as some
-    analysers end every line)."""
-    return cells[:-1] if len(cells) > 1 and cells[-1] == "" else cells
+    analysers end every line) or a leading one (``\t1\t2\t3``: Gamry's tables)."""
+    if len(cells) > 1 and cells[-1] == "":
+        cells = cells[:-1]
+    return cells[1:] if len(cells) > 1 and cells[0] == "" else cells
 
 
 def _fast_values(rows, cols, sep):
@@ -263,7 +177,9 @@ def _content(path, text, max_rows):
     rows, comment = [], None
     for k, line in enumerate(text.split("\n")):
         line = line.rstrip()
-        if line.lstrip().startswith(COMMENTS):
+        # (a tab-separated row whose first cell is '#', as Gamry heads its units, is no
+        # comment: '\t#\ts\tHz\tohm')
+        if line.lstrip().startswith(COMMENTS) and not _CELL_MARK.match(line):
             note = line.lstrip().lstrip("".join(COMMENTS)).strip()  # '## f re im' too
             comment = (k + 1, note) if not rows and note else comment
         elif line.strip():
@@ -313,6 +229,8 @@ def _header_columns(path, cells, parameter=None, line=1):
     problem, choices = None, []
     if cols[0] is None and len(cells) > 1 and time_column(_clean(cells[0])):
         raise DataError(time_records(path, [_clean(c) for c in cells]))
+    if any(c is None for c in cols) and not ltspice:
+        cols = _known_layout(path, cells, cols, parameter)
     if any(c is None for c in cols):
         bad = cells[[c is None for c in cols].index(True)]
         problem = f"column {_clean(bad)!r} is not a known name"
@@ -337,6 +255,29 @@ def _header_columns(path, cells, parameter=None, line=1):
                       "capacitance, a quality or dissipation factor), not the response",
                       DataWarning, stacklevel=5)
     return tuple(cols)
+
+
+def _known_layout(path, cells, cols, parameter):
+    """``cols`` with the columns of unknown names skipped, when the known ones give one
+    frequency and one complete response (an impedance analyser's export beside its
+    time, potential, current and cycle columns), with a :class:`DataWarning` naming
+    what was read and what was left out; ``cols`` as given otherwise."""
+    trial = tuple(Column("skip", None, _clean(cells[j])) if c is None else c
+                  for j, c in enumerate(cols))
+    if parameter is not None:
+        try:
+            trial = with_parameter(trial, parameter, repr(path))
+        except DataError:
+            return cols
+    trial = one_layout(trial)
+    if [c.role for c in trial].count("freq") != 1 or _layout_problem(trial):
+        return cols
+    unknown = ", ".join(repr(_clean(cells[j])) for j, c in enumerate(cols) if c is None)
+    read = ", ".join(repr(c.label) for c in trial if c.role != "skip")
+    warnings.warn(f"{path!r}: read {read}; left out columns of names the reader does not "
+                  f"know: {unknown} (pass columns=..., command line --columns, to read "
+                  "others)", DataWarning, stacklevel=5)
+    return trial
 
 
 def _default_columns(path, cells):
@@ -482,8 +423,10 @@ def _header_at(text, sep, ncols):
         if how is not None and how not in text:
             continue
         cells = _splitter(how)(text)
-        cols = one_layout([recognise(_clean(c)) for c in cells])
-        if len(cells) == ncols and None not in cols and not _layout_problem(cols):
+        cols = one_layout([recognise(_clean(c)) or Column("skip", None, _clean(c))
+                           for c in cells])      # (names it does not know: see _known_layout)
+        if len(cells) == ncols and [c.role for c in cols].count("freq") == 1 \
+                and not _layout_problem(cols):
             return cells
     return None
 
@@ -503,12 +446,20 @@ def _with_units(cells, between):
         if not _unit_line(text):
             continue
         tokens = _unit_tokens(text)
-        units = [_FREQ_UNITS[tokens[0]]] + (
-            [t if _UNITS.get(t) in ("db", "deg", "rad") else "" for t in tokens[1:]]
-            if len(tokens) == len(cells) else [""] * (len(cells) - 1))
+        if len(tokens) == len(cells):        # each column's unit under it
+            units = [_FREQ_UNITS.get(t, "") if getattr(recognise(_clean(c)), "role", None)
+                     == "freq" else t if _UNITS.get(t) in ("db", "deg", "rad") else ""
+                     for c, t in zip(cells, tokens)]
+        elif tokens[0] in _FREQ_UNITS:
+            units = [_FREQ_UNITS[tokens[0]]] + [""] * (len(cells) - 1)
+        else:
+            continue
         out = []
         for cell, unit in zip(cells, units):
             col = recognise(_clean(cell))
+            if col is None:                  # a column of a name the reader does not know
+                out.append(_clean(cell))
+                continue
             has = col.unit is not None and col.role in ("freq", "phase") or (
                 col.role == "mag" and _UNIT_IN.search(cell))
             out.append(f"{_clean(cell)} [{unit}]" if unit and not has else _clean(cell))
@@ -547,8 +498,8 @@ def _preamble(path, rows, columns):
     if h == 0 and i == 1:
         return rows
     between = rows[h + 1:i]
-    if not all(_META.match(t) or _unit_line(t) or len(_row_cells(t)) == 1
-               for _, t in between):
+    if not all(_META.match(t) or _unit_line(t) or len(_row_cells(t)) == 1 or _END.match(t)
+               for _, t in between):             # (ZPlot's 'End Comments' line too)
         return rows              # the rows under the header are bad data: say so there
     cells = _with_units(_header_at(rows[h][1], sep, ncols), between)
     if h:                     # (a header with its unit line alone is the file's own layout)
@@ -627,8 +578,12 @@ def _metadata(rows):
 
 
 def _unit_line(text):
+    """Whether ``text`` is a line of units under a header: its first token a frequency
+    unit (``Hz  dB  deg``), or a frequency unit among tokens none of which is a number
+    (Gamry's ``#  s  Hz  ohm  ohm  V  ohm  °``)."""
     tokens = _unit_tokens(text)
-    return bool(tokens) and tokens[0] in _FREQ_UNITS
+    return bool(tokens) and (tokens[0] in _FREQ_UNITS or len(tokens) > 1 and any(
+        t in _FREQ_UNITS for t in tokens) and not any(_is_value(t) for t in tokens))
 
 
 def _note_preamble(path, skipped, what):
@@ -681,6 +636,9 @@ def read_table(path, payload, columns, freq_unit, max_rows, parameter=None, reco
         values = {c.role: fast[:, j] for j, c in enumerate(cols)}
     else:
         values = _slow_values(path, rows, cols, split)
+    for c in cols:                  # "-Im(Z)", "-Phase": the file holds minus the value
+        if c.negated:
+            values[c.role] = -values[c.role]
     dc = values["freq"] == 0      # rows at 0 Hz are dropped later (a DataWarning); their
     for role, v in values.items():  # response, often -inf dB or NaN there, is not checked
         if role != "freq" and dc.any():
@@ -714,6 +672,7 @@ def _check_same(table, rows, split):
             continue
         as_read = Column(col.same, col.unit, col.label)
         x = np.array([_parse_cell(table.path, line, as_read, row[j]) for line, row in cells])
+        x = -x if col.negated else x
         with np.errstate(over="ignore", invalid="ignore"):
             if col.same == "phase":
                 turn = np.angle(np.exp(1j * ((x if col.unit == "rad" else np.deg2rad(x))

@@ -31,7 +31,8 @@ import warnings
 
 import numpy as np
 
-from ._table import NUMBER, decode_text, shown_cell
+from ._decode import decode_text
+from ._table import NUMBER, shown_cell
 from ..errors import DataError, OptionError
 
 __all__ = ["load_touchstone", "is_touchstone"]

@@ -20,7 +20,8 @@ import numpy as np
 
 from ._columns import Column, recognise
 from ._readfile import DataWarning
-from ._table import NUMBER, Table, _clean, _lines, _row_cells, decode_text, shown_cell
+from ._decode import decode_text
+from ._table import NUMBER, Table, _clean, _lines, _row_cells, shown_cell
 from ..errors import DataError, OptionError
 
 __all__ = ["read_traces", "is_trace_export"]
