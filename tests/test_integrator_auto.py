@@ -204,6 +204,22 @@ def test_a_contender_that_is_effectively_the_winner_is_no_alternative():
     assert other["chosen"] == 0 and not other["ambiguous"] and other["runner_up"] == -1
 
 
+def test_fewer_roots_at_the_origin_and_a_lower_error_win_within_prefer_factor():
+    """settle_by_fits: the starts' choice within PREFER_FACTOR of a contender with a
+    smaller |k| and a lower error yields to it (a stepped line's S21: k = -2 at RMS
+    0.0572 kept over k = 0 at 0.0465), unless that contender's model has the choice's
+    roots below the band; a contender as simple with a higher error does not move it."""
+    from freqid_casadi.fitting.origin import PREFER_FACTOR, settle_by_fits
+    rec = {"contenders": [-2, 0, -1], "chosen": -2, "ambiguous": False, "runner_up": 0}
+    fits = {-2: 0.0572, 0: 0.0465, -1: 0.0554}
+    assert fits[-2] <= PREFER_FACTOR * fits[0]
+    assert settle_by_fits(rec, fits, {-2: -2, 0: 0, -1: -1})["chosen"] == 0
+    assert settle_by_fits(rec, fits, {-2: -2, 0: -2, -1: -2})["chosen"] == -2
+    # the lowest of the simpler ones: k = -1 below k = 0 here
+    assert settle_by_fits(rec, {-2: 0.06, 0: 0.059, -1: 0.05}, {})["chosen"] == -1
+    assert settle_by_fits(rec, {-2: 0.0134, 0: 0.0135, -1: 0.02}, {})["chosen"] == -2
+
+
 def test_an_ambiguous_choice_also_fits_the_model_without_roots_at_the_origin():
     """Seed 23's in-class case 117 (k = 0, a zero pair at 65 rad/s just below the band's
     87 rad/s, noise 0.17 %): the lowest bins rise at slope 2.2, and vector fitting's k = 0

@@ -285,7 +285,9 @@ def settle_by_fits(record, fits, effective=None):
     """The record once the choice among several contenders was settled by full fits.
 
     The lowest error wins unless the first contender (the starts' choice) is within
-    :data:`PREFER_FACTOR` of it (differences at the noise level do not move the choice);
+    :data:`PREFER_FACTOR` of it (differences at the noise level do not move the choice),
+    and a contender with fewer roots at the origin (a smaller ``|k|``) and a lower error
+    than that choice wins over it (unless its model has the choice's roots below the band);
     still ambiguous when another is within :data:`AMBIGUOUS_FACTOR` of the winner, unless
     that one's fitted model is effectively the winner's k (its roots far below the band
     stand for the winner's roots at the origin: the same model, no alternative).
@@ -309,6 +311,13 @@ def settle_by_fits(record, fits, effective=None):
     lowest = min(fits, key=lambda k: (fits[k], record["contenders"].index(k)))
     chosen = first if fits[first] <= PREFER_FACTOR * fits[lowest] else lowest
     eff = effective or {}
+    # fewer roots at the origin and a lower error: nothing argues for the chosen one's
+    # extra roots (a stepped line's S21: the starts chose k = -2, RMS 0.0572, where k = 0
+    # fitted to 0.0465); not when its model has the chosen one's roots below the band
+    simpler = [k for k in fits if abs(k) < abs(chosen) and fits[k] < fits[chosen]
+               and eff.get(k, k) != eff.get(chosen, chosen)]
+    if simpler:
+        chosen = min(simpler, key=lambda k: (fits[k], record["contenders"].index(k)))
     others = [k for k in fits if k != chosen and eff.get(k, k) != chosen]
     loser = min(others, key=lambda k: fits[k]) if others else None
     ambiguous = bool(loser is not None
