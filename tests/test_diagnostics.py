@@ -1,6 +1,7 @@
 """Diagnostics of data outside the model class (freqid_casadi.fitting.diagnostics)."""
 
 import math
+import re
 
 import numpy as np
 import pytest
@@ -391,3 +392,19 @@ def test_zeros_standing_for_zeros_at_the_origin_are_not_excess_phase():
     assert "non-minimum-phase" not in codes(res)
     assert not dg.check_minimum_phase(res.model, c.data, res.max_rel_error,
                                       res.rms_rel_error)
+
+
+def test_roots_below_band_with_an_undamped_pole_give_a_finite_low_gain():
+    # an impedance fit (CHI660E export) ended with an undamped pole pair at 3.4e-5 rad/s
+    # and a zero pair at 0.27 rad/s, both below the band's 0.63 rad/s: the message gave
+    # "|G| = nan at 3.364e-05 rad/s" (the model evaluated on its pole)
+    m = RationalDelayModel(Structure(1), [0.0, 1.0, 1.0, 0.5, 0.2656, 1.0, 0.0, 3.364e-5])
+    w = np.geomspace(0.63, 6.3e5, 40)
+    data = FrequencyData(w, m.frequency_response(w))
+    found = dg.check_roots_below_band(m, data)
+    msg = next(d.message for d in found if d.values.get("partner_roots"))
+    assert "nan" not in msg and "inf" not in msg
+    g = re.search(r"\(\|G\| = (\S+) at (\S+) rad/s", msg)
+    assert float(g.group(2)) == pytest.approx(0.5 * 3.364e-5)
+    assert float(g.group(1)) == pytest.approx(
+        abs(m.frequency_response(np.array([0.5 * 3.364e-5]))[0]), rel=1e-3)

@@ -939,7 +939,15 @@ def test_report_counts_poles_on_the_axis(tmp_path, no_figures):
     r2 = dataclasses.replace(r, model=m)
     s = report.fit_summary(r2, command="x")
     assert s["checks"]["stable"] and s["checks"]["n_poles_on_axis"] == 2
-    assert "2 pole(s) on the imaginary axis" in report.render_fit_summary(s)
+    md = report.render_fit_summary(s)
+    assert "| P_N stable | only marginally (" in md and "2 pole(s) on the imaginary axis" in md
+    # a zero pair on the axis is said of the minimum phase the same way
+    m = RationalDelayModel(Structure(1), [0.0, 1.0, 1.0, 0.0, 2.0, 1.0, 0.3, 3.0])
+    s = report.fit_summary(dataclasses.replace(r, model=m), command="x")
+    assert s["checks"]["n_zeros_on_axis"] == 2 and s["checks"]["n_poles_on_axis"] == 0
+    md = report.render_fit_summary(s)
+    assert "| P_N minimum phase | only marginally (" in md
+    assert "2 zero(s) on the imaginary axis" in md and "| P_N stable | yes (" in md
 
 
 @pytest.mark.parametrize("c", [(1.0, 0.0, 9.0), (1.0, 1e-300, 1.0), (2.0, 0.0, 1e-300),

@@ -748,6 +748,8 @@ def _low_gain(model, w_min):
     roots = np.concatenate([model.poles(), model.zeros()])
     roots = roots[(np.abs(roots) > 0) & (np.abs(roots) < w_min)]
     w = float(np.min(np.abs(roots))) if roots.size else w_min
+    if roots.size and roots[np.argmin(np.abs(roots))].real == 0:
+        w *= 0.5                    # an undamped root there (zeta = 0): below it
     return w, float(abs(model.frequency_response(np.array([w]))[0]))
 
 

@@ -282,8 +282,10 @@ def pole_zero(model, *, zoom=None, title=None, figsize=None, unit="rad/s"):
             if ncols == 2:
                 ax.set_title("all", fontsize="medium")
     axes[0].legend(loc="best", fontsize="small", framealpha=0.9)
-    stab = "stable" if model.is_stable() else "NOT stable"
-    mph = "minimum phase" if model.is_minimum_phase() else "NOT minimum phase"
+    stab = ("NOT stable" if not model.is_stable() else "stable" if
+            model.is_stable(strict=True) else "marginally stable: poles on the axis")
+    mph = ("NOT minimum phase" if not model.is_minimum_phase() else "minimum phase" if
+           model.is_minimum_phase(strict=True) else "zeros on the axis")
     fig.suptitle(title if title is not None else f"poles and zeros of $P_N$ ({stab}, {mph})")
     return fig
 

@@ -101,6 +101,7 @@ def fit_summary(result, *, command, title=None, thesis=None, truth=None, dense_f
             "stable": model.is_stable(),
             "minimum_phase": model.is_minimum_phase(),
             "n_poles_on_axis": int(model.poles_on_axis().size),
+            "n_zeros_on_axis": int(np.count_nonzero(zeros.real == 0)),
             "n_poles": int(poles.size),
             "n_zeros": int(zeros.size),
             "max_pole_real_part": float(np.max(poles.real)) if poles.size else None,
@@ -259,11 +260,15 @@ def _units(s):
     return unit, TIME_UNITS[unit]
 
 
-def _roots_check(ok, real_part, damping, what, unit="rad/s"):
-    """'yes'/'NO' with the largest real part and smallest damping of the poles or zeros."""
-    return ("yes" if ok else "NO") + (
+def _roots_check(ok, real_part, damping, what, unit="rad/s", on_axis=0):
+    """'yes'/'NO' with the largest real part and smallest damping of the poles or zeros;
+    'only marginally' when ``on_axis`` of them lie on the imaginary axis (undamped)."""
+    word = "NO" if not ok else "only marginally" if on_axis else "yes"
+    return word + (
         f" (largest real part of a {what}: {number(real_part)} {unit}, "
-        f"smallest damping ratio {number(damping)})" if real_part is not None else "")
+        f"smallest damping ratio {number(damping)})" if real_part is not None else "") + (
+        f", {on_axis} {what}(s) on the imaginary axis (undamped, zeta = 0, held at the "
+        "bound of the fit's damping)" if on_axis else "")
 
 
 def _origin_words(st):
@@ -313,11 +318,11 @@ def _overview_rows(s):
             f": {md_text(s['message'])}" if s.get("message") and not s["success"]
             and not s.get("status") else "") + _to_the_noise(s)),
         ("P_N stable", _roots_check(ck["stable"], ck["max_pole_real_part"],
-                                    ck["min_pole_damping"], "pole", fu) + (
-            f", {ck['n_poles_on_axis']} pole(s) on the imaginary axis (undamped, zeta = 0: "
-            "marginally stable)" if ck.get("n_poles_on_axis") else "")),
+                                    ck["min_pole_damping"], "pole", fu,
+                                    ck.get("n_poles_on_axis", 0))),
         ("P_N minimum phase", _roots_check(ck["minimum_phase"], ck["max_zero_real_part"],
-                                           ck["min_zero_damping"], "zero", fu)),
+                                           ck["min_zero_damping"], "zero", fu,
+                                           ck.get("n_zeros_on_axis", 0))),
     ]
     floor = (s.get("options") or {}).get("min_damping")
     if floor is not None:
