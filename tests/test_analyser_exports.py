@@ -618,3 +618,24 @@ def test_ec_lab_and_zplot_exports_read_as_written(tmp_path):
     data, _ = _load(_write(tmp_path, zplot, "eis.z"))
     np.testing.assert_allclose(data.omega, 2 * np.pi * _EIS_F[::-1], rtol=1e-6)
     np.testing.assert_allclose(data.response, z[::-1], rtol=1e-4)
+
+
+def test_degrees_in_a_column_said_to_be_radians_are_refused(tmp_path):
+    # a phase in degrees under the header phase_rad read as radians gave a fit at RMS 1
+    # ("check the data"): values within +-180 that jump by 356 between two rows are
+    # degrees wrapping
+    f = np.array([10.0, 20.0, 30.0, 40.0])
+    deg = np.array([-170.0, -178.0, 178.0, 170.0])
+    text = "freq_hz,mag_db,phase_rad\n"
+    text += "".join(f"{a!r},-3.0,{b!r}\n" for a, b in zip(f.tolist(), deg.tolist()))
+    path = _write(tmp_path, text, "m.csv")
+    with pytest.raises(DataError, match=r"column 'phase_rad' is read in radians, but its "
+                       r"values wrap as a phase in degrees does \(-178 then 178 on lines 3 "
+                       r"and 4, all within \+-180\); if it is in degrees, pass "
+                       r"columns='freq_hz,mag_db,phase_deg'"):
+        fc.load(path)
+    # an unwrapped phase in radians beyond a turn is no such thing
+    text = "freq_hz,mag_db,phase_rad\n" + "".join(
+        f"{a!r},-3.0,{-2.0 * a!r}\n" for a in f.tolist())
+    data = fc.load(_write(tmp_path, text, "r.csv"))
+    np.testing.assert_allclose(data.response, 10 ** (-3 / 20) * np.exp(-2j * f), rtol=1e-12)

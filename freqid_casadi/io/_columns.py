@@ -356,7 +356,8 @@ def columns_option(cols):
         if c.role == "phase":
             return {"deg": "phase_deg", "rad": "phase_rad"}.get(c.unit, "phase")
         return c.role
-    return ",".join(name(c) for c in cols)
+    return ",".join(("-" if c.negated and c.role in NEGATABLE else "") + name(c)
+                    for c in cols)
 
 
 def _layout_problem(cols):

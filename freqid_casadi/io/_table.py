@@ -10,7 +10,7 @@ import cmath
 import math
 import re
 import warnings
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -18,7 +18,7 @@ from ._columns import (_UNITS, COLUMN_HELP, DERIVED, ChannelChoice, Column, _lay
                        columns_option, one_layout, parse_columns, parse_freq_unit, recognise,
                        several_responses, time_column, time_records, with_parameter)
 from ._decode import decode_text
-from ._headerless import check_guessed, suffix_columns
+from ._headerless import WRAP_JUMP, check_guessed, suffix_columns
 from ._readfile import DataWarning
 from ..errors import DataError, OptionError
 
@@ -811,6 +811,23 @@ def table_response(table):
     return omega, response
 
 
+def _check_radians(table, phase):
+    """DataError when a phase column said to be in radians wraps as degrees do: within
+    +-180, beyond a turn, and jumping by more than ``WRAP_JUMP`` between two rows."""
+    jumps = np.abs(np.diff(phase))
+    if phase.size < 3 or np.max(np.abs(phase)) > 180 or np.max(np.abs(phase)) <= 2 * np.pi \
+            or not np.any(jumps > WRAP_JUMP):
+        return
+    j = int(np.argmax(jumps > WRAP_JUMP))
+    cols = tuple(replace(c, unit="deg") if c.role == "phase" else c for c in table.columns)
+    raise DataError(
+        f"{table.path!r}: column {table.label('phase')!r} is read in radians, but its values "
+        f"wrap as a phase in degrees does ({float(phase[j]):g} then {float(phase[j + 1]):g} "
+        f"on {table.where}s {int(table.rows[j])} and {int(table.rows[j + 1])}, all within "
+        f"+-180); if it is in degrees, pass columns='{columns_option(cols)}' (command "
+        "line --columns)")
+
+
 def _response(table):
     v = table.values
     if "complex" in v:
@@ -835,6 +852,8 @@ def _response(table):
         raise DataError(f"{table.at(i)}, column {table.label('mag')!r}: magnitude "
                         f"{float(mag[i])!r} is negative; give |G| >= 0 (a sign belongs in the "
                         "phase)")
+    if table.unit("phase") == "rad":
+        _check_radians(table, v["phase"])
     phase = v["phase"] if table.unit("phase") == "rad" else np.deg2rad(v["phase"])
     with np.errstate(over="ignore", invalid="ignore"):
         response = mag * np.exp(1j * phase)
