@@ -639,3 +639,39 @@ def test_degrees_in_a_column_said_to_be_radians_are_refused(tmp_path):
         f"{a!r},-3.0,{-2.0 * a!r}\n" for a in f.tolist())
     data = fc.load(_write(tmp_path, text, "r.csv"))
     np.testing.assert_allclose(data.response, 10 ** (-3 / 20) * np.exp(-2j * f), rtol=1e-12)
+
+
+# ------------------------------------------------------------------- field solvers
+
+@pytest.mark.parametrize("label, scale", [
+    ("Freq [MHz]", 1e6), ("Freq [GHz]", 1e9), ("f/kHz", 1e3), ("Frequency (mHz)", 1e-3),
+    ("F [THz]", 1e12), ("Freq [Hz]", 1.0)])
+def test_frequency_units_with_a_prefix(label, scale):
+    # Ansys exports 'Freq [GHz]'; an impedance analyser may write mHz (milli, not mega)
+    col = recognise(label)
+    assert (col.role, col.unit, col.scale) == ("freq", "hz", scale)
+
+
+def test_ansys_exports_read_as_written(tmp_path):
+    # an Ansys Circuit/Designer CSV: frequencies in GHz or MHz, each column a function of
+    # a quantity whose name holds the separator inside its quotes; of several quantities,
+    # parameter= reads one and load_all each
+    one = ('"Freq [GHz]","dB(S(Port1,Port2)) []","ang_deg(S(Port1,Port2)) [deg]"\n'
+           "1,-3.0,-10\n1.1,-3.2,-20\n1.2,-3.5,-30\n")
+    data = fc.load(_write(tmp_path, one, "s.csv"))
+    np.testing.assert_allclose(data.omega, 2 * np.pi * np.array([1.0, 1.1, 1.2]) * 1e9,
+                               rtol=1e-15)
+    np.testing.assert_allclose(data.response, _polar([-3.0, -3.2, -3.5], [-10, -20, -30]),
+                               rtol=1e-14)
+    two = ('"Freq [MHz]","mag(V(V1)) [V]","mag(V(V2)) [V]","ang_deg(V(V1)) [deg]",'
+           '"ang_deg(V(V2)) [deg]"\n10,19.34,20.85,-10.64,-9.28\n50,7.50,12.52,-29.85,-44.23\n'
+           "100,3.1,5.2,-60.1,-80.3\n")
+    path = _write(tmp_path, two, "v.csv")
+    with pytest.raises(DataError, match=r"its columns give 2 quantities \(V\(V1\), V\(V2\)\): "
+                       r"pass parameter='V\(V1\)'"):
+        fc.load(path)
+    v2 = fc.load(path, parameter="V(V2)")
+    np.testing.assert_allclose(v2.omega, 2 * np.pi * np.array([10.0, 50.0, 100.0]) * 1e6)
+    np.testing.assert_allclose(v2.response, np.array([20.85, 12.52, 5.2]) * np.exp(
+        1j * np.deg2rad([-9.28, -44.23, -80.3])), rtol=1e-14)
+    assert [d.name for d in fc.load_all(path)] == ["V(V1)", "V(V2)"]

@@ -40,6 +40,10 @@ _SUFFIXES = ("_rad_sample", "_rad_s", "_rads", "_hz", "_db", "_degrees", "_deg",
 _FREQ = {"omega": "rad/s", "w": "rad/s", "f": None, "freq": None, "frequency": None,
          "freqency": None, "hz": "hz", "frequenz": None, "frecuencia": None,
          "fréquence": None, "frequence": None, "frequenza": None}
+#: Frequency units with an SI prefix, as field solvers and network analysers write them
+#: (``Freq [GHz]``), and each prefix's factor (``m``: milli, ``M``: mega, as written).
+_PREFIXED_HZ = {"khz", "mhz", "ghz", "thz"}
+_HZ_PREFIX = {"k": 1e3, "M": 1e6, "m": 1e-3, "g": 1e9, "t": 1e12}
 _RE = {"re", "real"}
 _IM = {"im", "imag", "imaginary"}
 #: (``spl``: a sound pressure level, ``SPL(dB)`` in Room EQ Wizard's exports; ``|z|``:
@@ -70,6 +74,18 @@ _IMPEDANCE_ROLE = {"re": "re", "z'": "re", "zreal": "re", "z_real": "re", "zre":
                    "z_imag": "im", "zimg": "im", "z_img": "im", "zim": "im", "z_im": "im",
                    "|z|": "mag", "zmod": "mag", "z_mod": "mag", "phase": "phase",
                    "zphz": "phase", "z_phz": "phase", "zphase": "phase", "z_phase": "phase"}
+
+
+#: A field solver's column of a function of a quantity (Ansys HFSS / Circuit / Designer
+#: exports: ``mag(S(Port1,Port1)) []``, ``dB(S(1,2))``, ``ang_deg(V(V1)) [deg]``,
+#: ``re(Z(1,1))``): the function's role and unit; the quantity is the column's channel.
+_FUNCTION = re.compile(r"(mag|db|db20|ang_deg|ang_rad|cang_deg|cang_rad|re|im|real|imag)"
+                       r"\((.+)\)\s*(?:\[[^\]]*\])?")
+_FUNCTION_ROLE = {"mag": ("mag", "lin"), "db": ("mag", "db"), "db20": ("mag", "db"),
+                  "ang_deg": ("phase", "deg"), "cang_deg": ("phase", "deg"),
+                  "ang_rad": ("phase", "rad"), "cang_rad": ("phase", "rad"),
+                  "re": ("re", None), "real": ("re", None), "im": ("im", None),
+                  "imag": ("im", None)}
 
 
 def _impedance_column(s, label):
@@ -126,13 +142,15 @@ class Column:
     ``same``: for a skipped column that gives the response again in another form (an
     analyser's second trace), the role it would have had (:func:`one_layout`);
     ``negated``: the column holds minus the part or the phase (``-Im(Z)``, ``-Phase``, as
-    impedance analysers write), which the reader negates back."""
+    impedance analysers write), which the reader negates back; ``scale``: a frequency
+    column's values times ``scale`` are in its ``unit`` (1e6 for ``Freq [MHz]``)."""
 
     role: str
     unit: str = None
     label: str = ""
     same: str = None
     negated: bool = False
+    scale: float = 1.0
 
 
 #: What a leading minus may negate: a part or the phase (minus a frequency, a magnitude or
@@ -163,13 +181,20 @@ def recognise(label):
     col = _impedance_column(s, label.strip())
     if col is not None:
         return col
+    m = _FUNCTION.fullmatch(s)
+    if m:
+        return Column(*_FUNCTION_ROLE[m.group(1)], label.strip())
     s = s.strip("\"'").strip()
     unit = ""
     m = _UNIT_RE.match(s)
     if m:
         s, unit = m.group(1).strip(), m.group(2).strip()
-    elif "/" in s and s.partition("/")[2].replace(" ", "") in _UNITS:    # DIN: "f/Hz"
-        s, _, unit = s.partition("/")
+    elif "/" in s and s.partition("/")[2].replace(" ", "") in _UNITS.keys() | _PREFIXED_HZ:
+        s, _, unit = s.partition("/")                                   # DIN: "f/Hz"
+    scale = 1.0
+    if unit.replace(" ", "") in _PREFIXED_HZ:     # "Freq [MHz]", "f/kHz" (and mHz: milli)
+        prefix = re.search(r"([kmgtKMGT])\s*hz", label, re.IGNORECASE).group(1)
+        scale, unit = _HZ_PREFIX[prefix if prefix in "mM" else prefix.lower()], "hz"
     s = re.sub(r"_part$", "", re.sub(r"[\s\-.]+", "_", s).strip("_"))   # "real part"
     part = _SPARAM_PART.fullmatch(s)
     if part and not unit:
@@ -201,7 +226,7 @@ def recognise(label):
     if s in _MAG | _COMPLEX and unit in ("deg", "rad"):
         return Column("phase", unit, name)
     if s in _FREQ and unit in (None, "hz", "rad/s", "rad/sample"):
-        return Column("freq", unit or _FREQ[s], name)
+        return Column("freq", unit or _FREQ[s], name, scale=scale)
     if s in _SKIP and unit is None:
         return Column("skip", None, name)
     if s in _RE | _IM | _COMPLEX and unit is None:
@@ -221,7 +246,11 @@ def sparameter_of(label):
     (``"s21"`` of ``S21(REAL)`` or ``S21 Log Mag(dB)``, ``"a2/a1"`` of ``A2/A1(REAL)``), or
     None."""
     m = re.match(r"\s*[\"']?\s*(s\d\d|[abr]\d?/[abr]\d?)(?![\d])", label, re.IGNORECASE)
-    return m.group(1).lower() if m else None
+    if m:
+        return m.group(1).lower()
+    function = _FUNCTION.fullmatch(label.strip().strip("\"'").strip().lower())
+    # a field solver's quantity: "v(v1)" of "mag(V(V1)) [V]", "s(12)" of "dB(S(1,2))"
+    return re.sub(r"[\s,_]", "", function.group(2)) if function else None
 
 
 def sparameters(labels):
@@ -273,6 +302,9 @@ def _quantity(label):
     bare = s[1:-1].strip() if len(s) > 1 and s[0] in "\"'" and s[-1] == s[0] else s
     if _IMPEDANCE.fullmatch(bare.lstrip("-\u2212")):
         return "z"                          # Re(Z), -Im(Z), |Z|, Zphz, Z'' ...
+    function = _FUNCTION.fullmatch(bare)
+    if function:
+        return function.group(2).replace(" ", "")       # S(1,1) of dB(S(1,1))
     s = s.strip("\"'")
     m = _UNIT_RE.match(s) or re.fullmatch(r"([^/]+)/[^/]*", s)          # "Phase/deg"
     s = (m.group(1) if m else s).strip()
@@ -463,7 +495,8 @@ def several_responses(cells, cols, traces=()):
         choices = [(name, {"columns": option}) for _, option, name in channels]
     named = [p.upper() for p in sparameters(cells)]
     if len(named) > 1:
-        kinds = "S-parameters and ratios" if any("/" in p for p in named) else "S-parameters"
+        kinds = ("quantities" if any("(" in p for p in named) else
+                 "S-parameters and ratios" if any("/" in p for p in named) else "S-parameters")
         text += (f"; its columns give {len(named)} {kinds} ({', '.join(named)}): pass "
                  f"parameter='{named[0]}' (command line --parameter {named[0]}) to read one")
         choices = choices or [(p, {"parameter": p}) for p in named]

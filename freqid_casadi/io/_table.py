@@ -96,7 +96,23 @@ def _splitter(sep):
         return _split_space
     if sep == "\t":
         return lambda line: _trimmed([c.strip() for c in line.split(sep)])
-    return lambda line: [c.strip() for c in line.split(sep)]
+    return lambda line: (_quoted_cells(line, sep) if '"' in line else
+                         [c.strip() for c in line.split(sep)])
+
+
+def _quoted_cells(line, sep):
+    """Cells of a line whose quoted cells may hold the separator (a field solver's
+    ``"mag(S(Port1,Port1)) []"``), each in its quotes as written."""
+    cells, cell, quoted = [], [], False
+    for ch in line:
+        if ch == '"':
+            quoted = not quoted
+        if ch == sep and not quoted:
+            cells.append("".join(cell).strip())
+            cell = []
+        else:
+            cell.append(ch)
+    return cells + ["".join(cell).strip()]
 
 
 def _trimmed(cells):
@@ -639,6 +655,8 @@ def read_table(path, payload, columns, freq_unit, max_rows, parameter=None, reco
     for c in cols:                  # "-Im(Z)", "-Phase": the file holds minus the value
         if c.negated:
             values[c.role] = -values[c.role]
+        if c.scale != 1.0:          # "Freq [MHz]"
+            values[c.role] = values[c.role] * c.scale
     dc = values["freq"] == 0      # rows at 0 Hz are dropped later (a DataWarning); their
     for role, v in values.items():  # response, often -inf dB or NaN there, is not checked
         if role != "freq" and dc.any():
