@@ -675,3 +675,35 @@ def test_ansys_exports_read_as_written(tmp_path):
     np.testing.assert_allclose(v2.response, np.array([20.85, 12.52, 5.2]) * np.exp(
         1j * np.deg2rad([-9.28, -44.23, -80.3])), rtol=1e-14)
     assert [d.name for d in fc.load_all(path)] == ["V(V1)", "V(V2)"]
+
+
+def test_a_table_of_repeated_sweeps_reads_one_with_record(tmp_path):
+    # an EC-Lab export of 3 cycles, each a descending sweep: the unsorted-rows error
+    # ("sort the file") had pointed at the wrong cause; each sweep reads with record=
+    f = np.array([1000.0, 100.0, 10.0, 1.0])
+    z = [(60.0 - 1.0j) * (k + 1) for k in range(3)]
+    text = "freq/Hz\tRe(Z)/Ohm\t-Im(Z)/Ohm\tcycle number\n" + "".join(
+        f"{a!r}\t{zk.real * (1 + a / 1e4)!r}\t{-zk.imag!r}\t{k + 1}\n"
+        for k, zk in enumerate(z) for a in f.tolist())
+    path = _write(tmp_path, text, "cycles.mpt")
+    with pytest.raises(DataError, match=r"holds 3 sweeps one after another \(the frequency "
+                       r"starts again on line\(s\) 6, 10\): pass record=0..2 to load\(\) "
+                       r"\(command line --record K\) to read one sweep"):
+        fc.load(path)
+    for k in range(3):
+        data = fc.load(path, record=k)
+        np.testing.assert_allclose(data.omega, 2 * np.pi * f[::-1])
+        np.testing.assert_allclose(data.response, z[k].real * (1 + f[::-1] / 1e4)
+                                   + 1j * z[k].imag, rtol=1e-15)
+    with pytest.raises(OptionError, match=r"record=3 is out of range: .* holds 3 sweeps"):
+        fc.load(path, record=3)
+    one = _write(tmp_path, text.split("\n", 5)[0] + "\n" + "\n".join(
+        text.split("\n")[1:5]) + "\n", "one.mpt")
+    with pytest.raises(OptionError, match=r"record=0 chooses .* a sweep of a table of "
+                       r"several; .* has none: drop it"):
+        fc.load(one, record=0)
+    # rows out of order by a small step are no sweeps: the unsorted-rows error stands
+    bad = _write(tmp_path, "freq_hz,re,im\n1,1,0\n2,1,0\n3,1,0\n2.9,1,0\n4,1,0\n5,1,0\n6,1,0\n",
+                 "bad.csv")
+    with pytest.raises(DataError, match="unsorted rows"):
+        fc.load(bad)

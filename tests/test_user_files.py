@@ -257,9 +257,9 @@ def test_cli_record_chooses_a_uff_record(tmp_path):
 def test_cli_record_and_parameter_are_refused_for_other_files(tmp_path):
     path = tmp_path / "d.csv"
     path.write_text(_table(","))
-    with pytest.raises(OptionError, match="record=0 chooses a record of a UFF file or a run "
-                                          "of an LTspice export with .step runs; .*d.csv. "
-                                          "has none"):
+    with pytest.raises(OptionError, match="record=0 chooses a record of a UFF file, a run "
+                                          "of an LTspice export with .step runs or a sweep "
+                                          "of a table of several; .*d.csv. has none"):
         cli_common.load_data(_args(path, "--record", "0"), str(path))
     with pytest.raises(OptionError, match="parameter='S21' chooses an S-parameter of a "
                                           "Touchstone file or of a table whose columns name "

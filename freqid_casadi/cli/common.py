@@ -106,7 +106,8 @@ def add_data_options(parser, records=False, weights=None):
             "--record", type=_record, metavar="K",
             help="UFF file (.uff/.unv) with several frequency-response records: which one "
                  "(0-based, counting only the FRF records; coherences and spectra are "
-                 "skipped); also which run of an LTspice export with .step runs")
+                 "skipped); also which run of an LTspice export with .step runs, or "
+                 "which sweep of a table of several (an impedance analyser's cycles)")
         parser.add_argument(
             "--parameter", metavar="S21",
             help="Touchstone file (.s1p, .s2p, ..., .sNp, or version 2 .ts): which "

@@ -78,9 +78,10 @@ _IMPEDANCE_ROLE = {"re": "re", "z'": "re", "zreal": "re", "z_real": "re", "zre":
 
 #: A field solver's column of a function of a quantity (Ansys HFSS / Circuit / Designer
 #: exports: ``mag(S(Port1,Port1)) []``, ``dB(S(1,2))``, ``ang_deg(V(V1)) [deg]``,
-#: ``re(Z(1,1))``): the function's role and unit; the quantity is the column's channel.
+#: ``re(Z(1,1))``): the function's role and unit; the quantity (a name with its
+#: arguments: ``S(1,2)``, ``V(V1)``) is the column's channel.
 _FUNCTION = re.compile(r"(mag|db|db20|ang_deg|ang_rad|cang_deg|cang_rad|re|im|real|imag)"
-                       r"\((.+)\)\s*(?:\[[^\]]*\])?")
+                       r"\(([a-z]\w*\(.*\))\)\s*(?:\[[^\]]*\])?")
 _FUNCTION_ROLE = {"mag": ("mag", "lin"), "db": ("mag", "db"), "db20": ("mag", "db"),
                   "ang_deg": ("phase", "deg"), "cang_deg": ("phase", "deg"),
                   "ang_rad": ("phase", "rad"), "cang_rad": ("phase", "rad"),

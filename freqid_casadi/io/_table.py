@@ -15,10 +15,11 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ._columns import (_UNITS, COLUMN_HELP, DERIVED, ChannelChoice, Column, _layout_problem,
-                       columns_option, one_layout, parse_columns, parse_freq_unit, recognise,
+                       _quantity, columns_option, one_layout, parse_columns, parse_freq_unit, recognise,
                        several_responses, time_column, time_records, with_parameter)
 from ._decode import decode_text
 from ._headerless import WRAP_JUMP, check_guessed, suffix_columns
+from ._sweeps import one_sweep
 from ._readfile import DataWarning
 from ..errors import DataError, OptionError
 
@@ -286,6 +287,12 @@ def _known_layout(path, cells, cols, parameter):
         except DataError:
             return cols
     trial = one_layout(trial)
+    if _layout_problem(trial) and any(_quantity(c.label) == "z" for c in trial):
+        # an impedance analyser's export: the impedance, not the quantities derived from
+        # it (EC-Lab's Re(M), Re(Permittivity), ... beside Re(Z)/Ohm)
+        trial = one_layout(tuple(
+            c if c.role in ("freq", "skip") or _quantity(c.label) == "z"
+            else Column("skip", None, c.label) for c in trial))
     if [c.role for c in trial].count("freq") != 1 or _layout_problem(trial):
         return cols
     unknown = ", ".join(repr(_clean(cells[j])) for j, c in enumerate(cols) if c is None)
@@ -543,15 +550,12 @@ def _one_run(path, rows, record):
     DataError
         Several runs and no ``record``: the message lists them.
     OptionError
-        ``record`` out of range, or given for a file without runs.
+        ``record`` out of range.
     """
     # (only LTspice writes them, below its header 'Freq.': other files are not scanned)
     ltspice = rows[0][1].lstrip().startswith("Freq.")
     marks = [k for k, (_, text) in enumerate(rows) if ltspice and _LT_STEP.match(text)]
-    if not marks:
-        if record is not None:
-            raise OptionError(f"record={record!r} chooses a record of a UFF file or a run of "
-                              f"an LTspice export with .step runs; {path!r} has none: drop it")
+    if not marks:                   # (a record of a table of several sweeps: one_sweep)
         return rows
     runs = [rows[a + 1:b] for a, b in zip(marks, marks[1:] + [len(rows)])]
     names = [_LT_STEP.match(rows[k][1]).group(1) or f"run {j + 1}" for j, k in enumerate(marks)]
@@ -624,7 +628,10 @@ def _note_units(path, between, cells):
 
 def read_table(path, payload, columns, freq_unit, max_rows, parameter=None, record=None):
     """Parse delimited UTF-8 text into a :class:`Table` (see ``loaders.load_text``)."""
-    rows = _one_run(path, _content(path, decode_text(path, payload), max_rows), record)
+    rows = _content(path, decode_text(path, payload), max_rows)
+    ltspice_runs = rows[0][1].lstrip().startswith("Freq.") and any(
+        _LT_STEP.match(text) for _, text in rows)
+    rows = _one_run(path, rows, record)
     rows = _footer(path, _preamble(path, rows, columns))
     sep = _separator(rows[0][1])
     rows = _decimal_commas(rows, sep)
@@ -657,6 +664,7 @@ def read_table(path, payload, columns, freq_unit, max_rows, parameter=None, reco
             values[c.role] = -values[c.role]
         if c.scale != 1.0:          # "Freq [MHz]"
             values[c.role] = values[c.role] * c.scale
+    values, rows = one_sweep(path, values, rows, None if ltspice_runs else record)
     dc = values["freq"] == 0      # rows at 0 Hz are dropped later (a DataWarning); their
     for role, v in values.items():  # response, often -inf dB or NaN there, is not checked
         if role != "freq" and dc.any():

@@ -72,7 +72,9 @@ def load(path, name=None, *, freq_unit=None, columns=None, record=None, paramete
         For a UFF file with several frequency-response records: which one (0-based,
         counting the records :func:`load_uff` returns: records that are not frequency
         responses are skipped). For LTspice's text export of an AC analysis with ``.step``
-        runs: which run (:func:`load_text`).
+        runs: which run; for a table of several sweeps one after another (an impedance
+        analyser's repeated cycles, the frequency starting again): which sweep
+        (:func:`load_text`).
     parameter : str, optional
         For a Touchstone file (``.sNp`` of any number of ports, or a Touchstone 2.0
         ``.ts``): which parameter (default S11), e.g. "S21". For a text table whose
@@ -348,7 +350,10 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None, param
         skipped.
     record : int, optional
         For LTspice's export of an AC analysis with ``.step`` runs (a ``Step Information:``
-        line before each): which run (0-based); required when there are several.
+        line before each): which run (0-based); required when there are several. For a
+        table of several sweeps one after another (each strictly monotone, the frequency
+        starting again by at least half a sweep's span): which sweep (0-based), required
+        when there are several.
 
     Returns
     -------
