@@ -28,7 +28,7 @@ from .._textio import atomic_write_text
 from .._validate import check_choice, check_flag
 from ..errors import DataError, OptionError, StructureError
 from .metrics import DelayedResponse
-from .realize import balanced_ss, section_roots, state_space
+from .realize import balanced_ss, check_pade, section_roots, state_space
 
 __all__ = ["Structure", "RationalDelayModel", "section_response", "attach_delay",
            "balanced_ss", "BASES", "MAX_ORIGIN_ORDER", "check_origin_order", "jw_power",
@@ -500,10 +500,20 @@ class RationalDelayModel(DelayedResponse):
         ------
         OptionError
             An unknown ``delay``, "pade" without ``pade_order``, or "attribute" with one.
+
+        Warns
+        -----
+        ExportWarning
+            The export's response misses the model's (:func:`~freqid_casadi.core.realize.
+            state_space`), or the Pade approximation misses the delay by more than 1 % at
+            twice the model's fastest pole (:func:`~freqid_casadi.core.realize.check_pade`,
+            with the order that would not).
         """
         pade_order = _export_pade_order(delay, pade_order)
         sys, balance = state_space(self)
         sys = attach_delay(sys, self.delay, pade_order)
+        if pade_order is not None:
+            check_pade(self, pade_order)
         return balanced_ss(sys) if balance else sys
 
     # ------------------------------------------------------------------ JSON

@@ -29,7 +29,8 @@ import numpy as np
 from ..errors import StructureError
 
 __all__ = ["realize_blocks", "state_space", "export_error", "quad_roots", "section_roots",
-           "balanced_ss", "EXPORT_TOLERANCE"]
+           "balanced_ss", "EXPORT_TOLERANCE", "check_pade", "PADE_TOLERANCE",
+           "RESPONSE_FLOOR"]
 
 #: Largest relative difference between an exported system's response and the model's
 #: before :meth:`~freqid_casadi.core.model.RationalDelayModel.to_control` warns.
@@ -301,7 +302,7 @@ def state_space(model):
         lo, hi = _root_range(model)
         warnings.warn(
             f"the exported system's frequency response differs from the model's by up "
-            f"to {error:.2g} (relative): its poles and zeros span {np.log10(hi / lo):.0f} "
+            f"to {error:.2g} (relative, within 120 dB of its peak): its poles and zeros span {np.log10(hi / lo):.0f} "
             f"decades ({lo:.3g} to {hi:.3g} rad/s), beyond what a state-space evaluation "
             "resolves: the roots far from the band are not set by the data (zeros running "
             "off towards infinity stand for the relative degree the data show); fit fewer "
@@ -314,7 +315,8 @@ def state_space(model):
 def export_error(sys, model):
     """Largest relative difference between ``sys``'s frequency response (python-control's
     own evaluation, as a design tool sees it) and ``model``'s rational part, over the
-    frequencies of :func:`_check_omega`.
+    frequencies of :func:`_check_omega` (where the response is more than 120 dB below its
+    largest there, :data:`RESPONSE_FLOOR`, the difference counts against that level).
 
     Parameters
     ----------
@@ -337,13 +339,76 @@ def _reference(model, omega):
         return model.rational_response(omega)
 
 
+#: Level below the largest response over the check's frequencies (-120 dB) where an
+#: export's error counts against that level instead of the response itself: far above
+#: the band, where a model's spare zeros sit and its response is negligible, a relative
+#: error of 2e-3 at |G| = 1e-12 is no error a design sees.
+RESPONSE_FLOOR = 1e-6
+
+
 def _error(sys, omega, want):
     import control as ct
 
     with np.errstate(all="ignore"):
         got = np.squeeze(ct.frequency_response(sys, omega).complex)
-        err = np.abs(got / want - 1.0)
+        size = np.abs(want)
+        err = np.abs(got - want) / np.maximum(size, RESPONSE_FLOOR * np.max(size))
     return float(np.max(err)) if np.all(np.isfinite(err)) else math.inf
+
+
+#: Relative error of the delay's Pade approximation, at twice the model's fastest pole,
+#: above which :func:`check_pade` warns.
+PADE_TOLERANCE = 0.01
+
+
+def _pade_error(ct, delay, order, omega):
+    """``|pade(j omega) exp(j omega h) - 1|`` of the order-``order`` Pade approximation of
+    ``delay`` at ``omega`` (inf where python-control's coefficients are not finite)."""
+    try:
+        with np.errstate(all="raise"):
+            num, den = ct.pade(delay, order)
+        s = 1j * omega
+        return float(abs(np.polyval(num, s) / np.polyval(den, s) * np.exp(s * delay) - 1))
+    except (ArithmeticError, FloatingPointError, ValueError):
+        return math.inf
+
+
+def check_pade(model, order):
+    """An :class:`~freqid_casadi.errors.ExportWarning` when the Pade approximation of
+    ``model``'s delay of order ``order`` misses ``exp(-s h)`` by more than
+    :data:`PADE_TOLERANCE` at twice the model's fastest pole (up to where its dynamics
+    reach), with the order that would meet it.
+
+    Parameters
+    ----------
+    model : RationalDelayModel
+    order : int
+    """
+    import control as ct
+
+    poles = np.abs(model.poles())
+    poles = poles[np.isfinite(poles) & (poles > 0)]
+    if model.delay <= 0 or not poles.size:
+        return
+    omega = 2.0 * float(np.max(poles))
+    err = _pade_error(ct, model.delay, order, omega)
+    if err <= PADE_TOLERANCE:
+        return
+    import warnings
+
+    from ..errors import ExportWarning
+
+    enough = next((k for k in range(order + 1, 21)
+                   if _pade_error(ct, model.delay, k, omega) <= PADE_TOLERANCE), None)
+    fix = (f"pass pade_order={enough}" if enough is not None else
+           "no Pade order up to 20 is accurate there")
+    warnings.warn(
+        f"the Pade approximation of order {order} of the delay {model.delay:.4g} s differs "
+        f"from exp(-s h) by {err:.2g} (relative) at {omega:.4g} rad/s, twice the model's "
+        f"fastest pole (a phase lag of {omega * model.delay:.3g} rad there): the exported "
+        f"system misses the delay's phase within the model's dynamics; {fix}, or export "
+        "the delay exactly (delay='attribute') and check margins on the model's frequency "
+        "response", ExportWarning, stacklevel=3)
 
 
 def _root_range(model):

@@ -52,13 +52,14 @@ true delay. ``CoverResult.pade_error`` is ``|p|`` on the envelope's grid.
 """
 
 import math
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..core.data import as_frequency_data
 from ..core.model import RationalDelayModel, Structure
-from ..errors import DataError, OptionError
+from ..errors import DataError, ExportWarning, OptionError
 from ..options import IpoptOptions
 from .weight import WeightResult, iter_weights
 
@@ -150,7 +151,7 @@ class CoverResult:
         """
         if self.pade_order is None:
             return self.nominal.to_control()
-        return self.nominal.to_control(delay="pade", pade_order=self.pade_order)
+        return _pade_nominal(self.nominal, self.pade_order)
 
     def covers(self):
         """True if ``|W| >= (1 + margin) e_i`` at every point of every member."""
@@ -200,6 +201,16 @@ def _orders(order, max_order):
 
 
 # ---------------------------------------------------------------------------- envelope
+def _pade_nominal(nominal, pade_order):
+    """``nominal.to_control`` with its delay as the Pade approximation of ``pade_order``,
+    without the export's warning that the approximation misses the delay: the weight
+    covers that error (the members' errors are taken against this nominal)."""
+    with warnings.catch_warnings():
+        warnings.filterwarnings("ignore", message="the Pade approximation",
+                                category=ExportWarning)
+        return nominal.to_control(delay="pade", pade_order=pade_order)
+
+
 def _pade_response(delay, pade_order, omega):
     """``pade_k(j omega)`` of ``exp(-delay s)`` (python-control's coefficients)."""
     import control as ct
@@ -474,7 +485,7 @@ def cover(model, datas, *, order=None, margin=0.0, pade_order=None, max_order=No
     margin = _number(margin, "margin", 0.0, "a relative margin, 0.1 = 10 %")
     tightness = _number(tightness, "tightness", 1.0, "a median ratio |W|/envelope, e.g. 2")
     if pade_order is not None:
-        nominal.to_control(delay="pade", pade_order=pade_order)     # OptionError if bad
+        _pade_nominal(nominal, pade_order)                          # OptionError if bad
     member_omegas = tuple(d.omega for d in members)
     member_errors = tuple(_member_error(nominal, d, pade_order) for d in members)
     grid = envelope_grid(member_omegas)
