@@ -6,7 +6,7 @@ caller may catch either. Messages name the argument, the offending value and the
 """
 
 __all__ = ["FreqidError", "DataError", "StructureError", "OptionError", "SolverError",
-           "ResolutionWarning", "ExportWarning"]
+           "ResolutionWarning", "ExportWarning", "DataWarning"]
 
 
 class FreqidError(Exception):
@@ -42,4 +42,10 @@ class ResolutionWarning(UserWarning):
 class ExportWarning(UserWarning):
     """A model exported to python-control (``to_control``) whose state-space evaluation
     differs from the model's own response by more than
-    :data:`freqid_casadi.core.realize.EXPORT_TOLERANCE` (roots spanning too many decades)."""
+    :data:`freqid_casadi.core.realize.EXPORT_TOLERANCE` (roots spanning too many decades),
+    or whose Pade approximation misses the delay within the model's dynamics."""
+
+
+class DataWarning(UserWarning):
+    """A reader changed the data in a stated way (e.g. dropped rows at zero frequency);
+    also ``freqid_casadi.io.loaders.DataWarning``."""

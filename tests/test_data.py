@@ -165,6 +165,23 @@ def test_sorted_sorts_and_drops_duplicates_keeping_first():
     assert data.name == "s"
 
 
+def test_sorted_says_when_dropped_duplicates_differ():
+    # the loader's error for duplicated rows points to FrequencyData.sorted; two sweeps in
+    # one table give duplicates that differ (here 5x): kept the first, and said so
+    import warnings
+
+    from freqid_casadi.errors import DataWarning
+
+    with pytest.warns(DataWarning, match=r"2 duplicated frequencies dropped, 1 of them with a "
+                      r"response that differs from the one kept by more than 1 % \(up to 4, "
+                      r"at omega 2\): the data may hold two sweeps"):
+        d = FrequencyData.sorted([1.0, 2.0, 2.0, 3.0, 3.0], [1.0, 2.0, 10.0, 3.0, 3.001])
+    np.testing.assert_array_equal(d.response, [1.0, 2.0, 3.0])
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", DataWarning)      # equal duplicates: nothing to say
+        FrequencyData.sorted([2.0, 1.0, 2.0], [2.0, 1.0, 2.0])
+
+
 def test_sorted_still_validates():
     with pytest.raises(DataError, match=r"equal lengths"):
         FrequencyData.sorted([2.0, 1.0], [1.0])
@@ -218,7 +235,7 @@ def test_csv_header_case_spaces_comments_blank_lines(tmp_path):
     pytest.param("x,re,im\n1,2,3\n", r"unrecognised header 'x,re,im'.*omega,real,imag",
                  id="bad-header"),
     pytest.param("omega,real\n1,2\n", r"unrecognised header 'omega,real'", id="header-2-cols"),
-    pytest.param("omega,real,imag,extra\n1,2,3,4\n", r"unrecognised header",
+    pytest.param("omega,real,extra,more\n1,2,3,4\n", r"unrecognised header",
                  id="header-4-cols"),
     pytest.param("omega,real,imag\n1,2,3\n2,3\n",
                  r"line 3: expected 3 columns \(omega,real,imag\), got 2", id="missing-column"),
@@ -233,7 +250,8 @@ def test_csv_header_case_spaces_comments_blank_lines(tmp_path):
     pytest.param("omega,real,imag\n", r"has a header but no data rows", id="header-only"),
     # (two rows in descending order are a descending file, reversed with a DataWarning)
     pytest.param("omega,real,imag\n1,1,1\n3,1,1\n2,1,1\n",
-                 r"line 4: omega must be strictly increasing.*2\.0 after 3\.0 on line 3",
+                 r"line 4, column .omega.: the frequencies must be strictly increasing.*"
+                 r"2\.0 after 3\.0 on line 3",
                  id="unsorted-rows"),
     pytest.param("omega,real,imag\n1,0,0\n", r"response must be nonzero.*response\[0\]",
                  id="zero-response"),

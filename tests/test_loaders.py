@@ -368,8 +368,8 @@ def test_size_and_row_limits(tmp_path, monkeypatch):
     ("omega,real,imag\n1,1e400,1\n", r"line 2, column 'real': inf is not finite: response "
                                      r"must be finite; remove or re-measure"),
     ("omega,real,imag\n-1,1,1\n", r"line 2, column 'omega': frequency -1\.0 is negative"),
-    ("omega,real,imag\n1,1,1\n1,2,2\n", r"line 3: omega must be strictly increasing "
-                                        r"\(duplicated rows\)"),
+    ("omega,real,imag\n1,1,1\n1,2,2\n", r"line 3, column .omega.: the frequencies must be "
+                                        r"strictly increasing \(duplicated rows\)"),
     ("omega,mag,phase\n1,1,1\n", r"phase column 'phase' does not give its unit; name it "
                                  r"phase_deg or phase_rad"),
     ("1,2,3,4\n", r"has no header and 4 columns: cannot tell what they are; pass columns="),

@@ -78,11 +78,11 @@ def test_descending_rows_are_reversed_with_a_note(tmp_path):
 def test_unsorted_or_duplicated_rows_stay_errors(tmp_path):
     path = tmp_path / "mixed.csv"
     path.write_text("freq_hz,re,im\n1,1,1\n3,1,1\n2,1,1\n", encoding="utf-8")
-    with pytest.raises(DataError, match=r"line 4: omega must be strictly increasing "
-                                        r"\(unsorted rows\)"):
+    with pytest.raises(DataError, match=r"line 4, column .freq_hz.: the frequencies must be "
+                                        r"strictly increasing \(unsorted rows\)"):
         load(path)
     path.write_text("freq_hz,re,im\n3,1,1\n2,1,1\n2,1,1\n", encoding="utf-8")
-    with pytest.raises(DataError, match=r"line 4: .*\(duplicated rows\)"):
+    with pytest.raises(DataError, match=r"line 4, .*\(duplicated rows\)"):
         load(path)
 
 

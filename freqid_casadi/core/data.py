@@ -183,7 +183,9 @@ class FrequencyData:
     def sorted(cls, omega, response, name=None, weights=None):
         """Build from unsorted data: sort by omega and drop exact duplicate frequencies.
 
-        Duplicates keep their first occurrence in the input order.
+        Duplicates keep their first occurrence in the input order; where their responses
+        differ by more than 1 % (two sweeps, or two channels, in one table) a
+        :class:`~freqid_casadi.errors.DataWarning` says how many and by how much.
         """
         omega = _as_float_vector(omega, "omega")
         response = _as_complex_vector(response, "response")
@@ -195,12 +197,35 @@ class FrequencyData:
         keep = np.ones(order.size, bool)
         keep[1:] = np.diff(omega[order]) != 0
         idx = order[keep]
+        _warn_differing_duplicates(omega[order], response[order], keep)
         w = None if weights is None else _as_float_vector(weights, "weights")
         if w is not None and w.size != omega.size:
             raise DataError(f"weights must have one value per frequency: len(weights)={w.size}, "
                             f"len(omega)={omega.size}")
         w = None if w is None else w[idx]
         return cls(omega[idx], response[idx], name, w)
+
+
+def _warn_differing_duplicates(omega, response, keep):
+    """A DataWarning when a dropped duplicate's response (``omega``, ``response`` sorted;
+    ``keep`` False at each dropped row) differs from the kept one by more than 1 %."""
+    first = np.maximum.accumulate(np.where(keep, np.arange(keep.size), 0))[~keep]
+    if not first.size:
+        return
+    with np.errstate(all="ignore"):
+        diff = np.abs(response[~keep] / response[first] - 1.0)
+    bad = ~(diff <= 0.01)
+    if bad.any():
+        import warnings
+
+        from ..errors import DataWarning
+
+        j = int(np.argmax(np.where(bad, np.nan_to_num(diff, nan=np.inf), -1.0)))
+        warnings.warn(
+            f"{int(np.count_nonzero(~keep))} duplicated frequencies dropped, {int(bad.sum())} "
+            f"of them with a response that differs from the one kept by more than 1 % (up to "
+            f"{diff[j]:.3g}, at omega {omega[~keep][j]:.6g}): the data may hold two sweeps or "
+            "two channels; the first of each was kept", DataWarning, stacklevel=3)
 
 
 # --------------------------------------------------------------------------- conversion

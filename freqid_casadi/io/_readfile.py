@@ -15,7 +15,7 @@ import warnings
 import numpy as np
 
 from ..core.data import FrequencyData
-from ..errors import DataError, OptionError
+from ..errors import DataError, DataWarning, OptionError
 
 __all__ = ["DataWarning", "read_regular_file", "parse_band", "MAX_FILE_BYTES", "MAX_ROWS",
            "MAX_ELEMENTS"]
@@ -28,8 +28,6 @@ MAX_ROWS = 5_000_000
 MAX_ELEMENTS = 50_000_000
 
 
-class DataWarning(UserWarning):
-    """A reader changed the data in a stated way (e.g. dropped rows at zero frequency)."""
 
 
 # --------------------------------------------------------------------------- files

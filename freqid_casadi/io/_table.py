@@ -824,9 +824,10 @@ def table_response(table):
         i, p = pos[j + 1], pos[j]
         what = "duplicated" if step[j] == 0 else "unsorted"
         raise DataError(
-            f"{table.at(i)}: omega must be strictly increasing ({what} rows): {float(f[i])!r} "
-            f"after {float(f[p])!r} on {table.where} {int(table.rows[p])}; sort the file by "
-            "frequency and drop duplicates (FrequencyData.sorted does both)")
+            f"{table.at(i)}, column {table.label('freq')!r}: the frequencies must be "
+            f"strictly increasing ({what} rows): {float(f[i])!r} after {float(f[p])!r} on "
+            f"{table.where} {int(table.rows[p])}; sort the file by frequency and drop "
+            "duplicates (FrequencyData.sorted does both, and says when duplicates differ)")
     response = _response(table)
     zero = response == 0
     if zero.any():
