@@ -158,7 +158,8 @@ def test_sorted_sorts_and_drops_duplicates_keeping_first():
     omega = [4.0, 1.0, 2.0, 1.0, 8.0, 4.0]
     resp = [40, 10, 20, 11, 80, 41]
     weights = [4, 1, 2, 1.5, 8, 4.5]
-    data = FrequencyData.sorted(omega, resp, "s", weights)
+    with pytest.warns(UserWarning, match="2 of them with a response that differs"):
+        data = FrequencyData.sorted(omega, resp, "s", weights)
     assert np.array_equal(data.omega, [1.0, 2.0, 4.0, 8.0])
     assert np.array_equal(data.response, [10, 20, 40, 80])      # first occurrences kept
     assert np.array_equal(data.weights, [1, 2, 4, 8])
