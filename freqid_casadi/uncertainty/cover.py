@@ -424,10 +424,14 @@ def _choose(weights, grid, env, tightness, fixed_order):
                 f"order {wr.order}: the lowest with median |W|/envelope "
                 f"{ratios[wr.order]:.3g} <= {tightness:g}")
     best = min(weights, key=lambda wr: ratios[wr.order])
+    shown = ", ".join(f"{k}: {r:.3g}" for k, r in sorted(ratios.items()))
     return best, ratios, False, (
-        f"no order up to {len(weights) - 1} reaches median |W|/envelope <= {tightness:g}; "
-        f"order {best.order} is the tightest ({ratios[best.order]:.3g}); pass a larger "
-        "max_order, or a nominal closer to the family's centre")
+        f"no order up to {len(weights) - 1} reaches median |W|/envelope <= {tightness:g} "
+        f"(median ratio by order {shown}); order {best.order} is the tightest. An envelope "
+        "that jumps from point to point (the noise of one or two members' errors) is one no "
+        "weight follows closely: the bound holds at every order, so a lower one may serve "
+        f"as well (order=0: a constant weight, ratio {ratios[min(ratios)]:.3g}); else pass "
+        "a larger max_order, more members, or a nominal closer to the family's centre")
 
 
 # ---------------------------------------------------------------------------- public
