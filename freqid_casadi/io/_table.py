@@ -603,7 +603,8 @@ def _unit_line(text):
     (Gamry's ``#  s  Hz  ohm  ohm  V  ohm  °``)."""
     tokens = _unit_tokens(text)
     return bool(tokens) and (tokens[0] in _FREQ_UNITS or len(tokens) > 1 and any(
-        t in _FREQ_UNITS for t in tokens) and not any(_is_value(t) for t in tokens))
+        t in _FREQ_UNITS for t in tokens) and not any(_is_value(t) for t in tokens) and all(
+        t in _UNITS or recognise(t) is None for t in tokens))   # no name: 'Freq Hz Gain dB'
 
 
 def _note_preamble(path, skipped, what):
