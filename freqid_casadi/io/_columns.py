@@ -301,12 +301,13 @@ def _quantity(label):
     ``s21`` of ``S21 Log Mag(dB)``."""
     s = label.rpartition(":")[2].strip().lower()
     bare = s[1:-1].strip() if len(s) > 1 and s[0] in "\"'" and s[-1] == s[0] else s
-    if _IMPEDANCE.fullmatch(bare.lstrip("-\u2212")):
+    bare = bare.lstrip("-\u2212")                     # (a negated column's quantity)
+    s = s.strip("\"'").lstrip("-\u2212")
+    if _IMPEDANCE.fullmatch(bare):
         return "z"                          # Re(Z), -Im(Z), |Z|, Zphz, Z'' ...
     function = _FUNCTION.fullmatch(bare)
     if function:
         return function.group(2).replace(" ", "")       # S(1,1) of dB(S(1,1))
-    s = s.strip("\"'")
     m = _UNIT_RE.match(s) or re.fullmatch(r"([^/]+)/[^/]*", s)          # "Phase/deg"
     s = (m.group(1) if m else s).strip()
     s = re.sub(r"[\s_\-]+(log[\s_\-]*mag|lin[\s_\-]*mag|phase|real|imag)$", "", s).strip()
