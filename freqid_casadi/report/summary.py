@@ -6,6 +6,8 @@ itself is written by :func:`freqid_casadi.report.folder.write_fit_report`, which
 names.
 """
 
+import math
+
 import numpy as np
 
 from . import outputs as _outputs
@@ -130,8 +132,11 @@ def _uncertainty_dict(result):
     except (FreqidError, np.linalg.LinAlgError, ArithmeticError, AttributeError) as exc:
         return {"error": str(exc)}
     nd = u.not_determined
+    with np.errstate(all="ignore"):
+        model_gain = float(result.model.low_frequency_gain())
     return {"noise_source": u.noise_source, "delay": u.delay, "delay_std": u.delay_std,
             "gain": u.gain, "gain_std": u.gain_std,
+            "model_gain": model_gain if math.isfinite(model_gain) else None,
             "delay_reason": nd.get("delay", "") if "delay" in u.param_names else "",
             "gain_reason": nd.get("log_gain", ""), "not_determined": nd,
             "modes": [{"omega_n": m.omega_n, "omega_n_std": m.omega_n_std,
@@ -372,6 +377,15 @@ def _pm(value, std, digits=4, determined=True):
     return f"{number(value, digits)} ± {number(std)}{vague}"
 
 
+def _bias_note(u):
+    """Beside the low-frequency gain: the model's own when the bias correction moved it."""
+    mine, gain = u.get("model_gain"), u.get("gain")
+    if mine is None or gain is None or not gain or abs(mine / gain - 1) < 1e-4:
+        return ""
+    return (f" (corrected for the relative-error fit's bias, 1 + sigma^2; the model's own, "
+            f"as exported: {number(mine, 6)})")
+
+
 def _uncertainty_lines(s):
     """The "What the data determine" section: delay, gain and modes with ± one std."""
     u = s.get("uncertainty")
@@ -386,7 +400,7 @@ def _uncertainty_lines(s):
     rows = [(f"delay h ({tu})", _pm(u["delay"], u["delay_std"], 6,
                                     not u.get("delay_reason"))),
             (f"low-frequency gain ({low})", _pm(u["gain"], u["gain_std"], 4,
-                                                not u.get("gain_reason")))]
+                                                not u.get("gain_reason")) + _bias_note(u))]
     rows += [(f"mode {k}: omega_n ({fu})" + (" [f_n (Hz)]" if hz else "") + ", zeta",
               f"{_pm(m['omega_n'], m['omega_n_std'], 4, m.get('omega_n_determined', True))}"
               + (f" [{number(m['frequency_hz'])} Hz]" if hz else "")
