@@ -402,3 +402,11 @@ def test_property_valid_data_constructs_and_round_trips(arrays):
     assert np.array_equal(back.omega, data.omega)
     assert np.array_equal(back.response.real, data.response.real)
     assert np.array_equal(back.response.imag, data.response.imag)
+
+
+def test_repr_summarises_instead_of_printing_every_sample():
+    d = FrequencyData(np.geomspace(1.0, 1000.0, 400), np.full(400, 2.0 + 0j), "plant")
+    text = repr(d)
+    assert text == ("FrequencyData(name='plant', 400 points, omega 1 to 1000 rad/s, "
+                    "|response| 2 to 2)")
+    assert len(text) < 120 and str(d) == text

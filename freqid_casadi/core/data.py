@@ -30,7 +30,7 @@ def _first_bad(mask):
     return int(np.flatnonzero(mask)[0])
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, repr=False)
 class FrequencyData:
     """Samples ``response[i] = G(j*omega[i])`` of a frequency response.
 
@@ -139,6 +139,15 @@ class FrequencyData:
 
     def __len__(self):
         return self.omega.size
+
+    def __repr__(self):
+        # a summary, not every sample (print(fc.load(...)) had shown 400 complex numbers);
+        # the arrays are .omega, .response and .weights
+        size = np.abs(self.response)
+        return (f"FrequencyData(name={self.name!r}, {self.n_points} points, omega "
+                f"{self.omega[0]:.4g} to {self.omega[-1]:.4g} {self.unit}, |response| "
+                f"{size.min():.4g} to {size.max():.4g}"
+                f"{', weighted' if self.weights is not None else ''})")
 
     @property
     def n_points(self):
