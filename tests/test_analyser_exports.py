@@ -707,3 +707,21 @@ def test_a_table_of_repeated_sweeps_reads_one_with_record(tmp_path):
                  "bad.csv")
     with pytest.raises(DataError, match="unsorted rows"):
         fc.load(bad)
+
+
+@pytest.mark.parametrize("text, what, how", [
+    ("# Created Thu Jan 13 12:23:22 2022\n\nCITIFILE A.01.00\nNAME Sweep1.SP1.SP\n"
+     "VAR freq MAG 2\nDATA S[1,1] MAGANGLE\nVAR_LIST_BEGIN\n7.1e8\n7.15e8\nVAR_LIST_END\n"
+     "BEGIN\n0.99,-0.01\n0.98,-0.02\nEND\n", "a CITIfile", r"skrf\.io\.citi\.Citi\(path\)"),
+    ("! Created\nVAR Cm(real) =       7e-16\nBEGIN Sweep1.SP1.SP\n"
+     "% freq(real) S[1,1](complex)\n 710000000 0.99 -0.01\n 715000000 0.98 -0.02\nEND\n",
+     "an MDIF file", r"skrf\.io\.mdif\.Mdif\(path\)"),
+    ("<Qucs Dataset 0.0.15>\n<indep frequency 2>\n  +7.5e+10\n  +7.6e+10\n</indep>\n",
+     "a Qucs dataset", "export the data from Qucs")])
+def test_simulators_data_formats_are_named_with_their_conversion(tmp_path, text, what, how):
+    # a CITIfile's 'DATA S[1,1] MAGANGLE' line had been called its header, with advice to
+    # pass columns=, which no columns= can follow
+    with pytest.raises(DataError, match=rf"is {what} .*, not a table the readers parse; "
+                       rf".*{how}" if what != "a Qucs dataset" else
+                       rf"is {what}, not a table the readers parse; {how}"):
+        fc.load(_write(tmp_path, text, "sim.dat"))

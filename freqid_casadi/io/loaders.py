@@ -400,6 +400,7 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None, param
     """
     band = parse_band(band)
     path, payload = read_regular_file(path)
+    _refuse_other_format(path, payload)
     columns, freq_unit = parse_columns(columns), parse_freq_unit(freq_unit)
     table = read_traces(path, payload, columns, freq_unit, parameter=parameter, record=record)
     if table is None:
@@ -409,6 +410,37 @@ def load_text(path, name=None, *, freq_unit=None, columns=None, band=None, param
     unit = "rad/sample" if table.unit("freq") == "rad/sample" else "rad/s"
     return _finish(path, omega, response, name, lines=table.lines, unit=unit, band=band,
                    **band_unit(table.unit("freq")))
+
+
+#: Text formats of circuit simulators and network analysers that are no table, by the
+#: first word of their first line that is not a comment, and how to convert them.
+_CITI_MDIF = ("scikit-rf reads it: skrf.io.{}(path).networks is a list of skrf.Network, one "
+              "per swept value, and fc.fit takes a one-port Network as it is (or write one "
+              "as a Touchstone file: network.write_touchstone('data'))")
+_OTHER_FORMATS = {
+    b"CITIFILE": ("a CITIfile (Keysight's data format)", _CITI_MDIF.format("citi.Citi")),
+    b"<QUCS": ("a Qucs dataset", "export the data from Qucs as a CSV table or a Touchstone "
+               "file"),
+    b"VAR": ("an MDIF file (Keysight ADS)", _CITI_MDIF.format("mdif.Mdif")),
+    b"BEGIN": ("an MDIF file (Keysight ADS)", _CITI_MDIF.format("mdif.Mdif")),
+}
+#: An MDIF block's typed column header (``% freq(real) S[1,1](complex)``).
+_MDIF_HEADER = re.compile(rb"^\s*%\s*\S+\((?:real|complex|int)\)", re.MULTILINE)
+
+
+def _refuse_other_format(path, payload):
+    """DataError for a text format the readers do not parse as a table (CITIfile, Qucs
+    dataset, MDIF), naming it and the conversion to a Touchstone file, instead of a
+    header error that asks for columns no columns= can give."""
+    for line in payload[:65536].splitlines():
+        word = line.strip().split(b" ", 1)[0].upper()
+        if not word or word[:1] in b"#!%":
+            continue
+        what, how = next((v for k, v in _OTHER_FORMATS.items() if word.startswith(k)),
+                         (None, None))
+        if what is not None and ("MDIF" not in what or _MDIF_HEADER.search(payload[:65536])):
+            raise DataError(f"{path!r} is {what}, not a table the readers parse; {how}")
+        return
 
 
 def load_csv(path, name=None, *, freq_unit=None, columns=None, band=None):
