@@ -298,8 +298,8 @@ def _known_layout(path, cells, cols, parameter):
     unknown = ", ".join(repr(_clean(cells[j])) for j, c in enumerate(cols) if c is None)
     read = ", ".join(repr(c.label) for c in trial if c.role != "skip")
     warnings.warn(f"{path!r}: read {read}; left out columns of names the reader does not "
-                  f"know: {unknown} (pass columns=..., command line --columns, to read "
-                  "others)", DataWarning, stacklevel=5)
+                  f"know: {unknown}; to read others, pass columns=... (command line "
+                  "--columns)", DataWarning, stacklevel=5)
     return trial
 
 
