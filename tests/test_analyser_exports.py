@@ -725,3 +725,52 @@ def test_simulators_data_formats_are_named_with_their_conversion(tmp_path, text,
                        rf".*{how}" if what != "a Qucs dataset" else
                        rf"is {what}, not a table the readers parse; {how}"):
         fc.load(_write(tmp_path, text, "sim.dat"))
+
+
+def test_review_cases_of_the_readers_new_rules(tmp_path):
+    # a magnitude named as a complex quantity beside a phase of a name the reader did not
+    # know: the phase (Keysight's θz) is read, not left out with Z read as real numbers
+    data = fc.load(_write(tmp_path, "Frequency(Hz),Z(Ohm),\u03b8z(\u00b0)\n10,10,-30\n"
+                                    "20,5,-40\n30,4,-50\n", "z.csv"))
+    np.testing.assert_allclose(data.response, np.array([10, 5, 4]) * np.exp(
+        1j * np.deg2rad([-30, -40, -50])), rtol=1e-14)
+    path = _write(tmp_path, "Freq(Hz),Z(Ohm),Zeta\n10,10,-30\n20,5,-40\n30,4,-50\n", "u.csv")
+    with pytest.raises(DataError, match="column 'Zeta' is not a known name"):
+        fc.load(path)
+    # ZView's double prime written as one '"': no quote opens mid-cell
+    data = fc.load(_write(tmp_path, 'Freq(Hz),Z",Z\'\n10,-1,3\n20,-2,3\n30,-3,3\n', "q.csv"))
+    np.testing.assert_allclose(data.response, [3 - 1j, 3 - 2j, 3 - 3j])
+    # a first column only sometimes empty keeps its cells (no tab-led table)
+    text = "label\tfreq_hz\tre\tim\nstart\t10\t0.1\t-0.1\n\t20\t0.05\t-0.2\n\t30\t0.04\t-0.3\n"
+    data = fc.load(_write(tmp_path, text, "t.tsv"), columns="skip,freq_hz,re,im")
+    np.testing.assert_allclose(data.response, [0.1 - 0.1j, 0.05 - 0.2j, 0.04 - 0.3j])
+    # one point out of order early in a sweep is no second sweep
+    path = _write(tmp_path, "freq_hz,re,im\n" + "".join(
+        f"{f},1,0\n" for f in (1, 2, 3, 10, 5, 20, 30, 40, 50, 60)), "g.csv")
+    with pytest.raises(DataError, match="unsorted rows"):
+        fc.load(path)
+    # names in an .npz keep their minus and their unit's prefix
+    np.savez(tmp_path / "m.npz", **{"Freq [MHz]": [1.0, 2.0, 3.0], "re": [1.0, 2.0, 3.0],
+                                    "-Im(Z)": [1.0, 1.0, 1.0]})
+    data = fc.load(tmp_path / "m.npz")
+    np.testing.assert_allclose(data.omega, 2 * np.pi * np.array([1e6, 2e6, 3e6]))
+    np.testing.assert_allclose(data.response, [1 - 1j, 2 - 1j, 3 - 1j])
+    # "- Phase" with a space is negated too; mHz is milli, every other spelling mega
+    assert recognise("- Phase (deg)").negated
+    assert [recognise(u).scale for u in ("f [mHz]", "f [MHz]", "f [mhz]", "F [MHZ]")] == [
+        1e-3, 1e6, 1e6, 1e6]
+    with pytest.raises(OptionError, match=r"record must be an integer \(0-based\), got '1'"):
+        fc.load(_write(tmp_path, "freq_hz,re,im\n" + "".join(
+            f"{f},1,0\n" for f in (1, 2, 3, 1, 2, 3)), "s.csv"), record="1")
+
+
+def test_a_second_form_never_filled_in_is_left_out_with_a_note(tmp_path):
+    # an EC-Lab export whose |Z| and Phase(Z) columns hold 0 in every row: not a second
+    # measurement (the error had said so), a column the analyser did not fill
+    text = "freq/Hz\tRe(Z)/Ohm\t-Im(Z)/Ohm\t|Z|/Ohm\tPhase(Z)/deg\n" + "".join(
+        f"{f}\t{r}\t{i}\t0.0\t0.0\n" for f, r, i in ((1.0, 645.5, 90.6), (10.0, 400.0, 60.0),
+                                                   (100.0, 200.0, 30.0)))
+    data, notes = _load(_write(tmp_path, text, "e.mpt"))
+    np.testing.assert_allclose(data.response, [645.5 - 90.6j, 400 - 60j, 200 - 30j])
+    assert any("left out '|Z|/Ohm', 'Phase(Z)/deg', whose values are all 0 (not filled in)"
+               in n for n in notes)

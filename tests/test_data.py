@@ -174,13 +174,15 @@ def test_sorted_says_when_dropped_duplicates_differ():
     from freqid_casadi.errors import DataWarning
 
     with pytest.warns(DataWarning, match=r"2 duplicated frequencies dropped, 1 of them with a "
-                      r"response that differs from the one kept by more than 1 % \(up to 4, "
+                      r"response that differs from the one kept by more than 1 % \(up to 400 %, "
                       r"at omega 2\): the data may hold two sweeps"):
         d = FrequencyData.sorted([1.0, 2.0, 2.0, 3.0, 3.0], [1.0, 2.0, 10.0, 3.0, 3.001])
     np.testing.assert_array_equal(d.response, [1.0, 2.0, 3.0])
     with warnings.catch_warnings():
         warnings.simplefilter("error", DataWarning)      # equal duplicates: nothing to say
         FrequencyData.sorted([2.0, 1.0, 2.0], [2.0, 1.0, 2.0])
+        with pytest.raises(DataError, match="response must be nonzero"):   # 0 and 0: equal
+            FrequencyData.sorted([1.0, 1.0, 2.0], [0.0, 0.0, 1.0])
 
 
 def test_sorted_still_validates():

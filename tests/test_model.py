@@ -449,11 +449,39 @@ def test_a_pade_that_misses_the_delay_within_the_dynamics_warns():
             1.0, 0.3, 300.0, 1.0, 0.01, 170.0]
     model = RationalDelayModel(Structure(2), beta)
     with pytest.warns(ExportWarning, match=r"Pade approximation of order 6 of the delay 0.02 "
-                      r"s differs from exp\(-s h\) by 1 \(relative\) at 1480 rad/s, twice "
-                      r"the model's fastest pole .* pass pade_order=19"):
+                      r"s differs from exp\(-s h\) by 1 \(relative\) at 1480 rad/s, where "
+                      r"the model's dynamics reach .* pass pade_order=19"):
         model.to_control(pade_order=6)
     import warnings
     fast = RationalDelayModel(Structure(2), [0.002] + beta[1:])
+    # a spare pole pair at 4e15 rad/s, where the response has long fallen away, sets no
+    # frequency the Pade must reach (it had asked for an order above 20 there)
+    spare = RationalDelayModel(Structure(2), [0.005, 1.0, 0.0, 0.0, 1.0, 1.0, 0.7, 1.0,
+                                              0.0, 0.0, 1.0, 1.0, 0.7, 4e15])
     with warnings.catch_warnings():
-        warnings.simplefilter("error", ExportWarning)
+        warnings.simplefilter("error")
         fast.to_control(pade_order=6)           # 2.96 rad at 1480 rad/s: accurate
+        spare.to_control(pade_order=10)
+
+
+def test_the_export_floor_leaves_out_the_poles_at_the_origin():
+    # with 1/s^2 the response peaks at the lowest frequency checked (a decade below the
+    # roots): a floor from that peak would discount an error in the band (by 2000 at
+    # 1.5e3 rad/s in a review's example); taken without the origin's poles, it does not
+    import control as ct
+
+    from freqid_casadi.core import realize
+
+    model = RationalDelayModel(Structure(2, integrator=2), [
+        0.0, 1.0, 1.0, 0.3, 30.0, 1.0, 0.2, 10.0, 1.0, 0.3, 3e3, 1.0, 0.2, 1e3])
+    sys = model.to_control()
+    omega = np.geomspace(1.0, 1e4, 41)
+    want = model.rational_response(omega)
+    got = np.squeeze(ct.frequency_response(sys, omega).complex)
+    assert np.max(np.abs(got / want - 1)) < 1e-9
+    j = 40                                     # 1e4 rad/s: |G| 1e-10 of |G(1 rad/s)|
+    assert abs(want[j]) < 1e-9 * abs(want[0])
+    bent = want.copy()
+    bent[j] *= 1 + 1e-4
+    assert realize._error(sys, omega, bent, 2) == pytest.approx(1e-4, rel=1e-3)
+    assert realize._error(sys, omega, bent, 0) < 1e-7      # what the floor had made of it

@@ -144,7 +144,8 @@ class FrequencyData:
         # a summary, not every sample (print(fc.load(...)) had shown 400 complex numbers);
         # the arrays are .omega, .response and .weights
         size = np.abs(self.response)
-        return (f"FrequencyData(name={self.name!r}, {self.n_points} points, omega "
+        return (f"FrequencyData(name={self.name!r}, {self.n_points} "
+                f"point{'' if self.n_points == 1 else 's'}, omega "
                 f"{self.omega[0]:.4g} to {self.omega[-1]:.4g} {self.unit}, |response| "
                 f"{size.min():.4g} to {size.max():.4g}"
                 f"{', weighted' if self.weights is not None else ''})")
@@ -223,18 +224,19 @@ def _warn_differing_duplicates(omega, response, keep):
         return
     with np.errstate(all="ignore"):
         diff = np.abs(response[~keep] / response[first] - 1.0)
-    bad = ~(diff <= 0.01)
+    diff[response[~keep] == response[first]] = 0.0          # (0 and 0: the same)
+    bad = diff > 0.01                                       # (nan: the constructor says)
     if bad.any():
         import warnings
 
         from ..errors import DataWarning
 
-        j = int(np.argmax(np.where(bad, np.nan_to_num(diff, nan=np.inf), -1.0)))
+        j = int(np.argmax(np.where(bad, diff, -1.0)))
         warnings.warn(
             f"{int(np.count_nonzero(~keep))} duplicated frequencies dropped, {int(bad.sum())} "
             f"of them with a response that differs from the one kept by more than 1 % (up to "
-            f"{diff[j]:.3g}, at omega {omega[~keep][j]:.6g}): the data may hold two sweeps or "
-            "two channels; the first of each was kept", DataWarning, stacklevel=3)
+            f"{100 * diff[j]:.3g} %, at omega {omega[~keep][j]:.6g}): the data may hold two "
+            "sweeps or two channels; the first of each was kept", DataWarning, stacklevel=3)
 
 
 # --------------------------------------------------------------------------- conversion

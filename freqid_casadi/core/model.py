@@ -505,9 +505,9 @@ class RationalDelayModel(DelayedResponse):
         -----
         ExportWarning
             The export's response misses the model's (:func:`~freqid_casadi.core.realize.
-            state_space`), or the Pade approximation misses the delay by more than 1 % at
-            twice the model's fastest pole (:func:`~freqid_casadi.core.realize.check_pade`,
-            with the order that would not).
+            state_space`), or the Pade approximation misses the delay by more than 1 %
+            where the model's dynamics reach (:func:`~freqid_casadi.core.realize.
+            check_pade`, with the order that would not).
         """
         pade_order = _export_pade_order(delay, pade_order)
         sys, balance = state_space(self)

@@ -290,7 +290,8 @@ def state_space(model):
         for j in order[1:]:
             sys = ct.series(sys, blocks[j])
         for balance in (True, False):
-            error = _error(balanced_ss(sys) if balance else sys, omega, want)
+            error = _error(balanced_ss(sys) if balance else sys, omega, want,
+                           model.origin_order)
             if best is None or error < best[0]:
                 best = (error, sys, balance)
     error, sys, balance = best
@@ -330,7 +331,7 @@ def export_error(sys, model):
         inf where either response is not finite.
     """
     omega = _check_omega(model)
-    return _error(sys, omega, _reference(model, omega))
+    return _error(sys, omega, _reference(model, omega), model.origin_order)
 
 
 def _reference(model, omega):
@@ -346,13 +347,19 @@ def _reference(model, omega):
 RESPONSE_FLOOR = 1e-6
 
 
-def _error(sys, omega, want):
+def _error(sys, omega, want, k=0):
+    """Largest relative error of ``sys`` against ``want`` at ``omega``, against
+    :data:`RESPONSE_FLOOR` times the peak where the response is lower (the peak of the
+    response without its ``k`` poles at the origin, whose ``1/s^k`` would put it at the
+    lowest frequency checked, outside any band)."""
     import control as ct
 
     with np.errstate(all="ignore"):
         got = np.squeeze(ct.frequency_response(sys, omega).complex)
         size = np.abs(want)
-        err = np.abs(got - want) / np.maximum(size, RESPONSE_FLOOR * np.max(size))
+        origin = omega ** float(k)
+        floor = RESPONSE_FLOOR * np.max(size * origin) / origin
+        err = np.abs(got - want) / np.maximum(size, floor)
     return float(np.max(err)) if np.all(np.isfinite(err)) else math.inf
 
 
@@ -367,17 +374,38 @@ def _pade_error(ct, delay, order, omega):
     try:
         with np.errstate(all="raise"):
             num, den = ct.pade(delay, order)
-        s = 1j * omega
-        return float(abs(np.polyval(num, s) / np.polyval(den, s) * np.exp(s * delay) - 1))
     except (ArithmeticError, FloatingPointError, ValueError):
         return math.inf
+    s = 1j * omega
+    with np.errstate(all="ignore"):
+        return float(abs(np.polyval(num, s) / np.polyval(den, s) * np.exp(s * delay) - 1))
+
+
+#: Level below the peak of the response (-60 dB) up to which :func:`check_pade` looks.
+PADE_LEVEL = 1e-3
+
+
+def _dynamics_top(model, poles):
+    """Twice the fastest pole, or the highest frequency where the response (without its
+    poles at the origin) is within :data:`PADE_LEVEL` of its peak, if lower: a spare pole
+    far above the band, where the response has long fallen away, sets nothing."""
+    lo, _ = _root_range(model)
+    top = 2.0 * float(np.max(poles))
+    grid = np.geomspace(min(lo, top) / 10, top, 400)
+    with np.errstate(all="ignore"):
+        size = np.abs(model.rational_response(grid)) * grid ** float(model.origin_order)
+    ok = np.isfinite(size)
+    if not ok.any():
+        return top
+    within = grid[ok][size[ok] >= PADE_LEVEL * np.max(size[ok])]
+    return float(min(top, within.max())) if within.size else top
 
 
 def check_pade(model, order):
     """An :class:`~freqid_casadi.errors.ExportWarning` when the Pade approximation of
     ``model``'s delay of order ``order`` misses ``exp(-s h)`` by more than
-    :data:`PADE_TOLERANCE` at twice the model's fastest pole (up to where its dynamics
-    reach), with the order that would meet it.
+    :data:`PADE_TOLERANCE` where the model's dynamics reach (:func:`_dynamics_top`), with
+    the order that would meet it.
 
     Parameters
     ----------
@@ -390,9 +418,9 @@ def check_pade(model, order):
     poles = poles[np.isfinite(poles) & (poles > 0)]
     if model.delay <= 0 or not poles.size:
         return
-    omega = 2.0 * float(np.max(poles))
+    omega = _dynamics_top(model, poles)
     err = _pade_error(ct, model.delay, order, omega)
-    if err <= PADE_TOLERANCE:
+    if not err > PADE_TOLERANCE:                 # (nan: an evaluation that overflowed)
         return
     import warnings
 
@@ -404,8 +432,9 @@ def check_pade(model, order):
            "no Pade order up to 20 is accurate there")
     warnings.warn(
         f"the Pade approximation of order {order} of the delay {model.delay:.4g} s differs "
-        f"from exp(-s h) by {err:.2g} (relative) at {omega:.4g} rad/s, twice the model's "
-        f"fastest pole (a phase lag of {omega * model.delay:.3g} rad there): the exported "
+        f"from exp(-s h) by {err:.2g} (relative) at {omega:.4g} rad/s, where the model's "
+        f"dynamics reach (twice its fastest pole, or where its response falls 60 dB below "
+        f"its peak; a phase lag of {omega * model.delay:.3g} rad there): the exported "
         f"system misses the delay's phase within the model's dynamics; {fix}, or export "
         "the delay exactly (delay='attribute') and check margins on the model's frequency "
         "response", ExportWarning, stacklevel=3)

@@ -43,7 +43,8 @@ _FREQ = {"omega": "rad/s", "w": "rad/s", "f": None, "freq": None, "frequency": N
 #: Frequency units with an SI prefix, as field solvers and network analysers write them
 #: (``Freq [GHz]``), and each prefix's factor (``m``: milli, ``M``: mega, as written).
 _PREFIXED_HZ = {"khz", "mhz", "ghz", "thz"}
-_HZ_PREFIX = {"k": 1e3, "M": 1e6, "m": 1e-3, "g": 1e9, "t": 1e12}
+_HZ_PREFIX = {"k": 1e3, "M": 1e6, "g": 1e9, "t": 1e12}     # (mHz exactly: milli; mhz,
+#                                                             MHZ, MHz: mega)
 _RE = {"re", "real"}
 _IM = {"im", "imag", "imaginary"}
 #: (``spl``: a sound pressure level, ``SPL(dB)`` in Room EQ Wizard's exports; ``|z|``:
@@ -55,7 +56,8 @@ _MAG = {"mag", "magnitude", "abs", "amplitude", "amp", "gain", "modulus", "spl",
 _DB = {"db", "dbspl", "db_spl", "dbv", "dbu", "dbr"}
 #: (``th``/``θ``: the angle of an impedance, ``Trace th (*)`` in WaveForms' export;
 #: ``fase``: Spanish, Italian)
-_PHASE = {"phase", "phi", "arg", "angle", "ph", "th", "theta", "θ", "fase"}
+_PHASE = {"phase", "phi", "arg", "angle", "ph", "th", "theta", "θ", "fase", "θz", "θ_z",
+          "theta_z", "thetaz", "phase_angle"}       # (θz: Keysight's impedance analysers)
 #: A phase named by its unit alone (``"Hz"  "Mag (dB)"  "deg"``, as MLSSA files head theirs).
 _PHASE_UNIT = {"deg": "deg", "degree": "deg", "degrees": "deg", "°": "deg", "rad": "rad",
                "radian": "rad", "radians": "rad"}
@@ -175,8 +177,8 @@ def recognise(label):
     s = label.strip().lower()
     if len(s) > 1 and s[0] in "\"'" and s[-1] == s[0]:       # a quoted cell, not Z'/Z''
         s = s[1:-1].strip()
-    if s[:1] in ("-", "\u2212") and s[1:2].isalpha():       # "-Im(Z)", "-Phase (°)", "-im"
-        col = recognise(s[1:])
+    if s[:1] in ("-", "\u2212") and s[1:].lstrip()[:1].isalpha():   # "-Im(Z)", "- Phase"
+        col = recognise(s[1:].lstrip())
         return (replace(col, label=label.strip(), negated=not col.negated)
                 if col is not None and col.role in NEGATABLE else None)
     col = _impedance_column(s, label.strip())
@@ -194,8 +196,10 @@ def recognise(label):
         s, _, unit = s.partition("/")                                   # DIN: "f/Hz"
     scale = 1.0
     if unit.replace(" ", "") in _PREFIXED_HZ:     # "Freq [MHz]", "f/kHz" (and mHz: milli)
-        prefix = re.search(r"([kmgtKMGT])\s*hz", label, re.IGNORECASE).group(1)
-        scale, unit = _HZ_PREFIX[prefix if prefix in "mM" else prefix.lower()], "hz"
+        found = re.search(r"([kmgtKMGT])\s*(hz)", label, re.IGNORECASE)
+        milli = found.group(1) == "m" and found.group(2) == "Hz"        # mHz, as SI writes
+        prefix = found.group(1).lower()
+        scale, unit = (1e-3 if milli else _HZ_PREFIX["M" if prefix == "m" else prefix]), "hz"
     s = re.sub(r"_part$", "", re.sub(r"[\s\-.]+", "_", s).strip("_"))   # "real part"
     part = _SPARAM_PART.fullmatch(s)
     if part and not unit:

@@ -11,6 +11,7 @@ response of such a file (``load_all``). Messages name the variables found and th
 that chooses among them.
 """
 
+import dataclasses
 import warnings
 
 import numpy as np
@@ -197,7 +198,7 @@ def _mat_table(path, arrays, columns, freq_unit, alias=None):
             if key == alias:
                 col = Column("freq", _alias_unit(key), key)
             if col is not None and col.role != "skip":
-                named[key] = Column(col.role, col.unit, key)
+                named[key] = dataclasses.replace(col, label=key)   # (its minus, its scale)
     cols = tuple(named.values())
     if named and _layout_problem(cols) is not None and \
             _layout_problem(cols + (Column("freq"),)) is None and \
@@ -226,6 +227,9 @@ def _mat_table(path, arrays, columns, freq_unit, alias=None):
     cols = _resolve_units(path, cols, freq_unit, ",".join(named) if named else None)
     for k, arr in values.items():
         values[k] = np.asarray(arr, complex if k == "complex" else float)
+    for c in cols:                  # "-Im(Z)", "Freq [MHz]": as the text reader does
+        if c.negated or c.scale != 1.0:
+            values[c.role] = values[c.role] * (-c.scale if c.negated else c.scale)
     table = Table(path, cols, values, np.arange(1, n + 1), where="row")
     _check_finite(table)
     return table

@@ -12,7 +12,8 @@ __all__ = ["sweep_starts", "one_sweep"]
 def sweep_starts(f):
     """Row indices where a new sweep begins in the frequencies ``f`` (shape (M,)), or an
     empty list: each sweep strictly monotone, in one direction, of at least 3 rows, and
-    each new one starting back by at least half the span of the sweep before it.
+    each new one starting back by at least half the span of all the frequencies (a point
+    out of order within one sweep is no new sweep).
 
     Parameters
     ----------
@@ -23,15 +24,16 @@ def sweep_starts(f):
     list of int
         The first row of each sweep after the first.
     """
-    d = np.diff(np.asarray(f, float))
-    if d.size < 5 or not np.all(d != 0):
+    f = np.asarray(f, float)
+    d = np.diff(f)
+    if d.size < 5 or not np.all(np.isfinite(f)) or not np.all(d != 0):
         return []
     direction = 1.0 if np.count_nonzero(d > 0) >= np.count_nonzero(d < 0) else -1.0
     back = np.flatnonzero(d * direction < 0)
+    span = float(np.max(f) - np.min(f))
     starts, first = [], 0
     for i in back:
-        run = f[first:i + 1]
-        if run.size < 3 or abs(d[i]) < 0.5 * (np.max(run) - np.min(run)):
+        if i + 1 - first < 3 or abs(d[i]) < 0.5 * span:
             return []
         starts.append(int(i) + 1)
         first = int(i) + 1
@@ -77,9 +79,12 @@ def one_sweep(path, values, rows, record):
         raise DataError(
             f"{path!r} holds {n} sweeps one after another (the frequency starts again on "
             f"line(s) {lines}{', ...' if n > 7 else ''}): pass record=0..{n - 1} to load() "
-            "(command line --record K) to read one sweep")
-    if isinstance(record, bool) or not isinstance(record, (int, np.integer)) \
-            or not 0 <= record < n:
+            "(command line --record K) to read one sweep; if they are parts of one "
+            "measurement (a coarse sweep, then a fine one), merge them in Python: "
+            "FrequencyData.sorted(omega, response)")
+    if isinstance(record, bool) or not isinstance(record, (int, np.integer)):
+        raise OptionError(f"record must be an integer (0-based), got {record!r}")
+    if not 0 <= record < n:
         raise OptionError(f"record={record!r} is out of range: {path!r} holds {n} sweeps, "
                           f"numbered 0..{n - 1}")
     a, b = bounds[record], bounds[record + 1]

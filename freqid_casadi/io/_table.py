@@ -19,6 +19,7 @@ from ._columns import (_UNITS, COLUMN_HELP, DERIVED, ChannelChoice, Column, _lay
                        several_responses, time_column, time_records, with_parameter)
 from ._decode import decode_text
 from ._headerless import WRAP_JUMP, check_guessed, suffix_columns
+from ._same import check_same
 from ._sweeps import one_sweep
 from ._readfile import DataWarning
 from ..errors import DataError, OptionError
@@ -106,7 +107,7 @@ def _quoted_cells(line, sep):
     ``"mag(S(Port1,Port1)) []"``), each in its quotes as written."""
     cells, cell, quoted = [], [], False
     for ch in line:
-        if ch == '"':
+        if ch == '"' and (quoted or not "".join(cell).strip()):   # (Z" as ZView writes Z'')
             quoted = not quoted
         if ch == sep and not quoted:
             cells.append("".join(cell).strip())
@@ -118,10 +119,29 @@ def _quoted_cells(line, sep):
 
 def _trimmed(cells):
     """``cells`` without the empty cell a trailing tab leaves (``1\t2\t3\t``, as some
-    analysers end every line) or a leading one (``\t1\t2\t3``: Gamry's tables)."""
-    if len(cells) > 1 and cells[-1] == "":
-        cells = cells[:-1]
-    return cells[1:] if len(cells) > 1 and cells[0] == "" else cells
+    analysers end every line)."""
+    return cells[:-1] if len(cells) > 1 and cells[-1] == "" else cells
+
+
+def _tab_led_tables(rows):
+    """``rows`` with the leading tab of each line of a tab-led table removed: a run of
+    three or more lines that begin with a tab, the first of them not numbers (a header),
+    to the end of the file or the next line that does not (Gamry's ``\tPt\tTime\tFreq``,
+    its units line and rows). A table whose first column is only sometimes empty has no
+    such run and keeps its empty cells."""
+    out, k = list(rows), 0
+    while k < len(out):
+        if not out[k][1].startswith("\t"):
+            k += 1
+            continue
+        end = k
+        while end < len(out) and out[end][1].startswith("\t"):
+            end += 1
+        head = [c.strip() for c in out[k][1].split("\t") if c.strip()]
+        if end - k >= 3 and head and not all(_is_value(c) for c in head):
+            out[k:end] = [(line, text[1:]) for line, text in out[k:end]]
+        k = end
+    return out
 
 
 def _fast_values(rows, cols, sep):
@@ -293,7 +313,11 @@ def _known_layout(path, cells, cols, parameter):
         trial = one_layout(tuple(
             c if c.role in ("freq", "skip") or _quantity(c.label) == "z"
             else Column("skip", None, c.label) for c in trial))
-    if [c.role for c in trial].count("freq") != 1 or _layout_problem(trial):
+    roles = {c.role for c in trial} - {"freq", "skip"}
+    if [c.role for c in trial].count("freq") != 1 or _layout_problem(trial) \
+            or roles == {"complex"}:
+        # (a column named as a complex quantity, Z or H, beside a phase of a name the
+        # reader does not know, 'θz(°)', is a magnitude: the whole header is asked for)
         return cols
     unknown = ", ".join(repr(_clean(cells[j])) for j, c in enumerate(cols) if c is None)
     read = ", ".join(repr(c.label) for c in trial if c.role != "skip")
@@ -629,7 +653,7 @@ def _note_units(path, between, cells):
 
 def read_table(path, payload, columns, freq_unit, max_rows, parameter=None, record=None):
     """Parse delimited UTF-8 text into a :class:`Table` (see ``loaders.load_text``)."""
-    rows = _content(path, decode_text(path, payload), max_rows)
+    rows = _tab_led_tables(_content(path, decode_text(path, payload), max_rows))
     ltspice_runs = rows[0][1].lstrip().startswith("Freq.") and any(
         _LT_STEP.match(text) for _, text in rows)
     rows = _one_run(path, rows, record)
@@ -673,61 +697,11 @@ def read_table(path, payload, columns, freq_unit, max_rows, parameter=None, reco
     table = Table(path, cols, values, np.array([r[0] for r in rows]))
     _check_finite(table)
     if any(c.same for c in cols):
-        _check_same(table, rows, split)
+        check_same(table, rows, split, _response(table), _parse_cell)
     if not header and columns is None and [c.label for c in cols] == [
             "frequency", "real", "imag"]:
         check_guessed(path, values)
     return table
-
-
-#: How closely a column that repeats the response in another form (an analyser's second
-#: trace, its dB or degree column) must agree with the response read: the printing
-#: precision of such columns (0.01 dB is 0.12 %, 0.01 degree 1.7e-4 rad) with a wide
-#: margin; two different measurements differ by far more.
-SAME_RTOL, SAME_DEGREES = 0.01, 1.0
-
-
-def _check_same(table, rows, split):
-    """The skipped columns that give the response again (``Column.same``) agree with the
-    response read, to :data:`SAME_RTOL` of ``|G|`` and :data:`SAME_DEGREES`; a
-    :class:`DataWarning` says which columns were read."""
-    response = _response(table)
-    size, phase = np.abs(response), np.angle(response)
-    cells = [(line, split(text)) for line, text in rows]
-    for j, col in enumerate(table.columns):
-        if col.same is None or col.same == "phase" and col.unit is None:
-            continue
-        as_read = Column(col.same, col.unit, col.label)
-        x = np.array([_parse_cell(table.path, line, as_read, row[j]) for line, row in cells])
-        x = -x if col.negated else x
-        with np.errstate(over="ignore", invalid="ignore"):
-            if col.same == "phase":
-                turn = np.angle(np.exp(1j * ((x if col.unit == "rad" else np.deg2rad(x))
-                                             - phase)))
-                off = np.abs(turn) > np.deg2rad(SAME_DEGREES)
-            else:
-                y = {"re": response.real, "im": response.imag, "complex": response,
-                     "mag": size}[col.same]
-                x = 10.0 ** (x / 20.0) if col.same == "mag" and col.unit == "db" else x
-                off = ~(np.abs(x - y) <= SAME_RTOL * size)
-        off &= table.values["freq"] != 0
-        if off.any():
-            i = int(np.flatnonzero(off)[0])
-            read = ", ".join(repr(c.label) for c in table.columns
-                             if c.role not in ("skip", "freq"))
-            raise DataError(
-                f"{table.at(i)}: column {col.label!r} is not the response of columns {read} "
-                f"in another form (they differ by more than {SAME_RTOL:.0%} or "
-                f"{SAME_DEGREES:g} degree): the file holds two measurements; name the "
-                f"columns to read, e.g. columns='{columns_option(table.columns)}' (command "
-                "line --columns), 'skip' for the others")
-    same = [repr(c.label) for c in table.columns if c.same]
-    read = ", ".join(repr(c.label) for c in table.columns if c.role != "skip")
-    one = len(same) == 1
-    warnings.warn(f"{table.path!r}: read {read}; {'column' if one else 'columns'} "
-                  f"{', '.join(same)} {'gives' if one else 'give'} the same response in "
-                  f"another form (checked: within {SAME_RTOL:.0%} and {SAME_DEGREES:g} "
-                  "degree)", DataWarning, stacklevel=4)
 
 
 def _slow_values(path, rows, cols, split):

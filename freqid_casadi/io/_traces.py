@@ -171,7 +171,11 @@ def _freq_unit(columns, freq_unit, label):
     """The unit of the frequency column: ``columns``' (``freq_hz``), else its header's
     (``Frequency (Hz)``), else ``freq_unit``, else Hz (the analysers write Hz)."""
     given = columns[0].unit if columns and columns[0].role == "freq" else None
-    return given or recognise(label).unit or freq_unit or "hz"
+    col = recognise(label)
+    if given is None and col is not None and col.scale != 1.0:
+        raise DataError(f"the trace's frequency column {label!r} is not in Hz: the trace "
+                        "reader reads Hz and rad/s; export the traces in Hz")
+    return given or col.unit or freq_unit or "hz"
 
 
 def _check_sweep(path, block):
