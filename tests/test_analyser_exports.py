@@ -615,7 +615,9 @@ def test_ec_lab_and_zplot_exports_read_as_written(tmp_path):
              "End Comments\n" + "".join(
                  f"{f:.6E}\t1.0000E-02\t0.0000E+00\t2.67\t{v.real:.4E}\t{v.imag:.4E}\t0\t0\t3\n"
                  for f, v in zip(_EIS_F, z)))
-    data, _ = _load(_write(tmp_path, zplot, "eis.z"))
+    data, notes = _load(_write(tmp_path, zplot, "eis.z"))
+    assert any("skipped line(s) 4 ('End Comments') between the header and the data" in n
+               for n in notes)
     np.testing.assert_allclose(data.omega, 2 * np.pi * _EIS_F[::-1], rtol=1e-6)
     np.testing.assert_allclose(data.response, z[::-1], rtol=1e-4)
 

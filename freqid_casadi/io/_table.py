@@ -646,9 +646,17 @@ def _lines(first, last):
 
 
 def _note_units(path, between, cells):
-    lines = ", ".join(str(k) for k, _ in between)
-    warnings.warn(f"{path!r}: read the units of line(s) {lines} into the header: "
-                  f"{', '.join(cells)}", DataWarning, stacklevel=5)
+    """Which lines between header and data were read as units, and which skipped (a point
+    count, ZPlot's ``End Comments``)."""
+    units = ", ".join(str(k) for k, text in between if _unit_line(text))
+    other = [(k, text) for k, text in between if not _unit_line(text)]
+    if units:
+        warnings.warn(f"{path!r}: read the units of line(s) {units} into the header: "
+                      f"{', '.join(cells)}", DataWarning, stacklevel=5)
+    if other:
+        shown = ", ".join(f"{k} ({shown_cell(' '.join(t.split()))})" for k, t in other[:3])
+        warnings.warn(f"{path!r}: skipped line(s) {shown} between the header and the data",
+                      DataWarning, stacklevel=5)
 
 
 def read_table(path, payload, columns, freq_unit, max_rows, parameter=None, record=None):
