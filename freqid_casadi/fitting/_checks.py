@@ -251,9 +251,11 @@ def _next_step(last, stats, start=None, found=()):
         # 20000: the data are matched, the iterations move sections they do not need
         return ("the model reproduces the data to rounding: more iterations only move "
                 "sections the data do not need (fewer sections shed them)")
-    if not stats.rms < TRIVIAL_RMS:
+    if not stats.rms < TRIVIAL_RMS and (fell is None or fell < SLOW_FALL
+                                        or last.status != Status.MAX_ITER):
         # (an impact test's accelerance at 6 sections: RMS 0.994 "still falling 0.00048 %
-        # per iteration" had been sent to ten times the iterations)
+        # per iteration" had been sent to ten times the iterations; a stage stopped early
+        # by its limit while the error still falls fast is sent on, below)
         return (TRIVIAL_ADVICE + ": see the diagnostics (gain sign, model class, delay, "
                 "zeros='free' for right-half-plane zeros, another number of sections) "
                 "before iterating further")
@@ -271,6 +273,10 @@ def _next_step(last, stats, start=None, found=()):
     return ("try start='best' (both starts, the better kept) or another number of "
             "sections")
 
+
+#: Fall of the RMS per iteration (relative) below which more iterations of a fit that
+#: explains almost nothing are not advised.
+SLOW_FALL = 1e-3
 
 #: The advice of an unconverged fit that explains almost nothing (RMS near 1): more
 #: iterations or a damping floor do not change that.
