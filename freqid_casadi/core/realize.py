@@ -356,14 +356,19 @@ def _error(sys, omega, want, k=0):
 
     with np.errstate(all="ignore"):
         got = np.squeeze(ct.frequency_response(sys, omega).complex)
-        size = np.abs(want)
-        origin = omega ** float(k)
-        floor = RESPONSE_FLOOR * np.max(size * origin) / origin
-        err = np.abs(got - want) / np.maximum(size, floor)
+        level = _without_origin(want, omega, k)
+        floor = RESPONSE_FLOOR * np.max(level) / omega ** float(k)
+        err = np.abs(got - want) / np.maximum(np.abs(want), floor)
     return float(np.max(err)) if np.all(np.isfinite(err)) else math.inf
 
 
-#: Relative error of the delay's Pade approximation, at twice the model's fastest pole,
+def _without_origin(response, omega, k):
+    """``|response| * omega^k``: the magnitude without the ``k`` poles at the origin (``k``
+    < 0: zeros), whose ``1/s^k`` alone would put its peak at the lowest frequency."""
+    return np.abs(response) * omega ** float(k)
+
+
+#: Relative error of the delay's Pade approximation, where the model's dynamics reach,
 #: above which :func:`check_pade` warns.
 PADE_TOLERANCE = 0.01
 
@@ -393,7 +398,7 @@ def _dynamics_top(model, poles):
     top = 2.0 * float(np.max(poles))
     grid = np.geomspace(min(lo, top) / 10, top, 400)
     with np.errstate(all="ignore"):
-        size = np.abs(model.rational_response(grid)) * grid ** float(model.origin_order)
+        size = _without_origin(model.rational_response(grid), grid, model.origin_order)
     ok = np.isfinite(size)
     if not ok.any():
         return top

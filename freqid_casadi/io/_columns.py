@@ -43,8 +43,7 @@ _FREQ = {"omega": "rad/s", "w": "rad/s", "f": None, "freq": None, "frequency": N
 #: Frequency units with an SI prefix, as field solvers and network analysers write them
 #: (``Freq [GHz]``), and each prefix's factor (``m``: milli, ``M``: mega, as written).
 _PREFIXED_HZ = {"khz", "mhz", "ghz", "thz"}
-_HZ_PREFIX = {"k": 1e3, "M": 1e6, "g": 1e9, "t": 1e12}     # (mHz exactly: milli; mhz,
-#                                                             MHZ, MHz: mega)
+_HZ_PREFIX = {"k": 1e3, "m": 1e6, "g": 1e9, "t": 1e12}     # (but "mHz" as written: milli)
 _RE = {"re", "real"}
 _IM = {"im", "imag", "imaginary"}
 #: (``spl``: a sound pressure level, ``SPL(dB)`` in Room EQ Wizard's exports; ``|z|``:
@@ -97,7 +96,7 @@ def _impedance_column(s, label):
     if m is None:
         return None
     name = re.sub(r"\s+", "", m.group("name"))
-    role = _IMPEDANCE_ROLE.get(name.split("(")[0] if "(" in name else name)
+    role = _IMPEDANCE_ROLE.get(name.split("(")[0])
     unit = (m.group("din") or m.group("unit") or "").strip()
     if role == "phase":
         angle = _UNITS.get(unit.replace(" ", ""), "deg") if unit else "deg"
@@ -161,6 +160,25 @@ class Column:
 NEGATABLE = ("re", "im", "phase")
 
 
+def unquoted(cell):
+    """``cell`` stripped, and out of the quotes around it when it has a pair (``"Freq"``;
+    not the primes of ``Z'`` or ``Z''``)."""
+    cell = cell.strip()
+    if len(cell) >= 2 and cell[0] == cell[-1] and cell[0] in "\"'":
+        cell = cell[1:-1].strip()
+    return cell
+
+
+def written_values(cols, values):
+    """``values`` (role to ndarray) with each column as its name says it was written taken
+    back: minus a negated column (``-Im(Z)``), a prefixed frequency times its scale
+    (``Freq [MHz]``)."""
+    for c in cols:
+        if c.role in values and (c.negated or c.scale != 1.0):
+            values[c.role] = values[c.role] * (-c.scale if c.negated else c.scale)
+    return values
+
+
 def recognise(label):
     """The :class:`Column` a header cell or a name stands for, or None if unknown.
 
@@ -174,9 +192,7 @@ def recognise(label):
         col = recognise(name) if name else None
         if col is not None:
             return replace(col, label=label.strip())
-    s = label.strip().lower()
-    if len(s) > 1 and s[0] in "\"'" and s[-1] == s[0]:       # a quoted cell, not Z'/Z''
-        s = s[1:-1].strip()
+    s = unquoted(label).lower()
     if s[:1] in ("-", "\u2212") and s[1:].lstrip()[:1].isalpha():   # "-Im(Z)", "- Phase"
         col = recognise(s[1:].lstrip())
         return (replace(col, label=label.strip(), negated=not col.negated)
@@ -196,10 +212,9 @@ def recognise(label):
         s, _, unit = s.partition("/")                                   # DIN: "f/Hz"
     scale = 1.0
     if unit.replace(" ", "") in _PREFIXED_HZ:     # "Freq [MHz]", "f/kHz" (and mHz: milli)
-        found = re.search(r"([kmgtKMGT])\s*(hz)", label, re.IGNORECASE)
-        milli = found.group(1) == "m" and found.group(2) == "Hz"        # mHz, as SI writes
-        prefix = found.group(1).lower()
-        scale, unit = (1e-3 if milli else _HZ_PREFIX["M" if prefix == "m" else prefix]), "hz"
+        found = re.search(r"([kmgt])\s*hz", label, re.IGNORECASE)
+        milli = re.sub(r"\s", "", found.group(0)) == "mHz"              # as SI writes it
+        scale, unit = (1e-3 if milli else _HZ_PREFIX[found.group(1).lower()]), "hz"
     s = re.sub(r"_part$", "", re.sub(r"[\s\-.]+", "_", s).strip("_"))   # "real part"
     part = _SPARAM_PART.fullmatch(s)
     if part and not unit:
@@ -253,7 +268,7 @@ def sparameter_of(label):
     m = re.match(r"\s*[\"']?\s*(s\d\d|[abr]\d?/[abr]\d?)(?![\d])", label, re.IGNORECASE)
     if m:
         return m.group(1).lower()
-    function = _FUNCTION.fullmatch(label.strip().strip("\"'").strip().lower())
+    function = _FUNCTION.fullmatch(unquoted(label).lower())
     # a field solver's quantity: "v(v1)" of "mag(V(V1)) [V]", "s(12)" of "dB(S(1,2))"
     return re.sub(r"[\s,_]", "", function.group(2)) if function else None
 
@@ -304,8 +319,7 @@ def _quantity(label):
     """The measured quantity a response column names: ``gain`` of ``TR2: Gain (Degree)``,
     ``s21`` of ``S21 Log Mag(dB)``."""
     s = label.rpartition(":")[2].strip().lower()
-    bare = s[1:-1].strip() if len(s) > 1 and s[0] in "\"'" and s[-1] == s[0] else s
-    bare = bare.lstrip("-\u2212")                     # (a negated column's quantity)
+    bare = unquoted(s).lstrip("-\u2212")               # (a negated column's quantity)
     s = s.strip("\"'").lstrip("-\u2212")
     if _IMPEDANCE.fullmatch(bare):
         return "z"                          # Re(Z), -Im(Z), |Z|, Zphz, Z'' ...

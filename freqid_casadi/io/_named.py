@@ -16,7 +16,7 @@ import warnings
 
 import numpy as np
 
-from ._columns import recognise
+from ._columns import recognise, written_values
 from ._mat import (axis_variables, chosen_response, matrix_channels, records_hint,
                    response_parts, spectrum_kind, start_step_axis)
 from ._readfile import DataWarning, _finish
@@ -227,9 +227,7 @@ def _mat_table(path, arrays, columns, freq_unit, alias=None):
     cols = _resolve_units(path, cols, freq_unit, ",".join(named) if named else None)
     for k, arr in values.items():
         values[k] = np.asarray(arr, complex if k == "complex" else float)
-    for c in cols:                  # "-Im(Z)", "Freq [MHz]": as the text reader does
-        if c.negated or c.scale != 1.0:
-            values[c.role] = values[c.role] * (-c.scale if c.negated else c.scale)
+    values = written_values(cols, values)       # "-Im(Z)", "Freq [MHz]"
     table = Table(path, cols, values, np.arange(1, n + 1), where="row")
     _check_finite(table)
     return table

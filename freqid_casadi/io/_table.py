@@ -15,8 +15,9 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ._columns import (_UNITS, COLUMN_HELP, DERIVED, ChannelChoice, Column, _layout_problem,
-                       _quantity, columns_option, one_layout, parse_columns, parse_freq_unit, recognise,
-                       several_responses, time_column, time_records, with_parameter)
+                       _quantity, columns_option, one_layout, parse_columns, parse_freq_unit,
+                       recognise, several_responses, time_column, time_records, unquoted,
+                       with_parameter, written_values)
 from ._decode import decode_text
 from ._headerless import WRAP_JUMP, check_guessed, suffix_columns
 from ._same import check_same
@@ -172,11 +173,6 @@ def _split_space(line):
     return out
 
 
-def _clean(cell):
-    cell = cell.strip()
-    if len(cell) >= 2 and cell[0] == cell[-1] and cell[0] in "\"'":
-        cell = cell[1:-1].strip()
-    return cell
 
 
 def _complex_text(cell):
@@ -187,7 +183,7 @@ def _complex_text(cell):
 
 
 def _is_value(cell):
-    cell = _clean(cell)
+    cell = unquoted(cell)
     return bool(NUMBER.fullmatch(cell) or _CPLX.fullmatch(_complex_text(cell))
                 or _ltspice_value(cell) is not None)
 
@@ -242,35 +238,35 @@ def _comment_header(path, rows, comment):
         return rows
     cells = _splitter(sep)(comment[1]) if sep and sep in comment[1] else \
         _split_space(comment[1])
-    if len(cells) == len(first) > 1 and time_column(_clean(cells[0])):
+    if len(cells) == len(first) > 1 and time_column(unquoted(cells[0])):
         raise DataError(time_records(path, cells))
-    cols = one_layout([recognise(_clean(c)) for c in cells])
+    cols = one_layout([recognise(unquoted(c)) for c in cells])
     if len(cells) != len(first) or None in cols or _layout_problem(cols):
         return rows
     return [(comment[0], (sep or " ").join(cells))] + rows
 
 
 def _header_columns(path, cells, parameter=None, line=1):
-    cols = [recognise(_clean(c)) for c in cells]
-    traces = [_clean(c) for c in cells[1:]]
-    ltspice = _clean(cells[0]) == "Freq." and traces and all(map(_LT_TRACE.fullmatch, traces))
+    cols = [recognise(unquoted(c)) for c in cells]
+    traces = [unquoted(c) for c in cells[1:]]
+    ltspice = unquoted(cells[0]) == "Freq." and traces and all(map(_LT_TRACE.fullmatch, traces))
     if ltspice:
         # LTspice's export of an AC analysis: frequencies in Hz, each trace one complex
         # column (polar dB and degrees, or Cartesian)
-        cols = [Column("freq", "hz", "Freq.")] + [Column("complex", None, _clean(c))
+        cols = [Column("freq", "hz", "Freq.")] + [Column("complex", None, unquoted(c))
                                                   for c in cells[1:]]
     if parameter is not None and None not in cols:
         cols = with_parameter(cols, parameter, repr(path))
     if not (ltspice and len(traces) > 1):        # (LTspice's traces are other signals)
         cols = one_layout(cols)
     problem, choices = None, []
-    if cols[0] is None and len(cells) > 1 and time_column(_clean(cells[0])):
-        raise DataError(time_records(path, [_clean(c) for c in cells]))
+    if cols[0] is None and len(cells) > 1 and time_column(unquoted(cells[0])):
+        raise DataError(time_records(path, [unquoted(c) for c in cells]))
     if any(c is None for c in cols) and not ltspice:
         cols = _known_layout(path, cells, cols, parameter)
     if any(c is None for c in cols):
         bad = cells[[c is None for c in cols].index(True)]
-        problem = f"column {_clean(bad)!r} is not a known name"
+        problem = f"column {unquoted(bad)!r} is not a known name"
     else:
         problem = _layout_problem(cols)
         if problem:
@@ -278,7 +274,7 @@ def _header_columns(path, cells, parameter=None, line=1):
             problem += more
     if problem:
         raise ChannelChoice(
-            f"{path!r}: unrecognised header {','.join(_clean(c) for c in cells)!r} "
+            f"{path!r}: unrecognised header {','.join(unquoted(c) for c in cells)!r} "
             f"({problem}); "
             f"{'the first line' if line == 1 else f'the header (line {line})'} must be "
             "'omega,real,imag' or "
@@ -299,7 +295,7 @@ def _known_layout(path, cells, cols, parameter):
     frequency and one complete response (an impedance analyser's export beside its
     time, potential, current and cycle columns), with a :class:`DataWarning` naming
     what was read and what was left out; ``cols`` as given otherwise."""
-    trial = tuple(Column("skip", None, _clean(cells[j])) if c is None else c
+    trial = tuple(Column("skip", None, unquoted(cells[j])) if c is None else c
                   for j, c in enumerate(cols))
     if parameter is not None:
         try:
@@ -319,7 +315,7 @@ def _known_layout(path, cells, cols, parameter):
         # (a column named as a complex quantity, Z or H, beside a phase of a name the
         # reader does not know, 'θz(°)', is a magnitude: the whole header is asked for)
         return cols
-    unknown = ", ".join(repr(_clean(cells[j])) for j, c in enumerate(cols) if c is None)
+    unknown = ", ".join(repr(unquoted(cells[j])) for j, c in enumerate(cols) if c is None)
     read = ", ".join(repr(c.label) for c in trial if c.role != "skip")
     warnings.warn(f"{path!r}: read {read}; left out columns of names the reader does not "
                   f"know: {unknown}; to read others, pass columns=... (command line "
@@ -334,7 +330,7 @@ def _default_columns(path, cells):
     if len(cells) == 3:
         return (Column("freq", None, "frequency"), Column("re", None, "real"),
                 Column("im", None, "imag"))
-    if len(cells) == 2 and not NUMBER.fullmatch(_clean(cells[1])):
+    if len(cells) == 2 and not NUMBER.fullmatch(unquoted(cells[1])):
         return Column("freq", None, "frequency"), Column("complex", None, "response")
     example = ",".join(["freq_hz", "mag_db", "phase_deg"] + ["skip"] * (len(cells) - 3))
     records = (" If it holds time records (input and output samples), estimate the "
@@ -378,7 +374,7 @@ def _resolve_units(path, cols, freq_unit, header):
 
 
 def _parse_cell(table_path, line, col, cell):
-    cell = _clean(cell)
+    cell = unquoted(cell)
     if col.role == "complex":
         text = _complex_text(cell)
         if _CPLX.fullmatch(text):
@@ -418,11 +414,11 @@ def _decimal_commas(rows, sep):
 def _units_row(first, rows, split):
     """Header cells and rows with a second header line of units (``Hz  dB  deg``, as some
     acquisition software writes) merged into the header as ``name [unit]``."""
-    units = [_clean(c).strip("[]()").strip().lower() for c in split(rows[1][1])]
+    units = [unquoted(c).strip("[]()").strip().lower() for c in split(rows[1][1])]
     if len(units) != len(first) or not all(u in _UNITS or u == "-" for u in units) \
             or all(u in ("", "-") for u in units):
         return first, rows
-    named = [c if u in ("", "-") else f"{_clean(c)} [{u}]" for c, u in zip(first, units)]
+    named = [c if u in ("", "-") else f"{unquoted(c)} [{u}]" for c, u in zip(first, units)]
     return named, rows[:1] + rows[2:]
 
 
@@ -470,7 +466,7 @@ def _header_at(text, sep, ncols):
         if how is not None and how not in text:
             continue
         cells = _splitter(how)(text)
-        cols = one_layout([recognise(_clean(c)) or Column("skip", None, _clean(c))
+        cols = one_layout([recognise(unquoted(c)) or Column("skip", None, unquoted(c))
                            for c in cells])      # (names it does not know: see _known_layout)
         if len(cells) == ncols and [c.role for c in cols].count("freq") == 1 \
                 and not _layout_problem(cols):
@@ -494,7 +490,7 @@ def _with_units(cells, between):
             continue
         tokens = _unit_tokens(text)
         if len(tokens) == len(cells):        # each column's unit under it
-            units = [_FREQ_UNITS.get(t, "") if getattr(recognise(_clean(c)), "role", None)
+            units = [_FREQ_UNITS.get(t, "") if getattr(recognise(unquoted(c)), "role", None)
                      == "freq" else t if _UNITS.get(t) in ("db", "deg", "rad") else ""
                      for c, t in zip(cells, tokens)]
         elif tokens[0] in _FREQ_UNITS:
@@ -503,15 +499,15 @@ def _with_units(cells, between):
             continue
         out = []
         for cell, unit in zip(cells, units):
-            col = recognise(_clean(cell))
+            col = recognise(unquoted(cell))
             if col is None:                  # a column of a name the reader does not know
-                out.append(_clean(cell))
+                out.append(unquoted(cell))
                 continue
             has = col.unit is not None and col.role in ("freq", "phase") or (
                 col.role == "mag" and _UNIT_IN.search(cell))
-            out.append(f"{_clean(cell)} [{unit}]" if unit and not has else _clean(cell))
+            out.append(f"{unquoted(cell)} [{unit}]" if unit and not has else unquoted(cell))
         return out
-    return [_clean(c) for c in cells]
+    return [unquoted(c) for c in cells]
 
 
 _UNIT_IN = re.compile(r"db|[\[(]", re.IGNORECASE)
@@ -565,9 +561,10 @@ _END = re.compile(r"^\s*(?:\[.*\]|\**\s*end(?:offile)?\b.*"
 
 
 def _one_run(path, rows, record):
-    """``rows`` of one run of an LTspice export with ``.step`` runs (a ``Step Information:
-    Hu=40 T=0  (Step: 1/2)`` line before each): run ``record`` (0-based; the only one when
-    None). ``rows`` unchanged when it has no such line.
+    """``(rows, True)``: the rows of one run of an LTspice export with ``.step`` runs (a
+    ``Step Information: Hu=40 T=0  (Step: 1/2)`` line before each), run ``record`` (0-based;
+    the only one when None); ``(rows, False)`` unchanged when it has no such line (a
+    ``record`` is then a sweep's, :func:`~freqid_casadi.io._sweeps.one_sweep`).
 
     Raises
     ------
@@ -579,8 +576,8 @@ def _one_run(path, rows, record):
     # (only LTspice writes them, below its header 'Freq.': other files are not scanned)
     ltspice = rows[0][1].lstrip().startswith("Freq.")
     marks = [k for k, (_, text) in enumerate(rows) if ltspice and _LT_STEP.match(text)]
-    if not marks:                   # (a record of a table of several sweeps: one_sweep)
-        return rows
+    if not marks:
+        return rows, False
     runs = [rows[a + 1:b] for a, b in zip(marks, marks[1:] + [len(rows)])]
     names = [_LT_STEP.match(rows[k][1]).group(1) or f"run {j + 1}" for j, k in enumerate(marks)]
     if record is None and len(runs) > 1:
@@ -592,7 +589,7 @@ def _one_run(path, rows, record):
     if isinstance(k, bool) or not isinstance(k, int) or not 0 <= k < len(runs):
         raise OptionError(f"record={record!r} is out of range: {path!r} holds {len(runs)} "
                           f"run(s), numbered 0..{len(runs) - 1}")
-    return rows[:marks[0]] + runs[k]
+    return rows[:marks[0]] + runs[k], True
 
 
 #: Most closing lines after the data that :func:`_footer` drops (a Brüel & Kjær PULSE
@@ -661,10 +658,8 @@ def _note_units(path, between, cells):
 
 def read_table(path, payload, columns, freq_unit, max_rows, parameter=None, record=None):
     """Parse delimited UTF-8 text into a :class:`Table` (see ``loaders.load_text``)."""
-    rows = _tab_led_tables(_content(path, decode_text(path, payload), max_rows))
-    ltspice_runs = rows[0][1].lstrip().startswith("Freq.") and any(
-        _LT_STEP.match(text) for _, text in rows)
-    rows = _one_run(path, rows, record)
+    rows, ltspice_runs = _one_run(
+        path, _tab_led_tables(_content(path, decode_text(path, payload), max_rows)), record)
     rows = _footer(path, _preamble(path, rows, columns))
     sep = _separator(rows[0][1])
     rows = _decimal_commas(rows, sep)
@@ -686,17 +681,13 @@ def read_table(path, payload, columns, freq_unit, max_rows, parameter=None, reco
         if not rows:
             raise DataError(f"{path!r} has a header but no data rows")
     cols = _resolve_units(path, cols, freq_unit,
-                          ",".join(_clean(c) for c in first) if header else None)
+                          ",".join(unquoted(c) for c in first) if header else None)
     fast = _fast_values(rows, cols, sep)
     if fast is not None:
         values = {c.role: fast[:, j] for j, c in enumerate(cols)}
     else:
         values = _slow_values(path, rows, cols, split)
-    for c in cols:                  # "-Im(Z)", "-Phase": the file holds minus the value
-        if c.negated:
-            values[c.role] = -values[c.role]
-        if c.scale != 1.0:          # "Freq [MHz]"
-            values[c.role] = values[c.role] * c.scale
+    values = written_values(cols, values)           # "-Im(Z)", "Freq [MHz]"
     values, rows = one_sweep(path, values, rows, None if ltspice_runs else record)
     dc = values["freq"] == 0      # rows at 0 Hz are dropped later (a DataWarning); their
     for role, v in values.items():  # response, often -inf dB or NaN there, is not checked
@@ -755,7 +746,7 @@ def _second_block(path, rows, k):
     start = _data_start(rows[k:])
     if start is None or len(_row_cells(rows[k + start][1])) != len(_row_cells(rows[0][1])):
         return
-    if start == 1 and None in [recognise(_clean(c)) for c in _row_cells(rows[k][1])]:
+    if start == 1 and None in [recognise(unquoted(c)) for c in _row_cells(rows[k][1])]:
         return
     blocks = 1 + sum(text == rows[k][1] for _, text in rows[k:])
     trace = ("; the analyser writes each trace as its own block: export one trace in a "

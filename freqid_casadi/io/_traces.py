@@ -18,10 +18,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ._columns import Column, recognise
+from ._columns import Column, recognise, unquoted
 from ._readfile import DataWarning
 from ._decode import decode_text
-from ._table import NUMBER, Table, _clean, _lines, _row_cells, shown_cell
+from ._table import NUMBER, Table, _lines, _row_cells, shown_cell
 from ..errors import DataError, OptionError
 
 __all__ = ["read_traces", "is_trace_export"]
@@ -196,14 +196,14 @@ def _blocks(path, text):
     blocks, meta, k = [], [], 0
     while k < len(lines):
         raw = lines[k].strip()
-        cells = [_clean(c) for c in _row_cells(raw)] if raw else []
+        cells = [unquoted(c) for c in _row_cells(raw)] if raw else []
         low = [c.lower() for c in cells]
         if "data trace real" in low and "data trace imag" in low:
             block, k = _block(path, lines, k, cells, meta, len(blocks))
             blocks.append(block)
             meta = []
             continue
-        m = _KEY.match(_clean(raw)) if raw else None
+        m = _KEY.match(unquoted(raw)) if raw else None
         if m:
             meta.append((k + 1, m.group(1).strip().lower(), m.group(2).strip()))
         k += 1
@@ -222,7 +222,7 @@ def _block(path, lines, h, cells, meta, index):
     while k < len(lines):
         raw = lines[k].strip()
         row = _row_cells(raw) if raw else []
-        if len(row) != len(cells) or not NUMBER.fullmatch(_clean(row[0])):
+        if len(row) != len(cells) or not NUMBER.fullmatch(unquoted(row[0])):
             if raw or rows:
                 break
             k += 1
@@ -238,7 +238,7 @@ def _block(path, lines, h, cells, meta, index):
 
 
 def _number(path, line, label, cell):
-    cell = _clean(cell)
+    cell = unquoted(cell)
     if not NUMBER.fullmatch(cell):
         raise DataError(f"{path!r} line {line}, column {label!r}: {shown_cell(cell)} is not "
                         "a number")
